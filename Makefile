@@ -1,0 +1,82 @@
+# qogi: `make demo` and `make test` do all set-up on a fresh Debian machine
+# (system packages, .venv, the package built and installed), then their job.
+# Stamp files under build/stamps keep a second run from redoing set-up; any
+# changed C++/CMake source triggers an incremental rebuild of build/cmake.
+
+SHELL      := /bin/bash
+PYTHON     ?= python3
+VENV       := .venv
+VPY        := $(VENV)/bin/python
+BUILD      := build/cmake
+INSTALL    := build/install
+STAMPS     := build/stamps
+JOBS       ?= $(shell nproc 2>/dev/null || echo 2)
+export CMAKE_BUILD_PARALLEL_LEVEL := $(JOBS)
+
+ENGINE_SOURCES := $(shell find cpp cmake -type f 2>/dev/null) CMakeLists.txt pyproject.toml
+CONSUMER_SOURCES := $(shell find examples/cpp_consumer -type f 2>/dev/null)
+
+.PHONY: all setup build demo test test-cpp test-python consumer bench gui clean distclean
+
+all: build
+
+setup: $(STAMPS)/pydeps
+
+$(STAMPS):
+	@mkdir -p $@
+
+$(STAMPS)/system: scripts/setup_system.sh | $(STAMPS)
+	PYTHON=$(PYTHON) scripts/setup_system.sh
+	@touch $@
+
+$(VPY): | $(STAMPS)/system
+	$(PYTHON) -m venv $(VENV)
+
+$(STAMPS)/pydeps: $(STAMPS)/system requirements/dev.txt requirements/constraints.txt | $(VPY)
+	$(VPY) -m pip install -q --upgrade pip
+	$(VPY) -m pip install -q -r requirements/dev.txt -c requirements/constraints.txt
+	@touch $@
+
+# The package in editable mode: Python sources are used in place; the
+# extension and the C++ tests are built in $(BUILD) (incrementally).
+$(STAMPS)/built: $(STAMPS)/pydeps $(ENGINE_SOURCES)
+	$(VPY) -m pip install -q --no-build-isolation --no-deps -e . \
+	  -Cbuild-dir=$(BUILD) -Ccmake.define.QOGI_BUILD_TESTS=ON
+	@touch $@
+
+build: $(STAMPS)/built
+
+demo: $(STAMPS)/built
+	$(VENV)/bin/qogi demo
+
+test: test-cpp consumer test-python
+
+test-cpp: $(STAMPS)/built
+	$(VENV)/bin/ctest --test-dir $(BUILD) --output-on-failure -j $(JOBS)
+
+# The installed C++ package, and a vendor-style app built against it.
+$(STAMPS)/consumer: $(STAMPS)/built $(CONSUMER_SOURCES)
+	rm -rf $(INSTALL) build/consumer
+	$(VENV)/bin/cmake --install $(BUILD) --prefix $(INSTALL) --component dev
+	$(VENV)/bin/cmake -S examples/cpp_consumer -B build/consumer -G Ninja \
+	  -DCMAKE_PREFIX_PATH=$(abspath $(INSTALL)) -DCMAKE_BUILD_TYPE=Release
+	$(VENV)/bin/cmake --build build/consumer
+	@touch $@
+
+consumer: $(STAMPS)/consumer
+	build/consumer/qogi_consumer
+
+test-python: $(STAMPS)/built
+	$(VPY) -m pytest -q
+
+bench: $(STAMPS)/built
+	$(VPY) benchmarks/run_all.py
+
+gui: $(STAMPS)/built
+	$(VENV)/bin/qogi gui
+
+clean:
+	rm -rf build
+
+distclean: clean
+	rm -rf $(VENV)

@@ -1,0 +1,14 @@
+// qogi._engine: the C++ engine seen from Python. Each engine module has one
+// Bind<Module>() in a file named after it.
+#include "common.h"
+
+namespace qogi {
+void BindUtil(py::module_& m);
+void BindOptics(py::module_& m);
+}  // namespace qogi
+
+PYBIND11_MODULE(_engine, m) {
+  m.doc() = "qogi C++ engine (use the public API in the `qogi` package)";
+  qogi::BindUtil(m);
+  qogi::BindOptics(m);
+}

@@ -1,0 +1,126 @@
+// Bindings of engine/optics: Planck and SpectralResponse.
+#include "common.h"
+
+#include "engine/optics/planck.h"
+#include "engine/optics/spectral_response.h"
+
+namespace qogi {
+namespace {
+
+// Applies fn elementwise over a flat float64 array with the GIL released.
+template <typename Fn>
+py::array_t<double> Map(const DoubleArray& in, Fn fn) {
+  py::array_t<double> out(in.size());
+  const double* src = in.data();
+  double* dst = out.mutable_data();
+  const std::size_t n = static_cast<std::size_t>(in.size());
+  {
+    py::gil_scoped_release release;
+    ParallelFor(n, 8192, [&](std::size_t b, std::size_t e) {
+      for (std::size_t i = b; i < e; ++i) dst[i] = fn(src[i]);
+    });
+  }
+  return out;
+}
+
+}  // namespace
+
+void BindOptics(py::module_& m) {
+  m.attr("C1") = constants::kC1;
+  m.attr("C2") = constants::kC2;
+  m.attr("WIEN_NU") = constants::kWienNu;
+
+  m.def("planck_radiance",
+        [](const DoubleArray& nu, const DoubleArray& t) {
+          CheckNdim(nu, 1, "nu_cm1");
+          CheckNdim(t, 1, "temperature_K");
+          CheckSameLength(nu.size(), t.size(), "nu_cm1", "temperature_K");
+          py::array_t<double> out(nu.size());
+          const double *pn = nu.data(), *pt = t.data();
+          double* po = out.mutable_data();
+          const std::size_t n = static_cast<std::size_t>(nu.size());
+          py::gil_scoped_release release;
+          ParallelFor(n, 8192, [&](std::size_t b, std::size_t e) {
+            PlanckRadiance(pn + b, pt + b, po + b, e - b);
+          });
+          return out;
+        },
+        py::arg("nu_cm1"), py::arg("temperature_K"),
+        "Planck spectral radiance B(nu, T) [W/(m2 sr cm-1)] over equal-length "
+        "1-D arrays (use qogi.planck_radiance for broadcasting).");
+
+  m.def("planck_radiance_derivative",
+        [](const DoubleArray& nu, const DoubleArray& t) {
+          CheckNdim(nu, 1, "nu_cm1");
+          CheckNdim(t, 1, "temperature_K");
+          CheckSameLength(nu.size(), t.size(), "nu_cm1", "temperature_K");
+          py::array_t<double> out(nu.size());
+          const double *pn = nu.data(), *pt = t.data();
+          double* po = out.mutable_data();
+          const std::size_t n = static_cast<std::size_t>(nu.size());
+          py::gil_scoped_release release;
+          ParallelFor(n, 8192, [&](std::size_t b, std::size_t e) {
+            for (std::size_t i = b; i < e; ++i)
+              po[i] = PlanckRadianceDerivative(pn[i], pt[i]);
+          });
+          return out;
+        },
+        py::arg("nu_cm1"), py::arg("temperature_K"),
+        "dB/dT [W/(m2 sr cm-1 K)] over equal-length 1-D arrays.");
+
+  py::class_<SpectralResponse>(m, "SpectralResponse", R"doc(
+A channel's spectral response (filter x lens x detector), piecewise linear
+between samples and zero outside them.
+
+Parameters
+----------
+nu_cm1 : array of float, cm-1
+    Strictly increasing wavenumbers, finite and >= 0, at least 2.
+response : array of float, dimensionless
+    Same length, finite and >= 0, not all zero.
+name : str
+    Channel name shown in tables and plots.
+)doc")
+      .def(py::init([](const DoubleArray& nu, const DoubleArray& r, std::string name) {
+             CheckNdim(nu, 1, "nu_cm1");
+             CheckNdim(r, 1, "response");
+             return SpectralResponse(
+                 std::vector<double>(nu.data(), nu.data() + nu.size()),
+                 std::vector<double>(r.data(), r.data() + r.size()), std::move(name));
+           }),
+           py::arg("nu_cm1"), py::arg("response"), py::arg("name") = "")
+      .def_property_readonly("name", &SpectralResponse::name)
+      .def_property_readonly("nu_cm1", [](const SpectralResponse& s) {
+        return py::array_t<double>(s.nu_cm1().size(), s.nu_cm1().data());
+      }, "Wavenumber samples [cm-1] (a copy).")
+      .def_property_readonly("response", [](const SpectralResponse& s) {
+        return py::array_t<double>(s.response().size(), s.response().data());
+      }, "Response samples [dimensionless] (a copy).")
+      .def_property_readonly("integral_cm1", &SpectralResponse::Integral,
+                             "Integral of the response over wavenumber [cm-1].")
+      .def_property_readonly("centroid_cm1", &SpectralResponse::CentroidWavenumber,
+                             "Response-weighted mean wavenumber [cm-1].")
+      .def("_evaluate", [](const SpectralResponse& s, const DoubleArray& nu) {
+        return Map(nu, [&](double x) { return s.Evaluate(x); });
+      })
+      .def("_band_radiance", [](const SpectralResponse& s, const DoubleArray& t) {
+        return Map(t, [&](double x) { return s.BandRadiance(x); });
+      })
+      .def("_band_radiance_derivative", [](const SpectralResponse& s, const DoubleArray& t) {
+        return Map(t, [&](double x) { return s.BandRadianceDerivative(x); });
+      })
+      .def("_radiometric_temperature", [](const SpectralResponse& s, const DoubleArray& l) {
+        return Map(l, [&](double x) { return s.RadiometricTemperature(x); });
+      })
+      .def(py::pickle(
+          [](const SpectralResponse& s) {
+            return py::make_tuple(s.nu_cm1(), s.response(), s.name());
+          },
+          [](py::tuple t) {
+            return SpectralResponse(t[0].cast<std::vector<double>>(),
+                                    t[1].cast<std::vector<double>>(),
+                                    t[2].cast<std::string>());
+          }));
+}
+
+}  // namespace qogi

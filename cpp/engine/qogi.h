@@ -1,0 +1,8 @@
+// Umbrella header of the qogi C++ engine: `#include <engine/qogi.h>` after
+// `find_package(qogi)` and linking `qogi::engine`.
+#pragma once
+
+#include "engine/optics/planck.h"
+#include "engine/optics/spectral_response.h"
+#include "engine/util/check.h"
+#include "engine/util/parallel.h"
