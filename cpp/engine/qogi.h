@@ -2,6 +2,7 @@
 // `find_package(qogi)` and linking `qogi::engine`.
 #pragma once
 
+#include "engine/io/jpegls.h"
 #include "engine/optics/planck.h"
 #include "engine/optics/spectral_response.h"
 #include "engine/util/check.h"
