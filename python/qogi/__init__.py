@@ -11,10 +11,20 @@ package is the public API.
 
 from ._version import __version__
 from .optics import SpectralResponse, planck_radiance, planck_radiance_derivative
+from .recording import (Camera, Recording, RecordingError, RecordingWriter, Scene, Truth,
+                        open_recording, write_recording)
 
 __all__ = [
     "__version__",
     "SpectralResponse",
     "planck_radiance",
     "planck_radiance_derivative",
+    "Camera",
+    "Recording",
+    "RecordingError",
+    "RecordingWriter",
+    "Scene",
+    "Truth",
+    "open_recording",
+    "write_recording",
 ]

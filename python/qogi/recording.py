@@ -1,0 +1,1111 @@
+"""Recordings: radiometric video of a scene, with its camera and scene metadata.
+
+A :class:`Recording` is the interchange object between cameras, the synthetic
+generator, the API, the CLI and the viewer. On disk it is one HDF5 file laid
+out as the recording contract (``docs/recording.md``, ../shared/DESIGN.md):
+
+==========================  ====================================================
+``/`` attrs                 ``format="qogi-recording"``, ``version=1``
+``/frames``                 float32 (T, C, H, W), attr ``quantity`` =
+                            ``"radiance"`` [W/(m2 sr)] or
+                            ``"radiometric_temperature"`` [K]
+``/time_s``                 float64 (T,), strictly increasing frame times [s]
+``/camera`` attrs           ``name``, ``ifov_rad``, ``frame_rate_hz``,
+                            optional ``netd_K``
+``/camera/channels/<k>``    datasets ``wavenumber_cm1``, ``response``; attr
+                            ``name`` (k = 0 .. C-1)
+``/scene`` attrs            ``distance_m``, ``ambient_temperature_K``,
+                            ``pressure_Pa``; optional ``wind_speed_m_s``,
+                            ``gas_temperature_K``, ``background_temperature_K``,
+                            ``species``
+``/truth`` (synthetic)      attrs ``emission_rate_kg_s_<SPECIES>``; optional
+                            datasets
+==========================  ====================================================
+
+:func:`open_recording` validates everything before returning (and by default
+scans every frame for NaN/inf, streaming, without holding the video in
+memory); frames are then read lazily, per frame or per range.
+:class:`RecordingWriter` appends frames one by one, for generators.
+
+Band radiance and radiometric temperature are converted into each other
+through each channel's response (:mod:`qogi.radiometry`), so any reader can
+ask for the quantity it needs whatever the file stores.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from dataclasses import dataclass, field
+from typing import Dict, Iterator, List, Mapping, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from .optics import SpectralResponse
+from .radiometry import band_table
+
+__all__ = [
+    "FORMAT", "VERSION", "QUANTITIES", "RANGES", "FRAME_RATE_TOLERANCE",
+    "RecordingError", "Camera", "Scene", "Truth", "Recording", "RecordingWriter",
+    "open_recording", "write_recording",
+]
+
+FORMAT = "qogi-recording"
+VERSION = 1
+#: Frame quantities and their units.
+QUANTITIES = {"radiance": "W/(m2 sr)", "radiometric_temperature": "K"}
+#: Accepted closed ranges [low, high] of scalar metadata (a value must be
+#: finite; "low" is exclusive where marked by the error message). One table so
+#: that the docs, the checks and the messages agree.
+RANGES = {
+    "camera.ifov_rad": (0.0, 0.1, "rad", "exclusive_low"),
+    "camera.frame_rate_hz": (0.0, 1e5, "Hz", "exclusive_low"),
+    "camera.netd_K": (0.0, 10.0, "K", "exclusive_low"),
+    "scene.distance_m": (0.0, 1e5, "m", "exclusive_low"),
+    "scene.ambient_temperature_K": (180.0, 350.0, "K", ""),
+    "scene.pressure_Pa": (3.0e4, 1.1e5, "Pa", ""),
+    "scene.wind_speed_m_s": (0.0, 100.0, "m/s", ""),
+    "scene.gas_temperature_K": (150.0, 2500.0, "K", ""),
+    "scene.background_temperature_K": (10.0, 2500.0, "K", ""),
+    "truth.emission_rate_kg_s": (0.0, 1e6, "kg/s", ""),
+}
+#: /camera frame_rate_hz must match 1 / median(diff(time_s)) within this
+#: relative tolerance, or opening fails: time_s is what the pipeline uses, and
+#: a file whose two clocks disagree by more is ambiguous.
+FRAME_RATE_TOLERANCE = 0.01
+
+_SPECIES_RE = re.compile(r"^[A-Za-z][A-Za-z0-9]*$")
+_MEMORY = "<in memory>"
+
+
+class RecordingError(ValueError):
+    """A recording that does not follow the contract.
+
+    The message names the file, the dataset or attribute, the offending value,
+    the expected form and how to fix it. The parts are also attributes:
+    ``path``, ``location``, ``problem``, ``fix``.
+    """
+
+    def __init__(self, path: str, location: str, problem: str, fix: str = ""):
+        self.path, self.location, self.problem, self.fix = path, location, problem, fix
+        msg = f"{path}: {location}: {problem}"
+        if fix:
+            msg += f". Fix: {fix}"
+        super().__init__(msg)
+
+
+def _check_range(key: str, value, path: str, location: str, fix: str = "") -> float:
+    lo, hi, unit, mode = RANGES[key]
+    name = key.split(".", 1)[1]
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise RecordingError(path, location, f"{name} must be a number [{unit}]; got {value!r}",
+                             fix) from None
+    low_ok = v > lo if mode == "exclusive_low" else v >= lo
+    if not (math.isfinite(v) and low_ok and v <= hi):
+        interval = f"({lo:g}, {hi:g}]" if mode == "exclusive_low" else f"[{lo:g}, {hi:g}]"
+        raise RecordingError(path, location,
+                             f"{name} = {v!r} {unit} is outside the accepted range "
+                             f"{interval} {unit}", fix)
+    return v
+
+
+# --------------------------------------------------------------------------- metadata
+
+@dataclass
+class Camera:
+    """The camera: name, geometry, timing and one spectral response per channel.
+
+    Attributes
+    ----------
+    name : str
+        Camera model or identifier.
+    ifov_rad : float, rad
+        Instantaneous field of view of one pixel (its angular size), in
+        (0, 0.1].
+    channels : list of SpectralResponse
+        One response (filter x lens x detector) per frame channel, in order.
+    frame_rate_hz : float or None, Hz
+        Nominal frame rate. ``None`` only while building a recording: it is
+        then taken from the median frame interval of ``time_s``.
+    netd_K : float or None, K
+        Noise-equivalent temperature difference, optional, in (0, 10].
+    """
+
+    name: str
+    ifov_rad: float
+    channels: List[SpectralResponse]
+    frame_rate_hz: Optional[float] = None
+    netd_K: Optional[float] = None
+
+    def validate(self, path: str = _MEMORY) -> None:
+        """Raise :class:`RecordingError` unless every field is in range."""
+        if not isinstance(self.name, str):
+            raise RecordingError(path, "/camera attr name",
+                                 f"must be a string; got {self.name!r}")
+        _check_range("camera.ifov_rad", self.ifov_rad, path, "/camera attr ifov_rad",
+                      "give the angular size of one pixel in radians "
+                      "(horizontal field of view / pixels across)")
+        if self.frame_rate_hz is not None:
+            _check_range("camera.frame_rate_hz", self.frame_rate_hz, path,
+                         "/camera attr frame_rate_hz")
+        if self.netd_K is not None:
+            _check_range("camera.netd_K", self.netd_K, path, "/camera attr netd_K")
+        if len(self.channels) == 0:
+            raise RecordingError(path, "/camera/channels", "no channel response",
+                                 "give one qogi.SpectralResponse per frame channel")
+        for k, ch in enumerate(self.channels):
+            if not isinstance(ch, SpectralResponse):
+                raise RecordingError(path, f"/camera/channels/{k}",
+                                     f"must be a qogi.SpectralResponse; got {type(ch).__name__}",
+                                     "build it with qogi.SpectralResponse(nu_cm1, response, "
+                                     "name) or SpectralResponse.from_csv(path)")
+
+
+@dataclass
+class Scene:
+    """Where and in what conditions the video was taken.
+
+    Attributes
+    ----------
+    distance_m : float, m
+        Camera-to-plume distance, in (0, 1e5].
+    ambient_temperature_K : float, K
+        Ambient air temperature, in [180, 350].
+    pressure_Pa : float, Pa
+        Ambient pressure, in [3e4, 1.1e5].
+    wind_speed_m_s : float or None, m/s
+        Optional, in [0, 100].
+    gas_temperature_K : float or None, K
+        Optional, in [150, 2500].
+    background_temperature_K : float or None, K
+        Optional (radiometric temperature of the background), in [10, 2500].
+    species : tuple of str
+        Gas species expected in the plume (HITRAN names, e.g. ``("CH4",)``).
+    """
+
+    distance_m: float
+    ambient_temperature_K: float
+    pressure_Pa: float
+    wind_speed_m_s: Optional[float] = None
+    gas_temperature_K: Optional[float] = None
+    background_temperature_K: Optional[float] = None
+    species: Tuple[str, ...] = ()
+
+    def validate(self, path: str = _MEMORY) -> None:
+        """Raise :class:`RecordingError` unless every field is in range."""
+        for name in ("distance_m", "ambient_temperature_K", "pressure_Pa"):
+            _check_range(f"scene.{name}", getattr(self, name), path, f"/scene attr {name}")
+        for name in ("wind_speed_m_s", "gas_temperature_K", "background_temperature_K"):
+            v = getattr(self, name)
+            if v is not None:
+                _check_range(f"scene.{name}", v, path, f"/scene attr {name}")
+        for s in self.species:
+            if not isinstance(s, str) or not _SPECIES_RE.match(s):
+                raise RecordingError(path, "/scene attr species",
+                                     f"species name {s!r} is not a molecule name",
+                                     "use HITRAN molecule names such as CH4, CO2, C2H6")
+
+
+@dataclass
+class Truth:
+    """Ground truth of a synthetic recording.
+
+    Attributes
+    ----------
+    emission_rate_kg_s : dict of str -> float, kg/s
+        True emission rate per species.
+    datasets : dict of str -> array
+        Optional arrays (e.g. column density maps). For a recording opened
+        from a file these are h5py datasets, read lazily (slice them or pass
+        them to ``np.asarray``).
+    attrs : dict
+        Any other attributes of ``/truth``.
+    """
+
+    emission_rate_kg_s: Dict[str, float] = field(default_factory=dict)
+    datasets: Dict[str, object] = field(default_factory=dict)
+    attrs: Dict[str, object] = field(default_factory=dict)
+
+    def validate(self, path: str = _MEMORY) -> None:
+        for sp, rate in self.emission_rate_kg_s.items():
+            if not _SPECIES_RE.match(str(sp)):
+                raise RecordingError(path, f"/truth attr emission_rate_kg_s_{sp}",
+                                     f"species name {sp!r} is not a molecule name")
+            _check_range("truth.emission_rate_kg_s", rate, path,
+                         f"/truth attr emission_rate_kg_s_{sp}")
+
+
+# --------------------------------------------------------------------------- frames
+
+def _first_nonfinite(block: np.ndarray) -> Tuple[int, ...]:
+    return tuple(int(v) for v in np.argwhere(~np.isfinite(block))[0])
+
+
+class Recording:
+    """Radiometric video with its camera, scene and (for synthetic data) truth.
+
+    Do not call the constructor: use :func:`open_recording` (a file, read
+    lazily), :meth:`from_arrays` (numpy arrays) or a reader in :mod:`qogi.io`.
+
+    Frames are (C, H, W) float32 images, one per time in :attr:`time_s`; the
+    stored :attr:`quantity` is ``"radiance"`` [W/(m2 sr)] or
+    ``"radiometric_temperature"`` [K]. Every frame accessor takes
+    ``quantity=`` to convert through the channel responses on the fly.
+
+    Invalid pixels: with ``nonfinite="invalid"`` (see :func:`open_recording`)
+    NaN/inf pixels are returned as NaN and counted in :attr:`n_invalid`;
+    with the default ``"error"`` a recording containing any is refused.
+    """
+
+    def __init__(self, *, source, time_s: np.ndarray, quantity: str, camera: Camera,
+                 scene: Scene, truth: Optional[Truth], path: str, nonfinite: str,
+                 h5file=None, attrs: Optional[dict] = None):
+        self._source = source              # ndarray or h5py.Dataset, (T, C, H, W)
+        self._h5 = h5file
+        self.time_s = time_s
+        self.quantity = quantity
+        self.camera = camera
+        self.scene = scene
+        self.truth = truth
+        self.path = path
+        self.nonfinite = nonfinite
+        self.attrs = dict(attrs or {})
+        #: Number of non-finite (invalid) pixel values found by the scan on
+        #: open, or None if the frames were not scanned.
+        self.n_invalid: Optional[int] = None
+
+    # ----------------------------------------------------------------- construction
+    @classmethod
+    def from_arrays(cls, frames, time_s=None, *, quantity: str, camera: Camera, scene: Scene,
+                    truth: Optional[Truth] = None, nonfinite: str = "error") -> "Recording":
+        """Build a recording in memory from numpy arrays.
+
+        Parameters
+        ----------
+        frames : array (T, C, H, W), or (T, H, W) for one channel
+            Band radiance [W/(m2 sr)] or radiometric temperature [K]; stored
+            as float32.
+        time_s : array (T,), s, optional
+            Strictly increasing frame times. Default: ``arange(T) /
+            camera.frame_rate_hz``.
+        quantity : {"radiance", "radiometric_temperature"}
+        camera : Camera
+            With one channel response per frame channel.
+            ``camera.frame_rate_hz=None`` takes it from ``time_s``.
+        scene : Scene
+        truth : Truth, optional
+        nonfinite : {"error", "invalid"}
+            What NaN/inf pixels are: an error (default) or invalid pixels.
+
+        Raises
+        ------
+        RecordingError
+            Naming the problem and the fix, as :func:`open_recording`.
+        """
+        a = np.asarray(frames)
+        if a.ndim == 3:
+            a = a[:, None]
+        if not (np.issubdtype(a.dtype, np.floating) or np.issubdtype(a.dtype, np.integer)):
+            raise RecordingError(_MEMORY, "frames", f"dtype {a.dtype} is not numeric",
+                                 "pass band radiance or radiometric temperature as numbers")
+        a = np.ascontiguousarray(a, dtype=np.float32)
+        if a.ndim != 4:
+            raise RecordingError(_MEMORY, "frames",
+                                 f"expected shape (T, C, H, W) or (T, H, W); got {a.shape}",
+                                 "stack frames as (time, channel, height, width)")
+        if time_s is None:
+            if camera.frame_rate_hz is None:
+                raise RecordingError(_MEMORY, "time_s",
+                                     "neither time_s nor camera.frame_rate_hz was given",
+                                     "pass time_s (s) or set camera.frame_rate_hz")
+            _check_range("camera.frame_rate_hz", camera.frame_rate_hz, _MEMORY,
+                         "camera.frame_rate_hz")
+            time_s = np.arange(a.shape[0], dtype=np.float64) / float(camera.frame_rate_hz)
+        t = np.asarray(time_s, dtype=np.float64)
+        cam = Camera(camera.name, camera.ifov_rad, list(camera.channels), camera.frame_rate_hz,
+                     camera.netd_K)
+        _validate_time(_MEMORY, t, a.shape[0], "time_s")
+        if cam.frame_rate_hz is None:
+            cam.frame_rate_hz = _frame_rate_from_times(t)
+        rec = cls(source=a, time_s=t, quantity=quantity, camera=cam, scene=scene,
+                  truth=truth, path=_MEMORY, nonfinite=nonfinite)
+        rec._validate_metadata()
+        rec._scan_frames()
+        return rec
+
+    # ----------------------------------------------------------------- shape
+    @property
+    def shape(self) -> Tuple[int, int, int, int]:
+        """(T, C, H, W)."""
+        return tuple(int(s) for s in self._source.shape)
+
+    @property
+    def n_frames(self) -> int:
+        return self.shape[0]
+
+    @property
+    def n_channels(self) -> int:
+        return self.shape[1]
+
+    @property
+    def height(self) -> int:
+        return self.shape[2]
+
+    @property
+    def width(self) -> int:
+        return self.shape[3]
+
+    @property
+    def channels(self) -> List[SpectralResponse]:
+        """The camera's channel responses (``camera.channels``)."""
+        return self.camera.channels
+
+    @property
+    def unit(self) -> str:
+        """Unit of the stored quantity."""
+        return QUANTITIES[self.quantity]
+
+    @property
+    def duration_s(self) -> float:
+        """Time from the first to the last frame plus one frame interval [s]."""
+        if self.n_frames == 0:
+            return 0.0
+        return float(self.time_s[-1] - self.time_s[0]) + 1.0 / float(self.camera.frame_rate_hz)
+
+    @property
+    def in_memory(self) -> bool:
+        return isinstance(self._source, np.ndarray)
+
+    def __len__(self) -> int:
+        return self.n_frames
+
+    def __repr__(self) -> str:
+        t, c, h, w = self.shape
+        return (f"Recording({self.path!r}, {t} frames x {c} channels x {h}x{w}, "
+                f"{self.quantity} [{self.unit}], {self.camera.frame_rate_hz:g} Hz)")
+
+    # ----------------------------------------------------------------- frames
+    def frames(self, start: int = 0, stop: Optional[int] = None,
+               quantity: Optional[str] = None) -> np.ndarray:
+        """Frames ``start:stop`` as a float32 array (n, C, H, W).
+
+        ``quantity`` (default: the stored one) converts through the channel
+        responses: ``"radiance"`` [W/(m2 sr)] or ``"radiometric_temperature"`` [K].
+        """
+        n = self.n_frames
+        stop = n if stop is None else stop
+        if not (0 <= start <= stop <= n):
+            raise IndexError(f"frame range {start}:{stop} is outside 0:{n}")
+        block = np.asarray(self._source[start:stop], dtype=np.float32)
+        block = self._apply_nonfinite(block, start)
+        return self._convert(block, quantity)
+
+    def frame(self, index: int, quantity: Optional[str] = None) -> np.ndarray:
+        """Frame ``index`` (negative counts from the end) as float32 (C, H, W)."""
+        n = self.n_frames
+        i = index + n if index < 0 else index
+        if not 0 <= i < n:
+            raise IndexError(f"frame {index} is outside 0..{n - 1}")
+        return self.frames(i, i + 1, quantity)[0]
+
+    def __iter__(self) -> Iterator[np.ndarray]:
+        return self.iter_frames()
+
+    def iter_frames(self, start: int = 0, stop: Optional[int] = None,
+                    quantity: Optional[str] = None) -> Iterator[np.ndarray]:
+        """Yield frames one by one, (C, H, W) float32, reading each when needed."""
+        stop = self.n_frames if stop is None else stop
+        for i in range(start, stop):
+            yield self.frames(i, i + 1, quantity)[0]
+
+    def iter_batches(self, batch_size: int, quantity: Optional[str] = None
+                     ) -> Iterator[Tuple[int, np.ndarray]]:
+        """Yield ``(start, frames)`` blocks of up to ``batch_size`` frames."""
+        if int(batch_size) < 1:
+            raise ValueError(f"batch_size must be >= 1; got {batch_size}")
+        for s in range(0, self.n_frames, int(batch_size)):
+            yield s, self.frames(s, min(s + int(batch_size), self.n_frames), quantity)
+
+    def to_array(self, quantity: Optional[str] = None) -> np.ndarray:
+        """All frames as one float32 array (T, C, H, W) (loads the whole video)."""
+        return self.frames(0, self.n_frames, quantity)
+
+    def load(self) -> "Recording":
+        """An in-memory copy (all frames read); the file can then be closed."""
+        rec = Recording(source=self.to_array(), time_s=self.time_s.copy(),
+                        quantity=self.quantity, camera=self.camera, scene=self.scene,
+                        truth=_load_truth(self.truth), path=self.path,
+                        nonfinite=self.nonfinite, attrs=self.attrs)
+        rec.n_invalid = self.n_invalid
+        return rec
+
+    def _convert(self, block: np.ndarray, quantity: Optional[str]) -> np.ndarray:
+        if quantity is None or quantity == self.quantity:
+            return block
+        if quantity not in QUANTITIES:
+            raise ValueError(f"quantity must be one of {sorted(QUANTITIES)}; got {quantity!r}")
+        out = np.empty_like(block)
+        for k, ch in enumerate(self.channels):
+            table = band_table(ch)
+            if quantity == "radiance":
+                out[:, k] = table.radiance(block[:, k])
+            else:
+                out[:, k] = table.temperature(block[:, k])
+        return out
+
+    def _apply_nonfinite(self, block: np.ndarray, start: int) -> np.ndarray:
+        bad = ~np.isfinite(block)
+        if not bad.any():
+            return block
+        if self.nonfinite == "invalid":
+            block[bad] = np.nan
+            return block
+        first = _first_nonfinite(block)
+        raise RecordingError(
+            self.path, "/frames",
+            f"{int(bad.sum())} non-finite values in frames {start}..{start + len(block) - 1}, "
+            f"the first at (t={first[0] + start}, c={first[1]}, y={first[2]}, x={first[3]}) = "
+            f"{block[first]!r}",
+            "open with nonfinite='invalid' to treat them as invalid pixels")
+
+    # ----------------------------------------------------------------- checks
+    def _validate_metadata(self) -> None:
+        path = self.path
+        t, c, h, w = self.shape
+        if self.quantity not in QUANTITIES:
+            raise RecordingError(path, "/frames attr quantity",
+                                 f"unknown quantity {self.quantity!r}",
+                                 f"use one of {sorted(QUANTITIES)} "
+                                 "(band radiance in W/(m2 sr) or radiometric temperature in K)")
+        if self.nonfinite not in ("error", "invalid"):
+            raise ValueError(f"nonfinite must be 'error' or 'invalid'; got {self.nonfinite!r}")
+        if t < 1 or h < 1 or w < 1:
+            raise RecordingError(path, "/frames", f"empty frames, shape {self.shape}",
+                                 "a recording needs at least one frame of at least 1x1 pixel")
+        self.camera.validate(path)
+        self.scene.validate(path)
+        if self.truth is not None:
+            self.truth.validate(path)
+        if len(self.camera.channels) != c:
+            raise RecordingError(path, "/camera/channels",
+                                 f"{len(self.camera.channels)} channel responses for {c} "
+                                 f"frame channels (/frames shape {self.shape})",
+                                 "give exactly one response per channel (axis 1 of /frames)")
+        _check_frame_rate(path, self.time_s, self.camera.frame_rate_hz)
+
+    def _scan_frames(self, batch_bytes: int = 64 << 20) -> None:
+        """Count non-finite values over all frames, streaming; raise or record."""
+        t, c, h, w = self.shape
+        per_frame = max(1, c * h * w * 4)
+        step = max(1, batch_bytes // per_frame)
+        total, first = 0, None
+        for s in range(0, t, step):
+            block = np.asarray(self._source[s:s + step])
+            bad = ~np.isfinite(block)
+            nbad = int(np.count_nonzero(bad))
+            if nbad:
+                if first is None:
+                    loc = _first_nonfinite(block)
+                    first = (loc[0] + s,) + loc[1:], block[loc]
+                total += nbad
+        self.n_invalid = total
+        if total and self.nonfinite == "error":
+            (ti, ci, yi, xi), val = first
+            raise RecordingError(
+                self.path, "/frames",
+                f"{total} non-finite values (NaN/inf) out of {t * c * h * w}; the first at "
+                f"(t={ti}, c={ci}, y={yi}, x={xi}) = {val!r}",
+                "open with nonfinite='invalid' to treat them as invalid pixels "
+                "(they are then returned as NaN and counted), or repair the frames")
+
+    # ----------------------------------------------------------------- output
+    def save(self, path: Union[str, os.PathLike], *, compression: Optional[str] = None,
+             compression_level: Optional[int] = None, overwrite: bool = True) -> None:
+        """Write this recording to ``path`` (see :func:`write_recording`)."""
+        write_recording(path, self, compression=compression,
+                        compression_level=compression_level, overwrite=overwrite)
+
+    def close(self) -> None:
+        """Close the file of a recording opened with :func:`open_recording`."""
+        if self._h5 is not None:
+            self._h5.close()
+            self._h5 = None
+
+    def __enter__(self) -> "Recording":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def summary(self) -> dict:
+        """A JSON-ready description: camera, channels, frames, scene, truth."""
+        t, c, h, w = self.shape
+        out = {
+            "path": self.path,
+            "format": FORMAT, "version": VERSION,
+            "camera": {"name": self.camera.name, "ifov_rad": self.camera.ifov_rad,
+                       "frame_rate_hz": self.camera.frame_rate_hz,
+                       "netd_K": self.camera.netd_K},
+            "channels": [{"index": k, "name": ch.name,
+                          "band_cm1": [float(ch.nu_cm1[0]), float(ch.nu_cm1[-1])],
+                          "band_um": [1e4 / float(ch.nu_cm1[-1]), 1e4 / float(ch.nu_cm1[0])],
+                          "centroid_cm1": float(ch.centroid_cm1),
+                          "centroid_um": 1e4 / float(ch.centroid_cm1)}
+                         for k, ch in enumerate(self.channels)],
+            "frames": {"T": t, "C": c, "H": h, "W": w, "quantity": self.quantity,
+                       "unit": self.unit, "duration_s": self.duration_s,
+                       "time_first_s": float(self.time_s[0]),
+                       "time_last_s": float(self.time_s[-1]),
+                       "n_invalid": self.n_invalid},
+            "scene": {k: getattr(self.scene, k) for k in (
+                "distance_m", "ambient_temperature_K", "pressure_Pa", "wind_speed_m_s",
+                "gas_temperature_K", "background_temperature_K")},
+        }
+        out["scene"]["species"] = list(self.scene.species)
+        if self.truth is not None:
+            out["truth"] = {
+                "emission_rate_kg_s": dict(self.truth.emission_rate_kg_s),
+                "emission_rate_kg_h": {k: v * 3600.0
+                                       for k, v in self.truth.emission_rate_kg_s.items()},
+                "datasets": {k: list(np.shape(v)) for k, v in self.truth.datasets.items()},
+            }
+        return out
+
+
+def _load_truth(truth: Optional[Truth]) -> Optional[Truth]:
+    if truth is None:
+        return None
+    return Truth(dict(truth.emission_rate_kg_s),
+                 {k: np.asarray(v) for k, v in truth.datasets.items()}, dict(truth.attrs))
+
+
+def _validate_time(path: str, t: np.ndarray, n_frames: int, location: str = "/time_s") -> None:
+    if t.ndim != 1 or t.shape[0] != n_frames:
+        raise RecordingError(path, location,
+                             f"expected shape ({n_frames},) to match the {n_frames} frames; "
+                             f"got {t.shape}", "write one time [s] per frame")
+    bad = np.flatnonzero(~np.isfinite(t))
+    if bad.size:
+        raise RecordingError(path, location,
+                             f"{bad.size} non-finite times, the first at index {bad[0]} "
+                             f"({t[bad[0]]!r})", "write finite frame times in seconds")
+    if n_frames > 1:
+        d = np.diff(t)
+        bad = np.flatnonzero(d <= 0)
+        if bad.size:
+            i = int(bad[0])
+            raise RecordingError(path, location,
+                                 f"times must be strictly increasing; time_s[{i}] = {t[i]!r} "
+                                 f"and time_s[{i + 1}] = {t[i + 1]!r} "
+                                 f"({bad.size} such steps)",
+                                 "sort the frames by time and drop duplicates")
+
+
+def _frame_rate_from_times(t: np.ndarray) -> float:
+    if t.size < 2:
+        raise RecordingError(_MEMORY, "camera.frame_rate_hz",
+                             "cannot infer the frame rate from a single frame time",
+                             "set camera.frame_rate_hz")
+    return float(1.0 / np.median(np.diff(t)))
+
+
+def _check_frame_rate(path: str, t: np.ndarray, frame_rate_hz: Optional[float]) -> None:
+    if frame_rate_hz is None:
+        raise RecordingError(path, "/camera attr frame_rate_hz", "missing",
+                             "write the camera frame rate in Hz")
+    if t.size < 2:
+        return
+    measured = 1.0 / float(np.median(np.diff(t)))
+    if abs(measured - frame_rate_hz) > FRAME_RATE_TOLERANCE * frame_rate_hz:
+        raise RecordingError(
+            path, "/camera attr frame_rate_hz",
+            f"frame_rate_hz = {frame_rate_hz:g} Hz disagrees with /time_s, whose median frame "
+            f"interval {1.0 / measured:.6g} s means {measured:.6g} Hz "
+            f"(tolerance {FRAME_RATE_TOLERANCE:.0%})",
+            "correct frame_rate_hz or time_s (time_s is what the pipeline uses)")
+
+
+# --------------------------------------------------------------------------- HDF5 I/O
+
+def _h5py():
+    import h5py
+    return h5py
+
+
+def _attr(obj, name: str, path: str, location: str, required: bool = True, fix: str = ""):
+    if name not in obj.attrs:
+        if required:
+            raise RecordingError(path, f"{location} attr {name}", "missing",
+                                 fix or f"add the attribute {name} to {location}")
+        return None
+    v = obj.attrs[name]
+    if isinstance(v, bytes):
+        v = v.decode("utf-8", "replace")
+    if isinstance(v, np.ndarray) and v.shape == ():
+        v = v[()]
+    if isinstance(v, np.generic):
+        v = v.item()
+    return v
+
+
+def _species(value) -> Tuple[str, ...]:
+    if value is None:
+        return ()
+    if isinstance(value, str):
+        return tuple(s for s in re.split(r"[,\s]+", value) if s)
+    return tuple(s.decode() if isinstance(s, bytes) else str(s) for s in np.ravel(value))
+
+
+def open_recording(path: Union[str, os.PathLike], *, nonfinite: str = "error",
+                   check_frames: bool = True) -> Recording:
+    """Open a recording file, validate it, and read frames lazily.
+
+    Parameters
+    ----------
+    path : str or path
+        An HDF5 file following the recording contract (``docs/recording.md``).
+    nonfinite : {"error", "invalid"}
+        NaN/inf frame values: refuse the file (default; the error reports how
+        many and where the first is) or treat them as invalid pixels
+        (returned as NaN, counted in ``Recording.n_invalid``).
+    check_frames : bool, default True
+        Scan every frame for NaN/inf now (streaming, ~1 s per GB). With False
+        the check happens on each read instead (``nonfinite="error"`` then
+        raises when a bad frame is read).
+
+    Returns
+    -------
+    Recording
+        Keeps the file open; use ``with open_recording(p) as rec:`` or
+        ``rec.close()``.
+
+    Raises
+    ------
+    RecordingError (a ValueError)
+        Before any processing, naming the file, the dataset or attribute, the
+        value, the expected form and the fix: missing file or not HDF5, wrong
+        format/version, missing or mis-shaped /frames or /time_s, non-monotonic
+        times, unknown quantity, missing or invalid channel responses,
+        out-of-range camera/scene/truth attributes, frame rate inconsistent
+        with the times (beyond FRAME_RATE_TOLERANCE), non-finite frames.
+    """
+    h5py = _h5py()
+    p = os.fspath(path)
+    if not os.path.exists(p):
+        raise RecordingError(p, "file", "does not exist", "check the path")
+    if os.path.isdir(p):
+        raise RecordingError(p, "file", "is a directory, not a recording file")
+    if not h5py.is_hdf5(p):
+        raise RecordingError(p, "file", "is not an HDF5 file",
+                             "a qogi recording is HDF5 (see docs/recording.md); convert camera "
+                             "files with qogi.io (read_flir, read_numpy, read_tiff)")
+    f = h5py.File(p, "r")
+    try:
+        rec = _read(f, p, nonfinite)
+        if check_frames:
+            rec._scan_frames()
+    except BaseException:
+        f.close()
+        raise
+    return rec
+
+
+def _read(f, p: str, nonfinite: str) -> Recording:
+    h5py = _h5py()
+    fmt = _attr(f, "format", p, "/", fix=f'set the root attribute format="{FORMAT}"')
+    if fmt != FORMAT:
+        raise RecordingError(p, "/ attr format", f"is {fmt!r}, not {FORMAT!r}",
+                             "this is not a qogi recording; convert it with qogi.io or "
+                             "qogi.write_recording")
+    ver = _attr(f, "version", p, "/", fix=f"set the root attribute version={VERSION}")
+    if not isinstance(ver, (int, np.integer)) or int(ver) != VERSION:
+        raise RecordingError(p, "/ attr version",
+                             f"version {ver!r} is not supported (this qogi reads version "
+                             f"{VERSION})", "write the file with a matching qogi version")
+
+    if "frames" not in f or not isinstance(f["frames"], h5py.Dataset):
+        raise RecordingError(p, "/frames", "missing",
+                             "write the frames as a float32 dataset /frames (T, C, H, W)")
+    ds = f["frames"]
+    if ds.ndim != 4:
+        raise RecordingError(p, "/frames",
+                             f"expected 4 dimensions (T, C, H, W); got shape {ds.shape}",
+                             "store one channel axis even for a single channel: shape "
+                             "(T, 1, H, W)")
+    if not np.issubdtype(ds.dtype, np.floating):
+        raise RecordingError(p, "/frames",
+                             f"dtype {ds.dtype} is not floating point (expected float32)",
+                             "store band radiance or radiometric temperature as float32; "
+                             "raw camera counts must be calibrated first (e.g. qogi.io.read_flir)")
+    quantity = _attr(ds, "quantity", p, "/frames",
+                     fix=f'set /frames attr quantity to one of {sorted(QUANTITIES)}')
+    if quantity not in QUANTITIES:
+        raise RecordingError(p, "/frames attr quantity", f"unknown quantity {quantity!r}",
+                             f"use one of {sorted(QUANTITIES)} (band radiance in W/(m2 sr) "
+                             "or radiometric temperature in K)")
+    t_frames = ds.shape[0]
+
+    if "time_s" not in f:
+        raise RecordingError(p, "/time_s", "missing",
+                             "write a float64 dataset /time_s with one time [s] per frame")
+    time_s = np.asarray(f["time_s"][()], dtype=np.float64)
+    _validate_time(p, time_s, t_frames)
+
+    if "camera" not in f:
+        raise RecordingError(p, "/camera", "missing",
+                             "write a group /camera with attrs name, ifov_rad, frame_rate_hz "
+                             "and the channel responses in /camera/channels/<k>")
+    cam = f["camera"]
+    name = _attr(cam, "name", p, "/camera")
+    ifov = _attr(cam, "ifov_rad", p, "/camera",
+                 fix="add /camera attr ifov_rad (angular size of one pixel, rad)")
+    rate = _attr(cam, "frame_rate_hz", p, "/camera", fix="add /camera attr frame_rate_hz (Hz)")
+    netd = _attr(cam, "netd_K", p, "/camera", required=False)
+    channels = _read_channels(cam, p, ds.shape[1])
+    camera = Camera(str(name), ifov, channels, rate, netd)
+
+    if "scene" not in f:
+        raise RecordingError(p, "/scene", "missing",
+                             "write a group /scene with attrs distance_m, ambient_temperature_K, "
+                             "pressure_Pa")
+    sc = f["scene"]
+    scene = Scene(
+        distance_m=_attr(sc, "distance_m", p, "/scene",
+                         fix="add /scene attr distance_m (camera-to-plume distance, m)"),
+        ambient_temperature_K=_attr(sc, "ambient_temperature_K", p, "/scene",
+                                    fix="add /scene attr ambient_temperature_K (K)"),
+        pressure_Pa=_attr(sc, "pressure_Pa", p, "/scene",
+                          fix="add /scene attr pressure_Pa (ambient pressure, Pa)"),
+        wind_speed_m_s=_attr(sc, "wind_speed_m_s", p, "/scene", required=False),
+        gas_temperature_K=_attr(sc, "gas_temperature_K", p, "/scene", required=False),
+        background_temperature_K=_attr(sc, "background_temperature_K", p, "/scene",
+                                       required=False),
+        species=_species(_attr(sc, "species", p, "/scene", required=False)),
+    )
+
+    truth = None
+    if "truth" in f:
+        g = f["truth"]
+        rates, extra = {}, {}
+        for k in g.attrs:
+            v = _attr(g, k, p, "/truth")
+            if k.startswith("emission_rate_kg_s_"):
+                rates[k[len("emission_rate_kg_s_"):]] = v
+            else:
+                extra[k] = v
+        datasets = {k: g[k] for k in g if isinstance(g[k], h5py.Dataset)}
+        truth = Truth(rates, datasets, extra)
+
+    rec = Recording(source=ds, time_s=time_s, quantity=quantity, camera=camera, scene=scene,
+                    truth=truth, path=p, nonfinite=nonfinite, h5file=f,
+                    attrs={k: _attr(f, k, p, "/") for k in f.attrs})
+    rec._validate_metadata()
+    return rec
+
+
+def _read_channels(cam, p: str, n_channels: int) -> List[SpectralResponse]:
+    h5py = _h5py()
+    if "channels" not in cam or not isinstance(cam["channels"], h5py.Group):
+        raise RecordingError(p, "/camera/channels", "missing (no spectral response)",
+                             "write one group /camera/channels/<k> per frame channel with "
+                             "datasets wavenumber_cm1 and response; the band radiance and "
+                             "radiometric temperature depend on it")
+    g = cam["channels"]
+    keys = sorted(g.keys(), key=lambda k: (not k.isdigit(), int(k) if k.isdigit() else 0, k))
+    expected = [str(k) for k in range(n_channels)]
+    if keys != expected:
+        raise RecordingError(p, "/camera/channels",
+                             f"members {keys} do not match the {n_channels} frame channels "
+                             f"(expected {expected})",
+                             "name the channel groups 0 .. C-1 in frame channel order")
+    out = []
+    for k in expected:
+        loc = f"/camera/channels/{k}"
+        ch = g[k]
+        for d in ("wavenumber_cm1", "response"):
+            if d not in ch:
+                raise RecordingError(p, f"{loc}/{d}", "missing",
+                                     "write the channel response as datasets wavenumber_cm1 "
+                                     "[cm-1] and response [dimensionless]")
+        nu = np.asarray(ch["wavenumber_cm1"][()], dtype=np.float64)
+        r = np.asarray(ch["response"][()], dtype=np.float64)
+        name = _attr(ch, "name", p, loc, required=False)
+        try:
+            out.append(SpectralResponse(np.ravel(nu), np.ravel(r),
+                                        "" if name is None else str(name)))
+        except (ValueError, TypeError) as e:
+            raise RecordingError(p, loc, f"invalid spectral response: {e}",
+                                 "wavenumber_cm1 must be strictly increasing, finite, >= 0 "
+                                 "(at least 2 samples); response finite, >= 0, not all zero, "
+                                 "same length") from None
+    return out
+
+
+def _write_metadata(f, quantity: str, camera: Camera, scene: Scene,
+                    truth: Optional[Truth]) -> None:
+    h5py = _h5py()
+    f.attrs["format"] = FORMAT
+    f.attrs["version"] = np.int64(VERSION)
+    cam = f.require_group("camera")
+    cam.attrs["name"] = camera.name
+    cam.attrs["ifov_rad"] = float(camera.ifov_rad)
+    if camera.frame_rate_hz is not None:
+        cam.attrs["frame_rate_hz"] = float(camera.frame_rate_hz)
+    if camera.netd_K is not None:
+        cam.attrs["netd_K"] = float(camera.netd_K)
+    chg = cam.require_group("channels")
+    for k, ch in enumerate(camera.channels):
+        g = chg.require_group(str(k))
+        g.create_dataset("wavenumber_cm1", data=np.asarray(ch.nu_cm1, dtype=np.float64))
+        g.create_dataset("response", data=np.asarray(ch.response, dtype=np.float64))
+        g.attrs["name"] = ch.name
+    sc = f.require_group("scene")
+    for k in ("distance_m", "ambient_temperature_K", "pressure_Pa", "wind_speed_m_s",
+              "gas_temperature_K", "background_temperature_K"):
+        v = getattr(scene, k)
+        if v is not None:
+            sc.attrs[k] = float(v)
+    if scene.species:
+        sc.attrs["species"] = np.array(list(scene.species), dtype=h5py.string_dtype())
+    if truth is not None:
+        _write_truth(f, truth)
+
+
+def _write_truth(f, truth: Truth) -> None:
+    g = f.require_group("truth")
+    for sp, rate in truth.emission_rate_kg_s.items():
+        g.attrs[f"emission_rate_kg_s_{sp}"] = float(rate)
+    for k, v in truth.attrs.items():
+        g.attrs[k] = v
+    for k, v in truth.datasets.items():
+        if k in g:
+            del g[k]
+        g.create_dataset(k, data=np.asarray(v))
+
+
+def _compression_args(compression: Optional[str], level: Optional[int]) -> dict:
+    if compression is None:
+        return {}
+    if compression == "gzip":
+        return {"compression": "gzip", "compression_opts": 4 if level is None else int(level),
+                "shuffle": True}
+    if compression == "lzf":
+        return {"compression": "lzf", "shuffle": True}
+    raise ValueError(f"compression must be None, 'gzip' or 'lzf'; got {compression!r}")
+
+
+def write_recording(path: Union[str, os.PathLike], recording: Recording, *,
+                    compression: Optional[str] = None, compression_level: Optional[int] = None,
+                    overwrite: bool = True, batch_frames: Optional[int] = None) -> None:
+    """Write ``recording`` to an HDF5 file following the recording contract.
+
+    Frames are chunked one frame per chunk (fast per-frame reads) and copied
+    in batches, so a lazily opened recording is never loaded whole.
+
+    Parameters
+    ----------
+    path : str or path
+    recording : Recording
+    compression : {None, "gzip", "lzf"}
+        Optional lossless compression of /frames (with byte shuffling).
+        gzip is smaller, lzf faster.
+    compression_level : int, optional
+        gzip level 0-9 (default 4).
+    overwrite : bool, default True
+        Refuse to replace an existing file when False.
+    batch_frames : int, optional
+        Frames copied per batch (default: ~64 MB worth).
+    """
+    if not isinstance(recording, Recording):
+        raise TypeError(f"recording must be a qogi.Recording; got {type(recording).__name__}")
+    t, c, h, w = recording.shape
+    with RecordingWriter(path, quantity=recording.quantity, camera=recording.camera,
+                         scene=recording.scene, frame_shape=(c, h, w), truth=recording.truth,
+                         compression=compression, compression_level=compression_level,
+                         overwrite=overwrite, expected_frames=t,
+                         allow_nonfinite=recording.nonfinite == "invalid") as wr:
+        step = batch_frames or max(1, (64 << 20) // max(1, c * h * w * 4))
+        for s in range(0, t, step):
+            e = min(t, s + step)
+            wr.append(recording.frames(s, e), recording.time_s[s:e])
+        for k, v in recording.attrs.items():
+            if k not in ("format", "version"):
+                wr._f.attrs[k] = v
+
+
+class RecordingWriter:
+    """Write a recording frame by frame (for generators and converters).
+
+    Parameters
+    ----------
+    path : str or path
+        File to create.
+    quantity : {"radiance", "radiometric_temperature"}
+    camera : Camera
+        ``camera.frame_rate_hz=None`` takes the rate from the written times
+        at :meth:`close`.
+    scene : Scene
+    frame_shape : (C, H, W)
+    truth : Truth, optional
+        Can also be set later with :meth:`set_truth`.
+    compression : {None, "gzip", "lzf"}, compression_level : int
+        See :func:`write_recording`.
+    overwrite : bool, default True
+    expected_frames : int, optional
+        Pre-sizes /frames (it still grows if more are appended).
+    allow_nonfinite : bool, default False
+        Accept NaN/inf pixels (invalid pixels); otherwise they are an error.
+
+    Every call validates its input and the metadata is validated up front,
+    so an error comes before work is lost; frames appended before an error
+    stay in a valid file (times and frames are appended together).
+
+    Examples
+    --------
+    >>> with RecordingWriter("out.h5", quantity="radiance", camera=cam, scene=scene,
+    ...                      frame_shape=(1, 64, 64)) as w:  # doctest: +SKIP
+    ...     for i, frame in enumerate(render()):
+    ...         w.append(frame, i / 15.0)
+    """
+
+    def __init__(self, path: Union[str, os.PathLike], *, quantity: str, camera: Camera,
+                 scene: Scene, frame_shape: Sequence[int], truth: Optional[Truth] = None,
+                 compression: Optional[str] = None, compression_level: Optional[int] = None,
+                 overwrite: bool = True, expected_frames: Optional[int] = None,
+                 allow_nonfinite: bool = False):
+        h5py = _h5py()
+        self.path = os.fspath(path)
+        if quantity not in QUANTITIES:
+            raise RecordingError(self.path, "/frames attr quantity",
+                                 f"unknown quantity {quantity!r}",
+                                 f"use one of {sorted(QUANTITIES)}")
+        shape = tuple(int(s) for s in frame_shape)
+        if len(shape) != 3 or min(shape) < 1:
+            raise RecordingError(self.path, "/frames",
+                                 f"frame_shape must be (C, H, W) with positive sizes; got "
+                                 f"{tuple(frame_shape)}")
+        camera.validate(self.path)
+        scene.validate(self.path)
+        if truth is not None:
+            truth.validate(self.path)
+        if len(camera.channels) != shape[0]:
+            raise RecordingError(self.path, "/camera/channels",
+                                 f"{len(camera.channels)} channel responses for {shape[0]} "
+                                 "frame channels", "give one response per channel")
+        if not overwrite and os.path.exists(self.path):
+            raise FileExistsError(f"{self.path} exists (pass overwrite=True to replace it)")
+        self.quantity, self.camera, self.scene = quantity, camera, scene
+        self.frame_shape = shape
+        self.allow_nonfinite = allow_nonfinite
+        self._n = 0
+        self._last_t = -math.inf
+        self._f = h5py.File(self.path, "w")
+        try:
+            _write_metadata(self._f, quantity, camera, scene, truth)
+            n0 = int(expected_frames or 0)
+            self._frames = self._f.create_dataset(
+                "frames", shape=(n0,) + shape, maxshape=(None,) + shape, dtype=np.float32,
+                chunks=(1,) + shape, **_compression_args(compression, compression_level))
+            self._frames.attrs["quantity"] = quantity
+            self._frames.attrs["unit"] = QUANTITIES[quantity]
+            self._time = self._f.create_dataset("time_s", shape=(n0,), maxshape=(None,),
+                                                dtype=np.float64, chunks=(4096,))
+            self._time.attrs["unit"] = "s"
+        except BaseException:
+            self._f.close()
+            raise
+
+    @property
+    def n_frames(self) -> int:
+        return self._n
+
+    def append(self, frames, time_s) -> None:
+        """Append one frame (C, H, W) with its time [s], or a block (n, C, H, W)
+        with n times. Times must keep increasing."""
+        if self._f is None:
+            raise ValueError(f"{self.path}: the writer is closed")
+        a = np.asarray(frames, dtype=np.float32)
+        if a.shape == self.frame_shape:
+            a = a[None]
+        if a.ndim != 4 or a.shape[1:] != self.frame_shape:
+            raise RecordingError(self.path, "/frames",
+                                 f"appended frames have shape {np.shape(frames)}; expected "
+                                 f"{self.frame_shape} or (n,) + {self.frame_shape}")
+        t = np.atleast_1d(np.asarray(time_s, dtype=np.float64))
+        if t.shape != (a.shape[0],):
+            raise RecordingError(self.path, "/time_s",
+                                 f"{t.size} times for {a.shape[0]} appended frames")
+        if not np.all(np.isfinite(t)) or np.any(np.diff(np.concatenate([[self._last_t], t])) <= 0):
+            raise RecordingError(self.path, "/time_s",
+                                 f"appended times {t.tolist()[:5]} are not finite and strictly "
+                                 f"after the last written time {self._last_t!r}",
+                                 "append frames in time order")
+        if not self.allow_nonfinite:
+            bad = ~np.isfinite(a)
+            if bad.any():
+                loc = _first_nonfinite(a)
+                raise RecordingError(self.path, "/frames",
+                                     f"{int(bad.sum())} non-finite values in the appended "
+                                     f"frames (first at frame {self._n + loc[0]}, c={loc[1]}, "
+                                     f"y={loc[2]}, x={loc[3]})",
+                                     "pass allow_nonfinite=True to store invalid pixels")
+        n0, n1 = self._n, self._n + a.shape[0]
+        if n1 > self._frames.shape[0]:
+            self._frames.resize(n1, axis=0)
+            self._time.resize(n1, axis=0)
+        self._frames[n0:n1] = a
+        self._time[n0:n1] = t
+        self._n = n1
+        self._last_t = float(t[-1])
+
+    def set_truth(self, truth: Truth) -> None:
+        """Write (or replace) the /truth group."""
+        truth.validate(self.path)
+        _write_truth(self._f, truth)
+
+    def close(self) -> None:
+        """Finish the file: trim to the frames written, set the frame rate,
+        check it against the times. Raises RecordingError (the file is kept)
+        if no frame was written or the rate disagrees with the times."""
+        if self._f is None:
+            return
+        try:
+            if self._frames.shape[0] != self._n:
+                self._frames.resize(self._n, axis=0)
+                self._time.resize(self._n, axis=0)
+            if self._n == 0:
+                raise RecordingError(self.path, "/frames", "no frame was written")
+            t = self._time[()]
+            rate = self.camera.frame_rate_hz
+            if rate is None:
+                if self._n < 2:
+                    raise RecordingError(self.path, "/camera attr frame_rate_hz",
+                                         "cannot be inferred from a single frame",
+                                         "set camera.frame_rate_hz")
+                rate = 1.0 / float(np.median(np.diff(t)))
+                self._f["camera"].attrs["frame_rate_hz"] = rate
+            _check_frame_rate(self.path, t, rate)
+        finally:
+            self._f.close()
+            self._f = None
+
+    def __enter__(self) -> "RecordingWriter":
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is None:
+            self.close()
+        elif self._f is not None:  # keep what was written, valid so far
+            try:
+                if self._frames.shape[0] != self._n:
+                    self._frames.resize(self._n, axis=0)
+                    self._time.resize(self._n, axis=0)
+                if self.camera.frame_rate_hz is None and self._n >= 2:
+                    t = self._time[()]
+                    self._f["camera"].attrs["frame_rate_hz"] = 1.0 / float(np.median(np.diff(t)))
+            finally:
+                self._f.close()
+                self._f = None
