@@ -46,7 +46,7 @@ from .optics import SpectralResponse
 from .radiometry import band_table
 
 __all__ = [
-    "FORMAT", "VERSION", "QUANTITIES", "RANGES", "FRAME_RATE_TOLERANCE",
+    "FORMAT", "VERSION", "QUANTITIES", "RANGES", "FRAME_RATE_TOLERANCE", "typical_interval",
     "RecordingError", "Camera", "Scene", "Truth", "Recording", "RecordingWriter",
     "open_recording", "write_recording",
 ]
@@ -70,9 +70,10 @@ RANGES = {
     "scene.background_temperature_K": (10.0, 2500.0, "K", ""),
     "truth.emission_rate_kg_s": (0.0, 1e6, "kg/s", ""),
 }
-#: /camera frame_rate_hz must match 1 / median(diff(time_s)) within this
+#: /camera frame_rate_hz must match 1 / typical_interval(time_s) within this
 #: relative tolerance, or opening fails: time_s is what the pipeline uses, and
-#: a file whose two clocks disagree by more is ambiguous.
+#: a file whose two clocks disagree by more is ambiguous. (Dropped frames and
+#: jitter are fine: see typical_interval.)
 FRAME_RATE_TOLERANCE = 0.01
 
 _SPECIES_RE = re.compile(r"^[A-Za-z][A-Za-z0-9]*$")
@@ -129,7 +130,7 @@ class Camera:
         One response (filter x lens x detector) per frame channel, in order.
     frame_rate_hz : float or None, Hz
         Nominal frame rate. ``None`` only while building a recording: it is
-        then taken from the median frame interval of ``time_s``.
+        then taken from the typical frame interval (see typical_interval) of ``time_s``.
     netd_K : float or None, K
         Noise-equivalent temperature difference, optional, in (0, 10].
     """
@@ -604,12 +605,24 @@ def _validate_time(path: str, t: np.ndarray, n_frames: int, location: str = "/ti
                                  "sort the frames by time and drop duplicates")
 
 
+def typical_interval(time_s) -> float:
+    """The typical frame interval [s] of increasing frame times: the mean of
+    the intervals within +-50% of the median one. Robust to dropped frames
+    (longer intervals) and to time stamps quantized to e.g. 1 ms (a 30 Hz
+    camera stamping 33 and 34 ms intervals), where the plain median is off
+    by up to one quantum."""
+    d = np.diff(np.asarray(time_s, dtype=np.float64))
+    m = float(np.median(d))
+    near = d[(d > 0.5 * m) & (d < 1.5 * m)]
+    return float(near.mean()) if near.size else m
+
+
 def _frame_rate_from_times(t: np.ndarray) -> float:
     if t.size < 2:
         raise RecordingError(_MEMORY, "camera.frame_rate_hz",
                              "cannot infer the frame rate from a single frame time",
                              "set camera.frame_rate_hz")
-    return float(1.0 / np.median(np.diff(t)))
+    return 1.0 / typical_interval(t)
 
 
 def _check_frame_rate(path: str, t: np.ndarray, frame_rate_hz: Optional[float]) -> None:
@@ -618,11 +631,11 @@ def _check_frame_rate(path: str, t: np.ndarray, frame_rate_hz: Optional[float]) 
                              "write the camera frame rate in Hz")
     if t.size < 2:
         return
-    measured = 1.0 / float(np.median(np.diff(t)))
+    measured = 1.0 / typical_interval(t)
     if abs(measured - frame_rate_hz) > FRAME_RATE_TOLERANCE * frame_rate_hz:
         raise RecordingError(
             path, "/camera attr frame_rate_hz",
-            f"frame_rate_hz = {frame_rate_hz:g} Hz disagrees with /time_s, whose median frame "
+            f"frame_rate_hz = {frame_rate_hz:g} Hz disagrees with /time_s, whose typical frame "
             f"interval {1.0 / measured:.6g} s means {measured:.6g} Hz "
             f"(tolerance {FRAME_RATE_TOLERANCE:.0%})",
             "correct frame_rate_hz or time_s (time_s is what the pipeline uses)")
@@ -1085,7 +1098,7 @@ class RecordingWriter:
                     raise RecordingError(self.path, "/camera attr frame_rate_hz",
                                          "cannot be inferred from a single frame",
                                          "set camera.frame_rate_hz")
-                rate = 1.0 / float(np.median(np.diff(t)))
+                rate = 1.0 / typical_interval(t)
                 self._f["camera"].attrs["frame_rate_hz"] = rate
             _check_frame_rate(self.path, t, rate)
         finally:
@@ -1105,7 +1118,7 @@ class RecordingWriter:
                     self._time.resize(self._n, axis=0)
                 if self.camera.frame_rate_hz is None and self._n >= 2:
                     t = self._time[()]
-                    self._f["camera"].attrs["frame_rate_hz"] = 1.0 / float(np.median(np.diff(t)))
+                    self._f["camera"].attrs["frame_rate_hz"] = 1.0 / typical_interval(t)
             finally:
                 self._f.close()
                 self._f = None

@@ -338,3 +338,10 @@ def test_from_arrays_checks_like_the_reader():
     with pytest.raises(qogi.RecordingError, match="ifov_rad = 0.5 rad is outside"):
         qogi.Recording.from_arrays(frames(), quantity="radiometric_temperature",
                                    camera=qogi.Camera("x", 0.5, channels(), 15.0), scene=scene())
+
+
+def test_typical_interval_copes_with_ms_stamps_and_dropped_frames():
+    t = np.round(np.arange(40) / 30.0, 3)       # a 30 Hz camera stamping whole ms
+    t = np.delete(t, [10, 25])                   # two dropped frames
+    assert 1.0 / qogi.recording.typical_interval(t) == pytest.approx(30.0, rel=2e-3)
+    assert 1.0 / np.median(np.diff(t)) == pytest.approx(30.3, rel=1e-3)  # the naive estimate

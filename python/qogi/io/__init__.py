@@ -1,0 +1,50 @@
+"""Readers that turn camera and array files into :class:`qogi.Recording`.
+
+- FLIR radiometric files (.seq, .csq, .fff, radiometric .jpg):
+  :func:`read_flir` / :func:`open_flir` give raw counts bit-exactly with each
+  frame's calibration; :func:`read_flir_recording` converts to a recording.
+- numpy .npy/.npz: :func:`read_numpy`; multi-page TIFF: :func:`read_tiff`.
+- :func:`read_recording` picks the reader from the file name.
+
+Camera files do not carry everything a recording needs (the spectral
+response, the pressure ...): the readers ask for it by name.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Union
+
+from ..recording import Recording, open_recording
+from .arrays import read_numpy, read_tiff
+from .flir import (FlirFile, FlirFrame, FlirMetadata, flir_apparent_temperature,
+                   flir_raw_from_temperature, flir_temperature, open_flir, read_flir,
+                   read_flir_recording)
+
+__all__ = [
+    "read_recording", "read_numpy", "read_tiff", "read_flir", "open_flir",
+    "read_flir_recording", "flir_temperature", "flir_apparent_temperature",
+    "flir_raw_from_temperature", "FlirFile", "FlirFrame", "FlirMetadata",
+]
+
+FLIR_EXTENSIONS = (".seq", ".csq", ".fff", ".jpg", ".jpeg")
+
+
+def read_recording(path: Union[str, os.PathLike], **kwargs) -> Recording:
+    """Open any supported file as a recording, by its extension.
+
+    .h5/.hdf5 -> :func:`qogi.open_recording`; .seq/.csq/.fff/.jpg ->
+    :func:`read_flir_recording`; .npy/.npz -> :func:`read_numpy`;
+    .tif/.tiff -> :func:`read_tiff`. Keyword arguments go to that reader.
+    """
+    ext = os.path.splitext(os.fspath(path))[1].lower()
+    if ext in (".h5", ".hdf5", ".hdf"):
+        return open_recording(path, **kwargs)
+    if ext in FLIR_EXTENSIONS:
+        return read_flir_recording(path, **kwargs)
+    if ext in (".npy", ".npz"):
+        return read_numpy(path, **kwargs)
+    if ext in (".tif", ".tiff"):
+        return read_tiff(path, **kwargs)
+    raise ValueError(f"{path}: unknown recording file type {ext!r} (known: .h5, .seq, .csq, "
+                     ".fff, .jpg, .npy, .npz, .tif)")
