@@ -553,6 +553,7 @@ class Recording:
             "channels": [{"index": k, "name": ch.name,
                           "band_cm1": [float(ch.nu_cm1[0]), float(ch.nu_cm1[-1])],
                           "band_um": [1e4 / float(ch.nu_cm1[-1]), 1e4 / float(ch.nu_cm1[0])],
+                          "half_max_cm1": list(_half_max_band(ch)),
                           "centroid_cm1": float(ch.centroid_cm1),
                           "centroid_um": 1e4 / float(ch.centroid_cm1)}
                          for k, ch in enumerate(self.channels)],
@@ -574,6 +575,24 @@ class Recording:
                 "datasets": {k: list(np.shape(v)) for k, v in self.truth.datasets.items()},
             }
         return out
+
+
+def _half_max_band(ch: SpectralResponse) -> Tuple[float, float]:
+    """Outermost wavenumbers [cm-1] where the response crosses half its maximum
+    (linear interpolation between samples)."""
+    nu, r = np.asarray(ch.nu_cm1), np.asarray(ch.response)
+    half = 0.5 * r.max()
+    above = np.flatnonzero(r >= half)
+    i, j = int(above[0]), int(above[-1])
+
+    def cross(a, b):
+        if r[a] == r[b]:
+            return float(nu[a])
+        return float(nu[a] + (half - r[a]) * (nu[b] - nu[a]) / (r[b] - r[a]))
+
+    lo = cross(i - 1, i) if i > 0 else float(nu[0])
+    hi = cross(j, j + 1) if j < len(nu) - 1 else float(nu[-1])
+    return lo, hi
 
 
 def _load_truth(truth: Optional[Truth]) -> Optional[Truth]:
