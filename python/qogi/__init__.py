@@ -11,6 +11,7 @@ package is the public API.
 
 from ._version import __version__
 from .optics import SpectralResponse, planck_radiance, planck_radiance_derivative
+from . import io, radiometry  # noqa: F401  (qogi.io.read_flir etc. after `import qogi`)
 from .recording import (Camera, Recording, RecordingError, RecordingWriter, Scene, Truth,
                         open_recording, write_recording)
 

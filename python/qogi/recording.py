@@ -38,7 +38,7 @@ import math
 import os
 import re
 from dataclasses import dataclass, field
-from typing import Dict, Iterator, List, Mapping, Optional, Sequence, Tuple, Union
+from typing import Dict, Iterator, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -953,6 +953,10 @@ def write_recording(path: Union[str, os.PathLike], recording: Recording, *,
     """
     if not isinstance(recording, Recording):
         raise TypeError(f"recording must be a qogi.Recording; got {type(recording).__name__}")
+    if (not recording.in_memory and os.path.exists(os.fspath(path))
+            and os.path.samefile(os.fspath(path), recording.path)):
+        raise ValueError(f"{os.fspath(path)}: cannot overwrite the file this recording is "
+                         "being read from; save to another path (or load() it first)")
     t, c, h, w = recording.shape
     with RecordingWriter(path, quantity=recording.quantity, camera=recording.camera,
                          scene=recording.scene, frame_shape=(c, h, w), truth=recording.truth,

@@ -345,3 +345,25 @@ def test_typical_interval_copes_with_ms_stamps_and_dropped_frames():
     t = np.delete(t, [10, 25])                   # two dropped frames
     assert 1.0 / qogi.recording.typical_interval(t) == pytest.approx(30.0, rel=2e-3)
     assert 1.0 / np.median(np.diff(t)) == pytest.approx(30.3, rel=1e-3)  # the naive estimate
+
+
+def test_saving_over_the_file_being_read_is_refused(good_file):
+    with qogi.open_recording(good_file) as rec:
+        with pytest.raises(ValueError, match="cannot overwrite the file this recording is"):
+            rec.save(good_file)
+        mem = rec.load()
+    mem.save(good_file)  # an in-memory copy may replace it
+    assert qogi.open_recording(good_file).n_frames == 12
+
+
+def test_writer_close_checks_the_frame_rate_and_keeps_the_file(tmp_path):
+    p = tmp_path / "rate.h5"
+    w = qogi.RecordingWriter(p, quantity="radiance", camera=camera(rate=30.0), scene=scene(),
+                             frame_shape=(2, 2, 2))
+    for i in range(5):
+        w.append(np.ones((2, 2, 2)), i / 15.0)
+    with pytest.raises(qogi.RecordingError, match="rate.h5: /camera attr frame_rate_hz: "
+                                                  "frame_rate_hz = 30 Hz disagrees"):
+        w.close()
+    with h5py.File(p) as f:
+        assert f["frames"].shape == (5, 2, 2, 2)

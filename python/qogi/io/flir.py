@@ -55,7 +55,7 @@ import mmap
 import os
 import struct
 import warnings
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from typing import Iterator, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
@@ -72,7 +72,7 @@ __all__ = ["FlirMetadata", "FlirFrame", "FlirFile", "read_flir", "open_flir",
 #: Second radiation constant h c / k_B [cm K] (CODATA 2018).
 C2_CM_K = 1.438776877
 
-_FFF_MAGIC = (b"FFF\x00", b"AFF\x00")
+_FFF_MAGIC = (b"FFF\x00",)
 _REC_RAW, _REC_CAMERA = 0x01, 0x20
 
 
@@ -334,6 +334,10 @@ class FlirFile:
         if magic[:2] == b"\xff\xd8":
             self.kind = "jpeg"
             self._buf = _jpeg_fff(self._map, self.path)
+        elif magic == b"AFF\x00":
+            raise FlirFormatError(f"{self.path}: an AFF-format FLIR sequence; only FFF-based "
+                                  ".seq/.csq/.fff files are supported (export it to .seq or "
+                                  ".csq with FLIR's software)")
         elif magic in _FFF_MAGIC:
             self.kind = {".csq": "csq", ".seq": "seq"}.get(
                 os.path.splitext(self.path)[1].lower(), "fff")
