@@ -4,6 +4,9 @@
 
 #include "engine/io/jpegls.h"
 #include "engine/optics/planck.h"
+#include "engine/camera/camera.h"
 #include "engine/optics/spectral_response.h"
+#include "engine/rte/binned_model.h"
+#include "engine/rte/exact_model.h"
 #include "engine/util/check.h"
 #include "engine/util/parallel.h"

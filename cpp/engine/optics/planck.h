@@ -11,6 +11,7 @@
 
 namespace qogi {
 namespace constants {
+constexpr double kPi = 3.14159265358979323846;
 constexpr double kPlanck = 6.62607015e-34;        // h [J s]
 constexpr double kSpeedOfLight = 299792458.0;      // c [m/s]
 constexpr double kBoltzmann = 1.380649e-23;        // k_B [J/K]

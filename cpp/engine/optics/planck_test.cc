@@ -18,7 +18,7 @@ TEST(Planck, ConstantsMatchTextbookValues) {
   // sigma = 2 pi^5 k^4 / (15 h^3 c^2)
   const double k = constants::kBoltzmann, h = constants::kPlanck,
                c = constants::kSpeedOfLight;
-  EXPECT_NEAR(2 * std::pow(M_PI, 5) * std::pow(k, 4) / (15 * h * h * h * c * c),
+  EXPECT_NEAR(2 * std::pow(constants::kPi, 5) * std::pow(k, 4) / (15 * h * h * h * c * c),
               constants::kStefanBoltzmann, 1e-16);
 }
 

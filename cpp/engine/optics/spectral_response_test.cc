@@ -20,7 +20,7 @@ TEST(SpectralResponse, WideBandConvergesToStefanBoltzmann) {
   for (double t : {200.0, 300.0, 1000.0, 1500.0}) {
     // Up to c2 nu / T = 40 the missing tail is below 1e-12 relative.
     const SpectralResponse wide = Flat(0.0, 40.0 * t / constants::kC2);
-    const double expected = constants::kStefanBoltzmann * std::pow(t, 4) / M_PI;
+    const double expected = constants::kStefanBoltzmann * std::pow(t, 4) / constants::kPi;
     EXPECT_NEAR(wide.BandRadiance(t) / expected, 1.0, 1e-6) << "T = " << t;
   }
 }

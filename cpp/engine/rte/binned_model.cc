@@ -137,13 +137,13 @@ void BinnedModel::BuildChannel(std::size_t c, const std::vector<AbsorberTable>& 
     const double a = lo + sg * seg_w, e = (sg + 1 == b.num_segments) ? hi : a + seg_w;
     for (int m = 0; m < nm; ++m)
       b.segment_nodes[sg * nm + m] =
-          0.5 * (a + e) + 0.5 * (e - a) * std::cos(M_PI * (m + 0.5) / nm);
+          0.5 * (a + e) + 0.5 * (e - a) * std::cos(constants::kPi * (m + 0.5) / nm);
   }
   b.planck_map.assign(nq * nm, 0.0);
   // Barycentric weights of Chebyshev points of the first kind.
   std::vector<double> bw(nm);
   for (int m = 0; m < nm; ++m)
-    bw[m] = ((m % 2) ? -1.0 : 1.0) * std::sin(M_PI * (m + 0.5) / nm);
+    bw[m] = ((m % 2) ? -1.0 : 1.0) * std::sin(constants::kPi * (m + 0.5) / nm);
   std::vector<double> ell(nm);
   auto lagrange = [&](std::size_t sg, double nu) {
     const double* x = &b.segment_nodes[sg * nm];

@@ -48,9 +48,9 @@ AbsorberTable SyntheticTable(const std::string& species, double nu0, double nu1,
       const long j1 = std::min<long>(t.n_nu - 1, static_cast<long>((l.nu + 10 - nu0) / t.dnu_cm1));
       for (long j = j0; j <= j1; ++j) {
         const double dx = nu0 + j * t.dnu_cm1 - l.nu;
-        t.sigma_air[it * t.n_nu + j] += static_cast<float>(s * ga / M_PI / (dx * dx + ga * ga));
+        t.sigma_air[it * t.n_nu + j] += static_cast<float>(s * ga / constants::kPi / (dx * dx + ga * ga));
         if (with_self)
-          t.sigma_self[it * t.n_nu + j] += static_cast<float>(s * gs / M_PI / (dx * dx + gs * gs));
+          t.sigma_self[it * t.n_nu + j] += static_cast<float>(s * gs / constants::kPi / (dx * dx + gs * gs));
       }
     }
   }
@@ -122,7 +122,7 @@ TEST(ExactModel, IsothermalPlumeIsBeerLambertAtEveryWavenumber) {
   // tau = n x sigma_cross(T) * sigma sqrt(2 pi); exact Gaussian column.
   const AbsorberTable& t = F().tables[0];
   const TemperatureStencil st = MakeTemperatureStencil(t.temperatures_K, tg);
-  const double col = NumberDensityCm3(constants::kAtm, tg) * 100 * x * sigma * std::sqrt(2 * M_PI);
+  const double col = NumberDensityCm3(constants::kAtm, tg) * 100 * x * sigma * std::sqrt(2 * constants::kPi);
   double worst = 0;
   for (std::size_t i = 0; i < nu.size(); i += 37) {
     const std::size_t j = static_cast<std::size_t>(std::round((nu[i] - t.nu0_cm1) / t.dnu_cm1));
@@ -225,7 +225,7 @@ TEST(ColumnDensity, IsothermalGaussianIsAnalytic) {
   GaussianPlume p = Plume(0.25, 0.5, 300, 300, 0.04);
   const auto c = GaussianColumnDensity(p, {16.0425e-3, 44.0095e-3});
   const double n = constants::kAtm / (constants::kBoltzmann * 300);
-  EXPECT_NEAR(c[0] / (16.0425e-3 / constants::kAvogadro * 0.25 * n * 0.04 * std::sqrt(2 * M_PI)),
+  EXPECT_NEAR(c[0] / (16.0425e-3 / constants::kAvogadro * 0.25 * n * 0.04 * std::sqrt(2 * constants::kPi)),
               1.0, 1e-12);
   EXPECT_NEAR(c[1] / c[0], 2 * 44.0095 / 16.0425, 1e-12);
 }
