@@ -6,6 +6,8 @@ namespace qogi {
 void BindUtil(py::module_& m);
 void BindOptics(py::module_& m);
 void BindIo(py::module_& m);
+void BindRte(py::module_& m);
+void BindCameraPresets(py::module_& m);
 }  // namespace qogi
 
 PYBIND11_MODULE(_engine, m) {
@@ -13,4 +15,6 @@ PYBIND11_MODULE(_engine, m) {
   qogi::BindUtil(m);
   qogi::BindOptics(m);
   qogi::BindIo(m);
+  qogi::BindRte(m);
+  qogi::BindCameraPresets(m);
 }

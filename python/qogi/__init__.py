@@ -11,6 +11,8 @@ package is the public API.
 
 from ._version import __version__
 from .optics import SpectralResponse, planck_radiance, planck_radiance_derivative
+from .presets import camera_preset, camera_preset_names
+from .forward import ForwardModel, band_radiance, column_density, forward_model
 from . import io, radiometry  # noqa: F401  (qogi.io.read_flir etc. after `import qogi`)
 from .recording import (Camera, Recording, RecordingError, RecordingWriter, Scene, Truth,
                         open_recording, write_recording)
@@ -20,6 +22,12 @@ __all__ = [
     "SpectralResponse",
     "planck_radiance",
     "planck_radiance_derivative",
+    "camera_preset",
+    "camera_preset_names",
+    "ForwardModel",
+    "band_radiance",
+    "column_density",
+    "forward_model",
     "Camera",
     "Recording",
     "RecordingError",
