@@ -4,5 +4,11 @@
 
 #include "engine/optics/planck.h"
 #include "engine/optics/spectral_response.h"
+#include "engine/spectra/cross_section.h"
+#include "engine/spectra/isotopologue.h"
+#include "engine/spectra/line_list.h"
+#include "engine/spectra/line_parameters.h"
+#include "engine/spectra/voigt.h"
+#include "engine/spectra/xsec_table.h"
 #include "engine/util/check.h"
 #include "engine/util/parallel.h"
