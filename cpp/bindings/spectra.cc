@@ -162,9 +162,10 @@ HITRAN lines as parallel arrays (one entry per transition); see qogi.spectra.
       .def_property_readonly("coverage", [](const LineList& l) {
         py::list out;
         for (const LineCoverage& c : l.coverage)
-          out.append(py::make_tuple(c.molecule, c.isotopologue, c.nu_min_cm1, c.nu_max_cm1));
+          out.append(py::make_tuple(c.molecule, c.isotopologue, c.nu_min_cm1, c.nu_max_cm1,
+                                    c.source));
         return out;
-      }, "(molecule, isotopologue, nu_min_cm1, nu_max_cm1) spans of the sources.")
+      }, "(molecule, isotopologue, nu_min_cm1, nu_max_cm1, source index) spans of the sources.")
       .def("select",
            [](const LineList& l, double nu_min, double nu_max, int molecule,
               std::vector<int> isos, double min_intensity) {
@@ -383,7 +384,8 @@ qogi.spectra.CrossSectionTable for the public API.
       .def_property_readonly("pressure_Pa", &XsecTable::pressure_Pa)
       .def_property_readonly("self_fraction", &XsecTable::self_fraction)
       .def_property_readonly("options", &XsecTable::options)
-      .def_property_readonly("metadata", &XsecTable::metadata)
+      .def_property("metadata", &XsecTable::metadata, &XsecTable::set_metadata,
+                    "Free text stored with the table (qogi writes JSON).")
       .def_property_readonly("sigma", [](py::object self) {
         const XsecTable& t = self.cast<const XsecTable&>();
         py::array_t<float> a({static_cast<py::ssize_t>(t.num_temperatures()),

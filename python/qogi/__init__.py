@@ -11,10 +11,30 @@ package is the public API.
 
 from ._version import __version__
 from .optics import SpectralResponse, planck_radiance, planck_radiance_derivative
+from .spectra import (
+    CrossSectionTable,
+    LineList,
+    absorption_coefficient,
+    cross_section,
+    cross_section_table,
+    find_line_lists,
+    load_line_list,
+    partition_sum,
+    voigt_profile,
+)
 
 __all__ = [
     "__version__",
     "SpectralResponse",
     "planck_radiance",
     "planck_radiance_derivative",
+    "CrossSectionTable",
+    "LineList",
+    "absorption_coefficient",
+    "cross_section",
+    "cross_section_table",
+    "find_line_lists",
+    "load_line_list",
+    "partition_sum",
+    "voigt_profile",
 ]

@@ -40,6 +40,8 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     d = sub.add_parser("demo", help="run the demonstration")
     d.set_defaults(func=cmd_demo)
+    from ._cli_spectra import add_commands as add_spectra_commands
+    add_spectra_commands(sub)
     return p
 
 

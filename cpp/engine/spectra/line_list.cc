@@ -620,8 +620,12 @@ LineList MergeLineLists(const std::vector<LineList>& by_priority) {
         }
       if (!dup) out.Append(list, i);
     }
-    covered.insert(covered.end(), own.begin(), own.end());
+    for (LineCoverage c : own) {
+      c.source += static_cast<int>(out.sources.size());
+      covered.push_back(c);
+    }
     out.sources.insert(out.sources.end(), list.sources.begin(), list.sources.end());
+    if (list.sources.empty()) out.sources.push_back("<memory>");
   }
   out.coverage = covered;
   out.SortByWavenumber();

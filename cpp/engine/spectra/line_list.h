@@ -24,6 +24,7 @@ struct LineCoverage {
   int isotopologue = 0;
   double nu_min_cm1 = 0;
   double nu_max_cm1 = 0;
+  int source = 0;  // index into LineList::sources of the file it describes
 };
 
 // Which lines to keep when reading or selecting.
