@@ -1,5 +1,6 @@
 // Bindings of engine/spectra: isotopologues and partition sums, line lists,
 // line parameters, the Voigt profile, cross-sections and sigma(nu, T) tables.
+#include <limits>
 #include <memory>
 #include <sstream>
 
@@ -415,7 +416,10 @@ qogi.spectra.CrossSectionTable for the public API.
            py::arg("temperature_K"), py::arg("derivative") = false,
            "sigma(nu) at a temperature [cm2/molecule]; with derivative=True also "
            "d sigma/dT [cm2/(molecule K)].")
-      .def("sigma_at", &XsecTable::Sigma, py::arg("index"), py::arg("temperature_K"));
+      .def("sigma_at",
+           [](const XsecTable& t, std::size_t i, double temp) { return t.Sigma(i, temp); },
+           py::arg("index"), py::arg("temperature_K"),
+           "sigma at one grid index and temperature [cm2/molecule].");
 }
 
 }  // namespace qogi

@@ -88,8 +88,11 @@ TEST(CrossSection, HapiWindowRule) {
   std::vector<double> s = CrossSection(l, GasConditions{}, g);
   for (std::size_t j = 0; j < g.size; ++j) {
     const double d = g[j] - 3000.0;
-    if (d > -2.5 + 1e-9 && d < 2.5 - 1e-9) EXPECT_GT(s[j], 0.0) << d;
-    if (d < -2.5 - 1e-9 || d > 2.5 + 1e-9) EXPECT_EQ(s[j], 0.0) << d;
+    if (d > -2.5 + 1e-9 && d < 2.5 - 1e-9) {
+      EXPECT_GT(s[j], 0.0) << d;
+    } else if (d < -2.5 - 1e-9 || d > 2.5 + 1e-9) {
+      EXPECT_EQ(s[j], 0.0) << d;
+    }
   }
   // 0.001 atm: Doppler HWHM (0.0046 cm-1 at 296 K) dominates.
   const LineParameters p = ComputeLineParameters(l, GasConditions{296.0, 0.001 * kAtm, 0.0});
@@ -97,8 +100,11 @@ TEST(CrossSection, HapiWindowRule) {
   s = CrossSection(l, GasConditions{296.0, 0.001 * kAtm, 0.0}, g);
   for (std::size_t j = 0; j < g.size; ++j) {
     const double d = g[j] - 3000.0;
-    if (std::abs(d) < w - 0.011) EXPECT_GT(s[j], 0.0) << d;
-    if (std::abs(d) > w + 0.011) EXPECT_EQ(s[j], 0.0) << d;
+    if (std::abs(d) < w - 0.011) {
+      EXPECT_GT(s[j], 0.0) << d;
+    } else if (std::abs(d) > w + 0.011) {
+      EXPECT_EQ(s[j], 0.0) << d;
+    }
   }
   // A fixed cutoff.
   CrossSectionOptions o;

@@ -76,8 +76,11 @@ TEST(LineParameters, IntensityRatioFollowsTheBoltzmannFactor) {
                 1.0, 1e-12)
         << t;
     // A line from the ground state weakens as Q(T) grows.
-    if (t > 296) EXPECT_LT(p.intensity[0], 1e-20);
-    if (t < 296) EXPECT_GT(p.intensity[0], 1e-20);
+    if (t > 296) {
+      EXPECT_LT(p.intensity[0], 1e-20);
+    } else {
+      EXPECT_GT(p.intensity[0], 1e-20);
+    }
   }
 }
 

@@ -102,7 +102,9 @@ TEST(VoigtProfile, KernelsEqualTheProfile) {
   const double gd = 0.004, gl = 0.03, alpha = gd / std::sqrt(std::log(2.0)), s = 2.5;
   std::vector<double> nu;
   for (double d = -3.0; d <= 3.0; d += 0.0137) nu.push_back(3000.0 + d);
-  std::vector<double> a(nu.size(), 0.0), b(nu.size(), 0.0), c(nu.size(), 0.0);
+  std::vector<double> a(nu.size());
+  std::vector<double> b(nu.size());
+  std::vector<double> c(nu.size());
   AddVoigtWeideman(nu.data(), nu.size(), 3000.0, alpha, gl, s, a.data());
   AddVoigtContinuedFraction4(nu.data(), nu.size(), 3000.0, alpha, gl, s, b.data());
   AddVoigtFarWing(nu.data(), nu.size(), 3000.0, alpha, gl, s, c.data());
@@ -112,8 +114,9 @@ TEST(VoigtProfile, KernelsEqualTheProfile) {
     EXPECT_LT(RelErr(a[j], k * FaddeevaWeideman32(x, y).real()), 1e-12);
     EXPECT_LT(RelErr(b[j], k * FaddeevaContinuedFraction4(x, y).real()), 1e-12);
     EXPECT_LT(RelErr(c[j], k * FaddeevaContinuedFraction2(x, y).real()), 1e-12);
-    if (std::abs(x) + y >= kVoigtFarLimit)
+    if (std::abs(x) + y >= kVoigtFarLimit) {
       EXPECT_LT(RelErr(c[j], s * VoigtProfile(nu[j] - 3000.0, gd, gl)), 1e-12);
+    }
   }
 }
 

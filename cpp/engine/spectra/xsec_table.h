@@ -9,9 +9,11 @@
 // values is <= 0 the same weights are applied to sigma itself. ln sigma of a
 // line at fixed nu varies like -c2 E''/T + const (Boltzmann factor) plus
 // slowly varying width terms, which a cubic in T follows closely: on a 10 K
-// grid over 200-800 K the error against direct computation is below 1e-4
-// where sigma exceeds 1% of its maximum (CH4, CO2, H2O; measured in
-// tests/python/test_spectra.py, reported in docs/spectroscopy.md).
+// grid over 200-800 K the error against direct computation, where sigma
+// exceeds 1% of its maximum, is ~5e-5 for CH4 (2830-3250 cm-1) and CO2
+// (2100-2300 cm-1) and 4e-4 for H2O (2830-3250 cm-1) (measured by
+// benchmarks/bench_spectra.py, bounded by tests/python/test_spectra.py,
+// reported in docs/spectroscopy.md).
 //
 // The interpolation error bound needs wing windows that do not move with
 // temperature: with HAPI's half-width rule a window edge moves with the line
@@ -77,6 +79,13 @@ class XsecTable {
   Stencil StencilAt(double temperature_K) const;
   // sigma at grid point inu and temperature_K [cm2/molecule].
   double Sigma(std::size_t inu, double temperature_K) const;
+  // The same with a stencil computed once (for loops over many points at one
+  // temperature); inu < num_wavenumbers() is not checked.
+  double Sigma(const Stencil& stencil, std::size_t inu) const {
+    double v;
+    Interpolate(stencil, inu, inu + 1, &v, nullptr);
+    return v;
+  }
   // The whole spectrum at temperature_K into out[0 .. nnu), and optionally
   // d sigma / dT into dsigma_dT [cm2/(molecule K)].
   void Spectrum(double temperature_K, double* out, double* dsigma_dT = nullptr) const;

@@ -72,6 +72,8 @@ TEST(XsecTable, InterpolationErrorAtOffGridTemperatures) {
       if (direct[j] > 0.01 * peak) worst = std::max(worst, std::abs(interp[j] / direct[j] - 1));
     EXPECT_LT(worst, 1e-3) << temp;
     EXPECT_NEAR(t.Sigma(123, temp), interp[123], 1e-12 * interp[123]);
+    const XsecTable::Stencil st = t.StencilAt(temp);
+    EXPECT_NEAR(t.Sigma(st, 456), interp[456], 1e-12 * interp[456]);
   }
 }
 
@@ -87,7 +89,9 @@ TEST(XsecTable, TemperatureDerivative) {
   const double peak = *std::max_element(s.begin(), s.end());
   for (std::size_t j = 0; j < s.size(); ++j) {
     const double fd = (up[j] - dn[j]) / (2 * h);
-    if (s[j] > 0.01 * peak) EXPECT_NEAR(d[j], fd, 0.02 * std::abs(fd) + 2e-4 * s[j] / 10) << j;
+    if (s[j] > 0.01 * peak) {
+      EXPECT_NEAR(d[j], fd, 0.02 * std::abs(fd) + 2e-4 * s[j] / 10) << j;
+    }
   }
 }
 
