@@ -109,7 +109,36 @@ void BindSpectra(py::module_& m) {
 
   // --- line lists ---------------------------------------------------------
   py::class_<LineList, std::shared_ptr<LineList>>(m, "LineList", R"doc(
-HITRAN lines as parallel arrays (one entry per transition); see qogi.spectra.
+HITRAN lines as parallel arrays, one entry per transition, sorted by wavenumber.
+
+Usually made by qogi.load_line_list; built from arrays for synthetic lines.
+
+Parameters
+----------
+molecule, isotopologue : array of int
+    HITRAN molecule code (6 = CH4) and local isotopologue number (1 = most abundant).
+nu_cm1 : array, cm-1
+    Transition wavenumbers (> 0).
+intensity : array, cm/molecule
+    Line intensity S at 296 K, natural abundance included (>= 0).
+gamma_air, gamma_self : array, cm-1/atm
+    Air- and self-broadened Lorentz HWHM at 296 K (>= 0).
+elower_cm1 : array, cm-1
+    Lower-state energy E''.
+n_air : array
+    Temperature exponent of gamma_air.
+delta_air : array, cm-1/atm
+    Air pressure shift at 296 K.
+n_self, delta_self : array, optional
+    Self exponent and shift; default n_air and delta_air.
+einstein_a : array, 1/s, optional
+    Einstein A coefficients (not used by the cross-section); default 0.
+
+Attributes
+----------
+The same names as read-only arrays (copies), plus ``sources`` (files, in
+priority order) and ``coverage`` ((molecule, isotopologue, nu_min_cm1,
+nu_max_cm1, source index) spans used when merging files).
 )doc")
       .def(py::init([](const IntArray& molecule, const IntArray& isotopologue,
                        const DoubleArray& nu, const DoubleArray& intensity,
