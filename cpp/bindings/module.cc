@@ -8,6 +8,7 @@ void BindOptics(py::module_& m);
 void BindIo(py::module_& m);
 void BindRte(py::module_& m);
 void BindCameraPresets(py::module_& m);
+void BindSpectra(py::module_& m);
 }  // namespace qogi
 
 PYBIND11_MODULE(_engine, m) {
@@ -17,4 +18,5 @@ PYBIND11_MODULE(_engine, m) {
   qogi::BindIo(m);
   qogi::BindRte(m);
   qogi::BindCameraPresets(m);
+  qogi::BindSpectra(m);
 }

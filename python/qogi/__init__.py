@@ -16,6 +16,17 @@ from .forward import ForwardModel, band_radiance, column_density, forward_model
 from . import io, radiometry  # noqa: F401  (qogi.io.read_flir etc. after `import qogi`)
 from .recording import (Camera, Recording, RecordingError, RecordingWriter, Scene, Truth,
                         open_recording, write_recording)
+from .spectra import (
+    CrossSectionTable,
+    LineList,
+    absorption_coefficient,
+    cross_section,
+    cross_section_table,
+    find_line_lists,
+    load_line_list,
+    partition_sum,
+    voigt_profile,
+)
 
 __all__ = [
     "__version__",
@@ -36,4 +47,13 @@ __all__ = [
     "Truth",
     "open_recording",
     "write_recording",
+    "CrossSectionTable",
+    "LineList",
+    "absorption_coefficient",
+    "cross_section",
+    "cross_section_table",
+    "find_line_lists",
+    "load_line_list",
+    "partition_sum",
+    "voigt_profile",
 ]
