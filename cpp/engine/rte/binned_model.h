@@ -32,7 +32,7 @@ namespace qogi {
 
 struct BinnedModelOptions {
   double bin_ratio = 1.5;  // max ratio of cross-sections within a bin at each key temperature (> 1)
-  std::vector<double> key_temperatures_K = {250.0, 500.0};  // binning temperatures [K], within the tables
+  std::vector<double> key_temperatures_K = {250.0, 350.0, 500.0};  // binning temperatures [K], within the tables
   double floor_fraction = 1e-8;  // cross-sections below this fraction of a species' maximum count as zero
   int chebyshev_nodes = 12;      // Planck interpolation nodes per segment (4-32)
   double segment_width_cm1 = 300.0;  // max width of a Chebyshev segment [cm-1]
