@@ -6,6 +6,7 @@ namespace qogi {
 void BindUtil(py::module_& m);
 void BindOptics(py::module_& m);
 void BindIo(py::module_& m);
+void BindCamera(py::module_& m);
 }  // namespace qogi
 
 PYBIND11_MODULE(_engine, m) {
@@ -13,4 +14,5 @@ PYBIND11_MODULE(_engine, m) {
   qogi::BindUtil(m);
   qogi::BindOptics(m);
   qogi::BindIo(m);
+  qogi::BindCamera(m);
 }

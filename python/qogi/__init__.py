@@ -14,6 +14,10 @@ from .optics import SpectralResponse, planck_radiance, planck_radiance_derivativ
 from . import io, radiometry  # noqa: F401  (qogi.io.read_flir etc. after `import qogi`)
 from .recording import (Camera, Recording, RecordingError, RecordingWriter, Scene, Truth,
                         open_recording, write_recording)
+from . import camera  # noqa: F401  (qogi.camera: calibration, noise, warm optics)
+from .camera import (Calibration, CalibrationScene, ChannelOptics, add_netd_noise,
+                     add_warm_optics, camera_optics, correct_warm_optics, fit_calibration,
+                     netd_radiance_sigma, warm_optics_radiance)
 
 __all__ = [
     "__version__",
@@ -28,4 +32,14 @@ __all__ = [
     "Truth",
     "open_recording",
     "write_recording",
+    "Calibration",
+    "CalibrationScene",
+    "fit_calibration",
+    "netd_radiance_sigma",
+    "add_netd_noise",
+    "ChannelOptics",
+    "camera_optics",
+    "warm_optics_radiance",
+    "add_warm_optics",
+    "correct_warm_optics",
 ]

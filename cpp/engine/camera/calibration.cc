@@ -48,29 +48,42 @@ SceneStats ComputeStats(const CalibrationScene& s, std::size_t k, std::size_t np
   st.under.assign(npix, 0);
   const std::size_t nf = s.num_frames;
   ParallelFor(npix, 4096, [&](std::size_t b, std::size_t e) {
-    std::vector<double> shift(e - b), sum(e - b, 0.0), sum2(e - b, 0.0);
-    for (std::size_t p = b; p < e; ++p) shift[p - b] = s.frames[p];
+    const std::size_t n = e - b;
+    // Branch-free accumulation (shifted by the first frame against
+    // cancellation); a non-finite count shows up in the sums.
+    std::vector<double> shift(n), sum(n, 0.0), sum2(n, 0.0);
+    std::vector<float> lo(n), hi(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      shift[i] = s.frames[b + i];
+      lo[i] = hi[i] = s.frames[b + i];
+    }
     for (std::size_t j = 0; j < nf; ++j) {
-      const float* row = s.frames + j * npix;
-      for (std::size_t p = b; p < e; ++p) {
-        const double c = row[p];
-        if (!std::isfinite(c))
-          throw std::invalid_argument(
-              "calibration scene " + std::to_string(k) + ": frame " + std::to_string(j) +
-              " has a non-finite count at pixel " + std::to_string(p) + "; got " +
-              FormatNumber(c));
-        if (c >= opt.saturation_counts) st.saturated[p] = 1;
-        if (c <= opt.min_valid_counts) st.under[p] = 1;
-        const double d = c - shift[p - b];
-        sum[p - b] += d;
-        sum2[p - b] += d * d;
+      const float* row = s.frames + j * npix + b;
+      for (std::size_t i = 0; i < n; ++i) {
+        const double d = row[i] - shift[i];
+        sum[i] += d;
+        sum2[i] += d * d;
+        lo[i] = std::min(lo[i], row[i]);
+        hi[i] = std::max(hi[i], row[i]);
       }
     }
-    for (std::size_t p = b; p < e; ++p) {
-      const double m = sum[p - b] / nf;
-      st.mean_counts[p] = shift[p - b] + m;
-      st.std_counts[p] =
-          nf > 1 ? std::sqrt(std::max(0.0, (sum2[p - b] - nf * m * m) / (nf - 1))) : 0.0;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!std::isfinite(sum2[i])) {
+        for (std::size_t j = 0; j < nf; ++j) {
+          const float c = s.frames[j * npix + b + i];
+          if (!std::isfinite(c))
+            throw std::invalid_argument(
+                "calibration scene " + std::to_string(k) + ": frame " + std::to_string(j) +
+                " has a non-finite count at pixel " + std::to_string(b + i) + "; got " +
+                FormatNumber(c));
+        }
+      }
+      const std::size_t p = b + i;
+      st.saturated[p] = hi[i] >= opt.saturation_counts;
+      st.under[p] = lo[i] <= opt.min_valid_counts;
+      const double m = sum[i] / nf;
+      st.mean_counts[p] = shift[i] + m;
+      st.std_counts[p] = nf > 1 ? std::sqrt(std::max(0.0, (sum2[i] - nf * m * m) / (nf - 1))) : 0.0;
     }
   }, opt.num_threads, control);
   for (std::size_t p = 0; p < npix; ++p) {
@@ -241,10 +254,13 @@ std::vector<double> FrameTimes(const std::vector<double>& t, std::size_t num_fra
 ApplyStats ChannelCalibration::CountsToRadiance(const float* raw, std::size_t num_frames,
                                                 const std::vector<double>& integration_time_s,
                                                 float* out, bool replace_bad_pixels,
-                                                int num_threads,
+                                                std::size_t frame_stride, int num_threads,
                                                 const RunControl* control) const {
   const std::vector<double> times = FrameTimes(integration_time_s, num_frames);
   const std::size_t h = height_, w = width_, npix = h * w;
+  const std::size_t stride = frame_stride == 0 ? npix : frame_stride;
+  Require(stride >= npix, "frame_stride must be >= height x width (" + std::to_string(npix) +
+                              "); got " + std::to_string(stride));
   std::atomic<std::size_t> out_of_range{0}, replaced{0}, unreplaced{0};
   std::vector<std::size_t> bad_list;
   for (std::size_t p = 0; p < npix; ++p)
@@ -256,7 +272,7 @@ ApplyStats ChannelCalibration::CountsToRadiance(const float* raw, std::size_t nu
     for (std::size_t r = b; r < e; ++r) {
       const std::size_t j = r / h;
       const double inv_t = 1.0 / times[j];
-      const std::size_t base = r * w, pix0 = (r % h) * w;
+      const std::size_t pix0 = (r % h) * w, base = j * stride + pix0;
       for (std::size_t x = 0; x < w; ++x) {
         const std::size_t p = pix0 + x;
         if (bad_[p]) continue;
@@ -276,7 +292,7 @@ ApplyStats ChannelCalibration::CountsToRadiance(const float* raw, std::size_t nu
   ParallelFor(num_frames, 1, [&](std::size_t b, std::size_t e) {
     std::size_t rep = 0, unrep = 0;
     for (std::size_t j = b; j < e; ++j) {
-      float* frame = out + j * npix;
+      float* frame = out + j * stride;
       for (std::size_t p : bad_list) {
         if (!replace_bad_pixels) {
           frame[p] = std::numeric_limits<float>::quiet_NaN();
@@ -314,21 +330,60 @@ ApplyStats ChannelCalibration::CountsToRadiance(const float* raw, std::size_t nu
 
 void ChannelCalibration::RadianceToCounts(const float* radiance, std::size_t num_frames,
                                           const std::vector<double>& integration_time_s,
-                                          float* out, int num_threads,
+                                          float* out, std::size_t frame_stride, int num_threads,
                                           const RunControl* control) const {
   const std::vector<double> times = FrameTimes(integration_time_s, num_frames);
   const std::size_t npix = static_cast<std::size_t>(height_) * width_;
+  const std::size_t stride = frame_stride == 0 ? npix : frame_stride;
+  Require(stride >= npix, "frame_stride must be >= height x width (" + std::to_string(npix) +
+                              "); got " + std::to_string(stride));
   ParallelFor(num_frames * npix, 16384, [&](std::size_t b, std::size_t e) {
-    for (std::size_t i = b; i < e; ++i) {
-      const std::size_t p = i % npix;
+    for (std::size_t k = b; k < e; ++k) {
+      const std::size_t j = k / npix, p = k % npix, i = j * stride + p;
       if (bad_[p]) {
         out[i] = std::numeric_limits<float>::quiet_NaN();
         continue;
       }
       const double f = (curve_.Flux(radiance[i]) - offset_[p]) / gain_[p];
-      out[i] = static_cast<float>(f * times[i / npix]);
+      out[i] = static_cast<float>(f * times[j]);
     }
   }, num_threads, control);
+}
+
+ApplyStats CountsToRadiance(const std::vector<ChannelCalibration>& channels, const float* raw,
+                            std::size_t num_frames, const std::vector<double>& integration_time_s,
+                            float* out, bool replace_bad_pixels, int num_threads,
+                            const RunControl* control) {
+  Require(!channels.empty(), "CountsToRadiance needs at least one channel calibration");
+  const std::size_t nc = channels.size();
+  const std::size_t npix = static_cast<std::size_t>(channels[0].height()) * channels[0].width();
+  for (std::size_t c = 1; c < nc; ++c)
+    Require(channels[c].height() == channels[0].height() &&
+                channels[c].width() == channels[0].width(),
+            "channel calibrations must share one frame size; channel " + std::to_string(c) +
+                " is " + std::to_string(channels[c].height()) + "x" +
+                std::to_string(channels[c].width()) + ", channel 0 " +
+                std::to_string(channels[0].height()) + "x" + std::to_string(channels[0].width()));
+  Require(integration_time_s.size() == nc || integration_time_s.size() == num_frames * nc,
+          "integration_time_s must have one value per channel (" + std::to_string(nc) +
+              ") or per frame and channel (" + std::to_string(num_frames * nc) + "); got " +
+              std::to_string(integration_time_s.size()));
+  ApplyStats total;
+  for (std::size_t c = 0; c < nc; ++c) {
+    std::vector<double> times;
+    if (integration_time_s.size() == nc) {
+      times = {integration_time_s[c]};
+    } else {
+      for (std::size_t j = 0; j < num_frames; ++j) times.push_back(integration_time_s[j * nc + c]);
+    }
+    const ApplyStats s = channels[c].CountsToRadiance(raw + c * npix, num_frames, times,
+                                                      out + c * npix, replace_bad_pixels,
+                                                      nc * npix, num_threads, control);
+    total.out_of_range += s.out_of_range;
+    total.replaced += s.replaced;
+    total.unreplaced += s.unreplaced;
+  }
+  return total;
 }
 
 ChannelCalibration FitChannelCalibration(const SpectralResponse& channel, int height, int width,

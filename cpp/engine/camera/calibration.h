@@ -117,7 +117,6 @@ struct ApplyStats {
 
 class ChannelCalibration {
  public:
-  ChannelCalibration() = default;
   // From stored parts (e.g. a saved calibration). Maps are height x width,
   // row-major; bad_pixels nonzero = bad. Throws std::invalid_argument for
   // inconsistent parts.
@@ -144,20 +143,23 @@ class ChannelCalibration {
   double min_radiance() const;
   double max_radiance() const;
 
-  // Raw counts of `num_frames` frames of this channel (height x width each)
-  // -> band radiance [W/(m2 sr)]. integration_time_s: one value per frame
-  // (size num_frames) or a single value for all. Out-of-range counts give NaN;
-  // bad pixels are replaced by the mean of their good 3x3 neighbours
-  // (replace_bad_pixels) or NaN. `out` may alias `raw`.
+  // Raw counts of `num_frames` frames of this channel (height x width each,
+  // frame j starting at raw + j * frame_stride; 0 = height x width) -> band
+  // radiance [W/(m2 sr)], written with the same layout into `out` (which may
+  // alias `raw`). integration_time_s: one value per frame (size num_frames) or
+  // a single value for all. Out-of-range counts give NaN; bad pixels are
+  // replaced by the mean of their good 3x3 neighbours (replace_bad_pixels) or
+  // NaN.
   ApplyStats CountsToRadiance(const float* raw, std::size_t num_frames,
                               const std::vector<double>& integration_time_s, float* out,
-                              bool replace_bad_pixels = true, int num_threads = 0,
-                              const RunControl* control = nullptr) const;
+                              bool replace_bad_pixels = true, std::size_t frame_stride = 0,
+                              int num_threads = 0, const RunControl* control = nullptr) const;
   // The inverse for good pixels: band radiance -> the raw counts this pixel
-  // reads at integration time t. Bad pixels give NaN.
+  // reads at integration time t. Bad pixels give NaN. Same layout rules.
   void RadianceToCounts(const float* radiance, std::size_t num_frames,
                         const std::vector<double>& integration_time_s, float* out,
-                        int num_threads = 0, const RunControl* control = nullptr) const;
+                        std::size_t frame_stride = 0, int num_threads = 0,
+                        const RunControl* control = nullptr) const;
 
  private:
   std::vector<SpectralResponse> channel_;  // exactly one (no default constructor)
@@ -168,6 +170,15 @@ class ChannelCalibration {
   std::vector<CalibrationPoint> points_;
   double saturation_ = 0, min_valid_ = 0;
 };
+
+// A camera's raw frame stack (num_frames, C, height, width), C =
+// channels.size(), row-major -> band radiance, channel by channel, into `out`
+// (same layout; may alias `raw`). integration_time_s: C values (one per
+// channel) or num_frames x C values. Returns the summed counts.
+ApplyStats CountsToRadiance(const std::vector<ChannelCalibration>& channels, const float* raw,
+                            std::size_t num_frames, const std::vector<double>& integration_time_s,
+                            float* out, bool replace_bad_pixels = true, int num_threads = 0,
+                            const RunControl* control = nullptr);
 
 // Fits one channel's calibration from its uniform blackbody scenes (all
 // height x width). Throws std::invalid_argument naming the problem: too few

@@ -257,6 +257,41 @@ TEST(Calibration, ThreadCountDoesNotChangeTheResult) {
   EXPECT_EQ(a.curve().gain, b.curve().gain);
 }
 
+TEST(Calibration, CameraStacksAreConvertedChannelByChannel) {
+  // Two channels (the gf320 filter and the fast-m150 CH4 filter), frames
+  // interleaved as (T, C, H, W) with per-frame, per-channel integration times.
+  SyntheticCamera a(5), b(6);
+  b.channel = CameraPreset("fast-m150").channels[2];
+  b.gain = 3.0e7;
+  const Data da = MakeScenes(a, kTemps, {1e-3}), db = MakeScenes(b, kTemps, {1e-3});
+  const std::vector<ChannelCalibration> cals = {
+      FitChannelCalibration(a.channel, a.h, a.w, da.scenes),
+      FitChannelCalibration(b.channel, b.h, b.w, db.scenes)};
+  const std::size_t npix = a.npix();
+  const std::vector<double> times = {1e-3, 2e-3, 5e-4, 1e-3};  // (frame, channel)
+  std::vector<float> stack;
+  for (int j = 0; j < 2; ++j) {
+    const std::vector<float> fa = a.Frames(a.Radiance(300.0 + j), times[2 * j], 1, 7);
+    const std::vector<float> fb = b.Frames(b.Radiance(300.0 + j), times[2 * j + 1], 1, 8);
+    stack.insert(stack.end(), fa.begin(), fa.end());
+    stack.insert(stack.end(), fb.begin(), fb.end());
+  }
+  std::vector<float> out(stack.size());
+  CountsToRadiance(cals, stack.data(), 2, times, out.data());
+  for (int j = 0; j < 2; ++j)
+    for (std::size_t p = 0; p < npix; ++p) {
+      EXPECT_NEAR(out[(2 * j) * npix + p], a.Radiance(300.0 + j), 2e-6 * a.Radiance(300.0 + j));
+      EXPECT_NEAR(out[(2 * j + 1) * npix + p], b.Radiance(300.0 + j),
+                  2e-6 * b.Radiance(300.0 + j));
+    }
+  // In place, with one time per channel.
+  std::vector<float> f0(stack.begin(), stack.begin() + 2 * npix);
+  CountsToRadiance(cals, f0.data(), 1, {times[0], times[1]}, f0.data());
+  for (std::size_t i = 0; i < f0.size(); ++i) EXPECT_EQ(f0[i], out[i]);
+  EXPECT_THROW(CountsToRadiance(cals, stack.data(), 2, {1e-3, 1e-3, 1e-3}, out.data()),
+               std::invalid_argument);
+}
+
 std::string ErrorOf(const std::function<void()>& f) {
   try {
     f();
