@@ -36,6 +36,22 @@ py::dict StatsDict(const ApplyStats& s) {
   return d;
 }
 
+py::dict OptionsDict(const CalibrationOptions& o) {
+  py::dict d;
+  d["quadratic"] = o.quadratic;
+  d["saturation_counts"] = o.saturation_counts;
+  d["min_valid_counts"] = o.min_valid_counts;
+  d["bad_response_tolerance"] = o.bad_response_tolerance;
+  d["bad_noise_factor"] = o.bad_noise_factor;
+  d["max_bad_fraction"] = o.max_bad_fraction;
+  d["nuc_cold_scene"] = o.nuc_cold_scene;
+  d["nuc_hot_scene"] = o.nuc_hot_scene;
+  d["blackbody_emissivity"] = o.blackbody_emissivity;
+  d["ambient_temperature_K"] = o.ambient_temperature_K;
+  d["num_threads"] = o.num_threads;
+  return d;
+}
+
 // ---------------------------------------------------------------------------
 // Calibration: options, curve, per-channel calibration, fit, stack apply.
 void BindCameraCalibration(py::module_& m) {
@@ -80,7 +96,18 @@ qogi.camera.fit_calibration for the meaning of each field).
       .def_readwrite("blackbody_emissivity", &CalibrationOptions::blackbody_emissivity)
       .def_readwrite("ambient_temperature_K", &CalibrationOptions::ambient_temperature_K)
       .def_readwrite("num_threads", &CalibrationOptions::num_threads)
-      .def("check", &CalibrationOptions::Check);
+      .def("check", &CalibrationOptions::Check)
+      .def("to_dict", [](const CalibrationOptions& o) { return OptionsDict(o); })
+      .def("__repr__", [](const CalibrationOptions& o) {
+        std::string s = "CalibrationOptions(";
+        bool first = true;
+        for (auto item : OptionsDict(o)) {
+          s += (first ? "" : ", ") + item.first.cast<std::string>() + "=" +
+               py::repr(item.second).cast<std::string>();
+          first = false;
+        }
+        return s + ")";
+      });
 
   py::class_<CountsFluxCurve>(m, "CountsFluxCurve", R"doc(
 F(L) = G L + O + Q L^2 [counts/s] of band radiance L [W/(m2 sr)].
@@ -93,7 +120,16 @@ F(L) = G L + O + Q L^2 [counts/s] of band radiance L [W/(m2 sr)].
       .def_readonly("offset", &CountsFluxCurve::offset, "O [counts/s]")
       .def_readonly("quadratic", &CountsFluxCurve::quadratic, "Q [counts/s per (W/(m2 sr))^2]")
       .def("flux", &CountsFluxCurve::Flux, py::arg("radiance"))
-      .def("radiance", &CountsFluxCurve::Radiance, py::arg("flux"));
+      .def("radiance", &CountsFluxCurve::Radiance, py::arg("flux"))
+      .def("__repr__", [](const CountsFluxCurve& c) {
+        return "CountsFluxCurve(gain=" + FormatNumber(c.gain) + ", offset=" +
+               FormatNumber(c.offset) + ", quadratic=" + FormatNumber(c.quadratic) + ")";
+      })
+      .def(py::pickle(
+          [](const CountsFluxCurve& c) { return py::make_tuple(c.gain, c.offset, c.quadratic); },
+          [](py::tuple t) {
+            return CountsFluxCurve{t[0].cast<double>(), t[1].cast<double>(), t[2].cast<double>()};
+          }));
 
   py::class_<ChannelCalibration>(m, "ChannelCalibration", R"doc(
 One channel's calibration: per-pixel NUC gain/offset, bad-pixel map and the

@@ -6,6 +6,9 @@ namespace qogi {
 void BindUtil(py::module_& m);
 void BindOptics(py::module_& m);
 void BindIo(py::module_& m);
+void BindRte(py::module_& m);
+void BindCameraPresets(py::module_& m);
+void BindSpectra(py::module_& m);
 void BindCamera(py::module_& m);
 }  // namespace qogi
 
@@ -14,5 +17,8 @@ PYBIND11_MODULE(_engine, m) {
   qogi::BindUtil(m);
   qogi::BindOptics(m);
   qogi::BindIo(m);
+  qogi::BindRte(m);
+  qogi::BindCameraPresets(m);
+  qogi::BindSpectra(m);
   qogi::BindCamera(m);
 }

@@ -11,9 +11,22 @@ package is the public API.
 
 from ._version import __version__
 from .optics import SpectralResponse, planck_radiance, planck_radiance_derivative
+from .presets import camera_preset, camera_preset_names
+from .forward import ForwardModel, band_radiance, column_density, forward_model
 from . import io, radiometry  # noqa: F401  (qogi.io.read_flir etc. after `import qogi`)
 from .recording import (Camera, Recording, RecordingError, RecordingWriter, Scene, Truth,
                         open_recording, write_recording)
+from .spectra import (
+    CrossSectionTable,
+    LineList,
+    absorption_coefficient,
+    cross_section,
+    cross_section_table,
+    find_line_lists,
+    load_line_list,
+    partition_sum,
+    voigt_profile,
+)
 from . import camera  # noqa: F401  (qogi.camera: calibration, noise, warm optics)
 from .camera import (Calibration, CalibrationScene, ChannelOptics, add_netd_noise,
                      add_warm_optics, camera_optics, correct_warm_optics, fit_calibration,
@@ -24,6 +37,12 @@ __all__ = [
     "SpectralResponse",
     "planck_radiance",
     "planck_radiance_derivative",
+    "camera_preset",
+    "camera_preset_names",
+    "ForwardModel",
+    "band_radiance",
+    "column_density",
+    "forward_model",
     "Camera",
     "Recording",
     "RecordingError",
@@ -32,6 +51,15 @@ __all__ = [
     "Truth",
     "open_recording",
     "write_recording",
+    "CrossSectionTable",
+    "LineList",
+    "absorption_coefficient",
+    "cross_section",
+    "cross_section_table",
+    "find_line_lists",
+    "load_line_list",
+    "partition_sum",
+    "voigt_profile",
     "Calibration",
     "CalibrationScene",
     "fit_calibration",

@@ -367,15 +367,22 @@ class Calibration:
         integration_time_s : float or array, s
             Broadcast to (..., C): one value, one per channel, or one per
             frame and channel.
+        replace_bad_pixels : bool, default True
+        num_threads : int, default 0 (all cores)
+        progress : callable(fraction) -> bool or None, optional
+            Receives the overall finished fraction; return False to cancel.
         """
         a, shape, lead, n = self._layout(raw, "raw")
         times = self._times(integration_time_s, lead, n)
         src = np.ascontiguousarray(a, dtype=np.float32).reshape((n,) + shape[-3:])
         out = np.empty_like(src)
         stats = {"out_of_range": 0, "replaced": 0, "unreplaced": 0}
+        nc = self.num_channels
         for c, cal in enumerate(self.channels):
+            step = None if progress is None else (
+                lambda f, c=c: progress((c + f) / nc))   # overall fraction
             s = cal._counts_to_radiance(src, c, np.ascontiguousarray(times[:, c]), out,
-                                        replace_bad_pixels, num_threads, progress)
+                                        replace_bad_pixels, num_threads, step)
             for key in stats:
                 stats[key] += s[key]
         self.last_stats = stats

@@ -133,6 +133,11 @@ class Camera:
         then taken from the typical frame interval (see typical_interval) of ``time_s``.
     netd_K : float or None, K
         Noise-equivalent temperature difference, optional, in (0, 10].
+    width, height : int or None, pixels
+        Sensor resolution, when known (presets know it; a recording's frames
+        carry their own shape). Not stored in recording files.
+    description : str
+        Where the model's numbers come from (presets); not stored in files.
     """
 
     name: str
@@ -140,6 +145,9 @@ class Camera:
     channels: List[SpectralResponse]
     frame_rate_hz: Optional[float] = None
     netd_K: Optional[float] = None
+    width: Optional[int] = None
+    height: Optional[int] = None
+    description: str = ""
 
     def validate(self, path: str = _MEMORY) -> None:
         """Raise :class:`RecordingError` unless every field is in range."""

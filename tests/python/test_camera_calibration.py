@@ -239,3 +239,38 @@ def test_quadratic_detector_needs_the_quadratic_term():
         assert quad.channels[c].rms_residual_K < 1e-3       # count rounding only
         q_true = np.mean(cam.g[c]) * kappa / l360[c]
         assert quad.channels[c].curve.quadratic == pytest.approx(q_true, rel=1e-2)
+
+
+def test_options_mirror_the_engine_struct():
+    o = qogi._engine.CalibrationOptions(quadratic=True, saturation_counts=16383.0)
+    d = o.to_dict()
+    assert d["quadratic"] is True and d["saturation_counts"] == 16383.0
+    assert d["bad_response_tolerance"] == 0.3 and d["max_bad_fraction"] == 0.05
+    assert "saturation_counts=16383.0" in repr(o)
+    assert qogi._engine.CalibrationOptions(**d).to_dict() == d
+    with pytest.raises(ValueError, match="bad_response_tolerance"):
+        qogi._engine.CalibrationOptions(bad_response_tolerance=1.5)
+
+
+def test_calibration_and_optics_pickle(fitted):
+    import pickle
+    cam, cal = fitted
+    back = pickle.loads(pickle.dumps(cal))
+    raw = cam.frames(cam.radiance(320.0), 1e-3, 1)
+    np.testing.assert_array_equal(back.counts_to_radiance(raw, 1e-3),
+                                  cal.counts_to_radiance(raw, 1e-3))
+    o = qogi.camera_optics("fast-m150")[1]
+    o2 = pickle.loads(pickle.dumps(o))
+    assert isinstance(o2, qogi.ChannelOptics)
+    assert o2.warm_radiance(293.0, 294.0) == o.warm_radiance(293.0, 294.0)
+
+
+def test_progress_reports_the_overall_fraction_and_can_cancel(fitted):
+    cam, cal = fitted
+    raw = cam.frames(cam.radiance(320.0), 1e-3, 64)
+    seen = []
+    cal.counts_to_radiance(raw, 1e-3, progress=lambda f: seen.append(f))
+    assert seen and seen[-1] == pytest.approx(1.0) and max(seen) <= 1.0 + 1e-12
+    assert all(b >= a for a, b in zip(seen, seen[1:]))
+    with pytest.raises(KeyboardInterrupt):
+        cal.counts_to_radiance(raw, 1e-3, progress=lambda f: False)

@@ -2,20 +2,18 @@
 
 from __future__ import annotations
 
-from types import SimpleNamespace
-
 import numpy as np
 import pytest
 
 import qogi
-from qogi.camera import add_netd_noise, camera_optics, netd_radiance_sigma
+from qogi.camera import add_netd_noise, netd_radiance_sigma
 
 
 @pytest.fixture(scope="module")
 def camera():
-    # The fast-m150 channels (as built from their optics) and its NETD.
-    return SimpleNamespace(channels=[o.response for o in camera_optics("fast-m150")],
-                           netd_K=0.017)
+    cam = qogi.camera_preset("fast-m150")
+    assert cam.netd_K == 0.017
+    return cam
 
 
 def slope(ch, t, h=0.01):

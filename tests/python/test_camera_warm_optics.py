@@ -157,3 +157,13 @@ def test_bad_optics_input():
         add_warm_optics(np.zeros((2, 3, 4, 4)), camera_optics("fast-m150"), 293.0, 293.0)
     with pytest.raises(ValueError, match="no optics breakdown|unknown camera preset"):
         camera_optics("gf999")
+
+
+@pytest.mark.parametrize("name", ["gf320", "fast-m150"])
+def test_preset_optics_reproduce_the_preset_channels(name):
+    cam = qogi.camera_preset(name)
+    opt = camera_optics(name)
+    assert [o.name for o in opt] == [ch.name for ch in cam.channels]
+    for o, ch in zip(opt, cam.channels):
+        np.testing.assert_allclose(o.response.evaluate(ch.nu_cm1), ch.response, rtol=0,
+                                   atol=1e-14)

@@ -57,6 +57,13 @@ void AbsorberTable::Check() const {
   molar_mass();
 }
 
+std::vector<double> LogValues(const std::vector<float>& sigma) {
+  std::vector<double> out(sigma.size());
+  for (std::size_t i = 0; i < sigma.size(); ++i)
+    out[i] = sigma[i] > 0 ? std::log(static_cast<double>(sigma[i])) : -1e300;
+  return out;
+}
+
 TemperatureStencil MakeTemperatureStencil(const std::vector<double>& grid, double t) {
   TemperatureStencil st;
   const std::size_t n = grid.size();
@@ -64,38 +71,25 @@ TemperatureStencil MakeTemperatureStencil(const std::vector<double>& grid, doubl
   std::size_t i = static_cast<std::size_t>(
       std::upper_bound(grid.begin(), grid.end(), t) - grid.begin());
   i = (i == 0) ? 0 : i - 1;
-  if (i >= n - 1) i = n - 2;
-  if (n < 4 || i == 0 || i + 2 >= n) {  // linear at the ends
-    const double h = grid[i + 1] - grid[i];
-    const double w = (t - grid[i]) / h;
-    st.first = i;
-    st.count = 2;
-    st.weight[0] = 1 - w;
-    st.weight[1] = w;
-    st.dweight[0] = -1 / h;
-    st.dweight[1] = 1 / h;
-    return st;
-  }
-  st.first = i - 1;
-  st.count = 4;
-  const double* x = &grid[i - 1];
-  for (int a = 0; a < 4; ++a) {
-    double num = 1, den = 1, dnum = 0;
-    for (int b = 0; b < 4; ++b) {
+  if (i + 1 >= n) i = n - 2;
+  st.lower = i;
+  const double h = grid[i + 1] - grid[i];
+  st.frac = (t - grid[i]) / h;
+  st.dfrac = 1.0 / h;
+  st.count = static_cast<int>(std::min<std::size_t>(4, n));
+  st.first = n >= 4 ? std::min(i == 0 ? 0 : i - 1, n - 4) : 0;
+  for (int a = 0; a < st.count; ++a) {
+    const double ta = grid[st.first + a];
+    double w = 1.0, dw = 0.0;
+    for (int b = 0; b < st.count; ++b) {
       if (b == a) continue;
-      den *= x[a] - x[b];
+      const double tb = grid[st.first + b];
+      const double f = (t - tb) / (ta - tb);
+      dw = dw * f + w / (ta - tb);
+      w *= f;
     }
-    // d/dt prod_{b != a} (t - x_b) = sum_c prod_{b != a, c} (t - x_b)
-    for (int b = 0; b < 4; ++b) {
-      if (b == a) continue;
-      num *= t - x[b];
-      double p = 1;
-      for (int c = 0; c < 4; ++c)
-        if (c != a && c != b) p *= t - x[c];
-      dnum += p;
-    }
-    st.weight[a] = num / den;
-    st.dweight[a] = dnum / den;
+    st.weight[a] = w;
+    st.dweight[a] = dw;
   }
   return st;
 }

@@ -10,6 +10,7 @@
 // (HITRAN line-by-line); this module only reads them.
 #pragma once
 
+#include <cmath>
 #include <cstddef>
 #include <string>
 #include <vector>
@@ -39,17 +40,55 @@ struct AbsorberTable {
   double molar_mass() const;
 };
 
-// Interpolation in temperature: 4-point Lagrange cubic on the table's
-// temperature grid (2-point linear at the ends of the grid), clamped to the
-// grid's range. Temperatures outside the grid are an error for the caller to
-// prevent (the forward models check their inputs against the table range).
+// Interpolation in temperature, the same rule as the spectroscopy module's
+// tables (spectra/xsec_table.h): ln sigma is interpolated with a 4-point
+// Lagrange cubic in T through the two grid temperatures below and the two
+// above (one below and three above, or three below and one above, in the end
+// intervals); where any of the four values is 0, sigma is interpolated
+// linearly between the two bracketing grid temperatures. Temperatures outside
+// the grid are clamped to it (the forward models check their inputs first).
 struct TemperatureStencil {
-  std::size_t first = 0;  // first grid index used
-  int count = 0;          // 2 or 4 points
+  std::size_t first = 0;  // first grid index of the cubic
+  int count = 0;          // points of the cubic (4, or fewer on a short grid)
   double weight[4] = {0, 0, 0, 0};
   double dweight[4] = {0, 0, 0, 0};  // d(weight)/dT [1/K]
+  std::size_t lower = 0;  // bracketing interval [lower, lower + 1] for the fallback
+  double frac = 0;        // position of T in that interval, in [0, 1]
+  double dfrac = 0;       // d(frac)/dT [1/K]
 };
 TemperatureStencil MakeTemperatureStencil(const std::vector<double>& grid,
                                           double temperature_K);
+
+// Interpolated value from the stencil: `value(k)` and `log_value(k)` return
+// the table's sigma and ln sigma at grid temperature index k (ln of 0 may be
+// anything). Templated on the weight scalar for automatic differentiation.
+template <typename S, typename V, typename L>
+S InterpolateInTemperature(const TemperatureStencil& st, const S* w, const S& frac, V value,
+                           L log_value) {
+  using std::exp;
+  bool positive = true;
+  for (int a = 0; a < st.count; ++a) positive = positive && value(st.first + a) > 0;
+  if (positive) {
+    S l = S(0.0);
+    for (int a = 0; a < st.count; ++a) l += w[a] * log_value(st.first + a);
+    return exp(l);
+  }
+  const double lo = value(st.lower), hi = value(st.lower + 1);
+  return lo + frac * (hi - lo);
+}
+
+// ln sigma of a table's values (ln 0 stored as -1e300), computed once so that
+// interpolation in temperature costs one exp per value.
+std::vector<double> LogValues(const std::vector<float>& sigma);
+
+// sigma [cm2/molecule] of table values `sigma`/`log_sigma` ([n_T][n_nu]) at
+// wavenumber index j and the stencil's temperature.
+inline double SigmaAt(const std::vector<float>& sigma, const std::vector<double>& log_sigma,
+                      std::size_t n_nu, const TemperatureStencil& st, std::size_t j) {
+  const double* w = st.weight;
+  return InterpolateInTemperature<double>(
+      st, w, st.frac, [&](std::size_t k) { return static_cast<double>(sigma[k * n_nu + j]); },
+      [&](std::size_t k) { return log_sigma[k * n_nu + j]; });
+}
 
 }  // namespace qogi

@@ -72,15 +72,21 @@ void BinnedModel::BuildChannel(std::size_t c, const std::vector<AbsorberTable>& 
   std::vector<double> smax(ns, 0.0);
   for (std::size_t s = 0; s < ns; ++s)
     for (float v : tables[s].sigma_air) smax[s] = std::max<double>(smax[s], v);
-  auto key_value = [&](const std::vector<float>& v, std::size_t s, std::size_t i, double temp) {
+  std::vector<std::vector<double>> log_air, log_self;
+  for (const auto& t : tables) {
+    log_air.push_back(LogValues(t.sigma_air));
+    log_self.push_back(LogValues(t.sigma_self));
+  }
+  auto key_value = [&](bool self, std::size_t s, std::size_t i, double temp) {
     const AbsorberTable& t = tables[s];
     const long j = g.index[s][i];
     if (j < 0) return 0.0;
     const TemperatureStencil st = MakeTemperatureStencil(t.temperatures_K, temp);
-    double out = 0;
-    for (int a = 0; a < st.count; ++a)
-      out += st.weight[a] * TableValue(v, t, st.first + a, j, g.frac[s][i]);
-    return out;
+    const std::vector<float>& v = self ? t.sigma_self : t.sigma_air;
+    const std::vector<double>& lv = self ? log_self[s] : log_air[s];
+    const double lo = SigmaAt(v, lv, t.n_nu, st, j);
+    const double w = g.frac[s][i];
+    return w > 0 ? lo + w * (SigmaAt(v, lv, t.n_nu, st, j + 1) - lo) : lo;
   };
   const double log_ratio = std::log(options_.bin_ratio);
   auto level = [&](double v, double floor_v) -> int {
@@ -108,14 +114,12 @@ void BinnedModel::BuildChannel(std::size_t c, const std::vector<AbsorberTable>& 
     for (std::size_t s = 0; s < ns; ++s) {
       const double floor_v = options_.floor_fraction * smax[s];
       for (std::size_t k = 0; k < nk; ++k) {
-        const int l = level(key_value(tables[s].sigma_air, s, i, options_.key_temperatures_K[k]),
-                            floor_v);
+        const int l = level(key_value(false, s, i, options_.key_temperatures_K[k]), floor_v);
         absorbs = absorbs || l > -1000000;
         key.push_back(l);
       }
       if (tables[s].has_self())
-        key.push_back(level(key_value(tables[s].sigma_self, s, i, options_.key_temperatures_K[0]),
-                            floor_v));
+        key.push_back(level(key_value(true, s, i, options_.key_temperatures_K[0]), floor_v));
     }
     if (!absorbs) continue;  // transparent at every key temperature: zero contrast
     auto it = bin_of_key.find(key);
@@ -187,6 +191,12 @@ void BinnedModel::BuildChannel(std::size_t c, const std::vector<AbsorberTable>& 
         if (tables[s].has_self()) b.sigma_self[s][it * nq + q] *= inv;
       }
     }
+  }
+  b.log_sigma_air.resize(ns);
+  b.log_sigma_self.resize(ns);
+  for (std::size_t s = 0; s < ns; ++s) {
+    for (double v : b.sigma_air[s]) b.log_sigma_air[s].push_back(v > 0 ? std::log(v) : -1e300);
+    for (double v : b.sigma_self[s]) b.log_sigma_self[s].push_back(v > 0 ? std::log(v) : -1e300);
   }
   // Measure the Planck interpolation error on the grid points.
   for (double temp : {200.0, 300.0, 600.0}) {

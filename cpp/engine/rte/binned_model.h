@@ -96,6 +96,7 @@ class BinnedModel {
     std::vector<double> weight;  // [bin] sum of response * dnu [cm-1]
     // sigma_air[(s * n_T + j) * n_bins + q], sigma_self likewise (empty if no self table)
     std::vector<std::vector<double>> sigma_air, sigma_self;  // per species
+    std::vector<std::vector<double>> log_sigma_air, log_sigma_self;  // ln of the above (-1e300 for 0)
     std::vector<int> segment;    // [bin]
     // planck_map[q * n_cheb + m]: bin q's mean Planck from the segment's node values
     std::vector<double> planck_map;
@@ -176,22 +177,25 @@ void BinnedModel::Contrast(const PathT<S>& path, const S* t_bg, S* out) const {
         // Temperature stencil with derivative-carrying weights.
         const TemperatureStencil st = MakeTemperatureStencil(grid, ValueOfScalar(t));
         S wt[4];
-        for (int a = 0; a < st.count; ++a)
-          wt[a] = st.weight[a] + st.dweight[a] * (t - ValueOfScalar(t));
+        const S dt = t - ValueOfScalar(t);
+        for (int a = 0; a < st.count; ++a) wt[a] = st.weight[a] + st.dweight[a] * dt;
+        const S fr = st.frac + st.dfrac * dt;
         const S nx = n_tot * x;
         const std::vector<double>& sa = b.sigma_air[s];
-        for (int a = 0; a < st.count; ++a) {
-          const double* row = &sa[(st.first + a) * nq];
-          const S coef = has_self_[s] ? nx * (1.0 - x) * wt[a] : nx * wt[a];
-          for (std::size_t q = 0; q < nq; ++q) (*kappa)[q] += coef * row[q];
-        }
+        const std::vector<double>& la = b.log_sigma_air[s];
+        const S coef_air = has_self_[s] ? nx * (1.0 - x) : nx;
+        for (std::size_t q = 0; q < nq; ++q)
+          (*kappa)[q] += coef_air * InterpolateInTemperature<S>(
+                                        st, wt, fr, [&](std::size_t k) { return sa[k * nq + q]; },
+                                        [&](std::size_t k) { return la[k * nq + q]; });
         if (has_self_[s]) {
           const std::vector<double>& ss = b.sigma_self[s];
-          for (int a = 0; a < st.count; ++a) {
-            const double* row = &ss[(st.first + a) * nq];
-            const S coef = nx * x * wt[a];
-            for (std::size_t q = 0; q < nq; ++q) (*kappa)[q] += coef * row[q];
-          }
+          const std::vector<double>& ls = b.log_sigma_self[s];
+          const S coef_self = nx * x;
+          for (std::size_t q = 0; q < nq; ++q)
+            (*kappa)[q] += coef_self * InterpolateInTemperature<S>(
+                                           st, wt, fr, [&](std::size_t k) { return ss[k * nq + q]; },
+                                           [&](std::size_t k) { return ls[k * nq + q]; });
         }
         (void)nt;
       }

@@ -101,6 +101,10 @@ ExactModel::ExactModel(std::vector<SpectralResponse> channels, std::vector<Absor
   Require(!channels_.empty(), "a forward model needs at least one channel");
   CheckModelTables(tables_, &t_min_, &t_max_);
   for (const auto& ch : channels_) grids_.push_back(MakeChannelGrid(ch, tables_));
+  for (const auto& t : tables_) {
+    log_air_.push_back(LogValues(t.sigma_air));
+    log_self_.push_back(LogValues(t.sigma_self));
+  }
 }
 
 std::vector<std::string> ExactModel::species() const {
@@ -182,17 +186,13 @@ double ExactModel::ContrastSum(std::size_t c, const Path& path, double t_bg, std
         const long j = idx[begin + i];
         if (j < 0) continue;
         const double w = fr[begin + i];
-        double sa = 0, ss = 0;
-        for (int a = 0; a < st.count; ++a) {
-          const float* row = &tab.sigma_air[(st.first + a) * tab.n_nu + j];
-          sa += st.weight[a] * ((1 - w) * row[0] + w * row[1]);
-          if (tab.has_self()) {
-            const float* rs = &tab.sigma_self[(st.first + a) * tab.n_nu + j];
-            ss += st.weight[a] * ((1 - w) * rs[0] + w * rs[1]);
-          }
-        }
-        const double sig = tab.has_self() ? (1 - x) * sa + x * ss : sa;
-        kappa[i] += nx * std::max(0.0, sig);
+        auto sigma = [&](const std::vector<float>& v, const std::vector<double>& lv) {
+          const double lo = SigmaAt(v, lv, tab.n_nu, st, j);
+          return w > 0 ? lo + w * (SigmaAt(v, lv, tab.n_nu, st, j + 1) - lo) : lo;
+        };
+        const double sa = sigma(tab.sigma_air, log_air_[s]);
+        const double sig = tab.has_self() ? (1 - x) * sa + x * sigma(tab.sigma_self, log_self_[s]) : sa;
+        kappa[i] += nx * sig;
       }
     }
     for (std::size_t i = 0; i < n; ++i)
@@ -276,12 +276,9 @@ std::vector<double> ExactModel::BandRadiance(const Path& path, const std::vector
           const long j = g.index[s][i];
           if (j < 0) continue;
           const double w = g.frac[s][i];
-          double sa = 0;
-          for (int a = 0; a < st.count; ++a) {
-            const float* row = &tab.sigma_air[(st.first + a) * tab.n_nu + j];
-            sa += st.weight[a] * ((1 - w) * row[0] + w * row[1]);
-          }
-          atm_t[i] *= std::exp(-n_air * x * std::max(0.0, sa) * atmosphere.distance_m);
+          const double lo = SigmaAt(tab.sigma_air, log_air_[s], tab.n_nu, st, j);
+          const double sa = w > 0 ? lo + w * (SigmaAt(tab.sigma_air, log_air_[s], tab.n_nu, st, j + 1) - lo) : lo;
+          atm_t[i] *= std::exp(-n_air * x * sa * atmosphere.distance_m);
         }
       }
       for (std::size_t i = 0; i < n; ++i)

@@ -106,6 +106,7 @@ class ExactModel {
 
   std::vector<SpectralResponse> channels_;
   std::vector<AbsorberTable> tables_;
+  std::vector<std::vector<double>> log_air_, log_self_;  // ln sigma per table
   ExactModelOptions options_;
   std::vector<ChannelGrid> grids_;
   double t_min_ = 0, t_max_ = 0;

@@ -122,15 +122,13 @@ TEST(ExactModel, IsothermalPlumeIsBeerLambertAtEveryWavenumber) {
   // tau = n x sigma_cross(T) * sigma sqrt(2 pi); exact Gaussian column.
   const AbsorberTable& t = F().tables[0];
   const TemperatureStencil st = MakeTemperatureStencil(t.temperatures_K, tg);
+  const std::vector<double> log_air = LogValues(t.sigma_air), log_self = LogValues(t.sigma_self);
   const double col = NumberDensityCm3(constants::kAtm, tg) * 100 * x * sigma * std::sqrt(2 * constants::kPi);
   double worst = 0;
   for (std::size_t i = 0; i < nu.size(); i += 37) {
     const std::size_t j = static_cast<std::size_t>(std::round((nu[i] - t.nu0_cm1) / t.dnu_cm1));
-    double sa = 0, ss = 0;
-    for (int a = 0; a < st.count; ++a) {
-      sa += st.weight[a] * t.sigma_air[(st.first + a) * t.n_nu + j];
-      ss += st.weight[a] * t.sigma_self[(st.first + a) * t.n_nu + j];
-    }
+    const double sa = SigmaAt(t.sigma_air, log_air, t.n_nu, st, j);
+    const double ss = SigmaAt(t.sigma_self, log_self, t.n_nu, st, j);
     // Local self fraction varies along the path: average of (1-x g) and x g
     // weighted by g: int g (1 - x g) / int g = 1 - x / sqrt(2).
     const double xs = x / std::sqrt(2.0);
@@ -153,6 +151,7 @@ TEST(ExactModel, OpticallyThinLimitIsTheLinearisedBeerLambert) {
     std::vector<double> nu, dl;
     m.SpectralContrast(0, path, tb, &nu, &dl);
     const AbsorberTable& t = F().tables[0];
+    const std::vector<double> logs = LogValues(t.sigma_air);
     double worst = 0;
     for (std::size_t i = 0; i < nu.size(); i += 53) {
       const std::size_t j = static_cast<std::size_t>(std::round((nu[i] - t.nu0_cm1) / t.dnu_cm1));
@@ -162,8 +161,7 @@ TEST(ExactModel, OpticallyThinLimitIsTheLinearisedBeerLambert) {
         const double z = -8 + 16.0 * k / (n - 1), g = std::exp(-0.5 * z * z);
         const double temp = ta + (tp - ta) * g;
         const TemperatureStencil st = MakeTemperatureStencil(t.temperatures_K, temp);
-        double sa = 0;
-        for (int a = 0; a < st.count; ++a) sa += st.weight[a] * t.sigma_air[(st.first + a) * t.n_nu + j];
+        const double sa = SigmaAt(t.sigma_air, logs, t.n_nu, st, j);
         const double kappa = NumberDensityCm3(constants::kAtm, temp) * 100 * x * g * sa;
         lin += (PlanckRadiance(nu[i], temp) - PlanckRadiance(nu[i], tb)) * kappa * 0.02 * 16.0 / (n - 1);
       }

@@ -1,0 +1,370 @@
+// Bindings of engine/rte: absorber tables, the exact and the fast forward
+// models, Gaussian plumes and general paths. Glue only.
+
+#include "common.h"
+#include "engine/rte/binned_model.h"
+#include "engine/rte/exact_model.h"
+#include "engine/rte/path.h"
+
+namespace qogi {
+namespace {
+
+using Float2D = py::array_t<float, py::array::c_style | py::array::forcecast>;
+
+std::vector<float> TableValues(const Float2D& a, std::size_t nt, std::size_t nnu, const char* name) {
+  if (a.ndim() != 2 || static_cast<std::size_t>(a.shape(0)) != nt ||
+      static_cast<std::size_t>(a.shape(1)) != nnu)
+    throw std::invalid_argument(std::string(name) + " must have shape (n_temperatures, n_wavenumbers) = (" +
+                                std::to_string(nt) + ", " + std::to_string(nnu) + ")");
+  return std::vector<float>(a.data(), a.data() + a.size());
+}
+
+// Per-plume parameters as arrays of length N (fractions N x species).
+struct PlumeBatch {
+  std::size_t n = 0, ns = 0;
+  const double *x = nullptr, *tp = nullptr, *ta = nullptr, *sigma = nullptr, *tbg = nullptr;
+  std::size_t tbg_stride = 0;  // 1 (one per plume) or n_channels (per channel)
+};
+
+PathT<double> PlumePath(const PlumeBatch& b, std::size_t i, double pressure, int nodes, double zmax) {
+  return SampleGaussianPlume<double>(b.x + i * b.ns, b.ns, b.tp[i], b.ta[i], b.sigma[i], pressure,
+                                     nodes, zmax);
+}
+
+PlumeBatch MakeBatch(const DoubleArray& x, const DoubleArray& tp, const DoubleArray& ta,
+                     const DoubleArray& sigma, const DoubleArray& tbg, std::size_t ns,
+                     std::size_t nc) {
+  CheckNdim(x, 2, "peak_fractions");
+  PlumeBatch b;
+  b.n = static_cast<std::size_t>(x.shape(0));
+  b.ns = ns;
+  if (static_cast<std::size_t>(x.shape(1)) != ns)
+    throw std::invalid_argument("peak_fractions must have one column per species (" +
+                                std::to_string(ns) + "); got " + std::to_string(x.shape(1)));
+  for (const auto* a : {&tp, &ta, &sigma})
+    if (static_cast<std::size_t>(a->size()) != b.n)
+      throw std::invalid_argument("peak_temperature_K, ambient_temperature_K and sigma_m need one value per plume (" +
+                                  std::to_string(b.n) + ")");
+  if (static_cast<std::size_t>(tbg.size()) == b.n)
+    b.tbg_stride = 1;
+  else if (static_cast<std::size_t>(tbg.size()) == b.n * nc)
+    b.tbg_stride = nc;
+  else
+    throw std::invalid_argument("background_temperature_K needs one value per plume (" +
+                                std::to_string(b.n) + ") or per plume and channel (" +
+                                std::to_string(b.n * nc) + "); got " + std::to_string(tbg.size()));
+  b.x = x.data();
+  b.tp = tp.data();
+  b.ta = ta.data();
+  b.sigma = sigma.data();
+  b.tbg = tbg.data();
+  for (std::size_t i = 0; i < b.n; ++i) {
+    GaussianPlume p;
+    p.peak_fractions.assign(b.x + i * ns, b.x + (i + 1) * ns);
+    p.peak_temperature_K = b.tp[i];
+    p.ambient_temperature_K = b.ta[i];
+    p.sigma_m = b.sigma[i];
+    p.Check();
+  }
+  return b;
+}
+
+std::vector<double> BackgroundOf(const PlumeBatch& b, std::size_t i, std::size_t nc) {
+  if (b.tbg_stride == 1) return std::vector<double>(nc, b.tbg[i]);
+  return std::vector<double>(b.tbg + i * nc, b.tbg + (i + 1) * nc);
+}
+
+Path MakePath(const DoubleArray& position, const DoubleArray& temperature,
+              const DoubleArray& fractions, double pressure) {
+  CheckNdim(position, 1, "position_m");
+  CheckNdim(temperature, 1, "temperature_K");
+  CheckNdim(fractions, 2, "fractions");
+  Path p;
+  p.num_species = static_cast<std::size_t>(fractions.shape(1));
+  p.pressure_Pa = pressure;
+  p.position_m.assign(position.data(), position.data() + position.size());
+  p.temperature_K.assign(temperature.data(), temperature.data() + temperature.size());
+  p.fraction.assign(fractions.data(), fractions.data() + fractions.size());
+  if (static_cast<std::size_t>(fractions.shape(0)) != p.position_m.size())
+    throw std::invalid_argument("fractions must have one row per node");
+  return p;
+}
+
+}  // namespace
+
+void BindRte(py::module_& m) {
+  m.def("molar_mass", &MolarMass, py::arg("species"),
+        "Standard molar mass [kg/mol] of a species with natural isotopic composition.");
+
+  py::class_<AbsorberTable>(m, "AbsorberTable",
+                            "Cross-section table of one species as the forward models read it.")
+      .def(py::init([](std::string species, double pressure, double nu0, double dnu,
+                       const DoubleArray& temps, const Float2D& air, py::object self_tab,
+                       double molar_mass) {
+             AbsorberTable t;
+             t.species = std::move(species);
+             t.pressure_Pa = pressure;
+             t.nu0_cm1 = nu0;
+             t.dnu_cm1 = dnu;
+             CheckNdim(temps, 1, "temperatures_K");
+             t.temperatures_K.assign(temps.data(), temps.data() + temps.size());
+             if (air.ndim() != 2) throw std::invalid_argument("sigma_air must be 2-D (n_T, n_nu)");
+             t.n_nu = static_cast<std::size_t>(air.shape(1));
+             t.sigma_air = TableValues(air, t.temperatures_K.size(), t.n_nu, "sigma_air");
+             if (!self_tab.is_none())
+               t.sigma_self = TableValues(self_tab.cast<Float2D>(), t.temperatures_K.size(), t.n_nu,
+                                          "sigma_self");
+             t.molar_mass_kg_mol = molar_mass;
+             t.Check();
+             return t;
+           }),
+           py::arg("species"), py::arg("pressure_Pa"), py::arg("nu0_cm1"), py::arg("dnu_cm1"),
+           py::arg("temperatures_K"), py::arg("sigma_air"), py::arg("sigma_self") = py::none(),
+           py::arg("molar_mass_kg_mol") = 0.0)
+      .def_readonly("species", &AbsorberTable::species)
+      .def_readonly("pressure_Pa", &AbsorberTable::pressure_Pa)
+      .def_readonly("nu0_cm1", &AbsorberTable::nu0_cm1)
+      .def_readonly("dnu_cm1", &AbsorberTable::dnu_cm1)
+      .def_readonly("n_nu", &AbsorberTable::n_nu)
+      .def_readonly("temperatures_K", &AbsorberTable::temperatures_K)
+      .def_property_readonly("has_self", &AbsorberTable::has_self)
+      .def_property_readonly("molar_mass_kg_mol", &AbsorberTable::molar_mass);
+
+  py::class_<ExactModelOptions>(m, "ExactModelOptions")
+      .def(py::init([](int num_nodes, double z_max, bool richardson, int num_threads) {
+             ExactModelOptions o;
+             o.num_nodes = num_nodes;
+             o.z_max = z_max;
+             o.richardson = richardson;
+             o.num_threads = num_threads;
+             o.Check();
+             return o;
+           }),
+           py::arg("num_nodes") = ExactModelOptions().num_nodes,
+           py::arg("z_max") = ExactModelOptions().z_max,
+           py::arg("richardson") = ExactModelOptions().richardson,
+           py::arg("num_threads") = ExactModelOptions().num_threads)
+      .def_readonly("num_nodes", &ExactModelOptions::num_nodes)
+      .def_readonly("z_max", &ExactModelOptions::z_max)
+      .def_readonly("richardson", &ExactModelOptions::richardson)
+      .def_readonly("num_threads", &ExactModelOptions::num_threads);
+
+  py::class_<BinnedModelOptions>(m, "BinnedModelOptions")
+      .def(py::init([](double bin_ratio, std::vector<double> keys, double floor_fraction,
+                       int cheb, double seg, int nodes, double zmax, bool rich) {
+             BinnedModelOptions o;
+             o.bin_ratio = bin_ratio;
+             o.key_temperatures_K = std::move(keys);
+             o.floor_fraction = floor_fraction;
+             o.chebyshev_nodes = cheb;
+             o.segment_width_cm1 = seg;
+             o.num_nodes = nodes;
+             o.z_max = zmax;
+             o.richardson = rich;
+             o.Check();
+             return o;
+           }),
+           py::arg("bin_ratio") = BinnedModelOptions().bin_ratio,
+           py::arg("key_temperatures_K") = BinnedModelOptions().key_temperatures_K,
+           py::arg("floor_fraction") = BinnedModelOptions().floor_fraction,
+           py::arg("chebyshev_nodes") = BinnedModelOptions().chebyshev_nodes,
+           py::arg("segment_width_cm1") = BinnedModelOptions().segment_width_cm1,
+           py::arg("num_nodes") = BinnedModelOptions().num_nodes,
+           py::arg("z_max") = BinnedModelOptions().z_max,
+           py::arg("richardson") = BinnedModelOptions().richardson)
+      .def_readonly("bin_ratio", &BinnedModelOptions::bin_ratio)
+      .def_readonly("key_temperatures_K", &BinnedModelOptions::key_temperatures_K)
+      .def_readonly("floor_fraction", &BinnedModelOptions::floor_fraction)
+      .def_readonly("chebyshev_nodes", &BinnedModelOptions::chebyshev_nodes)
+      .def_readonly("segment_width_cm1", &BinnedModelOptions::segment_width_cm1)
+      .def_readonly("num_nodes", &BinnedModelOptions::num_nodes)
+      .def_readonly("z_max", &BinnedModelOptions::z_max)
+      .def_readonly("richardson", &BinnedModelOptions::richardson);
+
+  py::class_<AtmosphericPath>(m, "AtmosphericPath")
+      .def(py::init([](double d, double t, double rh, double co2, double ch4) {
+             AtmosphericPath a;
+             a.distance_m = d;
+             a.temperature_K = t;
+             a.relative_humidity = rh;
+             a.co2_ppm = co2;
+             a.ch4_ppm = ch4;
+             a.Check();
+             return a;
+           }),
+           py::arg("distance_m") = 0.0, py::arg("temperature_K") = 288.15,
+           py::arg("relative_humidity") = 0.5, py::arg("co2_ppm") = 420.0,
+           py::arg("ch4_ppm") = 1.9)
+      .def_readonly("distance_m", &AtmosphericPath::distance_m)
+      .def_readonly("temperature_K", &AtmosphericPath::temperature_K)
+      .def_readonly("relative_humidity", &AtmosphericPath::relative_humidity)
+      .def_readonly("co2_ppm", &AtmosphericPath::co2_ppm)
+      .def_readonly("ch4_ppm", &AtmosphericPath::ch4_ppm);
+
+  m.def("saturation_vapor_pressure", &SaturationVaporPressure, py::arg("temperature_K"));
+
+  m.def("gaussian_column_density",
+        [](std::vector<double> x, double tp, double ta, double sigma, double p,
+           std::vector<double> masses) {
+          GaussianPlume g;
+          g.peak_fractions = std::move(x);
+          g.peak_temperature_K = tp;
+          g.ambient_temperature_K = ta;
+          g.sigma_m = sigma;
+          g.pressure_Pa = p;
+          return GaussianColumnDensity(g, masses);
+        },
+        py::arg("peak_fractions"), py::arg("peak_temperature_K"), py::arg("ambient_temperature_K"),
+        py::arg("sigma_m"), py::arg("pressure_Pa"), py::arg("molar_masses_kg_mol"));
+
+  py::class_<ExactModel>(m, "ExactModel")
+      .def(py::init([](std::vector<SpectralResponse> ch, std::vector<AbsorberTable> tabs,
+                       const ExactModelOptions& o) {
+             py::gil_scoped_release release;
+             return ExactModel(std::move(ch), std::move(tabs), o);
+           }),
+           py::arg("channels"), py::arg("tables"), py::arg("options") = ExactModelOptions())
+      .def_property_readonly("species", &ExactModel::species)
+      .def_property_readonly("molar_masses", &ExactModel::molar_masses)
+      .def_property_readonly("num_channels", &ExactModel::num_channels)
+      .def_property_readonly("min_temperature_K", &ExactModel::min_temperature_K)
+      .def_property_readonly("max_temperature_K", &ExactModel::max_temperature_K)
+      .def("band_radiance",
+           [](const ExactModel& mdl, const DoubleArray& x, const DoubleArray& tp,
+              const DoubleArray& ta, const DoubleArray& sigma, const DoubleArray& tbg,
+              double pressure, const AtmosphericPath& atm, py::object progress) {
+             const std::size_t nc = mdl.num_channels();
+             const PlumeBatch b = MakeBatch(x, tp, ta, sigma, tbg, mdl.num_species(), nc);
+             py::array_t<double> out({b.n, nc});
+             double* o = out.mutable_data();
+             RunControl control = MakeRunControl(progress);
+             {
+               py::gil_scoped_release release;
+               for (std::size_t i = 0; i < b.n; ++i) {
+                 GaussianPlume g;
+                 g.peak_fractions.assign(b.x + i * b.ns, b.x + (i + 1) * b.ns);
+                 g.peak_temperature_K = b.tp[i];
+                 g.ambient_temperature_K = b.ta[i];
+                 g.sigma_m = b.sigma[i];
+                 g.pressure_Pa = pressure;
+                 const auto l = mdl.BandRadiance(g, BackgroundOf(b, i, nc), atm, &control);
+                 std::copy(l.begin(), l.end(), o + i * nc);
+                 if (control.progress) {
+                   py::gil_scoped_acquire gil;
+                   control.progress(static_cast<double>(i + 1) / b.n);
+                 }
+               }
+             }
+             return out;
+           },
+           py::arg("peak_fractions"), py::arg("peak_temperature_K"),
+           py::arg("ambient_temperature_K"), py::arg("sigma_m"),
+           py::arg("background_temperature_K"), py::arg("pressure_Pa"),
+           py::arg("atmosphere") = AtmosphericPath(), py::arg("progress") = py::none())
+      .def("band_radiance_path",
+           [](const ExactModel& mdl, const DoubleArray& pos, const DoubleArray& temp,
+              const DoubleArray& fr, double pressure, std::vector<double> tbg,
+              const AtmosphericPath& atm) {
+             const Path p = MakePath(pos, temp, fr, pressure);
+             py::gil_scoped_release release;
+             return mdl.BandRadiance(p, tbg, atm);
+           },
+           py::arg("position_m"), py::arg("temperature_K"), py::arg("fractions"),
+           py::arg("pressure_Pa"), py::arg("background_temperature_K"),
+           py::arg("atmosphere") = AtmosphericPath())
+      .def("spectral_contrast",
+           [](const ExactModel& mdl, std::size_t channel, const DoubleArray& pos,
+              const DoubleArray& temp, const DoubleArray& fr, double pressure, double tbg) {
+             const Path p = MakePath(pos, temp, fr, pressure);
+             std::vector<double> nu, dl;
+             {
+               py::gil_scoped_release release;
+               mdl.SpectralContrast(channel, p, tbg, &nu, &dl);
+             }
+             return py::make_tuple(py::array_t<double>(nu.size(), nu.data()),
+                                   py::array_t<double>(dl.size(), dl.data()));
+           },
+           py::arg("channel"), py::arg("position_m"), py::arg("temperature_K"),
+           py::arg("fractions"), py::arg("pressure_Pa"), py::arg("background_temperature_K"))
+      .def("gaussian_path",
+           [](const ExactModel& mdl, std::vector<double> x, double tp, double ta, double sigma,
+              double pressure) {
+             GaussianPlume g;
+             g.peak_fractions = std::move(x);
+             g.peak_temperature_K = tp;
+             g.ambient_temperature_K = ta;
+             g.sigma_m = sigma;
+             g.pressure_Pa = pressure;
+             const Path p = mdl.GaussianPath(g);
+             py::array_t<double> fr({p.size(), p.num_species});
+             std::copy(p.fraction.begin(), p.fraction.end(), fr.mutable_data());
+             return py::make_tuple(py::array_t<double>(p.size(), p.position_m.data()),
+                                   py::array_t<double>(p.size(), p.temperature_K.data()), fr);
+           },
+           py::arg("peak_fractions"), py::arg("peak_temperature_K"),
+           py::arg("ambient_temperature_K"), py::arg("sigma_m"), py::arg("pressure_Pa"));
+
+  py::class_<BinnedModel>(m, "BinnedModel")
+      .def(py::init([](std::vector<SpectralResponse> ch, std::vector<AbsorberTable> tabs,
+                       const BinnedModelOptions& o) {
+             py::gil_scoped_release release;
+             return BinnedModel(std::move(ch), std::move(tabs), o);
+           }),
+           py::arg("channels"), py::arg("tables"), py::arg("options") = BinnedModelOptions())
+      .def_property_readonly("species", &BinnedModel::species)
+      .def_property_readonly("molar_masses", &BinnedModel::molar_masses)
+      .def_property_readonly("num_channels", &BinnedModel::num_channels)
+      .def_property_readonly("pressure_Pa", &BinnedModel::pressure_Pa)
+      .def_property_readonly("min_temperature_K", &BinnedModel::min_temperature_K)
+      .def_property_readonly("max_temperature_K", &BinnedModel::max_temperature_K)
+      .def_property_readonly("planck_interpolation_error", &BinnedModel::planck_interpolation_error)
+      .def("num_bins", &BinnedModel::num_bins, py::arg("channel"))
+      .def_property_readonly("options", &BinnedModel::options)
+      .def("band_radiance",
+           [](const BinnedModel& mdl, const DoubleArray& x, const DoubleArray& tp,
+              const DoubleArray& ta, const DoubleArray& sigma, const DoubleArray& tbg,
+              int num_threads, py::object progress) {
+             const std::size_t nc = mdl.num_channels();
+             const PlumeBatch b = MakeBatch(x, tp, ta, sigma, tbg, mdl.num_species(), nc);
+             for (std::size_t i = 0; i < b.n; ++i) {
+               const double lo = std::min(b.tp[i], b.ta[i]), hi = std::max(b.tp[i], b.ta[i]);
+               if (lo < mdl.min_temperature_K() - 1e-9 || hi > mdl.max_temperature_K() + 1e-9)
+                 throw std::invalid_argument(
+                     "plume " + std::to_string(i) + " has temperatures " + FormatNumber(lo) + "-" +
+                     FormatNumber(hi) + " K outside the tables' range [" +
+                     FormatNumber(mdl.min_temperature_K()) + ", " +
+                     FormatNumber(mdl.max_temperature_K()) + "] K");
+             }
+             py::array_t<double> out({b.n, nc});
+             double* o = out.mutable_data();
+             RunControl control = MakeRunControl(progress);
+             {
+               py::gil_scoped_release release;
+               ParallelFor(b.n, 16, [&](std::size_t lo, std::size_t hi) {
+                 for (std::size_t i = lo; i < hi; ++i) {
+                   const Path p = mdl.GaussianPath<double>(b.x + i * b.ns, b.tp[i], b.ta[i], b.sigma[i]);
+                   const std::vector<double> t = BackgroundOf(b, i, nc);
+                   mdl.Contrast<double>(p, t.data(), o + i * nc);
+                   for (std::size_t c = 0; c < nc; ++c)
+                     o[i * nc + c] += mdl.channels()[c].BandRadiance(t[c]);
+                 }
+               }, num_threads, &control);
+             }
+             return out;
+           },
+           py::arg("peak_fractions"), py::arg("peak_temperature_K"),
+           py::arg("ambient_temperature_K"), py::arg("sigma_m"),
+           py::arg("background_temperature_K"), py::arg("num_threads") = 0,
+           py::arg("progress") = py::none())
+      .def("band_radiance_path",
+           [](const BinnedModel& mdl, const DoubleArray& pos, const DoubleArray& temp,
+              const DoubleArray& fr, double pressure, std::vector<double> tbg) {
+             const Path p = MakePath(pos, temp, fr, pressure);
+             py::gil_scoped_release release;
+             return mdl.BandRadiance(p, tbg);
+           },
+           py::arg("position_m"), py::arg("temperature_K"), py::arg("fractions"),
+           py::arg("pressure_Pa"), py::arg("background_temperature_K"));
+}
+
+}  // namespace qogi
