@@ -167,3 +167,27 @@ def test_preset_optics_reproduce_the_preset_channels(name):
     for o, ch in zip(opt, cam.channels):
         np.testing.assert_allclose(o.response.evaluate(ch.nu_cm1), ch.response, rtol=0,
                                    atol=1e-14)
+
+
+def test_composes_with_the_forward_model():
+    """Forward model + warm optics: a closed isothermal chain (gas, background,
+    lens, filter) is the detector-band blackbody; the warm term cancels in the
+    plume contrast and the correction recovers the forward model's radiance."""
+    from synthetic_tables import lorentz_table
+    nu = np.arange(2950.0, 3100.0 + 0.25, 0.5)
+    band = 0.85 / (1 + np.exp(-(nu - 2990.0) / 3.0)) / (1 + np.exp((nu - 3060.0) / 3.0))
+    opt = [ChannelOptics(nu, np.ones_like(nu), band, np.full_like(nu, 0.9),
+                         0.5 * (1 - band), name="CH4 test")]
+    model = qogi.ForwardModel([o.response for o in opt], ["CH4"],
+                              tables=[lorentz_table("CH4", seed=3)])
+    for t in (280.0, 300.0):
+        lum = model.band_radiance({"CH4": 0.3}, t, 0.05, t, t)
+        total = add_warm_optics(lum, opt, t, t, t, axis=-1)
+        assert total[0] == pytest.approx(opt[0].detector_band_radiance(t), rel=1e-9)
+    plume = model.band_radiance({"CH4": 0.3}, 330.0, 0.05, 295.0, 288.15)
+    bg = model.background_radiance(288.15)
+    meas = add_warm_optics(plume, opt, 296.0, 297.0, axis=-1)
+    meas_bg = add_warm_optics(bg, opt, 296.0, 297.0, axis=-1)
+    assert meas[0] - meas_bg[0] == pytest.approx(plume[0] - bg[0], rel=1e-9)
+    np.testing.assert_allclose(correct_warm_optics(meas, opt, 296.0, 297.0, axis=-1), plume,
+                               rtol=1e-13)
