@@ -9,6 +9,7 @@ void BindIo(py::module_& m);
 void BindRte(py::module_& m);
 void BindCameraPresets(py::module_& m);
 void BindSpectra(py::module_& m);
+void BindCamera(py::module_& m);
 }  // namespace qogi
 
 PYBIND11_MODULE(_engine, m) {
@@ -19,4 +20,5 @@ PYBIND11_MODULE(_engine, m) {
   qogi::BindRte(m);
   qogi::BindCameraPresets(m);
   qogi::BindSpectra(m);
+  qogi::BindCamera(m);
 }

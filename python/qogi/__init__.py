@@ -27,6 +27,10 @@ from .spectra import (
     partition_sum,
     voigt_profile,
 )
+from . import camera  # noqa: F401  (qogi.camera: calibration, noise, warm optics)
+from .camera import (Calibration, CalibrationScene, ChannelOptics, add_netd_noise,
+                     add_warm_optics, camera_optics, correct_warm_optics, fit_calibration,
+                     netd_radiance_sigma, warm_optics_radiance)
 
 __all__ = [
     "__version__",
@@ -56,4 +60,14 @@ __all__ = [
     "load_line_list",
     "partition_sum",
     "voigt_profile",
+    "Calibration",
+    "CalibrationScene",
+    "fit_calibration",
+    "netd_radiance_sigma",
+    "add_netd_noise",
+    "ChannelOptics",
+    "camera_optics",
+    "warm_optics_radiance",
+    "add_warm_optics",
+    "correct_warm_optics",
 ]
