@@ -151,8 +151,9 @@ void BindRte(py::module_& m) {
 
   py::class_<BinnedModelOptions>(m, "BinnedModelOptions")
       .def(py::init([](double bin_ratio, std::vector<double> keys, double floor_fraction,
-                       int cheb, double seg, int nodes, double zmax, bool rich) {
+                       int cheb, double seg, int nodes, double zmax, bool rich, bool self_key) {
              BinnedModelOptions o;
+             o.self_key = self_key;
              o.bin_ratio = bin_ratio;
              o.key_temperatures_K = std::move(keys);
              o.floor_fraction = floor_fraction;
@@ -171,7 +172,9 @@ void BindRte(py::module_& m) {
            py::arg("segment_width_cm1") = BinnedModelOptions().segment_width_cm1,
            py::arg("num_nodes") = BinnedModelOptions().num_nodes,
            py::arg("z_max") = BinnedModelOptions().z_max,
-           py::arg("richardson") = BinnedModelOptions().richardson)
+           py::arg("richardson") = BinnedModelOptions().richardson,
+           py::arg("self_key") = BinnedModelOptions().self_key)
+      .def_readonly("self_key", &BinnedModelOptions::self_key)
       .def_readonly("bin_ratio", &BinnedModelOptions::bin_ratio)
       .def_readonly("key_temperatures_K", &BinnedModelOptions::key_temperatures_K)
       .def_readonly("floor_fraction", &BinnedModelOptions::floor_fraction)

@@ -118,7 +118,7 @@ void BinnedModel::BuildChannel(std::size_t c, const std::vector<AbsorberTable>& 
         absorbs = absorbs || l > -1000000;
         key.push_back(l);
       }
-      if (tables[s].has_self())
+      if (tables[s].has_self() && options_.self_key)
         key.push_back(level(key_value(true, s, i, options_.key_temperatures_K[0]), floor_v));
     }
     if (!absorbs) continue;  // transparent at every key temperature: zero contrast
@@ -194,9 +194,29 @@ void BinnedModel::BuildChannel(std::size_t c, const std::vector<AbsorberTable>& 
   }
   b.log_sigma_air.resize(ns);
   b.log_sigma_self.resize(ns);
+  b.active.assign(ns, {});
+  b.positive_air.assign(ns, std::vector<char>(nq, 0));
+  b.positive_self.assign(ns, std::vector<char>(nq, 0));
   for (std::size_t s = 0; s < ns; ++s) {
     for (double v : b.sigma_air[s]) b.log_sigma_air[s].push_back(v > 0 ? std::log(v) : -1e300);
     for (double v : b.sigma_self[s]) b.log_sigma_self[s].push_back(v > 0 ? std::log(v) : -1e300);
+    const std::size_t nt = tables[s].temperatures_K.size();
+    for (std::size_t q = 0; q < nq; ++q) {
+      bool any = false, all_air = true, all_self = tables[s].has_self();
+      for (std::size_t it = 0; it < nt; ++it) {
+        const double va = b.sigma_air[s][it * nq + q];
+        any = any || va > 0;
+        all_air = all_air && va > 0;
+        if (tables[s].has_self()) {
+          const double vs = b.sigma_self[s][it * nq + q];
+          any = any || vs > 0;
+          all_self = all_self && vs > 0;
+        }
+      }
+      if (any) b.active[s].push_back(static_cast<int>(q));
+      b.positive_air[s][q] = all_air;
+      b.positive_self[s][q] = all_self;
+    }
   }
   // Measure the Planck interpolation error on the grid points.
   for (double temp : {200.0, 300.0, 600.0}) {
