@@ -57,8 +57,10 @@ namespace qogi {
 struct FluidFlowOptions {
   // First-order smoothness weight: multiplies sum |grad u|^2 + |grad v|^2
   // (column density in units of the pair's standard deviation). Larger =
-  // smoother and less sensitive to noise. > 0. Default 0.2.
-  double alpha = 0.2;
+  // smoother and less sensitive to noise, but also pulls the velocity of a
+  // featureless stretch of plume towards that of its surroundings instead of
+  // the one mass conservation carries into it. > 0. Default 0.1.
+  double alpha = 0.1;
   // Div-curl regularisation (Corpetti et al. 2002, auxiliary-field form):
   // weight of sum (div w - xi)^2, where xi is the divergence of the current
   // flow smoothed over div_curl_scale. It suppresses divergence on small

@@ -229,24 +229,29 @@ inline Scene RenderDensity(cv::Size size, const Texture& t, const Motion& m,
 }
 
 // A steady, decelerating plume column leaving an exit at row exit_y (gas
-// only above it), with a featureless base and turbulent texture only in
-// parcels older than texture_age frames. Exact solution of the continuity
+// only above it), with a featureless base and turbulent texture only on gas
+// that left the exit before t = -texture_age. Exact solution of the continuity
 // equation for the vertical velocity dz/dt = U(z) = u0 - decel z (z = exit_y -
 // y, upwards): rho = E(x) (u0 / U(z)) m(x, t - tau(z)), tau(z) = travel time
 // from the exit, m = 1 + contrast T for old parcels (the label a parcel
 // carries), E a Gaussian profile of width sigma_x. In the featureless base
 // rho is steady and the mass flux rho U is constant along the column; the
 // displacement over one frame is Delta z = (u0/decel - z)(1 - exp(-decel)).
+// Renders frames t0 and t0 + 1 (the flow is steady: the truth does not
+// depend on t0).
 inline Scene RenderSteadyColumn(cv::Size size, const Texture& t, double exit_y,
                                 double cx, double sigma_x, double u0, double decel,
                                 double texture_age, double contrast,
-                                double noise = 0.0, unsigned noise_seed = 1) {
+                                double noise = 0.0, unsigned noise_seed = 1,
+                                double t0 = 0.0) {
   auto tau = [&](double z) { return -std::log(1.0 - decel * z / u0) / decel; };
   auto rho = [&](double x, double y, double time) {
     const double z = exit_y - y;
     if (z < 0) return 0.0;
     const double born = time - tau(z);  // when the parcel left the exit
-    // Texture fades in over 4 frames of parcel age.
+    // Only gas that left the exit before t = -texture_age carries texture
+    // (fading in over 4 frames): the younger gas forms the featureless base,
+    // which grows as the labels are advected.
     const double age = -born;
     const double w = std::min(1.0, std::max(0.0, (age - texture_age) / 4.0));
     const double m = 1.0 + contrast * w * t(x, born * u0);
@@ -260,8 +265,8 @@ inline Scene RenderSteadyColumn(cv::Size size, const Texture& t, double exit_y,
   s.true_v = cv::Mat::zeros(size, CV_32F);
   for (int y = 0; y < size.height; ++y)
     for (int x = 0; x < size.width; ++x) {
-      s.prev.at<float>(y, x) = static_cast<float>(rho(x, y, 0.0));
-      s.next.at<float>(y, x) = static_cast<float>(rho(x, y, 1.0));
+      s.prev.at<float>(y, x) = static_cast<float>(rho(x, y, t0));
+      s.next.at<float>(y, x) = static_cast<float>(rho(x, y, t0 + 1.0));
       const double z = exit_y - y;
       if (z >= 0)
         s.true_v.at<float>(y, x) =

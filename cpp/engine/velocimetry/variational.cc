@@ -214,6 +214,9 @@ void VariationalSolver::SolveLevel(int level, int finest, const VariationalSetti
   // flux through a featureless stretch of plume) at little cost.
   const int scale = 1 << std::min(3, level - finest);
   const int iterations = s.iterations * scale;
+  // The coarsest level sees the largest motion relative to its pixels and
+  // costs next to nothing: three times the warps there.
+  const int warps = level == static_cast<int>(p0_.size()) - 1 ? 3 * s.warps : s.warps;
   W_ = p0_[level].cols;
   H_ = p0_[level].rows;
   const int W = W_, H = H_;
@@ -234,7 +237,7 @@ void VariationalSolver::SolveLevel(int level, int finest, const VariationalSetti
   const float* pb = pre_b_.data();
   const float* pc = pre_c_.data();
 
-  for (int warp = 0; warp < s.warps; ++warp) {
+  for (int warp = 0; warp < warps; ++warp) {
     Linearise(level, s);
     // res = -(A^T W r0 + R'(w0)), x = 0, p = P res.
     ForwardPass(u_.ptr<float>(), v_.ptr<float>(), /*rhs=*/true);
