@@ -11,10 +11,14 @@ package is the public API.
 
 from ._version import __version__
 from .optics import SpectralResponse, planck_radiance, planck_radiance_derivative
+from .velocimetry import FlowEstimator, optical_flow, optical_flow_sequence
 
 __all__ = [
     "__version__",
     "SpectralResponse",
     "planck_radiance",
     "planck_radiance_derivative",
+    "FlowEstimator",
+    "optical_flow",
+    "optical_flow_sequence",
 ]
