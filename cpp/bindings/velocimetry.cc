@@ -237,7 +237,7 @@ void BindVelocimetry(py::module_& m) {
              "Gaussian window sigma [px] (default 3)")
       .field("levels", &LucasKanadeOptions::levels, "pyramid levels (default 5)")
       .field("min_level_size", &LucasKanadeOptions::min_level_size,
-             "smallest side of the coarsest level [px] (default 16)")
+             "smallest side of the coarsest level [px] (default 32)")
       .field("finest_level", &LucasKanadeOptions::finest_level,
              "finest level solved (default 0)")
       .field("iterations", &LucasKanadeOptions::iterations, "iterations per level (default 4)")

@@ -322,6 +322,7 @@ class FlowSequence:
 def optical_flow_sequence(frames: ArrayLike, method: str = DEFAULT_METHOD, options=None,
                           masks: Optional[ArrayLike] = None,
                           source_mask: Optional[ArrayLike] = None, warm_start: bool = True,
+                          workers: int = 1,
                           progress: Optional[Callable[[float], Optional[bool]]] = None
                           ) -> FlowSequence:
     """Displacements of every consecutive pair of a frame stack.
@@ -341,8 +342,16 @@ def optical_flow_sequence(frames: ArrayLike, method: str = DEFAULT_METHOD, optio
         Gas mask per frame (the first frame's of each pair is used) or one for
         all.
     warm_start : bool, default True
+    workers : int, default 1
+        Split the sequence into this many contiguous chunks processed in
+        parallel, each on one engine thread (0 = one per core). On a
+        recording this uses the cores better than splitting each frame pair
+        across threads. Each chunk after the first starts
+        ``WARM_UP_PAIRS`` pairs early (results discarded) so that its first
+        kept pair is warm-started too.
     progress : callable(fraction) -> bool or None, optional
-        Called after each pair; returning False stops with KeyboardInterrupt.
+        Called after each pair (from the calling thread); returning False
+        stops with KeyboardInterrupt.
 
     Returns
     -------
@@ -360,22 +369,69 @@ def optical_flow_sequence(frames: ArrayLike, method: str = DEFAULT_METHOD, optio
         elif mask_stack.shape != (T, H, W):
             raise ValueError(f"masks must have shape {(T, H, W)} or {(H, W)}; "
                              f"got {mask_stack.shape}")
-    est = FlowEstimator(method, options, source_mask)
-    out_u = np.empty((T - 1, H, W), np.float32)
+    if workers < 0:
+        raise ValueError(f"workers must be >= 0 (0 = one per core); got {workers}")
+    n_pairs = T - 1
+    if workers == 0:
+        workers = max(1, _engine.resolve_threads(0))
+    workers = min(workers, n_pairs)
+    out_u = np.empty((n_pairs, H, W), np.float32)
     out_v = np.empty_like(out_u)
     out_q = np.empty_like(out_u)
-    out_valid = np.empty((T - 1, H, W), bool)
-    ratio = np.empty(T - 1)
-    prev_flow = None
-    for k in range(T - 1):
-        m = None if mask_stack is None else mask_stack[k]
-        f = est.calc(stack[k], stack[k + 1], m, prev_flow if warm_start else None)
-        out_u[k], out_v[k], out_q[k], out_valid[k], ratio[k] = (
-            f.u, f.v, f.quality, f.valid, f.residual_ratio)
-        prev_flow = f
-        if progress is not None and progress((k + 1) / (T - 1)) is False:
-            raise KeyboardInterrupt("optical_flow_sequence cancelled by the progress callback")
+    out_valid = np.empty((n_pairs, H, W), bool)
+    ratio = np.empty(n_pairs)
+    bounds = np.linspace(0, n_pairs, workers + 1).round().astype(int)
+    estimators = [FlowEstimator(method, options, source_mask) for _ in range(workers)]
+    done = [0]
+    cancelled = [False]
+
+    def run(chunk: int) -> None:
+        est, first, stop = estimators[chunk], bounds[chunk], bounds[chunk + 1]
+        start = max(0, first - WARM_UP_PAIRS) if (warm_start and chunk > 0) else first
+        prev_flow = None
+        for k in range(start, stop):
+            if cancelled[0]:
+                return
+            m = None if mask_stack is None else mask_stack[k]
+            f = est.calc(stack[k], stack[k + 1], m, prev_flow if warm_start else None)
+            prev_flow = f
+            if k < first:
+                continue
+            out_u[k], out_v[k], out_q[k], out_valid[k], ratio[k] = (
+                f.u, f.v, f.quality, f.valid, f.residual_ratio)
+            done[0] += 1
+            if workers == 1 and progress is not None and progress(done[0] / n_pairs) is False:
+                cancelled[0] = True
+
+    if workers == 1:
+        run(0)
+    else:
+        import concurrent.futures as cf
+        threads = get_num_threads()
+        set_num_threads(1)  # one engine thread per chunk
+        try:
+            with cf.ThreadPoolExecutor(workers) as pool:
+                futures = [pool.submit(run, c) for c in range(workers)]
+                try:
+                    while not all(f.done() for f in futures):
+                        cf.wait(futures, timeout=0.1)
+                        if progress is not None and not cancelled[0] and \
+                                progress(done[0] / n_pairs) is False:
+                            cancelled[0] = True
+                except BaseException:  # Ctrl-C: let the workers stop early
+                    cancelled[0] = True
+                    raise
+                for f in futures:
+                    f.result()
+        finally:
+            set_num_threads(threads)
+    if cancelled[0]:
+        raise KeyboardInterrupt("optical_flow_sequence cancelled by the progress callback")
     return FlowSequence(out_u, out_v, out_q, out_valid, ratio, method)
+
+
+#: Pairs a parallel chunk starts early so that its first kept pair is warm.
+WARM_UP_PAIRS = 2
 
 
 def metres_per_second_per_pixel_per_frame(distance_m: float, ifov_rad: float,

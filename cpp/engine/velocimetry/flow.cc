@@ -1,5 +1,6 @@
 #include "engine/velocimetry/flow.h"
 
+#include <cmath>
 #include <limits>
 #include <stdexcept>
 
@@ -65,10 +66,15 @@ void OpticalFlow::Calc(const cv::Mat& prev, const cv::Mat& next, FlowField& flow
   Require(prev.cols >= kMinFrameSide && prev.rows >= kMinFrameSide,
           "frames must be at least " + std::to_string(kMinFrameSide) + " x " +
               std::to_string(kMinFrameSide) + " px; got " + SizeText(prev));
-  Require(cv::checkRange(prev), "prev contains NaN or infinite values; replace "
-                                "them (e.g. by the background) before velocimetry");
-  Require(cv::checkRange(next), "next contains NaN or infinite values; replace "
-                                "them (e.g. by the background) before velocimetry");
+  // One pass: the sum of a frame is finite exactly when all its values are
+  // (barring overflow, which the checkRange fallback then tells apart).
+  auto finite = [](const cv::Mat& m) {
+    return std::isfinite(cv::sum(m)[0]) || cv::checkRange(m);
+  };
+  Require(finite(prev), "prev contains NaN or infinite values; replace "
+                        "them (e.g. by the background) before velocimetry");
+  Require(finite(next), "next contains NaN or infinite values; replace "
+                        "them (e.g. by the background) before velocimetry");
   if (!mask.empty()) {
     Require(mask.type() == CV_8UC1,
             "mask must be empty or an 8-bit single-channel image (CV_8UC1)");

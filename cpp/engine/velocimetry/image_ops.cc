@@ -27,12 +27,21 @@ void ParallelRows(int rows, int cols, const std::function<void(int, int)>& body)
   }, stripes);
 }
 
-int NumStripes(int rows) { return std::max(1, std::min(rows, kMaxStripes)); }
+int NumStripes(int rows, int cols) {
+  // ~4096 pixels per stripe at least: small images run as one stripe.
+  const long long by_size = static_cast<long long>(rows) * cols / 4096;
+  return static_cast<int>(std::max<long long>(
+      1, std::min<long long>({by_size, static_cast<long long>(rows), kMaxStripes})));
+}
 
 void ParallelStripes(int rows, int cols,
                      const std::function<void(int, int, int)>& body) {
   if (rows <= 0) return;
-  const int stripes = NumStripes(rows);
+  const int stripes = NumStripes(rows, cols);
+  if (stripes == 1) {
+    body(0, 0, rows);
+    return;
+  }
   auto run = [&](int s) {
     const int b = static_cast<int>(static_cast<long long>(s) * rows / stripes);
     const int e = static_cast<int>(static_cast<long long>(s + 1) * rows / stripes);
@@ -200,6 +209,30 @@ void ResampleFlow(const cv::Mat& u, const cv::Mat& v, cv::Size size, double scal
   u_out.create(size, CV_32FC1);
   v_out.create(size, CV_32FC1);
   const int Ws = u.cols, Hs = u.rows;
+  if (scale == 2.0 && (size.width + 1) / 2 == Ws && (size.height + 1) / 2 == Hs) {
+    // One pyramid level up: even pixels copy a source sample, odd ones
+    // average two (or four); the last odd row/column repeats the border.
+    ParallelRows(size.height, size.width, [&](int y0, int y1) {
+      for (int y = y0; y < y1; ++y) {
+        const int iy = y / 2, iy1 = std::min(iy + (y & 1), Hs - 1);
+        const float wy = (y & 1) && iy1 != iy ? 0.5f : 0.f;
+        for (int c = 0; c < 2; ++c) {
+          const cv::Mat& src = c == 0 ? u : v;
+          float* out = (c == 0 ? u_out : v_out).ptr<float>(y);
+          const float* r0 = src.ptr<float>(iy);
+          const float* r1 = src.ptr<float>(iy1);
+          for (int x = 0; x < size.width; ++x) {
+            const int ix = x / 2, ix1 = std::min(ix + (x & 1), Ws - 1);
+            const float wx = (x & 1) && ix1 != ix ? 0.5f : 0.f;
+            const float a = r0[ix] + wx * (r0[ix1] - r0[ix]);
+            const float b = r1[ix] + wx * (r1[ix1] - r1[ix]);
+            out[x] = 2.f * (a + wy * (b - a));
+          }
+        }
+      }
+    });
+    return;
+  }
   const float inv = static_cast<float>(1.0 / scale), s = static_cast<float>(scale);
   ParallelRows(size.height, size.width, [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y) {

@@ -19,10 +19,11 @@ namespace flow_ops {
 void ParallelRows(int rows, int cols, const std::function<void(int, int)>& body);
 
 // Fixed row bands for deterministic reductions: body(stripe, row_begin,
-// row_end) for stripe in [0, NumStripes(rows)), the same bands whatever the
-// number of threads (so sums of per-stripe partials are reproducible).
+// row_end) for stripe in [0, NumStripes(rows, cols)), bands that depend on the
+// image size only, whatever the number of threads (so sums of per-stripe
+// partials are reproducible).
 constexpr int kMaxStripes = 16;
-int NumStripes(int rows);
+int NumStripes(int rows, int cols);
 void ParallelStripes(int rows, int cols,
                      const std::function<void(int, int, int)>& body);
 

@@ -27,6 +27,8 @@ LucasKanadeFlow::LucasKanadeFlow(const LucasKanadeOptions& options)
 }
 
 namespace {
+constexpr float kMaxStep = 1.0f;  // px on the current level, per iteration
+
 // Smaller eigenvalue of [a b; b c].
 inline float MinEigen(float a, float b, float c) {
   const float h = 0.5f * (a + c);
@@ -88,8 +90,17 @@ void LucasKanadeFlow::CalcChecked(const cv::Mat& prev, const cv::Mat& next,
             const float aa = a[x] + tikhonov, cc = c[x] + tikhonov;
             const float det = aa * cc - b[x] * b[x];
             if (!(det > 0.f)) continue;
-            pu[x] -= (cc * ex[x] - b[x] * ey[x]) / det;
-            pv[x] -= (aa * ey[x] - b[x] * ex[x]) / det;
+            float du = -(cc * ex[x] - b[x] * ey[x]) / det;
+            float dv = -(aa * ey[x] - b[x] * ex[x]) / det;
+            // The pyramid leaves at most ~1 px per level to find: longer
+            // Gauss-Newton steps come from a poor linearisation, not motion.
+            const float len = std::sqrt(du * du + dv * dv);
+            if (len > kMaxStep) {
+              du *= kMaxStep / len;
+              dv *= kMaxStep / len;
+            }
+            pu[x] += du;
+            pv[x] += dv;
           }
         }
       });

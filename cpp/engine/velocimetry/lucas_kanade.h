@@ -33,8 +33,10 @@ struct LucasKanadeOptions {
   double window_sigma = 3.0;
   // Maximum number of pyramid levels (1 = none). [1, 12]. Default 5.
   int levels = 5;
-  // Smallest side of the coarsest level [px]. [4, 4096]. Default 16.
-  int min_level_size = 16;
+  // Smallest side of the coarsest level [px]: a level must be several
+  // windows wide, or its estimates near the border go astray and the finer
+  // levels cannot recover. [4, 4096]. Default 32.
+  int min_level_size = 32;
   // Finest level solved (0 = full resolution). [0, 10]. Default 0.
   int finest_level = 0;
   // Iterations (warps) per level. [1, 50]. Default 4.

@@ -210,12 +210,12 @@ void VariationalSolver::Solve(const cv::Mat& prev, const cv::Mat& next,
 
 void VariationalSolver::SolveLevel(int level, int finest, const VariationalSettings& s) {
   // Coarser levels cost a quarter per level: give them twice the iterations
-  // per level (at most 8x), which carries information across the image (a
+  // per level (at most 4x), which carries information across the image (a
   // flux through a featureless stretch of plume) at little cost.
   const int scale = 1 << std::min(3, level - finest);
   const int iterations = s.iterations * scale;
   // The coarsest level sees the largest motion relative to its pixels and
-  // costs next to nothing: three times the warps there.
+  // costs next to nothing: twice the warps there.
   const int warps = level == static_cast<int>(p0_.size()) - 1 ? 3 * s.warps : s.warps;
   W_ = p0_[level].cols;
   H_ = p0_[level].rows;
