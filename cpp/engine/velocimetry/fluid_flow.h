@@ -18,10 +18,10 @@
 //
 //   rho1(x + w) det(1 + grad w) = rho0(x)                (mass conservation)
 //
-// (Corpetti, Memin & Perez, "Dense estimation of fluid flows", IEEE PAMI 24,
-// 2002, use the approximation det ~ exp(div w); the Jacobian form is that of
-// mass-preserving image registration, e.g. Gorbunova et al., Med. Image Anal.
-// 16, 2012). It is linearised at each warp of a coarse-to-fine pyramid as
+// (the Lagrangian form of mass conservation of continuum mechanics, also the
+// basis of mass-preserving image registration; Corpetti, Memin & Perez,
+// "Dense estimation of fluid flows", IEEE PAMI 24, 2002, use the
+// approximation det ~ exp(div w)). It is linearised at each warp of a coarse-to-fine pyramid as
 // det(1 + grad w0) div(rho1(x + w0) dw) and solved with
 //
 //   min  sum W (rho1(x+w) det(1+grad w) - rho0)^2 + alpha sum |grad u|^2+|grad v|^2
@@ -85,9 +85,12 @@ struct FluidFlowOptions {
   // velocity on ~2 px and runs ~4x faster than 0. [0, 10], clipped to the
   // coarsest level. Default 1.
   int finest_level = 1;
-  // Warps (re-linearisations) per level. [1, 50]. Default 2.
+  // Warps (re-linearisations) per level (three times this on the coarsest
+  // level, where the motion is largest in its pixels). [1, 50]. Default 2.
   int warps = 2;
-  // Conjugate-gradient iterations per warp (at most). [1, 1000]. Default 20.
+  // Conjugate-gradient iterations per warp (at most) on the finest level
+  // solved; each coarser level gets twice as many, up to 8x (a level costs a
+  // quarter of the next finer one). [1, 1000]. Default 20.
   int iterations = 20;
   // Early stop of the conjugate gradients (relative residual). [0, 1).
   // Default 1e-3.

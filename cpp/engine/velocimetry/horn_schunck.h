@@ -41,9 +41,12 @@ struct HornSchunckOptions {
   // interpolated to full resolution. Trades resolution for speed. [0, 10],
   // clipped to the coarsest level. Default 0.
   int finest_level = 0;
-  // Warps (re-linearisations) per level. [1, 50]. Default 3.
+  // Warps (re-linearisations) per level (three times this on the coarsest
+  // level, where the motion is largest in its pixels). [1, 50]. Default 3.
   int warps = 3;
-  // Conjugate-gradient iterations per warp (at most). [1, 1000]. Default 20.
+  // Conjugate-gradient iterations per warp (at most) on the finest level
+  // solved; each coarser level gets twice as many, up to 8x (a level costs a
+  // quarter of the next finer one). [1, 1000]. Default 20.
   int iterations = 20;
   // Conjugate gradients stop early when the residual norm falls below this
   // fraction of the right-hand side's. [0, 1). Default 1e-3.

@@ -64,13 +64,25 @@ double PairStdDev(const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask) {
   for (const cv::Mat* m : {&a, &b}) {
     for (int y = 0; y < m->rows; ++y) {
       const float* p = m->ptr<float>(y);
-      const uchar* k = use_mask ? mask.ptr<uchar>(y) : nullptr;
-      for (int x = 0; x < m->cols; ++x) {
-        if (k && !k[x]) continue;
-        s += p[x];
-        s2 += static_cast<double>(p[x]) * p[x];
-        ++n;
+      // Per-row float sums (vectorised), accumulated in double.
+      float rs = 0.f, rs2 = 0.f;
+      if (use_mask) {
+        const uchar* k = mask.ptr<uchar>(y);
+        for (int x = 0; x < m->cols; ++x) {
+          const float keep = k[x] ? 1.f : 0.f;
+          rs += keep * p[x];
+          rs2 += keep * p[x] * p[x];
+          n += k[x] ? 1 : 0;
+        }
+      } else {
+        for (int x = 0; x < m->cols; ++x) {
+          rs += p[x];
+          rs2 += p[x] * p[x];
+        }
+        n += m->cols;
       }
+      s += rs;
+      s2 += rs2;
     }
   }
   if (n < 2) return 0.0;

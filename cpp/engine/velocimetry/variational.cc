@@ -210,12 +210,12 @@ void VariationalSolver::Solve(const cv::Mat& prev, const cv::Mat& next,
 
 void VariationalSolver::SolveLevel(int level, int finest, const VariationalSettings& s) {
   // Coarser levels cost a quarter per level: give them twice the iterations
-  // per level (at most 4x), which carries information across the image (a
+  // per level (at most 8x), which carries information across the image (a
   // flux through a featureless stretch of plume) at little cost.
   const int scale = 1 << std::min(3, level - finest);
   const int iterations = s.iterations * scale;
   // The coarsest level sees the largest motion relative to its pixels and
-  // costs next to nothing: twice the warps there.
+  // costs next to nothing: three times the warps there.
   const int warps = level == static_cast<int>(p0_.size()) - 1 ? 3 * s.warps : s.warps;
   W_ = p0_[level].cols;
   H_ = p0_[level].rows;
@@ -330,76 +330,97 @@ void VariationalSolver::Linearise(int level, const VariationalSettings& s) {
       const uchar* pin = inside_.ptr<uchar>(y);
       const float* pm = has_mask ? pm_[level].ptr<float>(y) : nullptr;
       const float* ps = has_source ? ps_[level].ptr<float>(y) : nullptr;
-      for (int x = 0; x < W; ++x) {
-        const std::size_t k = static_cast<std::size_t>(y) * W + x;
-        float weight = pin[x] ? 1.f : 0.f;
-        if (pm) weight *= pm[x];
-        if (ps) weight *= ps[x];
-        if (!cont) {
-          a_[k] = 0.5f * (g0x_.ptr<float>(y)[x] + gx_.ptr<float>(y)[x]);
-          b_[k] = 0.5f * (g0y_.ptr<float>(y)[x] + gy_.ptr<float>(y)[x]);
-          r_[k] = pw[x] - p0[x];
-        } else {
-          const float ux = ux_.ptr<float>(y)[x], uy = uy_.ptr<float>(y)[x];
-          const float vx = vx_.ptr<float>(y)[x], vy = vy_.ptr<float>(y)[x];
-          float jac = (1.f + ux) * (1.f + vy) - uy * vx;
-          if (!(jac > kMinJacobian)) {
-            jac = kMinJacobian;
-            weight = 0.f;
-          }
-          if (x == 0 || y == 0 || x == W - 1 || y == H - 1) weight = 0.f;
-          a_[k] = pw[x];
-          b_[k] = jac;
-          r_[k] = pw[x] * jac - p0[x];
+      const std::size_t row = static_cast<std::size_t>(y) * W;
+      float* a = a_.data() + row;
+      float* b = b_.data() + row;
+      float* r = r_.data() + row;
+      float* w = w_.data() + row;
+      float* c = c_.data() + row;
+      if (!cont) {
+        const float* g0x = g0x_.ptr<float>(y);
+        const float* g0y = g0y_.ptr<float>(y);
+        const float* gx = gx_.ptr<float>(y);
+        const float* gy = gy_.ptr<float>(y);
+        for (int x = 0; x < W; ++x) {
+          float weight = pin[x] ? 1.f : 0.f;
+          if (pm) weight *= pm[x];
+          a[x] = 0.5f * (g0x[x] + gx[x]);
+          b[x] = 0.5f * (g0y[x] + gy[x]);
+          r[x] = pw[x] - p0[x];
+          w[x] = weight;
+          c[x] = weight * b[x] * b[x];
         }
-        w_[k] = weight;
-        c_[k] = weight * b_[k] * b_[k];
+        continue;
+      }
+      const float* ux = ux_.ptr<float>(y);
+      const float* uy = uy_.ptr<float>(y);
+      const float* vx = vx_.ptr<float>(y);
+      const float* vy = vy_.ptr<float>(y);
+      const bool border_row = y == 0 || y == H - 1;
+      for (int x = 0; x < W; ++x) {
+        float weight = pin[x] ? 1.f : 0.f;
+        if (ps) weight *= ps[x];
+        float jac = (1.f + ux[x]) * (1.f + vy[x]) - uy[x] * vx[x];
+        if (!(jac > kMinJacobian)) {
+          jac = kMinJacobian;
+          weight = 0.f;
+        }
+        if (border_row || x == 0 || x == W - 1) weight = 0.f;
+        a[x] = pw[x];
+        b[x] = jac;
+        r[x] = pw[x] * jac - p0[x];
+        w[x] = weight;
+        c[x] = weight * jac * jac;
       }
     }
   });
   // Inverse of the 2 x 2 diagonal blocks of A^T W A + R.
-  const bool dc = alpha_div_ > 0 || alpha_curl_ > 0;
+  const bool has_div = alpha_div_ > 0, has_curl = alpha_curl_ > 0;
   const float half_ad = static_cast<float>(0.5 * alpha_div_);
   const float half_ac = static_cast<float>(0.5 * alpha_curl_);
   const float alpha = static_cast<float>(alpha_);
   ParallelRows(H, W, [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y) {
+      const std::size_t row = static_cast<std::size_t>(y) * W;
+      const float* a = a_.data() + row;
+      const float* b = b_.data() + row;
+      const float* w = w_.data() + row;
+      const float* c = c_.data() + row;  // w b^2 (continuity)
+      const float* c_up = y > 0 ? c - W : nullptr;
+      const float* c_dn = y < H - 1 ? c + W : nullptr;
+      float* pa = pre_a_.data() + row;
+      float* pb = pre_b_.data() + row;
+      float* pc = pre_c_.data() + row;
       for (int x = 0; x < W; ++x) {
-        const std::size_t k = static_cast<std::size_t>(y) * W + x;
         const int nbrs = (x > 0) + (x < W - 1) + (y > 0) + (y < H - 1);
         const float reg = alpha * nbrs + half_ad + half_ac;
         float d11, d12, d22;
-        if (data_ == DataModel::kBrightness) {
-          d11 = w_[k] * a_[k] * a_[k];
-          d12 = w_[k] * a_[k] * b_[k];
-          d22 = w_[k] * b_[k] * b_[k];
+        if (!cont) {
+          d11 = w[x] * a[x] * a[x];
+          d12 = w[x] * a[x] * b[x];
+          d22 = w[x] * b[x] * b[x];
         } else {
-          auto c = [&](int xx, int yy) -> float {
-            if (xx < 0 || yy < 0 || xx >= W || yy >= H) return 0.f;
-            const std::size_t j = static_cast<std::size_t>(yy) * W + xx;
-            return w_[j] * b_[j] * b_[j];
-          };
-          const float a2 = a_[k] * a_[k] * 0.25f;
-          d11 = a2 * (c(x - 1, y) + c(x + 1, y));
-          d22 = a2 * (c(x, y - 1) + c(x, y + 1));
+          const float a2 = a[x] * a[x] * 0.25f;
+          d11 = a2 * ((x > 0 ? c[x - 1] : 0.f) + (x < W - 1 ? c[x + 1] : 0.f));
+          d22 = a2 * ((c_up ? c_up[x] : 0.f) + (c_dn ? c_dn[x] : 0.f));
           d12 = 0.f;
         }
         d11 += reg;
         d22 += reg;
         const float det = d11 * d22 - d12 * d12;
         if (det > 1e-6f * d11 * d22 && det > 0.f) {
-          pre_a_[k] = d22 / det;
-          pre_b_[k] = -d12 / det;
-          pre_c_[k] = d11 / det;
+          pa[x] = d22 / det;
+          pb[x] = -d12 / det;
+          pc[x] = d11 / det;
         } else {
-          pre_a_[k] = d11 > 0 ? 1.f / d11 : 1.f;
-          pre_b_[k] = 0.f;
-          pre_c_[k] = d22 > 0 ? 1.f / d22 : 1.f;
+          pa[x] = d11 > 0 ? 1.f / d11 : 1.f;
+          pb[x] = 0.f;
+          pc[x] = d22 > 0 ? 1.f / d22 : 1.f;
         }
       }
     }
   });
-  if (!dc) return;
+  if (!has_div && !has_curl) return;
   // Smooth divergence and vorticity of the current flow: the targets.
   xi_.create(H, W, CV_32FC1);
   zeta_.create(H, W, CV_32FC1);
@@ -409,12 +430,15 @@ void VariationalSolver::Linearise(int level, const VariationalSettings& s) {
     for (int y = y0; y < y1; ++y) {
       float* pxi = xi_.ptr<float>(y);
       float* pze = zeta_.ptr<float>(y);
-      for (int x = 0; x < W; ++x) {
-        if (x == 0 || y == 0 || x == W - 1 || y == H - 1) {
-          pxi[x] = pze[x] = 0.f;
-          continue;
-        }
-        const std::size_t k = static_cast<std::size_t>(y) * W + x;
+      if (y == 0 || y == H - 1) {
+        std::fill(pxi, pxi + W, 0.f);
+        std::fill(pze, pze + W, 0.f);
+        continue;
+      }
+      pxi[0] = pxi[W - 1] = pze[0] = pze[W - 1] = 0.f;
+      const std::size_t row = static_cast<std::size_t>(y) * W;
+      for (int x = 1; x < W - 1; ++x) {
+        const std::size_t k = row + x;
         pxi[x] = 0.5f * (fu[k + 1] - fu[k - 1] + fv[k + W] - fv[k - W]);
         pze[x] = 0.5f * (fv[k + 1] - fv[k - 1] - fu[k + W] + fu[k - W]);
       }
@@ -422,8 +446,10 @@ void VariationalSolver::Linearise(int level, const VariationalSettings& s) {
   });
   const double sigma = div_curl_scale_ / static_cast<double>(1 << level);
   if (sigma >= 0.3) {
-    cv::GaussianBlur(xi_, xi_, cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
-    cv::GaussianBlur(zeta_, zeta_, cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
+    if (has_div)
+      cv::GaussianBlur(xi_, xi_, cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
+    if (has_curl)
+      cv::GaussianBlur(zeta_, zeta_, cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
   }
 }
 
