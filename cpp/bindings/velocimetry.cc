@@ -212,6 +212,8 @@ void BindVelocimetry(py::module_& m) {
              "smallest side of the coarsest level [px] (default 16)")
       .field("finest_level", &FluidFlowOptions::finest_level,
              "finest level solved, 0 = full resolution (default 1)")
+      .field("warm_levels", &FluidFlowOptions::warm_levels,
+             "levels solved after a warm start, 0 = all (default 3)")
       .field("warps", &FluidFlowOptions::warps, "warps per level (default 2)")
       .field("iterations", &FluidFlowOptions::iterations,
              "conjugate-gradient iterations per warp (default 20)")
@@ -226,6 +228,8 @@ void BindVelocimetry(py::module_& m) {
              "smallest side of the coarsest level [px] (default 16)")
       .field("finest_level", &HornSchunckOptions::finest_level,
              "finest level solved (default 0)")
+      .field("warm_levels", &HornSchunckOptions::warm_levels,
+             "levels solved after a warm start, 0 = all (default 3)")
       .field("warps", &HornSchunckOptions::warps, "warps per level (default 3)")
       .field("iterations", &HornSchunckOptions::iterations,
              "CG iterations per warp (default 20)")

@@ -62,9 +62,10 @@ def epe(f, tu, tv, margin=16):
 # The C++ field names, as documented in the engine headers.
 FIELDS = {
     "fluid": ("alpha", "alpha_div", "alpha_curl", "div_curl_scale", "levels",
-              "min_level_size", "finest_level", "warps", "iterations", "tolerance"),
-    "horn_schunck": ("alpha", "levels", "min_level_size", "finest_level", "warps",
-                     "iterations", "tolerance"),
+              "min_level_size", "finest_level", "warm_levels", "warps", "iterations",
+              "tolerance"),
+    "horn_schunck": ("alpha", "levels", "min_level_size", "finest_level", "warm_levels",
+                     "warps", "iterations", "tolerance"),
     "lucas_kanade": ("window_sigma", "levels", "min_level_size", "finest_level",
                      "iterations", "min_eigenvalue"),
     "farneback": ("pyr_scale", "levels", "winsize", "iterations", "poly_n", "poly_sigma",

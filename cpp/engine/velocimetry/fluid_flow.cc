@@ -12,6 +12,7 @@ void FluidFlowOptions::Check() const {
   CheckInRange(levels, 1, 12, "FluidFlowOptions.levels");
   CheckInRange(min_level_size, 4, 4096, "FluidFlowOptions.min_level_size", "px");
   CheckInRange(finest_level, 0, 10, "FluidFlowOptions.finest_level");
+  CheckInRange(warm_levels, 0, 12, "FluidFlowOptions.warm_levels");
   CheckInRange(warps, 1, 50, "FluidFlowOptions.warps");
   CheckInRange(iterations, 1, 1000, "FluidFlowOptions.iterations");
   CheckInRange(tolerance, 0, 0.999999, "FluidFlowOptions.tolerance");
@@ -43,6 +44,7 @@ void FluidFlow::CalcChecked(const cv::Mat& prev, const cv::Mat& next,
   s.min_level_size = options_.min_level_size;
   s.finest_level = options_.finest_level;
   s.warps = options_.warps;
+  s.warm_levels = options_.warm_levels;
   s.iterations = options_.iterations;
   s.tolerance = options_.tolerance;
   solver_.Solve(prev, next, mask, source_mask_, warm, s, flow);

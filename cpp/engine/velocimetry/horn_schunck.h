@@ -41,6 +41,11 @@ struct HornSchunckOptions {
   // interpolated to full resolution. Trades resolution for speed. [0, 10],
   // clipped to the coarsest level. Default 0.
   int finest_level = 0;
+  // Levels solved when the call is warm-started (e.g. by the previous frame
+  // pair in a sequence): the warm start already holds the large motion, so
+  // only the finest warm_levels levels (from finest_level up) refine it;
+  // 0 = all levels, as from a cold start. [0, 12]. Default 3.
+  int warm_levels = 3;
   // Warps (re-linearisations) per level (three times this on the coarsest
   // level, where the motion is largest in its pixels). [1, 50]. Default 3.
   int warps = 3;

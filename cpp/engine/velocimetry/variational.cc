@@ -181,7 +181,12 @@ void VariationalSolver::Solve(const cv::Mat& prev, const cv::Mat& next,
   } else {
     ps_.clear();
   }
-  const int top = levels - 1;
+  // With a warm start the large motion is known: only the finest
+  // warm_levels levels refine it (all levels when 0).
+  const int top = (warm && s.warm_levels > 0)
+                      ? std::min(levels - 1, finest + s.warm_levels - 1)
+                      : levels - 1;
+  coarsest_ = levels - 1;
   const cv::Size top_size = p0_[top].size();
   if (warm) {
     ResampleFlow(flow.u, flow.v, top_size, 1.0 / (1 << top), u_, v_);
@@ -216,7 +221,7 @@ void VariationalSolver::SolveLevel(int level, int finest, const VariationalSetti
   const int iterations = s.iterations * scale;
   // The coarsest level sees the largest motion relative to its pixels and
   // costs next to nothing: three times the warps there.
-  const int warps = level == static_cast<int>(p0_.size()) - 1 ? 3 * s.warps : s.warps;
+  const int warps = level == coarsest_ ? 3 * s.warps : s.warps;
   W_ = p0_[level].cols;
   H_ = p0_[level].rows;
   const int W = W_, H = H_;

@@ -55,6 +55,7 @@ struct VariationalSettings {
   int finest_level = 0;
   int warps = 1;
   int iterations = 10;
+  int warm_levels = 0;  // levels solved after a warm start (0 = all)
   double tolerance = 1e-3;
 };
 
@@ -79,6 +80,7 @@ class VariationalSolver {
   void FinalResidual(int level, FlowField& flow, const cv::Mat& mask);
 
   DataModel data_ = DataModel::kBrightness;
+  int coarsest_ = 0;
   double alpha_ = 0, alpha_div_ = 0, alpha_curl_ = 0, div_curl_scale_ = 0;
   int W_ = 0, H_ = 0;
   cv::Mat i0n_, i1n_, maskf_, sourcef_;
