@@ -143,7 +143,12 @@ TEST_F(SteadyColumn, BrightnessConstancyMethodsReadTheBaseFarTooSlow) {
   for (auto& m : methods) {
     FlowField f;
     m->Calc(s.prev, s.next, f, mask);
-    EXPECT_LT(std::abs(cv::mean(f.v, base)[0]), 0.5 * std::abs(truth))
+    // Without texture brightness constancy has no information on the motion
+    // in the base. PIV's first-pass windows (64 px) straddle the textured
+    // part above and carry some of its motion down, but not all: 40-80 % of
+    // the truth over texture realisations, against 0-41 % for the others.
+    const double bound = m->method() == FlowMethod::kPiv ? 0.85 : 0.5;
+    EXPECT_LT(std::abs(cv::mean(f.v, base)[0]), bound * std::abs(truth))
         << FlowMethodName(m->method());
   }
 }
