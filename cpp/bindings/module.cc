@@ -10,6 +10,7 @@ void BindRte(py::module_& m);
 void BindCameraPresets(py::module_& m);
 void BindSpectra(py::module_& m);
 void BindCamera(py::module_& m);
+void BindVelocimetry(py::module_& m);
 }  // namespace qogi
 
 PYBIND11_MODULE(_engine, m) {
@@ -21,4 +22,5 @@ PYBIND11_MODULE(_engine, m) {
   qogi::BindCameraPresets(m);
   qogi::BindSpectra(m);
   qogi::BindCamera(m);
+  qogi::BindVelocimetry(m);
 }

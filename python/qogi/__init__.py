@@ -31,6 +31,7 @@ from . import camera  # noqa: F401  (qogi.camera: calibration, noise, warm optic
 from .camera import (Calibration, CalibrationScene, ChannelOptics, add_netd_noise,
                      add_warm_optics, camera_optics, correct_warm_optics, fit_calibration,
                      netd_radiance_sigma, warm_optics_radiance)
+from .velocimetry import FlowEstimator, optical_flow, optical_flow_sequence
 
 __all__ = [
     "__version__",
@@ -70,4 +71,7 @@ __all__ = [
     "warm_optics_radiance",
     "add_warm_optics",
     "correct_warm_optics",
+    "FlowEstimator",
+    "optical_flow",
+    "optical_flow_sequence",
 ]
