@@ -5,10 +5,12 @@
 namespace qogi {
 void BindUtil(py::module_& m);
 void BindOptics(py::module_& m);
+void BindSynth(py::module_& m);
 }  // namespace qogi
 
 PYBIND11_MODULE(_engine, m) {
   m.doc() = "qogi C++ engine (use the public API in the `qogi` package)";
   qogi::BindUtil(m);
   qogi::BindOptics(m);
+  qogi::BindSynth(m);
 }
