@@ -65,6 +65,8 @@ py::dict StationsToDict(const MeanFlow& mf) {
   col("temperature_K", [](const Station& s) { return s.temperature_K; });
   col("density_kg_m3", [](const Station& s) { return s.density; });
   col("development", [](const Station& s) { return s.development; });
+  col("turbulence", [](const Station& s) { return s.turbulence; });
+  col("internal_turbulence_m_s", [](const Station& s) { return s.internal_turbulence_m_s; });
   col("sigma_c_m", [](const Station& s) { return s.sigma_c; });
   col("sigma_puff_m", [](const Station& s) { return s.sigma_puff; });
   col("offset_scale_m", [](const Station& s) { return s.offset_scale; });
@@ -293,8 +295,18 @@ void BindSynth(py::module_& m) {
       .def("puffs", [](const PlumeSimulation& s, int frame) {
         const auto& p = s.puffs(frame);
         py::array_t<float> out({static_cast<py::ssize_t>(p.size()), py::ssize_t{9}});
-        static_assert(sizeof(synth::PuffState) == 9 * sizeof(float));
-        if (!p.empty()) std::memcpy(out.mutable_data(), p.data(), p.size() * sizeof(p[0]));
+        float* o = out.mutable_data();
+        for (std::size_t i = 0; i < p.size(); ++i) {
+          const float row[9] = {p[i].x, p[i].y, p[i].z, p[i].u, p[i].v, p[i].w,
+                                p[i].sigma, p[i].sigma_rate, p[i].mass};
+          std::memcpy(o + 9 * i, row, sizeof(row));
+        }
+        return out;
+      }, py::arg("frame"))
+      .def("puff_ids", [](const PlumeSimulation& s, int frame) {
+        const auto& p = s.puffs(frame);
+        py::array_t<std::uint32_t> out(static_cast<py::ssize_t>(p.size()));
+        for (std::size_t i = 0; i < p.size(); ++i) out.mutable_data()[i] = p[i].id;
         return out;
       }, py::arg("frame"))
       .def("truth_maps", [](const PlumeSimulation& s, int frame, int threads) {

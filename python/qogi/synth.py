@@ -334,6 +334,11 @@ class Simulation:
         """The puffs of a frame, float32 (N, 9) with columns :data:`PUFF_FIELDS`."""
         return self._sim.puffs(self._frame(frame))
 
+    def puff_ids(self, frame: int) -> np.ndarray:
+        """Release index of each puff of a frame (uint32, same order as
+        :meth:`puffs`); a puff keeps its index from frame to frame."""
+        return self._sim.puff_ids(self._frame(frame))
+
     def truth_maps(self, frame: int, num_threads: int = 0) -> dict:
         """Exact line-of-sight truth of one frame (thesis section 4.3.2).
 

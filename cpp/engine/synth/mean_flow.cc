@@ -13,6 +13,10 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 constexpr int kStationDoubles = sizeof(Station) / sizeof(double);
 static_assert(sizeof(Station) % sizeof(double) == 0, "Station must hold only doubles");
+// Largest change of the structure age psi and of s (in widths sigma_c) over
+// one half of a pair of stations.
+constexpr double kMaxDpsi = 0.05;
+constexpr double kMaxDsSigma = 0.15;
 // Linear-density factor a cluster of puffs may reach (see sigma_puff below).
 constexpr double kClusterDensity = 2.0;
 // Length over which entrainment switches on after the laminar column [exit
@@ -242,7 +246,12 @@ MeanFlow::MeanFlow(const Release& release, const PlumeModelOptions& opt,
     const double frac = std::clamp(std::max(1 - phi * (1 - f_inf),
                                             std::sqrt(kClusterDensity * rho_c / rho_e)),
                                    0.0, 1.0);
-    o.sigma_puff = frac * o.sigma_c;
+    // Offsets start smoothly where the puffs first become smaller than the
+    // plume: g = 1 - f^2 -> g smoothstep(g / 0.3)^2 keeps the offset scale's
+    // first and second derivatives finite there.
+    const double g_raw = 1 - frac * frac;
+    const double onset = SmoothStep(g_raw / 0.3);
+    o.sigma_puff = o.sigma_c * std::sqrt(1 - g_raw * onset * onset);
     const double bg2 = t.b * t.b / 2;
     const double sc2 = o.sigma_c * o.sigma_c;
     const double sk2 = o.sigma_puff * o.sigma_puff;
@@ -293,36 +302,54 @@ MeanFlow::MeanFlow(const Release& release, const PlumeModelOptions& opt,
                    ds / 2 * (1 / fs[i].mass_weighted_speed + 1 / fs[i - 1].mass_weighted_speed);
   }
 
-  // --- stations uniform in psi, with the pipe segment in front ---------------
+  // --- stations in pairs along s, with the pipe segment in front -------------
   const Station exit = fs.front();
   const double s_birth = -3.0 * exit.sigma_c;
-  const double psi_birth = s_birth / exit.ds_dpsi;
-  auto at_psi_fine = [&](double psi) {
-    if (psi < 0) {
+  auto at_s_fine = [&](double s_here) {
+    if (s_here < 0) {
       Station o = exit;
-      o.s = psi * exit.ds_dpsi;
-      o.psi = psi;
-      o.time_s = o.s / exit.mass_weighted_speed;
-      for (int k = 0; k < 3; ++k) o.pos[k] = exit.pos[k] + o.s * exit.tangent[k];
+      o.s = s_here;
+      o.psi = s_here / exit.ds_dpsi;
+      o.time_s = s_here / exit.mass_weighted_speed;
+      for (int k = 0; k < 3; ++k) o.pos[k] = exit.pos[k] + s_here * exit.tangent[k];
       return o;
     }
-    auto it = std::upper_bound(fs.begin(), fs.end(), psi,
-                               [](double v, const Station& a) { return v < a.psi; });
+    auto it = std::upper_bound(fs.begin(), fs.end(), s_here,
+                               [](double v, const Station& a) { return v < a.s; });
     if (it == fs.end()) return fs.back();
     if (it == fs.begin()) return fs.front();
     const Station& b = *it;
     const Station& a = *(it - 1);
-    const double u = (psi - a.psi) / (b.psi - a.psi);
-    Station o = LerpStation(a, b, u);
-    o.psi = psi;
+    Station o = LerpStation(a, b, (s_here - a.s) / (b.s - a.s));
+    o.s = s_here;
     return o;
   };
-  const int n = static_cast<int>(std::floor((fs.back().psi - psi_birth) / dpsi_)) + 1;
-  if (n < 8)
+  auto pair_step = [&](const Station& a) {
+    return std::min(2 * kMaxDpsi * a.ds_dpsi, 2 * kMaxDsSigma * a.sigma_c);
+  };
+  {
+    const int n_pipe = std::max(1, static_cast<int>(std::ceil(-s_birth / pair_step(exit))));
+    const double h = -s_birth / n_pipe;
+    for (int p = 0; p < n_pipe; ++p) {
+      stations_.push_back(at_s_fine(s_birth + p * h));
+      stations_.push_back(at_s_fine(s_birth + (p + 0.5) * h));
+    }
+    exit_station_ = static_cast<int>(stations_.size());
+    const double s_end = fs.back().s;
+    double s_here = 0;
+    for (;;) {
+      const Station a = at_s_fine(s_here);
+      stations_.push_back(a);
+      if (s_here >= s_end) break;
+      double h2 = pair_step(a);
+      if (s_here + h2 > s_end - 0.25 * h2) h2 = s_end - s_here;
+      stations_.push_back(at_s_fine(s_here + 0.5 * h2));
+      s_here = s_here + h2 >= s_end ? s_end : s_here + h2;
+    }
+  }
+  if (stations_.size() < 9)
     throw std::invalid_argument("the view is too small for the plume model: enlarge "
                                 "the view or the distance");
-  stations_.resize(n);
-  for (int j = 0; j < n; ++j) stations_[j] = at_psi_fine(psi_birth + j * dpsi_);
 
   // --- puff widths that reproduce the centreline density ----------------------
   // Where all puffs travel on the axis (no cross-stream offsets: near the
@@ -405,26 +432,19 @@ MeanFlow::MeanFlow(const Release& release, const PlumeModelOptions& opt,
     for (int b = 0; b < num_bands_; ++b) a.band_w[b] /= norm;
   }
 
-  // --- derivatives along psi (central differences) ---------------------------
+  // --- derivatives along s (central differences) -----------------------------
+  const int n = static_cast<int>(stations_.size());
   for (int j = 0; j < n; ++j) {
     const int a = std::max(0, j - 1), b = std::min(n - 1, j + 1);
-    const double h = (b - a) * dpsi_;
     const Station &sa = stations_[a], &sb = stations_[b];
+    const double h = sb.s - sa.s;
     Station& o = stations_[j];
-    for (int k = 0; k < 3; ++k) o.dn1_dpsi[k] = (sb.n1[k] - sa.n1[k]) / h;
-    o.dsigma_puff_dpsi = (sb.sigma_puff - sa.sigma_puff) / h;
-    o.dturbulence_dpsi = (sb.turbulence - sa.turbulence) / h;
-    o.doffset_scale_dpsi = (sb.offset_scale - sa.offset_scale) / h;
-    for (int k = 0; k < num_bands_; ++k) o.band_dw_dpsi[k] = (sb.band_w[k] - sa.band_w[k]) / h;
+    for (int k = 0; k < 3; ++k) o.dn1_ds[k] = (sb.n1[k] - sa.n1[k]) / h;
+    o.dsigma_puff_ds = (sb.sigma_puff - sa.sigma_puff) / h;
+    o.dturbulence_ds = (sb.turbulence - sa.turbulence) / h;
+    o.doffset_scale_ds = (sb.offset_scale - sa.offset_scale) / h;
+    for (int k = 0; k < num_bands_; ++k) o.band_dw_ds[k] = (sb.band_w[k] - sa.band_w[k]) / h;
   }
-}
-
-Station MeanFlow::AtPsi(double psi) const {
-  const double pos = (psi - stations_.front().psi) / dpsi_;
-  if (pos <= 0) return stations_.front();
-  const std::size_t j = static_cast<std::size_t>(pos);
-  if (j + 1 >= stations_.size()) return stations_.back();
-  return LerpStation(stations_[j], stations_[j + 1], pos - j);
 }
 
 Station MeanFlow::AtS(double s) const {

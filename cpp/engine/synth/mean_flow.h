@@ -45,7 +45,7 @@ struct Station {
   double tangent[3];      // unit tangent of the axis
   double n1[3], n2[3];    // unit normals (n2 horizontal, n1 = n2 x tangent)
   double ds_dpsi;         // [m]
-  double dn1_dpsi[3];     // derivative of n1 along psi
+  double dn1_ds[3];       // derivative of n1 along s [1/m]
   double radius_m;        // top-hat radius b [m]
   double velocity_m_s;    // top-hat speed along the axis V [m/s]
   double excess_m_s;      // V minus the wind's component along the axis (>= 0)
@@ -57,12 +57,12 @@ struct Station {
   // Strength of turbulent fluctuations: phi, faded out where the mean
   // centreline is still nearly pure gas (the unmixed core carries none).
   double turbulence;
-  double dturbulence_dpsi;
+  double dturbulence_ds;
   double sigma_c;         // mean concentration width per axis [m]
   double sigma_puff;      // puff width [m]
-  double dsigma_puff_dpsi;
+  double dsigma_puff_ds;
   double offset_scale;    // RMS flux-weighted offset of puff centres per axis [m]
-  double doffset_scale_dpsi;
+  double doffset_scale_ds;
   double mass_weighted_speed;  // W_m [m/s]
   double profile_beta;    // puff-averaged excess-velocity factor beta
   double profile_b2;      // puff-averaged excess-velocity width B^2 [m2]
@@ -72,7 +72,7 @@ struct Station {
   double axial_turbulence;     // RMS relative axial speed fluctuation here
   double centre_partial_density;  // mean centreline rho_r = Q/(2 pi sigma_c^2 W_m)
   double band_w[kMaxBands];       // weights of the structure scale bands
-  double band_dw_dpsi[kMaxBands];
+  double band_dw_ds[kMaxBands];
 };
 
 // Field-by-field linear interpolation a + u (b - a).
@@ -88,12 +88,13 @@ class MeanFlow {
            const MixingModel& mixing, const std::array<double, 3>& lo,
            const std::array<double, 3>& hi, double stop_distance_m);
 
-  // Stations uniform in psi, spacing dpsi(); the first is the puffs' birth
-  // point inside the pipe (s = -3 sigma_c at the exit).
+  // Stations in pairs along s: stations 2p, 2p+1, 2p+2 are a pair's start,
+  // midpoint and end. Steps keep psi changes <= 0.1 and s changes <=
+  // 0.3 sigma_c per pair; s = 0 (the exit) is a pair boundary. The first is
+  // the puffs' birth point inside the pipe (s = -3 sigma_c at the exit).
   const std::vector<Station>& stations() const { return stations_; }
-  double dpsi() const { return dpsi_; }
-  // Linear interpolation in psi (clamped to the table).
-  Station AtPsi(double psi) const;
+  // Index of the station at the exit (s = 0).
+  int exit_station() const { return exit_station_; }
   // Linear interpolation in s (clamped to the table).
   Station AtS(double s) const;
   double max_s() const { return stations_.back().s; }
@@ -115,7 +116,7 @@ class MeanFlow {
 
  private:
   std::vector<Station> stations_;
-  double dpsi_ = 0.05;
+  int exit_station_ = 0;
   int num_bands_ = 1;
   std::array<double, kMaxBands> band_time_{};
   double q_, v0_, d_, l_lam_, l_dev_, c_psi_;

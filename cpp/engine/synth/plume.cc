@@ -28,7 +28,9 @@ enum : std::uint64_t { kStreamModes = 1, kStreamLabels = 2, kStreamMeander = 3 }
 struct Modes {
   int bands = 1, per_band = 1, total = 0;
   double amp = 1;  // sqrt(2 / per_band): unit variance per band
-  std::vector<double> kappa, k1, k2, omega, theta, rot_re, rot_im;
+  std::vector<double> kappa, k1, k2, omega, theta;
+  // exp(i omega (psi_{j+1} - psi_j)) for station interval j, [j * total + i].
+  std::vector<double> rot_re, rot_im;
   int Index(int c, int b, int m) const { return (c * bands + b) * per_band + m; }
 };
 
@@ -65,9 +67,9 @@ struct Meander {
 
 struct NodeValue {
   double t = 0;            // arrival time [s]
-  double g = 0;            // dt/dpsi [s]
+  double g = 0;            // dt/ds [s/m]
   double xi[kComponents] = {0, 0, 0};
-  double dxi[kComponents] = {0, 0, 0};  // d xi / d psi
+  double dxi[kComponents] = {0, 0, 0};  // d xi / d s [1/m]
 };
 
 struct Track {
@@ -93,10 +95,9 @@ double HermiteDu(double y0, double d0, double y1, double d1, double u, double h)
 
 class Engine {
  public:
-  Engine(const MeanFlow& mf, const Modes& modes, const Meander& meander,
-         const Box& box, int exit_node)
-      : mf_(mf), st_(mf.stations()), modes_(modes), meander_(meander), box_(box),
-        exit_node_(exit_node) {}
+  Engine(const MeanFlow& mf, const Modes& modes, const Meander& meander, const Box& box)
+      : st_(mf.stations()), modes_(modes), meander_(meander), box_(box),
+        exit_node_(mf.exit_station()) {}
 
   // Initialises a track released at tau with labels zeta, phasors in re/im.
   void Init(Track& tr, double* re, double* im, std::uint64_t id, double tau,
@@ -135,7 +136,8 @@ class Engine {
     const int k = t < tr.nv[1].t ? 0 : 1;
     const NodeValue& a = tr.nv[k];
     const NodeValue& b = tr.nv[k + 1];
-    const double h = mf_.dpsi();
+    const int j = tr.node + k;
+    const double h = st_[j + 1].s - st_[j].s;
     // Solve t(u) = t on the cubic Hermite of t(psi) (monotone): Newton with a
     // bisection safeguard.
     double lo = 0, hi = 1;
@@ -149,24 +151,30 @@ class Engine {
       if (std::abs(next - u) < 1e-14) { u = next; break; }
       u = next;
     }
-    const int j = tr.node + k;
-    const Station sa = st_[j], sb = st_[j + 1];
+    const Station& sa = st_[j];
+    const Station& sb = st_[j + 1];
     const Station s = LerpStation(sa, sb, u);
     double xi[kComponents], dxi[kComponents];
     for (int c = 0; c < kComponents; ++c) {
       xi[c] = Hermite(a.xi[c], a.dxi[c], b.xi[c], b.dxi[c], u, h);
       dxi[c] = HermiteDu(a.xi[c], a.dxi[c], b.xi[c], b.dxi[c], u, h) / h;
     }
-    const double speed = Speed(s, xi);
-    const double dpsi_dt = speed / s.ds_dpsi;
+    // The trajectory is P(s) = pos(s) + offset(s) (xi1(s) n1(s) + xi2(s) n2(s))
+    // with pos, offset, n1, n2 linear and xi cubic (Hermite) on the interval,
+    // and s(t) the inverse of the Hermite t(s). The velocity reported is the
+    // exact derivative of that trajectory, so the fluxes computed from it move
+    // exactly the mass the positions move.
+    const double speed = h / HermiteDu(a.t, a.g, b.t, b.g, u, h);  // ds/dt
+    const double off_ds = (sb.offset_scale - sa.offset_scale) / h;
     double pos[3], vel[3];
     for (int c = 0; c < 3; ++c) {
       const double dir = xi[0] * s.n1[c] + xi[1] * s.n2[c];
       pos[c] = s.pos[c] + s.offset_scale * dir;
-      const double dp = s.tangent[c] * s.ds_dpsi + s.doffset_scale_dpsi * dir +
+      const double dp = (sb.pos[c] - sa.pos[c]) / h + off_ds * dir +
                         s.offset_scale * (dxi[0] * s.n1[c] + dxi[1] * s.n2[c] +
-                                          xi[0] * s.dn1_dpsi[c]);
-      vel[c] = dp * dpsi_dt;
+                                          xi[0] * (sb.n1[c] - sa.n1[c]) / h +
+                                          xi[1] * (sb.n2[c] - sa.n2[c]) / h);
+      vel[c] = dp * speed;
     }
     if (s.psi > 0 && std::isfinite(tr.t_exit) && s.turbulence > 0) {
       // The ambient fluctuation displaces the gas in proportion to the local
@@ -176,7 +184,7 @@ class Engine {
       double d[3], v[3];
       meander_.Displacement(tr.t_exit, t, d);
       meander_.Velocity(t, v);
-      const double dphi_dt = s.dturbulence_dpsi * dpsi_dt;
+      const double dphi_dt = (sb.turbulence - sa.turbulence) / h * speed;
       for (int c = 0; c < 3; ++c) {
         pos[c] += s.turbulence * d[c];
         vel[c] += s.turbulence * v[c] + dphi_dt * d[c];
@@ -190,8 +198,9 @@ class Engine {
     p.v = static_cast<float>(vel[1]);
     p.w = static_cast<float>(vel[2]);
     p.sigma = static_cast<float>(s.sigma_puff);
-    p.sigma_rate = static_cast<float>(s.dsigma_puff_dpsi * dpsi_dt);
+    p.sigma_rate = static_cast<float>((sb.sigma_puff - sa.sigma_puff) / h * speed);
     p.mass = static_cast<float>(mass);
+    p.id = static_cast<std::uint32_t>(tr.id);
     return p;
   }
 
@@ -224,37 +233,40 @@ class Engine {
           sd -= modes_.omega[base + m] * im[base + m];
         }
         xi += s.band_w[b] * sr;
-        dxi += s.band_dw_dpsi[b] * sr + s.band_w[b] * sd;
+        dxi += s.band_dw_ds[b] * sr + s.band_w[b] * sd / s.ds_dpsi;
       }
       out.xi[c] = modes_.amp * xi;
       out.dxi[c] = modes_.amp * dxi;
     }
-    out.g = s.ds_dpsi / Speed(s, out.xi);
+    out.g = 1.0 / Speed(s, out.xi);
   }
 
-  void Rotate(double* re, double* im) const {
+  // Advances the phasors from station j to j + 1.
+  void Rotate(int j, double* re, double* im) const {
+    const double* rr = &modes_.rot_re[static_cast<std::size_t>(j) * modes_.total];
+    const double* ri = &modes_.rot_im[static_cast<std::size_t>(j) * modes_.total];
     for (int i = 0; i < modes_.total; ++i) {
-      const double r = re[i] * modes_.rot_re[i] - im[i] * modes_.rot_im[i];
-      im[i] = re[i] * modes_.rot_im[i] + im[i] * modes_.rot_re[i];
+      const double r = re[i] * rr[i] - im[i] * ri[i];
+      im[i] = re[i] * ri[i] + im[i] * rr[i];
       re[i] = r;
     }
   }
 
   // Computes nv[1], nv[2] from nv[0] (phasors at nv[0] in, at nv[2] out).
+  // Simpson's rule over the pair (the middle station is its midpoint in s).
   void Pair(Track& tr, double* re, double* im) const {
-    const double h = mf_.dpsi();
-    Rotate(re, im);
+    const double h = st_[tr.node + 2].s - st_[tr.node].s;
+    Rotate(tr.node, re, im);
     Eval(tr.node + 1, re, im, tr.nv[1]);
-    Rotate(re, im);
+    Rotate(tr.node + 1, re, im);
     Eval(tr.node + 2, re, im, tr.nv[2]);
     const double g0 = tr.nv[0].g, g1 = tr.nv[1].g, g2 = tr.nv[2].g;
-    tr.nv[1].t = tr.nv[0].t + h / 12 * (5 * g0 + 8 * g1 - g2);
-    tr.nv[2].t = tr.nv[0].t + h / 3 * (g0 + 4 * g1 + g2);
+    tr.nv[1].t = tr.nv[0].t + h / 24 * (5 * g0 + 8 * g1 - g2);
+    tr.nv[2].t = tr.nv[0].t + h / 6 * (g0 + 4 * g1 + g2);
     if (tr.node + 1 == exit_node_) tr.t_exit = tr.nv[1].t;
     if (tr.node + 2 == exit_node_) tr.t_exit = tr.nv[2].t;
   }
 
-  const MeanFlow& mf_;
   const std::vector<Station>& st_;
   const Modes& modes_;
   const Meander& meander_;
@@ -282,7 +294,7 @@ PlumeSimulation::PlumeSimulation(const Release& release, const View& view,
   release_.Check();
   view_.Check();
   options_.Check();
-  CheckInRange(frame_rate_hz, 1e-3, 1e4, "frame_rate_hz", "Hz");
+  CheckInRange(frame_rate_hz, 1e-3, 1e6, "frame_rate_hz", "Hz");
   CheckPositive(duration_s, "duration_s", "s");
   const double n_frames_d = std::round(duration_s * frame_rate_hz);
   if (!(n_frames_d >= 1 && n_frames_d <= 1e5))
@@ -360,8 +372,7 @@ PlumeSimulation::PlumeSimulation(const Release& release, const View& view,
   modes.per_band = options_.modes_per_band;
   modes.total = kComponents * modes.bands * modes.per_band;
   modes.amp = std::sqrt(2.0 / modes.per_band);
-  for (auto* v : {&modes.kappa, &modes.k1, &modes.k2, &modes.omega, &modes.theta,
-                  &modes.rot_re, &modes.rot_im})
+  for (auto* v : {&modes.kappa, &modes.k1, &modes.k2, &modes.omega, &modes.theta})
     v->resize(modes.total);
   for (int c = 0; c < kComponents; ++c)
     for (int b = 0; b < modes.bands; ++b)
@@ -373,9 +384,19 @@ PlumeSimulation::PlumeSimulation(const Release& release, const View& view,
         modes.k2[i] = Normal(seed, kStreamModes, base + 2) / kLabelScale[c];
         modes.omega[i] = Normal(seed, kStreamModes, base + 3);
         modes.theta[i] = 2 * kPi * Uniform(seed, kStreamModes, base + 4);
-        modes.rot_re[i] = std::cos(modes.omega[i] * mf.dpsi());
-        modes.rot_im[i] = std::sin(modes.omega[i] * mf.dpsi());
       }
+  {
+    const std::size_t n_int = st.size() - 1;
+    modes.rot_re.resize(n_int * modes.total);
+    modes.rot_im.resize(n_int * modes.total);
+    for (std::size_t j = 0; j < n_int; ++j) {
+      const double dpsi = st[j + 1].psi - st[j].psi;
+      for (int i = 0; i < modes.total; ++i) {
+        modes.rot_re[j * modes.total + i] = std::cos(modes.omega[i] * dpsi);
+        modes.rot_im[j * modes.total + i] = std::sin(modes.omega[i] * dpsi);
+      }
+    }
+  }
   Meander meander;
   {
     const double t_gauss = release_.ambient_time_scale_s / std::sqrt(kPi / 2);
@@ -388,12 +409,9 @@ PlumeSimulation::PlumeSimulation(const Release& release, const View& view,
         meander.phase[c][j] = 2 * kPi * Uniform(seed, kStreamMeander, 2 * idx + 1);
       }
   }
-  int exit_node = 0;
-  for (std::size_t j = 0; j < st.size(); ++j)
-    if (std::abs(st[j].psi) < std::abs(st[exit_node].psi)) exit_node = static_cast<int>(j);
 
   // --- run ---------------------------------------------------------------------------
-  const Engine engine(mf, modes, meander, box_, exit_node);
+  const Engine engine(mf, modes, meander, box_);
   const double mass = mf.mass_rate_kg_s() / puff_rate_;
   const double t_start = -spin_up_;
   std::vector<Track> tracks;

@@ -47,6 +47,7 @@ struct PuffState {
   float sigma;          // width (standard deviation per axis) [m]
   float sigma_rate;     // d sigma / dt [m/s]
   float mass;           // released-gas mass [kg]
+  std::uint32_t id;     // release index (modulo 2^32), stable across frames
 };
 
 // An axis-aligned box lo..hi [m].

@@ -1,6 +1,7 @@
 #include "engine/synth/truth.h"
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <limits>
@@ -37,8 +38,12 @@ double PlaneMassFlux(const std::vector<PuffState>& puffs, const ControlPlane& pl
 }
 
 TruthMaps ComputeTruthMaps(const PlumeSimulation& sim, int frame, int num_threads) {
-  const std::vector<PuffState>& puffs = sim.puffs(frame);
-  const View& v = sim.view();
+  return ComputeTruthMaps(sim.puffs(frame), sim.view(), num_threads);
+}
+
+TruthMaps ComputeTruthMaps(const std::vector<PuffState>& puffs, const View& v,
+                           int num_threads) {
+  v.Check();
   const int w = v.width_px, h = v.height_px;
   TruthMaps m;
   m.width = w;
@@ -244,8 +249,17 @@ void Splat(const std::vector<PuffState>& puffs, int np, int ni, int nk,
 
 Fields ComputeFields(const PlumeSimulation& sim, int frame, const Grid& grid,
                      bool with_velocity, int num_threads) {
+  const Release& rel = sim.release();
+  const double th = rel.wind_direction_deg * kPi / 180;
+  const std::array<double, 3> wind = {rel.wind_speed_m_s * std::cos(th),
+                                      rel.wind_speed_m_s * std::sin(th), 0.0};
+  return ComputeFields(sim.puffs(frame), sim.mixing(), wind, grid, with_velocity, num_threads);
+}
+
+Fields ComputeFields(const std::vector<PuffState>& puffs, const MixingModel& mix,
+                     const std::array<double, 3>& wind, const Grid& grid, bool with_velocity,
+                     int num_threads) {
   grid.Check();
-  const std::vector<PuffState>& puffs = sim.puffs(frame);
   Fields f;
   f.grid = grid;
   const std::size_t n = grid.size();
@@ -263,10 +277,6 @@ Fields ComputeFields(const PlumeSimulation& sim, int frame, const Grid& grid,
   Splat(puffs, grid.ny, grid.nx, grid.nz, ys, ax, bx, az, bz, rho.data(),
         with_velocity ? vx.data() : nullptr, with_velocity ? vy.data() : nullptr,
         with_velocity ? vz.data() : nullptr, num_threads);
-  const Release& rel = sim.release();
-  const double th = rel.wind_direction_deg * kPi / 180;
-  const double wind[3] = {rel.wind_speed_m_s * std::cos(th), rel.wind_speed_m_s * std::sin(th),
-                          0.0};
   f.partial_density.resize(n);
   f.mole_fraction.resize(n);
   f.temperature.resize(n);
@@ -275,7 +285,6 @@ Fields ComputeFields(const PlumeSimulation& sim, int frame, const Grid& grid,
     f.velocity_y.resize(n);
     f.velocity_z.resize(n);
   }
-  const MixingModel& mix = sim.mixing();
   std::atomic<std::uint64_t> over{0};
   const std::size_t nx = grid.nx, ny = grid.ny, nz = grid.nz;
   ParallelFor(nz, 1, [&](std::size_t kb, std::size_t ke) {
@@ -306,7 +315,13 @@ Fields ComputeFields(const PlumeSimulation& sim, int frame, const Grid& grid,
 
 RaySamples SampleRays(const PlumeSimulation& sim, int frame, int row0, int row1, int col0,
                       int col1, int num_threads) {
-  const View& v = sim.view();
+  return SampleRays(sim.puffs(frame), sim.view(), sim.mixing(), row0, row1, col0, col1,
+                    num_threads);
+}
+
+RaySamples SampleRays(const std::vector<PuffState>& all, const View& v, const MixingModel& mix,
+                      int row0, int row1, int col0, int col1, int num_threads) {
+  v.Check();
   if (!(0 <= row0 && row0 < row1 && row1 <= v.height_px))
     throw std::invalid_argument("rows must satisfy 0 <= row0 < row1 <= " +
                                 std::to_string(v.height_px) + "; got " + std::to_string(row0) +
@@ -315,7 +330,6 @@ RaySamples SampleRays(const PlumeSimulation& sim, int frame, int row0, int row1,
     throw std::invalid_argument("columns must satisfy 0 <= col0 < col1 <= " +
                                 std::to_string(v.width_px) + "; got " + std::to_string(col0) +
                                 ", " + std::to_string(col1));
-  const std::vector<PuffState>& all = sim.puffs(frame);
   RaySamples rs;
   rs.row0 = row0;
   rs.col0 = col0;
@@ -340,7 +354,7 @@ RaySamples SampleRays(const PlumeSimulation& sim, int frame, int row0, int row1,
     y_hi = std::max(y_hi, p.y + cut);
     sigma_min = std::min(sigma_min, static_cast<double>(p.sigma));
   }
-  const std::size_t n_species = sim.species().size();
+  const std::size_t n_species = mix.released().names().size();
   rs.mole_fraction.assign(n_species, {});
   rs.path_m.resize(npix);
   rs.first_plane.assign(npix, 0);
@@ -375,7 +389,6 @@ RaySamples SampleRays(const PlumeSimulation& sim, int frame, int row0, int row1,
         nullptr, nullptr, nullptr, num_threads);
   rs.temperature.resize(n);
   std::vector<float> xr(n);
-  const MixingModel& mix = sim.mixing();
   std::atomic<std::uint64_t> over{0};
   ParallelFor(rs.planes, 1, [&](std::size_t pb, std::size_t pe) {
     std::uint64_t local = 0;
@@ -389,7 +402,7 @@ RaySamples SampleRays(const PlumeSimulation& sim, int frame, int row0, int row1,
   }, num_threads);
   rs.over_pure = over;
   for (std::size_t s = 0; s < n_species; ++s) {
-    const double xs = sim.species_mole_fractions()[s];
+    const double xs = mix.released().mole_fractions()[s];
     rs.mole_fraction[s].resize(n);
     for (std::size_t i = 0; i < n; ++i)
       rs.mole_fraction[s][i] = static_cast<float>(xs * xr[i]);

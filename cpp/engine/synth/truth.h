@@ -8,6 +8,7 @@
 // fraction in the released gas).
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -43,6 +44,9 @@ struct TruthMaps {
   std::vector<double> column, flux_x, flux_z, velocity_x, velocity_z;
 };
 TruthMaps ComputeTruthMaps(const PlumeSimulation& sim, int frame, int num_threads = 0);
+// The same for any set of puffs seen through `view`.
+TruthMaps ComputeTruthMaps(const std::vector<PuffState>& puffs, const View& view,
+                           int num_threads = 0);
 
 // A regular grid: node (i, j, k) at (x0 + i dx, y0 + j dy, z0 + k dz), arrays
 // indexed [k][j][i] (z slowest, x fastest).
@@ -72,6 +76,11 @@ struct Fields {
 // `with_velocity` false skips the three velocity arrays (left empty).
 Fields ComputeFields(const PlumeSimulation& sim, int frame, const Grid& grid,
                      bool with_velocity = true, int num_threads = 0);
+// The same for any set of puffs; `wind` [m/s] fills the velocity where there
+// is no released gas.
+Fields ComputeFields(const std::vector<PuffState>& puffs, const MixingModel& mixing,
+                     const std::array<double, 3>& wind, const Grid& grid,
+                     bool with_velocity = true, int num_threads = 0);
 
 // Samples along the pixel rays of a rectangle of the image at one frame, for a
 // renderer. Samples lie on planes y = y_m[p] (p = 0 farthest from the camera,
@@ -98,5 +107,9 @@ struct RaySamples {
 };
 RaySamples SampleRays(const PlumeSimulation& sim, int frame, int row0, int row1, int col0,
                       int col1, int num_threads = 0);
+// The same for any set of puffs seen through `view`.
+RaySamples SampleRays(const std::vector<PuffState>& puffs, const View& view,
+                      const MixingModel& mixing, int row0, int row1, int col0, int col1,
+                      int num_threads = 0);
 
 }  // namespace qogi::synth
