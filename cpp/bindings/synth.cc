@@ -376,20 +376,21 @@ void BindSynth(py::module_& m) {
           r = synth::SampleRays(s, frame, row0, row1, col0, col1, threads);
         }
         const std::vector<py::ssize_t> pix = {r.rows, r.cols};
-        const std::vector<py::ssize_t> vol = {r.planes, r.rows, r.cols};
+        const std::vector<py::ssize_t> smp = {static_cast<py::ssize_t>(r.temperature.size())};
         py::dict d;
         d["row0"] = r.row0;
         d["col0"] = r.col0;
+        d["planes"] = r.planes;
         d["step_m"] = r.step_m;
         d["y_m"] = ToArray(r.y_m, {r.planes});
         d["path_m"] = ToArray(r.path_m, pix);
-        py::list mf;
-        for (const auto& v : r.mole_fraction) mf.append(ToArray(v, vol));
-        d["mole_fraction"] = mf;
-        d["temperature_K"] = ToArray(r.temperature, vol);
-        d["partial_density_kg_m3"] = ToArray(r.partial_density, vol);
+        d["offset"] = ToArray(r.offset, {static_cast<py::ssize_t>(r.offset.size())});
         d["first_plane"] = ToArray(r.first_plane, pix);
-        d["last_plane"] = ToArray(r.last_plane, pix);
+        py::list mf;
+        for (const auto& v : r.mole_fraction) mf.append(ToArray(v, smp));
+        d["mole_fraction"] = mf;
+        d["temperature_K"] = ToArray(r.temperature, smp);
+        d["partial_density_kg_m3"] = ToArray(r.partial_density, smp);
         d["over_pure"] = r.over_pure;
         return d;
       }, py::arg("frame"), py::arg("row0"), py::arg("row1"), py::arg("col0"), py::arg("col1"),

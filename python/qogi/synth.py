@@ -48,6 +48,7 @@ __all__ = [
     "preset_view",
     "simulate_preset",
     "horizontal_planes",
+    "densify",
     "PUFF_FIELDS",
 ]
 
@@ -437,32 +438,58 @@ class Simulation:
                     cols: Optional[tuple] = None, num_threads: int = 0) -> dict:
         """Samples along the pixel rays of an image rectangle, for a renderer.
 
-        Samples lie on planes of constant depth y, ordered from the background
-        (far, index 0) towards the camera; each stands for a path length
-        ``path_m`` of its pixel (midpoint rule). The step is the smaller of the
-        pixel footprint and the smallest puff width reaching the rectangle,
-        which integrates every Gaussian puff to better than 1e-8 relative.
+        Samples lie on planes of constant depth ``y_m[p]``, p = 0 farthest
+        from the camera (increasing p runs from the background towards the
+        camera), spaced by ``step_m``; each stands for the path length
+        ``path_m`` of its pixel (midpoint rule). Only the gas-bearing stretch
+        of each ray is kept: pixel (r, c) of the rectangle owns samples
+        ``offset[i]:offset[i+1]`` (i = r * C + c) on planes ``first_plane[r,
+        c]``, ``first_plane[r, c] + 1``, ...; outside them the ray sees no
+        released gas (ambient temperature, zero mole fraction). ``step_m`` is
+        the smallest puff width reaching the rectangle, which integrates every
+        Gaussian puff to better than 1e-8 relative; columns built from the
+        samples agree with :meth:`truth_maps` to < 0.5 % wherever they exceed
+        1e-3 of the image's peak and to < 0.1 % above 1e-2 of it (each puff is
+        cut off at 5 widths). See :func:`densify` for a (P, R, C) view.
 
         Parameters
         ----------
         rows, cols : (begin, end), optional
-            Half-open pixel ranges; default the whole image.
+            Half-open pixel ranges; default the whole image. Ask for bands of
+            rows to bound memory.
 
         Returns
         -------
         dict
-            ``y_m`` (P,), ``step_m``, ``path_m`` (R, C) float32,
-            ``mole_fraction`` {species: (P, R, C) float32},
-            ``temperature_K`` (P, R, C) float32, ``partial_density_kg_m3``
-            (P, R, C), ``first_plane`` / ``last_plane`` (R, C) (range holding
-            gas), ``row0``, ``col0``, ``over_pure``.
+            ``y_m`` (P,), ``planes``, ``step_m``, ``path_m`` (R, C) float32,
+            ``offset`` (R*C+1,) int64, ``first_plane`` (R, C) int32,
+            per-sample float32 arrays ``mole_fraction`` {species: (N,)},
+            ``temperature_K`` (N,), ``partial_density_kg_m3`` (N,); ``row0``,
+            ``col0``, ``over_pure`` (samples denser than the pure gas, 0
+            expected).
         """
         r0, r1 = rows if rows is not None else (0, self.view.height_px)
         c0, c1 = cols if cols is not None else (0, self.view.width_px)
         d = dict(self._sim.ray_samples(self._frame(frame), int(r0), int(r1), int(c0), int(c1),
                                        num_threads))
         d["mole_fraction"] = dict(zip(self.species, d["mole_fraction"]))
+        d["ambient_temperature_K"] = self.release.ambient_temperature_K
         return d
+
+
+def densify(samples: dict, values: np.ndarray, fill: float = 0.0) -> np.ndarray:
+    """Per-sample ``values`` of :meth:`Simulation.ray_samples` as a dense
+    (planes, rows, cols) float32 array, ``fill`` where a ray has no sample
+    (use the ambient temperature for ``temperature_K``)."""
+    rows, cols = samples["path_m"].shape
+    out = np.full((samples["planes"], rows * cols), fill, dtype=np.float32)
+    off = samples["offset"]
+    first = samples["first_plane"].ravel()
+    counts = np.diff(off)
+    pix = np.repeat(np.arange(rows * cols), counts)
+    plane = np.repeat(first, counts) + (np.arange(off[-1]) - np.repeat(off[:-1], counts))
+    out[plane, pix] = values
+    return out.reshape(samples["planes"], rows, cols)
 
 
 def simulate(release: Release, view: View, duration_s: float, frame_rate_hz: float,

@@ -14,8 +14,8 @@ namespace qogi::synth {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-constexpr double kTruthCut = 7.0;   // truth maps: widths
-constexpr double kSplatCut = 5.0;   // grids and ray samples: widths
+constexpr double kTruthCut = 6.0;   // truth maps: widths (disc)
+constexpr double kSplatCut = 5.0;   // grids and ray samples: widths (sphere)
 
 }  // namespace
 
@@ -78,22 +78,30 @@ TruthMaps ComputeTruthMaps(const std::vector<PuffState>& puffs, const View& v,
         const double inv2s2 = 0.5 / (sigma * sigma);
         const double cut2 = cut * cut;
         if (ortho) {
+          // Separable: g(x) g(z), over the disc of radius `cut` row by row.
+          const double fp = v.footprint_m(), x_first = v.PixelX(c0, 0);
           gx.resize(c1 - c0 + 1);
+          gz.resize(c1 - c0 + 1);  // here: g(x) (u + a dx)
           for (int i = c0; i <= c1; ++i) {
-            const double dx = v.PixelX(i, 0) - p.x;
+            const double dx = x_first + (i - c0) * fp - p.x;
             gx[i - c0] = std::exp(-dx * dx * inv2s2);
+            gz[i - c0] = gx[i - c0] * (p.u + a * dx);
           }
           for (int r = q0; r <= q1; ++r) {
             const double dz = v.PixelZ(r, 0) - p.z;
+            if (dz * dz > cut2) continue;
+            const double half = std::sqrt(cut2 - dz * dz);
+            const int ia = std::max(c0, static_cast<int>(std::ceil(v.Column(p.x - half, 0))));
+            const int ib = std::min(c1, static_cast<int>(std::floor(v.Column(p.x + half, 0))));
             const double gzr = amp * std::exp(-dz * dz * inv2s2);
-            const std::size_t row = static_cast<std::size_t>(r) * w;
-            for (int i = c0; i <= c1; ++i) {
-              const double dx = v.PixelX(i, 0) - p.x;
-              if (dx * dx + dz * dz > cut2) continue;
-              const double c = gzr * gx[i - c0];
-              m.column[row + i] += c;
-              m.flux_x[row + i] += c * (p.u + a * dx);
-              m.flux_z[row + i] += c * (p.w + a * dz);
+            const double wz = gzr * (p.w + a * dz);
+            double* col = &m.column[static_cast<std::size_t>(r) * w];
+            double* fx = &m.flux_x[static_cast<std::size_t>(r) * w];
+            double* fz = &m.flux_z[static_cast<std::size_t>(r) * w];
+            for (int i = ia; i <= ib; ++i) {
+              col[i] += gzr * gx[i - c0];
+              fx[i] += gzr * gz[i - c0];
+              fz[i] += wz * gx[i - c0];
             }
           }
         } else {
@@ -194,8 +202,10 @@ void Splat(const std::vector<PuffState>& puffs, int np, int ni, int nk,
         const double cut = kSplatCut * sigma;
         const double dy = y - q.y;
         if (std::abs(dy) > cut) continue;
-        const double i_lo = (q.x - cut - ax[p]) / bx[p], i_hi = (q.x + cut - ax[p]) / bx[p];
-        const double k_lo = (q.z - cut - az[p]) / bz[p], k_hi = (q.z + cut - az[p]) / bz[p];
+        // The puff's cut-off sphere cuts this plane in a disc of radius rc.
+        const double rc = std::sqrt(cut * cut - dy * dy);
+        const double i_lo = (q.x - rc - ax[p]) / bx[p], i_hi = (q.x + rc - ax[p]) / bx[p];
+        const double k_lo = (q.z - rc - az[p]) / bz[p], k_hi = (q.z + rc - az[p]) / bz[p];
         const int i0 = std::max(0, static_cast<int>(std::ceil(std::min(i_lo, i_hi))));
         const int i1 = std::min(ni - 1, static_cast<int>(std::floor(std::max(i_lo, i_hi))));
         const int k0 = std::max(0, static_cast<int>(std::ceil(std::min(k_lo, k_hi))));
@@ -214,14 +224,20 @@ void Splat(const std::vector<PuffState>& puffs, int np, int ni, int nk,
         }
         for (int k = k0; k <= k1; ++k) {
           const double dz = az[p] + bz[p] * k - q.z;
+          if (dz * dz > rc * rc) continue;
+          // Columns of this row inside the disc.
+          const double half = std::sqrt(rc * rc - dz * dz);
+          const double c_lo = (q.x - half - ax[p]) / bx[p], c_hi = (q.x + half - ax[p]) / bx[p];
+          const int ia = std::max(i0, static_cast<int>(std::ceil(std::min(c_lo, c_hi))));
+          const int ib = std::min(i1, static_cast<int>(std::floor(std::max(c_lo, c_hi))));
           const double gk = amp * std::exp(-dz * dz * inv2s2);
           const std::size_t row = static_cast<std::size_t>(k) * ni;
           if (!jx) {
-            for (int i = i0; i <= i1; ++i) acc[row + i] += gk * gx[i - i0];
+            for (int i = ia; i <= ib; ++i) acc[row + i] += gk * gx[i - i0];
             continue;
           }
           const double fy = q.v + a * dy, fz = q.w + a * dz;
-          for (int i = i0; i <= i1; ++i) {
+          for (int i = ia; i <= ib; ++i) {
             const double c = gk * gx[i - i0];
             acc[row + i] += c;
             ax_[row + i] += c * (q.u + a * dxs[i - i0]);
@@ -336,63 +352,111 @@ RaySamples SampleRays(const std::vector<PuffState>& all, const View& v, const Mi
   rs.rows = row1 - row0;
   rs.cols = col1 - col0;
   const std::size_t npix = static_cast<std::size_t>(rs.rows) * rs.cols;
-  // Puffs whose 5-width sphere reaches the rectangle's rays.
-  std::vector<PuffState> puffs;
-  double y_lo = 1e300, y_hi = -1e300, sigma_min = 1e300;
-  for (const PuffState& p : all) {
-    const double cut = kSplatCut * p.sigma;
-    const double scale_lo = v.Scale(p.y - cut), scale_hi = v.Scale(p.y + cut);
-    const double s_min = std::min(scale_lo, scale_hi), s_max = std::max(scale_lo, scale_hi);
-    (void)s_max;
-    const double cc = v.Column(p.x, p.y), rc = v.Row(p.z, p.y);
-    const double rad = cut / std::max(s_min, 1e-12) + 1.0;
-    if (cc + rad < col0 - 0.5 || cc - rad > col1 - 0.5 || rc + rad < row0 - 0.5 ||
-        rc - rad > row1 - 0.5)
-      continue;
-    puffs.push_back(p);
-    y_lo = std::min(y_lo, p.y - cut);
-    y_hi = std::max(y_hi, p.y + cut);
-    sigma_min = std::min(sigma_min, static_cast<double>(p.sigma));
-  }
   const std::size_t n_species = mix.released().names().size();
   rs.mole_fraction.assign(n_species, {});
   rs.path_m.resize(npix);
   rs.first_plane.assign(npix, 0);
-  rs.last_plane.assign(npix, 0);
-  rs.step_m = std::min(v.footprint_m(), puffs.empty() ? v.footprint_m() : sigma_min);
+  rs.offset.assign(npix + 1, 0);
+
+  // Puffs whose cut-off sphere reaches a ray of the rectangle (rows r0..r1).
+  auto touching = [&](int r0, int r1, std::vector<PuffState>& out, double& y_lo, double& y_hi,
+                      double& sigma_min) {
+    out.clear();
+    y_lo = 1e300;
+    y_hi = -1e300;
+    sigma_min = 1e300;
+    for (const PuffState& p : all) {
+      const double cut = kSplatCut * p.sigma;
+      const double s_min = std::min(v.Scale(p.y - cut), v.Scale(p.y + cut));
+      const double cc = v.Column(p.x, p.y), rc = v.Row(p.z, p.y);
+      const double rad = cut / std::max(s_min, 1e-12) + 1.0;
+      if (cc + rad < col0 - 0.5 || cc - rad > col1 - 0.5 || rc + rad < r0 - 0.5 ||
+          rc - rad > r1 - 0.5)
+        continue;
+      out.push_back(p);
+      y_lo = std::min(y_lo, p.y - cut);
+      y_hi = std::max(y_hi, p.y + cut);
+      sigma_min = std::min(sigma_min, static_cast<double>(p.sigma));
+    }
+    y_lo = std::max(y_lo, -0.95 * v.distance_m);
+  };
+  std::vector<PuffState> puffs;
+  double y_lo, y_hi, sigma_min;
+  touching(row0, row1, puffs, y_lo, y_hi, sigma_min);
+  rs.step_m = puffs.empty() ? v.footprint_m() : sigma_min;
   for (int r = 0; r < rs.rows; ++r)
     for (int c = 0; c < rs.cols; ++c)
       rs.path_m[static_cast<std::size_t>(r) * rs.cols + c] =
           static_cast<float>(rs.step_m * v.PathPerDepth(col0 + c, row0 + r));
   if (puffs.empty()) return rs;
-  y_lo = std::max(y_lo, -0.95 * v.distance_m);
   rs.planes = std::max(1, static_cast<int>(std::ceil((y_hi - y_lo) / rs.step_m)));
-  if (static_cast<double>(rs.planes) * npix > 4e8)
-    throw std::invalid_argument("too many ray samples requested (" +
-                                std::to_string(rs.planes) + " planes x " +
-                                std::to_string(npix) + " pixels); ask for fewer rows");
   const double y_mid = 0.5 * (y_lo + y_hi);
   rs.y_m.resize(rs.planes);
-  std::vector<double> ax(rs.planes), bx(rs.planes), az(rs.planes), bz(rs.planes);
-  for (int p = 0; p < rs.planes; ++p) {
-    // p = 0 is the farthest plane (largest y).
-    const double y = y_mid + (0.5 * (rs.planes - 1) - p) * rs.step_m;
-    rs.y_m[p] = y;
-    ax[p] = v.PixelX(col0, y);
-    bx[p] = v.Scale(y);
-    az[p] = v.PixelZ(row0, y);
-    bz[p] = -v.Scale(y);
+  for (int p = 0; p < rs.planes; ++p)  // p = 0 is the farthest plane (largest y)
+    rs.y_m[p] = y_mid + (0.5 * (rs.planes - 1) - p) * rs.step_m;
+
+  // Dense bands of rows, splatted then compacted to the runs of planes that
+  // hold gas.
+  constexpr int kBand = 8;
+  std::vector<float> dense;
+  std::vector<PuffState> band_puffs;
+  std::int64_t total = 0;
+  for (int b0 = 0; b0 < rs.rows; b0 += kBand) {
+    const int b1 = std::min(rs.rows, b0 + kBand);
+    double by_lo, by_hi, bs;
+    touching(row0 + b0, row0 + b1, band_puffs, by_lo, by_hi, bs);
+    const std::size_t bpix = static_cast<std::size_t>(b1 - b0) * rs.cols;
+    if (band_puffs.empty()) {
+      for (int r = b0; r < b1; ++r)
+        for (int c = 0; c < rs.cols; ++c) {
+          const std::size_t i = static_cast<std::size_t>(r) * rs.cols + c;
+          rs.offset[i + 1] = total;
+        }
+      continue;
+    }
+    // Planes of this band: those within its puffs' depth range.
+    const int p0 = std::clamp(static_cast<int>(std::floor((rs.y_m[0] - by_hi) / rs.step_m)), 0,
+                              rs.planes - 1);
+    const int p1 = std::clamp(static_cast<int>(std::ceil((rs.y_m[0] - by_lo) / rs.step_m)) + 1,
+                              p0 + 1, rs.planes);
+    const int np = p1 - p0;
+    std::vector<double> ys(np), ax(np), bx(np), az(np), bz(np);
+    for (int p = 0; p < np; ++p) {
+      const double y = rs.y_m[p0 + p];
+      ys[p] = y;
+      ax[p] = v.PixelX(col0, y);
+      bx[p] = v.Scale(y);
+      az[p] = v.PixelZ(row0 + b0, y);
+      bz[p] = -v.Scale(y);
+    }
+    dense.assign(bpix * np, 0.0f);
+    Splat(band_puffs, np, rs.cols, b1 - b0, ys, ax, bx, az, bz, dense.data(), nullptr, nullptr,
+          nullptr, num_threads);
+    for (int r = b0; r < b1; ++r)
+      for (int c = 0; c < rs.cols; ++c) {
+        const std::size_t bi = static_cast<std::size_t>(r - b0) * rs.cols + c;
+        const std::size_t i = static_cast<std::size_t>(r) * rs.cols + c;
+        int first = np, last = -1;
+        for (int p = 0; p < np; ++p)
+          if (dense[p * bpix + bi] > 0) {
+            first = std::min(first, p);
+            last = p;
+          }
+        if (last >= first) {
+          rs.first_plane[i] = p0 + first;
+          for (int p = first; p <= last; ++p) rs.partial_density.push_back(dense[p * bpix + bi]);
+          total += last - first + 1;
+        }
+        rs.offset[i + 1] = total;
+      }
   }
-  const std::size_t n = npix * rs.planes;
-  rs.partial_density.resize(n);
-  Splat(puffs, rs.planes, rs.cols, rs.rows, rs.y_m, ax, bx, az, bz, rs.partial_density.data(),
-        nullptr, nullptr, nullptr, num_threads);
+  const std::size_t n = rs.partial_density.size();
   rs.temperature.resize(n);
   std::vector<float> xr(n);
   std::atomic<std::uint64_t> over{0};
-  ParallelFor(rs.planes, 1, [&](std::size_t pb, std::size_t pe) {
+  ParallelFor(n, 65536, [&](std::size_t b, std::size_t e) {
     std::uint64_t local = 0;
-    for (std::size_t i = pb * npix; i < pe * npix; ++i) {
+    for (std::size_t i = b; i < e; ++i) {
       double t, x;
       if (!mix.StateFromPartialDensity(rs.partial_density[i], &t, &x)) ++local;
       rs.temperature[i] = static_cast<float>(t);
@@ -401,21 +465,10 @@ RaySamples SampleRays(const std::vector<PuffState>& all, const View& v, const Mi
     over += local;
   }, num_threads);
   rs.over_pure = over;
-  for (std::size_t s = 0; s < n_species; ++s) {
-    const double xs = mix.released().mole_fractions()[s];
-    rs.mole_fraction[s].resize(n);
-    for (std::size_t i = 0; i < n; ++i)
-      rs.mole_fraction[s][i] = static_cast<float>(xs * xr[i]);
-  }
-  for (std::size_t i = 0; i < npix; ++i) {
-    int first = rs.planes, last = 0;
-    for (int p = 0; p < rs.planes; ++p)
-      if (rs.partial_density[p * npix + i] > 0) {
-        first = std::min(first, p);
-        last = p + 1;
-      }
-    rs.first_plane[i] = last > 0 ? first : 0;
-    rs.last_plane[i] = last;
+  for (std::size_t sp = 0; sp < n_species; ++sp) {
+    const float xs = static_cast<float>(mix.released().mole_fractions()[sp]);
+    rs.mole_fraction[sp].resize(n);
+    for (std::size_t i = 0; i < n; ++i) rs.mole_fraction[sp][i] = xs * xr[i];
   }
   return rs;
 }

@@ -45,9 +45,9 @@ TEST(TruthMaps, OrthographicPuffIsItsClosedForm) {
       const std::size_t i = static_cast<std::size_t>(r) * v.width_px + c;
       total += m.column[i] * fp * fp;
       const double dx = v.PixelX(c, 0) - p.x, dz = v.PixelZ(r, 0) - p.z;
-      // Closed form, cut off 7 widths from the puff (relative tail < 3e-11).
+      // Closed form, cut off 6 widths from the puff (relative tail 1.5e-8).
       const double d2 = dx * dx + dz * dz;
-      const double col = d2 > 49.0 * p.sigma * p.sigma
+      const double col = d2 > 36.0 * p.sigma * p.sigma
                              ? 0.0
                              : p.mass / (2 * kPi * p.sigma * p.sigma) *
                                    std::exp(-d2 / (2.0 * p.sigma * p.sigma));
@@ -58,8 +58,9 @@ TEST(TruthMaps, OrthographicPuffIsItsClosedForm) {
         EXPECT_NEAR(m.flux_z[i], m.column[i] * m.velocity_z[i], 1e-12 * col);
       }
     }
-  // Riemann sum of the Gaussian over the image (its edge is 5.8 widths away).
-  EXPECT_NEAR(total, p.mass, 1e-8 * p.mass);
+  // Riemann sum of the Gaussian over the image (its edge is 5.8 widths away,
+  // the cut-off 6 widths).
+  EXPECT_NEAR(total, p.mass, 4e-8 * p.mass);
 }
 
 TEST(TruthMaps, PerspectiveRayThroughThePuffCentre) {
@@ -97,7 +98,8 @@ TEST(TruthMaps, RowFluxEqualsPlaneFlux) {
       ControlPlane plane;
       plane.point[2] = v.PixelZ(row, 0);
       const double flux = PlaneMassFlux(sim.puffs(frame), plane);
-      EXPECT_NEAR(line, flux, 1e-9 * sim.mass_rate_kg_s()) << frame << " " << row;
+      // Exact up to the maps' 6-width cut-off (1.5e-8 of each puff).
+      EXPECT_NEAR(line, flux, 5e-8 * sim.mass_rate_kg_s()) << frame << " " << row;
     }
   }
 }
@@ -120,21 +122,31 @@ TEST(RaySamples, ColumnsMatchTheTruthAndOrderIsFarToNear) {
     const std::size_t npix = static_cast<std::size_t>(v.width_px) * v.height_px;
     double max_col = 0;
     for (double c : m.column) max_col = std::max(max_col, c);
+    ASSERT_EQ(rs.offset.size(), npix + 1);
     for (std::size_t i = 0; i < npix; ++i) {
       double col = 0;
-      for (int pl = 0; pl < rs.planes; ++pl) col += rs.partial_density[pl * npix + i] * rs.path_m[i];
-      // Samples integrate each puff to 5 widths, the truth to 7: the tails
-      // differ by < 1e-5 of the peak; where the column matters (> 1e-3 of the
-      // peak) samples and truth agree to 1e-3 (the renderer needs 0.5 %).
+      for (std::int64_t k = rs.offset[i]; k < rs.offset[i + 1]; ++k)
+        col += rs.partial_density[k] * rs.path_m[i];
+      if (rs.offset[i + 1] > rs.offset[i]) {
+        EXPECT_GT(rs.partial_density[rs.offset[i]], 0.0f);
+        EXPECT_LE(rs.first_plane[i] + (rs.offset[i + 1] - rs.offset[i]), rs.planes);
+      }
+      // Samples integrate each puff within a sphere of 5 widths, the truth
+      // within 6 widths of the ray: the tails differ by < 1e-5 of the peak;
+      // where the column exceeds 1e-3 of the peak samples and truth agree to
+      // 0.5 % (what the renderer needs), above 1e-2 of the peak to 0.1 %.
       EXPECT_NEAR(col, m.column[i], 1e-5 * max_col);
-      if (m.column[i] > 1e-3 * max_col) EXPECT_NEAR(col / m.column[i], 1.0, 1e-3);
-      for (int pl = 0; pl < rs.planes; ++pl) {
-        const std::size_t k = pl * npix + i;
+      if (m.column[i] > 1e-3 * max_col) {
+        EXPECT_NEAR(col / m.column[i], 1.0, 5e-3);
+      }
+      if (m.column[i] > 1e-2 * max_col) {
+        EXPECT_NEAR(col / m.column[i], 1.0, 1e-3);
+      }
+      for (std::int64_t k = rs.offset[i]; k < rs.offset[i + 1]; ++k)
         if (rs.partial_density[k] == 0) {
           EXPECT_EQ(rs.temperature[k], static_cast<float>(293.15));
           EXPECT_EQ(rs.mole_fraction[0][k], 0.0f);
         }
-      }
     }
   }
 }
