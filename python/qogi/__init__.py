@@ -11,10 +11,12 @@ package is the public API.
 
 from ._version import __version__
 from .optics import SpectralResponse, planck_radiance, planck_radiance_derivative
+from . import synth
 
 __all__ = [
     "__version__",
     "SpectralResponse",
     "planck_radiance",
     "planck_radiance_derivative",
+    "synth",
 ]
