@@ -285,11 +285,15 @@ def test_bent_over_plume_in_crosswind():
     c = m["column_kg_m2"]["CH4"]
     u = m["velocity_x_m_s"][c > 1e-2 * c.max()]
     assert np.median(u) == pytest.approx(6.0, rel=0.1)
-    # Wind along the line of sight carries the plume away from the camera (+y).
+    # Wind along the line of sight carries the plume away from the camera (+y),
+    # and a perspective view keeps all of it that it can see.
     rel = synth.preset_release(name).replace(wind_direction_deg=90.0)
     mf90 = synth.mean_flow(rel, extent_m=3.0)
     j = np.searchsorted(mf90["s_m"], 2.0)
     assert mf90["y_m"][j] > 1.5 and abs(mf90["x_m"][j]) < 1e-9
+    sim90 = synth.simulate(rel, synth.preset_view(name, projection="perspective"), 0.3, 15)
+    assert sim90.stats["puffs_lost_inside"] == 0
+    assert sim90.truth_maps(4)["column_kg_m2"]["CH4"].max() > 0
 
 
 # -- reproducibility, progress, cancel ----------------------------------------------------

@@ -432,17 +432,13 @@ MeanFlow::MeanFlow(const Release& release, const PlumeModelOptions& opt,
     for (int b = 0; b < num_bands_; ++b) a.band_w[b] /= norm;
   }
 
-  // --- derivatives along s (central differences) -----------------------------
+  // --- band-weight derivatives along s (central differences) ------------------
   const int n = static_cast<int>(stations_.size());
   for (int j = 0; j < n; ++j) {
     const int a = std::max(0, j - 1), b = std::min(n - 1, j + 1);
     const Station &sa = stations_[a], &sb = stations_[b];
     const double h = sb.s - sa.s;
     Station& o = stations_[j];
-    for (int k = 0; k < 3; ++k) o.dn1_ds[k] = (sb.n1[k] - sa.n1[k]) / h;
-    o.dsigma_puff_ds = (sb.sigma_puff - sa.sigma_puff) / h;
-    o.dturbulence_ds = (sb.turbulence - sa.turbulence) / h;
-    o.doffset_scale_ds = (sb.offset_scale - sa.offset_scale) / h;
     for (int k = 0; k < num_bands_; ++k) o.band_dw_ds[k] = (sb.band_w[k] - sa.band_w[k]) / h;
   }
 }

@@ -45,7 +45,6 @@ struct Station {
   double tangent[3];      // unit tangent of the axis
   double n1[3], n2[3];    // unit normals (n2 horizontal, n1 = n2 x tangent)
   double ds_dpsi;         // [m]
-  double dn1_ds[3];       // derivative of n1 along s [1/m]
   double radius_m;        // top-hat radius b [m]
   double velocity_m_s;    // top-hat speed along the axis V [m/s]
   double excess_m_s;      // V minus the wind's component along the axis (>= 0)
@@ -57,12 +56,9 @@ struct Station {
   // Strength of turbulent fluctuations: phi, faded out where the mean
   // centreline is still nearly pure gas (the unmixed core carries none).
   double turbulence;
-  double dturbulence_ds;
   double sigma_c;         // mean concentration width per axis [m]
   double sigma_puff;      // puff width [m]
-  double dsigma_puff_ds;
   double offset_scale;    // RMS flux-weighted offset of puff centres per axis [m]
-  double doffset_scale_ds;
   double mass_weighted_speed;  // W_m [m/s]
   double profile_beta;    // puff-averaged excess-velocity factor beta
   double profile_b2;      // puff-averaged excess-velocity width B^2 [m2]

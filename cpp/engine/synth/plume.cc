@@ -317,8 +317,16 @@ PlumeSimulation::PlumeSimulation(const Release& release, const View& view,
   std::array<double, 3> lo{}, hi{};
   window(0.0, lo, hi);
   const double size = std::max(hi[0] - lo[0], hi[2] - lo[2]);
-  lo[1] = -2 * size;
-  hi[1] = 2 * size;
+  // Depths considered: from 0.9 D in front of the axis plane to y_cap behind
+  // it (a plume blown along the line of sight stays inside a perspective
+  // view's widening frustum; beyond y_cap it is left out).
+  const double y_near = -0.9 * view_.distance_m;
+  const double y_cap = std::max(4 * size, 2 * view_.distance_m);
+  window(y_cap, lo, hi);
+  lo[1] = y_near;
+  hi[1] = y_cap;
+  // The table runs `size` beyond this region, so puffs leave the box below
+  // well before they reach its end.
   mean_flow_ = std::make_unique<MeanFlow>(release_, options_, *mixing_, lo, hi, size);
   const MeanFlow& mf = *mean_flow_;
   const std::vector<Station>& st = mf.stations();
@@ -330,14 +338,15 @@ PlumeSimulation::PlumeSimulation(const Release& release, const View& view,
     const double meander = std::min(size, 3 * sigma_h * std::max(0.0, s.time_s));
     const double reach = 5 * s.sigma_c + meander;
     std::array<double, 3> wl{}, wh{};
-    window(std::max(s.pos[1], -0.5 * view_.distance_m), wl, wh);
+    window(std::clamp(s.pos[1], y_near, y_cap), wl, wh);
     if (s.pos[0] < wl[0] - reach || s.pos[0] > wh[0] + reach || s.pos[2] < wl[2] - reach ||
         s.pos[2] > wh[2] + reach)
       continue;
     y_lo = std::min(y_lo, s.pos[1] - reach);
     y_hi = std::max(y_hi, s.pos[1] + reach);
   }
-  y_lo = std::max(y_lo, -0.9 * view_.distance_m);
+  y_lo = std::max(y_lo, y_near);
+  y_hi = std::min(y_hi, y_cap);
   window(std::max(y_hi, 0.0), box_.lo, box_.hi);
   box_.lo[1] = y_lo;
   box_.hi[1] = y_hi;

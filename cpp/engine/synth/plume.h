@@ -16,7 +16,8 @@
 // offset_scale(s) * (xi1 n1 + xi2 n2) and its axial speed is the
 // puff-averaged similarity profile times (1 + a(s) 3 tanh(zeta/3)). xi1, xi2,
 // zeta are random fields of the puff's release time tau, a random label
-// (2-D standard normal) and its structure age psi = integral ds/(c_psi sigma_c):
+// (2-D standard normal) and its structure age psi (eddy turnovers, integral of
+// u_int dt / (c_psi sigma_c), u_int the plume's internal turbulent velocity):
 // sums of random Fourier modes (kinematic simulation, Kraichnan 1970) in
 // scale bands whose release-time correlation follows the local eddy time
 // sigma_c / W_m. Puffs released close in time with close labels move together
