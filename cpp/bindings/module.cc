@@ -11,6 +11,7 @@ void BindCameraPresets(py::module_& m);
 void BindSpectra(py::module_& m);
 void BindCamera(py::module_& m);
 void BindVelocimetry(py::module_& m);
+void BindSynth(py::module_& m);
 }  // namespace qogi
 
 PYBIND11_MODULE(_engine, m) {
@@ -23,4 +24,5 @@ PYBIND11_MODULE(_engine, m) {
   qogi::BindSpectra(m);
   qogi::BindCamera(m);
   qogi::BindVelocimetry(m);
+  qogi::BindSynth(m);
 }

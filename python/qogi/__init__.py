@@ -32,6 +32,7 @@ from .camera import (Calibration, CalibrationScene, ChannelOptics, add_netd_nois
                      add_warm_optics, camera_optics, correct_warm_optics, fit_calibration,
                      netd_radiance_sigma, warm_optics_radiance)
 from .velocimetry import FlowEstimator, optical_flow, optical_flow_sequence
+from . import synth
 
 __all__ = [
     "__version__",
@@ -74,4 +75,5 @@ __all__ = [
     "FlowEstimator",
     "optical_flow",
     "optical_flow_sequence",
+    "synth",
 ]
