@@ -80,6 +80,8 @@ def build_parser() -> argparse.ArgumentParser:
     i.set_defaults(func=cmd_info)
     from ._cli_spectra import add_commands as add_spectra_commands
     add_spectra_commands(sub)
+    from ._cli_synth import add_commands as add_synth_commands
+    add_synth_commands(sub)
     return p
 
 
