@@ -82,6 +82,8 @@ def build_parser() -> argparse.ArgumentParser:
     add_spectra_commands(sub)
     from ._cli_synth import add_commands as add_synth_commands
     add_synth_commands(sub)
+    from ._cli_quantify import add_commands as add_quantify_commands
+    add_quantify_commands(sub)
     return p
 
 
