@@ -6,6 +6,7 @@
 #include "engine/optics/planck.h"
 #include "engine/camera/camera.h"
 #include "engine/optics/spectral_response.h"
+#include "engine/inversion/inversion.h"
 #include "engine/rte/binned_model.h"
 #include "engine/rte/exact_model.h"
 #include "engine/util/check.h"
