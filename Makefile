@@ -70,6 +70,7 @@ test-python: $(STAMPS)/built
 	$(VPY) -m pytest -q
 
 bench: $(STAMPS)/built
+	$(VPY) -m pip install -q -r requirements/bench.txt -c requirements/constraints.txt
 	$(VPY) benchmarks/run_all.py
 
 gui: $(STAMPS)/built

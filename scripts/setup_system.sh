@@ -9,6 +9,7 @@ PACKAGES=(
   libceres-dev           # Ceres Solver 2.1
   libopencv-dev          # OpenCV 4 (its CMake config lives only in the full dev package)
   libgtest-dev           # GoogleTest for the C++ unit tests
+  zlib1g-dev             # zlib: gzip-compressed HITRAN line files
   xvfb xauth             # virtual X server for the viewer's smoke test
   libgl1 libegl1         # OpenGL runtime Dear PyGui loads
 )

@@ -8,6 +8,10 @@ void BindOptics(py::module_& m);
 void BindIo(py::module_& m);
 void BindRte(py::module_& m);
 void BindCameraPresets(py::module_& m);
+void BindSpectra(py::module_& m);
+void BindCamera(py::module_& m);
+void BindVelocimetry(py::module_& m);
+void BindSynth(py::module_& m);
 }  // namespace qogi
 
 PYBIND11_MODULE(_engine, m) {
@@ -17,4 +21,8 @@ PYBIND11_MODULE(_engine, m) {
   qogi::BindIo(m);
   qogi::BindRte(m);
   qogi::BindCameraPresets(m);
+  qogi::BindSpectra(m);
+  qogi::BindCamera(m);
+  qogi::BindVelocimetry(m);
+  qogi::BindSynth(m);
 }

@@ -16,6 +16,23 @@ from .forward import ForwardModel, band_radiance, column_density, forward_model
 from . import io, radiometry  # noqa: F401  (qogi.io.read_flir etc. after `import qogi`)
 from .recording import (Camera, Recording, RecordingError, RecordingWriter, Scene, Truth,
                         open_recording, write_recording)
+from .spectra import (
+    CrossSectionTable,
+    LineList,
+    absorption_coefficient,
+    cross_section,
+    cross_section_table,
+    find_line_lists,
+    load_line_list,
+    partition_sum,
+    voigt_profile,
+)
+from . import camera  # noqa: F401  (qogi.camera: calibration, noise, warm optics)
+from .camera import (Calibration, CalibrationScene, ChannelOptics, add_netd_noise,
+                     add_warm_optics, camera_optics, correct_warm_optics, fit_calibration,
+                     netd_radiance_sigma, warm_optics_radiance)
+from .velocimetry import FlowEstimator, optical_flow, optical_flow_sequence
+from . import synth
 
 __all__ = [
     "__version__",
@@ -36,4 +53,27 @@ __all__ = [
     "Truth",
     "open_recording",
     "write_recording",
+    "CrossSectionTable",
+    "LineList",
+    "absorption_coefficient",
+    "cross_section",
+    "cross_section_table",
+    "find_line_lists",
+    "load_line_list",
+    "partition_sum",
+    "voigt_profile",
+    "Calibration",
+    "CalibrationScene",
+    "fit_calibration",
+    "netd_radiance_sigma",
+    "add_netd_noise",
+    "ChannelOptics",
+    "camera_optics",
+    "warm_optics_radiance",
+    "add_warm_optics",
+    "correct_warm_optics",
+    "FlowEstimator",
+    "optical_flow",
+    "optical_flow_sequence",
+    "synth",
 ]

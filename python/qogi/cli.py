@@ -78,6 +78,10 @@ def build_parser() -> argparse.ArgumentParser:
     i.add_argument("--allow-invalid", action="store_true",
                    help="treat NaN/inf pixels as invalid instead of an error")
     i.set_defaults(func=cmd_info)
+    from ._cli_spectra import add_commands as add_spectra_commands
+    add_spectra_commands(sub)
+    from ._cli_synth import add_commands as add_synth_commands
+    add_synth_commands(sub)
     return p
 
 

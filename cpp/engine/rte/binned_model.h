@@ -20,6 +20,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -32,8 +33,9 @@ namespace qogi {
 
 struct BinnedModelOptions {
   double bin_ratio = 1.5;  // max ratio of cross-sections within a bin at each key temperature (> 1)
-  std::vector<double> key_temperatures_K = {250.0, 500.0};  // binning temperatures [K], within the tables
+  std::vector<double> key_temperatures_K = {250.0, 350.0, 500.0};  // binning temperatures [K], within the tables
   double floor_fraction = 1e-8;  // cross-sections below this fraction of a species' maximum count as zero
+  bool self_key = false;  // also bin by the self-broadened cross-section (at the first key temperature); off: within 0.5 % without it, at half the bins
   int chebyshev_nodes = 12;      // Planck interpolation nodes per segment (4-32)
   double segment_width_cm1 = 300.0;  // max width of a Chebyshev segment [cm-1]
   int num_nodes = 129;  // line-of-sight nodes for Gaussian plumes (>= 3; odd for Richardson)
@@ -91,12 +93,47 @@ class BinnedModel {
   }
   void CheckPath(const Path& path) const;
 
+  // Per-bin contrast Delta L_q [W/(m2 sr cm-1)] of channel c (not yet
+  // weighted: the channel's contrast is sum_q weight(c)[q] * out[q]).
+  void BinContrasts(const Path& path, std::size_t channel, double background_temperature_K,
+                    std::vector<double>* out) const;
+  const std::vector<double>& weights(std::size_t channel) const { return bins_[channel].weight; }
+
+  // A model keeping, per channel, only the listed bins, with new weights
+  // [cm-1] (e.g. chosen to reproduce the full model on a scene; see
+  // qogi.render). bins[c] and weights[c] have equal lengths.
+  BinnedModel Subset(const std::vector<std::vector<int>>& bins,
+                     const std::vector<std::vector<double>>& weights) const;
+
+  // Tabulates every bin's cross-sections on a fine temperature grid
+  // [t_lo, t_hi] with step `step_K`, interpolated linearly from then on for
+  // path temperatures inside it (error ~1e-5 relative at 1 K steps; the
+  // log-cubic table interpolation is used outside). For renderers that march
+  // many paths within a known temperature range.
+  void UseFineTemperatureGrid(double t_lo, double t_hi, double step_K);
+
+  // Contrast of many rays of uniformly spaced samples (see render.h): the
+  // renderer's kernel. Needs UseFineTemperatureGrid covering every sample,
+  // ambient and background temperature; gives the same result as Contrast()
+  // on the equivalent Path up to the fine-grid interpolation.
+  void RenderRays(std::size_t ray_begin, std::size_t ray_end, const std::int64_t* offset,
+                  const float* step_m, const float* temperature_K,
+                  const std::vector<const float*>& fractions, double ambient_temperature_K,
+                  const double* background_temperature_K, std::size_t background_stride,
+                  float* out) const;
+
  private:
   struct Bins {
     std::vector<double> weight;  // [bin] sum of response * dnu [cm-1]
     // sigma_air[(s * n_T + j) * n_bins + q], sigma_self likewise (empty if no self table)
     std::vector<std::vector<double>> sigma_air, sigma_self;  // per species
     std::vector<std::vector<double>> log_sigma_air, log_sigma_self;  // ln of the above (-1e300 for 0)
+    std::vector<std::vector<int>> active;     // per species: bins where it absorbs at some T
+    std::vector<std::vector<char>> positive_air, positive_self;  // per species, per bin: > 0 at every T
+    // Optional fine temperature grid (UseFineTemperatureGrid): per species
+    // [n_fine * n_bins] cross-sections at fine_t0 + k fine_dt.
+    std::vector<std::vector<double>> fine_air, fine_self;
+    std::vector<double> fine_planck;  // [n_fine * n_bins] bin-mean Planck, when small enough
     std::vector<int> segment;    // [bin]
     // planck_map[q * n_cheb + m]: bin q's mean Planck from the segment's node values
     std::vector<double> planck_map;
@@ -104,6 +141,9 @@ class BinnedModel {
     std::size_t num_segments = 0;
   };
   void BuildChannel(std::size_t c, const std::vector<AbsorberTable>& tables);
+  template <typename S>
+  S ChannelContrast(const PathT<S>& path, bool symmetric, std::size_t channel, const S& t_bg,
+                    std::vector<S>* per_bin) const;
 
   std::vector<SpectralResponse> channels_;
   std::vector<std::string> species_;
@@ -112,6 +152,8 @@ class BinnedModel {
   std::vector<bool> has_self_;
   BinnedModelOptions options_;
   std::vector<Bins> bins_;
+  double fine_t0_ = 0, fine_dt_ = 0;
+  std::size_t fine_n_ = 0;
   double t_min_ = 0, t_max_ = 0, pressure_Pa_ = 0, planck_error_ = 0;
 };
 
@@ -138,77 +180,137 @@ template <typename S>
 void BinnedModel::Contrast(const PathT<S>& path, const S* t_bg, S* out) const {
   const std::size_t ns = species_.size();
   const std::size_t nn = path.size();
-  for (std::size_t c = 0; c < channels_.size(); ++c) {
+  // A symmetric path (a Gaussian plume) has the same node state at k and
+  // nn-1-k: the first half is computed once and reused.
+  bool symmetric = true;
+  for (std::size_t k = 0; k < nn / 2 && symmetric; ++k) {
+    symmetric = ValueOfScalar(path.temperature_K[k]) == ValueOfScalar(path.temperature_K[nn - 1 - k]);
+    for (std::size_t s = 0; s < ns && symmetric; ++s)
+      symmetric = ValueOfScalar(path.fraction[k * ns + s]) ==
+                  ValueOfScalar(path.fraction[(nn - 1 - k) * ns + s]);
+  }
+  for (std::size_t c = 0; c < channels_.size(); ++c)
+    out[c] = ChannelContrast<S>(path, symmetric, c, t_bg[c], nullptr);
+}
+
+template <typename S>
+S BinnedModel::ChannelContrast(const PathT<S>& path, bool symmetric, std::size_t c,
+                               const S& t_bg_c, std::vector<S>* per_bin) const {
+  using std::exp;
+  const std::size_t ns = species_.size();
+  const std::size_t nn = path.size();
+  {
     const Bins& b = bins_[c];
     const std::size_t nq = b.weight.size();
     const int nm = options_.chebyshev_nodes;
     if (nq == 0) {
-      out[c] = S(0.0);
-      continue;
+      if (per_bin) per_bin->clear();
+      return S(0.0);
     }
-    auto mean_planck = [&](const S& t, std::vector<S>* dst) {
-      std::vector<S> node_b(b.num_segments * nm);
+    std::vector<S> node_b(b.num_segments * nm);
+    auto mean_planck = [&](const S& t, S* dst) {
       for (std::size_t g = 0; g < b.num_segments; ++g)
         for (int m = 0; m < nm; ++m)
           node_b[g * nm + m] = PlanckT(b.segment_nodes[g * nm + m], t);
-      dst->resize(nq);
       for (std::size_t q = 0; q < nq; ++q) {
         const double* row = &b.planck_map[q * nm];
         const S* nb = &node_b[b.segment[q] * nm];
         S v = S(0.0);
         for (int m = 0; m < nm; ++m) v += row[m] * nb[m];
-        (*dst)[q] = v;
+        dst[q] = v;
       }
     };
-    std::vector<S> b_bg, kappa_far(nq), kappa_near(nq), d_far, d_near, dl(nq, S(0.0));
+    std::vector<S> b_bg(nq), kappa_far(nq), kappa_near(nq), d_far(nq), d_near(nq), dl(nq, S(0.0));
     const bool rich = options_.richardson && nn >= 5 && nn % 2 == 1;
     std::vector<S> kappa_coarse, d_coarse, dl_coarse;
     if (rich) dl_coarse.assign(nq, S(0.0));
-    mean_planck(t_bg[c], &b_bg);
-    auto fill_node = [&](std::size_t k, std::vector<S>* kappa, std::vector<S>* d) {
+    mean_planck(t_bg_c, b_bg.data());
+
+    auto add_species = [&](const S& coef, const TemperatureStencil& st, const S* wt, const S& fr,
+                           const std::vector<double>& sig, const std::vector<double>& lsig,
+                           const std::vector<int>& active, const std::vector<char>& positive,
+                           S* kappa) {
+      for (int q : active) {
+        S v;
+        if (positive[q]) {
+          S l = S(0.0);
+          for (int a = 0; a < st.count; ++a) l += wt[a] * lsig[(st.first + a) * nq + q];
+          v = exp(l);
+        } else {
+          v = InterpolateInTemperature<S>(
+              st, wt, fr, [&](std::size_t k) { return sig[k * nq + q]; },
+              [&](std::size_t k) { return lsig[k * nq + q]; });
+        }
+        kappa[q] += coef * v;
+      }
+    };
+    auto fill_node = [&](std::size_t k, S* kappa, S* d) {
       const S& t = path.temperature_K[k];
       const S n_tot = NumberDensityCm3(path.pressure_Pa, t) * 100.0;
-      std::fill(kappa->begin(), kappa->end(), S(0.0));
+      std::fill(kappa, kappa + nq, S(0.0));
       for (std::size_t s = 0; s < ns; ++s) {
         const S x = path.fraction[k * ns + s];
         if (!(x > 0.0)) continue;
-        const std::vector<double>& grid = table_temperatures_[s];
-        const std::size_t nt = grid.size();
+        const S nx0 = n_tot * x;
+        if (fine_n_ > 0 && !b.fine_air[s].empty()) {
+          const double tv = ValueOfScalar(t);
+          const double pos = (tv - fine_t0_) / fine_dt_;
+          if (pos >= 0.0 && pos <= static_cast<double>(fine_n_ - 1)) {
+            std::size_t k0 = static_cast<std::size_t>(pos);
+            if (k0 >= fine_n_ - 1) k0 = fine_n_ - 2;
+            const S w1 = (t - (fine_t0_ + k0 * fine_dt_)) / fine_dt_;
+            const S w0 = 1.0 - w1;
+            const double* a0 = &b.fine_air[s][k0 * nq];
+            const double* a1 = a0 + nq;
+            const S ca = has_self_[s] ? nx0 * (1.0 - x) : nx0;
+            for (int q : b.active[s]) kappa[q] += ca * (w0 * a0[q] + w1 * a1[q]);
+            if (has_self_[s]) {
+              const double* s0 = &b.fine_self[s][k0 * nq];
+              const double* s1 = s0 + nq;
+              const S cs = nx0 * x;
+              for (int q : b.active[s]) kappa[q] += cs * (w0 * s0[q] + w1 * s1[q]);
+            }
+            continue;
+          }
+        }
         // Temperature stencil with derivative-carrying weights.
-        const TemperatureStencil st = MakeTemperatureStencil(grid, ValueOfScalar(t));
+        const TemperatureStencil st = MakeTemperatureStencil(table_temperatures_[s], ValueOfScalar(t));
         S wt[4];
         const S dt = t - ValueOfScalar(t);
         for (int a = 0; a < st.count; ++a) wt[a] = st.weight[a] + st.dweight[a] * dt;
         const S fr = st.frac + st.dfrac * dt;
         const S nx = n_tot * x;
-        const std::vector<double>& sa = b.sigma_air[s];
-        const std::vector<double>& la = b.log_sigma_air[s];
-        const S coef_air = has_self_[s] ? nx * (1.0 - x) : nx;
-        for (std::size_t q = 0; q < nq; ++q)
-          (*kappa)[q] += coef_air * InterpolateInTemperature<S>(
-                                        st, wt, fr, [&](std::size_t k) { return sa[k * nq + q]; },
-                                        [&](std::size_t k) { return la[k * nq + q]; });
-        if (has_self_[s]) {
-          const std::vector<double>& ss = b.sigma_self[s];
-          const std::vector<double>& ls = b.log_sigma_self[s];
-          const S coef_self = nx * x;
-          for (std::size_t q = 0; q < nq; ++q)
-            (*kappa)[q] += coef_self * InterpolateInTemperature<S>(
-                                           st, wt, fr, [&](std::size_t k) { return ss[k * nq + q]; },
-                                           [&](std::size_t k) { return ls[k * nq + q]; });
-        }
-        (void)nt;
+        add_species(has_self_[s] ? nx * (1.0 - x) : nx, st, wt, fr, b.sigma_air[s],
+                    b.log_sigma_air[s], b.active[s], b.positive_air[s], kappa);
+        if (has_self_[s])
+          add_species(nx * x, st, wt, fr, b.sigma_self[s], b.log_sigma_self[s], b.active[s],
+                      b.positive_self[s], kappa);
       }
       mean_planck(t, d);
-      for (std::size_t q = 0; q < nq; ++q) (*d)[q] -= b_bg[q];
+      for (std::size_t q = 0; q < nq; ++q) d[q] -= b_bg[q];
     };
-    fill_node(0, &kappa_far, &d_far);
+    const std::size_t half = symmetric ? nn / 2 + 1 : 0;
+    std::vector<S> saved_k(half * nq), saved_d(half * nq);
+    auto node = [&](std::size_t k, S* kappa, S* d) {
+      if (symmetric && k >= half) {
+        const std::size_t m = nn - 1 - k;
+        std::copy(&saved_k[m * nq], &saved_k[m * nq] + nq, kappa);
+        std::copy(&saved_d[m * nq], &saved_d[m * nq] + nq, d);
+        return;
+      }
+      fill_node(k, kappa, d);
+      if (symmetric) {
+        std::copy(kappa, kappa + nq, &saved_k[k * nq]);
+        std::copy(d, d + nq, &saved_d[k * nq]);
+      }
+    };
+    node(0, kappa_far.data(), d_far.data());
     if (rich) {
       kappa_coarse = kappa_far;
       d_coarse = d_far;
     }
     for (std::size_t k = 0; k + 1 < nn; ++k) {
-      fill_node(k + 1, &kappa_near, &d_near);
+      node(k + 1, kappa_near.data(), d_near.data());
       const S ds = path.position_m[k + 1] - path.position_m[k];
       for (std::size_t q = 0; q < nq; ++q)
         dl[q] = MarchLayer(dl[q], kappa_far[q], kappa_near[q], d_far[q], d_near[q], ds);
@@ -223,12 +325,12 @@ void BinnedModel::Contrast(const PathT<S>& path, const S* t_bg, S* out) const {
       std::swap(kappa_far, kappa_near);
       std::swap(d_far, d_near);
     }
-    S sum = S(0.0);
     if (rich)
-      for (std::size_t q = 0; q < nq; ++q) sum += b.weight[q] * (4.0 * dl[q] - dl_coarse[q]) * (1.0 / 3.0);
-    else
-      for (std::size_t q = 0; q < nq; ++q) sum += b.weight[q] * dl[q];
-    out[c] = sum;
+      for (std::size_t q = 0; q < nq; ++q) dl[q] = (4.0 * dl[q] - dl_coarse[q]) * (1.0 / 3.0);
+    S sum = S(0.0);
+    for (std::size_t q = 0; q < nq; ++q) sum += b.weight[q] * dl[q];
+    if (per_bin) *per_bin = std::move(dl);
+    return sum;
   }
 }
 

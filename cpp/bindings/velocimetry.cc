@@ -1,0 +1,419 @@
+// Bindings of engine/velocimetry: the option structs (same field names as in
+// C++), a flow estimator per method, post-processing and units. Glue only.
+#include "common.h"
+
+#include <opencv2/core.hpp>
+#include <opencv2/core/utility.hpp>
+
+#include <algorithm>
+#include <cstring>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "engine/velocimetry/flow.h"
+#include "engine/velocimetry/fluid_flow.h"
+#include "engine/velocimetry/horn_schunck.h"
+#include "engine/velocimetry/lucas_kanade.h"
+#include "engine/velocimetry/opencv_flow.h"
+#include "engine/velocimetry/piv.h"
+#include "engine/velocimetry/postprocess.h"
+
+namespace qogi {
+namespace {
+
+using ByteArray = py::array_t<std::uint8_t, py::array::c_style | py::array::forcecast>;
+
+// Registers an option struct: fields as read/write attributes, a keyword
+// constructor (unknown names raise TypeError; values are checked), check(),
+// to_dict(), repr, equality and pickling.
+template <typename T>
+class OptionsClass {
+ public:
+  OptionsClass(py::module_& m, const char* name, const char* doc) : cls_(m, name, doc) {}
+
+  template <typename F>
+  OptionsClass& field(const char* name, F T::*member, const char* doc) {
+    cls_.def_readwrite(name, member, doc);
+    names_.push_back(name);
+    return *this;
+  }
+
+  void finish() {
+    const std::vector<std::string> names = names_;
+    const std::string type_name = py::str(cls_.attr("__name__"));
+    cls_.def(py::init([names, type_name](const py::kwargs& kw) {
+      py::object obj = py::cast(T{});
+      for (auto item : kw) {
+        const std::string key = py::str(item.first);
+        if (std::find(names.begin(), names.end(), key) == names.end())
+          throw py::type_error(type_name + " has no field '" + key + "'");
+        obj.attr(key.c_str()) = item.second;
+      }
+      T o = obj.cast<T>();
+      o.Check();
+      return o;
+    }));
+    cls_.def("check", &T::Check,
+             "Raise ValueError naming the first field out of its range.");
+    auto to_dict = [names](const py::object& self) {
+      py::dict d;
+      for (const auto& n : names) d[n.c_str()] = self.attr(n.c_str());
+      return d;
+    };
+    cls_.def("to_dict", to_dict, "The fields as a dict (name -> value).");
+    cls_.def("__repr__", [names, type_name](const py::object& self) {
+      std::string s = type_name + "(";
+      for (std::size_t i = 0; i < names.size(); ++i) {
+        if (i) s += ", ";
+        s += names[i] + "=" + std::string(py::repr(self.attr(names[i].c_str())));
+      }
+      return s + ")";
+    });
+    cls_.def("__eq__", [to_dict](const py::object& a, const py::object& b) {
+      if (!py::isinstance(b, py::type::of(a))) return false;
+      return to_dict(a).equal(to_dict(b));
+    });
+    cls_.def(py::pickle(
+        [to_dict](const py::object& self) { return to_dict(self); },
+        [names](const py::dict& d) {
+          py::object obj = py::cast(T{});
+          for (auto item : d) obj.attr(py::str(item.first)) = item.second;
+          return obj.cast<T>();
+        }));
+    py::tuple fields(names.size());
+    for (std::size_t i = 0; i < names.size(); ++i) fields[i] = py::str(names[i]);
+    cls_.attr("fields") = fields;
+  }
+
+ private:
+  py::class_<T> cls_;
+  std::vector<std::string> names_;
+};
+
+cv::Mat FloatMat(const FloatArray& a, const char* name) {
+  CheckNdim(a, 2, name);
+  return cv::Mat(static_cast<int>(a.shape(0)), static_cast<int>(a.shape(1)), CV_32FC1,
+                 const_cast<float*>(a.data()));
+}
+
+cv::Mat ByteMat(const ByteArray& a, const char* name) {
+  CheckNdim(a, 2, name);
+  return cv::Mat(static_cast<int>(a.shape(0)), static_cast<int>(a.shape(1)), CV_8UC1,
+                 const_cast<std::uint8_t*>(a.data()));
+}
+
+template <typename Scalar>
+py::array_t<Scalar> ToArray(const cv::Mat& m) {
+  py::array_t<Scalar> out({m.rows, m.cols});
+  cv::Mat dst(m.rows, m.cols, m.type(), out.mutable_data());
+  m.copyTo(dst);
+  return out;
+}
+
+// A flow method and its reusable buffers.
+class FlowEstimator {
+ public:
+  explicit FlowEstimator(const py::object& options) {
+    if (py::isinstance<FluidFlowOptions>(options))
+      impl_ = std::make_unique<FluidFlow>(options.cast<FluidFlowOptions>());
+    else if (py::isinstance<HornSchunckOptions>(options))
+      impl_ = std::make_unique<HornSchunckFlow>(options.cast<HornSchunckOptions>());
+    else if (py::isinstance<LucasKanadeOptions>(options))
+      impl_ = std::make_unique<LucasKanadeFlow>(options.cast<LucasKanadeOptions>());
+    else if (py::isinstance<FarnebackOptions>(options))
+      impl_ = std::make_unique<FarnebackFlow>(options.cast<FarnebackOptions>());
+    else if (py::isinstance<DisOptions>(options))
+      impl_ = std::make_unique<DisFlow>(options.cast<DisOptions>());
+    else if (py::isinstance<PivOptions>(options))
+      impl_ = std::make_unique<PivFlow>(options.cast<PivOptions>());
+    else
+      throw py::type_error(
+          "options must be one of FluidFlowOptions, HornSchunckOptions, "
+          "LucasKanadeOptions, FarnebackOptions, DisOptions, PivOptions; got " +
+          std::string(py::str(py::type::of(options).attr("__name__"))));
+  }
+
+  std::string method() const { return FlowMethodName(impl_->method()); }
+
+  void SetSourceMask(const py::object& source) {
+    auto* fluid = dynamic_cast<FluidFlow*>(impl_.get());
+    if (!fluid)
+      throw std::invalid_argument("source_mask applies to the fluid method only; this is " +
+                                  method());
+    if (source.is_none()) {
+      fluid->set_source_mask(cv::Mat());
+      return;
+    }
+    const ByteArray a = source.cast<ByteArray>();
+    fluid->set_source_mask(ByteMat(a, "source_mask"));
+  }
+
+  py::tuple Calc(const FloatArray& prev, const FloatArray& next, const py::object& mask,
+                 const py::object& u0, const py::object& v0) {
+    const cv::Mat p = FloatMat(prev, "prev"), n = FloatMat(next, "next");
+    cv::Mat m;
+    ByteArray mask_array;
+    if (!mask.is_none()) {
+      mask_array = mask.cast<ByteArray>();
+      m = ByteMat(mask_array, "mask");
+    }
+    FlowField& f = field_;
+    if (!u0.is_none() && !v0.is_none()) {
+      const FloatArray ua = u0.cast<FloatArray>(), va = v0.cast<FloatArray>();
+      FloatMat(ua, "flow u").copyTo(f.u);
+      FloatMat(va, "flow v").copyTo(f.v);
+      Require(f.u.size() == p.size() && f.v.size() == p.size(),
+              "the warm-start flow must have the frames' shape");
+    } else {
+      f.u.release();
+      f.v.release();
+    }
+    {
+      py::gil_scoped_release release;
+      impl_->Calc(p, n, f, m);
+    }
+    const cv::Mat valid01 = (f.valid != 0) / 255;
+    return py::make_tuple(ToArray<float>(f.u), ToArray<float>(f.v),
+                          ToArray<float>(f.quality), ToArray<std::uint8_t>(valid01),
+                          f.residual_ratio);
+  }
+
+ private:
+  std::unique_ptr<OpticalFlow> impl_;
+  FlowField field_;
+};
+
+std::vector<cv::Mat> Slices(const py::array& a, int type) {
+  std::vector<cv::Mat> out;
+  const int T = static_cast<int>(a.shape(0)), H = static_cast<int>(a.shape(1)),
+            W = static_cast<int>(a.shape(2));
+  const std::size_t bytes = CV_ELEM_SIZE(type) * static_cast<std::size_t>(H) * W;
+  auto* base = static_cast<std::uint8_t*>(const_cast<void*>(a.data()));
+  for (int t = 0; t < T; ++t) out.emplace_back(H, W, type, base + t * bytes);
+  return out;
+}
+
+}  // namespace
+
+void BindVelocimetry(py::module_& m) {
+  OptionsClass<FluidFlowOptions>(m, "FluidFlowOptions",
+                                 "Options of the continuity-equation (fluid) flow; "
+                                 "see qogi.velocimetry.")
+      .field("alpha", &FluidFlowOptions::alpha, "smoothness weight, > 0 (default 0.1)")
+      .field("alpha_div", &FluidFlowOptions::alpha_div,
+             "weight of short-scale divergence, >= 0 (default 3)")
+      .field("alpha_curl", &FluidFlowOptions::alpha_curl,
+             "weight of short-scale vorticity, >= 0 (default 0)")
+      .field("div_curl_scale", &FluidFlowOptions::div_curl_scale,
+             "scale [px] below which div/curl are penalised, > 0 (default 8)")
+      .field("levels", &FluidFlowOptions::levels, "pyramid levels, 1-12 (default 5)")
+      .field("min_level_size", &FluidFlowOptions::min_level_size,
+             "smallest side of the coarsest level [px] (default 16)")
+      .field("finest_level", &FluidFlowOptions::finest_level,
+             "finest level solved, 0 = full resolution (default 1)")
+      .field("warm_levels", &FluidFlowOptions::warm_levels,
+             "levels solved after a warm start, 0 = all (default 3)")
+      .field("warps", &FluidFlowOptions::warps, "warps per level (default 2)")
+      .field("iterations", &FluidFlowOptions::iterations,
+             "conjugate-gradient iterations per warp (default 20)")
+      .field("tolerance", &FluidFlowOptions::tolerance,
+             "relative CG tolerance (default 1e-3)")
+      .finish();
+  OptionsClass<HornSchunckOptions>(m, "HornSchunckOptions",
+                                   "Options of coarse-to-fine Horn-Schunck.")
+      .field("alpha", &HornSchunckOptions::alpha, "smoothness weight, > 0 (default 0.3)")
+      .field("levels", &HornSchunckOptions::levels, "pyramid levels (default 5)")
+      .field("min_level_size", &HornSchunckOptions::min_level_size,
+             "smallest side of the coarsest level [px] (default 16)")
+      .field("finest_level", &HornSchunckOptions::finest_level,
+             "finest level solved (default 0)")
+      .field("warm_levels", &HornSchunckOptions::warm_levels,
+             "levels solved after a warm start, 0 = all (default 3)")
+      .field("warps", &HornSchunckOptions::warps, "warps per level (default 3)")
+      .field("iterations", &HornSchunckOptions::iterations,
+             "CG iterations per warp (default 20)")
+      .field("tolerance", &HornSchunckOptions::tolerance, "relative CG tolerance (default 1e-3)")
+      .finish();
+  OptionsClass<LucasKanadeOptions>(m, "LucasKanadeOptions",
+                                   "Options of dense pyramidal Lucas-Kanade.")
+      .field("window_sigma", &LucasKanadeOptions::window_sigma,
+             "Gaussian window sigma [px] (default 3)")
+      .field("levels", &LucasKanadeOptions::levels, "pyramid levels (default 5)")
+      .field("min_level_size", &LucasKanadeOptions::min_level_size,
+             "smallest side of the coarsest level [px] (default 32)")
+      .field("finest_level", &LucasKanadeOptions::finest_level,
+             "finest level solved (default 0)")
+      .field("iterations", &LucasKanadeOptions::iterations, "iterations per level (default 4)")
+      .field("min_eigenvalue", &LucasKanadeOptions::min_eigenvalue,
+             "smallest structure-tensor eigenvalue of a valid vector (default 1e-3)")
+      .finish();
+  OptionsClass<FarnebackOptions>(m, "FarnebackOptions", "Options of OpenCV's Farneback flow.")
+      .field("pyr_scale", &FarnebackOptions::pyr_scale, "pyramid scale (default 0.5)")
+      .field("levels", &FarnebackOptions::levels, "pyramid levels (default 5)")
+      .field("winsize", &FarnebackOptions::winsize, "averaging window [px] (default 15)")
+      .field("iterations", &FarnebackOptions::iterations, "iterations per level (default 3)")
+      .field("poly_n", &FarnebackOptions::poly_n, "polynomial neighbourhood, 5 or 7 (default 5)")
+      .field("poly_sigma", &FarnebackOptions::poly_sigma, "polynomial sigma [px] (default 1.1)")
+      .field("gaussian_window", &FarnebackOptions::gaussian_window,
+             "Gaussian averaging window (default True)")
+      .finish();
+  OptionsClass<DisOptions>(m, "DisOptions", "Options of OpenCV's DIS flow.")
+      .field("finest_scale", &DisOptions::finest_scale, "finest level (default 0)")
+      .field("patch_size", &DisOptions::patch_size, "patch size [px] (default 8)")
+      .field("patch_stride", &DisOptions::patch_stride, "patch stride [px] (default 3)")
+      .field("gradient_descent_iterations", &DisOptions::gradient_descent_iterations,
+             "iterations per patch (default 25)")
+      .field("variational_refinement_iterations",
+             &DisOptions::variational_refinement_iterations,
+             "refinement iterations (default 5)")
+      .field("variational_refinement_alpha", &DisOptions::variational_refinement_alpha,
+             "refinement smoothness (default 20)")
+      .field("variational_refinement_delta", &DisOptions::variational_refinement_delta,
+             "refinement colour constancy (default 5)")
+      .field("variational_refinement_gamma", &DisOptions::variational_refinement_gamma,
+             "refinement gradient constancy (default 10)")
+      .field("use_mean_normalization", &DisOptions::use_mean_normalization,
+             "normalise patch means (default True)")
+      .field("use_spatial_propagation", &DisOptions::use_spatial_propagation,
+             "spatial propagation (default True)")
+      .finish();
+  OptionsClass<PivOptions>(m, "PivOptions", "Options of window-deformation FFT PIV.")
+      .field("window_size", &PivOptions::window_size, "final window [px], even (default 16)")
+      .field("initial_window_size", &PivOptions::initial_window_size,
+             "first-pass window [px], even (default 64)")
+      .field("overlap", &PivOptions::overlap, "window overlap fraction (default 0.5)")
+      .field("final_passes", &PivOptions::final_passes, "passes at the final size (default 3)")
+      .field("deform", &PivOptions::deform, "deform the frames between passes (default True)")
+      .field("median_threshold", &PivOptions::median_threshold,
+             "normalised median test threshold (default 2)")
+      .field("median_epsilon", &PivOptions::median_epsilon,
+             "normalised median test noise level [px] (default 0.1)")
+      .field("min_correlation", &PivOptions::min_correlation,
+             "smallest valid peak correlation (default 0.2)")
+      .field("min_mask_fraction", &PivOptions::min_mask_fraction,
+             "smallest share of gas pixels in a window (default 0.25)")
+      .finish();
+  OptionsClass<MedianTestOptions>(m, "MedianTestOptions",
+                                  "Options of the normalised median test.")
+      .field("threshold", &MedianTestOptions::threshold, "threshold (default 2)")
+      .field("epsilon", &MedianTestOptions::epsilon, "noise level [px/frame] (default 0.1)")
+      .field("radius", &MedianTestOptions::radius, "neighbourhood radius (default 1)")
+      .finish();
+  py::enum_<TemporalStatistic>(m, "TemporalStatistic")
+      .value("mean", TemporalStatistic::kMean)
+      .value("median", TemporalStatistic::kMedian);
+  OptionsClass<TemporalFilterOptions>(m, "TemporalFilterOptions",
+                                      "Options of the temporal filter.")
+      .field("window", &TemporalFilterOptions::window, "window [frames], odd (default 5)")
+      .field("statistic", &TemporalFilterOptions::statistic, "mean or median (default median)")
+      .field("min_valid_fraction", &TemporalFilterOptions::min_valid_fraction,
+             "share of valid frames needed (default 0.5)")
+      .finish();
+  OptionsClass<PlumeMaskOptions>(m, "PlumeMaskOptions", "Options of the plume mask.")
+      .field("threshold", &PlumeMaskOptions::threshold, "absolute threshold (default 0)")
+      .field("relative_threshold", &PlumeMaskOptions::relative_threshold,
+             "threshold relative to the 99th percentile (default 0.1)")
+      .field("open_radius", &PlumeMaskOptions::open_radius, "opening radius [px] (default 1)")
+      .field("close_radius", &PlumeMaskOptions::close_radius, "closing radius [px] (default 2)")
+      .field("min_area", &PlumeMaskOptions::min_area, "smallest region [px] (default 20)")
+      .field("dilate_radius", &PlumeMaskOptions::dilate_radius,
+             "final dilation [px] (default 2)")
+      .finish();
+
+  py::class_<FlowEstimator>(m, "FlowEstimator",
+                            "One flow method with reusable buffers (use "
+                            "qogi.velocimetry.FlowEstimator).")
+      .def(py::init<const py::object&>(), py::arg("options"))
+      .def_property_readonly("method", &FlowEstimator::method)
+      .def("set_source_mask", &FlowEstimator::SetSourceMask, py::arg("source_mask"))
+      .def("calc", &FlowEstimator::Calc, py::arg("prev"), py::arg("next"),
+           py::arg("mask") = py::none(), py::arg("u0") = py::none(),
+           py::arg("v0") = py::none(),
+           "(u, v, quality, valid, residual_ratio) for float32 C-contiguous frames.");
+
+  m.def("metres_per_second_per_pixel_per_frame", &MetresPerSecondPerPixelPerFrame,
+        py::arg("distance_m"), py::arg("ifov_rad"), py::arg("frame_rate_hz"));
+
+  m.def("normalised_median_test",
+        [](const FloatArray& u, const FloatArray& v, const ByteArray& valid,
+           const MedianTestOptions& o) {
+          const cv::Mat mu = FloatMat(u, "u"), mv = FloatMat(v, "v");
+          const cv::Mat mk = ByteMat(valid, "valid");
+          cv::Mat out;
+          {
+            py::gil_scoped_release release;
+            out = NormalisedMedianTest(mu, mv, mk, o);
+          }
+          return ToArray<std::uint8_t>(out);
+        },
+        py::arg("u"), py::arg("v"), py::arg("valid"), py::arg("options"));
+
+  m.def("replace_vectors",
+        [](const FloatArray& u, const FloatArray& v, const ByteArray& keep, int max_distance) {
+          const cv::Mat mu = FloatMat(u, "u"), mv = FloatMat(v, "v");
+          const cv::Mat mk = ByteMat(keep, "keep");
+          cv::Mat ru, rv, filled;
+          {
+            py::gil_scoped_release release;
+            ReplaceVectors(mu, mv, mk, max_distance, ru, rv, filled);
+          }
+          return py::make_tuple(ToArray<float>(ru), ToArray<float>(rv),
+                                ToArray<std::uint8_t>(filled));
+        },
+        py::arg("u"), py::arg("v"), py::arg("keep"), py::arg("max_distance"));
+
+  m.def("temporal_filter",
+        [](const FloatArray& u, const FloatArray& v, const ByteArray& valid,
+           const TemporalFilterOptions& o) {
+          CheckNdim(u, 3, "u");
+          CheckNdim(v, 3, "v");
+          CheckNdim(valid, 3, "valid");
+          for (int d = 0; d < 3; ++d)
+            Require(v.shape(d) == u.shape(d) && valid.shape(d) == u.shape(d),
+                    "u, v and valid must have the same (T, H, W) shape");
+          const auto su = Slices(u, CV_32FC1), sv = Slices(v, CV_32FC1),
+                     sk = Slices(valid, CV_8UC1);
+          std::vector<cv::Mat> ou, ov, ok;
+          {
+            py::gil_scoped_release release;
+            TemporalFilter(su, sv, sk, o, ou, ov, ok);
+          }
+          const py::ssize_t T = u.shape(0), H = u.shape(1), W = u.shape(2);
+          py::array_t<float> au({T, H, W}), av({T, H, W});
+          py::array_t<std::uint8_t> ak({T, H, W});
+          const auto du = Slices(au, CV_32FC1), dv = Slices(av, CV_32FC1),
+                     dk = Slices(ak, CV_8UC1);
+          for (py::ssize_t t = 0; t < T; ++t) {
+            ou[t].copyTo(du[t]);
+            ov[t].copyTo(dv[t]);
+            ok[t].copyTo(dk[t]);
+          }
+          return py::make_tuple(au, av, ak);
+        },
+        py::arg("u"), py::arg("v"), py::arg("valid"), py::arg("options"));
+
+  m.def("plume_mask",
+        [](const FloatArray& density, const PlumeMaskOptions& o) {
+          const cv::Mat d = FloatMat(density, "density");
+          cv::Mat out;
+          {
+            py::gil_scoped_release release;
+            out = PlumeMask(d, o);
+          }
+          return ToArray<std::uint8_t>(out);
+        },
+        py::arg("density"), py::arg("options"));
+
+  m.def("set_num_threads",
+        [](int n) {
+          Require(n >= 0, "num_threads must be >= 0 (0 = all cores); got " +
+                              std::to_string(n));
+          cv::setNumThreads(n == 0 ? -1 : n);
+        },
+        py::arg("num_threads"),
+        "Threads of the engine's OpenCV pool used by velocimetry (0 = all cores).");
+  m.def("get_num_threads", [] { return cv::getNumThreads(); });
+}
+
+}  // namespace qogi

@@ -1,0 +1,346 @@
+#include "engine/velocimetry/image_ops.h"
+
+#include <opencv2/core/utility.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace qogi {
+namespace flow_ops {
+
+void ParallelRows(int rows, int cols, const std::function<void(int, int)>& body) {
+  if (rows <= 0) return;
+  const long long pixels = static_cast<long long>(rows) * cols;
+  const int threads = cv::getNumThreads();
+  // Below ~16k pixels a thread hand-off costs more than it saves.
+  if (threads <= 1 || pixels < 16384 || rows < 8) {
+    body(0, rows);
+    return;
+  }
+  const int stripes = std::min(rows, threads * 4);
+  cv::parallel_for_(cv::Range(0, stripes), [&](const cv::Range& r) {
+    const int b = static_cast<int>(static_cast<long long>(r.start) * rows / stripes);
+    const int e = static_cast<int>(static_cast<long long>(r.end) * rows / stripes);
+    if (e > b) body(b, e);
+  }, stripes);
+}
+
+int NumStripes(int rows, int cols) {
+  // ~4096 pixels per stripe at least: small images run as one stripe.
+  const long long by_size = static_cast<long long>(rows) * cols / 4096;
+  return static_cast<int>(std::max<long long>(
+      1, std::min<long long>({by_size, static_cast<long long>(rows), kMaxStripes})));
+}
+
+void ParallelStripes(int rows, int cols,
+                     const std::function<void(int, int, int)>& body) {
+  if (rows <= 0) return;
+  const int stripes = NumStripes(rows, cols);
+  if (stripes == 1) {
+    body(0, 0, rows);
+    return;
+  }
+  auto run = [&](int s) {
+    const int b = static_cast<int>(static_cast<long long>(s) * rows / stripes);
+    const int e = static_cast<int>(static_cast<long long>(s + 1) * rows / stripes);
+    if (e > b) body(s, b, e);
+  };
+  const long long pixels = static_cast<long long>(rows) * cols;
+  if (cv::getNumThreads() <= 1 || pixels < 16384) {
+    for (int s = 0; s < stripes; ++s) run(s);
+    return;
+  }
+  cv::parallel_for_(cv::Range(0, stripes), [&](const cv::Range& r) {
+    for (int s = r.start; s < r.end; ++s) run(s);
+  }, stripes);
+}
+
+double PairStdDev(const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask) {
+  bool use_mask = !mask.empty() && cv::countNonZero(mask) >= 16;
+  double s = 0, s2 = 0;
+  long long n = 0;
+  for (const cv::Mat* m : {&a, &b}) {
+    for (int y = 0; y < m->rows; ++y) {
+      const float* p = m->ptr<float>(y);
+      // Per-row float sums (vectorised), accumulated in double.
+      float rs = 0.f, rs2 = 0.f;
+      if (use_mask) {
+        const uchar* k = mask.ptr<uchar>(y);
+        for (int x = 0; x < m->cols; ++x) {
+          const float keep = k[x] ? 1.f : 0.f;
+          rs += keep * p[x];
+          rs2 += keep * p[x] * p[x];
+          n += k[x] ? 1 : 0;
+        }
+      } else {
+        for (int x = 0; x < m->cols; ++x) {
+          rs += p[x];
+          rs2 += p[x] * p[x];
+        }
+        n += m->cols;
+      }
+      s += rs;
+      s2 += rs2;
+    }
+  }
+  if (n < 2) return 0.0;
+  const double mean = s / n;
+  const double var = std::max(0.0, s2 / n - mean * mean);
+  return std::sqrt(var);
+}
+
+int NumLevels(cv::Size size, int max_levels, int min_size) {
+  int levels = 1;
+  int w = size.width, h = size.height;
+  while (levels < max_levels) {
+    w = (w + 1) / 2;
+    h = (h + 1) / 2;
+    if (std::min(w, h) < min_size) break;
+    ++levels;
+  }
+  return levels;
+}
+
+void BuildPyramid(const cv::Mat& img, int levels, std::vector<cv::Mat>& pyr) {
+  pyr.resize(levels);
+  pyr[0] = img;
+  for (int l = 1; l < levels; ++l) cv::pyrDown(pyr[l - 1], pyr[l]);
+}
+
+namespace {
+
+// Catmull-Rom (Keys, a = -0.5) weights for samples at -1, 0, 1, 2.
+inline void CubicWeights(float t, float w[4]) {
+  const float t2 = t * t, t3 = t2 * t;
+  w[0] = -0.5f * t3 + t2 - 0.5f * t;
+  w[1] = 1.5f * t3 - 2.5f * t2 + 1.0f;
+  w[2] = -1.5f * t3 + 2.0f * t2 + 0.5f * t;
+  w[3] = 0.5f * t3 - 0.5f * t2;
+}
+
+inline int Clamp(int i, int hi) { return i < 0 ? 0 : (i > hi ? hi : i); }
+
+}  // namespace
+
+void Warp(const cv::Mat& src, const cv::Mat& u, const cv::Mat& v, cv::Mat& dst,
+          cv::Mat* inside) {
+  CV_Assert(src.type() == CV_32FC1 && u.size() == src.size() && v.size() == src.size());
+  dst.create(src.size(), CV_32FC1);
+  if (inside) inside->create(src.size(), CV_8UC1);
+  const int W = src.cols, H = src.rows;
+  const float wmax = static_cast<float>(W - 1), hmax = static_cast<float>(H - 1);
+  ParallelRows(H, W, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y) {
+      const float* pu = u.ptr<float>(y);
+      const float* pv = v.ptr<float>(y);
+      float* pd = dst.ptr<float>(y);
+      uchar* pin = inside ? inside->ptr<uchar>(y) : nullptr;
+      for (int x = 0; x < W; ++x) {
+        float px = x + pu[x], py = y + pv[x];
+        if (pin) pin[x] = (px >= 0.f && px <= wmax && py >= 0.f && py <= hmax) ? 1 : 0;
+        if (!(px > -2.f)) px = -2.f;  // also maps NaN to the border
+        if (!(py > -2.f)) py = -2.f;
+        px = std::min(px, wmax + 2.f);
+        py = std::min(py, hmax + 2.f);
+        const float fx = std::floor(px), fy = std::floor(py);
+        const int ix = static_cast<int>(fx), iy = static_cast<int>(fy);
+        float wx[4], wy[4];
+        CubicWeights(px - fx, wx);
+        CubicWeights(py - fy, wy);
+        float acc = 0.f;
+        if (ix >= 1 && ix + 2 < W && iy >= 1 && iy + 2 < H) {
+          for (int j = 0; j < 4; ++j) {
+            const float* row = src.ptr<float>(iy - 1 + j) + ix - 1;
+            acc += wy[j] * (wx[0] * row[0] + wx[1] * row[1] + wx[2] * row[2] +
+                            wx[3] * row[3]);
+          }
+        } else {
+          for (int j = 0; j < 4; ++j) {
+            const float* row = src.ptr<float>(Clamp(iy - 1 + j, H - 1));
+            float r = 0.f;
+            for (int i = 0; i < 4; ++i) r += wx[i] * row[Clamp(ix - 1 + i, W - 1)];
+            acc += wy[j] * r;
+          }
+        }
+        pd[x] = acc;
+      }
+    }
+  });
+}
+
+void CentralGradient(const cv::Mat& src, cv::Mat& gx, cv::Mat& gy) {
+  CV_Assert(src.type() == CV_32FC1);
+  gx.create(src.size(), CV_32FC1);
+  gy.create(src.size(), CV_32FC1);
+  const int W = src.cols, H = src.rows;
+  ParallelRows(H, W, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y) {
+      const float* p = src.ptr<float>(y);
+      const float* pn = src.ptr<float>(std::min(y + 1, H - 1));
+      const float* pp = src.ptr<float>(std::max(y - 1, 0));
+      const float sy = (y == 0 || y == H - 1) ? 1.f : 0.5f;
+      float* ox = gx.ptr<float>(y);
+      float* oy = gy.ptr<float>(y);
+      ox[0] = W > 1 ? p[1] - p[0] : 0.f;
+      for (int x = 1; x < W - 1; ++x) ox[x] = 0.5f * (p[x + 1] - p[x - 1]);
+      if (W > 1) ox[W - 1] = p[W - 1] - p[W - 2];
+      for (int x = 0; x < W; ++x) oy[x] = H > 1 ? sy * (pn[x] - pp[x]) : 0.f;
+    }
+  });
+}
+
+void FivePointGradient(const cv::Mat& src, cv::Mat& gx, cv::Mat& gy) {
+  CV_Assert(src.type() == CV_32FC1);
+  CentralGradient(src, gx, gy);
+  const int W = src.cols, H = src.rows;
+  const float k = 1.f / 12.f;
+  ParallelRows(H, W, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y) {
+      const float* p = src.ptr<float>(y);
+      float* ox = gx.ptr<float>(y);
+      for (int x = 2; x < W - 2; ++x)
+        ox[x] = k * (p[x - 2] - 8.f * p[x - 1] + 8.f * p[x + 1] - p[x + 2]);
+      if (y >= 2 && y < H - 2) {
+        const float* a = src.ptr<float>(y - 2);
+        const float* b = src.ptr<float>(y - 1);
+        const float* c = src.ptr<float>(y + 1);
+        const float* d = src.ptr<float>(y + 2);
+        float* oy = gy.ptr<float>(y);
+        for (int x = 0; x < W; ++x) oy[x] = k * (a[x] - 8.f * b[x] + 8.f * c[x] - d[x]);
+      }
+    }
+  });
+}
+
+void ResampleFlow(const cv::Mat& u, const cv::Mat& v, cv::Size size, double scale,
+                  cv::Mat& u_out, cv::Mat& v_out) {
+  CV_Assert(u.type() == CV_32FC1 && v.type() == CV_32FC1 && u.size() == v.size());
+  CV_Assert(&u != &u_out && &v != &v_out);
+  u_out.create(size, CV_32FC1);
+  v_out.create(size, CV_32FC1);
+  const int Ws = u.cols, Hs = u.rows;
+  if (scale == 2.0 && (size.width + 1) / 2 == Ws && (size.height + 1) / 2 == Hs) {
+    // One pyramid level up: even pixels copy a source sample, odd ones
+    // average two (or four); the last odd row/column repeats the border.
+    ParallelRows(size.height, size.width, [&](int y0, int y1) {
+      for (int y = y0; y < y1; ++y) {
+        const int iy = y / 2, iy1 = std::min(iy + (y & 1), Hs - 1);
+        const float wy = (y & 1) && iy1 != iy ? 0.5f : 0.f;
+        for (int c = 0; c < 2; ++c) {
+          const cv::Mat& src = c == 0 ? u : v;
+          float* out = (c == 0 ? u_out : v_out).ptr<float>(y);
+          const float* r0 = src.ptr<float>(iy);
+          const float* r1 = src.ptr<float>(iy1);
+          for (int x = 0; x < size.width; ++x) {
+            const int ix = x / 2, ix1 = std::min(ix + (x & 1), Ws - 1);
+            const float wx = (x & 1) && ix1 != ix ? 0.5f : 0.f;
+            const float a = r0[ix] + wx * (r0[ix1] - r0[ix]);
+            const float b = r1[ix] + wx * (r1[ix1] - r1[ix]);
+            out[x] = 2.f * (a + wy * (b - a));
+          }
+        }
+      }
+    });
+    return;
+  }
+  const float inv = static_cast<float>(1.0 / scale), s = static_cast<float>(scale);
+  ParallelRows(size.height, size.width, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y) {
+      float sy = std::min(std::max(y * inv, 0.f), static_cast<float>(Hs - 1));
+      int iy = std::min(static_cast<int>(sy), std::max(Hs - 2, 0));
+      float ty = sy - iy;
+      const int iy1 = std::min(iy + 1, Hs - 1);
+      const float *u0 = u.ptr<float>(iy), *u1 = u.ptr<float>(iy1);
+      const float *v0 = v.ptr<float>(iy), *v1 = v.ptr<float>(iy1);
+      float* ou = u_out.ptr<float>(y);
+      float* ov = v_out.ptr<float>(y);
+      for (int x = 0; x < size.width; ++x) {
+        float sx = std::min(std::max(x * inv, 0.f), static_cast<float>(Ws - 1));
+        int ix = std::min(static_cast<int>(sx), std::max(Ws - 2, 0));
+        float tx = sx - ix;
+        const int ix1 = std::min(ix + 1, Ws - 1);
+        const float a = (1 - tx) * (1 - ty), b = tx * (1 - ty), c = (1 - tx) * ty,
+                    d = tx * ty;
+        ou[x] = s * (a * u0[ix] + b * u0[ix1] + c * u1[ix] + d * u1[ix1]);
+        ov[x] = s * (a * v0[ix] + b * v0[ix1] + c * v1[ix] + d * v1[ix1]);
+      }
+    }
+  });
+}
+
+void QualityFromResidual(const cv::Mat& residual, const cv::Mat& valid,
+                         cv::Mat& quality) {
+  CV_Assert(residual.type() == CV_32FC1);
+  cv::Mat r = cv::abs(residual);
+  cv::blur(r, r, cv::Size(3, 3), cv::Point(-1, -1), cv::BORDER_REPLICATE);
+  // Median of r over valid pixels, on a subsample of at most ~20000 values.
+  const long long n = static_cast<long long>(r.total());
+  const int step = static_cast<int>(std::max<long long>(1, n / 20000));
+  std::vector<float> samples;
+  samples.reserve(static_cast<std::size_t>(n / step + 1));
+  for (long long i = 0; i < n; i += step) {
+    const int y = static_cast<int>(i / r.cols), x = static_cast<int>(i % r.cols);
+    if (valid.empty() || valid.at<uchar>(y, x)) samples.push_back(r.at<float>(y, x));
+  }
+  double s = 0.0;
+  if (!samples.empty()) {
+    auto mid = samples.begin() + samples.size() / 2;
+    std::nth_element(samples.begin(), mid, samples.end());
+    s = 1.4826 * *mid;
+  }
+  quality.create(r.size(), CV_32FC1);
+  const float inv2s2 = s > 0 ? static_cast<float>(0.5 / (s * s)) : 0.f;
+  const bool perfect = !(s > 0);
+  for (int y = 0; y < r.rows; ++y) {
+    const float* pr = r.ptr<float>(y);
+    float* pq = quality.ptr<float>(y);
+    for (int x = 0; x < r.cols; ++x) {
+      if (perfect) pq[x] = pr[x] > 0 ? 0.f : 1.f;
+      else pq[x] = std::exp(-pr[x] * pr[x] * inv2s2);
+    }
+  }
+}
+
+void FinishWithBrightnessResidual(const cv::Mat& i0, const cv::Mat& i1,
+                                  FlowField& flow) {
+  cv::Mat warped, inside;
+  Warp(i1, flow.u, flow.v, warped, &inside);
+  cv::Mat residual = warped - i0;
+  double after = 0, before = 0;
+  for (int y = 0; y < i0.rows; ++y) {
+    const float* p0 = i0.ptr<float>(y);
+    const float* p1 = i1.ptr<float>(y);
+    const float* pr = residual.ptr<float>(y);
+    const uchar* pin = inside.ptr<uchar>(y);
+    uchar* pv = flow.valid.ptr<uchar>(y);
+    for (int x = 0; x < i0.cols; ++x) {
+      pv[x] = (pv[x] && pin[x]) ? 1 : 0;
+      if (pv[x]) {
+        after += std::abs(pr[x]);
+        before += std::abs(p1[x] - p0[x]);
+      }
+    }
+  }
+  flow.residual_ratio =
+      before > 0 ? after / before : std::numeric_limits<double>::quiet_NaN();
+  QualityFromResidual(residual, flow.valid, flow.quality);
+}
+
+void ApplyMask(const cv::Mat& mask, const cv::Mat& u, const cv::Mat& v,
+               cv::Mat& valid) {
+  for (int y = 0; y < valid.rows; ++y) {
+    uchar* pv = valid.ptr<uchar>(y);
+    const float* pu = u.ptr<float>(y);
+    const float* pw = v.ptr<float>(y);
+    const uchar* pm = mask.empty() ? nullptr : mask.ptr<uchar>(y);
+    for (int x = 0; x < valid.cols; ++x) {
+      const bool keep = (!pm || pm[x]) && std::isfinite(pu[x]) && std::isfinite(pw[x]);
+      pv[x] = (pv[x] && keep) ? 1 : 0;
+    }
+  }
+}
+
+}  // namespace flow_ops
+}  // namespace qogi

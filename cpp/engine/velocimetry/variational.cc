@@ -1,0 +1,676 @@
+#include "engine/velocimetry/variational.h"
+
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+
+#include "engine/velocimetry/image_ops.h"
+
+namespace qogi {
+namespace flow_ops {
+
+namespace {
+
+// Smallest Jacobian det(1 + grad w) accepted: below it the map folds over
+// and the pixel's data term is dropped for this warp.
+constexpr float kMinJacobian = 0.05f;
+
+using Partials = std::array<double, kMaxStripes>;
+
+double Sum(const Partials& p) {
+  double s = 0;
+  for (double v : p) s += v;
+  return s;
+}
+
+// Row kernels. Pointers are row starts; the loops run over the row's
+// interior [1, n-1) (neighbours up / down are the rows above / below). Plain
+// functions with __restrict parameters so that the compiler vectorises them.
+
+// g = 0.5 c div(a p) (continuity data term, central differences).
+void ForwardContRow(int n, const float* __restrict c, const float* __restrict a,
+                    const float* __restrict a_up, const float* __restrict a_dn,
+                    const float* __restrict pu, const float* __restrict pv_up,
+                    const float* __restrict pv_dn, float* __restrict g) {
+  for (int i = 1; i < n - 1; ++i)
+    g[i] = 0.5f * c[i] *
+           (a[i + 1] * pu[i + 1] - a[i - 1] * pu[i - 1] + a_dn[i] * pv_dn[i] -
+            a_up[i] * pv_up[i]);
+}
+
+// del = ad div p, kap = ac curl p (kap skipped when null).
+void DivCurlRow(int n, float ad, float ac, const float* __restrict pu,
+                const float* __restrict pu_up,
+                const float* __restrict pu_dn, const float* __restrict pv,
+                const float* __restrict pv_up, const float* __restrict pv_dn,
+                float* __restrict del, float* __restrict kap) {
+  const float hd = 0.5f * ad, hc = 0.5f * ac;
+  for (int i = 1; i < n - 1; ++i)
+    del[i] = hd * (pu[i + 1] - pu[i - 1] + pv_dn[i] - pv_up[i]);
+  if (kap)
+    for (int i = 1; i < n - 1; ++i)
+      kap[i] = hc * (pv[i + 1] - pv[i - 1] - pu_dn[i] + pu_up[i]);
+}
+
+// (ou, ov) = D^T del + C^T kap on the row interior (kap may be null).
+void DivCurlAdjointRow(int n, const float* __restrict del,
+                       const float* __restrict del_up,
+                       const float* __restrict del_dn, const float* __restrict kap,
+                       const float* __restrict kap_up,
+                       const float* __restrict kap_dn, float* __restrict ou,
+                       float* __restrict ov) {
+  for (int i = 1; i < n - 1; ++i) {
+    ou[i] = 0.5f * (del[i - 1] - del[i + 1]);
+    ov[i] = 0.5f * (del_up[i] - del_dn[i]);
+  }
+  if (kap)
+    for (int i = 1; i < n - 1; ++i) {
+      ou[i] += 0.5f * (kap_dn[i] - kap_up[i]);
+      ov[i] += 0.5f * (kap[i - 1] - kap[i + 1]);
+    }
+}
+
+// (ou, ov) (+)= A^T g + alpha L p on the row interior; returns <p, o> there.
+template <bool kContinuity, bool kAccumulate>
+float AdjointRow(int n, float alpha, const float* __restrict a,
+                 const float* __restrict b, const float* __restrict g,
+                 const float* __restrict g_up, const float* __restrict g_dn,
+                 const float* __restrict pu, const float* __restrict pu_up,
+                 const float* __restrict pu_dn, const float* __restrict pv,
+                 const float* __restrict pv_up, const float* __restrict pv_dn,
+                 float* __restrict ou, float* __restrict ov) {
+  float dot = 0.f;
+  for (int i = 1; i < n - 1; ++i) {
+    float su, sv;
+    if (kContinuity) {
+      su = 0.5f * a[i] * (g[i - 1] - g[i + 1]);
+      sv = 0.5f * a[i] * (g_up[i] - g_dn[i]);
+    } else {
+      su = a[i] * g[i];
+      sv = b[i] * g[i];
+    }
+    su += alpha * (4.f * pu[i] - pu[i - 1] - pu[i + 1] - pu_up[i] - pu_dn[i]);
+    sv += alpha * (4.f * pv[i] - pv[i - 1] - pv[i + 1] - pv_up[i] - pv_dn[i]);
+    if (kAccumulate) {
+      su += ou[i];
+      sv += ov[i];
+    }
+    ou[i] = su;
+    ov[i] = sv;
+    dot += pu[i] * su + pv[i] * sv;
+  }
+  return dot;
+}
+
+// res -= step q; returns <res, P res> and <res, res> in rz, rr.
+void UpdateResidual(int n, float step, const float* __restrict qu,
+                    const float* __restrict qv, const float* __restrict pa,
+                    const float* __restrict pb, const float* __restrict pc,
+                    float* __restrict ru, float* __restrict rv, float& rz,
+                    float& rr) {
+  float sz = 0.f, sr = 0.f;
+  for (int i = 0; i < n; ++i) {
+    const float a = ru[i] - step * qu[i], b = rv[i] - step * qv[i];
+    ru[i] = a;
+    rv[i] = b;
+    sz += a * (pa[i] * a + pb[i] * b) + b * (pb[i] * a + pc[i] * b);
+    sr += a * a + b * b;
+  }
+  rz = sz;
+  rr = sr;
+}
+
+// x += step p; p = P res + beta p.
+void UpdateDirection(int n, float step, float beta, const float* __restrict ru,
+                     const float* __restrict rv, const float* __restrict pa,
+                     const float* __restrict pb, const float* __restrict pc,
+                     float* __restrict xu, float* __restrict xv,
+                     float* __restrict pu, float* __restrict pv) {
+  for (int i = 0; i < n; ++i) {
+    xu[i] += step * pu[i];
+    xv[i] += step * pv[i];
+    pu[i] = pa[i] * ru[i] + pb[i] * rv[i] + beta * pu[i];
+    pv[i] = pb[i] * ru[i] + pc[i] * rv[i] + beta * pv[i];
+  }
+}
+
+}  // namespace
+
+void VariationalSolver::Solve(const cv::Mat& prev, const cv::Mat& next,
+                              const cv::Mat& mask, const cv::Mat& source, bool warm,
+                              const VariationalSettings& s, FlowField& flow) {
+  data_ = s.data;
+  alpha_ = s.alpha;
+  alpha_div_ = s.alpha_div;
+  alpha_curl_ = s.alpha_curl;
+  div_curl_scale_ = s.div_curl_scale;
+  const cv::Size full = prev.size();
+  const double sd = PairStdDev(prev, next, mask);
+  if (!(sd > 0)) {
+    // Two constant frames carry no information on motion: keep the start
+    // (warm or zero) and report every vector invalid.
+    flow.quality.setTo(0);
+    flow.valid.setTo(0);
+    return;
+  }
+  prev.convertTo(i0n_, CV_32F, 1.0 / sd);
+  next.convertTo(i1n_, CV_32F, 1.0 / sd);
+  const int levels = NumLevels(full, s.levels, s.min_level_size);
+  const int finest = std::min(s.finest_level, levels - 1);
+  BuildPyramid(i0n_, levels, p0_);
+  BuildPyramid(i1n_, levels, p1_);
+  if (!mask.empty()) {
+    cv::Mat m01 = mask != 0;
+    m01.convertTo(maskf_, CV_32F, 1.0 / 255.0);
+    BuildPyramid(maskf_, levels, pm_);
+  } else {
+    pm_.clear();
+  }
+  if (!source.empty()) {
+    // Gas may appear where the source mask is: drop the data term on it and
+    // on its 4-neighbours (the stencil of div reaches one pixel).
+    cv::Mat s01 = source != 0;
+    const cv::Mat cross = cv::getStructuringElement(cv::MORPH_CROSS, cv::Size(3, 3));
+    cv::dilate(s01, s01, cross);
+    s01.convertTo(sourcef_, CV_32F, -1.0 / 255.0, 1.0);  // 0 on the source, 1 elsewhere
+    BuildPyramid(sourcef_, levels, ps_);
+    for (auto& m : ps_) cv::threshold(m, m, 0.999, 1.0, cv::THRESH_TOZERO);
+  } else {
+    ps_.clear();
+  }
+  // With a warm start the large motion is known: only the finest
+  // warm_levels levels refine it (all levels when 0).
+  const int top = (warm && s.warm_levels > 0)
+                      ? std::min(levels - 1, finest + s.warm_levels - 1)
+                      : levels - 1;
+  coarsest_ = levels - 1;
+  const cv::Size top_size = p0_[top].size();
+  if (warm) {
+    ResampleFlow(flow.u, flow.v, top_size, 1.0 / (1 << top), u_, v_);
+  } else {
+    u_.create(top_size, CV_32FC1);
+    v_.create(top_size, CV_32FC1);
+    u_.setTo(0);
+    v_.setTo(0);
+  }
+  for (int l = top; l >= finest; --l) {
+    if (l < top) {
+      ResampleFlow(u_, v_, p0_[l].size(), 2.0, un_, vn_);
+      std::swap(u_, un_);
+      std::swap(v_, vn_);
+    }
+    SolveLevel(l, finest, s);
+  }
+  if (finest > 0) {
+    ResampleFlow(u_, v_, full, static_cast<double>(1 << finest), flow.u, flow.v);
+  } else {
+    u_.copyTo(flow.u);
+    v_.copyTo(flow.v);
+  }
+  FinalResidual(finest, flow, mask);
+}
+
+void VariationalSolver::SolveLevel(int level, int finest, const VariationalSettings& s) {
+  // Coarser levels cost a quarter per level: give them twice the iterations
+  // per level (at most 8x), which carries information across the image (a
+  // flux through a featureless stretch of plume) at little cost.
+  const int scale = 1 << std::min(3, level - finest);
+  const int iterations = s.iterations * scale;
+  // The coarsest level sees the largest motion relative to its pixels and
+  // costs next to nothing: three times the warps there.
+  const int warps = level == coarsest_ ? 3 * s.warps : s.warps;
+  W_ = p0_[level].cols;
+  H_ = p0_[level].rows;
+  const int W = W_, H = H_;
+  const std::size_t n = static_cast<std::size_t>(W) * H;
+  for (auto* vec : {&a_, &b_, &w_, &r_, &c_, &g_, &del_, &kap_, &pre_a_, &pre_b_, &pre_c_})
+    vec->resize(n);
+  for (auto* vec : {&x_, &res_, &p_, &q_}) vec->resize(2 * n);
+  std::fill(q_.begin(), q_.end(), 0.f);
+  float* xu = x_.data();
+  float* xv = xu + n;
+  float* ru = res_.data();
+  float* rv = ru + n;
+  float* pu = p_.data();
+  float* pv = pu + n;
+  float* qu = q_.data();
+  float* qv = qu + n;
+  const float* pa = pre_a_.data();
+  const float* pb = pre_b_.data();
+  const float* pc = pre_c_.data();
+
+  for (int warp = 0; warp < warps; ++warp) {
+    Linearise(level, s);
+    // res = -(A^T W r0 + R'(w0)), x = 0, p = P res.
+    ForwardPass(u_.ptr<float>(), v_.ptr<float>(), /*rhs=*/true);
+    AdjointPass(u_.ptr<float>(), v_.ptr<float>(), ru, rv);
+    Partials prz{}, prr{};
+    ParallelStripes(H, W, [&](int st, int y0, int y1) {
+      const std::size_t b = static_cast<std::size_t>(y0) * W;
+      const int len = (y1 - y0) * W;
+      for (int i = 0; i < len; ++i) {
+        ru[b + i] = -ru[b + i];
+        rv[b + i] = -rv[b + i];
+      }
+      std::fill(xu + b, xu + b + len, 0.f);
+      std::fill(xv + b, xv + b + len, 0.f);
+      std::fill(pu + b, pu + b + len, 0.f);
+      std::fill(pv + b, pv + b + len, 0.f);
+      float rz = 0.f, rr = 0.f;
+      UpdateResidual(len, 0.f, qu + b, qv + b, pa + b, pb + b, pc + b, ru + b, rv + b,
+                     rz, rr);
+      UpdateDirection(len, 0.f, 0.f, ru + b, rv + b, pa + b, pb + b, pc + b, xu + b,
+                      xv + b, pu + b, pv + b);
+      prz[st] = rz;
+      prr[st] = rr;
+    });
+    double rz = Sum(prz);
+    const double bb = Sum(prr);
+    if (!(bb > 0)) continue;
+    const double stop = s.tolerance * s.tolerance * bb;
+    for (int it = 0; it < iterations; ++it) {
+      ForwardPass(pu, pv, /*rhs=*/false);
+      const double pq = AdjointPass(pu, pv, qu, qv);
+      if (!(pq > 0)) break;
+      const float step = static_cast<float>(rz / pq);
+      Partials pz{}, pr{};
+      ParallelStripes(H, W, [&](int st, int y0, int y1) {
+        const std::size_t b = static_cast<std::size_t>(y0) * W;
+        float z = 0.f, r = 0.f;
+        UpdateResidual((y1 - y0) * W, step, qu + b, qv + b, pa + b, pb + b, pc + b,
+                       ru + b, rv + b, z, r);
+        pz[st] = z;
+        pr[st] = r;
+      });
+      const bool done = Sum(pr) < stop || it + 1 == iterations;
+      const double rz_new = Sum(pz);
+      const float beta = done ? 0.f : static_cast<float>(rz_new / rz);
+      rz = rz_new;
+      // x += step p (and, unless done, the next search direction).
+      ParallelStripes(H, W, [&](int, int y0, int y1) {
+        const std::size_t b = static_cast<std::size_t>(y0) * W;
+        UpdateDirection((y1 - y0) * W, step, beta, ru + b, rv + b, pa + b, pb + b,
+                        pc + b, xu + b, xv + b, pu + b, pv + b);
+      });
+      if (done) break;
+    }
+    float* fu = u_.ptr<float>();
+    float* fv = v_.ptr<float>();
+    ParallelStripes(H, W, [&](int, int y0, int y1) {
+      for (std::size_t k = static_cast<std::size_t>(y0) * W;
+           k < static_cast<std::size_t>(y1) * W; ++k) {
+        fu[k] += xu[k];
+        fv[k] += xv[k];
+      }
+    });
+  }
+}
+
+void VariationalSolver::Linearise(int level, const VariationalSettings& s) {
+  const cv::Mat& i0 = p0_[level];
+  const cv::Mat& i1 = p1_[level];
+  const int W = W_, H = H_;
+  Warp(i1, u_, v_, warped_, &inside_);
+  if (data_ == DataModel::kBrightness) {
+    FivePointGradient(i0, g0x_, g0y_);
+    FivePointGradient(warped_, gx_, gy_);
+  } else {
+    CentralGradient(u_, ux_, uy_);
+    CentralGradient(v_, vx_, vy_);
+  }
+  // Data weights. Brightness: inside the gas mask. Continuity: everywhere
+  // (the equation holds wherever the gas is or is not, so the mask only
+  // marks the valid output) except on the source and the frame's border ring,
+  // where gas may enter or leave the image.
+  const bool cont = data_ == DataModel::kContinuity;
+  const bool has_mask = !pm_.empty() && !cont;
+  const bool has_source = !ps_.empty() && cont;
+  ParallelRows(H, W, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y) {
+      const float* p0 = i0.ptr<float>(y);
+      const float* pw = warped_.ptr<float>(y);
+      const uchar* pin = inside_.ptr<uchar>(y);
+      const float* pm = has_mask ? pm_[level].ptr<float>(y) : nullptr;
+      const float* ps = has_source ? ps_[level].ptr<float>(y) : nullptr;
+      const std::size_t row = static_cast<std::size_t>(y) * W;
+      float* a = a_.data() + row;
+      float* b = b_.data() + row;
+      float* r = r_.data() + row;
+      float* w = w_.data() + row;
+      float* c = c_.data() + row;
+      if (!cont) {
+        const float* g0x = g0x_.ptr<float>(y);
+        const float* g0y = g0y_.ptr<float>(y);
+        const float* gx = gx_.ptr<float>(y);
+        const float* gy = gy_.ptr<float>(y);
+        for (int x = 0; x < W; ++x) {
+          float weight = pin[x] ? 1.f : 0.f;
+          if (pm) weight *= pm[x];
+          a[x] = 0.5f * (g0x[x] + gx[x]);
+          b[x] = 0.5f * (g0y[x] + gy[x]);
+          r[x] = pw[x] - p0[x];
+          w[x] = weight;
+          c[x] = weight * b[x] * b[x];
+        }
+        continue;
+      }
+      const float* ux = ux_.ptr<float>(y);
+      const float* uy = uy_.ptr<float>(y);
+      const float* vx = vx_.ptr<float>(y);
+      const float* vy = vy_.ptr<float>(y);
+      const bool border_row = y == 0 || y == H - 1;
+      for (int x = 0; x < W; ++x) {
+        float weight = pin[x] ? 1.f : 0.f;
+        if (ps) weight *= ps[x];
+        float jac = (1.f + ux[x]) * (1.f + vy[x]) - uy[x] * vx[x];
+        if (!(jac > kMinJacobian)) {
+          jac = kMinJacobian;
+          weight = 0.f;
+        }
+        if (border_row || x == 0 || x == W - 1) weight = 0.f;
+        a[x] = pw[x];
+        b[x] = jac;
+        r[x] = pw[x] * jac - p0[x];
+        w[x] = weight;
+        c[x] = weight * jac * jac;
+      }
+    }
+  });
+  // Inverse of the 2 x 2 diagonal blocks of A^T W A + R.
+  const bool has_div = alpha_div_ > 0, has_curl = alpha_curl_ > 0;
+  const float half_ad = static_cast<float>(0.5 * alpha_div_);
+  const float half_ac = static_cast<float>(0.5 * alpha_curl_);
+  const float alpha = static_cast<float>(alpha_);
+  ParallelRows(H, W, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y) {
+      const std::size_t row = static_cast<std::size_t>(y) * W;
+      const float* a = a_.data() + row;
+      const float* b = b_.data() + row;
+      const float* w = w_.data() + row;
+      const float* c = c_.data() + row;  // w b^2 (continuity)
+      const float* c_up = y > 0 ? c - W : nullptr;
+      const float* c_dn = y < H - 1 ? c + W : nullptr;
+      float* pa = pre_a_.data() + row;
+      float* pb = pre_b_.data() + row;
+      float* pc = pre_c_.data() + row;
+      for (int x = 0; x < W; ++x) {
+        const int nbrs = (x > 0) + (x < W - 1) + (y > 0) + (y < H - 1);
+        const float reg = alpha * nbrs + half_ad + half_ac;
+        float d11, d12, d22;
+        if (!cont) {
+          d11 = w[x] * a[x] * a[x];
+          d12 = w[x] * a[x] * b[x];
+          d22 = w[x] * b[x] * b[x];
+        } else {
+          const float a2 = a[x] * a[x] * 0.25f;
+          d11 = a2 * ((x > 0 ? c[x - 1] : 0.f) + (x < W - 1 ? c[x + 1] : 0.f));
+          d22 = a2 * ((c_up ? c_up[x] : 0.f) + (c_dn ? c_dn[x] : 0.f));
+          d12 = 0.f;
+        }
+        d11 += reg;
+        d22 += reg;
+        const float det = d11 * d22 - d12 * d12;
+        if (det > 1e-6f * d11 * d22 && det > 0.f) {
+          pa[x] = d22 / det;
+          pb[x] = -d12 / det;
+          pc[x] = d11 / det;
+        } else {
+          pa[x] = d11 > 0 ? 1.f / d11 : 1.f;
+          pb[x] = 0.f;
+          pc[x] = d22 > 0 ? 1.f / d22 : 1.f;
+        }
+      }
+    }
+  });
+  if (!has_div && !has_curl) return;
+  // Smooth divergence and vorticity of the current flow: the targets.
+  xi_.create(H, W, CV_32FC1);
+  zeta_.create(H, W, CV_32FC1);
+  const float* fu = u_.ptr<float>();
+  const float* fv = v_.ptr<float>();
+  ParallelRows(H, W, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y) {
+      float* pxi = xi_.ptr<float>(y);
+      float* pze = zeta_.ptr<float>(y);
+      if (y == 0 || y == H - 1) {
+        std::fill(pxi, pxi + W, 0.f);
+        std::fill(pze, pze + W, 0.f);
+        continue;
+      }
+      pxi[0] = pxi[W - 1] = pze[0] = pze[W - 1] = 0.f;
+      const std::size_t row = static_cast<std::size_t>(y) * W;
+      for (int x = 1; x < W - 1; ++x) {
+        const std::size_t k = row + x;
+        pxi[x] = 0.5f * (fu[k + 1] - fu[k - 1] + fv[k + W] - fv[k - W]);
+        pze[x] = 0.5f * (fv[k + 1] - fv[k - 1] - fu[k + W] + fu[k - W]);
+      }
+    }
+  });
+  const double sigma = div_curl_scale_ / static_cast<double>(1 << level);
+  if (sigma >= 0.3) {
+    if (has_div)
+      cv::GaussianBlur(xi_, xi_, cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
+    if (has_curl)
+      cv::GaussianBlur(zeta_, zeta_, cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
+  }
+}
+
+void VariationalSolver::ForwardPass(const float* pu, const float* pv, bool rhs) {
+  const int W = W_, H = H_;
+  const bool cont = data_ == DataModel::kContinuity;
+  const bool has_div = alpha_div_ > 0, has_curl = alpha_curl_ > 0;
+  const bool dc = has_div || has_curl;
+  const float ad = static_cast<float>(alpha_div_), ac = static_cast<float>(alpha_curl_);
+  const float* a = a_.data();
+  const float* b = b_.data();
+  const float* c = c_.data();
+  const float* w = w_.data();
+  const float* r = r_.data();
+  float* g = g_.data();
+  float* del = del_.data();
+  float* kap = kap_.data();
+  ParallelStripes(H, W, [&](int, int y0, int y1) {
+    for (int y = y0; y < y1; ++y) {
+      const std::size_t row = static_cast<std::size_t>(y) * W;
+      float* gr = g + row;
+      if (!cont) {
+        // Brightness: pointwise, the border included.
+        if (rhs) {
+          for (int x = 0; x < W; ++x) gr[x] = w[row + x] * r[row + x];
+        } else {
+          for (int x = 0; x < W; ++x)
+            gr[x] = w[row + x] * (a[row + x] * pu[row + x] + b[row + x] * pv[row + x]);
+        }
+      }
+      if (y == 0 || y == H - 1) {
+        if (cont) std::fill(gr, gr + W, 0.f);
+        if (dc) {
+          std::fill(del + row, del + row + W, 0.f);
+          std::fill(kap + row, kap + row + W, 0.f);
+        }
+        continue;
+      }
+      if (cont) {
+        gr[0] = gr[W - 1] = 0.f;
+        if (rhs) {
+          for (int x = 1; x < W - 1; ++x) gr[x] = w[row + x] * b[row + x] * r[row + x];
+        } else {
+          ForwardContRow(W, c + row, a + row, a + row - W, a + row + W, pu + row,
+                         pv + row - W, pv + row + W, gr);
+        }
+      }
+      if (dc) {
+        float* dr = del + row;
+        float* kr = kap + row;
+        dr[0] = dr[W - 1] = kr[0] = kr[W - 1] = 0.f;
+        DivCurlRow(W, ad, ac, pu + row, pu + row - W, pu + row + W, pv + row,
+                   pv + row - W, pv + row + W, dr, has_curl ? kr : nullptr);
+        if (!has_curl) std::fill(kr, kr + W, 0.f);
+        if (rhs) {
+          const float* pxi = xi_.ptr<float>(y);
+          const float* pze = zeta_.ptr<float>(y);
+          for (int x = 1; x < W - 1; ++x) {
+            dr[x] -= ad * pxi[x];
+            kr[x] -= ac * pze[x];
+          }
+        }
+      }
+    }
+  });
+}
+
+double VariationalSolver::AdjointPass(const float* pu, const float* pv, float* ou,
+                                      float* ov) {
+  const int W = W_, H = H_;
+  const bool cont = data_ == DataModel::kContinuity;
+  const bool has_curl = alpha_curl_ > 0;
+  const bool dc = alpha_div_ > 0 || has_curl;
+  const float alpha = static_cast<float>(alpha_);
+  const float* a = a_.data();
+  const float* b = b_.data();
+  const float* g = g_.data();
+  const float* del = del_.data();
+  const float* kap = kap_.data();
+  // One pixel with neighbour checks (the border).
+  auto pixel = [&](int x, int y) {
+    const std::size_t k = static_cast<std::size_t>(y) * W + x;
+    const bool left = x > 0, right = x < W - 1, up = y > 0, down = y < H - 1;
+    float su, sv;
+    if (cont) {
+      const float gl = left ? g[k - 1] : 0.f, gr = right ? g[k + 1] : 0.f;
+      const float gu = up ? g[k - W] : 0.f, gd = down ? g[k + W] : 0.f;
+      su = 0.5f * a[k] * (gl - gr);
+      sv = 0.5f * a[k] * (gu - gd);
+    } else {
+      su = a[k] * g[k];
+      sv = b[k] * g[k];
+    }
+    float lu = 0.f, lv = 0.f;
+    if (left) { lu += pu[k] - pu[k - 1]; lv += pv[k] - pv[k - 1]; }
+    if (right) { lu += pu[k] - pu[k + 1]; lv += pv[k] - pv[k + 1]; }
+    if (up) { lu += pu[k] - pu[k - W]; lv += pv[k] - pv[k - W]; }
+    if (down) { lu += pu[k] - pu[k + W]; lv += pv[k] - pv[k + W]; }
+    su += alpha * lu;
+    sv += alpha * lv;
+    if (dc) {
+      const float dl = left ? del[k - 1] : 0.f, dr = right ? del[k + 1] : 0.f;
+      const float du = up ? del[k - W] : 0.f, dd = down ? del[k + W] : 0.f;
+      const float kl = left ? kap[k - 1] : 0.f, kr = right ? kap[k + 1] : 0.f;
+      const float ku = up ? kap[k - W] : 0.f, kd = down ? kap[k + W] : 0.f;
+      su += 0.5f * (dl - dr) + 0.5f * (kd - ku);
+      sv += 0.5f * (du - dd) + 0.5f * (kl - kr);
+    }
+    ou[k] = su;
+    ov[k] = sv;
+    return static_cast<double>(pu[k]) * su + static_cast<double>(pv[k]) * sv;
+  };
+  Partials partial{};
+  ParallelStripes(H, W, [&](int st, int y0, int y1) {
+    double dot = 0;
+    for (int y = y0; y < y1; ++y) {
+      if (y == 0 || y == H - 1 || W < 3) {
+        for (int x = 0; x < W; ++x) dot += pixel(x, y);
+        continue;
+      }
+      const std::size_t row = static_cast<std::size_t>(y) * W;
+      if (dc) {
+        DivCurlAdjointRow(W, del + row, del + row - W, del + row + W,
+                          has_curl ? kap + row : nullptr, kap + row - W,
+                          kap + row + W, ou + row, ov + row);
+      }
+      float d;
+      if (cont) {
+        d = dc ? AdjointRow<true, true>(W, alpha, a + row, b + row, g + row,
+                                        g + row - W, g + row + W, pu + row,
+                                        pu + row - W, pu + row + W, pv + row,
+                                        pv + row - W, pv + row + W, ou + row, ov + row)
+               : AdjointRow<true, false>(W, alpha, a + row, b + row, g + row,
+                                         g + row - W, g + row + W, pu + row,
+                                         pu + row - W, pu + row + W, pv + row,
+                                         pv + row - W, pv + row + W, ou + row, ov + row);
+      } else {
+        d = dc ? AdjointRow<false, true>(W, alpha, a + row, b + row, g + row,
+                                         g + row - W, g + row + W, pu + row,
+                                         pu + row - W, pu + row + W, pv + row,
+                                         pv + row - W, pv + row + W, ou + row, ov + row)
+               : AdjointRow<false, false>(W, alpha, a + row, b + row, g + row,
+                                          g + row - W, g + row + W, pu + row,
+                                          pu + row - W, pu + row + W, pv + row,
+                                          pv + row - W, pv + row + W, ou + row, ov + row);
+      }
+      dot += d + pixel(0, y) + pixel(W - 1, y);
+    }
+    partial[st] = dot;
+  });
+  return Sum(partial);
+}
+
+void VariationalSolver::FinalResidual(int level, FlowField& flow, const cv::Mat& mask) {
+  // Residual and quality on the finest level solved (cheaper than at full
+  // resolution when finest_level > 0), quality interpolated to full size.
+  const cv::Mat& i0 = p0_[level];
+  const cv::Mat& i1 = p1_[level];
+  Warp(i1, u_, v_, warped_, &inside_);
+  cv::Mat residual(i0.size(), CV_32FC1);
+  cv::Mat valid(i0.size(), CV_8UC1);
+  const bool cont = data_ == DataModel::kContinuity;
+  if (cont) {
+    CentralGradient(u_, ux_, uy_);
+    CentralGradient(v_, vx_, vy_);
+  }
+  const bool has_mask = !pm_.empty();
+  const bool has_source = !ps_.empty() && cont;
+  double sum_after = 0, sum_before = 0;
+  for (int y = 0; y < i0.rows; ++y) {
+    const float* p0 = i0.ptr<float>(y);
+    const float* p1 = i1.ptr<float>(y);
+    const float* pw = warped_.ptr<float>(y);
+    const uchar* pin = inside_.ptr<uchar>(y);
+    const float* pm = has_mask ? pm_[level].ptr<float>(y) : nullptr;
+    const float* ps = has_source ? ps_[level].ptr<float>(y) : nullptr;
+    float* pr = residual.ptr<float>(y);
+    uchar* pv = valid.ptr<uchar>(y);
+    for (int x = 0; x < i0.cols; ++x) {
+      float r;
+      if (cont) {
+        const float jac = (1.f + ux_.ptr<float>(y)[x]) * (1.f + vy_.ptr<float>(y)[x]) -
+                          uy_.ptr<float>(y)[x] * vx_.ptr<float>(y)[x];
+        r = pw[x] * jac - p0[x];
+      } else {
+        r = pw[x] - p0[x];
+      }
+      pr[x] = r;
+      pv[x] = (pin[x] && (!pm || pm[x] >= 0.5f) && (!ps || ps[x] > 0.f)) ? 1 : 0;
+      if (pv[x]) {
+        sum_after += std::abs(r);
+        sum_before += std::abs(p1[x] - p0[x]);
+      }
+    }
+  }
+  flow.residual_ratio = sum_before > 0 ? sum_after / sum_before
+                                       : std::numeric_limits<double>::quiet_NaN();
+  if (level == 0) {
+    QualityFromResidual(residual, valid, flow.quality);
+  } else {
+    QualityFromResidual(residual, valid, quality_level_);
+    cv::resize(quality_level_, flow.quality, flow.u.size(), 0, 0, cv::INTER_LINEAR);
+  }
+  // Validity at full resolution: x + w inside the frame, inside the mask.
+  const int W = flow.u.cols, H = flow.u.rows;
+  for (int y = 0; y < H; ++y) {
+    const float* fu = flow.u.ptr<float>(y);
+    const float* fv = flow.v.ptr<float>(y);
+    uchar* out = flow.valid.ptr<uchar>(y);
+    for (int x = 0; x < W; ++x) {
+      const float px = x + fu[x], py = y + fv[x];
+      out[x] = (px >= 0.f && px <= W - 1 && py >= 0.f && py <= H - 1) ? 1 : 0;
+    }
+  }
+  ApplyMask(mask, flow.u, flow.v, flow.valid);
+}
+
+}  // namespace flow_ops
+}  // namespace qogi

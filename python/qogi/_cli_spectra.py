@@ -1,0 +1,148 @@
+"""``qogi xsec`` and ``qogi hitran ...``: the spectroscopy commands."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import pathlib
+import sys
+import time
+
+import numpy as np
+
+
+def _cutoff(text: str):
+    if text.lower() == "hapi":
+        return "hapi"
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"--cutoff must be 'hapi' or a wing half-width in cm-1; got {text!r}") from None
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"--cutoff in cm-1 must be > 0; got {text}")
+    return value
+
+
+def cmd_xsec(args: argparse.Namespace) -> int:
+    from . import _engine
+    from .spectra import cross_section, load_line_list
+
+    lo, hi = args.range
+    nu0, step, n = _engine.grid_from_range(lo, hi, args.step)
+    nu = nu0 + step * np.arange(n)
+    lines = load_line_list(args.species, args.line_list or None)
+    sigmas = []
+    t0 = time.perf_counter()
+    for t in args.temperature:
+        sigmas.append(cross_section(args.species, nu, t, args.pressure, lines, args.cutoff,
+                                    args.self_fraction))
+    dt = time.perf_counter() - t0
+    sigma = np.array(sigmas) if len(sigmas) > 1 else sigmas[0]
+    meta = {"species": args.species.upper(), "temperature_K": args.temperature,
+            "pressure_Pa": args.pressure, "self_fraction": args.self_fraction,
+            "cutoff": args.cutoff, "line_files": list(lines.sources), "lines": len(lines),
+            "units": {"nu_cm1": "cm-1", "sigma": "cm2/molecule"}}
+    print(f"{args.species}: {len(lines)} lines, {n} points {nu[0]:.4f}-{nu[-1]:.4f} cm-1, "
+          f"T = {', '.join(f'{t:g}' for t in args.temperature)} K, "
+          f"p = {args.pressure:g} Pa: peak sigma {np.max(sigma):.4e} cm2/molecule "
+          f"({dt * 1e3:.0f} ms)")
+    if args.out:
+        out = pathlib.Path(args.out)
+        if out.suffix.lower() == ".csv":
+            cols = np.column_stack([nu] + [s for s in np.atleast_2d(sigma)])
+            header = "nu_cm1," + ",".join(f"sigma_{t:g}K_cm2_per_molecule"
+                                          for t in args.temperature)
+            np.savetxt(out, cols, delimiter=",", header=header, comments="", fmt="%.10g")
+        else:
+            np.savez_compressed(out, nu_cm1=nu, sigma_cm2_per_molecule=sigma,
+                                temperature_K=np.asarray(args.temperature),
+                                meta=np.array(json.dumps(meta)))
+        print(f"wrote {out}")
+    return 0
+
+
+def cmd_hitran_list(args: argparse.Namespace) -> int:
+    from . import _engine
+    from .spectra import find_line_lists, hitran_search_path, load_line_list
+
+    print("search path (first folder holding a species' files wins):")
+    for p in hitran_search_path(args.path):
+        print(f"  {p}{'' if p.is_dir() else '  (missing)'}")
+    species = args.species or sorted({_engine.molecule_formula(i["molecule"])
+                                      for i in _engine.isotopologues()})
+    found_any = False
+    for sp in species:
+        try:
+            files = find_line_lists(sp, args.path)
+        except FileNotFoundError:
+            if args.species:
+                print(f"{sp}: no line list found")
+            continue
+        found_any = True
+        lines = load_line_list(sp, files)
+        print(f"{sp}: {len(lines)} lines in use from {len(files)} file(s), first has priority")
+        for k, f in enumerate(lines.sources):
+            print(f"  [{k + 1}] {f}")
+            for mol, iso, a, b, src in lines.coverage:
+                if src == k and _engine.molecule_formula(mol).upper() == sp.upper():
+                    print(f"      isotopologue {iso}: {a:.4f}-{b:.4f} cm-1")
+        isos, counts = np.unique(lines.isotopologue, return_counts=True)
+        print("  lines in use per isotopologue: " +
+              ", ".join(f"{i}: {c}" for i, c in zip(isos, counts)))
+    if not found_any:
+        print("no line lists found; see `qogi hitran fetch --help`")
+    return 0
+
+
+def cmd_hitran_fetch(args: argparse.Namespace) -> int:
+    from .spectra import fetch_hitran
+
+    isos = [int(v) for v in args.isotopologues.split(",")] if args.isotopologues else None
+    try:
+        path = fetch_hitran(args.species, args.range[0], args.range[1], isos, args.dir)
+    except ConnectionError as e:
+        print(f"qogi hitran fetch: {e}", file=sys.stderr)
+        return 1
+    print(f"wrote {path}")
+    return 0
+
+
+def add_commands(sub) -> None:
+    """Registers the spectroscopy commands on the CLI's subparsers."""
+    x = sub.add_parser(
+        "xsec", help="absorption cross-section of a gas from HITRAN lines",
+        description="Voigt absorption cross-section sigma(nu) [cm2/molecule] of a gas from "
+                    "its HITRAN line list (see qogi.cross_section).")
+    x.add_argument("species", help="gas formula, e.g. CH4, CO2, H2O")
+    x.add_argument("--range", nargs=2, type=float, required=True, metavar=("MIN", "MAX"),
+                   help="wavenumber range [cm-1]")
+    x.add_argument("--step", type=float, default=0.01, help="grid step [cm-1] (default 0.01)")
+    x.add_argument("--temperature", type=float, nargs="+", default=[296.0],
+                   help="gas temperature(s) [K] (default 296)")
+    x.add_argument("--pressure", type=float, default=101325.0,
+                   help="total pressure [Pa] (default 101325)")
+    x.add_argument("--self-fraction", type=float, default=0.0,
+                   help="absorber mole fraction for self-broadening (default 0)")
+    x.add_argument("--cutoff", type=_cutoff, default="hapi",
+                   help="line wings: 'hapi' (50 half-widths, default) or a half-width in cm-1")
+    x.add_argument("--line-list", nargs="+", default=None, metavar="PATH",
+                   help="line files or folders (default: the usual search path)")
+    x.add_argument("--out", help="write nu and sigma to this .npz or .csv file")
+    x.set_defaults(func=cmd_xsec)
+
+    h = sub.add_parser("hitran", help="find or download HITRAN line lists")
+    hs = h.add_subparsers(dest="hitran_command", metavar="ACTION")
+    ls = hs.add_parser("list", help="show the line lists qogi finds")
+    ls.add_argument("species", nargs="*", help="species to show (default: all with data)")
+    ls.add_argument("--path", nargs="+", default=None, help="extra folders to search first")
+    ls.set_defaults(func=cmd_hitran_list)
+    f = hs.add_parser("fetch", help="download lines from HITRANonline (needs the internet)")
+    f.add_argument("species")
+    f.add_argument("--range", nargs=2, type=float, required=True, metavar=("MIN", "MAX"),
+                   help="wavenumber range [cm-1]")
+    f.add_argument("--isotopologues", help="comma-separated local isotopologue numbers "
+                                           "(default: all qogi knows)")
+    f.add_argument("--dir", help="folder to save into (default: the per-user cache)")
+    f.set_defaults(func=cmd_hitran_fetch)
+    h.set_defaults(func=lambda a: (h.print_help(), 2)[1])
