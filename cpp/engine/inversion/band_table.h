@@ -3,7 +3,7 @@
 // T(L), each in tens of nanoseconds (SpectralResponse integrates the Planck
 // function over the whole response for every call).
 //
-// ln L(T) is a cubic spline in T on a 0.5 K grid (relative error < 1e-9 over
+// ln L(T) is a cubic spline in T on a 0.5 K grid (relative error < 1e-8 over
 // 150-700 K, tested against SpectralResponse); T(L) inverts it by Newton's
 // method from the bracketing grid interval.
 #pragma once

@@ -1,6 +1,7 @@
 #include "engine/inversion/bspline.h"
 
 #include <Eigen/Dense>
+#include <Eigen/Sparse>
 #include <algorithm>
 #include <cmath>
 #include <string>
@@ -9,29 +10,35 @@
 
 namespace qogi {
 
+struct CubicSplineAxis::Factor {
+  Eigen::SparseLU<Eigen::SparseMatrix<double>> lu;
+};
+
 CubicSplineAxis::CubicSplineAxis(int n) : n_(n) {
   Require(n == 1 || n >= 4, "a cubic spline axis needs 1 or at least 4 nodes; got " +
                                 std::to_string(n));
   if (n == 1) return;
   const int m = n + 2;
-  Eigen::MatrixXd a = Eigen::MatrixXd::Zero(m, m);
+  std::vector<Eigen::Triplet<double>> t;
   // Interpolation rows.
   for (int i = 0; i < n; ++i) {
-    a(i, i) = 1.0 / 6.0;
-    a(i, i + 1) = 4.0 / 6.0;
-    a(i, i + 2) = 1.0 / 6.0;
+    t.emplace_back(i, i, 1.0 / 6.0);
+    t.emplace_back(i, i + 1, 4.0 / 6.0);
+    t.emplace_back(i, i + 2, 1.0 / 6.0);
   }
   // Not-a-knot rows: -c_i + 4 c_{i+1} - 6 c_{i+2} + 4 c_{i+3} - c_{i+4} = 0
   // at i = 0 (knot 1) and i = n - 3 (knot n - 2).
   const double nak[5] = {-1, 4, -6, 4, -1};
   for (int k = 0; k < 5; ++k) {
-    a(n, k) = nak[k];
-    a(n + 1, n - 3 + k) = nak[k];
+    t.emplace_back(n, k, nak[k]);
+    t.emplace_back(n + 1, n - 3 + k, nak[k]);
   }
-  const Eigen::MatrixXd inv = a.fullPivLu().inverse();
-  prefilter_.resize(static_cast<std::size_t>(m) * n);
-  for (int r = 0; r < m; ++r)
-    for (int i = 0; i < n; ++i) prefilter_[r * n + i] = inv(r, i);
+  Eigen::SparseMatrix<double> a(m, m);
+  a.setFromTriplets(t.begin(), t.end());
+  auto f = std::make_shared<Factor>();
+  f->lu.compute(a);
+  Require(f->lu.info() == Eigen::Success, "cubic spline collocation matrix is singular");
+  factor_ = f;
 }
 
 void CubicSplineAxis::Prefilter(const double* f, std::ptrdiff_t fs, double* c,
@@ -40,13 +47,10 @@ void CubicSplineAxis::Prefilter(const double* f, std::ptrdiff_t fs, double* c,
     c[0] = f[0];
     return;
   }
-  const int m = n_ + 2;
-  for (int r = 0; r < m; ++r) {
-    const double* row = &prefilter_[static_cast<std::size_t>(r) * n_];
-    double v = 0;
-    for (int i = 0; i < n_; ++i) v += row[i] * f[i * fs];
-    c[r * cs] = v;
-  }
+  Eigen::VectorXd rhs = Eigen::VectorXd::Zero(n_ + 2);
+  for (int i = 0; i < n_; ++i) rhs[i] = f[i * fs];
+  const Eigen::VectorXd sol = factor_->lu.solve(rhs);
+  for (int r = 0; r < n_ + 2; ++r) c[r * cs] = sol[r];
 }
 
 namespace {

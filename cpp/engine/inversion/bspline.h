@@ -16,6 +16,7 @@
 #pragma once
 
 #include <cstddef>
+#include <memory>
 #include <vector>
 
 namespace qogi {
@@ -54,9 +55,9 @@ class CubicSplineAxis {
                         Extrapolation above = Extrapolation::kLinear) const;
 
  private:
+  struct Factor;  // sparse LU of the (n + 2) x (n + 2) collocation matrix
   int n_ = 1;
-  // (n + 2) x n matrix mapping node values to coefficients (row-major).
-  std::vector<double> prefilter_;
+  std::shared_ptr<const Factor> factor_;
 };
 
 // A one-dimensional spline over [x0, x0 + (n-1) h] holding `width` values per
@@ -80,6 +81,8 @@ class UniformSpline {
   // Value v only.
   double Value(double x, int v = 0) const;
   double Slope(double x, int v = 0) const;
+  // B-spline coefficients [coefficient * width + v] (num_nodes + 2 per value).
+  const std::vector<double>& coefficients() const { return coef_; }
 
  private:
   double x0_ = 0, h_ = 1;

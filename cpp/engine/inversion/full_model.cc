@@ -19,6 +19,9 @@ struct ContrastResidual {
     const std::size_t ns = p->num_species, nc = p->num_channels;
     std::vector<T> x(ns);
     for (std::size_t s = 0; s < ns; ++s) x[s] = params[s][0];
+    if (p->tie_ref)
+      for (std::size_t s = 0; s < ns; ++s)
+        if (p->tie_ref[s] >= 0) x[s] = p->tie_ratio[s] * params[p->tie_ref[s]][0];
     const T tp = params[ns][0];
     const T sigma = params[ns + 1][0];
     const PathT<T> path = p->model->GaussianPath<T>(x.data(), tp, p->ambient_temperature_K, sigma);

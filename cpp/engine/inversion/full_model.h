@@ -24,6 +24,8 @@ struct FullModelProblem {
   const double* upper = nullptr;
   const double* prior_mean = nullptr;   // [P]
   const double* prior_sigma = nullptr;  // [P]; 0 = no prior
+  const int* tie_ref = nullptr;       // [S] species a fraction follows (-1: none), or null
+  const double* tie_ratio = nullptr;  // [S] x_s = ratio x_ref
   int max_iterations = 50;
 };
 

@@ -6,8 +6,6 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <cstdio>
-#include <cstdlib>
 #include <string>
 
 #include "engine/inversion/full_model.h"
@@ -25,8 +23,9 @@ const double kSqrt2Pi = std::sqrt(2.0 * constants::kPi);
 void CheckSpec(const ParameterSpec& p, const std::string& name, const char* unit, double lo_limit,
                double hi_limit) {
   const int mode = static_cast<int>(p.mode);
-  Require(mode >= 0 && mode <= 2, name + ": mode must be fixed (0), free (1) or prior (2); got " +
-                                      std::to_string(mode));
+  Require(mode >= 0 && mode <= 2, name + ": mode must be fixed (0), free (1) or prior (2)" +
+                                      std::string(mode == 3 ? " (only fractions can be tied)" : "") +
+                                      "; got " + std::to_string(mode));
   CheckFinite(p.value, (name + " value").c_str());
   CheckFinite(p.lower, (name + " lower").c_str());
   CheckFinite(p.upper, (name + " upper").c_str());
@@ -64,8 +63,21 @@ void InversionOptions::Check(std::size_t ns, std::size_t nc) const {
           "fractions needs one spec per species (" + std::to_string(ns) + ") or none; got " +
               std::to_string(fractions.size()));
   for (std::size_t s = 0; s < fractions.size(); ++s) {
-    CheckSpec(fractions[s], "fractions[" + std::to_string(s) + "]", "", 0.0, 1.0);
-    CheckInRange(fractions[s].value, 0.0, 1.0, ("fractions[" + std::to_string(s) + "] value").c_str());
+    const ParameterSpec& f = fractions[s];
+    const std::string name = "fractions[" + std::to_string(s) + "]";
+    if (f.mode == ParameterMode::kTied) {
+      Require(f.tied_to >= 0 && static_cast<std::size_t>(f.tied_to) < ns && f.tied_to != static_cast<int>(s),
+              name + ": tied_to must be the index of another species (0-" + std::to_string(ns - 1) +
+                  "); got " + std::to_string(f.tied_to));
+      const ParameterMode m = fractions[f.tied_to].mode;
+      Require(m == ParameterMode::kFree || m == ParameterMode::kPrior,
+              name + ": the species it is tied to (" + std::to_string(f.tied_to) +
+                  ") must be estimated (free or prior), not fixed or tied");
+      CheckPositive(f.value, (name + " ratio (value)").c_str());
+      continue;
+    }
+    CheckSpec(f, name, "", 0.0, 1.0);
+    CheckInRange(f.value, 0.0, 1.0, (name + " value").c_str());
   }
   CheckSpec(temperature, "temperature", "K", 100.0, 2000.0);
   Require(temperature.value == 0 || (temperature.value >= 100 && temperature.value <= 2000),
@@ -85,6 +97,8 @@ void InversionOptions::Check(std::size_t ns, std::size_t nc) const {
   const int ig = static_cast<int>(initial_guess);
   Require(ig >= 0 && ig <= 3, "initial_guess must be table (0), neighbour (1), previous (2) or "
                               "given (3); got " + std::to_string(ig));
+  Require(num_starts >= 1 && num_starts <= 50,
+          "num_starts must be within [1, 50]; got " + std::to_string(num_starts));
   Require(guess_iterations >= 0 && guess_iterations <= 100,
           "guess_iterations must be within [0, 100]; got " + std::to_string(guess_iterations));
   Require(temperature_candidates >= 1 && temperature_candidates <= 50,
@@ -97,7 +111,8 @@ void InversionOptions::Check(std::size_t ns, std::size_t nc) const {
                                 std::to_string(num_threads));
   bool any = temperature.mode != ParameterMode::kFixed || sigma.mode != ParameterMode::kFixed;
   if (fractions.empty()) any = true;
-  for (const auto& f : fractions) any = any || f.mode != ParameterMode::kFixed;
+  for (const auto& f : fractions)
+    any = any || f.mode == ParameterMode::kFree || f.mode == ParameterMode::kPrior;
   Require(any, "every parameter is fixed: make at least one species' fraction, the "
                "temperature or sigma free");
 }
@@ -109,6 +124,7 @@ void InversionResult::Allocate(std::size_t n, std::size_t f, std::size_t ns) {
   const std::size_t m = n * f, np = ns + 2;
   status.assign(m, 0);
   bound_mask.assign(m, 0);
+  flags.assign(m, 0);
   parameters.assign(m * np, 0.0);
   parameter_sigma.assign(m * np, 0.0);
   covariance.assign(m * np * np, 0.0);
@@ -125,6 +141,7 @@ InversionOutput InversionResult::Output() {
   InversionOutput o;
   o.status = status.data();
   o.bound_mask = bound_mask.data();
+  o.flags = flags.data();
   o.parameters = parameters.data();
   o.parameter_sigma = parameter_sigma.data();
   o.covariance = covariance.data();
@@ -162,10 +179,32 @@ struct Inverter::Pixel {
   double nominal[kMaxParams], lower[kMaxParams], upper[kMaxParams], prior_sigma[kMaxParams];
   bool est[kMaxParams];
   double scale[kMaxParams];
+  int tie_ref[kMaxParams];      // species index this fraction follows, or -1
+  double tie_ratio[kMaxParams];
+  bool has_ties = false;
+  // x_s = ratio x_ref for tied fractions.
+  void ApplyTies(double* theta) const {
+    if (!has_ties) return;
+    for (std::size_t s = 0; s < ns; ++s)
+      if (tie_ref[s] >= 0) theta[s] = tie_ratio[s] * theta[tie_ref[s]];
+  }
+  // Moves tied fractions' Jacobian columns [c * np + p] onto their references.
+  void FoldJacobian(double* jac, std::size_t rows) const {
+    if (!has_ties) return;
+    for (std::size_t s = 0; s < ns; ++s)
+      if (tie_ref[s] >= 0)
+        for (std::size_t c = 0; c < rows; ++c) {
+          jac[c * np + tie_ref[s]] += tie_ratio[s] * jac[c * np + s];
+          jac[c * np + s] = 0.0;
+        }
+  }
   // Results.
   double theta[kMaxParams];
   PixelStatus status = PixelStatus::kFailed;
   std::uint8_t bound_mask = 0;
+  std::uint8_t flags = 0;
+  double prior_chi2 = 0;  // sum of squared prior residuals at the solution
+  double log_det = 0;     // ln det of the estimated parameters' covariance
   int iterations = 0;
   double chi2 = 0, cond = 0;
   double cov[kMaxParams * kMaxParams];
@@ -191,6 +230,7 @@ struct TableCost {
   const double* scale = nullptr;
   const double* prior_mean = nullptr;
   const double* prior_sigma = nullptr;
+  const Inverter::Pixel* px = nullptr;  // for the ties
   int active[kMaxParams];
   int na = 0;
   int priors[kMaxParams];  // parameters with a prior (estimated)
@@ -202,8 +242,10 @@ struct TableCost {
     double th[kMaxParams];
     for (std::size_t k = 0; k < np; ++k) th[k] = base[k];
     for (int j = 0; j < na; ++j) th[active[j]] = p[j] * scale[active[j]];
+    px->ApplyTies(th);
     double con[kMaxChannels], cj[kMaxChannels * kMaxParams];
     table->Contrast(th, th[ns], th[ns + 1], phi, con, jac ? cj : nullptr);
+    if (jac) px->FoldJacobian(cj, nc);
     const int nr = NumResiduals();
     for (std::size_t c = 0; c < nc; ++c) r[c] = (con[c] - y[c]) / noise[c];
     for (int k = 0; k < npr; ++k) r[nc + k] = (th[priors[k]] - prior_mean[priors[k]]) / prior_sigma[priors[k]];
@@ -230,6 +272,8 @@ struct Inverter::Workspace {
   UniformSpline curve;
   // Profile integral cache.
   double int_t = -1, int_i = 0, int_di = 0;
+  std::vector<Inverter::GuessCandidate> guesses;
+  std::vector<Inverter::Pixel> solutions;
   // Warm start of the neighbour path.
   double last_theta[kMaxParams];
   bool last_ok = false;
@@ -318,11 +362,13 @@ Inverter::Inverter(std::shared_ptr<const BinnedModel> model, std::shared_ptr<con
   // The one-unknown Newton path: one channel, one free fraction, nothing else estimated.
   int n_est = 0, which = -1;
   for (std::size_t p = 0; p < ns + 2; ++p)
-    if (specs_[p].mode != ParameterMode::kFixed) {
+    if (specs_[p].mode == ParameterMode::kFree || specs_[p].mode == ParameterMode::kPrior) {
       ++n_est;
       which = static_cast<int>(p);
     }
-  newton_ = use_table_ && nc == 1 && n_est == 1 && which < static_cast<int>(ns) &&
+  bool ties = false;
+  for (std::size_t s = 0; s < ns; ++s) ties = ties || specs_[s].mode == ParameterMode::kTied;
+  newton_ = use_table_ && nc == 1 && n_est == 1 && !ties && which < static_cast<int>(ns) &&
             specs_[which].mode == ParameterMode::kFree;
   newton_param_ = which < 0 ? 0 : static_cast<std::size_t>(which);
 }
@@ -344,11 +390,36 @@ bool Inverter::PreparePixel(const PixelBatch& b, std::size_t f, std::size_t i, P
     if (p == ns && b.peak_temperature_K) v = b.peak_temperature_K[i];
     if (p == ns + 1 && b.sigma_m) v = b.sigma_m[i];
     px->nominal[p] = v;
-    px->est[p] = sp.mode != ParameterMode::kFixed;
+    px->est[p] = sp.mode == ParameterMode::kFree || sp.mode == ParameterMode::kPrior;
     px->prior_sigma[p] = sp.mode == ParameterMode::kPrior ? sp.prior_sigma : 0.0;
     px->lower[p] = px->est[p] ? sp.lower : v;
     px->upper[p] = px->est[p] ? sp.upper : v;
     px->theta[p] = v;
+  }
+  px->has_ties = false;
+  for (std::size_t s2 = 0; s2 < ns; ++s2) {
+    px->tie_ref[s2] = -1;
+    px->tie_ratio[s2] = 0.0;
+    if (specs_[s2].mode != ParameterMode::kTied) continue;
+    px->has_ties = true;
+    px->tie_ref[s2] = specs_[s2].tied_to;
+    px->tie_ratio[s2] = specs_[s2].value;
+    px->est[s2] = false;
+    px->prior_sigma[s2] = 0.0;
+  }
+  for (std::size_t s2 = 0; s2 < ns; ++s2) {
+    const int r = px->tie_ref[s2];
+    if (r < 0) continue;
+    // The tied fraction must stay <= 1 too.
+    px->upper[r] = std::min(px->upper[r], 1.0 / px->tie_ratio[s2]);
+  }
+  for (std::size_t s2 = 0; s2 < ns; ++s2) {
+    const int r = px->tie_ref[s2];
+    if (r < 0) continue;
+    px->nominal[s2] = px->tie_ratio[s2] * px->nominal[r];
+    px->lower[s2] = px->tie_ratio[s2] * px->lower[r];
+    px->upper[s2] = px->tie_ratio[s2] * px->upper[r];
+    px->theta[s2] = px->nominal[s2];
   }
   bool ok = true;
   const double tp = px->nominal[ns], sg = px->nominal[ns + 1];
@@ -423,7 +494,7 @@ static void SmallNnls(const Eigen::MatrixXd& a, const Eigen::VectorXd& b, Eigen:
   }
 }
 
-void Inverter::TableGuess(const Pixel& px, double* theta, Workspace* ws) const {
+void Inverter::TableGuess(const Pixel& px, std::vector<GuessCandidate>* out, Workspace* ws) const {
   const std::size_t nc = px.nc, ns = px.ns, np = px.np;
   const SceneTable& t = *table_;
   std::vector<double> cands;
@@ -454,16 +525,15 @@ void Inverter::TableGuess(const Pixel& px, double* theta, Workspace* ws) const {
     return cost;
   };
   // Optically thin least squares for the free fractions at each candidate temperature.
-  struct Cand {
-    double cost;
-    double th[kMaxParams];
-  };
-  std::vector<Cand> all;
+  using Cand = GuessCandidate;
+  std::vector<Cand>& all = *out;
+  all.clear();
   for (double tc : cands) {
     Cand k;
     for (std::size_t p = 0; p < np; ++p) k.th[p] = px.nominal[p];
     k.th[ns] = tc;
     for (int s : free_s) k.th[s] = 0.0;
+    px.ApplyTies(k.th);
     if (!free_s.empty()) {
       double con[kMaxChannels];
       t.Contrast(k.th, tc, sigma, px.phi, con, nullptr);  // the fixed species
@@ -471,8 +541,13 @@ void Inverter::TableGuess(const Pixel& px, double* theta, Workspace* ws) const {
       Eigen::VectorXd b(nc);
       for (std::size_t c = 0; c < nc; ++c) {
         b[c] = (px.y[c] - con[c]) / px.noise[c];
-        for (std::size_t j = 0; j < free_s.size(); ++j)
-          a(c, j) = t.ThinSlope(c, free_s[j], tc, px.phi) / px.noise[c];
+        for (std::size_t j = 0; j < free_s.size(); ++j) {
+          double slope = t.ThinSlope(c, free_s[j], tc, px.phi);
+          for (std::size_t s2 = 0; s2 < ns; ++s2)  // tied species follow (u_s2 = ratio u)
+            if (px.tie_ref[s2] == free_s[j])
+              slope += px.tie_ratio[s2] * t.ThinSlope(c, s2, tc, px.phi);
+          a(c, j) = slope / px.noise[c];
+        }
       }
       Eigen::VectorXd u;
       SmallNnls(a, b, &u);
@@ -480,17 +555,17 @@ void Inverter::TableGuess(const Pixel& px, double* theta, Workspace* ws) const {
         const int s = free_s[j];
         k.th[s] = std::min(std::max(u[j] / sigma, px.lower[s]), px.upper[s]);
       }
+      px.ApplyTies(k.th);
     }
     k.cost = chi2_of(k.th);
     all.push_back(k);
   }
-  std::sort(all.begin(), all.end(), [](const Cand& a, const Cand& b) { return a.cost < b.cost; });
-  if (std::getenv("QDBG")) for (auto& k : all) std::printf("  cand T %.1f x %.3g %.3g cost %.3g\n", k.th[ns], k.th[0], k.th[1], k.cost);
   // The thin limit underestimates optically thick columns: refine the
   // fractions of every candidate by a few Levenberg-Marquardt iterations with
   // the temperature held (a coarse profile of chi2 over T_peak); keep the best.
   if (!free_s.empty()) {
     TableCost cost;
+    cost.px = &px;
     cost.table = &t;
     cost.nc = nc;
     cost.ns = ns;
@@ -528,24 +603,24 @@ void Inverter::TableGuess(const Pixel& px, double* theta, Workspace* ws) const {
         const int s = cost.active[j];
         r.th[s] = std::min(std::max(v[j] * scale[s], px.lower[s]), px.upper[s]);
       }
+      px.ApplyTies(r.th);
       r.cost = chi2_of(r.th);
       if (r.cost < cd.cost) cd = r;
     }
-    std::sort(all.begin(), all.end(), [](const Cand& a, const Cand& b) { return a.cost < b.cost; });
   }
-  if (std::getenv("QDBG")) for (auto& k : all) std::printf("  refined T %.1f x %.3g %.3g cost %.3g\n", k.th[ns], k.th[0], k.th[1], k.cost);
-  for (std::size_t p = 0; p < np; ++p) theta[p] = all.front().th[p];
+  std::sort(all.begin(), all.end(), [](const Cand& a, const Cand& b) { return a.cost < b.cost; });
 }
 
 // Gradient g = J^T r of chi2/2 and Gauss-Newton matrix H = J^T J over all
 // parameters (noise-normalised residuals and priors) at theta.
-static void TableNormalEquations(const SceneTable& t, const double* y, const double* noise,
-                          const double* phi, const double* prior_mean, const double* prior_sigma,
-                          const bool* est, std::size_t nc, std::size_t ns, const double* theta,
-                          Eigen::Matrix<double, Eigen::Dynamic, 1>* g, Eigen::MatrixXd* h,
-                          double* con, double* cj) {
-  const std::size_t np = ns + 2;
-  t.Contrast(theta, theta[ns], theta[ns + 1], phi, con, cj);
+static void TableNormalEquations(const SceneTable& t, const Inverter::Pixel& px,
+                                 const double* theta, Eigen::VectorXd* g, Eigen::MatrixXd* h,
+                                 double* con, double* cj) {
+  const std::size_t nc = px.nc, ns = px.ns, np = ns + 2;
+  const double *y = px.y, *noise = px.noise, *prior_mean = px.nominal, *prior_sigma = px.prior_sigma;
+  const bool* est = px.est;
+  t.Contrast(theta, theta[ns], theta[ns + 1], px.phi, con, cj);
+  px.FoldJacobian(cj, nc);
   g->setZero(np);
   h->setZero(np, np);
   for (std::size_t c = 0; c < nc; ++c) {
@@ -594,7 +669,9 @@ void Inverter::SolveTable(Pixel* px, const double* start, Workspace* ws) const {
     theta[p] = px->est[p] ? std::min(std::max(start[p], px->lower[p]), px->upper[p]) : px->nominal[p];
     if (p < ns && px->est[p]) px->scale[p] = std::max(theta[p], 1e-6);
   }
+  px->ApplyTies(theta);
   TableCost cost;
+  cost.px = px;
   cost.table = &t;
   cost.nc = nc;
   cost.ns = ns;
@@ -610,7 +687,7 @@ void Inverter::SolveTable(Pixel* px, const double* start, Workspace* ws) const {
     if (px->est[p] && px->prior_sigma[p] > 0) cost.priors[cost.npr++] = static_cast<int>(p);
   ceres::TinySolver<TableCost>& solver = ws->solver;
   solver.options.max_num_iterations = options_.max_iterations;
-  solver.options.function_tolerance = 0.1 * options_.tolerance_chi2;
+  solver.options.function_tolerance = 1e-9;
   solver.options.parameter_tolerance = 1e-10;
   solver.options.gradient_tolerance = 1e-12;
   const double tol = options_.tolerance_chi2;
@@ -633,9 +710,9 @@ void Inverter::SolveTable(Pixel* px, const double* start, Workspace* ws) const {
       for (int j = 0; j < cost.na; ++j) v[j] = theta[cost.active[j]] / px->scale[cost.active[j]];
       const auto& summary = solver.Solve(cost, &v);
       iters += std::max(summary.iterations, 0);
-      if (std::getenv("QDBG")) { std::printf("outer %d na %d held %d status %d iters %d cost %.3e->%.3e :", outer, cost.na, held, (int)summary.status, summary.iterations, summary.initial_cost, summary.final_cost); for (int j=0;j<cost.na;++j) std::printf(" %.6g", v[j]*px->scale[cost.active[j]]); std::printf("\n"); }
       if (!v.allFinite()) break;
       for (int j = 0; j < cost.na; ++j) next[cost.active[j]] = v[j] * px->scale[cost.active[j]];
+      px->ApplyTies(next);
     }
     // Cut the step at the first bound it crosses and hold that parameter there.
     double alpha = 1.0;
@@ -668,14 +745,14 @@ void Inverter::SolveTable(Pixel* px, const double* start, Workspace* ws) const {
                             px->upper[p]);
       }
       theta[hit] = hit_value;
+      px->ApplyTies(theta);
       held |= static_cast<std::uint8_t>(1u << hit);
       continue;
     }
     for (std::size_t p = 0; p < np; ++p) theta[p] = next[p];
     // Stationarity: release the held parameter whose multiplier points back
     // inside with the largest predicted gain; else check convergence.
-    TableNormalEquations(t, px->y, px->noise, px->phi, px->nominal, px->prior_sigma, px->est, nc,
-                         ns, theta, &g, &h, con, cj);
+    TableNormalEquations(t, *px, theta, &g, &h, con, cj);
     std::vector<int> free_set;
     for (int j = 0; j < cost.na; ++j) free_set.push_back(cost.active[j]);
     const double base = PredictedDecrease(g, h, free_set);
@@ -740,8 +817,17 @@ void Inverter::Columns(Pixel* px, Workspace* ws) const {
   }
 }
 
-void Inverter::FinishWith(Pixel* px, const double* con, const double* jac, Workspace* ws) const {
-  const std::size_t nc = px->nc, np = px->np;
+void Inverter::FinishWith(Pixel* px, const double* con, const double* jac_in, Workspace* ws) const {
+  const std::size_t nc = px->nc, np = px->np, ns = px->ns;
+  px->prior_chi2 = 0;
+  for (std::size_t p = 0; p < np; ++p)
+    if (px->est[p] && px->prior_sigma[p] > 0) {
+      const double r = (px->theta[p] - px->nominal[p]) / px->prior_sigma[p];
+      px->prior_chi2 += r * r;
+    }
+  double jac[kMaxChannels * kMaxParams];
+  std::copy(jac_in, jac_in + nc * np, jac);
+  px->FoldJacobian(jac, nc);
   px->chi2 = 0;
   for (std::size_t c = 0; c < nc; ++c) {
     const double r = (con[c] - px->y[c]) / px->noise[c];
@@ -784,12 +870,23 @@ void Inverter::FinishWith(Pixel* px, const double* con, const double* jac, Works
     }
     const Eigen::MatrixXd& v = svd.matrixV();
     const Eigen::MatrixXd covn = v * inv2.asDiagonal() * v.transpose();
+    px->log_det = 0;
+    for (int k = 0; k < ne; ++k) px->log_det += std::log(inv2[k]) - 2.0 * std::log(d[k]);
     for (int a = 0; a < ne; ++a)
       for (int b = 0; b < ne; ++b)
         px->cov[est[a] * np + est[b]] = covn(a, b) / (d[a] * d[b]);
     for (int a = 0; a < ne; ++a) {
       const int p = est[a];
       px->psig[p] = std::min(std::sqrt(std::max(px->cov[p * np + p], 0.0)), px->upper[p] - px->lower[p]);
+    }
+    // Tied fractions: x_s = ratio x_ref.
+    for (std::size_t s = 0; s < ns; ++s) {
+      const int r = px->tie_ref[s];
+      if (r < 0) continue;
+      const double k = px->tie_ratio[s];
+      for (std::size_t q = 0; q < np; ++q) px->cov[s * np + q] = k * px->cov[r * np + q];
+      for (std::size_t q = 0; q < np; ++q) px->cov[q * np + s] = k * px->cov[q * np + r];
+      px->psig[s] = k * px->psig[r];
     }
   } else {
     px->cond = 1.0;
@@ -815,6 +912,7 @@ void Inverter::FillBelowDetection(Pixel* px, Workspace* ws) const {
   const std::size_t nc = px->nc, ns = px->ns, np = px->np;
   px->status = PixelStatus::kBelowDetection;
   for (std::size_t p = 0; p < np; ++p) px->theta[p] = (p < ns && px->est[p]) ? 0.0 : px->nominal[p];
+  px->ApplyTies(px->theta);
   std::fill(px->cov, px->cov + np * np, 0.0);
   std::fill(px->psig, px->psig + np, 0.0);
   px->chi2 = 0;
@@ -823,9 +921,10 @@ void Inverter::FillBelowDetection(Pixel* px, Workspace* ws) const {
   px->bound_mask = 0;
   Columns(px, ws);
   // Noise-equivalent column (1 sigma) of each estimated species in the thin
-  // limit: the column whose contrast equals the noise, combined over channels.
+  // limit: the column whose contrast equals the noise, combined over
+  // channels (tied species contribute to their reference's signal).
   const double tp = px->theta[ns], sg = px->theta[ns + 1];
-  double thin[kMaxChannels * kMaxParams];
+  double thin[kMaxChannels * kMaxParams];  // [c * ns + s] d(Delta L)/du_s
   if (use_table_) {
     for (std::size_t c = 0; c < nc; ++c)
       for (std::size_t s = 0; s < ns; ++s) thin[c * ns + s] = table_->ThinSlope(c, s, tp, px->phi);
@@ -833,7 +932,7 @@ void Inverter::FillBelowDetection(Pixel* px, Workspace* ws) const {
     double th[kMaxParams], con[kMaxChannels], jac[kMaxChannels * kMaxParams];
     for (std::size_t p = 0; p < np; ++p) th[p] = px->theta[p];
     for (std::size_t s = 0; s < ns; ++s)
-      if (px->est[s]) th[s] = 1e-9;
+      if (px->est[s] || px->tie_ref[s] >= 0) th[s] = 1e-9;
     FullModelContrast(*model_, t_amb_, th, px->tbg, con, jac);
     for (std::size_t c = 0; c < nc; ++c)
       for (std::size_t s = 0; s < ns; ++s) thin[c * ns + s] = jac[c * np + s] / sg;
@@ -845,7 +944,9 @@ void Inverter::FillBelowDetection(Pixel* px, Workspace* ws) const {
     const double k = column_factor_[s];
     double sc = 0, sp = 0;
     for (std::size_t c = 0; c < nc; ++c) {
-      const double g = thin[c * ns + s];  // d(Delta L)/du
+      double g = thin[c * ns + s];
+      for (std::size_t s2 = 0; s2 < ns; ++s2)
+        if (px->tie_ref[s2] == static_cast<int>(s)) g += px->tie_ratio[s2] * thin[c * ns + s2];
       const double dc = g / (k * ws->int_i) / px->noise[c];
       const double dp = g / (1e6 * kSqrt2Pi) / px->noise[c];
       sc += dc * dc;
@@ -855,6 +956,11 @@ void Inverter::FillBelowDetection(Pixel* px, Workspace* ws) const {
     const double cap_p = 1e6 * kSqrt2Pi * px->upper[s] * px->upper[ns + 1];
     px->col_sig[s] = sc > 0 ? std::min(1.0 / std::sqrt(sc), cap_c) : cap_c;
     px->ppm_sig[s] = sp > 0 ? std::min(1.0 / std::sqrt(sp), cap_p) : cap_p;
+    for (std::size_t s2 = 0; s2 < ns; ++s2)
+      if (px->tie_ref[s2] == static_cast<int>(s)) {
+        px->col_sig[s2] = px->tie_ratio[s2] * column_factor_[s2] / k * px->col_sig[s];
+        px->ppm_sig[s2] = px->tie_ratio[s2] * px->ppm_sig[s];
+      }
   }
 }
 
@@ -1001,7 +1107,9 @@ void Inverter::FullModelGuess(const Pixel& px, double* theta) const {
       free_s.push_back(static_cast<int>(s));
       th[s] = 1e-9;
     }
+  px.ApplyTies(th);
   FullModelContrast(*model_, t_amb_, th, px.tbg, con, jac);
+  px.FoldJacobian(jac, nc);
   for (std::size_t p = 0; p < np; ++p) theta[p] = px.nominal[p];
   if (free_s.empty()) return;
   Eigen::MatrixXd a(nc, free_s.size());
@@ -1016,6 +1124,7 @@ void Inverter::FullModelGuess(const Pixel& px, double* theta) const {
     const int s = free_s[k];
     theta[s] = std::min(std::max(u[k] + 1e-9, std::max(px.lower[s], 1e-7)), px.upper[s]);
   }
+  px.ApplyTies(theta);
 }
 
 void Inverter::SolveFull(Pixel* px, const double* start, Workspace* ws) const {
@@ -1048,10 +1157,13 @@ void Inverter::SolveFull(Pixel* px, const double* start, Workspace* ws) const {
   fp.upper = px->upper;
   fp.prior_mean = px->nominal;
   fp.prior_sigma = px->prior_sigma;
+  fp.tie_ref = px->tie_ref;
+  fp.tie_ratio = px->tie_ratio;
   fp.max_iterations = options_.max_iterations;
   int it = 0;
   const bool ok = SolveFullModel(fp, theta, &it);
   px->iterations += it;
+  px->ApplyTies(theta);
   for (std::size_t p = 0; p < np; ++p) px->theta[p] = theta[p];
   if (!ok || !std::all_of(theta, theta + np, [](double v) { return std::isfinite(v); })) {
     px->status = PixelStatus::kFailed;
@@ -1070,10 +1182,71 @@ void Inverter::SolveFull(Pixel* px, const double* start, Workspace* ws) const {
   FinishWith(px, con, jac, ws);
 }
 
+bool Inverter::SecondStart(const std::vector<GuessCandidate>& cands, const Pixel& px,
+                           double* theta) const {
+  const std::size_t ns = px.ns, np = px.np;
+  if (!px.est[ns] || cands.size() < 3) return false;
+  // The profile in order of temperature; its local minima.
+  std::vector<const GuessCandidate*> by_t;
+  for (const auto& c : cands) by_t.push_back(&c);
+  std::sort(by_t.begin(), by_t.end(), [&](const GuessCandidate* a, const GuessCandidate* b) {
+    return a->th[ns] < b->th[ns];
+  });
+  const double best_t = cands.front().th[ns];
+  std::size_t ib = 0;
+  for (std::size_t i = 0; i < by_t.size(); ++i)
+    if (by_t[i]->th[ns] == best_t) ib = i;
+  const GuessCandidate* pick = nullptr;
+  for (std::size_t i = 0; i < by_t.size(); ++i) {
+    if (i + 1 >= ib && i <= ib + 1) continue;  // the best one and its neighbours
+    const double c = by_t[i]->cost;
+    const bool lmin = (i == 0 || c < by_t[i - 1]->cost) && (i + 1 == by_t.size() || c < by_t[i + 1]->cost);
+    if (lmin && (!pick || c < pick->cost)) pick = by_t[i];
+  }
+  if (!pick || pick->cost > cands.front().cost + 100.0) return false;
+  std::copy(pick->th, pick->th + np, theta);
+  return true;
+}
+
+void Inverter::MergeModes(Pixel* a, const Pixel& b) const {
+  const std::size_t ns = a->ns, np = a->np;
+  // The same minimum reached twice?
+  bool distinct = false;
+  for (std::size_t p = 0; p < np; ++p) {
+    if (!a->est[p]) continue;
+    const double s = std::sqrt(a->psig[p] * a->psig[p] + b.psig[p] * b.psig[p]);
+    if (std::abs(a->theta[p] - b.theta[p]) > 0.5 * s) distinct = true;
+  }
+  if (!distinct) return;
+  const double da = a->chi2 + a->prior_chi2, db = b.chi2 + b.prior_chi2;
+  if (db - da < 4.0) a->flags |= kFlagAmbiguous;
+  // The two minima weighted by their likelihoods exp(-chi2 / 2).
+  const double lw = -0.5 * (db - da);
+  if (lw < -40) return;
+  const double wb = 1.0 / (1.0 + std::exp(-lw)), wa = 1.0 - wb;
+  auto spread = [&](double sa, double sb, double va, double vb) {
+    return std::sqrt(wa * sa * sa + wb * (sb * sb + (vb - va) * (vb - va)));
+  };
+  double d[kMaxParams];
+  for (std::size_t p = 0; p < np; ++p) d[p] = b.theta[p] - a->theta[p];
+  for (std::size_t i = 0; i < np; ++i)
+    for (std::size_t j = 0; j < np; ++j)
+      a->cov[i * np + j] = wa * a->cov[i * np + j] + wb * (b.cov[i * np + j] + d[i] * d[j]);
+  for (std::size_t p = 0; p < np; ++p)
+    if (a->est[p] || (p < ns && a->tie_ref[p] >= 0))
+      a->psig[p] = std::min(spread(a->psig[p], b.psig[p], a->theta[p], b.theta[p]),
+                            std::max(a->upper[p] - a->lower[p], a->psig[p]));
+  for (std::size_t s = 0; s < ns; ++s) {
+    a->col_sig[s] = spread(a->col_sig[s], b.col_sig[s], a->col[s], b.col[s]);
+    a->ppm_sig[s] = spread(a->ppm_sig[s], b.ppm_sig[s], a->ppm[s], b.ppm[s]);
+  }
+}
+
 void Inverter::WritePixel(const Pixel& px, const InversionOutput& o, std::size_t idx) const {
   const std::size_t ns = px.ns, np = px.np;
   o.status[idx] = static_cast<std::uint8_t>(px.status);
   if (o.bound_mask) o.bound_mask[idx] = px.bound_mask;
+  if (o.flags) o.flags[idx] = px.flags;
   if (o.parameters) std::copy(px.theta, px.theta + np, o.parameters + idx * np);
   if (o.parameter_sigma) std::copy(px.psig, px.psig + np, o.parameter_sigma + idx * np);
   if (o.covariance) std::copy(px.cov, px.cov + np * np, o.covariance + idx * np * np);
@@ -1152,17 +1325,48 @@ void Inverter::InvertRow(const PixelBatch& b, const InversionOutput& out, std::s
         SolveNewton(&px, ws);
       } else if (use_table_) {
         const Pixel fresh = px;
-        if (!warm) TableGuess(px, start, ws);
-        SolveTable(&px, start, ws);
-        // A warm start that fails or fits badly is retried from the table guess.
-        if (warm && (!px.solved() || px.chi2 > 9.0 * nc)) {
-          Pixel alt = fresh;
-          double s2[kMaxParams];
-          TableGuess(alt, s2, ws);
-          SolveTable(&alt, s2, ws);
-          alt.iterations += px.iterations;
-          if (alt.solved() && (!px.solved() || alt.chi2 < px.chi2)) px = alt;
-          else px.iterations = alt.iterations;
+        auto cold = [&](Pixel* out) {
+          // Full solves from the coarse profile's best candidates; the best
+          // fit is kept and a distinct second minimum widens the uncertainty.
+          TableGuess(*out, &ws->guesses, ws);
+          const Pixel base = *out;
+          const std::size_t starts =
+              std::min<std::size_t>(ws->guesses.size(), static_cast<std::size_t>(options_.num_starts));
+          int total = 0;
+          std::vector<Pixel>& sol = ws->solutions;
+          sol.assign(starts, base);
+          for (std::size_t k = 0; k < starts; ++k) {
+            SolveTable(&sol[k], ws->guesses[k].th, ws);
+            total += sol[k].iterations;
+          }
+          std::size_t best = 0;
+          for (std::size_t k = 1; k < starts; ++k)
+            if (sol[k].solved() && (!sol[best].solved() || sol[k].chi2 + sol[k].prior_chi2 <
+                                                           sol[best].chi2 + sol[best].prior_chi2))
+              best = k;
+          *out = sol[best];
+          if (out->solved()) {
+            // The best other minimum (distinct from the best one), if any.
+            for (std::size_t k = 0; k < starts; ++k) {
+              if (k == best || !sol[k].solved()) continue;
+              MergeModes(out, sol[k]);
+              if (out->flags & kFlagAmbiguous) break;
+            }
+          }
+          out->iterations = total;
+        };
+        if (warm) {
+          SolveTable(&px, start, ws);
+          // A warm start that fails or fits badly is retried cold.
+          if (!px.solved() || px.chi2 > 9.0 * nc) {
+            Pixel alt = fresh;
+            cold(&alt);
+            alt.iterations += px.iterations;
+            if (alt.solved() && (!px.solved() || alt.chi2 < px.chi2)) px = alt;
+            else px.iterations = alt.iterations;
+          }
+        } else {
+          cold(&px);
         }
       } else {
         SolveFull(&px, warm ? start : nullptr, ws);

@@ -9,13 +9,18 @@
 // optionally widened by a relative model error, plus one residual
 // (theta - mean) / prior_sigma per Gaussian prior. Which parameters are
 // estimated is set per parameter: fixed, free within bounds, or free with a
-// Gaussian prior. The typical modes:
+// Gaussian prior, or (fractions) tied to another species' fraction by a known
+// ratio (a known composition, e.g. a 50/50 CH4/CO2 release). The typical modes:
 //   single channel: one species' peak fraction free, T_peak fixed (ambient by
 //     default) and sigma fixed (given, or from the plume width);
 //   multichannel: the species' fractions and T_peak free, sigma fixed or with
 //     a prior (a free sigma is nearly degenerate with the fractions: without
 //     self-broadening the radiance depends on x_i and sigma only through
-//     x_i sigma; the column densities stay well determined either way).
+//     x_i sigma; the column densities stay well determined either way). The
+//     peak temperature is then measured only through the bands' shapes and is
+//     weakly determined; a known composition (tied fractions) lets the
+//     ratio of different bands' contrasts measure it (Planck's law differs
+//     between bands).
 //
 // Solvers. The default fast path evaluates the per-scene table (SceneTable)
 // and solves with Ceres' TinySolver (Levenberg-Marquardt on parameters scaled
@@ -57,14 +62,16 @@ enum class ParameterMode : int {
   kFixed = 0,  // held at `value` (or the per-pixel array)
   kFree = 1,   // estimated within [lower, upper]
   kPrior = 2,  // estimated within [lower, upper] with a Gaussian prior N(value, prior_sigma^2)
+  kTied = 3,   // fractions only: x = value * x[tied_to] (a known composition ratio)
 };
 
 struct ParameterSpec {
   ParameterMode mode = ParameterMode::kFixed;
-  double value = 0.0;        // fixed value, prior mean, or start value when free (unit of the parameter)
+  double value = 0.0;        // fixed value, prior mean, start value when free, or the ratio when tied
   double prior_sigma = 0.0;  // 1-sigma width of the prior (kPrior; > 0), same unit
   double lower = 0.0;        // lower bound (same unit)
   double upper = 0.0;        // upper bound (> lower)
+  int tied_to = -1;          // kTied: index of the (estimated) species this fraction follows
 };
 
 enum class InitialGuess : int {
@@ -99,12 +106,16 @@ struct InversionOptions {
   double model_error_fraction = 0.0;
   int max_iterations = 100;  // solver iterations per solve (>= 1). Default 100
   // A solve has converged when a Gauss-Newton step from its end would lower
-  // chi2 by less than this (the parameters are then within ~sqrt(tolerance)
-  // standard deviations of the optimum). Default 1e-4, within [1e-12, 1].
-  double tolerance_chi2 = 1e-4;
+  // chi2 by less than this: the parameters are then within ~sqrt(tolerance)
+  // standard deviations of the optimum (0.1 sigma at the default), far below
+  // the noise. Default 0.01, within [1e-12, 1].
+  double tolerance_chi2 = 0.01;
   InitialGuess initial_guess = InitialGuess::kTable;  // default kTable
   int temperature_candidates = 5;  // T_peak candidates of the table guess when T_peak is estimated, 1-50. Default 5
   int guess_iterations = 3;  // fraction refinements per candidate of the table guess, 0-100. Default 3
+  // Full solves from the best candidates of the table guess (the best fit is
+  // kept; a distinct second minimum within chi2 + 4 widens the uncertainty), 1-50. Default 3
+  int num_starts = 3;
   SolverKind solver = SolverKind::kAuto;  // default kAuto
   int num_threads = 0;  // threads over pixels; 0 = all cores
   // Validates against the model; throws std::invalid_argument.
@@ -154,12 +165,17 @@ struct InversionOutput {
   double* chi2 = nullptr;                    // sum of squared normalised channel residuals
   double* condition_number = nullptr;        // of the column-normalised residual Jacobian
   std::int32_t* iterations = nullptr;        // solver iterations (all solves)
+  // Bit 0 (kFlagAmbiguous): a second, distinct solution fits the pixel within
+  // chi2 + 4 of the reported one; the reported uncertainties then include the
+  // spread between the solutions (see Inverter::MergeModes).
+  std::uint8_t* flags = nullptr;
 };
+constexpr std::uint8_t kFlagAmbiguous = 1;
 
 // Owned result arrays (C++ convenience); Output() points into them.
 struct InversionResult {
   std::size_t num_pixels = 0, num_frames = 1, num_species = 0;
-  std::vector<std::uint8_t> status, bound_mask;
+  std::vector<std::uint8_t> status, bound_mask, flags;
   std::vector<double> parameters, parameter_sigma, covariance, column_density,
       column_density_sigma, path_concentration, path_concentration_sigma, chi2, condition_number;
   std::vector<std::int32_t> iterations;
@@ -198,9 +214,12 @@ class Inverter {
   void Invert(const PixelBatch& batch, const InversionOutput& out,
               const RunControl* control = nullptr) const;
 
- private:
+ public:
+  // Implementation details (per-pixel state and per-thread scratch).
   struct Workspace;
   struct Pixel;
+
+ private:
   void InvertRow(const PixelBatch& batch, const InversionOutput& out, std::size_t begin,
                  std::size_t end, Workspace* ws) const;
   bool PreparePixel(const PixelBatch& batch, std::size_t frame, std::size_t pixel,
@@ -208,7 +227,18 @@ class Inverter {
   void SolveTable(Pixel* px, const double* start, Workspace* ws) const;
   void SolveNewton(Pixel* px, Workspace* ws) const;
   void SolveFull(Pixel* px, const double* start, Workspace* ws) const;
-  void TableGuess(const Pixel& px, double* theta, Workspace* ws) const;
+  struct GuessCandidate {
+    double cost;              // chi2 (with priors) of the candidate
+    double th[8];             // parameters
+  };
+  // Coarse lookup: per candidate peak temperature, the optically thin least
+  // squares for the fractions, refined by a few iterations; sorted by cost.
+  void TableGuess(const Pixel& px, std::vector<GuessCandidate>* candidates, Workspace* ws) const;
+  // A second start from the profile's other local minimum, if any.
+  bool SecondStart(const std::vector<GuessCandidate>& candidates, const Pixel& px,
+                   double* theta) const;
+  // Combines two solutions of one pixel (two minima).
+  void MergeModes(Pixel* best, const Pixel& other) const;
   void FullModelGuess(const Pixel& px, double* theta) const;
   // Covariance, uncertainties and column densities from the contrast and
   // its Jacobian [c * P + p] at the solution px->theta.

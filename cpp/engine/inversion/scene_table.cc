@@ -7,6 +7,7 @@
 #include <random>
 #include <string>
 
+#include "engine/inversion/march_kernel.h"
 #include "engine/optics/planck.h"
 #include "engine/util/check.h"
 
@@ -26,6 +27,9 @@ void SceneTableOptions::Check() const {
   CheckInRange(min_background_K, 50.0, 2000.0, "min_background_K", "K");
   CheckInRange(max_background_K, min_background_K + 10.0, 2000.0, "max_background_K", "K");
   CheckInRange(planck_tolerance, 1e-14, 1e-4, "planck_tolerance");
+  Require(num_nodes == 0 || (num_nodes >= 5 && num_nodes <= 10001 && num_nodes % 2 == 1),
+          "num_nodes must be 0 (the model's) or odd within [5, 10001]; got " +
+              std::to_string(num_nodes));
   Require(num_threads >= 0, "num_threads must be >= 0 (0 = all cores); got " +
                                 std::to_string(num_threads));
 }
@@ -157,7 +161,7 @@ SceneTable::SceneTable(std::shared_ptr<const BinnedModel> model, SceneTableOptio
         if (m.BinAbsorbs(c, s, q)) bins_of[c * ns_ + s].push_back(q);
       if (bins_of[c * ns_ + s].empty()) continue;
       for (double temp = tmin; temp <= tmax + 1e-9; temp += (tmax - tmin) / 40.0) {
-        m.BinCrossSections<double>(c, s, temp, air.data(), m.has_self(s) ? self.data() : nullptr);
+        m.BinCrossSections(c, s, temp, air.data(), m.has_self(s) ? self.data() : nullptr);
         for (std::size_t q : bins_of[c * ns_ + s]) {
           kmax = std::max(kmax, air[q]);
           if (m.has_self(s)) kmax = std::max(kmax, self[q]);
@@ -187,6 +191,7 @@ SceneTable::SceneTable(std::shared_ptr<const BinnedModel> model, SceneTableOptio
   const int n_bg = std::max(4, static_cast<int>(std::ceil(
                                    (options_.max_background_K - options_.min_background_K) / 0.5)) + 1);
   const double h_bg = (options_.max_background_K - options_.min_background_K) / (n_bg - 1);
+  h_bg_ = h_bg;
   for (std::size_t c = 0; c < nc_; ++c) {
     const BinnedModel::BinView bv = m.bins(c);
     for (std::size_t s = 0; s < ns_; ++s) {
@@ -289,7 +294,7 @@ void SceneTable::BuildTable(Table* t, const std::vector<std::size_t>& bins, doub
   const std::size_t c = t->channel, s = t->species;
   const BinnedModel::BinView bv = m.bins(c);
   const std::size_t nq_all = bv.num_bins, nb = bins.size();
-  const int nn = m.options().num_nodes;
+  const int nn = options_.num_nodes > 0 ? options_.num_nodes : m.options().num_nodes;
   const double z_max = m.options().z_max;
   const double dz = 2 * z_max / (nn - 1);
   const bool rich = m.options().richardson && nn >= 5 && nn % 2 == 1;
@@ -308,8 +313,8 @@ void SceneTable::BuildTable(Table* t, const std::vector<std::size_t>& bins, doub
     g[k] = std::exp(-0.5 * z * z);
     const double temp = t_amb + (t_peak - t_amb) * g[k];
     ng[k] = NumberDensityCm3(m.pressure_Pa(), temp) * 100.0 * g[k];
-    m.BinCrossSections<double>(c, s, temp, air_all.data(), self ? self_all.data() : nullptr);
-    m.MeanPlanck<double>(c, temp, b_all.data());
+    m.BinCrossSections(c, s, temp, air_all.data(), self ? self_all.data() : nullptr);
+    m.MeanPlanck(c, temp, b_all.data());
     for (std::size_t j = 0; j < nb; ++j) {
       air[k * nb + j] = air_all[bins[j]];
       if (self) slf[k * nb + j] = self_all[bins[j]];
@@ -338,28 +343,67 @@ void SceneTable::BuildTable(Table* t, const std::vector<std::size_t>& bins, doub
     }
   }
 
+  // Bins in decreasing order of absorption (air, and self when present), so
+  // that at each u the bins still optically thin form a suffix.
+  {
+    std::vector<double> strength(nb, 0.0);
+    for (int k = 0; k < nn; ++k)
+      for (std::size_t j = 0; j < nb; ++j)
+        strength[j] += ng[k] * std::max(air[k * nb + j], self ? slf[k * nb + j] : 0.0);
+    std::vector<std::size_t> order(nb);
+    for (std::size_t j = 0; j < nb; ++j) order[j] = j;
+    std::stable_sort(order.begin(), order.end(),
+                     [&](std::size_t a, std::size_t b) { return strength[a] > strength[b]; });
+    auto permute = [&](std::vector<double>* v, std::size_t width) {
+      if (v->empty()) return;
+      std::vector<double> out(v->size());
+      const std::size_t rows = v->size() / (nb * width);
+      for (std::size_t row = 0; row < rows; ++row)
+        for (std::size_t j = 0; j < nb; ++j)
+          for (std::size_t w = 0; w < width; ++w)
+            out[(row * nb + j) * width + w] = (*v)[(row * nb + order[j]) * width + w];
+      v->swap(out);
+    };
+    permute(&air, 1);
+    permute(&slf, 1);
+    permute(&bbar, 1);
+    permute(&weight, 1);
+    permute(&proj, rank);
+  }
+
   // The march of march.h for D = Bbar(T(s)) (emission E) and D = 1
-  // (absorptance), which share each layer's optical depth, vectorised over bins.
-  using Arr = Eigen::ArrayXd;
-  using CMap = Eigen::Map<const Arr>;
+  // (absorptance), which share each layer's optical depth (march_kernel.h).
   std::vector<double> phi_tp(rank), dphi_tp(rank);
   Phi(*t, t_peak, phi_tp.data(), dphi_tp.data());
-  std::vector<double> kap(static_cast<std::size_t>(nn) * nb);
-  Arr dle(nb), dla(nb), dlec(nb), dlac(nb), tau(nb), e(nb), f(nb), tr(nb), kf(nb), kn(nb), dd(nb);
-  const int nx = t->nx;
-  auto layer = [&](Arr* de, Arr* da, const double* kfar, const double* knear, const double* dfar,
-                   const double* dnear, double u, double ds) {
-    kf = u * CMap(kfar, nb);
-    kn = u * CMap(knear, nb);
-    tau = 0.5 * (kf + kn) * ds;
-    e = (-tau).exp();
-    f = (tau < 1e-4).select(1.0 - tau * (0.5 - tau * (1.0 / 6.0)), (1.0 - e) / tau);
-    tr = 1.0 - tau * f;
-    const CMap dn(dnear, nb);
-    dd = CMap(dfar, nb) - dn;
-    *de = *de * tr + dn * (tau * f) + dd * (f - tr) + 0.25 * dd * (kf - kn) * ds * (f * f);
-    *da = *da * tr + tau * f;
+  std::vector<double> kap(static_cast<std::size_t>(nn) * nb), tau_hat(nb);
+  std::vector<double> dle(nb), dla(nb), dlec(nb), dlac(nb);
+  const std::size_t block = 128;  // bins whose node data stay in cache while every u is marched
+  // March bins [j0, j0 + m) at u; Richardson-combined results into dle, dla.
+  auto march = [&](std::size_t j0, std::size_t m, double u) {
+    std::fill(dle.begin(), dle.begin() + m, 0.0);
+    std::fill(dla.begin(), dla.begin() + m, 0.0);
+    std::fill(dlec.begin(), dlec.begin() + m, 0.0);
+    std::fill(dlac.begin(), dlac.begin() + m, 0.0);
+    for (int k = 0; k + 1 < nn; ++k) {
+      MarchLayerPair(m, &kap[k * nb + j0], &kap[(k + 1) * nb + j0], &bbar[k * nb + j0],
+                     &bbar[(k + 1) * nb + j0], u, dz, dle.data(), dla.data());
+      if (rich && (k + 1) % 2 == 0)
+        MarchLayerPair(m, &kap[(k - 1) * nb + j0], &kap[(k + 1) * nb + j0],
+                       &bbar[(k - 1) * nb + j0], &bbar[(k + 1) * nb + j0], u, 2 * dz,
+                       dlec.data(), dlac.data());
+    }
+    if (rich)
+      for (std::size_t j = 0; j < m; ++j) {
+        dle[j] = (4.0 * dle[j] - dlec[j]) * (1.0 / 3.0);
+        dla[j] = (4.0 * dla[j] - dlac[j]) * (1.0 / 3.0);
+      }
   };
+  // A bin whose whole-path optical depth stays below this is linear in u to
+  // within half of it (relative): it is not marched but scaled from its slope.
+  const double kLinear = 1e-7;
+  const int nx = t->nx;
+  const int r1 = rank + 1;
+  std::vector<double> suffix((nb + 1) * r1);
   for (int ix = 0; ix < nx; ++ix) {
     const double x = nx > 1 ? ix * h_x_ : 0.0;
     // Absorption coefficient per unit u and per unit of z (kappa ds = u kap dz).
@@ -368,33 +412,78 @@ void SceneTable::BuildTable(Table* t, const std::vector<std::size_t>& bins, doub
         const std::size_t i = k * nb + j;
         kap[i] = self ? ng[k] * ((1.0 - x * g[k]) * air[i] + x * g[k] * slf[i]) : ng[k] * air[i];
       }
+    double tau_max = 0;
+    for (std::size_t j = 0; j < nb; ++j) {
+      double tt = 0;
+      for (int k = 0; k + 1 < nn; ++k) tt += 0.5 * (kap[k * nb + j] + kap[(k + 1) * nb + j]) * dz;
+      tau_hat[j] = tt;
+      tau_max = std::max(tau_max, tt);
+    }
+    // Optically thin slopes of every bin (a march at a u where even the
+    // strongest bin has optical depth 1e-12), summed from each bin to the end.
+    const double u0 = tau_max > 0 ? 1e-12 / tau_max : 1.0;
+    std::fill(suffix.begin(), suffix.end(), 0.0);
+    for (std::size_t j0 = 0; j0 < nb; j0 += block) {
+      const std::size_t m = std::min(block, nb - j0);
+      march(j0, m, u0);
+      for (std::size_t j = 0; j < m; ++j) {
+        double* row = &suffix[(j0 + j) * r1];
+        row[0] = weight[j0 + j] * dle[j] / u0;
+        for (int r = 0; r < rank; ++r) row[1 + r] = proj[(j0 + j) * rank + r] * dla[j] / u0;
+      }
+    }
+    for (std::size_t j = nb; j-- > 0;)
+      for (int r = 0; r < r1; ++r) suffix[j * r1 + r] += suffix[(j + 1) * r1 + r];
+    // Per u: bins [0, cut) are marched, the rest scaled from their slopes.
+    std::vector<std::size_t> cut(nu_);
     for (int iu = 0; iu < nu_; ++iu) {
       const double u = std::exp(lu_lo_ + iu * h_lu_);
-      dle.setZero();
-      dla.setZero();
-      dlec.setZero();
-      dlac.setZero();
-      for (int k = 0; k + 1 < nn; ++k) {
-        layer(&dle, &dla, &kap[k * nb], &kap[(k + 1) * nb], &bbar[k * nb], &bbar[(k + 1) * nb], u, dz);
-        if (rich && (k + 1) % 2 == 0)
-          layer(&dlec, &dlac, &kap[(k - 1) * nb], &kap[(k + 1) * nb], &bbar[(k - 1) * nb],
-                &bbar[(k + 1) * nb], u, 2 * dz);
+      std::size_t cc = 0;
+      for (std::size_t j = 0; j < nb; ++j)
+        if (u * tau_hat[j] > kLinear) cc = j + 1;
+      cut[iu] = cc;
+    }
+    double* line = &(*values)[(static_cast<std::size_t>(it) * nx + ix) * nu_ * r1];
+    for (int iu = 0; iu < nu_; ++iu) {
+      const double u = std::exp(lu_lo_ + iu * h_lu_);
+      for (int r = 0; r < r1; ++r) line[iu * r1 + r] = u * suffix[cut[iu] * r1 + r];
+    }
+    for (std::size_t j0 = 0; j0 < nb; j0 += block) {
+      for (int iu = 0; iu < nu_; ++iu) {
+        if (cut[iu] <= j0) continue;
+        const std::size_t m = std::min(block, cut[iu] - j0);
+        const double u = std::exp(lu_lo_ + iu * h_lu_);
+        march(j0, m, u);
+        double* out = line + static_cast<std::size_t>(iu) * r1;
+        for (std::size_t j = 0; j < m; ++j) {
+          out[0] += weight[j0 + j] * dle[j];
+          for (int r = 0; r < rank; ++r) out[1 + r] += proj[(j0 + j) * rank + r] * dla[j];
+        }
       }
-      if (rich) {
-        dle = (4.0 * dle - dlec) * (1.0 / 3.0);
-        dla = (4.0 * dla - dlac) * (1.0 / 3.0);
-      }
-      double* out = &(*values)[((static_cast<std::size_t>(it) * nx + ix) * nu_ + iu) * (rank + 1)];
-      for (int r = 0; r <= rank; ++r) out[r] = 0;
-      for (std::size_t j = 0; j < nb; ++j) {
-        out[0] += weight[j] * dle[j];
-        for (int r = 0; r < rank; ++r) out[1 + r] += proj[j * rank + r] * dla[j];
-      }
+    }
+    for (int iu = 0; iu < nu_; ++iu) {
+      const double u = std::exp(lu_lo_ + iu * h_lu_);
+      double* out = line + static_cast<std::size_t>(iu) * r1;
       // Emission relative to a background at T_peak.
       for (int r = 0; r < rank; ++r) out[0] -= phi_tp[r] * out[1 + r];
-      for (int r = 0; r <= rank; ++r) out[r] /= u;
+      for (int r = 0; r < r1; ++r) out[r] /= u;
     }
   }
+}
+
+void SceneTable::Export(std::size_t c, std::size_t s, std::vector<double>* coef,
+                        std::vector<double>* psi, double* nu_ref) const {
+  const int i = index_[c * ns_ + s];
+  Require(i >= 0, "species " + std::to_string(s) + " does not absorb in channel " + std::to_string(c));
+  *coef = tables_[i].coef;
+  *psi = tables_[i].psi.coefficients();
+  *nu_ref = tables_[i].nu_ref_cm1;
+}
+
+int SceneTable::fraction_axis(std::size_t s) const {
+  for (const Table& t : tables_)
+    if (t.species == s) return t.nx;
+  return 1;
 }
 
 int SceneTable::basis_rank(std::size_t c, std::size_t s) const {

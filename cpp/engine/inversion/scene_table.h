@@ -53,14 +53,18 @@ struct SceneTableOptions {
   double ambient_temperature_K = 296.0;  // T_amb of the scene [K]; inside the model's tables
   double min_peak_temperature_K = 0.0;   // lowest T_peak tabulated [K]; 0 = the model's lowest
   double max_peak_temperature_K = 0.0;   // highest T_peak tabulated [K]; 0 = the model's highest
-  double temperature_step_K = 10.0;      // T_peak grid step [K], within [1, 50]
-  double max_sigma_m = 5.0;              // largest plume depth sigma served [m] (u = x sigma <= it)
-  int nodes_per_decade = 6;              // grid density in u = x sigma [nodes per factor 10], 2-40
+  double temperature_step_K = 5.0;       // T_peak grid step [K], within [1, 50]
+  double max_sigma_m = 2.0;              // largest plume depth sigma served [m] (u = x sigma <= it)
+  int nodes_per_decade = 8;              // grid density in u = x sigma [nodes per factor 10], 2-40
   int fraction_nodes = 4;                // self-broadening grid over x in [0, 1], 4-21
   double thin_optical_depth = 1e-5;      // strongest bin's peak optical depth at the smallest u, 1e-8-1e-3
   double min_background_K = 150.0;       // background temperatures served [K], >= 50
   double max_background_K = 700.0;       // [K], <= 2000
   double planck_tolerance = 1e-8;        // relative truncation of the background Planck basis, 1e-14-1e-4
+  // Line-of-sight nodes of the table's march (odd, >= 5; 0 = the model's own
+  // num_nodes). Fewer nodes build faster; the difference is part of the
+  // measured table error.
+  int num_nodes = 0;
   int num_threads = 0;                   // build threads; 0 = all cores
   void Check() const;
 };
@@ -132,6 +136,14 @@ class SceneTable {
   // g = out[0] - sum_r phi_r(T_bg) out[1 + r]. Returns the number of values (rank + 1).
   int RawValues(std::size_t channel, std::size_t species, double log_u, double x,
                 double peak_temperature_K, double* out) const;
+  // Data of table (c, s) for independent evaluators (e.g. a numpy one): its
+  // coefficients as stored, the coefficients of the Planck-basis spline
+  // psi_r(T_bg) (phi_r = psi_r B(nu_ref, T)) and nu_ref [cm-1].
+  void Export(std::size_t channel, std::size_t species, std::vector<double>* coefficients,
+              std::vector<double>* psi_coefficients, double* nu_ref_cm1) const;
+  // Fraction nodes of species s's tables (1 without self-broadening).
+  int fraction_axis(std::size_t species) const;
+  double background_step_K() const { return h_bg_; }
   double min_log_u() const { return lu_lo_; }
   double log_u_step() const { return h_lu_; }
 
@@ -161,7 +173,7 @@ class SceneTable {
   SceneTableOptions options_;
   std::size_t nc_ = 0, ns_ = 0;
   int nu_ = 0, nx_ = 1, nt_ = 0;
-  double lu_lo_ = 0, lu_hi_ = 0, h_lu_ = 1, t_lo_ = 0, t_hi_ = 0, h_t_ = 1, h_x_ = 1;
+  double lu_lo_ = 0, lu_hi_ = 0, h_lu_ = 1, t_lo_ = 0, t_hi_ = 0, h_t_ = 1, h_x_ = 1, h_bg_ = 1;
   CubicSplineAxis axis_u_, axis_x_, axis_t_, axis_one_;
   std::vector<Table> tables_;
   std::vector<int> index_;  // [c * ns + s] -> tables_ index or -1
