@@ -33,6 +33,8 @@ from .camera import (Calibration, CalibrationScene, ChannelOptics, add_netd_nois
                      netd_radiance_sigma, warm_optics_radiance)
 from .velocimetry import FlowEstimator, optical_flow, optical_flow_sequence
 from . import synth
+from . import inversion  # noqa: F401  (qogi.inversion.fixed/free/prior, plume_depth_from_width)
+from .inversion import Inversion, InversionResult
 
 __all__ = [
     "__version__",
@@ -76,4 +78,6 @@ __all__ = [
     "optical_flow",
     "optical_flow_sequence",
     "synth",
+    "Inversion",
+    "InversionResult",
 ]
