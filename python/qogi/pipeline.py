@@ -83,10 +83,10 @@ class QuantifyConfig:
     sigma_m: Optional[float] = None
     frames: Optional[Tuple[int, int]] = None
     num_threads: int = 0
+    composition: Optional[Dict[str, float]] = None
     column_density: str = "inversion"
     velocity_systematic: Optional[float] = None
     column_systematic: float = COLUMN_SYSTEMATIC
-    margin_px: int = 24
 
     def __post_init__(self):
         if isinstance(self.species, str):
@@ -141,6 +141,13 @@ class QuantifyConfig:
             raise ValueError(f"column_systematic must be within [0, 1]; got {self.column_systematic}")
         if self.source is not None:
             self.source = (float(self.source[0]), float(self.source[1]))
+        if self.composition is not None:
+            comp = {str(k): float(v) for k, v in dict(self.composition).items()}
+            missing = [sp for sp in self.species if sp not in comp]
+            if missing or any(not (np.isfinite(v) and v > 0) for v in comp.values()):
+                raise ValueError("composition needs a volume fraction > 0 for every species "
+                                 f"quantified ({self.species}); got {self.composition}")
+            self.composition = comp
 
     def to_dict(self) -> dict:
         d = dataclasses.asdict(self)
@@ -237,19 +244,22 @@ class _Background:
     the analysis region (the latter for the velocity field)."""
 
     def __init__(self, rec: Recording, cfg: QuantifyConfig, roi: Region, frames: range,
-                 channel_sign: np.ndarray, say):
+                 channel_sign: np.ndarray, say, typical_temperature_K: float):
         self.cfg = cfg
         self.roi = roi
+        self.typical_temperature_K = typical_temperature_K
         self.percentile_img = None
         if cfg.background == "percentile":
             # Sign-aware: a plume warmer than the background raises radiance,
             # so its background is a low percentile; a colder one a high one.
             sl = roi.slices()
             stack = []
-            for k, f in enumerate(frames):
+            # At most 200 frames spread over the run bound the memory.
+            use = list(frames)[::max(1, len(frames) // 200)]
+            for k, f in enumerate(use):
                 stack.append(rec.frame(f, quantity="radiance")[:, sl[0], sl[1]])
                 if k % 50 == 0:
-                    say(0.02 * k / len(frames), "background (temporal percentile)")
+                    say(0.02 * k / len(use), "background (temporal percentile)")
             stack = np.asarray(stack)
             lo = np.percentile(stack, cfg.background_percentile, axis=0)
             hi = np.percentile(stack, 100 - cfg.background_percentile, axis=0)
@@ -350,6 +360,232 @@ class _TruthColumns:
         return {sp: np.asarray(d[f, sl[0], sl[1]], dtype=np.float64) for sp, d in self.ds.items()}
 
 
+def _merge_results(a, b, sel: np.ndarray):
+    """InversionResult ``a`` (pixels on the first axis) with the pixels
+    selected by ``sel`` taken from ``b``."""
+    import copy
+    out = copy.copy(a)
+    for name in ("status", "bound_mask", "flags", "parameters", "parameter_sigma", "covariance",
+                 "chi2", "condition_number", "iterations"):
+        x = np.array(getattr(a, name))
+        x[sel] = np.asarray(getattr(b, name))[sel]
+        setattr(out, name, x)
+    for name in ("column_density", "column_density_sigma", "path_concentration_ppm_m",
+                 "path_concentration_sigma_ppm_m"):
+        d = {}
+        for sp, v in getattr(a, name).items():
+            x = np.array(v)
+            x[sel] = np.asarray(getattr(b, name)[sp])[sel]
+            d[sp] = x
+        setattr(out, name, d)
+    return out
+
+
+def _gaussian_width(profile: np.ndarray, cut: float = 0.2) -> float:
+    """Standard deviation [samples] of a Gaussian-like profile from the second
+    moment of its part above ``cut`` x its maximum (noise in the wings would
+    inflate a plain second moment), corrected for the truncation: for a
+    Gaussian cut at z_c = sqrt(2 ln(1/cut)) the moment is
+    sigma^2 (1 - 2 z_c phi(z_c) / (2 Phi(z_c) - 1))."""
+    p = np.asarray(profile, dtype=float)
+    p = np.where(np.isfinite(p), p, 0.0)
+    top = p.max() if p.size else 0.0
+    if not top > 0:
+        return float("nan")
+    w = np.where(p > cut * top, p, 0.0)
+    s = np.arange(p.size, dtype=float)
+    tot = w.sum()
+    mean = (w * s).sum() / tot
+    var = (w * (s - mean) ** 2).sum() / tot
+    zc = math.sqrt(2.0 * math.log(1.0 / cut))
+    phi = math.exp(-0.5 * zc * zc) / math.sqrt(2.0 * math.pi)
+    big_phi = 0.5 * (1.0 + math.erf(zc / math.sqrt(2.0)))
+    factor = 1.0 - 2.0 * zc * phi / (2.0 * big_phi - 1.0)
+    return math.sqrt(var / factor)
+
+
+class _InvertedColumns:
+    """Column densities by the per-pixel inversion (qogi.inversion).
+
+    Surface samples get the configured inversion (single channel with the gas
+    temperature given or ambient, or every channel with the temperature
+    inferred), with the plume depth sigma from the plume's width across the
+    surface (axisymmetric plume) unless given. The velocity field around the
+    surfaces uses a single-channel column proxy at the assumed gas
+    temperature (Newton inversion, fast): velocimetry needs the field's shape,
+    not its absolute scale.
+    """
+
+    def __init__(self, rec: Recording, cfg: QuantifyConfig, scene: _Scene, roi: Region,
+                 horizontal: bool, background: "_Background"):
+        from . import inversion as inv
+        from .forward import forward_model
+
+        self.rec, self.cfg, self.scene, self.roi = rec, cfg, scene, roi
+        self.horizontal = horizontal
+        self.background = background
+        channels = rec.channels
+        self.model = forward_model(channels, cfg.species, scene.pressure_Pa)
+        netd = rec.camera.netd_K or 0.02
+        if cfg.gas_temperature == "infer":
+            temperature = inv.free(scene.ambient_K - 10.0, scene.ambient_K + 150.0)
+        else:
+            temperature = inv.fixed(scene.gas_K)
+        # A known composition ties the species' fractions (then the ratios of
+        # the bands' contrasts measure the temperature); otherwise each is free.
+        fractions = None
+        if cfg.composition is not None and len(cfg.species) > 1:
+            ref = cfg.species[0]
+            fractions = {ref: "free"}
+            for sp in cfg.species[1:]:
+                fractions[sp] = inv.tied(ref, cfg.composition[sp] / cfg.composition[ref])
+        self._inv_kw = dict(netd_K=netd, fractions=fractions, temperature=temperature,
+                            num_threads=cfg.num_threads)
+        self.inv_module = inv
+        # The velocity proxy: a monotone lookup from the contrast of the
+        # channel most sensitive to the first species to its column density,
+        # at the assumed gas temperature, a typical depth and the scene's
+        # background (velocimetry needs the field's shape, not its scale).
+        bg_t = background.typical_temperature_K
+        sens = []
+        for c, ch in enumerate(channels):
+            l = self.model.band_radiance({cfg.species[0]: 1e-3}, scene.gas_K, 0.02,
+                                         scene.ambient_K, bg_t)[c]
+            n = netd * ch.band_radiance_derivative(bg_t)
+            sens.append(abs(l - ch.band_radiance(bg_t)) / n)
+        self.proxy_channel = int(np.argmax(sens))
+        x = np.geomspace(1e-7, 1.0, 160)
+        sig = cfg.sigma_m or 0.02
+        l = self.model.band_radiance({cfg.species[0]: x}, scene.gas_K, sig, scene.ambient_K,
+                                     bg_t)[:, self.proxy_channel]
+        contrast = np.abs(l - channels[self.proxy_channel].band_radiance(bg_t))
+        cols = self.model.column_density({cfg.species[0]: x}, scene.gas_K, sig,
+                                         scene.ambient_K)[cfg.species[0]]
+        keep = np.concatenate([[True], np.diff(contrast) > 0])
+        self._proxy_contrast = np.concatenate([[0.0], contrast[keep]])
+        self._proxy_column = np.concatenate([[0.0], cols[keep]])
+        self.sigma_m: Dict[int, float] = {}
+
+    def proxy_field(self, frame: np.ndarray) -> np.ndarray:
+        sl = self.roi.slices()
+        c = self.proxy_channel
+        fr = frame[c:c + 1, sl[0], sl[1]].astype(np.float64)
+        bg = self.background.field(frame[:, sl[0], sl[1]].astype(np.float64), self.horizontal)
+        if bg is None:  # a uniform region background
+            bg = self.background.region_mean(frame, self.cfg.background)[:, None, None]
+        dl = np.abs(fr[0] - np.asarray(bg)[c])
+        return np.interp(dl, self._proxy_contrast, self._proxy_column).astype(np.float32)
+
+    def collect(self, frame: np.ndarray, surfaces: Sequence[Surface], samples) -> np.ndarray:
+        """The velocity proxy field of one frame; stores the radiance and the
+        background at the surface samples for :meth:`finish`."""
+        field = self.proxy_field(frame)
+        f64 = frame.astype(np.float64)
+        rad, bg, prof = [], [], []
+        for s, (xy, n, dl, t) in zip(surfaces, samples):
+            rad.append(_bilinear(f64, xy))
+            bg.append(self.background.along(f64, s, xy, t))
+            prof.append(_bilinear(field.astype(np.float64), xy - [self.roi.x0, self.roi.y0]))
+        if not hasattr(self, "_rad"):
+            self._rad, self._bg, self._prof = [], [], []
+        self._rad.append(np.concatenate(rad, axis=1))
+        self._bg.append(np.concatenate(bg, axis=1))
+        self._prof.append(prof)
+        return field
+
+    def finish(self, samples, time_averaged: bool = False, progress=None):
+        """Inverts the stored samples of every frame in one call. Returns per
+        surface ``(columns {sp: (T, N)}, sigmas {sp: (T, N)})`` and the status
+        counts. The plume depth of each surface is the Gaussian width of its
+        time-averaged proxy column profile (axisymmetric plume), unless given."""
+        from . import inversion as inv
+
+        nt = len(self._rad)
+        sizes = [len(x[0]) for x in samples]
+        edges = np.concatenate([[0], np.cumsum(sizes)])
+        sig = np.empty(edges[-1])
+        for j in range(len(samples)):
+            if self.cfg.sigma_m is not None:
+                sigma = self.cfg.sigma_m
+            else:
+                mean_prof = np.mean([p[j] for p in self._prof], axis=0)
+                sigma = _gaussian_width(mean_prof) * self.scene.pixel_m
+                if not (np.isfinite(sigma) and sigma > 0):
+                    sigma = 0.02
+            self.sigma_m[j] = float(sigma)
+            sig[edges[j]:edges[j + 1]] = sigma
+        rad = np.asarray(self._rad)          # (T, C, N)
+        bg = np.asarray(self._bg)
+        # The plume depth: given, or the width of the time-averaged plume
+        # across each surface (axisymmetric plume), held fixed with one
+        # channel and as a Gaussian prior (50 %) when the temperature is
+        # inferred (a free depth is nearly degenerate with the fractions).
+        if self.cfg.sigma_m is not None or self.cfg.gas_temperature != "infer":
+            sigma_param = inv.fixed(float(np.median(sig)))
+            sigma_pixels = sig
+        else:
+            sigma_param = None
+            sigma_pixels = sig
+        if time_averaged:
+            res = self._invert(rad.mean(axis=0), bg.mean(axis=0), sigma_pixels, sigma_param,
+                               noise_scale=1.0 / math.sqrt(nt), progress=progress)
+            res_cols = {sp: np.repeat(res.column_density[sp][None], nt, axis=0)
+                        for sp in self.cfg.species}
+            res_sig = {sp: np.repeat(res.column_density_sigma[sp][None], nt, axis=0)
+                       for sp in self.cfg.species}
+            ok = np.repeat((res.valid | (res.status == inv.BELOW_DETECTION))[None], nt, axis=0)
+            counts = res.counts()
+        else:
+            # Every frame's pixels in one call, each from the coarse table
+            # guess: warm starts from the previous frame can follow the wrong
+            # branch of the temperature-column ambiguity of hot plumes.
+            c_, n_ = rad.shape[1], rad.shape[2]
+            flat = self._invert(rad.transpose(1, 0, 2).reshape(c_, nt * n_),
+                                bg.transpose(1, 0, 2).reshape(c_, nt * n_),
+                                np.tile(sigma_pixels, nt), sigma_param, 1.0, progress)
+            res_cols = {sp: flat.column_density[sp].reshape(nt, n_) for sp in self.cfg.species}
+            res_sig = {sp: flat.column_density_sigma[sp].reshape(nt, n_) for sp in self.cfg.species}
+            ok = (flat.valid | (flat.status == inv.BELOW_DETECTION)).reshape(nt, n_)
+            counts = flat.counts()
+        out = []
+        for j in range(len(samples)):
+            a, b = edges[j], edges[j + 1]
+            cols = {sp: np.where(ok[:, a:b], res_cols[sp][:, a:b], np.nan) for sp in self.cfg.species}
+            sigs = {sp: np.where(ok[:, a:b], res_sig[sp][:, a:b], 0.0) for sp in self.cfg.species}
+            out.append((cols, sigs))
+        return out, counts
+
+    def _invert(self, rad, bg, sigma_pixels, sigma_param, noise_scale, progress):
+        """One inversion call; with an inferred temperature and no given depth,
+        a Gaussian prior on sigma centred on each pixel's width estimate."""
+        inv = self.inv_module
+        if sigma_param is None:
+            # The prior's centre varies per surface: group the pixels by it.
+            out = None
+            res_all = {}
+            for val in np.unique(sigma_pixels):
+                sel = sigma_pixels == val
+                inversion = inv.Inversion(self.model, self.scene.ambient_K,
+                                          sigma_m=inv.prior(float(val), 0.5 * float(val),
+                                                            1e-3, 0.5), **self._inv_kw)
+                res_all[float(val)] = (sel, inversion.invert(rad, background_radiance=bg,
+                                                             mask=sel, progress=progress))
+            # Merge: each pixel from the run that selected it.
+            sels = list(res_all.values())
+            out = sels[0][1]
+            for sel, r in sels[1:]:
+                out = _merge_results(out, r, sel)
+            return out
+        inversion = inv.Inversion(self.model, self.scene.ambient_K, sigma_m=sigma_param,
+                                  **self._inv_kw)
+        if noise_scale != 1.0:
+            return inversion.invert_mean(rad[None] if rad.ndim == 2 else rad,
+                                         background_radiance=bg, sigma_m=sigma_pixels,
+                                         progress=progress)
+        return inversion.invert(rad, background_radiance=bg, sigma_m=sigma_pixels,
+                                progress=progress)
+
+
 def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress, keep_maps):
     from . import velocimetry as vel
 
@@ -366,10 +602,10 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
     if nf < 2 and cfg.velocity not in ("wind", "exit"):
         raise ValueError("velocimetry needs at least 2 frames; give more frames or a wind speed")
     h, w = rec.height, rec.width
-    # Analysis region: the surfaces' bounding box plus a margin.
-    b = np.array([s.bounds(cfg.margin_px) for s in surfaces])
-    roi = Region(int(max(0, np.floor(b[:, 0].min()))), int(max(0, np.floor(b[:, 1].min()))),
-                 int(min(w, np.ceil(b[:, 2].max()) + 1)), int(min(h, np.ceil(b[:, 3].max()) + 1)))
+    # The velocity field is computed over the whole frame: the flow solvers
+    # need room around the surfaces (a crop through the plume is an open
+    # boundary they cannot see across).
+    roi = Region(0, 0, w, h)
     horizontal = all(abs(np.diff(np.asarray(s.points)[:, 0])).sum() >=
                      abs(np.diff(np.asarray(s.points)[:, 1])).sum() for s in surfaces)
     samples = []
@@ -383,13 +619,13 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
         first = rec.frame(start, quantity="radiometric_temperature")
         t_bg_guess = float(np.median(first))
     channel_sign = np.full(rec.n_channels, 1.0 if scene.gas_K >= t_bg_guess else -1.0)
-    background = _Background(rec, cfg, roi, frames, channel_sign, say)
+    background = _Background(rec, cfg, roi, frames, channel_sign, say, t_bg_guess)
 
     if cfg.column_density == "truth":
         columns = _TruthColumns(rec, cfg)
     else:
-        from .inversion import PipelineInverter
-        columns = PipelineInverter(rec, cfg, scene, roi, horizontal, background)
+        say(0.01, "cross-section tables and the scene's inversion table")
+        columns = _InvertedColumns(rec, cfg, scene, roi, horizontal, background)
 
     # -- per frame: column densities over the region and on the surfaces -----
     col_fields = np.zeros((nf, roi.y1 - roi.y0, roi.x1 - roi.x0), dtype=np.float32)
@@ -398,62 +634,58 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
     status_counts: Dict[str, int] = {}
     kept_maps: Dict[int, dict] = {}
     done = 0
-    partial = None
-    mean_frame = None
+
+    def invert_collected(n_done: int, time_averaged: bool) -> None:
+        if cfg.column_density == "truth" or n_done == 0:
+            return
+        per_surface, counts = columns.finish(
+            samples, time_averaged=time_averaged,
+            progress=lambda fr_: say(0.35 + 0.25 * fr_, "inverting the surfaces' pixels"))
+        for j in range(len(samples)):
+            for sp in cfg.species:
+                surf_cols[j][sp][:n_done] = per_surface[j][0][sp]
+                surf_sig[j][sp][:n_done] = per_surface[j][1][sp]
+        for key, v in counts.items():
+            status_counts[key] = status_counts.get(key, 0) + int(v)
+
+    time_averaged = cfg.averaging == "time-averaged"
     try:
-        if cfg.averaging == "time-averaged":
-            say(0.02, "time-averaging the frames")
-            acc = None
-            for k, f in enumerate(frames):
-                fr = rec.frame(f, quantity="radiance").astype(np.float64)
-                acc = fr if acc is None else acc + fr
-            mean_frame = (acc / nf).astype(np.float32)
         for k, f in enumerate(frames):
-            fr = rec.frame(f, quantity="radiance") if mean_frame is None or cfg.column_density == "truth" \
-                else mean_frame
+            fr = rec.frame(f, quantity="radiance")
             if cfg.column_density == "truth":
                 fields = columns.frame(f, roi)
-                field = sum(fields.values())
+                if time_averaged:
+                    acc = fields if k == 0 else {sp: acc[sp] + fields[sp] for sp in fields}
+                col_fields[k] = sum(fields.values())
                 for j, (xy, n, dl, t) in enumerate(samples):
                     for sp in cfg.species:
                         surf_cols[j][sp][k] = _bilinear(fields[sp], xy - [roi.x0, roi.y0])
-                status_counts["converged"] = status_counts.get("converged", 0) + sum(len(x[0]) for x in samples)
+                status_counts["converged"] = status_counts.get("converged", 0) + \
+                    sum(len(x[0]) for x in samples)
             else:
-                field, per_surface, counts = columns.frame(fr, surfaces, samples)
-                for j in range(len(samples)):
-                    for sp in cfg.species:
-                        surf_cols[j][sp][k] = per_surface[j][0][sp]
-                        surf_sig[j][sp][k] = per_surface[j][1][sp]
-                for key, v in counts.items():
-                    status_counts[key] = status_counts.get(key, 0) + int(v)
-            col_fields[k] = field
+                col_fields[k] = columns.collect(fr, surfaces, samples)
             done = k + 1
-            say(0.05 + 0.55 * done / nf, f"column density, frame {done}/{nf}")
-            if mean_frame is not None and cfg.column_density != "truth" and k == 0:
-                # One inversion serves every frame of the time-averaged order.
-                for kk in range(1, nf):
-                    col_fields[kk] = field
-                    for j in range(len(samples)):
-                        for sp in cfg.species:
-                            surf_cols[j][sp][kk] = surf_cols[j][sp][0]
-                            surf_sig[j][sp][kk] = surf_sig[j][sp][0]
-                done = nf
-                break
+            say(0.05 + 0.3 * done / nf, f"background and column field, frame {done}/{nf}")
+        if time_averaged and cfg.column_density == "truth":
+            for j, (xy, n, dl, t) in enumerate(samples):
+                for sp in cfg.species:
+                    surf_cols[j][sp][:] = _bilinear(acc[sp] / nf, xy - [roi.x0, roi.y0])
+        invert_collected(done, time_averaged)
     except Cancelled:
-        nf_done = done
+        try:
+            invert_collected(done, time_averaged)
+        except Cancelled:
+            pass
         raise Cancelled("quantification cancelled", partial=_finish(
-            rec, surfaces, cfg, scene, samples, frames, nf_done, col_fields, surf_cols, surf_sig,
+            rec, surfaces, cfg, scene, samples, frames, done, col_fields, surf_cols, surf_sig,
             None, status_counts, kept_maps, t_start, complete=False)) from None
 
     # -- velocity --------------------------------------------------------------
     flows = None
     if cfg.velocity not in ("wind", "exit"):
+        # Every frame's field (also for the time-averaged order: the gas
+        # moves, the averaged field does not).
         velocity_frames = col_fields[:done]
-        if cfg.averaging == "time-averaged" and cfg.column_density != "truth":
-            # The gas moves; the averaged field does not: the velocity comes
-            # from the individual frames' proxy fields.
-            velocity_frames = np.stack([columns.proxy_field(rec.frame(f, quantity="radiance"))
-                                        for f in frames])
         source_mask = None
         if cfg.source is not None:
             sx, sy = cfg.source[0] - roi.x0, cfg.source[1] - roi.y0
