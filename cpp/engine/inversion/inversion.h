@@ -113,9 +113,13 @@ struct InversionOptions {
   InitialGuess initial_guess = InitialGuess::kTable;  // default kTable
   int temperature_candidates = 5;  // T_peak candidates of the table guess when T_peak is estimated, 1-50. Default 5
   int guess_iterations = 3;  // fraction refinements per candidate of the table guess, 0-100. Default 3
-  // Full solves from the best candidates of the table guess (the best fit is
-  // kept; a distinct second minimum within chi2 + 4 widens the uncertainty), 1-50. Default 3
-  int num_starts = 3;
+  // Full solves from the best candidates of the table guess, 0-50 (0 = every
+  // candidate; default). The best fit is kept; distinct other minima widen
+  // its uncertainty by their likelihood weight. With the temperature free the
+  // chi2 landscape often has two branches (a thin hot plume and a thick
+  // cooler one give nearly the same contrasts in broadband channels), which
+  // only starts from every candidate find reliably.
+  int num_starts = 0;
   SolverKind solver = SolverKind::kAuto;  // default kAuto
   int num_threads = 0;  // threads over pixels; 0 = all cores
   // Validates against the model; throws std::invalid_argument.
