@@ -1232,32 +1232,6 @@ void Inverter::SolveFull(Pixel* px, const double* start, Workspace* ws) const {
   FinishWith(px, con, jac, ws);
 }
 
-bool Inverter::SecondStart(const std::vector<GuessCandidate>& cands, const Pixel& px,
-                           double* theta) const {
-  const std::size_t ns = px.ns, np = px.np;
-  if (!px.est[ns] || cands.size() < 3) return false;
-  // The profile in order of temperature; its local minima.
-  std::vector<const GuessCandidate*> by_t;
-  for (const auto& c : cands) by_t.push_back(&c);
-  std::sort(by_t.begin(), by_t.end(), [&](const GuessCandidate* a, const GuessCandidate* b) {
-    return a->th[ns] < b->th[ns];
-  });
-  const double best_t = cands.front().th[ns];
-  std::size_t ib = 0;
-  for (std::size_t i = 0; i < by_t.size(); ++i)
-    if (by_t[i]->th[ns] == best_t) ib = i;
-  const GuessCandidate* pick = nullptr;
-  for (std::size_t i = 0; i < by_t.size(); ++i) {
-    if (i + 1 >= ib && i <= ib + 1) continue;  // the best one and its neighbours
-    const double c = by_t[i]->cost;
-    const bool lmin = (i == 0 || c < by_t[i - 1]->cost) && (i + 1 == by_t.size() || c < by_t[i + 1]->cost);
-    if (lmin && (!pick || c < pick->cost)) pick = by_t[i];
-  }
-  if (!pick || pick->cost > cands.front().cost + 100.0) return false;
-  std::copy(pick->th, pick->th + np, theta);
-  return true;
-}
-
 void Inverter::MergeModes(Pixel* a, const Pixel& b) const {
   const std::size_t ns = a->ns, np = a->np;
   // The same minimum reached twice?

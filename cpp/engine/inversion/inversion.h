@@ -23,10 +23,14 @@
 //     between bands).
 //
 // Solvers. The default fast path evaluates the per-scene table (SceneTable)
-// and solves with Ceres' TinySolver (Levenberg-Marquardt on parameters scaled
-// to O(1)), with bounds handled by an explicit active set: a step that
-// crosses a bound is cut at the bound, the parameter is held there, and it is
-// released again when the gradient points back inside (KKT check). With one
+// and solves with Ceres' TinySolver (Levenberg-Marquardt on parameters of
+// order one: ln(x + 1e-9) for fractions, ln sigma, T_peak / 10 K), with bounds
+// handled by an explicit active set: a step that crosses a bound is cut at the
+// bound, the parameter is held there, and it is released again when its
+// multiplier points back inside (KKT check). Cold starts solve from every
+// candidate of a coarse profile over T_peak and keep the best minimum; a
+// distinct second minimum within chi2 + 4 sets kFlagAmbiguous and widens the
+// uncertainties (see MergeModes). With one
 // channel and one unknown fraction the problem is a root: a bracketed
 // Newton iteration on a per-(T_peak, sigma) curve of the table. The general
 // path (SolverKind::kFullModel, and the only one when species overlap
@@ -233,14 +237,11 @@ class Inverter {
   void SolveFull(Pixel* px, const double* start, Workspace* ws) const;
   struct GuessCandidate {
     double cost;              // chi2 (with priors) of the candidate
-    double th[8];             // parameters
+    double th[8];             // parameters (species + 2 <= 8)
   };
   // Coarse lookup: per candidate peak temperature, the optically thin least
   // squares for the fractions, refined by a few iterations; sorted by cost.
   void TableGuess(const Pixel& px, std::vector<GuessCandidate>* candidates, Workspace* ws) const;
-  // A second start from the profile's other local minimum, if any.
-  bool SecondStart(const std::vector<GuessCandidate>& candidates, const Pixel& px,
-                   double* theta) const;
   // Combines two solutions of one pixel (two minima).
   void MergeModes(Pixel* best, const Pixel& other) const;
   void FullModelGuess(const Pixel& px, double* theta) const;
