@@ -41,6 +41,7 @@ py::dict SceneTableOptionsDict(const SceneTableOptions& o) {
   d["planck_tolerance"] = o.planck_tolerance;
   d["num_threads"] = o.num_threads;
   d["num_nodes"] = o.num_nodes;
+  d["negligible_fraction"] = o.negligible_fraction;
   return d;
 }
 
@@ -52,7 +53,7 @@ void BindInversion(py::module_& m) {
                                 "Settings of the per-scene table (see engine/inversion/scene_table.h).")
       .def(py::init([](double t_amb, double t_lo, double t_hi, double dt, double smax, int npd,
                        int nx, double thin, double bg_lo, double bg_hi, double tol, int threads,
-                       int nodes) {
+                       int nodes, double negligible) {
              SceneTableOptions o;
              o.ambient_temperature_K = t_amb;
              o.min_peak_temperature_K = t_lo;
@@ -67,6 +68,7 @@ void BindInversion(py::module_& m) {
              o.planck_tolerance = tol;
              o.num_threads = threads;
              o.num_nodes = nodes;
+             o.negligible_fraction = negligible;
              o.Check();
              return o;
            }),
@@ -82,7 +84,8 @@ void BindInversion(py::module_& m) {
            py::arg("max_background_K") = SceneTableOptions().max_background_K,
            py::arg("planck_tolerance") = SceneTableOptions().planck_tolerance,
            py::arg("num_threads") = SceneTableOptions().num_threads,
-           py::arg("num_nodes") = SceneTableOptions().num_nodes)
+           py::arg("num_nodes") = SceneTableOptions().num_nodes,
+           py::arg("negligible_fraction") = SceneTableOptions().negligible_fraction)
       .def_readonly("ambient_temperature_K", &SceneTableOptions::ambient_temperature_K)
       .def_readonly("min_peak_temperature_K", &SceneTableOptions::min_peak_temperature_K)
       .def_readonly("max_peak_temperature_K", &SceneTableOptions::max_peak_temperature_K)
@@ -96,6 +99,7 @@ void BindInversion(py::module_& m) {
       .def_readonly("planck_tolerance", &SceneTableOptions::planck_tolerance)
       .def_readonly("num_threads", &SceneTableOptions::num_threads)
       .def_readonly("num_nodes", &SceneTableOptions::num_nodes)
+      .def_readonly("negligible_fraction", &SceneTableOptions::negligible_fraction)
       .def("to_dict", &SceneTableOptionsDict)
       .def("__repr__", [](const SceneTableOptions& o) {
         return "SceneTableOptions(" + py::str(SceneTableOptionsDict(o)).cast<std::string>() + ")";
@@ -117,6 +121,9 @@ void BindInversion(py::module_& m) {
       .def_property_readonly("options", &SceneTable::options)
       .def_property_readonly("build_seconds", &SceneTable::build_seconds)
       .def_property_readonly("memory_bytes", &SceneTable::memory_bytes)
+      .def_property_readonly("num_tabulated_bins", &SceneTable::num_tabulated_bins)
+      .def_property_readonly("negligible_bound", &SceneTable::negligible_bound,
+                             "Bound on the left-out bins' contribution to a contrast [W/(m2 sr)].")
       .def_property_readonly("min_peak_temperature_K", &SceneTable::min_peak_temperature_K)
       .def_property_readonly("max_peak_temperature_K", &SceneTable::max_peak_temperature_K)
       .def_property_readonly("min_column_proxy_m", &SceneTable::min_column_proxy_m)
@@ -252,8 +259,8 @@ void BindInversion(py::module_& m) {
       .def(py::init([](std::vector<ParameterSpec> fractions, ParameterSpec temperature,
                        ParameterSpec sigma, std::vector<double> netd, double detection_sigma,
                        double model_error_fraction, int max_iterations, double tolerance_chi2,
-                       InitialGuess guess, int candidates, int guess_iterations, SolverKind solver,
-                       int threads) {
+                       InitialGuess guess, int candidates, int guess_iterations, int starts,
+                       SolverKind solver, int threads) {
              InversionOptions o;
              o.fractions = std::move(fractions);
              o.temperature = temperature;
@@ -266,6 +273,7 @@ void BindInversion(py::module_& m) {
              o.initial_guess = guess;
              o.temperature_candidates = candidates;
              o.guess_iterations = guess_iterations;
+             o.num_starts = starts;
              o.solver = solver;
              o.num_threads = threads;
              return o;
@@ -281,6 +289,7 @@ void BindInversion(py::module_& m) {
            py::arg("initial_guess") = InversionOptions().initial_guess,
            py::arg("temperature_candidates") = InversionOptions().temperature_candidates,
            py::arg("guess_iterations") = InversionOptions().guess_iterations,
+           py::arg("num_starts") = InversionOptions().num_starts,
            py::arg("solver") = InversionOptions().solver,
            py::arg("num_threads") = InversionOptions().num_threads)
       .def_readonly("fractions", &InversionOptions::fractions)
@@ -294,6 +303,7 @@ void BindInversion(py::module_& m) {
       .def_readonly("initial_guess", &InversionOptions::initial_guess)
       .def_readonly("temperature_candidates", &InversionOptions::temperature_candidates)
       .def_readonly("guess_iterations", &InversionOptions::guess_iterations)
+      .def_readonly("num_starts", &InversionOptions::num_starts)
       .def_readonly("solver", &InversionOptions::solver)
       .def_readonly("num_threads", &InversionOptions::num_threads);
 

@@ -374,6 +374,12 @@ class Inversion:
         to the table guess when they fail.
     solver : {"auto", "table", "full_model"}, default "auto"
     max_iterations : int, default 100
+    num_starts : int, default 0
+        Full solves from the coarse lookup's best candidates (0 = all of
+        them). With the temperature free the chi2 landscape often has two
+        branches (thin and hot, thick and cooler); starting from every
+        candidate finds both, and a second solution within chi2 + 4 widens the
+        reported uncertainty (flag ``AMBIGUOUS``).
     tolerance_chi2 : float, default 0.01
         Converged when a Gauss-Newton step would lower chi2 by less than this
         (the parameters are then within ~0.1 standard deviation of the optimum).
@@ -391,6 +397,7 @@ class Inversion:
                  max_sigma_m: float = 2.0, detection_sigma: float = 3.0,
                  model_error_fraction: float = 0.0, initial_guess: str = "table",
                  solver: str = "auto", max_iterations: int = 100, tolerance_chi2: float = 0.01,
+                 num_starts: int = 0,
                  table_options: Optional[dict] = None, num_threads: int = 0, progress=None):
         if not isinstance(model, ForwardModel):
             raise ValueError(f"model must be a qogi.ForwardModel; got {type(model).__name__}")
@@ -444,6 +451,21 @@ class Inversion:
         tb_opts = dict(table_options or {})
         if num_threads and "num_threads" not in tb_opts:
             tb_opts["num_threads"] = num_threads
+        guesses = {"table": _engine.InitialGuess.table, "neighbour": _engine.InitialGuess.neighbour,
+                   "previous": _engine.InitialGuess.previous}
+        if initial_guess not in guesses:
+            raise ValueError(f"initial_guess must be one of {sorted(guesses)}; got {initial_guess!r}")
+        solvers = {"auto": _engine.SolverKind.auto, "table": _engine.SolverKind.table,
+                   "full_model": _engine.SolverKind.full_model}
+        if solver not in solvers:
+            raise ValueError(f"solver must be one of {sorted(solvers)}; got {solver!r}")
+        # Validate the specifications before the (seconds-long) table build.
+        for sp in self.species:
+            _spec(self.fractions[sp], 1e-3, (0.0, 1.0), self.species)
+        if not any(self.fractions[sp].mode in ("free", "prior") for sp in self.species) and \
+                self.temperature.mode == "fixed" and self.sigma.mode == "fixed":
+            raise ValueError("every parameter is fixed: make at least one species' fraction, the "
+                             "temperature or sigma free")
         self.table = None
         if solver != "full_model":
             self.table = scene_table(model, t_amb, min_peak_temperature_K=lo,
@@ -453,15 +475,7 @@ class Inversion:
                 raise ValueError("solver 'table' needs spectrally separate species: "
                                  + "; ".join(_engine.spectral_overlaps(model.fast))
                                  + "; use solver='full_model'")
-        guesses = {"table": _engine.InitialGuess.table, "neighbour": _engine.InitialGuess.neighbour,
-                   "previous": _engine.InitialGuess.previous}
-        if initial_guess not in guesses:
-            raise ValueError(f"initial_guess must be one of {sorted(guesses)}; got {initial_guess!r}")
-        solvers = {"auto": _engine.SolverKind.auto, "table": _engine.SolverKind.table,
-                   "full_model": _engine.SolverKind.full_model}
-        if solver not in solvers:
-            raise ValueError(f"solver must be one of {sorted(solvers)}; got {solver!r}")
-        self._settings = dict(detection_sigma=float(detection_sigma),
+        self._settings = dict(num_starts=int(num_starts), detection_sigma=float(detection_sigma),
                               model_error_fraction=float(model_error_fraction),
                               max_iterations=int(max_iterations),
                               tolerance_chi2=float(tolerance_chi2),

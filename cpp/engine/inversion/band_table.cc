@@ -31,6 +31,13 @@ double BandTable::Derivative(double t) const {
   return std::exp(v) * s;
 }
 
+void BandTable::RadianceAndDerivative(double t, double* l, double* dl) const {
+  double v, s;
+  log_l_.Evaluate(t, &v, &s);
+  *l = std::exp(v);
+  *dl = *l * s;
+}
+
 bool BandTable::Temperature(double l, double* t_out) const {
   if (!(l > 0) || !std::isfinite(l)) return false;
   const double y = std::log(l);

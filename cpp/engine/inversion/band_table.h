@@ -32,6 +32,8 @@ class BandTable {
   // Band radiance [W/(m2 sr)] and its derivative [W/(m2 sr K)] at T (inside the table).
   double Radiance(double temperature_K) const;
   double Derivative(double temperature_K) const;
+  // Both at once.
+  void RadianceAndDerivative(double temperature_K, double* radiance, double* derivative) const;
   // Radiometric temperature [K] of band radiance L; false when L is not
   // finite or outside [min_radiance(), max_radiance()].
   bool Temperature(double band_radiance, double* temperature_K) const;

@@ -18,6 +18,7 @@ namespace {
 constexpr std::size_t kMaxChannels = 16;
 constexpr std::size_t kMaxParams = 8;  // species + 2
 constexpr double kConditionCap = 1e16;
+constexpr double kLogEps = 1e-9;  // fractions enter the solver as ln(x + kLogEps)
 const double kSqrt2Pi = std::sqrt(2.0 * constants::kPi);
 
 void CheckSpec(const ParameterSpec& p, const std::string& name, const char* unit, double lo_limit,
@@ -97,8 +98,8 @@ void InversionOptions::Check(std::size_t ns, std::size_t nc) const {
   const int ig = static_cast<int>(initial_guess);
   Require(ig >= 0 && ig <= 3, "initial_guess must be table (0), neighbour (1), previous (2) or "
                               "given (3); got " + std::to_string(ig));
-  Require(num_starts >= 1 && num_starts <= 50,
-          "num_starts must be within [1, 50]; got " + std::to_string(num_starts));
+  Require(num_starts >= 0 && num_starts <= 50,
+          "num_starts must be within [0, 50] (0 = every candidate); got " + std::to_string(num_starts));
   Require(guess_iterations >= 0 && guess_iterations <= 100,
           "guess_iterations must be within [0, 100]; got " + std::to_string(guess_iterations));
   Require(temperature_candidates >= 1 && temperature_candidates <= 50,
@@ -221,9 +222,12 @@ struct TableCost {
   using Scalar = double;
   enum { NUM_RESIDUALS = Eigen::Dynamic, NUM_PARAMETERS = Eigen::Dynamic };
   const SceneTable* table = nullptr;
-  const Inverter* inverter = nullptr;
-  const void* pixel = nullptr;
   std::size_t nc = 0, ns = 0, np = 0;
+  // Fractions as ln(x + kLogEps) instead of x / scale: the column-temperature
+  // trade-off (u (B(T) - B(T_bg)) ~ const) is far straighter in ln x, so
+  // Levenberg-Marquardt does not creep along a curved valley, and guesses off
+  // by orders of magnitude converge in a few steps.
+  bool log_fractions = false;
   const double* y = nullptr;
   const double* noise = nullptr;
   const double* phi = nullptr;
@@ -238,10 +242,20 @@ struct TableCost {
   double base[kMaxParams];
   int NumResiduals() const { return static_cast<int>(nc) + npr; }
   int NumParameters() const { return na; }
+  // Fractions and sigma in log space (sigma > 0: x sigma is what the
+  // radiance sees, a straight line in (ln x, ln sigma)).
+  bool IsLog(int a) const {
+    return log_fractions && (a < static_cast<int>(ns) || a == static_cast<int>(ns) + 1);
+  }
+  double ToTheta(int a, double p) const { return IsLog(a) ? std::exp(p) - kLogEps : p * scale[a]; }
+  double ToParam(int a, double theta) const {
+    return IsLog(a) ? std::log(theta + kLogEps) : theta / scale[a];
+  }
+  double Slope(int a, double theta) const { return IsLog(a) ? theta + kLogEps : scale[a]; }
   bool operator()(const double* p, double* r, double* jac) const {
     double th[kMaxParams];
     for (std::size_t k = 0; k < np; ++k) th[k] = base[k];
-    for (int j = 0; j < na; ++j) th[active[j]] = p[j] * scale[active[j]];
+    for (int j = 0; j < na; ++j) th[active[j]] = ToTheta(active[j], p[j]);
     px->ApplyTies(th);
     double con[kMaxChannels], cj[kMaxChannels * kMaxParams];
     table->Contrast(th, th[ns], th[ns + 1], phi, con, jac ? cj : nullptr);
@@ -252,9 +266,10 @@ struct TableCost {
     if (jac) {
       for (int j = 0; j < na; ++j) {
         const int a = active[j];
+        const double d = Slope(a, th[a]);  // d theta / d parameter
         double* col = jac + static_cast<std::size_t>(j) * nr;
-        for (std::size_t c = 0; c < nc; ++c) col[c] = cj[c * np + a] * scale[a] / noise[c];
-        for (int k = 0; k < npr; ++k) col[nc + k] = priors[k] == a ? scale[a] / prior_sigma[a] : 0.0;
+        for (std::size_t c = 0; c < nc; ++c) col[c] = cj[c * np + a] * d / noise[c];
+        for (int k = 0; k < npr; ++k) col[nc + k] = priors[k] == a ? d / prior_sigma[a] : 0.0;
       }
     }
     return true;
@@ -269,6 +284,7 @@ struct Inverter::Workspace {
   double curve_t = -1, curve_sigma = -1;
   int curve_r1 = 0;
   std::vector<double> curve_nodes;  // [node * r1 + r]
+  std::vector<double> curve_u;      // u at the nodes [m]
   UniformSpline curve;
   // Profile integral cache.
   double int_t = -1, int_i = 0, int_di = 0;
@@ -429,7 +445,7 @@ bool Inverter::PreparePixel(const PixelBatch& b, std::size_t f, std::size_t i, P
   const std::size_t fb = b.background_per_frame ? f : 0;
   for (std::size_t c = 0; c < nc; ++c) {
     const double l = b.radiance[(f * nc + c) * n + i];
-    double t_bg = 0, l_bg = 0;
+    double t_bg = 0, l_bg = 0, dl_dt = 0;
     if (b.background_temperature_K) {
       t_bg = b.background_temperature_K[(fb * nc + c) * n + i];
       if (!(std::isfinite(t_bg) && t_bg >= bands_[c].min_temperature_K() &&
@@ -437,19 +453,20 @@ bool Inverter::PreparePixel(const PixelBatch& b, std::size_t f, std::size_t i, P
         ok = false;
         t_bg = bands_[c].min_temperature_K();
       }
-      l_bg = bands_[c].Radiance(t_bg);
+      bands_[c].RadianceAndDerivative(t_bg, &l_bg, &dl_dt);
     } else {
       l_bg = b.background_radiance[(fb * nc + c) * n + i];
       if (!bands_[c].Temperature(l_bg, &t_bg)) {
         ok = false;
         t_bg = bands_[c].min_temperature_K();
       }
+      dl_dt = bands_[c].Derivative(t_bg);
     }
     const double y = l - l_bg;
     if (!std::isfinite(y)) ok = false;
     px->y[c] = std::isfinite(y) ? y : 0.0;
     px->tbg[c] = t_bg;
-    double noise = ChannelNoise(c, t_bg);
+    double noise = netd_[c] * dl_dt;
     if (options_.model_error_fraction > 0) {
       const double me = options_.model_error_fraction * px->y[c];
       noise = std::sqrt(noise * noise + me * me);
@@ -580,28 +597,30 @@ void Inverter::TableGuess(const Pixel& px, std::vector<GuessCandidate>* out, Wor
     cost.npr = 0;
     for (int s : free_s)
       if (px.prior_sigma[s] > 0) cost.priors[cost.npr++] = s;
-    cost.na = 0;
-    for (int s : free_s) cost.active[cost.na++] = s;
+    cost.log_fractions = true;
     ceres::TinySolver<TableCost>& solver = ws->solver;
     solver.options.max_num_iterations = options_.guess_iterations;
     solver.options.function_tolerance = 1e-3;
     solver.options.parameter_tolerance = 1e-6;
     solver.options.gradient_tolerance = 1e-10;
-    const std::size_t n_ref = all.size();
-    for (std::size_t k = 0; k < n_ref; ++k) {
-      Cand& cd = all[k];
+    for (Cand& cd : all) {
+      // Species the thin fit put at zero stay there.
+      cost.na = 0;
+      for (int s : free_s)
+        if (cd.th[s] > 0) cost.active[cost.na++] = s;
+      if (cost.na == 0) continue;
       for (std::size_t p = 0; p < np; ++p) {
         cost.base[p] = cd.th[p];
-        scale[p] = p < ns ? std::max(cd.th[p], 1e-6) : 1.0;
+        scale[p] = 1.0;
       }
       Eigen::VectorXd v(cost.na);
-      for (int j = 0; j < cost.na; ++j) v[j] = cd.th[cost.active[j]] / scale[cost.active[j]];
+      for (int j = 0; j < cost.na; ++j) v[j] = cost.ToParam(cost.active[j], cd.th[cost.active[j]]);
       solver.Solve(cost, &v);
       if (!v.allFinite()) continue;
       Cand r = cd;
       for (int j = 0; j < cost.na; ++j) {
         const int s = cost.active[j];
-        r.th[s] = std::min(std::max(v[j] * scale[s], px.lower[s]), px.upper[s]);
+        r.th[s] = std::min(std::max(cost.ToTheta(s, v[j]), px.lower[s]), px.upper[s]);
       }
       px.ApplyTies(r.th);
       r.cost = chi2_of(r.th);
@@ -672,6 +691,7 @@ void Inverter::SolveTable(Pixel* px, const double* start, Workspace* ws) const {
   px->ApplyTies(theta);
   TableCost cost;
   cost.px = px;
+  cost.log_fractions = true;
   cost.table = &t;
   cost.nc = nc;
   cost.ns = ns;
@@ -707,11 +727,11 @@ void Inverter::SolveTable(Pixel* px, const double* start, Workspace* ws) const {
     for (std::size_t p = 0; p < np; ++p) next[p] = theta[p];
     if (cost.na > 0) {
       Eigen::VectorXd v(cost.na);
-      for (int j = 0; j < cost.na; ++j) v[j] = theta[cost.active[j]] / px->scale[cost.active[j]];
+      for (int j = 0; j < cost.na; ++j) v[j] = cost.ToParam(cost.active[j], theta[cost.active[j]]);
       const auto& summary = solver.Solve(cost, &v);
       iters += std::max(summary.iterations, 0);
       if (!v.allFinite()) break;
-      for (int j = 0; j < cost.na; ++j) next[cost.active[j]] = v[j] * px->scale[cost.active[j]];
+      for (int j = 0; j < cost.na; ++j) next[cost.active[j]] = cost.ToTheta(cost.active[j], v[j]);
       px->ApplyTies(next);
     }
     // Cut the step at the first bound it crosses and hold that parameter there.
@@ -775,6 +795,29 @@ void Inverter::SolveTable(Pixel* px, const double* start, Workspace* ws) const {
       continue;
     }
     ok = base < tol;
+    // A free parameter that converged onto its bound (within 1e-3 of its
+    // conditional standard deviation; fractions approach 0 asymptotically in
+    // the solver's log space) is held there.
+    if (ok) {
+      int snap = -1;
+      for (int j = 0; j < cost.na && snap < 0; ++j) {
+        const int p = cost.active[j];
+        const double sd = h(p, p) > 0 ? 1.0 / std::sqrt(h(p, p)) : 0.0;
+        if (theta[p] - px->lower[p] < 1e-3 * sd) {
+          theta[p] = px->lower[p];
+          snap = p;
+        } else if (px->upper[p] - theta[p] < 1e-3 * sd) {
+          theta[p] = px->upper[p];
+          snap = p;
+        }
+      }
+      if (snap >= 0) {
+        px->ApplyTies(theta);
+        held |= static_cast<std::uint8_t>(1u << snap);
+        ok = false;
+        continue;
+      }
+    }
     break;
   }
   for (std::size_t p = 0; p < np; ++p) px->theta[p] = theta[p];
@@ -974,8 +1017,10 @@ void Inverter::SolveNewton(Pixel* px, Workspace* ws) const {
   if (ws->curve_channel != c || ws->curve_species != s || ws->curve_t != tp ||
       ws->curve_sigma != sg) {
     ws->curve_nodes.assign(static_cast<std::size_t>(nu) * r1, 0.0);
+    ws->curve_u.resize(nu);
     for (int i = 0; i < nu; ++i) {
       const double lu = lu0 + i * h;
+      ws->curve_u[i] = std::exp(lu);
       t.RawValues(c, s, lu, std::exp(lu) / sg, tp, &ws->curve_nodes[static_cast<std::size_t>(i) * r1]);
     }
     ws->curve = UniformSpline(lu0, h, nu, r1, ws->curve_nodes, Extrapolation::kHold,
@@ -994,16 +1039,20 @@ void Inverter::SolveNewton(Pixel* px, Workspace* ws) const {
   };
   const double g0 = contract(&ws->curve_nodes[0]);
   double raw[64], slope[64];
-  auto eval = [&](double u, double* f, double* df) {
+  // F(u) = u g(ln u) and dF/du, from u (or, when known, ln u).
+  auto eval_lu = [&](double u, double lu, double* f, double* df) {
     if (!(u > u_min)) {
       *f = u * g0;
       *df = g0;
       return;
     }
-    ws->curve.Evaluate(std::log(u), raw, slope);
+    ws->curve.Evaluate(lu, raw, slope);
     const double g = contract(raw);
     *f = u * g;
     *df = g + contract(slope);  // d(u g)/du = g + dg/d(ln u)
+  };
+  auto eval = [&](double u, double* f, double* df) {
+    eval_lu(u, u > u_min ? std::log(u) : 0.0, f, df);
   };
   // Other species (fixed) add a constant.
   double offset = 0;
@@ -1037,7 +1086,7 @@ void Inverter::SolveNewton(Pixel* px, Workspace* ws) const {
     };
     if (u_min > u_lo && u_min < u_hi) try_point(u_min, u_min * g0);
     for (int i = 0; i < nu && !bracket; ++i) {
-      const double u = std::exp(lu0 + i * h);
+      const double u = ws->curve_u[i];
       if (u <= std::max(u_lo, u_min) || u >= u_hi) continue;
       try_point(u, u * contract(&ws->curve_nodes[static_cast<std::size_t>(i) * r1]));
     }
@@ -1061,10 +1110,11 @@ void Inverter::SolveNewton(Pixel* px, Workspace* ws) const {
     double lu = la + (lb - la) * fa / (fa - fb);
     for (iters = 1; iters <= 60; ++iters) {
       double f, df;
-      eval(std::exp(lu), &f, &df);
+      const double u = std::exp(lu);
+      eval_lu(u, lu, &f, &df);
       f -= target;
       if ((f > 0) == (fa > 0)) la = lu; else lb = lu;
-      const double dfl = std::exp(lu) * df;
+      const double dfl = u * df;
       double next = dfl != 0 ? lu - f / dfl : 0.5 * (la + lb);
       if (!(next > la && next < lb)) next = 0.5 * (la + lb);
       const double step = std::abs(next - lu);
@@ -1180,32 +1230,6 @@ void Inverter::SolveFull(Pixel* px, const double* start, Workspace* ws) const {
   double con[kMaxChannels], jac[kMaxChannels * kMaxParams];
   FullModelContrast(*model_, t_amb_, px->theta, px->tbg, con, jac);
   FinishWith(px, con, jac, ws);
-}
-
-bool Inverter::SecondStart(const std::vector<GuessCandidate>& cands, const Pixel& px,
-                           double* theta) const {
-  const std::size_t ns = px.ns, np = px.np;
-  if (!px.est[ns] || cands.size() < 3) return false;
-  // The profile in order of temperature; its local minima.
-  std::vector<const GuessCandidate*> by_t;
-  for (const auto& c : cands) by_t.push_back(&c);
-  std::sort(by_t.begin(), by_t.end(), [&](const GuessCandidate* a, const GuessCandidate* b) {
-    return a->th[ns] < b->th[ns];
-  });
-  const double best_t = cands.front().th[ns];
-  std::size_t ib = 0;
-  for (std::size_t i = 0; i < by_t.size(); ++i)
-    if (by_t[i]->th[ns] == best_t) ib = i;
-  const GuessCandidate* pick = nullptr;
-  for (std::size_t i = 0; i < by_t.size(); ++i) {
-    if (i + 1 >= ib && i <= ib + 1) continue;  // the best one and its neighbours
-    const double c = by_t[i]->cost;
-    const bool lmin = (i == 0 || c < by_t[i - 1]->cost) && (i + 1 == by_t.size() || c < by_t[i + 1]->cost);
-    if (lmin && (!pick || c < pick->cost)) pick = by_t[i];
-  }
-  if (!pick || pick->cost > cands.front().cost + 100.0) return false;
-  std::copy(pick->th, pick->th + np, theta);
-  return true;
 }
 
 void Inverter::MergeModes(Pixel* a, const Pixel& b) const {
@@ -1331,7 +1355,9 @@ void Inverter::InvertRow(const PixelBatch& b, const InversionOutput& out, std::s
           TableGuess(*out, &ws->guesses, ws);
           const Pixel base = *out;
           const std::size_t starts =
-              std::min<std::size_t>(ws->guesses.size(), static_cast<std::size_t>(options_.num_starts));
+              options_.num_starts == 0
+                  ? ws->guesses.size()
+                  : std::min<std::size_t>(ws->guesses.size(), static_cast<std::size_t>(options_.num_starts));
           int total = 0;
           std::vector<Pixel>& sol = ws->solutions;
           sol.assign(starts, base);

@@ -23,10 +23,14 @@
 //     between bands).
 //
 // Solvers. The default fast path evaluates the per-scene table (SceneTable)
-// and solves with Ceres' TinySolver (Levenberg-Marquardt on parameters scaled
-// to O(1)), with bounds handled by an explicit active set: a step that
-// crosses a bound is cut at the bound, the parameter is held there, and it is
-// released again when the gradient points back inside (KKT check). With one
+// and solves with Ceres' TinySolver (Levenberg-Marquardt on parameters of
+// order one: ln(x + 1e-9) for fractions, ln sigma, T_peak / 10 K), with bounds
+// handled by an explicit active set: a step that crosses a bound is cut at the
+// bound, the parameter is held there, and it is released again when its
+// multiplier points back inside (KKT check). Cold starts solve from every
+// candidate of a coarse profile over T_peak and keep the best minimum; a
+// distinct second minimum within chi2 + 4 sets kFlagAmbiguous and widens the
+// uncertainties (see MergeModes). With one
 // channel and one unknown fraction the problem is a root: a bracketed
 // Newton iteration on a per-(T_peak, sigma) curve of the table. The general
 // path (SolverKind::kFullModel, and the only one when species overlap
@@ -113,9 +117,13 @@ struct InversionOptions {
   InitialGuess initial_guess = InitialGuess::kTable;  // default kTable
   int temperature_candidates = 5;  // T_peak candidates of the table guess when T_peak is estimated, 1-50. Default 5
   int guess_iterations = 3;  // fraction refinements per candidate of the table guess, 0-100. Default 3
-  // Full solves from the best candidates of the table guess (the best fit is
-  // kept; a distinct second minimum within chi2 + 4 widens the uncertainty), 1-50. Default 3
-  int num_starts = 3;
+  // Full solves from the best candidates of the table guess, 0-50 (0 = every
+  // candidate; default). The best fit is kept; distinct other minima widen
+  // its uncertainty by their likelihood weight. With the temperature free the
+  // chi2 landscape often has two branches (a thin hot plume and a thick
+  // cooler one give nearly the same contrasts in broadband channels), which
+  // only starts from every candidate find reliably.
+  int num_starts = 0;
   SolverKind solver = SolverKind::kAuto;  // default kAuto
   int num_threads = 0;  // threads over pixels; 0 = all cores
   // Validates against the model; throws std::invalid_argument.
@@ -229,14 +237,11 @@ class Inverter {
   void SolveFull(Pixel* px, const double* start, Workspace* ws) const;
   struct GuessCandidate {
     double cost;              // chi2 (with priors) of the candidate
-    double th[8];             // parameters
+    double th[8];             // parameters (species + 2 <= 8)
   };
   // Coarse lookup: per candidate peak temperature, the optically thin least
   // squares for the fractions, refined by a few iterations; sorted by cost.
   void TableGuess(const Pixel& px, std::vector<GuessCandidate>* candidates, Workspace* ws) const;
-  // A second start from the profile's other local minimum, if any.
-  bool SecondStart(const std::vector<GuessCandidate>& candidates, const Pixel& px,
-                   double* theta) const;
   // Combines two solutions of one pixel (two minima).
   void MergeModes(Pixel* best, const Pixel& other) const;
   void FullModelGuess(const Pixel& px, double* theta) const;

@@ -204,6 +204,7 @@ struct Fixture {
     so.ambient_temperature_K = t_amb;
     so.min_peak_temperature_K = 250;
     so.max_peak_temperature_K = 450;
+    so.negligible_fraction = 0;  // every bin: the table must reproduce the model exactly on its nodes
     so.max_sigma_m = 2.0;
     so.num_threads = 2;
     table = std::make_shared<SceneTable>(model, so);

@@ -27,6 +27,7 @@ void SceneTableOptions::Check() const {
   CheckInRange(min_background_K, 50.0, 2000.0, "min_background_K", "K");
   CheckInRange(max_background_K, min_background_K + 10.0, 2000.0, "max_background_K", "K");
   CheckInRange(planck_tolerance, 1e-14, 1e-4, "planck_tolerance");
+  CheckInRange(negligible_fraction, 0.0, 1e-3, "negligible_fraction");
   Require(num_nodes == 0 || (num_nodes >= 5 && num_nodes <= 10001 && num_nodes % 2 == 1),
           "num_nodes must be 0 (the model's) or odd within [5, 10001]; got " +
               std::to_string(num_nodes));
@@ -156,9 +157,26 @@ SceneTable::SceneTable(std::shared_ptr<const BinnedModel> model, SceneTableOptio
   for (std::size_t c = 0; c < nc_; ++c) {
     const std::size_t nq = m.num_bins(c);
     std::vector<double> air(nq), self(nq);
+    // Largest possible contrast of each bin: W_q Bbar_q at the hottest
+    // temperature the table serves (gas or background).
+    std::vector<double> bmax(nq);
+    m.MeanPlanck(c, std::max(tmax, options_.max_background_K), bmax.data());
+    const BinnedModel::BinView bvc = m.bins(c);
+    const double budget = options_.negligible_fraction * m.channels()[c].BandRadiance(t_amb);
+    double dropped_c = 0;
     for (std::size_t s = 0; s < ns_; ++s) {
+      std::vector<std::pair<double, std::size_t>> by_size;
       for (std::size_t q = 0; q < nq; ++q)
-        if (m.BinAbsorbs(c, s, q)) bins_of[c * ns_ + s].push_back(q);
+        if (m.BinAbsorbs(c, s, q)) by_size.emplace_back(bvc.weight[q] * std::abs(bmax[q]), q);
+      std::sort(by_size.begin(), by_size.end());
+      for (const auto& bq : by_size) {
+        if (dropped_c + bq.first <= budget) {
+          dropped_c += bq.first;
+          continue;
+        }
+        bins_of[c * ns_ + s].push_back(bq.second);
+      }
+      std::sort(bins_of[c * ns_ + s].begin(), bins_of[c * ns_ + s].end());
       if (bins_of[c * ns_ + s].empty()) continue;
       for (double temp = tmin; temp <= tmax + 1e-9; temp += (tmax - tmin) / 40.0) {
         m.BinCrossSections(c, s, temp, air.data(), m.has_self(s) ? self.data() : nullptr);
@@ -168,6 +186,7 @@ SceneTable::SceneTable(std::shared_ptr<const BinnedModel> model, SceneTableOptio
         }
       }
     }
+    negligible_bound_ = std::max(negligible_bound_, dropped_c);
   }
   Require(kmax > 0, "no channel sees any absorption of the model's species; "
                     "check the channels' spectral ranges against the tables");
@@ -478,6 +497,12 @@ void SceneTable::Export(std::size_t c, std::size_t s, std::vector<double>* coef,
   *coef = tables_[i].coef;
   *psi = tables_[i].psi.coefficients();
   *nu_ref = tables_[i].nu_ref_cm1;
+}
+
+std::size_t SceneTable::num_tabulated_bins() const {
+  std::size_t n = 0;
+  for (const Table& t : tables_) n += t.num_bins;
+  return n;
 }
 
 int SceneTable::fraction_axis(std::size_t s) const {

@@ -65,6 +65,12 @@ struct SceneTableOptions {
   // num_nodes). Fewer nodes build faster; the difference is part of the
   // measured table error.
   int num_nodes = 0;
+  // Bins whose largest possible contrasts (weight x mean Planck function at
+  // the hottest temperature served), summed, stay below this fraction of the
+  // channel's band radiance at ambient are left out (e.g. one species' far
+  // lines in the tail of another species' filter). 0 keeps every bin.
+  // Default 1e-6 (about 1e-4 of a 1 K contrast), within [0, 1e-3].
+  double negligible_fraction = 1e-6;
   int num_threads = 0;                   // build threads; 0 = all cores
   void Check() const;
 };
@@ -103,6 +109,10 @@ class SceneTable {
     return index_[channel * ns_ + species] >= 0;
   }
   double build_seconds() const { return build_seconds_; }
+  // Bins tabulated, and the bound on the left-out bins' contribution to any
+  // channel's contrast [W/(m2 sr)] (largest over channels).
+  std::size_t num_tabulated_bins() const;
+  double negligible_bound() const { return negligible_bound_; }
   double memory_bytes() const;
 
   // Number of per-pixel background coefficients (size of `phi` below).
@@ -178,7 +188,7 @@ class SceneTable {
   std::vector<Table> tables_;
   std::vector<int> index_;  // [c * ns + s] -> tables_ index or -1
   std::size_t phi_size_ = 0;
-  double build_seconds_ = 0;
+  double build_seconds_ = 0, negligible_bound_ = 0;
 };
 
 // Largest error of the table against BinnedModel::Contrast over `num_samples`
