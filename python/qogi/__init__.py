@@ -28,6 +28,9 @@ from .spectra import (
     voigt_profile,
 )
 from . import camera  # noqa: F401  (qogi.camera: calibration, noise, warm optics)
+from .surfaces import Region, Surface, auto_surfaces
+from .pipeline import Cancelled, QuantifyConfig, quantify
+from .result import Result
 from .camera import (Calibration, CalibrationScene, ChannelOptics, add_netd_noise,
                      add_warm_optics, camera_optics, correct_warm_optics, fit_calibration,
                      netd_radiance_sigma, warm_optics_radiance)
@@ -37,6 +40,13 @@ from . import inversion  # noqa: F401  (qogi.inversion.fixed/free/prior, plume_d
 from .inversion import Inversion, InversionResult
 
 __all__ = [
+    "Cancelled",
+    "QuantifyConfig",
+    "Region",
+    "Result",
+    "Surface",
+    "auto_surfaces",
+    "quantify",
     "__version__",
     "SpectralResponse",
     "planck_radiance",
