@@ -385,6 +385,11 @@ class Inversion:
         (the parameters are then within ~0.1 standard deviation of the optimum).
     table_options : dict, optional
         Further options of :func:`scene_table`.
+    table : SceneTable, optional
+        A table already built by :func:`scene_table` for the same model and
+        ambient temperature, covering this inversion's peak temperatures and
+        depths (several inversions of one scene share it; building one takes
+        seconds). Default: built here.
     num_threads : int, default 0 (all cores)
     progress : callable(fraction) -> bool or None, optional
         Progress of the table build; return False to cancel.
@@ -398,7 +403,8 @@ class Inversion:
                  model_error_fraction: float = 0.0, initial_guess: str = "table",
                  solver: str = "auto", max_iterations: int = 100, tolerance_chi2: float = 0.01,
                  num_starts: int = 0,
-                 table_options: Optional[dict] = None, num_threads: int = 0, progress=None):
+                 table_options: Optional[dict] = None, num_threads: int = 0, progress=None,
+                 table=None):
         if not isinstance(model, ForwardModel):
             raise ValueError(f"model must be a qogi.ForwardModel; got {type(model).__name__}")
         t_amb = float(ambient_temperature_K)
@@ -467,7 +473,17 @@ class Inversion:
             raise ValueError("every parameter is fixed: make at least one species' fraction, the "
                              "temperature or sigma free")
         self.table = None
-        if solver != "full_model":
+        if table is not None and solver != "full_model":
+            t_lo, t_hi = table.min_peak_temperature_K, table.max_peak_temperature_K
+            if not (t_lo <= lo + 1e-9 and hi <= t_hi + 1e-9 and
+                    table.options.max_sigma_m >= self.max_sigma_m - 1e-12):
+                raise ValueError(f"table covers peak temperatures [{t_lo:g}, {t_hi:g}] K and depths "
+                                 f"up to {table.options.max_sigma_m:g} m; this inversion needs [{lo:g}, "
+                                 f"{hi:g}] K and {self.max_sigma_m:g} m: build it with "
+                                 "scene_table(..., min_peak_temperature_K, max_peak_temperature_K, "
+                                 "max_sigma_m) covering them")
+            self.table = table
+        elif solver != "full_model":
             self.table = scene_table(model, t_amb, min_peak_temperature_K=lo,
                                      max_peak_temperature_K=hi, max_sigma_m=self.max_sigma_m,
                                      progress=progress, **tb_opts)

@@ -381,6 +381,38 @@ def _merge_results(a, b, sel: np.ndarray):
     return out
 
 
+def _owned(result):
+    """A copy of an InversionResult whose arrays may be written."""
+    import copy
+    out = copy.copy(result)
+    for name in ("status", "bound_mask", "flags", "parameters", "parameter_sigma", "covariance",
+                 "chi2", "condition_number", "iterations"):
+        setattr(out, name, np.array(getattr(result, name)))
+    for name in ("column_density", "column_density_sigma", "path_concentration_ppm_m",
+                 "path_concentration_sigma_ppm_m"):
+        setattr(out, name, {sp: np.array(v) for sp, v in getattr(result, name).items()})
+    return out
+
+
+def _scatter(full, part, idx: np.ndarray) -> None:
+    """Writes InversionResult ``part`` (pixels ``idx`` of ``full``) into ``full``."""
+    for name in ("status", "bound_mask", "flags", "parameters", "parameter_sigma", "covariance",
+                 "chi2", "condition_number", "iterations"):
+        getattr(full, name)[idx] = getattr(part, name)
+    for name in ("column_density", "column_density_sigma", "path_concentration_ppm_m",
+                 "path_concentration_sigma_ppm_m"):
+        for sp, v in getattr(part, name).items():
+            getattr(full, name)[sp][idx] = v
+
+
+def _weighted_median(values: np.ndarray, weights: np.ndarray) -> float:
+    """The value below which half the total weight lies."""
+    order = np.argsort(values)
+    v, w = np.asarray(values, float)[order], np.asarray(weights, float)[order]
+    c = np.cumsum(w)
+    return float(v[np.searchsorted(c, 0.5 * c[-1])])
+
+
 def _gaussian_width(profile: np.ndarray, cut: float = 0.2) -> float:
     """Standard deviation [samples] of a Gaussian-like profile from the second
     moment of its part above ``cut`` x its maximum (noise in the wings would
@@ -428,9 +460,18 @@ class _InvertedColumns:
         self.model = forward_model(channels, cfg.species, scene.pressure_Pa)
         netd = rec.camera.netd_K or 0.02
         if cfg.gas_temperature == "infer":
-            temperature = inv.free(scene.ambient_K - 10.0, scene.ambient_K + 150.0)
+            self.temperature_range_K = (scene.ambient_K - 10.0, scene.ambient_K + 150.0)
+            temperature = inv.free(*self.temperature_range_K)
         else:
+            self.temperature_range_K = (scene.gas_K - 10.0, scene.gas_K + 10.0)
             temperature = inv.fixed(scene.gas_K)
+        # One per-scene table serves every inversion of the run.
+        self.table = inv.scene_table(self.model, scene.ambient_K,
+                                     min_peak_temperature_K=self.temperature_range_K[0],
+                                     max_peak_temperature_K=self.temperature_range_K[1],
+                                     num_threads=cfg.num_threads)
+        self.k_K_per_fraction, self.k_sigma, self.k_relative_effect = None, 0.0, 0.0
+        self.mixing_pixels = 0
         # A known composition ties the species' fractions (then the ratios of
         # the bands' contrasts measure the temperature); otherwise each is free.
         fractions = None
@@ -526,6 +567,8 @@ class _InvertedColumns:
         else:
             sigma_param = None
             sigma_pixels = sig
+        if self.cfg.gas_temperature == "infer" and not time_averaged:
+            return self._finish_mixing(rad, bg, sig, edges, len(samples), progress)
         if time_averaged:
             res = self._invert(rad.mean(axis=0), bg.mean(axis=0), sigma_pixels, sigma_param,
                                noise_scale=1.0 / math.sqrt(nt), progress=progress)
@@ -555,6 +598,147 @@ class _InvertedColumns:
             out.append((cols, sigs))
         return out, counts
 
+    # -- the inferred gas temperature, frame by frame -----------------------------
+    def _finish_mixing(self, rad, bg, sig, edges, n_surfaces, progress):
+        """Per-frame columns with the gas temperature inferred through the
+        plume's mixing line.
+
+        A released gas that mixes with the ambient air (adiabatically, as in
+        a plume) has, at every point, a temperature excess proportional to
+        its volume fraction: T - T_amb = k x (the Gaussian line-of-sight model
+        has this shape: both follow g(s)). One k holds for the whole scene,
+        so it is measured once, from the pixels where the temperature is best
+        determined: a random sample of the highest-contrast pixel-frames is
+        inverted with every parameter of the multichannel model free (peak
+        fractions, T_peak), and k is the precision-weighted median of
+        (T_peak - T_amb) / x_peak. Then each pixel-frame has one unknown, x,
+        with T_peak = T_amb + k x: solved as a root of x = g(x) (g: the fixed-
+        temperature inversion at T(x)) by secant steps, each step one fast
+        fixed-temperature pass over every pixel. This avoids the two-branch
+        (thin-hot / thick-cool) ambiguity of free per-pixel temperatures in
+        noisy frames and costs a few fixed-temperature passes instead of a
+        multi-start four-parameter solve per pixel. The uncertainty of k is
+        carried into the column-density term (:attr:`k_relative_effect`).
+        """
+        inv = self.inv_module
+        cfg, t_amb = self.cfg, self.scene.ambient_K
+        nt, nc, n = rad.shape
+        lo, hi = self.temperature_range_K
+        r2 = rad.transpose(1, 0, 2).reshape(nc, nt * n)
+        b2 = bg.transpose(1, 0, 2).reshape(nc, nt * n)
+        s2 = np.tile(sig, nt)
+        kw = dict(self._inv_kw)
+        kw.pop("temperature")
+        free_t = inv.Inversion(self.model, t_amb, temperature=inv.free(lo, hi), sigma_m=0.05,
+                               table=self.table, **kw)
+        fixed_t = inv.Inversion(self.model, t_amb, temperature=inv.fixed(t_amb), sigma_m=0.05,
+                                temperature_range_K=(lo, hi), table=self.table, **kw)
+
+        def stage(a, b, label):
+            return lambda f: progress(a + (b - a) * f) if progress else None
+
+        # 1. The mixing line's slope from the best-determined pixels.
+        t_bg = [float(ch.radiometric_temperature(float(np.median(b2[c]))))
+                for c, ch in enumerate(self.rec.channels)]
+        noise = fixed_t.channel_noise(np.asarray(t_bg))[:, None]
+        snr = np.max(np.abs(r2 - b2) / noise, axis=0)
+        rng = np.random.default_rng(0)
+        cand = np.flatnonzero(snr >= 30.0)
+        if cand.size < 50:
+            cand = np.flatnonzero(snr >= 10.0)
+        if cand.size > 1500:
+            cand = np.sort(rng.choice(cand, 1500, replace=False))
+        self.k_K_per_fraction, self.k_sigma = 0.0, 0.0
+        self.mixing_pixels = int(cand.size)
+        if cand.size >= 5:
+            cal = free_t.invert(r2[:, cand], background_radiance=b2[:, cand], sigma_m=s2[cand],
+                                progress=stage(0.0, 0.3, "temperature"))
+            x = sum(cal.peak_fraction[sp] for sp in cfg.species)
+            tp = cal.peak_temperature_K
+            ts = cal.peak_temperature_sigma_K
+            ok = (cal.status == inv.CONVERGED) & ((cal.flags & inv.AMBIGUOUS) == 0) & (x > 0) & \
+                (ts > 0)
+            if ok.sum() >= 5:
+                ratio = (tp[ok] - t_amb) / x[ok]
+                w = (x[ok] / ts[ok]) ** 2
+                k = _weighted_median(ratio, w)
+                mad = _weighted_median(np.abs(ratio - k), w) * 1.4826
+                n_eff = w.sum() ** 2 / (w ** 2).sum()
+                self.k_K_per_fraction = float(k)
+                self.k_sigma = float(1.2533 * mad / math.sqrt(n_eff))
+        k = self.k_K_per_fraction
+
+        # 2. Every pixel-frame: x = g(x) with T_peak = T_amb + k x. In u = ln x
+        # the root of phi(u) = ln g(e^u) - u is bracketed by x -> 0 (g(0) > 0:
+        # phi > 0) and x = g(0) (phi <= 0 when g decreases, as it does for gas
+        # warmer than its background); the Illinois variant of regula falsi
+        # closes the bracket, each step one fixed-temperature pass over the
+        # pixels not yet within 0.3 % of their root.
+        def g(xv, kk, idx, a, b):
+            t = np.clip(t_amb + kk * xv, lo, hi)
+            res = fixed_t.invert(r2[:, idx], background_radiance=b2[:, idx], sigma_m=s2[idx],
+                                 peak_temperature_K=t, progress=stage(a, b, "columns"))
+            return res, sum(res.peak_fraction[sp] for sp in cfg.species)
+
+        def solve(kk, idx, a, b, passes=7):
+            span = (b - a) / passes
+            out, g0 = g(np.zeros(idx.size), kk, idx, a, a + span)
+            if kk == 0.0:
+                return out
+            out = _owned(out)
+            live = np.flatnonzero((g0 > 0) & out.valid)
+            ua = np.full(live.size, math.log(1e-7))
+            fa = np.log(g0[live]) - ua                      # > 0
+            ub = np.log(np.minimum(g0[live], 1.0))
+            res, gb = g(np.exp(ub), kk, idx[live], a + span, a + 2 * span)
+            fb = np.log(np.maximum(gb, 1e-12)) - ub
+            _scatter(out, res, live)
+            # No bracket (g not decreasing there): keep the pass at x = g(0).
+            keep = (fb < 0) & (np.abs(fb) > 3e-3)
+            live, ua, fa, ub, fb = live[keep], ua[keep], fa[keep], ub[keep], fb[keep]
+            side = np.zeros(live.size, int)
+            for step in range(passes - 2):
+                if live.size == 0:
+                    break
+                uc = (ua * fb - ub * fa) / (fb - fa)
+                res, gc = g(np.exp(uc), kk, idx[live], a + (2 + step) * span,
+                            a + (3 + step) * span)
+                fc = np.log(np.maximum(gc, 1e-12)) - uc
+                _scatter(out, res, live)
+                pos = fc > 0  # the root lies above uc: uc replaces the lower end
+                # Illinois: an end kept twice in a row has its value halved.
+                fa = np.where(pos, fc, np.where(side == -1, 0.5 * fa, fa))
+                fb = np.where(~pos, fc, np.where(side == 1, 0.5 * fb, fb))
+                ua = np.where(pos, uc, ua)
+                ub = np.where(~pos, uc, ub)
+                side = np.where(pos, 1, -1)
+                keep = np.abs(fc) > 3e-3
+                live, ua, fa, ub, fb, side = (live[keep], ua[keep], fa[keep], ub[keep], fb[keep],
+                                              side[keep])
+            return out
+
+        everything = np.arange(nt * n)
+        flat = solve(k, everything, 0.3, 0.9)
+        # Sensitivity to k on every 5th frame: carried into the column term.
+        self.k_relative_effect = 0.0
+        if self.k_sigma > 0:
+            sub = (np.arange(0, nt, 5)[:, None] * n + np.arange(n)[None, :]).ravel()
+            base = sum(flat.column_density[sp][sub].sum() for sp in cfg.species)
+            alt = solve(k + self.k_sigma, sub, 0.9, 1.0)
+            other = sum(alt.column_density[sp].sum() for sp in cfg.species)
+            if base > 0:
+                self.k_relative_effect = float(abs(other - base) / base)
+        res_cols = {sp: flat.column_density[sp].reshape(nt, n) for sp in cfg.species}
+        res_sig = {sp: flat.column_density_sigma[sp].reshape(nt, n) for sp in cfg.species}
+        ok = (flat.valid | (flat.status == inv.BELOW_DETECTION)).reshape(nt, n)
+        out = []
+        for j in range(n_surfaces):
+            a, b = edges[j], edges[j + 1]
+            cols = {sp: np.where(ok[:, a:b], res_cols[sp][:, a:b], np.nan) for sp in cfg.species}
+            sigs = {sp: np.where(ok[:, a:b], res_sig[sp][:, a:b], 0.0) for sp in cfg.species}
+            out.append((cols, sigs))
+        return out, flat.counts()
+
     def _invert(self, rad, bg, sigma_pixels, sigma_param, noise_scale, progress):
         """One inversion call; with an inferred temperature and no given depth,
         a Gaussian prior on sigma centred on each pixel's width estimate."""
@@ -567,7 +751,8 @@ class _InvertedColumns:
                 sel = sigma_pixels == val
                 inversion = inv.Inversion(self.model, self.scene.ambient_K,
                                           sigma_m=inv.prior(float(val), 0.5 * float(val),
-                                                            1e-3, 0.5), **self._inv_kw)
+                                                            1e-3, 0.5), table=self.table,
+                                          **self._inv_kw)
                 res_all[float(val)] = (sel, inversion.invert(rad, background_radiance=bg,
                                                              mask=sel, progress=progress))
             # Merge: each pixel from the run that selected it.
@@ -577,7 +762,7 @@ class _InvertedColumns:
                 out = _merge_results(out, r, sel)
             return out
         inversion = inv.Inversion(self.model, self.scene.ambient_K, sigma_m=sigma_param,
-                                  **self._inv_kw)
+                                  table=self.table, **self._inv_kw)
         if noise_scale != 1.0:
             return inversion.invert_mean(rad[None] if rad.ndim == 2 else rad,
                                          background_radiance=bg, sigma_m=sigma_pixels,
@@ -706,7 +891,7 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
         flows = seq
     return _finish(rec, surfaces, cfg, scene, samples, frames, done, col_fields, surf_cols,
                    surf_sig, flows, status_counts, kept_maps, t_start, complete=True,
-                   keep_maps=keep_maps, roi=roi)
+                   keep_maps=keep_maps, roi=roi, columns=columns)
 
 
 def _pair_velocity(flows, k: int, n: int):
@@ -726,12 +911,22 @@ def _pair_velocity(flows, k: int, n: int):
 
 
 def _finish(rec, surfaces, cfg, scene, samples, frames, done, col_fields, surf_cols, surf_sig,
-            flows, status_counts, kept_maps, t_start, complete, keep_maps=False, roi=None):
+            flows, status_counts, kept_maps, t_start, complete, keep_maps=False, roi=None,
+            columns=None):
     from . import _engine
 
     times = np.asarray(rec.time_s)[frames.start:frames.start + done]
     vsys = cfg.velocity_systematic if cfg.velocity_systematic is not None else \
         VELOCITY_SYSTEMATIC[cfg.velocity]
+    # The inferred temperature's mixing-line slope and its effect on the columns.
+    mixing = {}
+    col_sys = cfg.column_systematic
+    if columns is not None and getattr(columns, "k_K_per_fraction", None) is not None:
+        mixing = {"mixing_line_K_per_fraction": columns.k_K_per_fraction,
+                  "mixing_line_sigma_K_per_fraction": columns.k_sigma,
+                  "mixing_line_pixels": columns.mixing_pixels,
+                  "mixing_line_column_effect": columns.k_relative_effect}
+        col_sys = math.hypot(col_sys, columns.k_relative_effect)
     results = []
     for j, (s, (xy, n, dl, t)) in enumerate(zip(surfaces, samples)):
         per_species = {}
@@ -769,7 +964,7 @@ def _finish(rec, surfaces, cfg, scene, samples, frames, done, col_fields, surf_c
             terms = {
                 "temporal": temporal * 3600,
                 "velocity": abs(mean) * vsys * 3600,
-                "column density": math.sqrt(col_rand ** 2 + (abs(mean) * cfg.column_systematic) ** 2)
+                "column density": math.sqrt(col_rand ** 2 + (abs(mean) * col_sys) ** 2)
                 * 3600,
             }
             sigma = math.sqrt(sum(v * v for v in terms.values()))
@@ -787,6 +982,7 @@ def _finish(rec, surfaces, cfg, scene, samples, frames, done, col_fields, surf_c
         results.append(SurfaceResult(s, per_species))
     info = {"seconds": time.perf_counter() - t_start, "frames": int(done),
             "frame_rate_hz": float(scene.frame_rate), "pixel_m": float(scene.pixel_m),
-            "gas_temperature_K": float(scene.gas_K), "velocity_systematic": float(vsys)}
+            "gas_temperature_K": float(scene.gas_K), "velocity_systematic": float(vsys),
+            "column_systematic": float(col_sys), **mixing}
     return Result(results, config=cfg, recording_path=str(rec.path), pixel_status=status_counts,
                   maps=kept_maps, info=info, complete=complete)
