@@ -14,7 +14,7 @@ from typing import Dict, List, Optional, Sequence, Tuple
 import numpy as np
 
 __all__ = ["RateRow", "rate_rows", "rate_series", "finite_segments", "pixel_status_rows",
-           "frame_maps", "vector_field", "overlay_scale"]
+           "frame_maps", "vector_field", "overlay_scale", "arrow_segments"]
 
 KG_S_TO_KG_H = 3600.0
 STATUS_ORDER = ("converged", "at bound", "below detection", "failed")
@@ -199,3 +199,30 @@ def vector_field(u: np.ndarray, v: np.ndarray, weight: Optional[np.ndarray] = No
     tails = np.column_stack([xs, ys]).astype(float)
     heads = tails + scale * np.column_stack([uu, vv])
     return tails, heads, scale
+
+
+def arrow_segments(tails: np.ndarray, heads: np.ndarray, head_frac: float = 0.3,
+                   head_angle_deg: float = 25.0, min_head: float = 0.0
+                   ) -> Tuple[np.ndarray, np.ndarray]:
+    """Arrows as line segments for a plot: shaft plus two head strokes each.
+
+    Returns x and y arrays laid out as consecutive (start, end) pairs (3 pairs
+    per arrow), for a segment line series. Zero-length arrows are skipped.
+    """
+    tails = np.asarray(tails, dtype=float).reshape(-1, 2)
+    heads = np.asarray(heads, dtype=float).reshape(-1, 2)
+    d = heads - tails
+    length = np.hypot(d[:, 0], d[:, 1])
+    keep = length > 0
+    tails, heads, d, length = tails[keep], heads[keep], d[keep], length[keep]
+    if len(tails) == 0:
+        return np.zeros(0), np.zeros(0)
+    back = -d / length[:, None]
+    hl = np.maximum(head_frac * length, min_head)[:, None]
+    a = np.radians(head_angle_deg)
+    c, s = np.cos(a), np.sin(a)
+    left = np.column_stack([c * back[:, 0] - s * back[:, 1], s * back[:, 0] + c * back[:, 1]])
+    right = np.column_stack([c * back[:, 0] + s * back[:, 1], -s * back[:, 0] + c * back[:, 1]])
+    pts = np.stack([tails, heads, heads, heads + hl * left, heads, heads + hl * right], axis=1)
+    pts = pts.reshape(-1, 2)
+    return pts[:, 0], pts[:, 1]

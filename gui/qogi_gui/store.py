@@ -1,6 +1,7 @@
 """Per-user state of the viewer: recent files and the last folder used.
 
-Stored as JSON in the user's configuration folder:
+Stored as JSON in the user's configuration folder (the demo recording goes
+to qogi's cache folder instead, see :func:`cache_dir`):
 ``$QOGI_CONFIG_DIR`` if set, else ``$XDG_CONFIG_HOME/qogi``, else
 ``~/.config/qogi`` (``viewer.json``). A missing or unreadable file means an
 empty history; it never stops the viewer.
@@ -30,13 +31,11 @@ def config_dir() -> Path:
 
 
 def cache_dir() -> Path:
-    """The folder for regenerable files (the demo recording):
-    ``$QOGI_CACHE_DIR``, else ``$XDG_CACHE_HOME/qogi``, else ``~/.cache/qogi``."""
-    env = os.environ.get("QOGI_CACHE_DIR")
-    if env:
-        return Path(env)
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    return (Path(xdg) if xdg else Path.home() / ".cache") / "qogi"
+    """The folder for regenerable files (the demo recording): qogi's per-user
+    cache, ``$QOGI_CACHE_DIR`` or ``~/.cache/qogi`` (:func:`qogi.spectra.cache_dir`)."""
+    from qogi.spectra import cache_dir as qogi_cache_dir
+
+    return Path(qogi_cache_dir())
 
 
 class UserStore:

@@ -571,3 +571,26 @@ def test_vector_field_scale_and_mask():
     assert np.all((tails[:, 0] >= 10) & (tails[:, 0] < 20))
     np.testing.assert_allclose(heads - tails, np.tile([0.0, -4.0], (len(tails), 1)))
     assert scale == pytest.approx(2.0)
+
+
+def test_arrow_segments_draw_shaft_and_head():
+    xs, ys = results.arrow_segments(np.array([[0.0, 0.0], [1.0, 1.0]]),
+                                    np.array([[0.0, -10.0], [1.0, 1.0]]), head_frac=0.3)
+    assert len(xs) == 6  # the zero-length arrow is skipped: 3 segments of 2 points
+    assert (xs[0], ys[0], xs[1], ys[1]) == (0.0, 0.0, 0.0, -10.0)
+    # Both head strokes start at the head, go back 3 px at +-25 deg.
+    for k in (3, 5):
+        dx, dy = xs[k] - xs[k - 1], ys[k] - ys[k - 1]
+        assert np.hypot(dx, dy) == pytest.approx(3.0)
+        assert np.degrees(np.arctan2(abs(dx), dy)) == pytest.approx(25.0)
+
+
+def test_demo_file_name_names_its_definition(tmp_path):
+    from qogi_gui import demo
+
+    p = demo.demo_path(tmp_path)
+    assert p.parent == tmp_path
+    assert demo.DEMO["preset"] in p.name and f"seed{demo.DEMO['seed']}" in p.name
+    assert p.name.endswith(f"qogi{qogi.__version__}.h5")
+    x, y = demo.source_pixel()
+    assert 0 <= x < 320 and 0 <= y < 256
