@@ -5,6 +5,7 @@
 #include "engine/rte/binned_model.h"
 #include "engine/rte/exact_model.h"
 #include "engine/rte/path.h"
+#include "engine/rte/render.h"
 
 namespace qogi {
 namespace {
@@ -367,7 +368,71 @@ void BindRte(py::module_& m) {
              return mdl.BandRadiance(p, tbg);
            },
            py::arg("position_m"), py::arg("temperature_K"), py::arg("fractions"),
-           py::arg("pressure_Pa"), py::arg("background_temperature_K"));
+           py::arg("pressure_Pa"), py::arg("background_temperature_K"))
+      .def("bin_contrasts",
+           [](const BinnedModel& mdl, const DoubleArray& pos, const DoubleArray& temp,
+              const DoubleArray& fr, double pressure, std::size_t channel, double tbg) {
+             const Path p = MakePath(pos, temp, fr, pressure);
+             std::vector<double> out;
+             {
+               py::gil_scoped_release release;
+               mdl.BinContrasts(p, channel, tbg, &out);
+             }
+             return py::array_t<double>(out.size(), out.data());
+           },
+           py::arg("position_m"), py::arg("temperature_K"), py::arg("fractions"),
+           py::arg("pressure_Pa"), py::arg("channel"), py::arg("background_temperature_K"),
+           "Unweighted contrast of every bin of one channel [W/(m2 sr cm-1)].")
+      .def("weights", [](const BinnedModel& mdl, std::size_t c) {
+             if (c >= mdl.num_channels()) throw std::invalid_argument("channel index out of range");
+             const auto& w = mdl.weights(c);
+             return py::array_t<double>(w.size(), w.data());
+           }, py::arg("channel"), "Bin weights of a channel [cm-1].")
+      .def("subset", &BinnedModel::Subset, py::arg("bins"), py::arg("weights"),
+           py::call_guard<py::gil_scoped_release>())
+      .def("use_fine_temperature_grid", &BinnedModel::UseFineTemperatureGrid,
+           py::arg("t_lo"), py::arg("t_hi"), py::arg("step_K") = 1.0);
+
+  m.def("render_contrast",
+        [](const BinnedModel& mdl, py::array_t<std::int64_t, py::array::c_style | py::array::forcecast> offset,
+           py::array_t<float, py::array::c_style | py::array::forcecast> step,
+           py::array_t<float, py::array::c_style | py::array::forcecast> temperature,
+           std::vector<py::array_t<float, py::array::c_style | py::array::forcecast>> fractions,
+           double t_amb, const DoubleArray& tbg, int num_threads, py::object progress) {
+          RayBatch rays;
+          rays.num_rays = static_cast<std::size_t>(offset.size()) - 1;
+          if (offset.size() < 1 || static_cast<std::size_t>(step.size()) != rays.num_rays)
+            throw std::invalid_argument("offset needs num_rays + 1 values and step_m num_rays");
+          const std::int64_t ns_total = offset.data()[rays.num_rays];
+          if (temperature.size() < ns_total)
+            throw std::invalid_argument("temperature_K has fewer values than the offsets address");
+          rays.offset = offset.data();
+          rays.step_m = step.data();
+          rays.temperature_K = temperature.data();
+          for (auto& f : fractions) {
+            if (f.size() < ns_total)
+              throw std::invalid_argument("a fractions array has fewer values than the offsets address");
+            rays.fraction.push_back(f.data());
+          }
+          const std::size_t nc = mdl.num_channels();
+          std::size_t stride;
+          if (static_cast<std::size_t>(tbg.size()) == nc) stride = 0;
+          else if (static_cast<std::size_t>(tbg.size()) == nc * rays.num_rays) stride = nc;
+          else throw std::invalid_argument("background_temperature_K needs one value per channel or per ray and channel");
+          py::array_t<float> out({rays.num_rays, nc});
+          float* o = out.mutable_data();
+          const double* tb = tbg.data();
+          RunControl control = MakeRunControl(progress);
+          {
+            py::gil_scoped_release release;
+            RenderContrast(mdl, rays, t_amb, tb, stride, o, num_threads, &control);
+          }
+          return out;
+        },
+        py::arg("model"), py::arg("offset"), py::arg("step_m"), py::arg("temperature_K"),
+        py::arg("fractions"), py::arg("ambient_temperature_K"), py::arg("background_temperature_K"),
+        py::arg("num_threads") = 0, py::arg("progress") = py::none(),
+        "Contrast [W/(m2 sr)] of many rays (samples background -> camera), (rays, channels).");
 }
 
 }  // namespace qogi

@@ -108,6 +108,8 @@ def build_parser() -> argparse.ArgumentParser:
     g.set_defaults(func=cmd_gui)
     from ._cli_spectra import add_commands as add_spectra_commands
     add_spectra_commands(sub)
+    from ._cli_synth import add_commands as add_synth_commands
+    add_synth_commands(sub)
     return p
 
 

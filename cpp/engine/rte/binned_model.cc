@@ -233,6 +233,282 @@ void BinnedModel::BuildChannel(std::size_t c, const std::vector<AbsorberTable>& 
   }
 }
 
+void BinnedModel::BinContrasts(const Path& path, std::size_t channel, double t_bg,
+                               std::vector<double>* out) const {
+  Require(channel < bins_.size(), "channel index out of range");
+  CheckPath(path);
+  CheckInRange(t_bg, 100.0, 2000.0, "background_temperature_K", "K");
+  ChannelContrast<double>(path, false, channel, t_bg, out);
+}
+
+BinnedModel BinnedModel::Subset(const std::vector<std::vector<int>>& keep,
+                                const std::vector<std::vector<double>>& weights) const {
+  Require(keep.size() == bins_.size() && weights.size() == bins_.size(),
+          "Subset needs one list of bins and weights per channel (" +
+              std::to_string(bins_.size()) + ")");
+  BinnedModel out = *this;
+  const std::size_t ns = species_.size();
+  const int nm = options_.chebyshev_nodes;
+  for (std::size_t c = 0; c < bins_.size(); ++c) {
+    const Bins& b = bins_[c];
+    const std::size_t nq = b.weight.size();
+    Require(keep[c].size() == weights[c].size(), "Subset: bins and weights differ in length");
+    Bins n;
+    n.num_segments = b.num_segments;
+    n.segment_nodes = b.segment_nodes;
+    const std::size_t k = keep[c].size();
+    for (std::size_t i = 0; i < k; ++i) {
+      const int q = keep[c][i];
+      Require(q >= 0 && static_cast<std::size_t>(q) < nq, "Subset: bin index out of range");
+      CheckNonNegative(weights[c][i], "Subset weight", "cm-1");
+      n.weight.push_back(weights[c][i]);
+      n.segment.push_back(b.segment[q]);
+      for (int m = 0; m < nm; ++m) n.planck_map.push_back(b.planck_map[q * nm + m]);
+    }
+    auto pick = [&](const std::vector<double>& v, std::size_t nt) {
+      std::vector<double> o(nt * k);
+      for (std::size_t it = 0; it < nt; ++it)
+        for (std::size_t i = 0; i < k; ++i) o[it * k + i] = v[it * nq + keep[c][i]];
+      return o;
+    };
+    n.sigma_air.resize(ns);
+    n.sigma_self.resize(ns);
+    n.log_sigma_air.resize(ns);
+    n.log_sigma_self.resize(ns);
+    n.active.assign(ns, {});
+    n.positive_air.assign(ns, std::vector<char>(k, 0));
+    n.positive_self.assign(ns, std::vector<char>(k, 0));
+    n.fine_air.assign(ns, {});
+    n.fine_self.assign(ns, {});
+    for (std::size_t s = 0; s < ns; ++s) {
+      const std::size_t nt = table_temperatures_[s].size();
+      n.sigma_air[s] = pick(b.sigma_air[s], nt);
+      n.log_sigma_air[s] = pick(b.log_sigma_air[s], nt);
+      if (has_self_[s]) {
+        n.sigma_self[s] = pick(b.sigma_self[s], nt);
+        n.log_sigma_self[s] = pick(b.log_sigma_self[s], nt);
+      }
+      std::vector<char> active(nq, 0);
+      for (int q : b.active[s]) active[q] = 1;
+      for (std::size_t i = 0; i < k; ++i) {
+        const int q = keep[c][i];
+        if (active[q]) n.active[s].push_back(static_cast<int>(i));
+        n.positive_air[s][i] = b.positive_air[s][q];
+        n.positive_self[s][i] = b.positive_self[s][q];
+      }
+    }
+    out.bins_[c] = std::move(n);
+  }
+  out.fine_n_ = 0;
+  return out;
+}
+
+void BinnedModel::UseFineTemperatureGrid(double t_lo, double t_hi, double step) {
+  CheckPositive(step, "step_K", "K");
+  Require(t_lo >= t_min_ - 1e-9 && t_hi <= t_max_ + 1e-9 && t_hi > t_lo,
+          "fine temperature grid [" + FormatNumber(t_lo) + ", " + FormatNumber(t_hi) +
+              "] K must lie inside the tables' range [" + FormatNumber(t_min_) + ", " +
+              FormatNumber(t_max_) + "] K");
+  const std::size_t n = static_cast<std::size_t>(std::ceil((t_hi - t_lo) / step)) + 1;
+  Require(n >= 2 && n <= 100000, "fine temperature grid needs 2 to 100000 points");
+  fine_t0_ = t_lo;
+  fine_dt_ = step;
+  fine_n_ = n;
+  const std::size_t ns = species_.size();
+  const int nm = options_.chebyshev_nodes;
+  for (Bins& b : bins_) {
+    const std::size_t nq = b.weight.size();
+    // Bin-mean Planck on the grid too, when the table stays small (renderers
+    // use few bins); others keep the Chebyshev evaluation.
+    b.fine_planck.clear();
+    if (n * nq <= 4000000) {
+      b.fine_planck.assign(n * nq, 0.0);
+      std::vector<double> node_b(b.num_segments * nm);
+      for (std::size_t k = 0; k < n; ++k) {
+        const double t = t_lo + k * step;
+        for (std::size_t i = 0; i < node_b.size(); ++i) node_b[i] = PlanckUnchecked(b.segment_nodes[i], t);
+        for (std::size_t q = 0; q < nq; ++q) {
+          double v = 0;
+          for (int m = 0; m < nm; ++m) v += b.planck_map[q * nm + m] * node_b[b.segment[q] * nm + m];
+          b.fine_planck[k * nq + q] = v;
+        }
+      }
+    }
+    b.fine_air.assign(ns, {});
+    b.fine_self.assign(ns, {});
+    for (std::size_t s = 0; s < ns; ++s) {
+      b.fine_air[s].assign(n * nq, 0.0);
+      if (has_self_[s]) b.fine_self[s].assign(n * nq, 0.0);
+      for (std::size_t k = 0; k < n; ++k) {
+        const double t = std::min(t_lo + k * step, t_max_);
+        const TemperatureStencil st = MakeTemperatureStencil(table_temperatures_[s], t);
+        double w[4];
+        for (int a = 0; a < st.count; ++a) w[a] = st.weight[a];
+        for (std::size_t q = 0; q < nq; ++q) {
+          auto interp = [&](const std::vector<double>& v, const std::vector<double>& lv) {
+            return InterpolateInTemperature<double>(
+                st, w, st.frac, [&](std::size_t i) { return v[i * nq + q]; },
+                [&](std::size_t i) { return lv[i * nq + q]; });
+          };
+          b.fine_air[s][k * nq + q] = interp(b.sigma_air[s], b.log_sigma_air[s]);
+          if (has_self_[s]) b.fine_self[s][k * nq + q] = interp(b.sigma_self[s], b.log_sigma_self[s]);
+        }
+      }
+    }
+  }
+}
+
+namespace {
+
+// One layer of the march (march.h) given the nodes' half-layer transmittances
+// e = exp(-kappa ds / 2): t = e_far e_near, so each node costs one exp.
+inline void RenderLayer(std::size_t nq, const double* kf, const double* kn, const double* ef,
+                        const double* en, const double* df, const double* dn, double ds,
+                        double* dl) {
+  for (std::size_t q = 0; q < nq; ++q) {
+    const double tau = 0.5 * (kf[q] + kn[q]) * ds;
+    const double t = ef[q] * en[q];
+    const double f = tau < 1e-4 ? 1.0 - tau * (0.5 - tau * (1.0 / 6.0)) : (1.0 - t) / tau;
+    const double tt = 1.0 - tau * f;
+    const double dd = df[q] - dn[q];
+    dl[q] = dl[q] * tt + dn[q] * (tau * f) + dd * (f - tt) + 0.25 * dd * (kf[q] - kn[q]) * ds * (f * f);
+  }
+}
+
+}  // namespace
+
+void BinnedModel::RenderRays(std::size_t r0, std::size_t r1, const std::int64_t* offset,
+                             const float* step_m, const float* temperature,
+                             const std::vector<const float*>& fractions, double t_amb,
+                             const double* t_bg, std::size_t bg_stride, float* out) const {
+  const std::size_t ns = species_.size();
+  const std::size_t nc = channels_.size();
+  Require(fine_n_ > 0, "RenderRays needs UseFineTemperatureGrid first");
+  for (const Bins& b : bins_)
+    Require(!b.fine_planck.empty() || b.weight.empty(),
+            "RenderRays needs a model small enough to tabulate Planck per bin (use Subset)");
+  const double t_hi = fine_t0_ + fine_dt_ * (fine_n_ - 1);
+  auto position = [&](double t, std::size_t* k0, double* w1) {
+    if (!(t >= fine_t0_ - 1e-9 && t <= t_hi + 1e-9))
+      throw std::invalid_argument("temperature " + FormatNumber(t) +
+                                  " K is outside the renderer's fine grid [" +
+                                  FormatNumber(fine_t0_) + ", " + FormatNumber(t_hi) + "] K");
+    double p = (t - fine_t0_) / fine_dt_;
+    p = std::min(std::max(p, 0.0), static_cast<double>(fine_n_ - 1));
+    std::size_t k = static_cast<std::size_t>(p);
+    if (k >= fine_n_ - 1) k = fine_n_ - 2;
+    *k0 = k;
+    *w1 = p - static_cast<double>(k);
+  };
+  // Per node (shared by all channels): fine-grid index and weight, and the
+  // air- and self-broadened number densities per species [1/cm3 x cm/m].
+  std::vector<std::size_t> nk;
+  std::vector<double> nw, na, nsf;
+  std::vector<double> kf, kn, ef, en, df, dn, dl, kc, ec, dc, dlc, bbg;
+  for (std::size_t r = r0; r < r1; ++r) {
+    const std::int64_t s0 = offset[r], s1 = offset[r + 1];
+    float* o = out + r * nc;
+    if (s1 <= s0) {
+      for (std::size_t c = 0; c < nc; ++c) o[c] = 0.f;
+      continue;
+    }
+    // Nodes: ambient, the samples, ambient, padded to an odd count.
+    const std::size_t gas = static_cast<std::size_t>(s1 - s0);
+    std::size_t n = gas + 2;
+    if (n % 2 == 0) ++n;
+    const double ds = step_m[r];
+    const bool rich = options_.richardson && n >= 5;
+    nk.resize(n);
+    nw.resize(n);
+    na.assign(n * ns, 0.0);
+    nsf.assign(n * ns, 0.0);
+    for (std::size_t k = 0; k < n; ++k) {
+      const bool is_gas = k >= 1 && k <= gas;
+      const double t = is_gas ? temperature[s0 + static_cast<std::int64_t>(k) - 1] : t_amb;
+      position(t, &nk[k], &nw[k]);
+      if (!is_gas) continue;
+      const double n_tot = NumberDensityCm3(pressure_Pa_, t) * 100.0;
+      for (std::size_t s = 0; s < ns; ++s) {
+        const double xs = std::min(1.0, std::max(0.0, static_cast<double>(
+                                                        fractions[s][s0 + static_cast<std::int64_t>(k) - 1])));
+        na[k * ns + s] = has_self_[s] ? n_tot * xs * (1.0 - xs) : n_tot * xs;
+        nsf[k * ns + s] = has_self_[s] ? n_tot * xs * xs : 0.0;
+      }
+    }
+    for (std::size_t c = 0; c < nc; ++c) {
+      const Bins& b = bins_[c];
+      const std::size_t nq = b.weight.size();
+      if (nq == 0) {
+        o[c] = 0.f;
+        continue;
+      }
+      kf.assign(nq, 0.0); kn.assign(nq, 0.0); ef.assign(nq, 1.0); en.assign(nq, 1.0);
+      df.assign(nq, 0.0); dn.assign(nq, 0.0); dl.assign(nq, 0.0); bbg.assign(nq, 0.0);
+      if (rich) { kc.assign(nq, 0.0); ec.assign(nq, 1.0); dc.assign(nq, 0.0); dlc.assign(nq, 0.0); }
+      std::size_t kb;
+      double wb;
+      position(t_bg[r * bg_stride + c], &kb, &wb);
+      for (std::size_t q = 0; q < nq; ++q)
+        bbg[q] = (1 - wb) * b.fine_planck[kb * nq + q] + wb * b.fine_planck[(kb + 1) * nq + q];
+      auto fill = [&](std::size_t k, std::vector<double>& kap, std::vector<double>& e,
+                      std::vector<double>& d) {
+        const std::size_t k0 = nk[k];
+        const double w1 = nw[k], w0 = 1.0 - w1;
+        const double* p0 = &b.fine_planck[k0 * nq];
+        const double* p1 = p0 + nq;
+        for (std::size_t q = 0; q < nq; ++q) {
+          kap[q] = 0.0;
+          d[q] = w0 * p0[q] + w1 * p1[q] - bbg[q];
+        }
+        for (std::size_t s = 0; s < ns; ++s) {
+          const double ca = na[k * ns + s], cs = nsf[k * ns + s];
+          if (ca == 0.0 && cs == 0.0) continue;
+          const double* a0 = &b.fine_air[s][k0 * nq];
+          const double* a1 = a0 + nq;
+          for (int q : b.active[s]) kap[q] += ca * (w0 * a0[q] + w1 * a1[q]);
+          if (cs != 0.0) {
+            const double* e0 = &b.fine_self[s][k0 * nq];
+            const double* e1 = e0 + nq;
+            for (int q : b.active[s]) kap[q] += cs * (w0 * e0[q] + w1 * e1[q]);
+          }
+        }
+        for (std::size_t q = 0; q < nq; ++q) e[q] = kap[q] > 0.0 ? std::exp(-0.5 * kap[q] * ds) : 1.0;
+      };
+      fill(0, kf, ef, df);
+      if (rich) { kc = kf; ec = ef; dc = df; }
+      for (std::size_t k = 0; k + 1 < n; ++k) {
+        fill(k + 1, kn, en, dn);
+        RenderLayer(nq, kf.data(), kn.data(), ef.data(), en.data(), df.data(), dn.data(), ds,
+                    dl.data());
+        if (rich && (k + 1) % 2 == 0) {
+          // Coarse layer over 2 ds: its half-layer transmittances are e^2.
+          for (std::size_t q = 0; q < nq; ++q) {
+            ec[q] *= ec[q];
+            const double enq = en[q] * en[q];
+            const double tau = (kc[q] + kn[q]) * ds;
+            const double t = ec[q] * enq;
+            const double f = tau < 1e-4 ? 1.0 - tau * (0.5 - tau * (1.0 / 6.0)) : (1.0 - t) / tau;
+            const double tt = 1.0 - tau * f;
+            const double dd = dc[q] - dn[q];
+            dlc[q] = dlc[q] * tt + dn[q] * (tau * f) + dd * (f - tt) +
+                     0.25 * dd * (kc[q] - kn[q]) * 2.0 * ds * (f * f);
+          }
+          kc = kn;
+          ec = en;
+          dc = dn;
+        }
+        std::swap(kf, kn);
+        std::swap(ef, en);
+        std::swap(df, dn);
+      }
+      double sum = 0;
+      for (std::size_t q = 0; q < nq; ++q)
+        sum += b.weight[q] * (rich ? (4.0 * dl[q] - dlc[q]) / 3.0 : dl[q]);
+      o[c] = static_cast<float>(sum);
+    }
+  }
+}
+
 void BinnedModel::CheckPath(const Path& path) const {
   qogi::CheckPath(path);
   Require(path.num_species == species_.size(),

@@ -20,6 +20,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -92,6 +93,35 @@ class BinnedModel {
   }
   void CheckPath(const Path& path) const;
 
+  // Per-bin contrast Delta L_q [W/(m2 sr cm-1)] of channel c (not yet
+  // weighted: the channel's contrast is sum_q weight(c)[q] * out[q]).
+  void BinContrasts(const Path& path, std::size_t channel, double background_temperature_K,
+                    std::vector<double>* out) const;
+  const std::vector<double>& weights(std::size_t channel) const { return bins_[channel].weight; }
+
+  // A model keeping, per channel, only the listed bins, with new weights
+  // [cm-1] (e.g. chosen to reproduce the full model on a scene; see
+  // qogi.render). bins[c] and weights[c] have equal lengths.
+  BinnedModel Subset(const std::vector<std::vector<int>>& bins,
+                     const std::vector<std::vector<double>>& weights) const;
+
+  // Tabulates every bin's cross-sections on a fine temperature grid
+  // [t_lo, t_hi] with step `step_K`, interpolated linearly from then on for
+  // path temperatures inside it (error ~1e-5 relative at 1 K steps; the
+  // log-cubic table interpolation is used outside). For renderers that march
+  // many paths within a known temperature range.
+  void UseFineTemperatureGrid(double t_lo, double t_hi, double step_K);
+
+  // Contrast of many rays of uniformly spaced samples (see render.h): the
+  // renderer's kernel. Needs UseFineTemperatureGrid covering every sample,
+  // ambient and background temperature; gives the same result as Contrast()
+  // on the equivalent Path up to the fine-grid interpolation.
+  void RenderRays(std::size_t ray_begin, std::size_t ray_end, const std::int64_t* offset,
+                  const float* step_m, const float* temperature_K,
+                  const std::vector<const float*>& fractions, double ambient_temperature_K,
+                  const double* background_temperature_K, std::size_t background_stride,
+                  float* out) const;
+
  private:
   struct Bins {
     std::vector<double> weight;  // [bin] sum of response * dnu [cm-1]
@@ -100,6 +130,10 @@ class BinnedModel {
     std::vector<std::vector<double>> log_sigma_air, log_sigma_self;  // ln of the above (-1e300 for 0)
     std::vector<std::vector<int>> active;     // per species: bins where it absorbs at some T
     std::vector<std::vector<char>> positive_air, positive_self;  // per species, per bin: > 0 at every T
+    // Optional fine temperature grid (UseFineTemperatureGrid): per species
+    // [n_fine * n_bins] cross-sections at fine_t0 + k fine_dt.
+    std::vector<std::vector<double>> fine_air, fine_self;
+    std::vector<double> fine_planck;  // [n_fine * n_bins] bin-mean Planck, when small enough
     std::vector<int> segment;    // [bin]
     // planck_map[q * n_cheb + m]: bin q's mean Planck from the segment's node values
     std::vector<double> planck_map;
@@ -107,6 +141,9 @@ class BinnedModel {
     std::size_t num_segments = 0;
   };
   void BuildChannel(std::size_t c, const std::vector<AbsorberTable>& tables);
+  template <typename S>
+  S ChannelContrast(const PathT<S>& path, bool symmetric, std::size_t channel, const S& t_bg,
+                    std::vector<S>* per_bin) const;
 
   std::vector<SpectralResponse> channels_;
   std::vector<std::string> species_;
@@ -115,6 +152,8 @@ class BinnedModel {
   std::vector<bool> has_self_;
   BinnedModelOptions options_;
   std::vector<Bins> bins_;
+  double fine_t0_ = 0, fine_dt_ = 0;
+  std::size_t fine_n_ = 0;
   double t_min_ = 0, t_max_ = 0, pressure_Pa_ = 0, planck_error_ = 0;
 };
 
@@ -139,7 +178,6 @@ S BinnedModel::BackgroundRadiance(std::size_t c, const S& t) const {
 
 template <typename S>
 void BinnedModel::Contrast(const PathT<S>& path, const S* t_bg, S* out) const {
-  using std::exp;
   const std::size_t ns = species_.size();
   const std::size_t nn = path.size();
   // A symmetric path (a Gaussian plume) has the same node state at k and
@@ -151,13 +189,23 @@ void BinnedModel::Contrast(const PathT<S>& path, const S* t_bg, S* out) const {
       symmetric = ValueOfScalar(path.fraction[k * ns + s]) ==
                   ValueOfScalar(path.fraction[(nn - 1 - k) * ns + s]);
   }
-  for (std::size_t c = 0; c < channels_.size(); ++c) {
+  for (std::size_t c = 0; c < channels_.size(); ++c)
+    out[c] = ChannelContrast<S>(path, symmetric, c, t_bg[c], nullptr);
+}
+
+template <typename S>
+S BinnedModel::ChannelContrast(const PathT<S>& path, bool symmetric, std::size_t c,
+                               const S& t_bg_c, std::vector<S>* per_bin) const {
+  using std::exp;
+  const std::size_t ns = species_.size();
+  const std::size_t nn = path.size();
+  {
     const Bins& b = bins_[c];
     const std::size_t nq = b.weight.size();
     const int nm = options_.chebyshev_nodes;
     if (nq == 0) {
-      out[c] = S(0.0);
-      continue;
+      if (per_bin) per_bin->clear();
+      return S(0.0);
     }
     std::vector<S> node_b(b.num_segments * nm);
     auto mean_planck = [&](const S& t, S* dst) {
@@ -176,7 +224,7 @@ void BinnedModel::Contrast(const PathT<S>& path, const S* t_bg, S* out) const {
     const bool rich = options_.richardson && nn >= 5 && nn % 2 == 1;
     std::vector<S> kappa_coarse, d_coarse, dl_coarse;
     if (rich) dl_coarse.assign(nq, S(0.0));
-    mean_planck(t_bg[c], b_bg.data());
+    mean_planck(t_bg_c, b_bg.data());
 
     auto add_species = [&](const S& coef, const TemperatureStencil& st, const S* wt, const S& fr,
                            const std::vector<double>& sig, const std::vector<double>& lsig,
@@ -203,6 +251,28 @@ void BinnedModel::Contrast(const PathT<S>& path, const S* t_bg, S* out) const {
       for (std::size_t s = 0; s < ns; ++s) {
         const S x = path.fraction[k * ns + s];
         if (!(x > 0.0)) continue;
+        const S nx0 = n_tot * x;
+        if (fine_n_ > 0 && !b.fine_air[s].empty()) {
+          const double tv = ValueOfScalar(t);
+          const double pos = (tv - fine_t0_) / fine_dt_;
+          if (pos >= 0.0 && pos <= static_cast<double>(fine_n_ - 1)) {
+            std::size_t k0 = static_cast<std::size_t>(pos);
+            if (k0 >= fine_n_ - 1) k0 = fine_n_ - 2;
+            const S w1 = (t - (fine_t0_ + k0 * fine_dt_)) / fine_dt_;
+            const S w0 = 1.0 - w1;
+            const double* a0 = &b.fine_air[s][k0 * nq];
+            const double* a1 = a0 + nq;
+            const S ca = has_self_[s] ? nx0 * (1.0 - x) : nx0;
+            for (int q : b.active[s]) kappa[q] += ca * (w0 * a0[q] + w1 * a1[q]);
+            if (has_self_[s]) {
+              const double* s0 = &b.fine_self[s][k0 * nq];
+              const double* s1 = s0 + nq;
+              const S cs = nx0 * x;
+              for (int q : b.active[s]) kappa[q] += cs * (w0 * s0[q] + w1 * s1[q]);
+            }
+            continue;
+          }
+        }
         // Temperature stencil with derivative-carrying weights.
         const TemperatureStencil st = MakeTemperatureStencil(table_temperatures_[s], ValueOfScalar(t));
         S wt[4];
@@ -255,12 +325,12 @@ void BinnedModel::Contrast(const PathT<S>& path, const S* t_bg, S* out) const {
       std::swap(kappa_far, kappa_near);
       std::swap(d_far, d_near);
     }
-    S sum = S(0.0);
     if (rich)
-      for (std::size_t q = 0; q < nq; ++q) sum += b.weight[q] * (4.0 * dl[q] - dl_coarse[q]) * (1.0 / 3.0);
-    else
-      for (std::size_t q = 0; q < nq; ++q) sum += b.weight[q] * dl[q];
-    out[c] = sum;
+      for (std::size_t q = 0; q < nq; ++q) dl[q] = (4.0 * dl[q] - dl_coarse[q]) * (1.0 / 3.0);
+    S sum = S(0.0);
+    for (std::size_t q = 0; q < nq; ++q) sum += b.weight[q] * dl[q];
+    if (per_bin) *per_bin = std::move(dl);
+    return sum;
   }
 }
 
