@@ -72,4 +72,12 @@ def ensure_demo(progress: Callable[[float, str], bool], folder: Optional[os.Path
 
 
 def _synthesise(path: Path, progress: Callable[[float, str], bool]) -> None:
-    raise NotImplementedError("the synthetic renderer (qogi synth) is not on main yet")
+    """Simulate and render the demo (what ``qogi synth`` does) into ``path``."""
+    from qogi.render import synthesize
+
+    try:
+        synthesize(DEMO["preset"], str(path), duration_s=DEMO["duration_s"],
+                   frame_rate_hz=DEMO["frame_rate_hz"], seed=DEMO["seed"],
+                   progress=lambda f, m: progress(f, f"demo scene: {m}"))
+    except KeyboardInterrupt:  # how qogi.render reports a cancelled progress callback
+        raise Stopped("the demo scene was cancelled") from None

@@ -91,6 +91,11 @@ class Job:
             value = self._work(self._progress)
         except self._cancelled_types as e:
             self._finish(CANCELLED, error=e, partial=getattr(e, "partial", None))
+        except KeyboardInterrupt as e:  # qogi's engine loops stop this way when told to
+            if self._cancel.is_set():
+                self._finish(CANCELLED, error=e)
+            else:
+                self._finish(FAILED, error=e, tb=traceback.format_exc())
         except Exception as e:  # any failure is reported in the window, never raised
             self._finish(FAILED, error=e, tb=traceback.format_exc())
         else:

@@ -594,3 +594,32 @@ def test_demo_file_name_names_its_definition(tmp_path):
     assert p.name.endswith(f"qogi{qogi.__version__}.h5")
     x, y = demo.source_pixel()
     assert 0 <= x < 320 and 0 <= y < 256
+
+
+def test_cancelling_the_demo_leaves_nothing_behind(api, store, tmp_path, monkeypatch):
+    from qogi import render
+    from qogi_gui import demo
+
+    started = threading.Event()
+
+    def fake_synthesize(preset, path, progress=None, **kw):
+        # What qogi.render.synthesize does: write, report, and raise
+        # KeyboardInterrupt when the progress callback returns False.
+        with open(path, "wb") as f:
+            f.write(b"partial")
+        started.set()
+        while progress(0.5, "frame 1/2") is not False:
+            pass
+        raise KeyboardInterrupt("cancelled")
+
+    monkeypatch.setattr(render, "synthesize", fake_synthesize)
+    v = ViewModel(api=api, store=store,
+                  demo_provider=lambda progress: demo.ensure_demo(progress, tmp_path))
+    v.open_demo()
+    assert started.wait(5)
+    assert v.progress()["message"].startswith("demo scene: frame 1/2")
+    v.cancel_run()
+    run_to_end(v)
+    assert v.progress()["state"] == "cancelled"
+    assert "cancelled" in v.last_message.text and v.recording is None
+    assert list(tmp_path.iterdir()) == []
