@@ -87,6 +87,7 @@ class App:
         self._themes = {}
         self._fit_rates = 0
         self._unlock_axes = 0
+        self._readout_text = ""
 
     # ================================================================= safety
     def _safe(self, fn):
@@ -120,6 +121,7 @@ class App:
             self._build_status_bar()
         self._build_dialogs()
         self._build_handlers()
+        self._refresh_recent()
         dpg.set_viewport_resize_callback(self._safe(lambda *a: self._layout()))
         dpg.setup_dearpygui()
         dpg.show_viewport()
@@ -217,6 +219,9 @@ class App:
                     dpg.add_table_column(init_width_or_weight=0.64)
                 dpg.add_text("Open a recording (.h5) or load the demo scene.", tag="meta_hint",
                              wrap=LEFT_WIDTH - 20, color=GREY)
+                dpg.add_spacer(height=8)
+                dpg.add_text("Recent recordings")
+                dpg.add_group(tag="recent_list")
             with dpg.tab(label="Display", tag="tab_display"):
                 self._build_display_tab()
             with dpg.tab(label="Surfaces", tag="tab_surfaces"):
@@ -525,6 +530,7 @@ class App:
         rec = vm.recording
         if rec is None:
             return
+        dpg.set_viewport_title(f"qogi viewer - {os.path.basename(vm.recording_path or '')}")
         dpg.configure_item("frame_slider", max_value=max(0, rec.n_frames - 1))
         dpg.configure_item("d_channel", items=[f"{k}: {ch.name}" for k, ch in
                                                enumerate(rec.channels)])
@@ -565,12 +571,19 @@ class App:
 
     def _refresh_recent(self) -> None:
         dpg.delete_item("recent_menu", children_only=True)
+        dpg.delete_item("recent_list", children_only=True)
         recent = self.vm.store.recent
         if not recent:
             dpg.add_menu_item(label="(none yet)", parent="recent_menu", enabled=False)
+            dpg.add_text("(none yet)", parent="recent_list", color=GREY)
+        open_it = self._safe(lambda sd, a, u: self.vm.open(u))
         for p in recent:
-            dpg.add_menu_item(label=p, parent="recent_menu", user_data=p,
-                              callback=self._safe(lambda sd, a, u: self.vm.open(u)))
+            dpg.add_menu_item(label=p, parent="recent_menu", user_data=p, callback=open_it)
+            name = os.path.basename(p)
+            dpg.add_button(label=name if len(name) < 52 else "..." + name[-49:],
+                           parent="recent_list", user_data=p, callback=open_it)
+            with dpg.tooltip(dpg.last_item()):
+                dpg.add_text(p)
 
     def _refresh_display_widgets(self) -> None:
         d, rec = self.vm.display, self.vm.recording
@@ -806,11 +819,23 @@ class App:
             if self._unlock_axes == 0:  # set_axis_limits pins the axes; free them for zoom
                 dpg.set_axis_limits_auto("img_x")
                 dpg.set_axis_limits_auto("img_y")
-        if vm.recording is None or not dpg.is_item_hovered("img_plot"):
+        if vm.recording is None:
             return
-        x, y = dpg.get_plot_mouse_pos()
-        r = vm.readout(x, y)
-        dpg.set_value("readout", format_readout(r) if r else "")
+        r = None
+        if dpg.is_item_hovered("img_plot"):
+            x, y = dpg.get_plot_mouse_pos()
+            r = vm.readout(x, y)
+        if r is not None:
+            text = format_readout(r)
+        else:
+            d = vm.display
+            lo, hi = vm.last_range
+            rng = {v: k for k, v in RANGE_CHOICES.items()}[d.range_mode]
+            text = (f"colours: channel {d.channel} {display.QUANTITY_LABELS[d.quantity]} "
+                    f"{lo:.5g} .. {hi:.5g}, {rng}; point at the image for pixel values")
+        if text != self._readout_text:
+            self._readout_text = text
+            dpg.set_value("readout", text)
 
     # ================================================================= handlers
     def on_open_dialog(self, *args) -> None:

@@ -14,7 +14,7 @@ from typing import Dict, List, Optional, Sequence, Tuple
 import numpy as np
 
 __all__ = ["RateRow", "rate_rows", "rate_series", "finite_segments", "pixel_status_rows",
-           "frame_maps", "vector_field", "overlay_scale", "arrow_segments"]
+           "frame_maps", "full_frame_maps", "vector_field", "overlay_scale", "arrow_segments"]
 
 KG_S_TO_KG_H = 3600.0
 STATUS_ORDER = ("converged", "at bound", "below detection", "failed")
@@ -126,24 +126,64 @@ def pixel_status_rows(result) -> List[Tuple[str, int, float]]:
             for s in names]
 
 
-def frame_maps(result, frame: int) -> Optional[dict]:
+def frame_maps(result, frame: int, shape: Optional[Tuple[int, int]] = None) -> Optional[dict]:
     """``result.maps(frame)``, or None when the result holds no maps for that
-    frame (run without keep_maps, or a frame outside the analysed range)."""
+    frame (run without keep_maps, or a frame outside the analysed range).
+
+    With ``shape`` (H, W) of the recording, maps that cover only part of the
+    frame (an ``origin`` (x0, y0) and smaller arrays) are placed into
+    full-frame arrays: NaN (status -1) outside the analysed part.
+    """
     if result is None or not hasattr(result, "maps"):
         return None
     try:
-        return result.maps(frame)
+        maps = result.maps(frame)
     except (ValueError, IndexError, KeyError, LookupError, RuntimeError):
         return None
+    if shape is None or not maps:
+        return maps
+    return full_frame_maps(maps, shape)
 
 
-def overlay_scale(result, species: str, frames: Sequence[int]) -> float:
+def _embed(a, origin: Tuple[int, int], shape: Tuple[int, int], fill) -> np.ndarray:
+    a = np.asarray(a)
+    if a.shape == tuple(shape):
+        return a
+    x0, y0 = int(round(origin[0])), int(round(origin[1]))
+    out = np.full(shape, fill, dtype=np.float32 if isinstance(fill, float) else np.int16)
+    h, w = a.shape
+    ys, xs = slice(max(0, y0), min(shape[0], y0 + h)), slice(max(0, x0), min(shape[1], x0 + w))
+    out[ys, xs] = a[ys.start - y0:ys.stop - y0, xs.start - x0:xs.stop - x0]
+    return out
+
+
+def full_frame_maps(maps: dict, shape: Tuple[int, int]) -> dict:
+    """``maps`` with every array the size of the frame (see :func:`frame_maps`)."""
+    origin = tuple(maps.get("origin", (0, 0)))
+    out = dict(maps)
+    if "column_density_kg_m2" in maps:
+        out["column_density_kg_m2"] = {sp: _embed(c, origin, shape, np.nan)
+                                       for sp, c in maps["column_density_kg_m2"].items()}
+    if "velocity_px_per_frame" in maps:
+        u, v = maps["velocity_px_per_frame"]
+        out["velocity_px_per_frame"] = (_embed(u, origin, shape, np.nan),
+                                        _embed(v, origin, shape, np.nan))
+    if "status" in maps:
+        st = np.asarray(maps["status"])
+        out["status"] = _embed(st, origin, shape, -1) if np.issubdtype(st.dtype, np.number) \
+            else st
+    out["origin"] = (0, 0)
+    return out
+
+
+def overlay_scale(result, species: str, frames: Sequence[int],
+                  shape: Optional[Tuple[int, int]] = None) -> float:
     """A column-density colour-scale top [kg/m2] for ``species``: the 99.5th
     percentile of the positive values over a few frames' maps (fixed for the
     whole playback so the colours mean the same in every frame)."""
     vals = []
     for f in frames:
-        m = frame_maps(result, int(f))
+        m = frame_maps(result, int(f), shape)
         if not m:
             continue
         col = m.get("column_density_kg_m2", {}).get(species)

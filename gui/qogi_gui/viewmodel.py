@@ -146,6 +146,7 @@ class ViewModel:
         self._scratch: Optional[np.ndarray] = None
         self._overlay: Optional[np.ndarray] = None
         self._overlay_vmax: Dict[str, float] = {}
+        self._maps_cache: tuple = (None, None)
         self.last_range: Tuple[float, float] = (0.0, 1.0)
 
     # ================================================================= messages
@@ -437,8 +438,14 @@ class ViewModel:
 
     # ----------------------------------------------------------------- result on the video
     def frame_maps(self) -> Optional[dict]:
-        """The result's per-pixel maps of the shown frame, or None."""
-        return results.frame_maps(self.result, self.frame) if self.result is not None else None
+        """The result's per-pixel maps of the shown frame (full-frame arrays), or None."""
+        if self.result is None:
+            return None
+        key = (self.rev["result"], self.frame)
+        if self._maps_cache[0] != key:
+            self._maps_cache = (key, results.frame_maps(
+                self.result, self.frame, (self.recording.height, self.recording.width)))
+        return self._maps_cache[1]
 
     def _overlay_species(self) -> Optional[str]:
         if self.result is None:
@@ -465,7 +472,8 @@ class ViewModel:
             return 0.0
         if sp not in self._overlay_vmax:
             frames = np.linspace(0, self.n_frames - 1, min(8, self.n_frames)).round().astype(int)
-            self._overlay_vmax[sp] = results.overlay_scale(self.result, sp, frames)
+            self._overlay_vmax[sp] = results.overlay_scale(
+                self.result, sp, frames, (self.recording.height, self.recording.width))
         return self._overlay_vmax[sp]
 
     def render_overlay(self) -> Optional[np.ndarray]:

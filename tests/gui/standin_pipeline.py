@@ -27,8 +27,8 @@ CALLS = []  # (surfaces, config, keep_maps) of every quantify call, for the test
 
 
 class Cancelled(Exception):
-    def __init__(self, partial):
-        super().__init__("cancelled")
+    def __init__(self, message, partial=None):
+        super().__init__(message)
         self.partial = partial
 
 
@@ -218,7 +218,7 @@ def quantify(recording, surfaces, config=None, progress=None, keep_maps=False):
                        "status": np.zeros((h, w), np.uint8)}
         if progress is not None and progress((i + 1) / (stop - start),
                                              f"frame {f + 1} of {stop}") is False:
-            raise Cancelled(result())
+            raise Cancelled("cancelled", result())
     return result()
 
 

@@ -623,3 +623,18 @@ def test_cancelling_the_demo_leaves_nothing_behind(api, store, tmp_path, monkeyp
     assert v.progress()["state"] == "cancelled"
     assert "cancelled" in v.last_message.text and v.recording is None
     assert list(tmp_path.iterdir()) == []
+
+
+def test_maps_of_part_of_the_frame_are_placed_by_their_origin():
+    maps = {"origin": (3, 2), "column_density_kg_m2": {"CH4": np.ones((2, 4), np.float32)},
+            "velocity_px_per_frame": (np.zeros((2, 4)), np.full((2, 4), -1.0)),
+            "status": np.zeros((2, 4), np.uint8)}
+    full = results.full_frame_maps(maps, (6, 8))
+    col = full["column_density_kg_m2"]["CH4"]
+    assert col.shape == (6, 8)
+    assert np.all(col[2:4, 3:7] == 1) and np.isnan(col[0, 0]) and np.isnan(col[4, 3])
+    assert full["velocity_px_per_frame"][1][3, 6] == -1 and np.isnan(full["velocity_px_per_frame"][1][3, 7])
+    assert full["status"][2, 3] == 0 and full["status"][0, 0] == -1
+    # Maps that already cover the frame are left alone.
+    same = results.full_frame_maps({"column_density_kg_m2": {"CH4": col}}, (6, 8))
+    assert same["column_density_kg_m2"]["CH4"] is col
