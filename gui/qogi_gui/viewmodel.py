@@ -779,14 +779,17 @@ class ViewModel:
 
     # ================================================================= settings
     def update_settings(self, **fields) -> Dict[str, str]:
-        """Set form fields (names of :class:`AnalysisSettings`) and return the
-        per-field messages of the whole form."""
+        """Set form fields (names of :class:`AnalysisSettings`), as typed by the
+        user, and return the per-field messages of the whole form. (The form's
+        widgets already show these values, so ``rev["settings"]`` is not bumped;
+        it is for changes made elsewhere, e.g. a source picked on the image.)"""
         for k, v in fields.items():
             if not hasattr(self.settings, k):
                 self._error(f"unknown setting {k!r}")
                 continue
             setattr(self.settings, k, v)
-        self.rev["settings"] += 1
+            if k in ("use_source", "source_x", "source_y"):
+                self.rev["surfaces"] += 1  # the source marker on the image
         self._changed_inputs()
         return self.validate_settings()
 
