@@ -638,3 +638,19 @@ def test_maps_of_part_of_the_frame_are_placed_by_their_origin():
     # Maps that already cover the frame are left alone.
     same = results.full_frame_maps({"column_density_kg_m2": {"CH4": col}}, (6, 8))
     assert same["column_density_kg_m2"]["CH4"] is col
+
+
+def test_frame_picture_draws_the_surfaces_where_they_are(opened):
+    opened.add_surface([(4, 12), (28, 12)], name="A")
+    opened.set_display(colormap="gray")
+    img = opened.frame_picture(zoom=3)
+    assert img.shape == (3 * H, 3 * W, 3) and img.dtype == np.uint8
+    cyan = (np.abs(img.astype(int) - np.array([0, 220, 255])).sum(axis=2) < 40)
+    line_row = (12 + 0.5) * 3
+    rows = np.flatnonzero(cyan[:, 3 * 16])  # the column through the line's middle
+    assert np.any(np.abs(rows - line_row) <= 2)           # the line
+    assert np.any(rows < line_row - 10)                   # its arrow points up ...
+    assert not np.any(rows > line_row + 3)                # ... not down
+    assert cyan[int(line_row), 3 * 5]                     # the line away from the arrow
+    # Away from the line, the surface colour does not appear (grey video only).
+    assert not cyan[:, 3 * 2].any()
