@@ -414,6 +414,7 @@ class App:
             dpg.add_progress_bar(tag="progress", width=280, overlay="idle")
             dpg.add_button(label="Cancel", tag="cancel_button", callback=s(self.on_cancel))
             dpg.bind_item_theme("cancel_button", self._themes["cancel"])
+            dpg.add_button(label="Messages", callback=s(lambda *a: self.show_messages()))
             dpg.add_text("", tag="status_text")
             dpg.add_text("", tag="fps_text", color=GREY)
 
@@ -576,7 +577,7 @@ class App:
         if not recent:
             dpg.add_menu_item(label="(none yet)", parent="recent_menu", enabled=False)
             dpg.add_text("(none yet)", parent="recent_list", color=GREY)
-        open_it = self._safe(lambda sd, a, u: self.vm.open(u))
+        open_it = self._safe(lambda sd, a, u: self.vm.open(u, background=True))
         for p in recent:
             dpg.add_menu_item(label=p, parent="recent_menu", user_data=p, callback=open_it)
             name = os.path.basename(p)
@@ -804,6 +805,17 @@ class App:
         # Form problems are shown beside their fields.
         self._refresh_field_messages()
 
+    def show_messages(self) -> None:
+        """A window listing the last messages, newest first."""
+        if dpg.does_item_exist("messages_window"):
+            dpg.delete_item("messages_window")
+        colours = {"error": RED, "warning": YELLOW, "info": (220, 220, 220)}
+        with dpg.window(tag="messages_window", label="Messages", width=760, height=420,
+                        pos=(200, 120)):
+            for m in reversed(self.vm.messages[-60:]):
+                stamp = time.strftime("%H:%M:%S", time.localtime(m.time_s))
+                dpg.add_text(f"{stamp}  {m.text}", wrap=730, color=colours.get(m.level, GREY))
+
     def _popup(self, title: str, text: str, level: str) -> None:
         dpg.configure_item("popup", label=title)
         dpg.set_value("popup_text", text)
@@ -844,7 +856,7 @@ class App:
     def _on_open_chosen(self, sender, app_data, user_data) -> None:
         sel = app_data.get("selections") or {}
         path = next(iter(sel.values()), None) or app_data.get("file_path_name", "")
-        self.vm.open(path)
+        self.vm.open(path, background=True)
 
     def on_demo(self, *args) -> None:
         self.vm.open_demo()
@@ -1026,7 +1038,7 @@ def run(path=None, width: int = 1440, height: int = 900) -> int:
     app = App(ViewModel(), width, height)
     app.build()
     if path:
-        app.vm.open(path)
+        app.vm.open(path, background=True)
     try:
         app.loop()
     finally:

@@ -131,6 +131,7 @@ class ViewModel:
         self.job_kind = ""
         self._job_handled = True
         self._pending: tuple = ([], {}, False)
+        self._opening = ""
         self.result = None
         self.result_partial = False
         self.result_surfaces: List[SurfaceDraft] = []
@@ -174,29 +175,44 @@ class ViewModel:
         return self.job is not None and self.job.running
 
     # ================================================================= recording
-    def open(self, path) -> bool:
-        """Open a recording file (validated by ``qogi.open_recording``)."""
+    def open(self, path, background: bool = False) -> bool:
+        """Open a recording file (validated by ``qogi.open_recording``).
+
+        With ``background`` the file is opened and checked in a worker thread
+        (large files are scanned for NaN on open) and shown once
+        :meth:`poll` sees it done; the window keeps drawing meanwhile."""
         if self.busy:
             return self._error(f"the {self.job.name} is still running: cancel it or wait before "
                                "opening another recording")
         p = os.path.abspath(os.path.expanduser(os.fspath(path))) if str(path).strip() else ""
         if not p:
             return self._error("no file chosen: pick a recording (.h5) to open")
+        if background:
+            self._opening = p
+            self._start_job(Job("opening the recording", lambda progress: self._open_file(p)),
+                            "open")
+            return True
         try:
-            rec = self.api.open_recording(p)
-        except self.api.RecordingError as e:
-            if "non-finite" in str(e) and getattr(e, "location", "") == "/frames":
-                try:
-                    rec = self.api.open_recording(p, nonfinite="invalid")
-                except (ValueError, OSError) as e2:
-                    return self._open_failed(p, e2)
-                self._warn(f"{rec.n_invalid} non-finite pixel values in {p} are treated as "
-                           "invalid pixels (shown transparent, not quantified)")
-            else:
-                return self._open_failed(p, e)
+            rec, warning = self._open_file(p)
         except (ValueError, OSError) as e:
             return self._open_failed(p, e)
+        return self._opened(rec, p, warning)
+
+    def _open_file(self, p: str):
+        """(recording, warning) of the file ``p``; NaN pixels become invalid pixels."""
+        try:
+            return self.api.open_recording(p), ""
+        except self.api.RecordingError as e:
+            if "non-finite" not in str(e) or getattr(e, "location", "") != "/frames":
+                raise
+        rec = self.api.open_recording(p, nonfinite="invalid")
+        return rec, (f"{rec.n_invalid} non-finite pixel values in {p} are treated as invalid "
+                     "pixels (shown transparent, not quantified)")
+
+    def _opened(self, rec, p: str, warning: str) -> bool:
         self._set_recording(rec, p)
+        if warning:
+            self._warn(warning)
         self.store.add_recent(p)
         if self.store.warning:
             self._warn(self.store.warning)
@@ -857,6 +873,14 @@ class ViewModel:
             return False
         self._job_handled = True
         snap = job.snapshot()
+        if self.job_kind == "open":
+            if snap["state"] == DONE:
+                self._opened(job.value[0], self._opening, job.value[1])
+            elif isinstance(job.error, (ValueError, OSError)):
+                self._open_failed(self._opening, job.error)
+            else:
+                self._report_failure("opening the recording", job)
+            return True
         if self.job_kind == "demo":
             if snap["state"] == DONE:
                 self.open(job.value)

@@ -654,3 +654,14 @@ def test_frame_picture_draws_the_surfaces_where_they_are(opened):
     assert cyan[int(line_row), 3 * 5]                     # the line away from the arrow
     # Away from the line, the surface colour does not appear (grey video only).
     assert not cyan[:, 3 * 2].any()
+
+
+def test_open_in_the_background(vm, rec_path, tmp_path):
+    assert vm.open(rec_path, background=True)
+    assert vm.busy or vm.job is not None
+    run_to_end(vm)
+    assert vm.recording is not None and vm.recording.n_frames == T
+    assert vm.open(tmp_path / "gone.h5", background=True)
+    run_to_end(vm)
+    assert "does not exist" in errors(vm)[-1]
+    assert vm.recording is not None  # the open recording stays
