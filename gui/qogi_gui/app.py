@@ -251,7 +251,8 @@ class App:
                                  on_enter=True, callback=s(self._on_fixed_range))
             dpg.add_input_double(label="max", tag="d_max", width=120, format="%.6g",
                                  on_enter=True, callback=s(self._on_fixed_range))
-        dpg.add_button(label="Fix the range shown now", callback=s(self._on_fix_now))
+        dpg.add_button(label="Fix the range shown now", tag="d_fix_now",
+                       callback=s(self._on_fix_now))
         dpg.add_text("Zoom with the mouse wheel, pan by dragging (in look mode), "
                      "double-click to fit.", wrap=LEFT_WIDTH - 20, color=GREY)
         dpg.add_separator()
@@ -515,8 +516,9 @@ class App:
             self.video_fps = self._video_frames / dt
             self._frames_drawn = self._video_frames = 0
             self._fps_t0 = now
-            dpg.set_value("fps_text", f"{self.fps:.0f} fps drawn, {self.video_fps:.0f} video "
-                                      "frames/s")
+            dpg.set_value("fps_text", f"playing: {self.fps:.0f} frames drawn/s, "
+                                      f"{self.video_fps:.0f} recording frames shown/s"
+                          if self.vm.playing else "")
 
     # ================================================================= refreshers
     def _refresh_recording(self) -> None:
@@ -884,6 +886,16 @@ class App:
         if kind == "all":
             return vm.export_all(folder, stem)
         return fn[kind](folder / target[kind])
+
+    def press(self, tag, app_data=None) -> None:
+        """Invoke a widget's callback as if the user had used it (scripts, tests);
+        for value widgets ``app_data`` is the new value, set on the widget first."""
+        if app_data is not None:
+            dpg.set_value(tag, app_data)
+        cb = dpg.get_item_callback(tag)
+        if cb is None:
+            raise ValueError(f"widget {tag!r} has no callback")
+        cb(tag, app_data, dpg.get_item_user_data(tag))
 
     def screenshot(self, path) -> bool:
         """Save the whole window as PNG (written while the next frame renders)."""

@@ -76,10 +76,23 @@ def run(out: Path, vm: ViewModel = None) -> dict:
     # 1. The demo scene with one click, then play it.
     app.on_demo()
     d.until(lambda: vm.recording is not None and not vm.busy, 900, "the demo scene")
-    app.on_play()
+    app.press("play_button")
     d.frames(20)
-    app.on_play()
-    vm.seek(vm.n_frames // 2)
+    app.press("speed", "2x")
+    d.frames(10)
+    app.press("play_button")
+    # The display controls, as a user would set them.
+    app.select_tab("display")
+    app.press("d_quantity", "radiometric temperature [K]")
+    app.press("d_range", "auto (this frame)")
+    app.press("d_cmap", "gray")
+    d.frames(2)
+    app.press("d_fix_now")
+    app.press("d_min", 280.0)
+    app.press("d_cmap", "inferno")
+    app.press("d_range", "auto (whole recording)")
+    app.press("frame_slider", vm.n_frames // 2)
+    app.select_tab("recording")
     d.frames(3)
     d.shot("viewer_demo.png")
 
@@ -108,6 +121,11 @@ def run(out: Path, vm: ViewModel = None) -> dict:
 
     # 3. The analysis form, then run in the background.
     app.select_tab("analysis")
+    app.press("f_velocity", "wind")        # shows the wind-speed field
+    app.press("f_gas_mode", "given")       # shows the gas-temperature field
+    d.frames(2)
+    app.press("f_velocity", "fluid")
+    app.press("f_gas_mode", "ambient")
     d.frames(3)
     d.shot("viewer_analysis.png")
     app.on_run()
@@ -135,7 +153,12 @@ def run(out: Path, vm: ViewModel = None) -> dict:
     from dearpygui import dearpygui as _dpg
 
     _dpg.set_value("export_dir", str(export))
-    exported = app.on_export("all")
+    exported = all(app.on_export(kind) for kind in ("csv", "json", "plots", "frame", "report"))
+    exported = app.on_export("all") and exported
+    app.press("d_overlay_cmap", "turbo")
+    app.press("d_vectors", False)
+    app.press("d_vectors", True)
+    app.show_messages()
     d.frames(2)
 
     rows = [{"surface": r.surface, "species": r.species, "mean_kg_h": r.mean_kg_h,
