@@ -78,6 +78,16 @@ def test_window_end_to_end(xvfb, tmp_path):
     # The window kept drawing while the quantification ran.
     assert state["running_frames"] >= 10 and state["distinct_progress"] >= 3
 
+    # Real mouse clicks (XTEST) landed where they were aimed: the line's ends and
+    # the polyline's points, ended by a right click; dragging moved a point up.
+    drawn = {s["name"]: s["points"] for s in state["drawn"]}
+    clicked = drawn["S1"] + drawn["S3"]
+    clicked[3] = state["drag"]["before"]
+    np.testing.assert_allclose(clicked, state["aimed"], atol=1e-6)
+    assert len(drawn["S3"]) == 3
+    (bx, by), (ax, ay) = state["drag"]["before"], state["drag"]["after"]
+    assert abs(ax - bx) < 1.0 and 2.0 < by - ay < 8.0
+
     # The surfaces reached the pipeline as drawn, and the sign convention held
     # end to end: the same line walked the other way gives the opposite rate.
     rows = {r["surface"]: r for r in state["rows"]}

@@ -21,10 +21,88 @@ from pathlib import Path
 import dearpygui.dearpygui as dpg
 
 from qogi_gui import demo, results
-from qogi_gui.app import App
+from qogi_gui.app import MODE_LABELS, App
 from qogi_gui.viewmodel import ViewModel
 
 WIDTH, HEIGHT = 1440, 900
+
+
+class XInput:
+    """Real mouse and keyboard events through the X server's XTEST extension
+    (what a user's hand produces), to drive the window's own input handlers."""
+
+    def __init__(self, driver: "Driver"):
+        import ctypes
+        import os
+
+        self.d = driver
+        self.x11 = ctypes.CDLL("libX11.so.6")
+        self.xt = ctypes.CDLL("libXtst.so.6")
+        self.x11.XOpenDisplay.restype = ctypes.c_void_p
+        self.x11.XOpenDisplay.argtypes = [ctypes.c_char_p]
+        self.x11.XFlush.argtypes = [ctypes.c_void_p]
+        self.x11.XCloseDisplay.argtypes = [ctypes.c_void_p]
+        self.x11.XKeysymToKeycode.argtypes = [ctypes.c_void_p, ctypes.c_ulong]
+        self.x11.XStringToKeysym.restype = ctypes.c_ulong
+        self.x11.XStringToKeysym.argtypes = [ctypes.c_char_p]
+        self.xt.XTestFakeMotionEvent.argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.c_int,
+                                                 ctypes.c_int, ctypes.c_ulong]
+        self.xt.XTestFakeButtonEvent.argtypes = [ctypes.c_void_p, ctypes.c_uint, ctypes.c_int,
+                                                 ctypes.c_ulong]
+        self.xt.XTestFakeKeyEvent.argtypes = [ctypes.c_void_p, ctypes.c_uint, ctypes.c_int,
+                                              ctypes.c_ulong]
+        self.dpy = self.x11.XOpenDisplay(os.environ["DISPLAY"].encode())
+        if not self.dpy:
+            raise RuntimeError("cannot open the X display for input events")
+        self.pos = (0, 0)
+
+    def close(self):
+        self.x11.XCloseDisplay(self.dpy)
+
+    def _sync(self, frames: int = 3):
+        self.x11.XFlush(self.dpy)
+        self.d.frames(frames)
+
+    def move(self, sx: float, sy: float, frames: int = 3):
+        """Move the pointer to screen position (sx, sy)."""
+        self.pos = (int(round(sx)), int(round(sy)))
+        self.xt.XTestFakeMotionEvent(self.dpy, -1, self.pos[0], self.pos[1], 0)
+        self._sync(frames)
+
+    def button(self, number: int, down: bool):
+        self.xt.XTestFakeButtonEvent(self.dpy, number, bool(down), 0)
+        self._sync()
+
+    def click(self, number: int = 1):
+        self.button(number, True)
+        self.button(number, False)
+
+    def key(self, name: str):
+        code = self.x11.XKeysymToKeycode(self.dpy, self.x11.XStringToKeysym(name.encode()))
+        for down in (True, False):
+            self.xt.XTestFakeKeyEvent(self.dpy, code, down, 0)
+            self._sync()
+
+    def to_pixel(self, x: float, y: float):
+        """Put the pointer over image pixel coordinates (x, y), steering by what
+        the plot reports under the pointer; returns the plot's reading there."""
+        vx, vy = dpg.get_viewport_pos()
+        rx, ry = dpg.get_item_rect_min("img_plot")
+        w, h = dpg.get_item_rect_size("img_plot")
+        sx, sy = vx + rx + w / 2, vy + ry + h / 2
+        self.move(sx, sy)
+        p0 = dpg.get_plot_mouse_pos()
+        self.move(sx + 100, sy + 100)
+        p1 = dpg.get_plot_mouse_pos()
+        kx, ky = (p1[0] - p0[0]) / 100.0, (p1[1] - p0[1]) / 100.0  # image px per screen px
+        sx, sy = sx + (x - p0[0]) / kx, sy + (y - p0[1]) / ky
+        for _ in range(4):
+            self.move(sx, sy)
+            px, py = dpg.get_plot_mouse_pos()
+            if abs(px - x) <= abs(kx) and abs(py - y) <= abs(ky):
+                break
+            sx, sy = sx + (x - px) / kx, sy + (y - py) / ky
+        return tuple(dpg.get_plot_mouse_pos())
 
 
 class Driver:
@@ -103,18 +181,35 @@ def run(out: Path, vm: ViewModel = None) -> dict:
     w = vm.recording.width
     half = 0.3 * w
     y1 = sy - 0.25 * (sy + 0.5)
+    # S1 and S3 with real mouse clicks (XTEST), S2 through the click handler.
     app.select_tab("surfaces")
-    app.set_mode("line")
-    app.image_click(sx - half, y1)
-    app.image_click(sx + half, y1)
-    app.image_click(sx + half, y1 - 4)
-    app.image_click(sx - half, y1 - 4)
-    app.set_mode("polyline")
+    mouse = XInput(d)
+    app.press("mode", MODE_LABELS["line"])
+    aimed = []
+    for x, y in ((sx - half, y1), (sx + half, y1)):
+        aimed.append(mouse.to_pixel(x, y))
+        mouse.click(1)
+    app.image_click(sx + half, y1 - 8)
+    app.image_click(sx - half, y1 - 8)
+    app.press("mode", MODE_LABELS["polyline"])
     y3 = sy - 0.55 * (sy + 0.5)
     for x, y in ((sx - half, y3 + 6), (sx, y3), (sx + half, y3 + 6)):
-        app.image_click(x, y)
-    app.image_click(0, 0, "right")
-    app.set_mode("view")
+        aimed.append(mouse.to_pixel(x, y))
+        mouse.click(1)
+    mouse.click(3)                       # right button ends the polyline
+    # Edit: drag S3's middle point 5 px up with the mouse.
+    app.press("mode", MODE_LABELS["edit"])
+    d.frames(2)
+    bx, by = vm.surfaces[2].points[1]
+    mouse.to_pixel(bx, by)
+    mouse.button(1, True)
+    start = mouse.pos
+    for k in range(1, 6):
+        mouse.move(start[0], start[1] - 2 * k)
+    mouse.button(1, False)
+    dragged = {"before": [bx, by], "after": list(vm.surfaces[2].points[1])}
+    app.press("mode", MODE_LABELS["view"])
+    mouse.close()
     d.frames(3)
     d.shot("viewer_surfaces.png")
     drawn = [{"name": s.name, "points": s.points} for s in vm.surfaces]
@@ -166,7 +261,8 @@ def run(out: Path, vm: ViewModel = None) -> dict:
              "n_frames": r.n_frames, "n_frames_valid": r.n_frames_valid}
             for r in results.rate_rows(vm.result)]
     state = {
-        "shots": d.shots, "drawn": drawn, "rows": rows, "exported": exported,
+        "shots": d.shots, "drawn": drawn, "aimed": aimed,
+        "drag": dragged, "rows": rows, "exported": exported,
         "running_frames": running_frames, "distinct_progress": len(fractions),
         "max_frame_s": max(d.frame_gaps), "fps": app.fps,
         "messages": [(m.level, m.text) for m in vm.messages],
