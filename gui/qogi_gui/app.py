@@ -266,6 +266,11 @@ class App:
                       callback=s(lambda sd, a, u: self.vm.set_display(overlay_colormap=a)))
         dpg.add_checkbox(label="velocity vectors", tag="d_vectors", default_value=True,
                          callback=s(lambda sd, a, u: self.vm.set_display(show_vectors=a)))
+        with dpg.group(horizontal=True):
+            dpg.add_button(label="< frame with maps", tag="d_prev_maps",
+                           callback=s(lambda *a: self.vm.seek_map_frame(-1)))
+            dpg.add_button(label="frame with maps >", tag="d_next_maps",
+                           callback=s(lambda *a: self.vm.seek_map_frame(1)))
         dpg.add_text("", tag="d_overlay_note", wrap=LEFT_WIDTH - 20, color=GREY)
 
     def _build_surfaces_tab(self) -> None:
@@ -621,6 +626,11 @@ class App:
                          f"drawn {scale:.2g} px long")
         elif vm.result is not None and not vm.result_has_maps:
             note = "run with 'keep per-pixel maps' to see the overlay and vectors"
+        if vm.result is not None and vm.result_has_maps:
+            kept = vm.map_frames()
+            if len(kept) < vm.n_frames:
+                note += (("; " if note else "") + f"maps kept for {len(kept)} of {vm.n_frames} "
+                         "frames: step between them with the buttons above")
         dpg.set_value("d_overlay_note", note)
         lo, hi = vm.last_range
         if (lo, hi) != self._last_range:

@@ -148,6 +148,7 @@ class ViewModel:
         self._overlay: Optional[np.ndarray] = None
         self._overlay_vmax: Dict[str, float] = {}
         self._maps_cache: tuple = (None, None)
+        self._map_frames: tuple = (None, [])
         self.last_range: Tuple[float, float] = (0.0, 1.0)
 
     # ================================================================= messages
@@ -481,13 +482,42 @@ class ViewModel:
                     seen.append(sp)
         return seen
 
+    def map_frames(self) -> List[int]:
+        """Frames for which the result kept per-pixel maps (the pipeline may keep
+        them for a subset of the frames only)."""
+        if self.result is None:
+            return []
+        if self._map_frames[0] != self.rev["result"]:
+            kept = getattr(self.result, "map_frames", None)
+            if kept is None:
+                kept = [f for f in range(self.n_frames)
+                        if results.frame_maps(self.result, f) is not None]
+            self._map_frames = (self.rev["result"], sorted(int(f) for f in kept))
+        return self._map_frames[1]
+
+    def seek_map_frame(self, direction: int = 1) -> bool:
+        """Show the next (direction > 0) or previous frame that has maps."""
+        frames = self.map_frames()
+        if not frames:
+            return self._error("the result holds no per-pixel maps: run with 'keep per-pixel "
+                               "maps' ticked")
+        later = [f for f in frames if f > self.frame] if direction > 0 else \
+            [f for f in frames if f < self.frame]
+        target = (later[0] if direction > 0 else later[-1]) if later else \
+            (frames[0] if direction > 0 else frames[-1])
+        self.playing = False
+        self.seek(target)
+        return True
+
     def overlay_vmax(self) -> float:
         """Top of the column-density colour scale [kg/m2] (fixed per result and species)."""
         sp = self._overlay_species()
         if sp is None:
             return 0.0
         if sp not in self._overlay_vmax:
-            frames = np.linspace(0, self.n_frames - 1, min(8, self.n_frames)).round().astype(int)
+            kept = self.map_frames()
+            frames = [kept[int(i)] for i in np.linspace(0, len(kept) - 1,
+                                                        min(8, len(kept))).round()] if kept else []
             self._overlay_vmax[sp] = results.overlay_scale(
                 self.result, sp, frames, (self.recording.height, self.recording.width))
         return self._overlay_vmax[sp]

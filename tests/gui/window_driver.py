@@ -241,6 +241,7 @@ def run(out: Path, vm: ViewModel = None) -> dict:
     # 4. Results: overlay, vectors, rates; then export everything.
     app.select_tab("results")
     vm.seek(vm.n_frames // 2)
+    app.press("d_next_maps")             # a frame whose per-pixel maps were kept
     d.frames(5)
     d.shot("viewer_results.png")
     export = out / "export"
