@@ -2,7 +2,8 @@
 
 Coordinates are the recording contract's pixel coordinates: x right, y down,
 origin at the centre of the top-left pixel, floats allowed; the image spans
-[-0.5, W - 0.5] x [-0.5, H - 0.5].
+[-0.5, W - 0.5] x [-0.5, H - 0.5] and surface points are kept within the
+outermost pixel centres, [0, W - 1] x [0, H - 1].
 
 Sign convention (docs/pipeline_api.md): flux through a surface is positive
 along its **left-hand normal** when walking from its first point to its last

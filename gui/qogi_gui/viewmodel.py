@@ -617,8 +617,15 @@ class ViewModel:
         return True
 
     def _inside(self, x: float, y: float) -> bool:
+        """On the image as displayed (pixel squares included)."""
         r = self.recording
         return r is not None and -0.5 <= x <= r.width - 0.5 and -0.5 <= y <= r.height - 0.5
+
+    def _snap(self, x: float, y: float) -> Tuple[float, float]:
+        """A point on the image kept within the outermost pixel centres
+        ([0, W-1] x [0, H-1]), where the pipeline can sample it."""
+        r = self.recording
+        return (min(max(float(x), 0.0), r.width - 1.0), min(max(float(y), 0.0), r.height - 1.0))
 
     def click(self, x: float, y: float, button: str = "left", tolerance_px: float = 4.0) -> bool:
         """A click on the image at pixel coordinates (x, y), by mode: add a
@@ -632,6 +639,7 @@ class ViewModel:
             return False
         if not self._inside(x, y):
             return self._error(f"({x:.1f}, {y:.1f}) is outside the image: click on the frame")
+        x, y = self._snap(x, y)
         if self.mode in ("line", "polyline"):
             if self.drawing is None:
                 n = len(self.surfaces)
@@ -721,10 +729,11 @@ class ViewModel:
             pts = [(float(x), float(y)) for x, y in points]
         except (TypeError, ValueError):
             return self._error(f"surface points must be (x, y) pairs of numbers; got {points!r}")
-        bad = [p for p in pts if not self._inside(*p)]
+        r = self.recording
+        bad = [p for p in pts if not (0 <= p[0] <= r.width - 1 and 0 <= p[1] <= r.height - 1)]
         if bad:
-            return self._error(f"surface point {bad[0]} is outside the image "
-                               f"({self.recording.width}x{self.recording.height} px)")
+            return self._error(f"surface point {bad[0]} is outside the image: x must be in "
+                               f"[0, {r.width - 1}] and y in [0, {r.height - 1}] px")
         n = len(self.surfaces)
         d = SurfaceDraft(name.strip() or self._new_name(), pts,
                          SURFACE_COLOURS[n % len(SURFACE_COLOURS)])
@@ -751,9 +760,7 @@ class ViewModel:
             return False
         if not 0 <= vertex < len(s.points):
             return self._error(f"surface {s.name} has no point {vertex}")
-        r = self.recording
-        x = min(max(float(x), -0.5), r.width - 0.5)
-        y = min(max(float(y), -0.5), r.height - 0.5)
+        x, y = self._snap(x, y)
         others = s.points[:vertex] + s.points[vertex + 1:]
         if any(math.dist(p, (x, y)) < 1e-6 for p in others):
             return self._error("two points of a surface cannot coincide")

@@ -281,6 +281,10 @@ def test_drawing_errors(vm, opened):
     opened.set_mode("line")
     assert not opened.click(W + 3.0, 4.0)
     assert "outside the image" in errors(opened)[-1]
+    # Inside the edge pixels' squares: kept at the outermost pixel centres.
+    assert opened.click(-0.4, H - 0.6)
+    assert opened.drawing.points == [(0.0, H - 1.0)]
+    opened.cancel_drawing()
     opened.click(3, 3)
     assert not opened.click(3, 3)
     assert "repeats the previous" in errors(opened)[-1]
@@ -300,8 +304,8 @@ def test_edit_delete_reverse_rename(opened):
     assert opened.add_surface([(2, 2), (20, 2)])
     assert opened.surfaces[1].name == "S2"
     assert opened.move_vertex(0, 1, 100.0, -9.0)  # dragged off the image: kept at its edge
-    assert opened.surfaces[0].points[1] == (W - 0.5, -0.5)
-    assert not opened.move_vertex(0, 0, W - 0.5, -0.5)  # onto the other point
+    assert opened.surfaces[0].points[1] == (W - 1.0, 0.0)
+    assert not opened.move_vertex(0, 0, W - 1.0, 0.0)  # onto the other point
     assert opened.reverse_surface(1)
     assert opened.surfaces[1].points == [(20, 2), (2, 2)]
     tail, head = flow_arrow(opened.surfaces[1].points, 2.0)
