@@ -249,15 +249,19 @@ class Result:
                     ax.plot(p[:, 0], p[:, 1], "c-", lw=1.5)
                 ax.set_title(f"frame {f}")
             u, v = m["velocity_px_per_frame"]
-            speed = np.hypot(u, v)
+            total = sum(cols.values())
+            gas = total > 0.05 * np.max(total) if np.max(total) > 0 else np.zeros_like(total, bool)
+            speed = np.where(gas, np.hypot(u, v), np.nan)
             ax = axes[0, -1]
             im = ax.imshow(speed, cmap="viridis")
-            fig.colorbar(im, ax=ax, label="speed [px/frame]")
-            step = max(1, min(u.shape) // 20)
+            fig.colorbar(im, ax=ax, label="speed where there is gas [px/frame]")
+            step = max(1, min(u.shape) // 24)
             yy, xx = np.mgrid[0:u.shape[0]:step, 0:u.shape[1]:step]
-            ax.quiver(xx, yy, u[::step, ::step], -v[::step, ::step], color="w", scale_units="xy",
-                      angles="xy", scale=1.0 / step if step else 1)
-            ax.set_title("velocity")
+            g = gas[::step, ::step]
+            # Image axes run y down, as v does: the arrows need no flip.
+            ax.quiver(xx[g], yy[g], u[::step, ::step][g], v[::step, ::step][g], color="k",
+                      angles="xy")
+            ax.set_title("velocity (arrows: gas pixels)")
             fig.tight_layout()
         else:
             raise ValueError(f"kind must be 'rates' or 'maps'; got {kind!r}")
