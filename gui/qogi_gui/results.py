@@ -14,7 +14,7 @@ from typing import Dict, List, Optional, Sequence, Tuple
 import numpy as np
 
 __all__ = ["RateRow", "rate_rows", "rate_series", "finite_segments", "pixel_status_rows",
-           "frame_maps", "full_frame_maps", "vector_field", "overlay_scale", "arrow_segments"]
+           "frame_maps", "map_frame_keys", "full_frame_maps", "vector_field", "overlay_scale", "arrow_segments"]
 
 KG_S_TO_KG_H = 3600.0
 STATUS_ORDER = ("converged", "at bound", "below detection", "failed")
@@ -126,8 +126,27 @@ def pixel_status_rows(result) -> List[Tuple[str, int, float]]:
             for s in names]
 
 
+def map_frame_keys(result) -> Dict[int, int]:
+    """Recording frame index -> key of ``result.maps`` for every frame whose
+    per-pixel maps the result kept (``result.map_frames``).
+
+    docs/pipeline_api.md keys ``result.maps(frame)`` by the recording's frame
+    index; the pipeline at present keys them by the position within the
+    analysed frames (``config.frames``). The two differ only when the analysis
+    starts after frame 0, and then unambiguously: positional keys include 0
+    (the first analysed frame always keeps its maps), which is before the
+    start. Both are read right here.
+    """
+    keys = [int(k) for k in (getattr(result, "map_frames", None) or [])]
+    frames = getattr(getattr(result, "config", None), "frames", None)
+    start = int(frames[0]) if frames else 0
+    offset = start if keys and start > 0 and min(keys) < start else 0
+    return {k + offset: k for k in keys}
+
+
 def frame_maps(result, frame: int, shape: Optional[Tuple[int, int]] = None) -> Optional[dict]:
-    """``result.maps(frame)``, or None when the result holds no maps for that
+    """The result's maps of recording frame ``frame`` (see
+    :func:`map_frame_keys`), or None when the result holds no maps for that
     frame (run without keep_maps, or a frame outside the analysed range).
 
     With ``shape`` (H, W) of the recording, maps that cover only part of the
@@ -136,8 +155,11 @@ def frame_maps(result, frame: int, shape: Optional[Tuple[int, int]] = None) -> O
     """
     if result is None or not hasattr(result, "maps"):
         return None
+    key = map_frame_keys(result).get(int(frame))
+    if key is None:
+        return None
     try:
-        maps = result.maps(frame)
+        maps = result.maps(key)
     except (ValueError, IndexError, KeyError, LookupError, RuntimeError):
         return None
     if shape is None or not maps:

@@ -488,11 +488,8 @@ class ViewModel:
         if self.result is None:
             return []
         if self._map_frames[0] != self.rev["result"]:
-            kept = getattr(self.result, "map_frames", None)
-            if kept is None:
-                kept = [f for f in range(self.n_frames)
-                        if results.frame_maps(self.result, f) is not None]
-            self._map_frames = (self.rev["result"], sorted(int(f) for f in kept))
+            kept = results.map_frame_keys(self.result)
+            self._map_frames = (self.rev["result"], sorted(kept))
         return self._map_frames[1]
 
     def seek_map_frame(self, direction: int = 1) -> bool:

@@ -16,7 +16,6 @@ from qogi_gui.store import UserStore
 from qogi_gui.surfaces import RegionDraft, flow_arrow, left_normal
 from qogi_gui.viewmodel import ViewModel
 
-import standin_pipeline as standin
 from conftest import H, RATE_HZ, T, W, channels, make_recording, temperature_field
 
 
@@ -28,14 +27,62 @@ class Clock:
         return self.t
 
 
+class Instrumented:
+    """The real ``qogi`` API, watched: every ``quantify`` call is recorded, and
+    a test may hold the run before each progress report until it lets one
+    through (``hold()``, ``step()``, ``release()``) or make it fail at the
+    ``fail_at``-th report (``fail_with``), to reach the viewer's running,
+    cancelling and failure states deterministically. The numbers are the real
+    pipeline's."""
+
+    def __init__(self):
+        self.calls = []
+        self.gate = None                 # a Semaphore: one permit per progress report
+        self.reports = []                # (fraction, message) of the reports let through
+        self.fail_at = None
+        self.fail_with = RuntimeError("engine exploded")
+
+    def hold(self):
+        self.gate = threading.Semaphore(0)
+
+    def step(self, timeout=10.0):
+        """Let one progress report through and wait until the viewer has seen it."""
+        n = len(self.reports)
+        self.gate.release()
+        _wait_for(lambda: len(self.reports) > n, timeout)
+        return self.reports[-1]
+
+    def release(self):
+        gate, self.gate = self.gate, None
+        if gate is not None:
+            gate.release(1000)
+
+    def __getattr__(self, name):
+        return getattr(qogi, name)
+
+    def quantify(self, recording, surfaces, config=None, progress=None, keep_maps=False):
+        self.calls.append((surfaces, config, keep_maps))
+        seen = [0]
+
+        def watched(fraction, message):
+            seen[0] += 1
+            gate = self.gate
+            if gate is not None:
+                gate.acquire(timeout=10)
+            if self.fail_at is not None and seen[0] >= self.fail_at:
+                raise self.fail_with
+            go = progress(fraction, message) if progress is not None else None
+            self.reports.append((fraction, message))
+            return go
+
+        return qogi.quantify(recording, surfaces, config, progress=watched, keep_maps=keep_maps)
+
+
 @pytest.fixture
 def api():
-    standin.CALLS.clear()
-    standin.gate, standin.fail_at = None, None
-    yield standin
-    if standin.gate is not None:
-        standin.gate.set()
-    standin.gate, standin.fail_at = None, None
+    a = Instrumented()
+    yield a
+    a.release()
 
 
 @pytest.fixture
@@ -384,11 +431,11 @@ def test_valid_form_builds_the_contract_config(opened):
                                 averaging="time-averaged", sigma_m="0.05", frame_start="1",
                                 frame_stop="7", num_threads="1")
     assert not any(ok.values()), ok
-    cfg = opened.settings.build_config(standin, opened.recording, opened.region)
+    cfg = opened.settings.build_config(qogi, opened.recording, opened.region)
     assert cfg.species == ["CH4", "CO2"] and cfg.gas_temperature == 310.0
     assert cfg.velocity == "exit" and cfg.exit_velocity_m_s == 0.3
     assert cfg.averaging == "time-averaged" and cfg.sigma_m == 0.05
-    assert cfg.background == standin.Region(0, 0, 6, 6)
+    assert cfg.background == qogi.Region(0, 0, 6, 6)
     assert cfg.frames == (1, 7) and cfg.num_threads == 1
     assert cfg.distance_m == 3.0 and cfg.ambient_temperature_K == 288.0
 
@@ -400,29 +447,37 @@ def test_run_passes_the_drawn_surfaces_and_shows_the_result(opened, api):
     opened.add_surface([(4, 6), (16, 4), (28, 6)], name="B")
     assert opened.start_run()
     run_to_end(opened)
-    [(surfs, cfg, keep)] = api.CALLS
+    [(surfs, cfg, keep)] = api.calls
     assert [(s.name, s.points) for s in surfs] == [
         ("A", [(4.0, 12.0), (28.0, 12.0)]), ("B", [(4.0, 6.0), (16.0, 4.0), (28.0, 6.0)])]
     assert cfg.species == ["CH4"] and cfg.velocity == "fluid" and keep is True
     rows = results.rate_rows(opened.result)
     assert [(r.surface, r.species) for r in rows] == [("A", "CH4"), ("B", "CH4")]
     assert rows[0].truth_kg_h == pytest.approx(3.6)
-    assert rows[0].n_frames == T and rows[0].n_frames_valid == T - 1
+    rate = opened.result.surfaces[0].species["CH4"].rate_kg_s
+    assert rows[0].n_frames_valid == np.count_nonzero(np.isfinite(rate)) > 0
     assert opened.progress()["state"] == "done" and opened.progress()["fraction"] == 1.0
     assert opened.last_message.text.startswith("quantification finished")
-    # Maps kept: the overlay and vectors are drawn on the video.
+    # Maps kept: the overlay and vectors are drawn on the video. The warm blob
+    # (conftest) is centred on y = H - 4 - t and rises 1 px per frame: the
+    # overlay covers it, not the far corner, and the arrows point up.
     opened.seek(3)
     over = opened.render_overlay()
-    assert over is not None and over[:, W // 2, 3].max() > 0.3 and over[:, 0, 3].max() == 0.0
+    assert over is not None and over[H - 7, W // 2, 3] > 0.3 and over[0, 0, 3] == 0.0
     tails, heads, _ = opened.vectors(spacing=4)
-    assert len(tails) > 0 and np.all(heads[:, 1] < tails[:, 1])  # v = -1 px/frame: upward
-    r = opened.readout(W / 2, 5)
-    assert r["velocity_px_per_frame"] == (0.0, -1.0)
-    assert r["velocity_m_s"][1] == pytest.approx(-3.0 * 1e-3 * RATE_HZ)
+    assert len(tails) > 0 and np.all(heads[:, 1] < tails[:, 1])
+    # The read-out under the cursor is the result's value at that pixel.
+    r = opened.readout(W / 2, H - 7)
+    u, v = r["velocity_px_per_frame"]
+    mu, mv = opened.result.maps(3)["velocity_px_per_frame"]
+    assert (u, v) == (pytest.approx(mu[H - 7, W // 2]), pytest.approx(mv[H - 7, W // 2]))
+    assert v < -0.5 and abs(u) < 0.5 * abs(v)
+    # 1 px/frame is the pixel footprint (3 m x 1 mrad) times the frame rate.
+    assert r["velocity_m_s"][1] == pytest.approx(v * 3.0 * 1e-3 * RATE_HZ)
 
 
 def test_progress_is_visible_while_running_and_cancel_keeps_the_partial_result(opened, api):
-    api.gate = threading.Event()
+    api.hold()
     opened.add_surface([(4, 12), (28, 12)])
     assert opened.start_run()
     assert opened.busy and not opened.poll()
@@ -430,18 +485,24 @@ def test_progress_is_visible_while_running_and_cancel_keeps_the_partial_result(o
     assert "already running" in errors(opened)[-1]
     assert not opened.open(opened.recording_path)
     assert "still running" in errors(opened)[-1]
-    for _ in range(3):             # let three frames through
-        api.gate.set()
-        api.gate.clear()
-        _wait_for(lambda: opened.progress()["fraction"] >= (_ + 1) / T)
-    assert opened.progress()["message"].startswith("frame ")
+    # The pipeline's reports show in the progress bar as they come, up to the
+    # third frame.
+    seen = []
+    while not seen or "frame 3/" not in seen[-1][1]:
+        fraction, message = api.step()
+        snap = opened.progress()
+        assert snap["state"] == "running" and (snap["fraction"], snap["message"]) == (
+            pytest.approx(fraction), message)
+        seen.append((fraction, message))
+    assert len(seen) >= 4 and [f for f, _ in seen] == sorted(f for f, _ in seen)
     assert opened.cancel_run()
-    api.gate.set()
+    api.release()
     run_to_end(opened)
     assert opened.progress()["state"] == "cancelled"
     assert opened.result is not None and opened.result_partial
-    n = results.rate_rows(opened.result)[0].n_frames
-    assert 3 <= n < T
+    assert not opened.result.complete
+    # The partial result covers the frames finished before the cancel.
+    assert 3 <= len(opened.result.surfaces[0].species["CH4"].time_s) < T
     assert "partial result" in opened.last_message.text
 
 
@@ -463,9 +524,9 @@ def test_run_error_paths(vm, opened, api):
     assert "wind speed" in errors(opened)[-1] and opened.field_errors["wind_speed_m_s"]
     opened.update_settings(velocity="fluid")
     # The pipeline's own check, reported against the field it names.
-    opened.update_settings(species={"CH4": True, "CO2": False, "N2O": True})
+    opened.update_settings(species={"CH4": True, "CO2": False, "Xe2": True})
     assert not opened.start_run()
-    assert "N2O" in opened.field_errors["species"]
+    assert "Xe2" in opened.field_errors["species"]
     opened.update_settings(species={"CH4": True})
     # An error inside the run: a readable message, the window carries on.
     api.fail_at = 2
@@ -684,3 +745,16 @@ def test_step_between_frames_with_maps(opened, api):
     assert opened.seek_map_frame(1) and opened.frame == 2  # wraps around
     assert opened.seek_map_frame(-1) and opened.frame == 5
     assert opened.render_overlay() is not None
+
+
+def test_map_keys_are_placed_on_recording_frames():
+    from types import SimpleNamespace as NS
+
+    # Keyed by the position within frames 5..8 (the pipeline now) or by the
+    # recording's frame index (docs/pipeline_api.md): the same frames either way.
+    positional = NS(map_frames=[0, 2], config=NS(frames=(5, 9)))
+    absolute = NS(map_frames=[5, 7], config=NS(frames=(5, 9)))
+    assert results.map_frame_keys(positional) == {5: 0, 7: 2}
+    assert results.map_frame_keys(absolute) == {5: 5, 7: 7}
+    assert results.map_frame_keys(NS(map_frames=[0, 3], config=NS(frames=None))) == {0: 0, 3: 3}
+    assert results.map_frame_keys(NS(map_frames=[], config=NS(frames=(5, 9)))) == {}

@@ -38,13 +38,18 @@ def xvfb():
         number = f.readline().strip()
     if not number:
         proc.kill()
-        pytest.fail(f"Xvfb did not start: {proc.stderr.read().decode(errors='replace')}")
+        err = proc.stderr.read().decode(errors="replace")
+        proc.stderr.close()
+        proc.wait()
+        pytest.fail(f"Xvfb did not start: {err}")
     yield f":{number}"
     proc.terminate()
     try:
         proc.wait(10)
     except subprocess.TimeoutExpired:
         proc.kill()
+        proc.wait()
+    proc.stderr.close()
 
 
 def _png(path: Path) -> np.ndarray:
