@@ -17,7 +17,7 @@ from typing import List, Optional, Sequence
 
 import numpy as np
 
-from .results import pixel_status_rows, rate_rows
+from .results import pixel_status_rows, rate_rows, standard_conditions_text
 from .surfaces import SurfaceDraft, RegionDraft, flow_arrow
 
 __all__ = ["check_writable", "write_frame_png", "write_plots", "write_report", "ExportError"]
@@ -170,7 +170,7 @@ def report_text(result, recording_summary: dict, surfaces: Sequence[SurfaceDraft
             f"{_fmt(r.truth_kg_h, 4) if r.truth_kg_h is not None else '-'} | "
             f"{f'{err:+.1f} %' if err is not None else '-'} | {r.n_frames} "
             f"({r.n_frames_valid}) | {_fmt(r.pixels_median, 4)} | {r.dominant_uncertainty} |")
-    sc_std = getattr(result, "standard_conditions", None)
+    sc_std = standard_conditions_text(result)
     if sc_std:
         lines += ["", f"SLPM at standard conditions: {sc_std}."]
     status = pixel_status_rows(result)

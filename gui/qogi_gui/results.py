@@ -14,10 +14,11 @@ from typing import Dict, List, Optional, Sequence, Tuple
 import numpy as np
 
 __all__ = ["RateRow", "rate_rows", "rate_series", "finite_segments", "pixel_status_rows",
-           "frame_maps", "map_frame_keys", "full_frame_maps", "vector_field", "overlay_scale", "arrow_segments"]
+           "standard_conditions_text", "frame_maps", "map_frame_keys", "full_frame_maps",
+           "vector_field", "overlay_scale", "arrow_segments"]
 
 KG_S_TO_KG_H = 3600.0
-STATUS_ORDER = ("converged", "at bound", "below detection", "failed")
+STATUS_ORDER = ("converged", "at bound", "below detection", "failed", "masked")
 
 
 @dataclass
@@ -97,6 +98,18 @@ def rate_series(result) -> List[dict]:
     return out
 
 
+def standard_conditions_text(result) -> str:
+    """The standard conditions the result's SLPM refer to, for people
+    ("293.15 K, 101325 Pa"); "" when the result does not say."""
+    sc = getattr(result, "standard_conditions", None)
+    if isinstance(sc, dict):
+        t, p = sc.get("temperature_K"), sc.get("pressure_Pa")
+        if t is not None and p is not None:
+            return f"{float(t):g} K, {float(p):g} Pa"
+        return ", ".join(f"{k} {v}" for k, v in sc.items())
+    return str(sc) if sc else ""
+
+
 def finite_segments(x: Sequence[float], y: Sequence[float]
                     ) -> List[Tuple[np.ndarray, np.ndarray]]:
     """Split a series at non-finite values into runs of finite points, so a
@@ -118,9 +131,13 @@ def finite_segments(x: Sequence[float], y: Sequence[float]
 
 
 def pixel_status_rows(result) -> List[Tuple[str, int, float]]:
-    """(status, count, percent of all counted pixels), known statuses first."""
-    status = dict(getattr(result, "pixel_status", {}) or {})
-    total = sum(int(v) for v in status.values())
+    """(status, count, percent of all counted pixels), known statuses first;
+    statuses are named in words ("at_bound" reads "at bound")."""
+    status = {}
+    for k, v in dict(getattr(result, "pixel_status", {}) or {}).items():
+        name = str(k).replace("_", " ")
+        status[name] = status.get(name, 0) + int(v)
+    total = sum(status.values())
     names = [s for s in STATUS_ORDER if s in status] + sorted(set(status) - set(STATUS_ORDER))
     return [(s, int(status[s]), 100.0 * int(status[s]) / total if total else math.nan)
             for s in names]

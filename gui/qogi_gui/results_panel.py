@@ -58,8 +58,8 @@ def build_results_panel(app, parent) -> None:
         for sp in species:
             lines = [
                 (f"{sp} mean [kg/h]", lambda r: _fmt(r.mean_kg_h)),
-                ("90% interval", lambda r: f"{_fmt(r.ci90_kg_h[0], 3)} .. "
-                                           f"{_fmt(r.ci90_kg_h[1], 3)}"),
+                ("90% low [kg/h]", lambda r: _fmt(r.ci90_kg_h[0])),
+                ("90% high [kg/h]", lambda r: _fmt(r.ci90_kg_h[1])),
                 ("[g/h]", lambda r: _fmt(r.mean_g_h)),
                 ("[SLPM]", lambda r: _fmt(r.mean_slpm)),
                 ("truth [kg/h]", lambda r: _fmt(r.truth_kg_h) if r.truth_kg_h is not None
@@ -81,7 +81,7 @@ def build_results_panel(app, parent) -> None:
     if vm.result_stale:
         dpg.add_text("Surfaces or settings changed since this run: run again to update.",
                      parent=parent, color=YELLOW, wrap=420)
-    std = getattr(res, "standard_conditions", None)
+    std = results.standard_conditions_text(res)
     if std:
         dpg.add_text(f"SLPM at {std}", parent=parent, color=GREY, wrap=420)
 
@@ -109,9 +109,9 @@ def build_results_panel(app, parent) -> None:
                 dpg.add_error_series(xs, ys, lo, hi, parent=ya)
             truth = next((by[(s, sp)].truth_kg_h for s in surfaces
                           if (s, sp) in by and by[(s, sp)].truth_kg_h is not None), None)
-            if truth is not None:
-                t = dpg.add_inf_line_series([truth], horizontal=True, label=f"truth {sp}",
-                                            parent=ya)
+            if truth is not None:  # a line across the bars (fitting the axis takes it in)
+                t = dpg.add_line_series([-0.6, len(surfaces) - 0.4], [truth, truth],
+                                        label=f"truth {sp}", parent=ya)
                 dpg.bind_item_theme(t, app._themes["truth"])
         dpg.set_axis_limits(xa, -0.6, len(surfaces) - 0.4)
         dpg.fit_axis_data(ya)
@@ -143,10 +143,12 @@ def build_rates_plot(app, axis) -> None:
     if res is None:
         return
     truths = {}
+    span = [math.inf, -math.inf]
     for ser in results.rate_series(res):
         t, y = ser["time_s"], ser["rate_kg_h"]
         if t.size == 0:
             continue
+        span = [min(span[0], float(t[0])), max(span[1], float(t[-1]))]
         colour = _colour_of(app, ser["surface"])
         label = f"{ser['surface']} {ser['species']}"
         line = dpg.add_line_series(list(t), list(y), label=label, parent=axis)
@@ -164,9 +166,8 @@ def build_rates_plot(app, axis) -> None:
             dpg.bind_item_theme(mean, app._themes[("selected", colour)])
         if ser["truth_kg_h"] is not None:
             truths[ser["species"]] = ser["truth_kg_h"]
-    for sp, v in truths.items():
-        t = dpg.add_inf_line_series([v], horizontal=True, label=f"truth {sp} {v:.3g} kg/h",
-                                    parent=axis)
+    for sp, v in truths.items():  # a line over the run (fitting the axis takes it in)
+        t = dpg.add_line_series(span, [v, v], label=f"truth {sp} {v:.3g} kg/h", parent=axis)
         dpg.bind_item_theme(t, app._themes["truth"])
     dpg.fit_axis_data("rates_x")
     dpg.fit_axis_data(axis)

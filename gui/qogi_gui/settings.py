@@ -22,7 +22,8 @@ __all__ = ["AnalysisSettings", "FIELDS", "GAS_TEMPERATURE_MODES", "AVERAGING", "
 
 GAS_TEMPERATURE_MODES = ("ambient", "given", "infer")
 AVERAGING = ("per-frame", "time-averaged")
-BACKGROUNDS = ("percentile", "beside-surface", "region")
+#: The first is the default, as in ``qogi.QuantifyConfig``.
+BACKGROUNDS = ("beside-surface", "percentile", "region")
 #: Species offered in addition to those the recording's scene names.
 COMMON_SPECIES = ("CH4", "CO2")
 
@@ -133,7 +134,7 @@ class AnalysisSettings:
     wind_speed_m_s: str = ""
     exit_velocity_m_s: str = ""
     averaging: str = "per-frame"
-    background: str = "percentile"
+    background: str = BACKGROUNDS[0]
     background_percentile: str = "5"
     distance_m: str = ""
     ambient_temperature_K: str = ""
@@ -177,7 +178,7 @@ class AnalysisSettings:
             "exit_velocity_m_s": "> 0 m/s (flow / exit area; lab checks)",
             "averaging": "invert each frame, or the time-averaged frames",
             "background": "how the gas-free radiance is estimated",
-            "background_percentile": "(0, 100) %, temporal low percentile",
+            "background_percentile": "[0, 50] %, temporal low percentile",
             "distance_m": _range_text("scene.distance_m") + "; empty = recording's",
             "ambient_temperature_K": _range_text("scene.ambient_temperature_K")
             + "; empty = recording's",
@@ -234,8 +235,8 @@ class AnalysisSettings:
         elif self.background == "percentile":
             try:
                 p = _number(self.background_percentile)
-                if not 0 < p < 100:
-                    err["background_percentile"] = f"{p:g} % is outside (0, 100) %"
+                if not 0 <= p <= 50:
+                    err["background_percentile"] = f"{p:g} % is outside [0, 50] %"
             except ValueError as e:
                 err["background_percentile"] = str(e)
         elif self.background == "region":

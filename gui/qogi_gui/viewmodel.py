@@ -33,7 +33,7 @@ from . import display, results
 from .export import (ExportError, check_writable, render_frame_rgb, report_text,
                      write_frame_png, write_plots, write_report)
 from .jobs import CANCELLED, DONE, FAILED, Job
-from .settings import AnalysisSettings, SettingsError
+from .settings import BACKGROUNDS, AnalysisSettings, SettingsError
 from .store import UserStore
 from .surfaces import SURFACE_COLOURS, RegionDraft, SurfaceDraft
 
@@ -816,7 +816,7 @@ class ViewModel:
             self._info(f"background region x {region.x0}..{region.x1 - 1}, y {region.y0}.."
                        f"{region.y1 - 1} ({region.n_pixels} pixels)")
         elif self.settings.background == "region":
-            self.settings.background = "percentile"
+            self.settings.background = BACKGROUNDS[0]
         self.region = region
         self.rev["surfaces"] += 1
         self.rev["settings"] += 1

@@ -378,8 +378,8 @@ def test_background_region_from_two_corners(opened):
     assert opened.region.as_tuple() == (3, 1, 7, 4)
     assert opened.settings.background == "region"
     assert RegionDraft.from_corners((-3, -3), (100, 100), W, H).as_tuple() == (0, 0, W, H)
-    opened.set_region(None)
-    assert opened.settings.background == "percentile"
+    opened.set_region(None)  # back to qogi.QuantifyConfig's default
+    assert opened.settings.background == qogi.QuantifyConfig().background
 
 
 def test_pick_source(opened):
@@ -401,7 +401,7 @@ def test_each_field_reports_its_own_problem(opened):
     assert "tick at least one" in bad["species"]
     assert "not a number" in bad["gas_temperature_K"]
     assert "> 0" in bad["wind_speed_m_s"]
-    assert "(0, 100)" in bad["background_percentile"]
+    assert "[0, 50]" in bad["background_percentile"]
     assert "(0, 100000] m" in bad["distance_m"]
     assert "[180, 350] K" in bad["ambient_temperature_K"]
     assert "Pa" in bad["pressure_Pa"]
