@@ -8,9 +8,11 @@ Figures, each against a baseline timed in the same run:
   radiometric temperature, frames/s and ratio to the raw read rate;
 - the real window (Dear PyGui, 1440x900, under Xvfb with Mesa's llvmpipe
   software OpenGL when no display is set) playing the recording in real time
-  (1x = 100 recording frames/s): frames drawn per second against the
-  window's own redraw rate with the video paused (the baseline), recording
-  frames shown per second, and the gaps between drawn frames. Playback
+  (1x = 100 recording frames/s): frames drawn per second against two
+  baselines timed in the same run, a bare Dear PyGui window of the same size
+  (one line of text: the display's own floor) and the viewer with the video
+  paused; recording frames shown per second, and the gaps between drawn
+  frames. Playback
   follows the recording's clock and shows the newest due frame at each draw,
   so a display slower than 100 Hz skips frames but never falls behind.
 
@@ -71,6 +73,34 @@ def start_xvfb():
     with os.fdopen(r) as f:
         number = f.readline().strip()
     return proc, f":{number}"
+
+
+BARE_WINDOW = """
+import sys, time
+import dearpygui.dearpygui as dpg
+dpg.create_context()
+dpg.create_viewport(title="bare", width=1440, height=900, vsync=False)
+with dpg.window(tag="w"):
+    dpg.add_text("bare window")
+dpg.set_primary_window("w", True)
+dpg.setup_dearpygui()
+dpg.show_viewport()
+for _ in range(10):
+    dpg.render_dearpygui_frame()
+n, t0 = 0, time.perf_counter()
+while time.perf_counter() - t0 < float(sys.argv[1]):
+    dpg.render_dearpygui_frame()
+    n += 1
+print(n / (time.perf_counter() - t0))
+dpg.destroy_context()
+"""
+
+
+def bare_window_fps(seconds: float = 5.0) -> float:
+    """Frames/s of a bare Dear PyGui window of the viewer's size (own process)."""
+    out = subprocess.run([sys.executable, "-c", BARE_WINDOW, str(seconds)], capture_output=True,
+                         text=True, check=True, timeout=120)
+    return float(out.stdout.strip().splitlines()[-1])
 
 
 def window_playback(path: Path, seconds: float = 5.0) -> dict:
@@ -144,6 +174,7 @@ def main():
             return
         os.environ["DISPLAY"] = display
         try:
+            bare = bare_window_fps()
             res = window_playback(path)
         finally:
             if proc is not None:
@@ -151,10 +182,12 @@ def main():
                 proc.wait(10)
         where = "Xvfb + Mesa llvmpipe (software OpenGL)" if proc is not None else display
         idle, play = res["paused"], res["playing"]
-        print(f"window 1440x900 on {where}: baseline, video paused: {idle['fps']:.1f} frames "
-              f"drawn/s (the window's own redraw rate)")
+        print(f"window 1440x900 on {where}: baseline 1, bare Dear PyGui window: {bare:.1f} "
+              f"frames drawn/s; baseline 2, the viewer with the video paused: {idle['fps']:.1f} "
+              f"frames drawn/s = {idle['fps'] / bare:.2f} x the bare window")
         print(f"window playing at 1x: {play['fps']:.1f} frames drawn/s = "
-              f"{play['fps'] / idle['fps']:.2f} x the paused rate; {play['shown']:.1f} new "
+              f"{play['fps'] / bare:.2f} x the bare window, "
+              f"{play['fps'] / idle['fps']:.2f} x the paused viewer; {play['shown']:.1f} new "
               f"recording frames shown/s (recording: {RATE:g}/s, the rest skipped to keep real "
               f"time); gap between drawn frames p95 {play['p95_gap_ms']:.0f} ms, max "
               f"{play['max_gap_ms']:.0f} ms")

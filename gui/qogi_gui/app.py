@@ -417,7 +417,7 @@ class App:
         s = self._safe
         dpg.add_separator()
         with dpg.group(horizontal=True, tag="status_bar"):
-            dpg.add_progress_bar(tag="progress", width=280, overlay="idle")
+            dpg.add_progress_bar(tag="progress", width=420, overlay="idle")
             dpg.add_button(label="Cancel", tag="cancel_button", callback=s(self.on_cancel))
             dpg.bind_item_theme("cancel_button", self._themes["cancel"])
             dpg.add_button(label="Messages", callback=s(lambda *a: self.show_messages()))
