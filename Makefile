@@ -76,8 +76,9 @@ bench: $(STAMPS)/built
 	$(VPY) -m pip install -q -r requirements/bench.txt -c requirements/constraints.txt
 	$(VPY) benchmarks/run_all.py
 
+# `make gui` or `make gui REC=path/to/recording.h5`
 gui: $(STAMPS)/built
-	$(VENV)/bin/qogi gui
+	$(VENV)/bin/qogi gui $(REC)
 
 clean:
 	rm -rf build

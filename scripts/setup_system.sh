@@ -12,6 +12,9 @@ PACKAGES=(
   zlib1g-dev             # zlib: gzip-compressed HITRAN line files
   xvfb xauth             # virtual X server for the viewer's smoke test
   libgl1 libegl1         # OpenGL runtime Dear PyGui loads
+  libgl1-mesa-dri        # Mesa's llvmpipe software OpenGL (the viewer under Xvfb; a mere Recommends of libgl1)
+  libx11-6 libxrandr2 libxinerama1 libxcursor1 libxi6   # X11 libraries Dear PyGui's GLFW loads
+  libxtst6               # XTEST: the smoke test clicks and drags with real X input events
 )
 
 missing=()

@@ -32,6 +32,26 @@ def cmd_info(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_gui(args: argparse.Namespace) -> int:
+    import os
+
+    if args.path is not None and not os.path.isfile(args.path):
+        print(f"qogi gui: error: {args.path}: no such file", file=sys.stderr)
+        return 2
+    try:
+        from qogi_gui import main as gui_main
+        from qogi_gui.app import NoDisplayError
+    except ImportError as e:
+        print(f"qogi gui: error: the viewer needs Dear PyGui and matplotlib ({e}); install them "
+              "with: pip install 'qogi[gui]'", file=sys.stderr)
+        return 2
+    try:
+        return gui_main(args.path)
+    except NoDisplayError as e:
+        print(f"qogi gui: error: {e}", file=sys.stderr)
+        return 2
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="qogi",
@@ -53,6 +73,14 @@ def build_parser() -> argparse.ArgumentParser:
     i.add_argument("--allow-invalid", action="store_true",
                    help="treat NaN/inf pixels as invalid instead of an error")
     i.set_defaults(func=cmd_info)
+    g = sub.add_parser(
+        "gui", help="open the desktop viewer",
+        description="Open the desktop viewer: play a recording, draw control surfaces with the "
+                    "mouse, set the analysis, run the quantification in the background and "
+                    "read, compare and export the emission rates. 'Load demo scene' in the "
+                    "window synthesises a known release to try it on.")
+    g.add_argument("path", nargs="?", help="recording (.h5) to open")
+    g.set_defaults(func=cmd_gui)
     from ._cli_spectra import add_commands as add_spectra_commands
     add_spectra_commands(sub)
     from ._cli_synth import add_commands as add_synth_commands

@@ -1,0 +1,31 @@
+"""qogi viewer: a desktop window on top of the public ``qogi`` Python API.
+
+A technician opens a recording (or the demo scene), plays it, draws control
+surfaces with the mouse, sets the analysis, runs the quantification in the
+background and reads the emission rate; results export as CSV, JSON, PNG and
+a short report.
+
+Two layers:
+
+- :mod:`qogi_gui.viewmodel` and its helpers (:mod:`~qogi_gui.display`,
+  :mod:`~qogi_gui.surfaces`, :mod:`~qogi_gui.settings`, :mod:`~qogi_gui.jobs`,
+  :mod:`~qogi_gui.export`, :mod:`~qogi_gui.store`, :mod:`~qogi_gui.demo`):
+  plain Python state, actions and results, no Dear PyGui import; unit-tested
+  without a screen.
+- :mod:`qogi_gui.app`: the Dear PyGui widgets, which only forward user input
+  to the view-model and draw what it holds.
+
+Start it with ``qogi gui [REC.h5]``, ``make gui`` or ``python -m qogi_gui``.
+"""
+
+from __future__ import annotations
+
+__all__ = ["main"]
+
+
+def main(path=None) -> int:
+    """Open the viewer window (optionally on the recording ``path``); returns
+    when the window is closed. Needs Dear PyGui and a display."""
+    from .app import run
+
+    return run(path)

@@ -1,0 +1,360 @@
+"""The analysis form: what the technician types, checked field by field.
+
+:class:`AnalysisSettings` keeps every field as the text (or choice) the user
+entered, so a bad value stays on screen next to its message instead of being
+lost. :meth:`AnalysisSettings.validate` returns one message per field ("" when
+the field is fine); :meth:`AnalysisSettings.build_config` turns a valid form
+into ``qogi.QuantifyConfig`` (docs/pipeline_api.md), whose own checks are
+reported against the field they name.
+
+Accepted ranges of the scene parameters are the recording contract's
+(``qogi.recording.RANGES``), so the form, the files and the pipeline agree.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Dict, List, Optional, Tuple
+
+__all__ = ["AnalysisSettings", "FIELDS", "GAS_TEMPERATURE_MODES", "AVERAGING", "BACKGROUNDS",
+           "velocity_choices", "SettingsError"]
+
+GAS_TEMPERATURE_MODES = ("ambient", "given", "infer")
+AVERAGING = ("per-frame", "time-averaged")
+#: The first is the default, as in ``qogi.QuantifyConfig``.
+BACKGROUNDS = ("beside-surface", "percentile", "region")
+#: Species offered in addition to those the recording's scene names.
+COMMON_SPECIES = ("CH4", "CO2")
+
+#: Field key -> (label, unit). The keys are the form's, not always the config's.
+FIELDS: Dict[str, Tuple[str, str]] = {
+    "species": ("species", ""),
+    "gas_temperature_K": ("gas temperature", "K"),
+    "velocity": ("velocity source", ""),
+    "wind_speed_m_s": ("wind speed", "m/s"),
+    "exit_velocity_m_s": ("exit velocity", "m/s"),
+    "averaging": ("averaging order", ""),
+    "background": ("background", ""),
+    "background_percentile": ("background percentile", "%"),
+    "distance_m": ("distance", "m"),
+    "ambient_temperature_K": ("ambient temperature", "K"),
+    "pressure_Pa": ("pressure", "Pa"),
+    "sigma_m": ("plume depth sigma", "m"),
+    "frame_start": ("first frame", ""),
+    "frame_stop": ("stop frame", ""),
+    "num_threads": ("threads", ""),
+    "source": ("source position", "px"),
+}
+
+# Config field names (as they appear in the pipeline's error messages) -> form field.
+_CONFIG_TO_FORM = {
+    "species": "species", "gas_temperature": "gas_temperature_K", "velocity": "velocity",
+    "wind_speed_m_s": "wind_speed_m_s", "exit_velocity_m_s": "exit_velocity_m_s",
+    "averaging": "averaging", "background_percentile": "background_percentile",
+    "background": "background", "source": "source", "distance_m": "distance_m",
+    "ambient_temperature_K": "ambient_temperature_K", "pressure_Pa": "pressure_Pa",
+    "sigma_m": "sigma_m", "frames": "frame_start", "num_threads": "num_threads",
+}
+
+
+class SettingsError(ValueError):
+    """The form has invalid fields; ``errors`` maps field -> message."""
+
+    def __init__(self, errors: Dict[str, str]):
+        self.errors = {k: v for k, v in errors.items() if v}
+        lines = [f"{FIELDS.get(k, (k, ''))[0]}: {v}" for k, v in self.errors.items()]
+        super().__init__("; ".join(lines) if lines else "invalid settings")
+
+
+def velocity_choices() -> List[str]:
+    """Velocity sources: the methods of ``qogi.velocimetry`` (default first),
+    then ``"wind"`` (a given speed) and ``"exit"`` (a given exit velocity)."""
+    from qogi import velocimetry
+
+    methods = list(velocimetry.METHODS)
+    default = velocimetry.DEFAULT_METHOD
+    methods.sort(key=lambda m: m != default)
+    return methods + ["wind", "exit"]
+
+
+def _ranges():
+    from qogi.recording import RANGES
+
+    return RANGES
+
+
+def _range_text(key: str) -> str:
+    lo, hi, unit, mode = _ranges()[key]
+    return f"({lo:g}, {hi:g}] {unit}" if mode == "exclusive_low" else f"[{lo:g}, {hi:g}] {unit}"
+
+
+def _number(text: str) -> float:
+    s = str(text).strip()
+    if not s:
+        raise ValueError("empty: type a number")
+    try:
+        v = float(s)
+    except ValueError:
+        raise ValueError(f"{s!r} is not a number") from None
+    if not math.isfinite(v):
+        raise ValueError(f"{s!r} is not a finite number")
+    return v
+
+
+def _integer(text: str) -> int:
+    s = str(text).strip()
+    try:
+        return int(s)
+    except ValueError:
+        raise ValueError(f"{s!r} is not a whole number") from None
+
+
+def _check_contract_range(key: str, text: str) -> str:
+    """"" if ``text`` is a number inside RANGES[key], else the message."""
+    try:
+        v = _number(text)
+    except ValueError as e:
+        return str(e)
+    lo, hi, unit, mode = _ranges()[key]
+    ok = (v > lo if mode == "exclusive_low" else v >= lo) and v <= hi
+    return "" if ok else f"{v:g} {unit} is outside {_range_text(key)}"
+
+
+@dataclass
+class AnalysisSettings:
+    """The analysis form. Text fields hold what the user typed; an empty
+    scene field means "the recording's value" and an empty ``sigma_m`` means
+    "from the plume width"."""
+
+    species: Dict[str, bool] = field(default_factory=lambda: {"CH4": True})
+    gas_temperature_mode: str = "ambient"
+    gas_temperature_K: str = ""
+    velocity: str = "fluid"
+    wind_speed_m_s: str = ""
+    exit_velocity_m_s: str = ""
+    averaging: str = "per-frame"
+    background: str = BACKGROUNDS[0]
+    background_percentile: str = "5"
+    distance_m: str = ""
+    ambient_temperature_K: str = ""
+    pressure_Pa: str = ""
+    sigma_m: str = ""
+    frame_start: str = "0"
+    frame_stop: str = ""
+    num_threads: str = "0"
+    use_source: bool = False
+    source_x: str = ""
+    source_y: str = ""
+    #: Keep per-pixel maps (column density, velocity, status) for the overlay.
+    keep_maps: bool = True
+
+    # ----------------------------------------------------------------- defaults
+    @classmethod
+    def for_recording(cls, recording) -> "AnalysisSettings":
+        """Defaults for a recording: its scene's species (or CH4) ticked, its
+        scene values as the scene fields, all frames."""
+        scene = recording.scene
+        names = list(dict.fromkeys(list(scene.species) + list(COMMON_SPECIES)))
+        ticked = set(scene.species) or {"CH4"}
+        s = cls(species={n: n in ticked for n in names})
+        s.distance_m = f"{scene.distance_m:g}"
+        s.ambient_temperature_K = f"{scene.ambient_temperature_K:g}"
+        s.pressure_Pa = f"{scene.pressure_Pa:g}"
+        if scene.gas_temperature_K is not None:
+            s.gas_temperature_K = f"{scene.gas_temperature_K:g}"
+        if scene.wind_speed_m_s is not None:
+            s.wind_speed_m_s = f"{scene.wind_speed_m_s:g}"
+        s.frame_stop = str(recording.n_frames)
+        return s
+
+    def hints(self, recording=None) -> Dict[str, str]:
+        """What each field accepts (unit and range), shown beside it."""
+        h = {
+            "species": "tick at least one",
+            "gas_temperature_K": _range_text("scene.gas_temperature_K"),
+            "velocity": "optical-flow method, or a given wind / exit speed",
+            "wind_speed_m_s": "> 0, up to 100 m/s, along each surface's normal",
+            "exit_velocity_m_s": "> 0 m/s (flow / exit area; lab checks)",
+            "averaging": "invert each frame, or the time-averaged frames",
+            "background": "how the gas-free radiance is estimated",
+            "background_percentile": "[0, 50] %, temporal low percentile",
+            "distance_m": _range_text("scene.distance_m") + "; empty = recording's",
+            "ambient_temperature_K": _range_text("scene.ambient_temperature_K")
+            + "; empty = recording's",
+            "pressure_Pa": _range_text("scene.pressure_Pa") + "; empty = recording's",
+            "sigma_m": "> 0 m; empty = from the plume width",
+            "frame_start": "0 ..",
+            "frame_stop": "empty = to the end",
+            "num_threads": "0 = all cores",
+            "source": "x, y in pixels; flow away from it counts positive",
+        }
+        if recording is not None:
+            t = recording.n_frames
+            h["frame_start"] = f"0 .. {t - 2}"
+            h["frame_stop"] = f"2 .. {t}; empty = to the end ({t})"
+            h["source"] = (f"x in [-0.5, {recording.width - 0.5}], y in [-0.5, "
+                           f"{recording.height - 0.5}] px; flow away from it counts positive")
+        return h
+
+    # ----------------------------------------------------------------- checks
+    def validate(self, recording, region=None, n_surfaces: Optional[int] = None
+                 ) -> Dict[str, str]:
+        """One message per field ("" when fine), against ``recording``
+        (channels, frames, image size) and the picked background ``region``."""
+        err = {k: "" for k in FIELDS}
+        if not any(self.species.values()):
+            err["species"] = "tick at least one species"
+        if self.gas_temperature_mode not in GAS_TEMPERATURE_MODES:
+            err["gas_temperature_K"] = f"choose one of {', '.join(GAS_TEMPERATURE_MODES)}"
+        elif self.gas_temperature_mode == "given":
+            err["gas_temperature_K"] = _check_contract_range("scene.gas_temperature_K",
+                                                             self.gas_temperature_K)
+        elif self.gas_temperature_mode == "infer" and recording is not None \
+                and recording.n_channels < 2:
+            err["gas_temperature_K"] = (f"inferring it needs >= 2 channels; this recording has "
+                                        f"{recording.n_channels}: choose ambient or given")
+        choices = velocity_choices()
+        if self.velocity not in choices:
+            err["velocity"] = f"choose one of {', '.join(choices)}"
+        elif self.velocity == "wind":
+            msg = _check_contract_range("scene.wind_speed_m_s", self.wind_speed_m_s)
+            if not msg and _number(self.wind_speed_m_s) <= 0:
+                msg = "must be > 0 m/s (no wind carries no gas through the surface)"
+            err["wind_speed_m_s"] = msg
+        elif self.velocity == "exit":
+            try:
+                if _number(self.exit_velocity_m_s) <= 0:
+                    err["exit_velocity_m_s"] = "must be > 0 m/s"
+            except ValueError as e:
+                err["exit_velocity_m_s"] = str(e)
+        if self.averaging not in AVERAGING:
+            err["averaging"] = f"choose one of {', '.join(AVERAGING)}"
+        if self.background not in BACKGROUNDS:
+            err["background"] = f"choose one of {', '.join(BACKGROUNDS)}"
+        elif self.background == "percentile":
+            try:
+                p = _number(self.background_percentile)
+                if not 0 <= p <= 50:
+                    err["background_percentile"] = f"{p:g} % is outside [0, 50] %"
+            except ValueError as e:
+                err["background_percentile"] = str(e)
+        elif self.background == "region":
+            if region is None:
+                err["background"] = "pick the region on the image first (Surfaces tab)"
+            elif region.n_pixels < 1:
+                err["background"] = "the picked region holds no pixel: pick a larger one"
+        for name in ("distance_m", "ambient_temperature_K", "pressure_Pa"):
+            if str(getattr(self, name)).strip():
+                err[name] = _check_contract_range(f"scene.{name}", getattr(self, name))
+        if str(self.sigma_m).strip():
+            try:
+                if _number(self.sigma_m) <= 0:
+                    err["sigma_m"] = "must be > 0 m (or empty: from the plume width)"
+            except ValueError as e:
+                err["sigma_m"] = str(e)
+        err["frame_start"], err["frame_stop"] = self._check_frames(recording)
+        try:
+            if _integer(self.num_threads) < 0:
+                err["num_threads"] = "must be >= 0 (0 = all cores)"
+        except ValueError as e:
+            err["num_threads"] = str(e)
+        if self.use_source:
+            err["source"] = self._check_source(recording)
+        return err
+
+    def _frame_range(self, recording) -> Tuple[int, int]:
+        start = _integer(self.frame_start) if str(self.frame_start).strip() else 0
+        n = recording.n_frames if recording is not None else None
+        stop = _integer(self.frame_stop) if str(self.frame_stop).strip() else n
+        return start, stop
+
+    def _check_frames(self, recording) -> Tuple[str, str]:
+        try:
+            start = _integer(self.frame_start) if str(self.frame_start).strip() else 0
+        except ValueError as e:
+            return str(e), ""
+        try:
+            stop = _integer(self.frame_stop) if str(self.frame_stop).strip() else None
+        except ValueError as e:
+            return "", str(e)
+        if start < 0:
+            return f"{start} is before the first frame (0)", ""
+        if recording is None:
+            return "", ""
+        n = recording.n_frames
+        stop = n if stop is None else stop
+        if stop > n:
+            return "", f"{stop} is beyond the last frame: the recording has {n} frames"
+        if stop - start < 2:
+            return "", (f"frames {start}..{stop - 1} are fewer than 2: velocity needs at "
+                        "least two frames")
+        return "", ""
+
+    def _check_source(self, recording) -> str:
+        try:
+            x, y = _number(self.source_x), _number(self.source_y)
+        except ValueError as e:
+            return f"{e} (pick the source on the image or type x and y)"
+        if recording is not None and not (-0.5 <= x <= recording.width - 0.5
+                                          and -0.5 <= y <= recording.height - 0.5):
+            return (f"({x:g}, {y:g}) is outside the image (x in [-0.5, "
+                    f"{recording.width - 0.5}], y in [-0.5, {recording.height - 0.5}])")
+        return ""
+
+    # ----------------------------------------------------------------- config
+    def config_kwargs(self, api, recording, region=None) -> dict:
+        """Keyword arguments of ``api.QuantifyConfig`` for a valid form
+        (raises :class:`SettingsError` otherwise)."""
+        errors = self.validate(recording, region)
+        if any(errors.values()):
+            raise SettingsError(errors)
+        kw: dict = {"species": [s for s, on in self.species.items() if on]}
+        if self.gas_temperature_mode == "given":
+            kw["gas_temperature"] = _number(self.gas_temperature_K)
+        else:
+            kw["gas_temperature"] = self.gas_temperature_mode
+        kw["velocity"] = self.velocity
+        if self.velocity == "wind":
+            kw["wind_speed_m_s"] = _number(self.wind_speed_m_s)
+        if self.velocity == "exit":
+            kw["exit_velocity_m_s"] = _number(self.exit_velocity_m_s)
+        kw["averaging"] = self.averaging
+        if self.background == "region":
+            kw["background"] = api.Region(*region.as_tuple())
+        else:
+            kw["background"] = self.background
+        if self.background == "percentile":
+            kw["background_percentile"] = _number(self.background_percentile)
+        if self.use_source:
+            kw["source"] = (_number(self.source_x), _number(self.source_y))
+        for name in ("distance_m", "ambient_temperature_K", "pressure_Pa", "sigma_m"):
+            text = str(getattr(self, name)).strip()
+            kw[name] = _number(text) if text else None
+        start, stop = self._frame_range(recording)
+        if recording is not None and (start, stop) != (0, recording.n_frames):
+            kw["frames"] = (start, stop)
+        kw["num_threads"] = _integer(self.num_threads)
+        return kw
+
+    def build_config(self, api, recording, region=None):
+        """``api.QuantifyConfig`` of the form. Raises :class:`SettingsError`
+        with per-field messages (including the config's own checks, matched to
+        the field its message names)."""
+        kw = self.config_kwargs(api, recording, region)
+        try:
+            return api.QuantifyConfig(**kw)
+        except (ValueError, TypeError) as e:
+            raise SettingsError({_field_named_in(str(e)): str(e)}) from e
+
+
+def _field_named_in(message: str) -> str:
+    """The form field whose config name appears first in ``message``
+    ("species" if none does, so the message still shows)."""
+    best, pos = "species", len(message) + 1
+    # Longer names first so "background_percentile" wins over "background".
+    for name in sorted(_CONFIG_TO_FORM, key=len, reverse=True):
+        i = message.find(name)
+        if 0 <= i < pos:
+            best, pos = _CONFIG_TO_FORM[name], i
+    return best

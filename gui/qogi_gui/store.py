@@ -1,0 +1,118 @@
+"""Per-user state of the viewer: recent files and the last folder used.
+
+Stored as JSON in the user's configuration folder (the demo recording goes
+to qogi's cache folder instead, see :func:`cache_dir`):
+``$QOGI_CONFIG_DIR`` if set, else ``$XDG_CONFIG_HOME/qogi``, else
+``~/.config/qogi`` (``viewer.json``). A missing or unreadable file means an
+empty history; it never stops the viewer.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import List, Optional
+
+__all__ = ["config_dir", "cache_dir", "UserStore", "MAX_RECENT"]
+
+#: How many recent recordings are remembered.
+MAX_RECENT = 10
+_FILE = "viewer.json"
+
+
+def config_dir() -> Path:
+    """The folder for the viewer's per-user settings."""
+    env = os.environ.get("QOGI_CONFIG_DIR")
+    if env:
+        return Path(env)
+    xdg = os.environ.get("XDG_CONFIG_HOME")
+    return (Path(xdg) if xdg else Path.home() / ".config") / "qogi"
+
+
+def cache_dir() -> Path:
+    """The folder for regenerable files (the demo recording): qogi's per-user
+    cache, ``$QOGI_CACHE_DIR`` or ``~/.cache/qogi`` (:func:`qogi.spectra.cache_dir`)."""
+    from qogi.spectra import cache_dir as qogi_cache_dir
+
+    return Path(qogi_cache_dir())
+
+
+class UserStore:
+    """Recent files and last folder, persisted as JSON.
+
+    Parameters
+    ----------
+    folder : path, optional
+        Where ``viewer.json`` lives; default :func:`config_dir`.
+
+    Attributes
+    ----------
+    recent : list of str
+        Absolute paths, most recent first, at most :data:`MAX_RECENT`.
+    last_dir : str
+        Folder of the last file opened or exported ("" if none).
+    warning : str
+        Why the stored file could not be read or written ("" if it could).
+    """
+
+    def __init__(self, folder: Optional[os.PathLike] = None):
+        self.folder = Path(folder) if folder is not None else config_dir()
+        self.recent: List[str] = []
+        self.last_dir = ""
+        self.warning = ""
+        self._load()
+
+    @property
+    def path(self) -> Path:
+        return self.folder / _FILE
+
+    def _load(self) -> None:
+        try:
+            data = json.loads(self.path.read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            return
+        except (OSError, ValueError) as e:
+            self.warning = f"could not read the viewer settings {self.path} ({e}); starting empty"
+            return
+        if not isinstance(data, dict):
+            self.warning = f"viewer settings {self.path} are not a JSON object; starting empty"
+            return
+        recent = data.get("recent", [])
+        if isinstance(recent, list):
+            self.recent = [str(p) for p in recent if isinstance(p, str)][:MAX_RECENT]
+        last = data.get("last_dir", "")
+        self.last_dir = last if isinstance(last, str) else ""
+
+    def save(self) -> bool:
+        """Write the file; on failure set :attr:`warning` and return False."""
+        try:
+            self.folder.mkdir(parents=True, exist_ok=True)
+            tmp = self.path.with_suffix(".tmp")
+            tmp.write_text(json.dumps({"recent": self.recent, "last_dir": self.last_dir},
+                                      indent=1), encoding="utf-8")
+            os.replace(tmp, self.path)
+        except OSError as e:
+            self.warning = f"could not save the viewer settings to {self.path} ({e})"
+            return False
+        self.warning = ""
+        return True
+
+    def add_recent(self, path: os.PathLike) -> None:
+        """Put ``path`` first in the recent list (and remember its folder), then save."""
+        p = os.path.abspath(os.fspath(path))
+        self.recent = [p] + [r for r in self.recent if r != p]
+        del self.recent[MAX_RECENT:]
+        self.last_dir = os.path.dirname(p)
+        self.save()
+
+    def remove_recent(self, path: os.PathLike) -> None:
+        """Forget ``path`` (e.g. a file that no longer opens), then save."""
+        p = os.path.abspath(os.fspath(path))
+        if p in self.recent:
+            self.recent.remove(p)
+            self.save()
+
+    def set_last_dir(self, folder: os.PathLike) -> None:
+        self.last_dir = os.path.abspath(os.fspath(folder))
+        self.save()
