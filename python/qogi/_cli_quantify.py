@@ -119,8 +119,8 @@ def add_commands(sub) -> None:
     t.add_argument("--infer-temperature", action="store_true",
                    help="infer the gas temperature (needs >= 2 channels)")
     v = q.add_mutually_exclusive_group()
-    v.add_argument("--velocity", default="fluid",
-                   choices=["fluid", "horn-schunck", "lucas-kanade", "farneback", "dis", "piv"],
+    v.add_argument("--velocity", default="fluid", type=lambda m: m.replace("-", "_"),
+                   choices=["fluid", "horn_schunck", "lucas_kanade", "farneback", "dis", "piv"],
                    help="velocimetry method (default: fluid, the continuity-equation flow)")
     v.add_argument("--wind-speed", type=float, metavar="M_S",
                    help="use this speed [m/s] normal to every surface instead of velocimetry")

@@ -43,7 +43,7 @@ __all__ = ["QuantifyConfig", "quantify", "Cancelled", "VELOCITY_SYSTEMATIC"]
 #: From the velocimetry study on the synthetic presets (docs/velocimetry.md);
 #: "wind" and "exit" are user-given speeds whose relation to the gas velocity at
 #: the surface is unknown to qogi and are given a wide band.
-VELOCITY_SYSTEMATIC = {"fluid": 0.08, "horn-schunck": 0.25, "lucas-kanade": 0.3,
+VELOCITY_SYSTEMATIC = {"fluid": 0.08, "horn_schunck": 0.25, "lucas_kanade": 0.3,
                        "farneback": 0.3, "dis": 0.3, "piv": 0.2, "wind": 0.5, "exit": 0.5}
 #: Relative systematic uncertainty (1 sigma) of column densities from the
 #: Gaussian line-of-sight model (profile shape; docs/inversion.md).
@@ -59,7 +59,7 @@ class Cancelled(Exception):
         self.partial = partial
 
 
-_VELOCITY_SOURCES = ("fluid", "horn-schunck", "lucas-kanade", "farneback", "dis", "piv",
+_VELOCITY_SOURCES = ("fluid", "horn_schunck", "lucas_kanade", "farneback", "dis", "piv",
                      "wind", "exit")
 
 
@@ -103,6 +103,8 @@ class QuantifyConfig:
                 raise ValueError(f"gas_temperature must be 'ambient', 'infer' or a temperature in K; got {g!r}")
         elif not (np.isfinite(g) and 150.0 <= float(g) <= 600.0):
             raise ValueError(f"gas_temperature must be within [150, 600] K; got {g}")
+        # qogi.velocimetry's method names; the hyphenated spellings are accepted too.
+        self.velocity = str(self.velocity).replace("-", "_")
         if self.velocity not in _VELOCITY_SOURCES:
             raise ValueError(f"velocity must be one of {', '.join(_VELOCITY_SOURCES)}; got {self.velocity!r}")
         if self.velocity == "wind" and not (self.wind_speed_m_s is not None and
@@ -942,10 +944,11 @@ def _finish(rec, surfaces, cfg, scene, samples, frames, done, col_fields, surf_c
                     u = _bilinear(uv[0], xy - [roi.x0, roi.y0])
                     v = _bilinear(uv[1], xy - [roi.x0, roi.y0])
                     vn[k] = (u * n[:, 0] + v * n[:, 1]) * scene.m_s_per_px_frame
-            if keep_maps and roi is not None and k not in kept_maps and flows is not None and \
-                    (k % max(1, done // 10) == 0):
+            # Maps are keyed by the recording's frame index.
+            if keep_maps and roi is not None and frames.start + k not in kept_maps and \
+                    flows is not None and (k % max(1, done // 10) == 0):
                 uv = _pair_velocity(flows, k, done)
-                kept_maps[k] = {"column_density_kg_m2": {cfg.species[0]: col_fields[k]},
+                kept_maps[frames.start + k] = {"column_density_kg_m2": {cfg.species[0]: col_fields[k]},
                                 "velocity_px_per_frame": uv, "origin": (roi.x0, roi.y0)}
         for sp in cfg.species:
             c = surf_cols[j][sp][:done]

@@ -130,8 +130,13 @@ class Result:
 
     # -- access --------------------------------------------------------------
     def maps(self, frame: int) -> dict:
-        """Per-pixel maps of one frame (needs ``keep_maps=True``): column
-        density per species [kg/m2], velocity (u, v) [px/frame], status."""
+        """Per-pixel maps of one recording frame (needs ``keep_maps=True``;
+        about ten frames of a run keep them, :attr:`map_frames` lists them):
+        ``column_density_kg_m2`` {first species: H x W}, the column field the
+        velocimetry ran on (single-channel lookup at the assumed gas
+        temperature: its shape is right, its scale approximate; the surfaces'
+        own columns come from the full inversion), ``velocity_px_per_frame``
+        (u, v) and ``origin`` (x0, y0) of the maps in the frame."""
         if frame not in self._maps:
             raise KeyError(f"no maps kept for frame {frame}; run quantify(..., keep_maps=True) "
                            f"(frames with maps: {sorted(self._maps)[:5]}...)")

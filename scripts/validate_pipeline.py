@@ -1,0 +1,194 @@
+"""End-to-end validation of the pipeline on synthetic releases with exact truth
+(docs/validation.md): recording -> column densities -> velocities -> emission
+rate with its 90 % interval, against the simulation's exact release rate.
+
+Cases (each over seeds 0..N-1; recordings are cached under --cache):
+
+* ``m150``: lab-ch4co2-90c-m150 (50/50 CH4/CO2 at 90 C, four channels, 100 Hz),
+  gas temperature inferred, composition known, the default velocimetry;
+* ``gf320``: lab-ch4-5slpm-gf320 (CH4 at ambient, one channel, 15 Hz), gas
+  temperature ambient (it is), the default velocimetry;
+* ``heated-1ch``: lab-heated-ch4-55c-gf320 quantified single channel with the
+  gas temperature assumed ambient (what a single-channel tool does);
+* ``heated-4ch``: the same release rendered through the four-channel
+  fast-m150 camera (same pixel footprint), gas temperature inferred.
+
+Control surfaces: horizontal lines 100 px wide (m150) or 80 px (GF320)
+centred on the exit at the truth's control-plane rows up to 12 cm above the
+exit; the exit is given as the source (flow away from it is positive).
+
+Usage:
+    .venv/bin/python scripts/validate_pipeline.py --seeds 10 [--cases m150 gf320 ...]
+    .venv/bin/python scripts/validate_pipeline.py --report   # tables and plots from the cache
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+import qogi
+from qogi import render
+from qogi.pipeline import QuantifyConfig, quantify
+from qogi.surfaces import Surface
+
+CASES = {
+    "m150": dict(preset="lab-ch4co2-90c-m150", camera=None, duration_s=2.0,
+                 gas_temperature="infer", composition={"CH4": 0.5, "CO2": 0.5}),
+    "gf320": dict(preset="lab-ch4-5slpm-gf320", camera=None, duration_s=10.0,
+                  gas_temperature="ambient", composition=None),
+    "heated-1ch": dict(preset="lab-heated-ch4-55c-gf320", camera=None, duration_s=10.0,
+                       gas_temperature="ambient", composition=None),
+    "heated-4ch": dict(preset="lab-heated-ch4-55c-gf320", camera="fast-m150", duration_s=2.0,
+                       gas_temperature="infer", composition=None),
+}
+MAX_HEIGHT_M = 0.125
+
+
+def recording_path(cache: Path, case: str, seed: int) -> Path:
+    c = CASES[case]
+    return cache / f"{case}-{c['duration_s']:g}s-seed{seed}.h5"
+
+
+def ensure_recording(cache: Path, case: str, seed: int) -> Path:
+    path = recording_path(cache, case, seed)
+    if not path.exists():
+        c = CASES[case]
+        tmp = path.with_suffix(".part.h5")
+        t = time.perf_counter()
+        render.synthesize(c["preset"], tmp, duration_s=c["duration_s"], seed=seed,
+                          camera_name=c["camera"])
+        os.replace(tmp, path)
+        print(f"  rendered {path.name} in {time.perf_counter() - t:.0f} s", flush=True)
+    return path
+
+
+def surfaces_for(rec) -> list:
+    rows = rec.truth.datasets["plane_row"][:]
+    heights = rec.truth.datasets["plane_height_m"][:]
+    half = 50 if rec.height == 256 else 40
+    x0 = exit_pixel(rec)[0]
+    return [Surface([(x0 - half, r), (x0 + half, r)], name=f"{h * 100:.0f} cm")
+            for h, r in zip(heights, rows) if h <= MAX_HEIGHT_M and 0 <= r < rec.height]
+
+
+def exit_pixel(rec):
+    """The stack exit in pixels: below the lowest control plane by its height."""
+    rows = rec.truth.datasets["plane_row"][:]
+    heights = rec.truth.datasets["plane_height_m"][:]
+    fp = rec.scene.distance_m * rec.camera.ifov_rad
+    i = int(np.argmin(heights))
+    return rec.width / 2 - 0.5, float(rows[i] + heights[i] / fp)
+
+
+def run_case(cache: Path, case: str, seed: int) -> dict:
+    out_json = cache / f"{case}-{CASES[case]['duration_s']:g}s-seed{seed}.result.json"
+    if out_json.exists():
+        return json.loads(out_json.read_text())
+    c = CASES[case]
+    rec = qogi.open_recording(ensure_recording(cache, case, seed))
+    cfg = QuantifyConfig(species=list(rec.scene.species), gas_temperature=c["gas_temperature"],
+                         composition=c["composition"], source=exit_pixel(rec))
+    t = time.perf_counter()
+    res = quantify(rec, surfaces_for(rec), cfg)
+    seconds = time.perf_counter() - t
+    rows = []
+    for s in res.surfaces:
+        r = s.species["CH4"]
+        rows.append(dict(surface=s.surface.name, mean_kg_h=r.mean_kg_h, ci90_kg_h=list(r.ci90_kg_h),
+                         truth_kg_h=r.truth_kg_h, error=r.error_vs_truth,
+                         covered=bool(r.ci90_kg_h[0] <= r.truth_kg_h <= r.ci90_kg_h[1]),
+                         dominant=r.dominant_uncertainty, terms=r.uncertainty_terms_kg_h))
+    info = {k: v for k, v in res.info.items() if isinstance(v, (int, float))}
+    d = dict(case=case, seed=seed, seconds=seconds, frames=rec.n_frames, surfaces=rows, info=info)
+    out_json.write_text(json.dumps(d, indent=1))
+    return d
+
+
+def report(cache: Path, cases, seeds: int, img_dir: Path | None) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    for case in cases:
+        runs = [json.loads(p.read_text()) for p in sorted(cache.glob(f"{case}-*.result.json"))]
+        runs = [r for r in runs if r["seed"] < seeds]
+        if not runs:
+            continue
+        names = [s["surface"] for s in runs[0]["surfaces"]]
+        print(f"\n{case}: {len(runs)} seeds, {CASES[case]['preset']}"
+              f"{' via ' + CASES[case]['camera'] if CASES[case]['camera'] else ''}, "
+              f"gas temperature {CASES[case]['gas_temperature']}")
+        print("| surface | mean error | seeds' range | 90 % interval covers truth | dominant term |")
+        print("|---|---|---|---|---|")
+        errs_all = []
+        for i, name in enumerate(names):
+            e = np.array([r["surfaces"][i]["error"] for r in runs if len(r["surfaces"]) > i])
+            cov = sum(r["surfaces"][i]["covered"] for r in runs if len(r["surfaces"]) > i)
+            dom = max(set(r["surfaces"][i]["dominant"] for r in runs),
+                      key=[r["surfaces"][i]["dominant"] for r in runs].count)
+            errs_all.append(e)
+            print(f"| {name} | {100 * e.mean():+.1f} % | {100 * e.min():+.1f} .. {100 * e.max():+.1f} % "
+                  f"| {cov}/{len(e)} | {dom} |")
+        secs = np.mean([r["seconds"] for r in runs])
+        print(f"quantify: {secs:.0f} s per run of {runs[0]['frames']} frames (mean)")
+        if img_dir is not None:
+            fig, ax = plt.subplots(figsize=(6, 3.2))
+            for i, name in enumerate(names):
+                for r in runs:
+                    s = r["surfaces"][i]
+                    lo, hi = s["ci90_kg_h"]
+                    t = s["truth_kg_h"]
+                    x = i + 0.06 * (r["seed"] - seeds / 2)
+                    ax.errorbar(x, s["mean_kg_h"] / t, yerr=[[(s["mean_kg_h"] - lo) / t],
+                                                             [(hi - s["mean_kg_h"]) / t]],
+                                fmt="o", ms=3, color="C0" if s["covered"] else "C3", lw=0.8)
+            ax.axhline(1.0, color="k", lw=1)
+            ax.set_xticks(range(len(names)), names)
+            ax.set_ylabel("estimate / truth (90 % interval)")
+            ax.set_title(f"{case}: {len(runs)} seeds (red: interval misses truth)")
+            fig.tight_layout()
+            fig.savefig(img_dir / f"validation-{case}.png", dpi=90)
+            plt.close(fig)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", type=int, default=10)
+    ap.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES))
+    ap.add_argument("--cache", type=Path, default=Path(os.environ.get(
+        "QOGI_VALIDATION_CACHE", Path.home() / ".cache" / "qogi" / "validation")))
+    ap.add_argument("--render-only", action="store_true", help="only render the recordings")
+    ap.add_argument("--report", action="store_true", help="tables and plots from the cache")
+    ap.add_argument("--images", type=Path, default=None, help="write plots into this folder")
+    ap.add_argument("--redo", action="store_true", help="re-quantify (keep the recordings)")
+    a = ap.parse_args(argv)
+    a.cache.mkdir(parents=True, exist_ok=True)
+    if a.report:
+        report(a.cache, a.cases, a.seeds, a.images)
+        return 0
+    for seed in range(a.seeds):
+        for case in a.cases:
+            if a.render_only:
+                ensure_recording(a.cache, case, seed)
+                continue
+            if a.redo:
+                p = a.cache / f"{case}-{CASES[case]['duration_s']:g}s-seed{seed}.result.json"
+                if p.exists():
+                    p.unlink()
+            d = run_case(a.cache, case, seed)
+            print(f"{case} seed {seed}: " + ", ".join(
+                f"{s['surface']} {100 * s['error']:+.1f} %{'' if s['covered'] else ' (miss)'}"
+                for s in d["surfaces"]), flush=True)
+    report(a.cache, a.cases, a.seeds, a.images)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
