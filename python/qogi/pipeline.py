@@ -609,14 +609,15 @@ class _InvertedColumns:
         a plume) has, at every point, a temperature excess proportional to
         its volume fraction: T - T_amb = k x (the Gaussian line-of-sight model
         has this shape: both follow g(s)). One k holds for the whole scene,
-        so it is measured once, from the pixels where the temperature is best
-        determined: a random sample of the highest-contrast pixel-frames is
-        inverted with every parameter of the multichannel model free (peak
-        fractions, T_peak), and k is the precision-weighted median of
-        (T_peak - T_amb) / x_peak. Then each pixel-frame has one unknown, x,
+        so it is measured once: a random sample (<= 3000) of the pixel-frames
+        with contrast >= 10x noise is inverted with every parameter of the
+        multichannel model free (peak fractions, T_peak), and k is the
+        weighted least-squares slope of T_peak - T_amb against x_peak (weights
+        1/sigma_T^2, 3-sigma clipping), so the pixels whose temperature the
+        bands pin down carry it. Then each pixel-frame has one unknown, x,
         with T_peak = T_amb + k x: solved as a root of x = g(x) (g: the fixed-
-        temperature inversion at T(x)) by secant steps, each step one fast
-        fixed-temperature pass over every pixel. This avoids the two-branch
+        temperature inversion at T(x)) by bracketed regula falsi, each step
+        one fast fixed-temperature pass over the pixels not yet converged. This avoids the two-branch
         (thin-hot / thick-cool) ambiguity of free per-pixel temperatures in
         noisy frames and costs a few fixed-temperature passes instead of a
         multi-start four-parameter solve per pixel. The uncertainty of k is
@@ -645,29 +646,42 @@ class _InvertedColumns:
         noise = fixed_t.channel_noise(np.asarray(t_bg))[:, None]
         snr = np.max(np.abs(r2 - b2) / noise, axis=0)
         rng = np.random.default_rng(0)
-        cand = np.flatnonzero(snr >= 30.0)
-        if cand.size < 50:
-            cand = np.flatnonzero(snr >= 10.0)
-        if cand.size > 1500:
-            cand = np.sort(rng.choice(cand, 1500, replace=False))
+        cand = np.flatnonzero(snr >= 10.0)
+        if cand.size > 3000:
+            cand = np.sort(rng.choice(cand, 3000, replace=False))
         self.k_K_per_fraction, self.k_sigma = 0.0, 0.0
-        self.mixing_pixels = int(cand.size)
+        self.mixing_pixels = 0
         if cand.size >= 5:
             cal = free_t.invert(r2[:, cand], background_radiance=b2[:, cand], sigma_m=s2[cand],
                                 progress=stage(0.0, 0.3, "temperature"))
             x = sum(cal.peak_fraction[sp] for sp in cfg.species)
-            tp = cal.peak_temperature_K
+            dt = cal.peak_temperature_K - t_amb
             ts = cal.peak_temperature_sigma_K
             ok = (cal.status == inv.CONVERGED) & ((cal.flags & inv.AMBIGUOUS) == 0) & (x > 0) & \
                 (ts > 0)
-            if ok.sum() >= 5:
-                ratio = (tp[ok] - t_amb) / x[ok]
-                w = (x[ok] / ts[ok]) ** 2
-                k = _weighted_median(ratio, w)
-                mad = _weighted_median(np.abs(ratio - k), w) * 1.4826
-                n_eff = w.sum() ** 2 / (w ** 2).sum()
-                self.k_K_per_fraction = float(k)
-                self.k_sigma = float(1.2533 * mad / math.sqrt(n_eff))
+            # Weighted least squares of dT = k x through the origin (weights
+            # 1 / sigma_T^2), with 3-sigma clipping of the residuals: faint
+            # pixels, whose temperature the bands cannot pin down, weigh little,
+            # and fits on the wrong (thin-hot) branch drop out.
+            x, dt, ts = x[ok], dt[ok], ts[ok]
+            keep = np.ones(x.size, bool)
+            k = 0.0
+            for _ in range(10):
+                if keep.sum() < 5:
+                    break
+                w = 1.0 / ts[keep] ** 2
+                k = float(np.sum(w * x[keep] * dt[keep]) / np.sum(w * x[keep] ** 2))
+                z = (dt - k * x) / ts
+                new_keep = np.abs(z) < 3.0
+                if np.array_equal(new_keep, keep):
+                    break
+                keep = new_keep
+            if keep.sum() >= 5:
+                w = 1.0 / ts[keep] ** 2
+                chi2 = float(np.sum(w * (dt[keep] - k * x[keep]) ** 2)) / max(1, keep.sum() - 1)
+                self.k_K_per_fraction = k
+                self.k_sigma = float(math.sqrt(max(chi2, 1.0) / np.sum(w * x[keep] ** 2)))
+                self.mixing_pixels = int(keep.sum())
         k = self.k_K_per_fraction
 
         # 2. Every pixel-frame: x = g(x) with T_peak = T_amb + k x. In u = ln x

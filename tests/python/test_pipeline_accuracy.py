@@ -1,0 +1,91 @@
+"""End-to-end accuracy on synthetic releases with exact truth (short versions
+of scripts/validate_pipeline.py; the full versions, over ten seeds each, are
+in docs/validation.md).
+
+The gas-temperature finding of the thesis, isolated from the velocimetry:
+every rate here uses one given speed (velocity="exit"), so the ratio of the
+rate from inverted column densities to the rate from the truth's column
+densities is the ratio of the column sums along each control surface."""
+
+import numpy as np
+import pytest
+
+import qogi
+from qogi import render
+from qogi.pipeline import QuantifyConfig, quantify
+from qogi.surfaces import Surface
+
+HEIGHTS_CM = (4, 8, 12)
+
+
+def _surfaces(rec):
+    rows = rec.truth.datasets["plane_row"][:]
+    heights = rec.truth.datasets["plane_height_m"][:]
+    fp = rec.scene.distance_m * rec.camera.ifov_rad
+    i = int(np.argmin(heights))
+    ex, ey = rec.width / 2 - 0.5, float(rows[i] + heights[i] / fp)
+    half = 50 if rec.height == 256 else 40
+    surf = [Surface([(ex - half, r), (ex + half, r)], name=f"{h * 100:.0f} cm")
+            for h, r in zip(heights, rows) if int(round(h * 100)) in HEIGHTS_CM]
+    return surf, (ex, ey)
+
+
+def _column_ratio(rec, **cfg):
+    """Inverted / truth column sum along each surface (same given speed)."""
+    surf, source = _surfaces(rec)
+    rates = {}
+    for mode in ("truth", "inversion"):
+        c = dict(cfg) if mode == "inversion" else dict(species=cfg["species"])
+        res = quantify(rec, surf, QuantifyConfig(column_density=mode, velocity="exit",
+                                                 exit_velocity_m_s=1.0, source=source, **c))
+        rates[mode] = np.array([s.species["CH4"].mean_kg_h for s in res.surfaces])
+    return rates["inversion"] / rates["truth"], res
+
+
+@pytest.fixture(scope="module")
+def heated_gf320(tmp_path_factory):
+    p = tmp_path_factory.mktemp("heated") / "gf320.h5"
+    render.synthesize("lab-heated-ch4-55c-gf320", p, duration_s=20 / 15, seed=5, truth_maps=True)
+    return qogi.open_recording(p)
+
+
+@pytest.fixture(scope="module")
+def heated_m150(tmp_path_factory):
+    p = tmp_path_factory.mktemp("heated") / "m150.h5"
+    render.synthesize("lab-heated-ch4-55c-gf320", p, duration_s=0.2, seed=5, truth_maps=True,
+                      camera_name="fast-m150")
+    return qogi.open_recording(p)
+
+
+def test_heated_methane_single_channel_assumed_ambient_overestimates(heated_gf320):
+    # 55 C methane in front of a colder background, inverted as if at ambient:
+    # the model needs more gas to make the measured (hotter) emission. The
+    # thesis found this bias to be several-fold (x7 on its case).
+    ratio, _ = _column_ratio(heated_gf320, species=["CH4"], gas_temperature="ambient")
+    print("single channel, gas assumed ambient: inverted / truth columns", np.round(ratio, 3))
+    assert np.all(ratio > 1.5), ratio
+
+
+def test_heated_methane_multichannel_infers_the_temperature(heated_m150):
+    ratio, res = _column_ratio(heated_m150, species=["CH4"], gas_temperature="infer")
+    print("four channels, temperature inferred: inverted / truth columns", np.round(ratio, 3),
+          "mixing line", res.info.get("mixing_line_K_per_fraction"))
+    # Within the Gaussian line-of-sight model's profile error: the columns of
+    # these lab plumes read 8-19 % low with the temperature known or inferred
+    # (docs/validation.md), against x2-3 with it assumed.
+    assert np.all(np.abs(ratio - 1.0) < 0.25), ratio
+    # The same pixels with the temperature assumed ambient are far off.
+    wrong, _ = _column_ratio(heated_m150, species=["CH4"], gas_temperature="ambient")
+    print("four channels, gas assumed ambient:", np.round(wrong, 3))
+    assert np.all(np.abs(wrong - 1.0) > 2 * np.abs(ratio - 1.0)), (wrong, ratio)
+
+
+def test_thesis_case_columns_with_the_temperature_inferred(tmp_path):
+    p = tmp_path / "m150.h5"
+    render.synthesize("lab-ch4co2-90c-m150", p, duration_s=0.2, seed=6, truth_maps=True)
+    rec = qogi.open_recording(p)
+    ratio, res = _column_ratio(rec, species=["CH4", "CO2"], gas_temperature="infer",
+                               composition={"CH4": 0.5, "CO2": 0.5})
+    print("50/50 CH4/CO2 at 90 C, temperature inferred: inverted / truth columns",
+          np.round(ratio, 3), "mixing line", res.info.get("mixing_line_K_per_fraction"))
+    assert np.all(np.abs(ratio - 1.0) < 0.25), ratio
