@@ -42,6 +42,9 @@ $(STAMPS)/pydeps: $(STAMPS)/system requirements/dev.txt requirements/constraints
 $(STAMPS)/built: $(STAMPS)/pydeps $(ENGINE_SOURCES)
 	$(VPY) -m pip install -q --no-build-isolation --no-deps -e . \
 	  -Cbuild-dir=$(BUILD) -Ccmake.define.QOGI_BUILD_TESTS=ON
+	@# Type stubs of the extension for editors and mypy (generated, not committed).
+	$(VENV)/bin/pybind11-stubgen qogi._engine -o build/stubs --ignore-all-errors >/dev/null \
+	  && cp build/stubs/qogi/_engine.pyi python/qogi/_engine.pyi
 	@touch $@
 
 build: $(STAMPS)/built

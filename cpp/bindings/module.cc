@@ -12,6 +12,7 @@ void BindSpectra(py::module_& m);
 void BindCamera(py::module_& m);
 void BindVelocimetry(py::module_& m);
 void BindSynth(py::module_& m);
+void BindInversion(py::module_& m);
 }  // namespace qogi
 
 PYBIND11_MODULE(_engine, m) {
@@ -25,4 +26,5 @@ PYBIND11_MODULE(_engine, m) {
   qogi::BindCamera(m);
   qogi::BindVelocimetry(m);
   qogi::BindSynth(m);
+  qogi::BindInversion(m);
 }

@@ -10,6 +10,7 @@
 #include "engine/camera/radiometric_table.h"
 #include "engine/camera/warm_optics.h"
 #include "engine/optics/spectral_response.h"
+#include "engine/inversion/inversion.h"
 #include "engine/rte/binned_model.h"
 #include "engine/rte/exact_model.h"
 #include "engine/spectra/cross_section.h"

@@ -28,13 +28,25 @@ from .spectra import (
     voigt_profile,
 )
 from . import camera  # noqa: F401  (qogi.camera: calibration, noise, warm optics)
+from .surfaces import Region, Surface, auto_surfaces
+from .pipeline import Cancelled, QuantifyConfig, quantify
+from .result import Result
 from .camera import (Calibration, CalibrationScene, ChannelOptics, add_netd_noise,
                      add_warm_optics, camera_optics, correct_warm_optics, fit_calibration,
                      netd_radiance_sigma, warm_optics_radiance)
 from .velocimetry import FlowEstimator, optical_flow, optical_flow_sequence
 from . import synth
+from . import inversion  # noqa: F401  (qogi.inversion.fixed/free/prior, plume_depth_from_width)
+from .inversion import Inversion, InversionResult
 
 __all__ = [
+    "Cancelled",
+    "QuantifyConfig",
+    "Region",
+    "Result",
+    "Surface",
+    "auto_surfaces",
+    "quantify",
     "__version__",
     "SpectralResponse",
     "planck_radiance",
@@ -76,4 +88,6 @@ __all__ = [
     "optical_flow",
     "optical_flow_sequence",
     "synth",
+    "Inversion",
+    "InversionResult",
 ]

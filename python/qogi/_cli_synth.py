@@ -30,7 +30,8 @@ def cmd_synth(args: argparse.Namespace) -> int:
     try:
         path = synthesize(args.preset, args.output, duration_s=args.duration,
                           frame_rate_hz=args.frame_rate, seed=args.seed, noise=not args.no_noise,
-                          truth_maps=args.truth_maps, progress=bar, num_threads=args.threads)
+                          truth_maps=args.truth_maps, camera_name=args.camera, progress=bar,
+                          num_threads=args.threads)
     except ValueError as e:
         bar.close()
         print(f"qogi synth: error: {e}", file=sys.stderr)
@@ -64,6 +65,8 @@ def add_commands(sub) -> None:
     s.add_argument("--no-noise", action="store_true", help="leave out the camera's NETD noise")
     s.add_argument("--truth-maps", action="store_true",
                    help="also store per-frame truth column-density and velocity maps (large)")
+    s.add_argument("--camera", help="render through another camera preset (e.g. fast-m150), "
+                                     "same pixel footprint at the plume")
     s.add_argument("--threads", type=int, default=0, help="worker threads (0 = all cores)")
     s.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     s.set_defaults(func=cmd_synth)

@@ -5,30 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-import numpy as np
-
 from . import __version__
-
-
-def _demo_channels():
-    from .optics import SpectralResponse
-
-    return [
-        SpectralResponse([2941.18, 3125.0], [1.0, 1.0], name="3.2-3.4 um bandpass"),
-        SpectralResponse([1852.0, 6667.0], [1.0, 1.0], name="InSb open 1.5-5.4 um"),
-    ]
-
-
-def cmd_demo(args: argparse.Namespace) -> int:
-    channels = _demo_channels()
-    temps = np.array([273.15, 288.7, 296.0, 313.15, 363.15, 473.15])
-    print("qogi demo: blackbody band radiance [W/(m2 sr)] through ideal channels")
-    header = f"{'T [K]':>8}" + "".join(f"  {ch.name:>22}" for ch in channels)
-    print(header)
-    table = np.array([ch.band_radiance(temps) for ch in channels])
-    for i, t in enumerate(temps):
-        print(f"{t:8.2f}" + "".join(f"  {table[k, i]:22.6g}" for k in range(len(channels))))
-    return 0
 
 
 def cmd_info(args: argparse.Namespace) -> int:
@@ -62,8 +39,6 @@ def build_parser() -> argparse.ArgumentParser:
                     "gas plume to an emission rate with an uncertainty.")
     p.add_argument("--version", action="version", version=f"qogi {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
-    d = sub.add_parser("demo", help="run the demonstration")
-    d.set_defaults(func=cmd_demo)
     i = sub.add_parser(
         "info", help="describe a recording (or a FLIR .seq/.csq/.jpg file)",
         description="Print what a recording holds: camera, channels (name, band, centroid), "
@@ -82,6 +57,10 @@ def build_parser() -> argparse.ArgumentParser:
     add_spectra_commands(sub)
     from ._cli_synth import add_commands as add_synth_commands
     add_synth_commands(sub)
+    from ._cli_quantify import add_commands as add_quantify_commands
+    from ._cli_quantify import add_demo_command
+    add_quantify_commands(sub)
+    add_demo_command(sub)
     return p
 
 

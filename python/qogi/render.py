@@ -464,12 +464,33 @@ def render_recording(sim, camera, background: Background, path, *, seed: int = 0
 
 def synthesize(preset_name: str, path, *, duration_s: Optional[float] = None,
                frame_rate_hz: Optional[float] = None, seed: int = 0, noise: bool = True,
-               truth_maps: bool = False, progress=None, num_threads: int = 0):
-    """Simulate and render a preset (``qogi synth``). Returns the path written."""
+               truth_maps: bool = False, camera_name: Optional[str] = None, progress=None,
+               num_threads: int = 0):
+    """Simulate and render a preset (``qogi synth``). Returns the path written.
+
+    ``camera_name`` renders the release through another camera preset (e.g.
+    the four-channel ``fast-m150`` for a GF320 lab release), placed so that its
+    pixels have the preset's footprint at the plume and the exit sits at the
+    same place relative to the image's bottom edge; the frame rate defaults to
+    that camera's."""
     from . import synth
 
     p = synth.preset(preset_name)
     cam_key, camera = _camera_for(p)
+    view = None
+    if camera_name is not None and camera_name != cam_key:
+        # Another camera at the same pixel footprint, framed on the same exit.
+        from .presets import camera_preset
+        base = synth.preset_view(preset_name)
+        footprint = base.distance_m * base.ifov_rad
+        camera = camera_preset(camera_name)
+        cam_key = camera_name
+        ex, ey = p["scene"]["exit_pixel"]
+        exit_px = (ex / base.width_px * camera.width, camera.height - (base.height_px - ey))
+        view = synth.View.framing(synth.preset_release(preset_name), exit_px,
+                                  width_px=camera.width, height_px=camera.height,
+                                  ifov_rad=camera.ifov_rad, distance_m=footprint / camera.ifov_rad,
+                                  projection=base.projection)
     bgd = p["scene"]["background"]
     background = (Background("plate", bgd["temperature_K"]) if bgd["kind"] == "plate"
                   else Background("sky", None))
@@ -479,8 +500,15 @@ def synthesize(preset_name: str, path, *, duration_s: Optional[float] = None,
             raise KeyboardInterrupt("cancelled")
 
     say(0.0, "simulating the release")
-    sim = synth.simulate_preset(preset_name, duration_s=duration_s, frame_rate_hz=frame_rate_hz,
-                                seed=seed, num_threads=num_threads)
+    if view is None:
+        sim = synth.simulate_preset(preset_name, duration_s=duration_s,
+                                    frame_rate_hz=frame_rate_hz, seed=seed,
+                                    num_threads=num_threads)
+    else:
+        sim = synth.simulate(synth.preset_release(preset_name), view,
+                             p["duration_s"] if duration_s is None else duration_s,
+                             camera.frame_rate_hz if frame_rate_hz is None else frame_rate_hz,
+                             seed=seed, num_threads=num_threads)
     warm = p["camera"].get("warm_filter_temperature_K")
     out = render_recording(sim, camera, background, path, seed=seed, noise=noise,
                            warm_filter_temperature_K=warm, camera_preset_name=cam_key,

@@ -556,4 +556,64 @@ std::vector<double> BinnedModel::BandRadiance(const Path& path,
   return out;
 }
 
+BinnedModel::BinView BinnedModel::bins(std::size_t c) const {
+  Require(c < bins_.size(), "channel index " + std::to_string(c) + " is out of range; the model has " +
+                                std::to_string(bins_.size()) + " channels");
+  const Bins& b = bins_[c];
+  BinView v;
+  v.num_bins = b.weight.size();
+  v.num_segments = b.num_segments;
+  v.num_chebyshev = options_.chebyshev_nodes;
+  v.weight = b.weight.data();
+  v.segment = b.segment.data();
+  v.planck_map = b.planck_map.data();
+  v.segment_nodes = b.segment_nodes.data();
+  return v;
+}
+
+bool BinnedModel::BinAbsorbs(std::size_t c, std::size_t s, std::size_t q) const {
+  const std::vector<int>& a = bins_[c].active[s];
+  return std::binary_search(a.begin(), a.end(), static_cast<int>(q));
+}
+
+void BinnedModel::MeanPlanck(std::size_t c, double t, double* out) const {
+  const Bins& b = bins_[c];
+  const std::size_t nq = b.weight.size();
+  const int nm = options_.chebyshev_nodes;
+  std::vector<double> node_b(b.num_segments * nm);
+  for (std::size_t g = 0; g < b.num_segments; ++g)
+    for (int m = 0; m < nm; ++m) node_b[g * nm + m] = PlanckT(b.segment_nodes[g * nm + m], t);
+  for (std::size_t q = 0; q < nq; ++q) {
+    const double* row = &b.planck_map[q * nm];
+    const double* nb = &node_b[b.segment[q] * nm];
+    double v = 0.0;
+    for (int m = 0; m < nm; ++m) v += row[m] * nb[m];
+    out[q] = v;
+  }
+}
+
+void BinnedModel::BinCrossSections(std::size_t c, std::size_t s, double t, double* air,
+                                   double* self) const {
+  const Bins& b = bins_[c];
+  const std::size_t nq = b.weight.size();
+  const TemperatureStencil st = MakeTemperatureStencil(table_temperatures_[s], t);
+  auto fill = [&](const std::vector<double>& sig, const std::vector<double>& lsig,
+                  const std::vector<char>& positive, double* out) {
+    std::fill(out, out + nq, 0.0);
+    for (int q : b.active[s]) {
+      if (positive[q]) {
+        double l = 0.0;
+        for (int a = 0; a < st.count; ++a) l += st.weight[a] * lsig[(st.first + a) * nq + q];
+        out[q] = std::exp(l);
+      } else {
+        out[q] = InterpolateInTemperature<double>(
+            st, st.weight, st.frac, [&](std::size_t k) { return sig[k * nq + q]; },
+            [&](std::size_t k) { return lsig[k * nq + q]; });
+      }
+    }
+  };
+  fill(b.sigma_air[s], b.log_sigma_air[s], b.positive_air[s], air);
+  if (has_self_[s] && self) fill(b.sigma_self[s], b.log_sigma_self[s], b.positive_self[s], self);
+}
+
 }  // namespace qogi

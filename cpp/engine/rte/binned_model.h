@@ -122,6 +122,39 @@ class BinnedModel {
                   const double* background_temperature_K, std::size_t background_stride,
                   float* out) const;
 
+  // The pieces of Contrast(), for evaluators built on this model (the
+  // inversion's per-scene tables reuse them to reproduce its results):
+  //
+  // A read-only view of channel c's bins: bin q has weight weight[q] [cm-1]
+  // (sum of response x dnu over its points) and lies in Chebyshev segment
+  // segment[q]; its mean Planck function is
+  //   Bbar_q(T) = sum_m planck_map[q * num_chebyshev + m] B(nu_{segment[q], m}, T)
+  // with nu_{g, m} = segment_nodes[g * num_chebyshev + m] [cm-1].
+  struct BinView {
+    std::size_t num_bins = 0;
+    std::size_t num_segments = 0;
+    int num_chebyshev = 0;
+    const double* weight = nullptr;
+    const int* segment = nullptr;
+    const double* planck_map = nullptr;
+    const double* segment_nodes = nullptr;
+  };
+  BinView bins(std::size_t channel) const;
+  // Whether species s has a self-broadened table.
+  bool has_self(std::size_t species) const { return has_self_[species]; }
+  // Whether species s absorbs in bin q of channel c (a non-zero mean
+  // cross-section at some table temperature).
+  bool BinAbsorbs(std::size_t channel, std::size_t species, std::size_t bin) const;
+  // Mean Planck function Bbar_q(T) [W/(m2 sr cm-1)] of every bin of channel c, into out[q].
+  void MeanPlanck(std::size_t channel, double temperature_K, double* out) const;
+  // Mean cross-sections [cm2/molecule] of species s in every bin of channel c
+  // at temperature T, interpolated in temperature exactly as Contrast() does:
+  // air-broadened into air[q] and, when the species has a self table,
+  // self-broadened into self[q] (self may be null otherwise); 0 where the
+  // species does not absorb.
+  void BinCrossSections(std::size_t channel, std::size_t species, double temperature_K,
+                        double* air, double* self) const;
+
  private:
   struct Bins {
     std::vector<double> weight;  // [bin] sum of response * dnu [cm-1]

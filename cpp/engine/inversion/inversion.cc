@@ -1,0 +1,1432 @@
+#include "engine/inversion/inversion.h"
+
+#include <ceres/tiny_solver.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include "engine/inversion/full_model.h"
+#include "engine/optics/planck.h"
+#include "engine/util/check.h"
+
+namespace qogi {
+namespace {
+
+constexpr std::size_t kMaxChannels = 16;
+constexpr std::size_t kMaxParams = 8;  // species + 2
+constexpr double kConditionCap = 1e16;
+constexpr double kLogEps = 1e-9;  // fractions enter the solver as ln(x + kLogEps)
+const double kSqrt2Pi = std::sqrt(2.0 * constants::kPi);
+
+void CheckSpec(const ParameterSpec& p, const std::string& name, const char* unit, double lo_limit,
+               double hi_limit) {
+  const int mode = static_cast<int>(p.mode);
+  Require(mode >= 0 && mode <= 2, name + ": mode must be fixed (0), free (1) or prior (2)" +
+                                      std::string(mode == 3 ? " (only fractions can be tied)" : "") +
+                                      "; got " + std::to_string(mode));
+  CheckFinite(p.value, (name + " value").c_str());
+  CheckFinite(p.lower, (name + " lower").c_str());
+  CheckFinite(p.upper, (name + " upper").c_str());
+  if (p.mode == ParameterMode::kPrior)
+    CheckPositive(p.prior_sigma, (name + " prior_sigma").c_str(), unit);
+  const bool bounds_given = !(p.lower == 0 && p.upper == 0);
+  if (bounds_given) {
+    CheckInRange(p.lower, lo_limit, hi_limit, (name + " lower bound").c_str(), unit);
+    CheckInRange(p.upper, lo_limit, hi_limit, (name + " upper bound").c_str(), unit);
+    Require(p.lower < p.upper, name + ": lower bound " + FormatNumber(p.lower) +
+                                   " must be below the upper bound " + FormatNumber(p.upper));
+  }
+}
+
+}  // namespace
+
+const char* PixelStatusName(PixelStatus s) {
+  switch (s) {
+    case PixelStatus::kConverged: return "converged";
+    case PixelStatus::kAtBound: return "at_bound";
+    case PixelStatus::kBelowDetection: return "below_detection";
+    case PixelStatus::kFailed: return "failed";
+  }
+  return "unknown";
+}
+
+void InversionOptions::Check(std::size_t ns, std::size_t nc) const {
+  Require(ns >= 1 && ns + 2 <= kMaxParams,
+          "the inversion handles 1 to " + std::to_string(kMaxParams - 2) + " species; got " +
+              std::to_string(ns));
+  Require(nc >= 1 && nc <= kMaxChannels, "the inversion handles 1 to " +
+                                             std::to_string(kMaxChannels) + " channels; got " +
+                                             std::to_string(nc));
+  Require(fractions.empty() || fractions.size() == ns,
+          "fractions needs one spec per species (" + std::to_string(ns) + ") or none; got " +
+              std::to_string(fractions.size()));
+  for (std::size_t s = 0; s < fractions.size(); ++s) {
+    const ParameterSpec& f = fractions[s];
+    const std::string name = "fractions[" + std::to_string(s) + "]";
+    if (f.mode == ParameterMode::kTied) {
+      Require(f.tied_to >= 0 && static_cast<std::size_t>(f.tied_to) < ns && f.tied_to != static_cast<int>(s),
+              name + ": tied_to must be the index of another species (0-" + std::to_string(ns - 1) +
+                  "); got " + std::to_string(f.tied_to));
+      const ParameterMode m = fractions[f.tied_to].mode;
+      Require(m == ParameterMode::kFree || m == ParameterMode::kPrior,
+              name + ": the species it is tied to (" + std::to_string(f.tied_to) +
+                  ") must be estimated (free or prior), not fixed or tied");
+      CheckPositive(f.value, (name + " ratio (value)").c_str());
+      continue;
+    }
+    CheckSpec(f, name, "", 0.0, 1.0);
+    CheckInRange(f.value, 0.0, 1.0, (name + " value").c_str());
+  }
+  CheckSpec(temperature, "temperature", "K", 100.0, 2000.0);
+  Require(temperature.value == 0 || (temperature.value >= 100 && temperature.value <= 2000),
+          "temperature value must be 0 (ambient) or within [100, 2000] K; got " +
+              FormatNumber(temperature.value));
+  CheckSpec(sigma, "sigma", "m", 1e-6, 1e3);
+  CheckInRange(sigma.value, 1e-6, 1e3, "sigma value", "m");
+  Require(netd_K.size() == 1 || netd_K.size() == nc,
+          "netd_K needs 1 value or one per channel (" + std::to_string(nc) + "); got " +
+              std::to_string(netd_K.size()));
+  for (double v : netd_K) CheckInRange(v, 1e-6, 10.0, "netd_K", "K");
+  CheckInRange(detection_sigma, 0.0, 1e3, "detection_sigma");
+  CheckInRange(model_error_fraction, 0.0, 1.0, "model_error_fraction");
+  CheckInRange(tolerance_chi2, 1e-12, 1.0, "tolerance_chi2");
+  Require(max_iterations >= 1 && max_iterations <= 10000,
+          "max_iterations must be within [1, 10000]; got " + std::to_string(max_iterations));
+  const int ig = static_cast<int>(initial_guess);
+  Require(ig >= 0 && ig <= 3, "initial_guess must be table (0), neighbour (1), previous (2) or "
+                              "given (3); got " + std::to_string(ig));
+  Require(num_starts >= 0 && num_starts <= 50,
+          "num_starts must be within [0, 50] (0 = every candidate); got " + std::to_string(num_starts));
+  Require(guess_iterations >= 0 && guess_iterations <= 100,
+          "guess_iterations must be within [0, 100]; got " + std::to_string(guess_iterations));
+  Require(temperature_candidates >= 1 && temperature_candidates <= 50,
+          "temperature_candidates must be within [1, 50]; got " +
+              std::to_string(temperature_candidates));
+  const int sk = static_cast<int>(solver);
+  Require(sk >= 0 && sk <= 2, "solver must be auto (0), table (1) or full_model (2); got " +
+                                  std::to_string(sk));
+  Require(num_threads >= 0, "num_threads must be >= 0 (0 = all cores); got " +
+                                std::to_string(num_threads));
+  bool any = temperature.mode != ParameterMode::kFixed || sigma.mode != ParameterMode::kFixed;
+  if (fractions.empty()) any = true;
+  for (const auto& f : fractions)
+    any = any || f.mode == ParameterMode::kFree || f.mode == ParameterMode::kPrior;
+  Require(any, "every parameter is fixed: make at least one species' fraction, the "
+               "temperature or sigma free");
+}
+
+void InversionResult::Allocate(std::size_t n, std::size_t f, std::size_t ns) {
+  num_pixels = n;
+  num_frames = f;
+  num_species = ns;
+  const std::size_t m = n * f, np = ns + 2;
+  status.assign(m, 0);
+  bound_mask.assign(m, 0);
+  flags.assign(m, 0);
+  parameters.assign(m * np, 0.0);
+  parameter_sigma.assign(m * np, 0.0);
+  covariance.assign(m * np * np, 0.0);
+  column_density.assign(m * ns, 0.0);
+  column_density_sigma.assign(m * ns, 0.0);
+  path_concentration.assign(m * ns, 0.0);
+  path_concentration_sigma.assign(m * ns, 0.0);
+  chi2.assign(m, 0.0);
+  condition_number.assign(m, 0.0);
+  iterations.assign(m, 0);
+}
+
+InversionOutput InversionResult::Output() {
+  InversionOutput o;
+  o.status = status.data();
+  o.bound_mask = bound_mask.data();
+  o.flags = flags.data();
+  o.parameters = parameters.data();
+  o.parameter_sigma = parameter_sigma.data();
+  o.covariance = covariance.data();
+  o.column_density = column_density.data();
+  o.column_density_sigma = column_density_sigma.data();
+  o.path_concentration = path_concentration.data();
+  o.path_concentration_sigma = path_concentration_sigma.data();
+  o.chi2 = chi2.data();
+  o.condition_number = condition_number.data();
+  o.iterations = iterations.data();
+  return o;
+}
+
+void GaussianProfileIntegral(double tp, double ta, double* i_out, double* di_out) {
+  const int n = 73;
+  const double z_max = 9.0, h = 2 * z_max / (n - 1);
+  double i = 0, di = 0;
+  for (int k = 0; k < n; ++k) {
+    const double z = -z_max + k * h;
+    const double g = std::exp(-0.5 * z * z);
+    const double t = ta + (tp - ta) * g;
+    i += g / t;
+    di -= g * g / (t * t);
+  }
+  *i_out = i * h;
+  if (di_out) *di_out = di * h;
+}
+
+// ---------------------------------------------------------------------------
+
+struct Inverter::Pixel {
+  std::size_t nc = 0, ns = 0, np = 0;
+  double y[kMaxChannels], noise[kMaxChannels], tbg[kMaxChannels];
+  const double* phi = nullptr;
+  double nominal[kMaxParams], lower[kMaxParams], upper[kMaxParams], prior_sigma[kMaxParams];
+  bool est[kMaxParams];
+  double scale[kMaxParams];
+  int tie_ref[kMaxParams];      // species index this fraction follows, or -1
+  double tie_ratio[kMaxParams];
+  bool has_ties = false;
+  // x_s = ratio x_ref for tied fractions.
+  void ApplyTies(double* theta) const {
+    if (!has_ties) return;
+    for (std::size_t s = 0; s < ns; ++s)
+      if (tie_ref[s] >= 0) theta[s] = tie_ratio[s] * theta[tie_ref[s]];
+  }
+  // Moves tied fractions' Jacobian columns [c * np + p] onto their references.
+  void FoldJacobian(double* jac, std::size_t rows) const {
+    if (!has_ties) return;
+    for (std::size_t s = 0; s < ns; ++s)
+      if (tie_ref[s] >= 0)
+        for (std::size_t c = 0; c < rows; ++c) {
+          jac[c * np + tie_ref[s]] += tie_ratio[s] * jac[c * np + s];
+          jac[c * np + s] = 0.0;
+        }
+  }
+  // Results.
+  double theta[kMaxParams];
+  PixelStatus status = PixelStatus::kFailed;
+  std::uint8_t bound_mask = 0;
+  std::uint8_t flags = 0;
+  double prior_chi2 = 0;  // sum of squared prior residuals at the solution
+  double log_det = 0;     // ln det of the estimated parameters' covariance
+  int iterations = 0;
+  double chi2 = 0, cond = 0;
+  double cov[kMaxParams * kMaxParams];
+  double psig[kMaxParams];
+  double col[kMaxParams], col_sig[kMaxParams], ppm[kMaxParams], ppm_sig[kMaxParams];
+  bool solved() const {
+    return status == PixelStatus::kConverged || status == PixelStatus::kAtBound;
+  }
+};
+
+// The residual function for TinySolver over the active (estimated, not held)
+// parameters, scaled to O(1).
+struct TableCost {
+  using Scalar = double;
+  enum { NUM_RESIDUALS = Eigen::Dynamic, NUM_PARAMETERS = Eigen::Dynamic };
+  const SceneTable* table = nullptr;
+  std::size_t nc = 0, ns = 0, np = 0;
+  // Fractions as ln(x + kLogEps) instead of x / scale: the column-temperature
+  // trade-off (u (B(T) - B(T_bg)) ~ const) is far straighter in ln x, so
+  // Levenberg-Marquardt does not creep along a curved valley, and guesses off
+  // by orders of magnitude converge in a few steps.
+  bool log_fractions = false;
+  const double* y = nullptr;
+  const double* noise = nullptr;
+  const double* phi = nullptr;
+  const double* scale = nullptr;
+  const double* prior_mean = nullptr;
+  const double* prior_sigma = nullptr;
+  const Inverter::Pixel* px = nullptr;  // for the ties
+  int active[kMaxParams];
+  int na = 0;
+  int priors[kMaxParams];  // parameters with a prior (estimated)
+  int npr = 0;
+  double base[kMaxParams];
+  int NumResiduals() const { return static_cast<int>(nc) + npr; }
+  int NumParameters() const { return na; }
+  // Fractions and sigma in log space (sigma > 0: x sigma is what the
+  // radiance sees, a straight line in (ln x, ln sigma)).
+  bool IsLog(int a) const {
+    return log_fractions && (a < static_cast<int>(ns) || a == static_cast<int>(ns) + 1);
+  }
+  double ToTheta(int a, double p) const { return IsLog(a) ? std::exp(p) - kLogEps : p * scale[a]; }
+  double ToParam(int a, double theta) const {
+    return IsLog(a) ? std::log(theta + kLogEps) : theta / scale[a];
+  }
+  double Slope(int a, double theta) const { return IsLog(a) ? theta + kLogEps : scale[a]; }
+  bool operator()(const double* p, double* r, double* jac) const {
+    double th[kMaxParams];
+    for (std::size_t k = 0; k < np; ++k) th[k] = base[k];
+    for (int j = 0; j < na; ++j) th[active[j]] = ToTheta(active[j], p[j]);
+    px->ApplyTies(th);
+    double con[kMaxChannels], cj[kMaxChannels * kMaxParams];
+    table->Contrast(th, th[ns], th[ns + 1], phi, con, jac ? cj : nullptr);
+    if (jac) px->FoldJacobian(cj, nc);
+    const int nr = NumResiduals();
+    for (std::size_t c = 0; c < nc; ++c) r[c] = (con[c] - y[c]) / noise[c];
+    for (int k = 0; k < npr; ++k) r[nc + k] = (th[priors[k]] - prior_mean[priors[k]]) / prior_sigma[priors[k]];
+    if (jac) {
+      for (int j = 0; j < na; ++j) {
+        const int a = active[j];
+        const double d = Slope(a, th[a]);  // d theta / d parameter
+        double* col = jac + static_cast<std::size_t>(j) * nr;
+        for (std::size_t c = 0; c < nc; ++c) col[c] = cj[c * np + a] * d / noise[c];
+        for (int k = 0; k < npr; ++k) col[nc + k] = priors[k] == a ? d / prior_sigma[a] : 0.0;
+      }
+    }
+    return true;
+  }
+};
+
+struct Inverter::Workspace {
+  std::vector<double> phi;
+  ceres::TinySolver<TableCost> solver;
+  // Newton curve cache.
+  std::size_t curve_channel = static_cast<std::size_t>(-1), curve_species = 0;
+  double curve_t = -1, curve_sigma = -1;
+  int curve_r1 = 0;
+  std::vector<double> curve_nodes;  // [node * r1 + r]
+  std::vector<double> curve_u;      // u at the nodes [m]
+  UniformSpline curve;
+  // Profile integral cache.
+  double int_t = -1, int_i = 0, int_di = 0;
+  std::vector<Inverter::GuessCandidate> guesses;
+  std::vector<Inverter::Pixel> solutions;
+  // Warm start of the neighbour path.
+  double last_theta[kMaxParams];
+  bool last_ok = false;
+  void Integral(double tp, double ta) {
+    if (tp != int_t) {
+      GaussianProfileIntegral(tp, ta, &int_i, &int_di);
+      int_t = tp;
+    }
+  }
+};
+
+Inverter::Inverter(std::shared_ptr<const BinnedModel> model, std::shared_ptr<const SceneTable> table,
+                   double t_amb, InversionOptions options)
+    : model_(std::move(model)), table_(std::move(table)), t_amb_(t_amb), options_(std::move(options)) {
+  Require(model_ != nullptr, "the inversion needs a forward model");
+  const std::size_t ns = model_->num_species(), nc = model_->num_channels();
+  options_.Check(ns, nc);
+  CheckInRange(t_amb, model_->min_temperature_K(), model_->max_temperature_K(),
+               "ambient_temperature_K (within the cross-section tables)", "K");
+  if (table_) {
+    Require(&table_->model() == model_.get(), "the scene table was built from another model");
+    Require(std::abs(table_->ambient_temperature_K() - t_amb) <= 1e-9 * t_amb,
+            "the scene table was built for ambient temperature " +
+                FormatNumber(table_->ambient_temperature_K()) + " K, not " + FormatNumber(t_amb) +
+                " K; build one for this scene");
+  }
+  switch (options_.solver) {
+    case SolverKind::kAuto: use_table_ = table_ != nullptr; break;
+    case SolverKind::kTable:
+      Require(table_ != nullptr, "solver 'table' needs a scene table (the species overlap "
+                                 "spectrally or none was built); use solver 'full_model'");
+      use_table_ = true;
+      break;
+    case SolverKind::kFullModel: use_table_ = false; break;
+  }
+  // Resolve the parameter specs.
+  const double t_lo = table_ ? table_->min_peak_temperature_K() : model_->min_temperature_K();
+  const double t_hi = table_ ? table_->max_peak_temperature_K() : model_->max_temperature_K();
+  const double s_hi = table_ ? table_->options().max_sigma_m : 1e3;
+  specs_.resize(ns + 2);
+  for (std::size_t s = 0; s < ns; ++s) {
+    ParameterSpec p = options_.fractions.empty()
+                          ? ParameterSpec{ParameterMode::kFree, 1e-3, 0.0, 0.0, 1.0}
+                          : options_.fractions[s];
+    if (p.lower == 0 && p.upper == 0) p.upper = 1.0;
+    specs_[s] = p;
+  }
+  ParameterSpec& tp = specs_[ns];
+  tp = options_.temperature;
+  if (tp.value == 0) tp.value = t_amb;
+  if (tp.lower == 0 && tp.upper == 0) {
+    tp.lower = t_lo;
+    tp.upper = t_hi;
+  }
+  Require(tp.lower >= t_lo - 1e-9 && tp.upper <= t_hi + 1e-9,
+          "temperature bounds [" + FormatNumber(tp.lower) + ", " + FormatNumber(tp.upper) +
+              "] K must lie inside the tabulated range [" + FormatNumber(t_lo) + ", " +
+              FormatNumber(t_hi) + "] K");
+  Require(tp.value >= t_lo && tp.value <= t_hi,
+          "temperature value " + FormatNumber(tp.value) + " K is outside the tabulated range [" +
+              FormatNumber(t_lo) + ", " + FormatNumber(t_hi) + "] K");
+  ParameterSpec& sg = specs_[ns + 1];
+  sg = options_.sigma;
+  if (sg.lower == 0 && sg.upper == 0) {
+    sg.lower = 1e-4;
+    sg.upper = s_hi;
+  }
+  Require(sg.upper <= s_hi * (1 + 1e-12),
+          "sigma upper bound " + FormatNumber(sg.upper) + " m exceeds the table's max_sigma_m " +
+              FormatNumber(s_hi) + " m; build the table with a larger max_sigma_m");
+  Require(sg.value <= s_hi * (1 + 1e-12),
+          "sigma value " + FormatNumber(sg.value) + " m exceeds the table's max_sigma_m " +
+              FormatNumber(s_hi) + " m");
+
+  // Per-channel band tables and noise.
+  const double bg_lo = table_ ? table_->options().min_background_K : 150.0;
+  const double bg_hi = table_ ? table_->options().max_background_K : 700.0;
+  for (std::size_t c = 0; c < nc; ++c)
+    bands_.emplace_back(model_->channels()[c], bg_lo, bg_hi, 0.5);
+  netd_.assign(nc, options_.netd_K[0]);
+  if (options_.netd_K.size() == nc) netd_ = options_.netd_K;
+  for (std::size_t s = 0; s < ns; ++s)
+    column_factor_.push_back(model_->molar_masses()[s] * model_->pressure_Pa() /
+                             (constants::kAvogadro * constants::kBoltzmann));
+
+  // The one-unknown Newton path: one channel, one free fraction, nothing else estimated.
+  int n_est = 0, which = -1;
+  for (std::size_t p = 0; p < ns + 2; ++p)
+    if (specs_[p].mode == ParameterMode::kFree || specs_[p].mode == ParameterMode::kPrior) {
+      ++n_est;
+      which = static_cast<int>(p);
+    }
+  bool ties = false;
+  for (std::size_t s = 0; s < ns; ++s) ties = ties || specs_[s].mode == ParameterMode::kTied;
+  newton_ = use_table_ && nc == 1 && n_est == 1 && !ties && which < static_cast<int>(ns) &&
+            specs_[which].mode == ParameterMode::kFree;
+  newton_param_ = which < 0 ? 0 : static_cast<std::size_t>(which);
+}
+
+double Inverter::ChannelNoise(std::size_t c, double t_bg) const {
+  return netd_[c] * bands_[c].Derivative(t_bg);
+}
+
+bool Inverter::PreparePixel(const PixelBatch& b, std::size_t f, std::size_t i, Pixel* px) const {
+  const std::size_t nc = model_->num_channels(), ns = model_->num_species(), np = ns + 2;
+  const std::size_t n = b.num_pixels;
+  px->nc = nc;
+  px->ns = ns;
+  px->np = np;
+  // Parameters.
+  for (std::size_t p = 0; p < np; ++p) {
+    const ParameterSpec& sp = specs_[p];
+    double v = sp.value;
+    if (p == ns && b.peak_temperature_K) v = b.peak_temperature_K[i];
+    if (p == ns + 1 && b.sigma_m) v = b.sigma_m[i];
+    px->nominal[p] = v;
+    px->est[p] = sp.mode == ParameterMode::kFree || sp.mode == ParameterMode::kPrior;
+    px->prior_sigma[p] = sp.mode == ParameterMode::kPrior ? sp.prior_sigma : 0.0;
+    px->lower[p] = px->est[p] ? sp.lower : v;
+    px->upper[p] = px->est[p] ? sp.upper : v;
+    px->theta[p] = v;
+  }
+  px->has_ties = false;
+  for (std::size_t s2 = 0; s2 < ns; ++s2) {
+    px->tie_ref[s2] = -1;
+    px->tie_ratio[s2] = 0.0;
+    if (specs_[s2].mode != ParameterMode::kTied) continue;
+    px->has_ties = true;
+    px->tie_ref[s2] = specs_[s2].tied_to;
+    px->tie_ratio[s2] = specs_[s2].value;
+    px->est[s2] = false;
+    px->prior_sigma[s2] = 0.0;
+  }
+  for (std::size_t s2 = 0; s2 < ns; ++s2) {
+    const int r = px->tie_ref[s2];
+    if (r < 0) continue;
+    // The tied fraction must stay <= 1 too.
+    px->upper[r] = std::min(px->upper[r], 1.0 / px->tie_ratio[s2]);
+  }
+  for (std::size_t s2 = 0; s2 < ns; ++s2) {
+    const int r = px->tie_ref[s2];
+    if (r < 0) continue;
+    px->nominal[s2] = px->tie_ratio[s2] * px->nominal[r];
+    px->lower[s2] = px->tie_ratio[s2] * px->lower[r];
+    px->upper[s2] = px->tie_ratio[s2] * px->upper[r];
+    px->theta[s2] = px->nominal[s2];
+  }
+  bool ok = true;
+  const double tp = px->nominal[ns], sg = px->nominal[ns + 1];
+  if (!(std::isfinite(tp) && tp >= specs_[ns].lower && tp <= specs_[ns].upper)) ok = false;
+  if (!(std::isfinite(sg) && sg > 0 && sg <= specs_[ns + 1].upper)) ok = false;
+  // Measured contrast, background and noise.
+  const std::size_t fb = b.background_per_frame ? f : 0;
+  for (std::size_t c = 0; c < nc; ++c) {
+    const double l = b.radiance[(f * nc + c) * n + i];
+    double t_bg = 0, l_bg = 0, dl_dt = 0;
+    if (b.background_temperature_K) {
+      t_bg = b.background_temperature_K[(fb * nc + c) * n + i];
+      if (!(std::isfinite(t_bg) && t_bg >= bands_[c].min_temperature_K() &&
+            t_bg <= bands_[c].max_temperature_K())) {
+        ok = false;
+        t_bg = bands_[c].min_temperature_K();
+      }
+      bands_[c].RadianceAndDerivative(t_bg, &l_bg, &dl_dt);
+    } else {
+      l_bg = b.background_radiance[(fb * nc + c) * n + i];
+      if (!bands_[c].Temperature(l_bg, &t_bg)) {
+        ok = false;
+        t_bg = bands_[c].min_temperature_K();
+      }
+      dl_dt = bands_[c].Derivative(t_bg);
+    }
+    const double y = l - l_bg;
+    if (!std::isfinite(y)) ok = false;
+    px->y[c] = std::isfinite(y) ? y : 0.0;
+    px->tbg[c] = t_bg;
+    double noise = netd_[c] * dl_dt;
+    if (options_.model_error_fraction > 0) {
+      const double me = options_.model_error_fraction * px->y[c];
+      noise = std::sqrt(noise * noise + me * me);
+    }
+    px->noise[c] = noise;
+  }
+  // Scales: fractions by their start magnitude, T_peak by 10 K, sigma by itself.
+  for (std::size_t s = 0; s < ns; ++s) px->scale[s] = 1e-3;
+  px->scale[ns] = 10.0;
+  px->scale[ns + 1] = std::max(sg, 1e-6);
+  return ok;
+}
+
+// Small non-negative least squares min ||A u - b|| (A: m x k, k <= 6) by active sets.
+static void SmallNnls(const Eigen::MatrixXd& a, const Eigen::VectorXd& b, Eigen::VectorXd* u) {
+  const int k = static_cast<int>(a.cols());
+  std::vector<bool> on(k, true);
+  u->setZero(k);
+  for (int iter = 0; iter <= k; ++iter) {
+    std::vector<int> idx;
+    for (int j = 0; j < k; ++j)
+      if (on[j]) idx.push_back(j);
+    if (idx.empty()) return;
+    Eigen::MatrixXd as(a.rows(), idx.size());
+    for (std::size_t j = 0; j < idx.size(); ++j) as.col(j) = a.col(idx[j]);
+    Eigen::MatrixXd n = as.transpose() * as;
+    n.diagonal().array() += 1e-12 * (n.diagonal().maxCoeff() + 1e-300);
+    const Eigen::VectorXd sol = n.ldlt().solve(as.transpose() * b);
+    int worst = -1;
+    double wv = 0;
+    for (std::size_t j = 0; j < idx.size(); ++j)
+      if (!(sol[j] >= 0) && (worst < 0 || sol[j] < wv)) {
+        worst = static_cast<int>(j);
+        wv = sol[j];
+      }
+    if (worst < 0) {
+      u->setZero(k);
+      for (std::size_t j = 0; j < idx.size(); ++j) (*u)[idx[j]] = sol[j];
+      return;
+    }
+    on[idx[worst]] = false;
+  }
+}
+
+void Inverter::TableGuess(const Pixel& px, std::vector<GuessCandidate>* out, Workspace* ws) const {
+  const std::size_t nc = px.nc, ns = px.ns, np = px.np;
+  const SceneTable& t = *table_;
+  std::vector<double> cands;
+  cands.push_back(px.nominal[ns]);
+  if (px.est[ns]) {
+    const int n = options_.temperature_candidates;
+    for (int k = 0; k < n; ++k)
+      cands.push_back(n == 1 ? 0.5 * (px.lower[ns] + px.upper[ns])
+                             : px.lower[ns] + (px.upper[ns] - px.lower[ns]) * k / (n - 1));
+  }
+  const double sigma = px.nominal[ns + 1];
+  std::vector<int> free_s;
+  for (std::size_t s = 0; s < ns; ++s)
+    if (px.est[s]) free_s.push_back(static_cast<int>(s));
+  auto chi2_of = [&](const double* th) {
+    double con[kMaxChannels];
+    t.Contrast(th, th[ns], th[ns + 1], px.phi, con, nullptr);
+    double cost = 0;
+    for (std::size_t c = 0; c < nc; ++c) {
+      const double r = (con[c] - px.y[c]) / px.noise[c];
+      cost += r * r;
+    }
+    for (std::size_t p = 0; p < np; ++p)
+      if (px.est[p] && px.prior_sigma[p] > 0) {
+        const double r = (th[p] - px.nominal[p]) / px.prior_sigma[p];
+        cost += r * r;
+      }
+    return cost;
+  };
+  // Optically thin least squares for the free fractions at each candidate temperature.
+  using Cand = GuessCandidate;
+  std::vector<Cand>& all = *out;
+  all.clear();
+  for (double tc : cands) {
+    Cand k;
+    for (std::size_t p = 0; p < np; ++p) k.th[p] = px.nominal[p];
+    k.th[ns] = tc;
+    for (int s : free_s) k.th[s] = 0.0;
+    px.ApplyTies(k.th);
+    if (!free_s.empty()) {
+      double con[kMaxChannels];
+      t.Contrast(k.th, tc, sigma, px.phi, con, nullptr);  // the fixed species
+      Eigen::MatrixXd a(nc, free_s.size());
+      Eigen::VectorXd b(nc);
+      for (std::size_t c = 0; c < nc; ++c) {
+        b[c] = (px.y[c] - con[c]) / px.noise[c];
+        for (std::size_t j = 0; j < free_s.size(); ++j) {
+          double slope = t.ThinSlope(c, free_s[j], tc, px.phi);
+          for (std::size_t s2 = 0; s2 < ns; ++s2)  // tied species follow (u_s2 = ratio u)
+            if (px.tie_ref[s2] == free_s[j])
+              slope += px.tie_ratio[s2] * t.ThinSlope(c, s2, tc, px.phi);
+          a(c, j) = slope / px.noise[c];
+        }
+      }
+      Eigen::VectorXd u;
+      SmallNnls(a, b, &u);
+      for (std::size_t j = 0; j < free_s.size(); ++j) {
+        const int s = free_s[j];
+        k.th[s] = std::min(std::max(u[j] / sigma, px.lower[s]), px.upper[s]);
+      }
+      px.ApplyTies(k.th);
+    }
+    k.cost = chi2_of(k.th);
+    all.push_back(k);
+  }
+  // The thin limit underestimates optically thick columns: refine the
+  // fractions of every candidate by a few Levenberg-Marquardt iterations with
+  // the temperature held (a coarse profile of chi2 over T_peak); keep the best.
+  if (!free_s.empty()) {
+    TableCost cost;
+    cost.px = &px;
+    cost.table = &t;
+    cost.nc = nc;
+    cost.ns = ns;
+    cost.np = np;
+    cost.y = px.y;
+    cost.noise = px.noise;
+    cost.phi = px.phi;
+    double scale[kMaxParams];
+    cost.scale = scale;
+    cost.prior_mean = px.nominal;
+    cost.prior_sigma = px.prior_sigma;
+    cost.npr = 0;
+    for (int s : free_s)
+      if (px.prior_sigma[s] > 0) cost.priors[cost.npr++] = s;
+    cost.log_fractions = true;
+    ceres::TinySolver<TableCost>& solver = ws->solver;
+    solver.options.max_num_iterations = options_.guess_iterations;
+    solver.options.function_tolerance = 1e-3;
+    solver.options.parameter_tolerance = 1e-6;
+    solver.options.gradient_tolerance = 1e-10;
+    for (Cand& cd : all) {
+      // Species the thin fit put at zero stay there.
+      cost.na = 0;
+      for (int s : free_s)
+        if (cd.th[s] > 0) cost.active[cost.na++] = s;
+      if (cost.na == 0) continue;
+      for (std::size_t p = 0; p < np; ++p) {
+        cost.base[p] = cd.th[p];
+        scale[p] = 1.0;
+      }
+      Eigen::VectorXd v(cost.na);
+      for (int j = 0; j < cost.na; ++j) v[j] = cost.ToParam(cost.active[j], cd.th[cost.active[j]]);
+      solver.Solve(cost, &v);
+      if (!v.allFinite()) continue;
+      Cand r = cd;
+      for (int j = 0; j < cost.na; ++j) {
+        const int s = cost.active[j];
+        r.th[s] = std::min(std::max(cost.ToTheta(s, v[j]), px.lower[s]), px.upper[s]);
+      }
+      px.ApplyTies(r.th);
+      r.cost = chi2_of(r.th);
+      if (r.cost < cd.cost) cd = r;
+    }
+  }
+  std::sort(all.begin(), all.end(), [](const Cand& a, const Cand& b) { return a.cost < b.cost; });
+}
+
+// Gradient g = J^T r of chi2/2 and Gauss-Newton matrix H = J^T J over all
+// parameters (noise-normalised residuals and priors) at theta.
+static void TableNormalEquations(const SceneTable& t, const Inverter::Pixel& px,
+                                 const double* theta, Eigen::VectorXd* g, Eigen::MatrixXd* h,
+                                 double* con, double* cj) {
+  const std::size_t nc = px.nc, ns = px.ns, np = ns + 2;
+  const double *y = px.y, *noise = px.noise, *prior_mean = px.nominal, *prior_sigma = px.prior_sigma;
+  const bool* est = px.est;
+  t.Contrast(theta, theta[ns], theta[ns + 1], px.phi, con, cj);
+  px.FoldJacobian(cj, nc);
+  g->setZero(np);
+  h->setZero(np, np);
+  for (std::size_t c = 0; c < nc; ++c) {
+    const double r = (con[c] - y[c]) / noise[c];
+    for (std::size_t a = 0; a < np; ++a) {
+      if (!est[a]) continue;
+      const double da = cj[c * np + a] / noise[c];
+      (*g)[a] += r * da;
+      for (std::size_t b = 0; b < np; ++b)
+        if (est[b]) (*h)(a, b) += da * cj[c * np + b] / noise[c];
+    }
+  }
+  for (std::size_t a = 0; a < np; ++a)
+    if (est[a] && prior_sigma[a] > 0) {
+      (*g)[a] += (theta[a] - prior_mean[a]) / (prior_sigma[a] * prior_sigma[a]);
+      (*h)(a, a) += 1.0 / (prior_sigma[a] * prior_sigma[a]);
+    }
+}
+
+// chi2 decrease predicted by a Gauss-Newton step over the parameters in `set`.
+static double PredictedDecrease(const Eigen::VectorXd& g, const Eigen::MatrixXd& h,
+                         const std::vector<int>& set) {
+  const int n = static_cast<int>(set.size());
+  if (n == 0) return 0.0;
+  Eigen::MatrixXd hs(n, n);
+  Eigen::VectorXd gs(n);
+  for (int a = 0; a < n; ++a) {
+    gs[a] = g[set[a]];
+    for (int b = 0; b < n; ++b) hs(a, b) = h(set[a], set[b]);
+  }
+  // Scale to unit diagonal; a tiny ridge keeps singular directions finite.
+  Eigen::VectorXd d = hs.diagonal().cwiseMax(1e-300).cwiseSqrt();
+  for (int a = 0; a < n; ++a)
+    for (int b = 0; b < n; ++b) hs(a, b) /= d[a] * d[b];
+  hs.diagonal().array() += 1e-10;
+  const Eigen::VectorXd gn = gs.cwiseQuotient(d);
+  const Eigen::VectorXd step = hs.ldlt().solve(gn);
+  return gn.dot(step);  // = 2 x (decrease of chi2 / 2) = decrease of chi2
+}
+
+void Inverter::SolveTable(Pixel* px, const double* start, Workspace* ws) const {
+  const std::size_t nc = px->nc, ns = px->ns, np = px->np;
+  const SceneTable& t = *table_;
+  double theta[kMaxParams];
+  for (std::size_t p = 0; p < np; ++p) {
+    theta[p] = px->est[p] ? std::min(std::max(start[p], px->lower[p]), px->upper[p]) : px->nominal[p];
+    if (p < ns && px->est[p]) px->scale[p] = std::max(theta[p], 1e-6);
+  }
+  px->ApplyTies(theta);
+  TableCost cost;
+  cost.px = px;
+  cost.log_fractions = true;
+  cost.table = &t;
+  cost.nc = nc;
+  cost.ns = ns;
+  cost.np = np;
+  cost.y = px->y;
+  cost.noise = px->noise;
+  cost.phi = px->phi;
+  cost.scale = px->scale;
+  cost.prior_mean = px->nominal;
+  cost.prior_sigma = px->prior_sigma;
+  cost.npr = 0;
+  for (std::size_t p = 0; p < np; ++p)
+    if (px->est[p] && px->prior_sigma[p] > 0) cost.priors[cost.npr++] = static_cast<int>(p);
+  ceres::TinySolver<TableCost>& solver = ws->solver;
+  solver.options.max_num_iterations = options_.max_iterations;
+  solver.options.function_tolerance = 1e-9;
+  solver.options.parameter_tolerance = 1e-10;
+  solver.options.gradient_tolerance = 1e-12;
+  const double tol = options_.tolerance_chi2;
+  std::uint8_t held = 0;
+  bool ok = false;
+  int iters = 0;
+  Eigen::VectorXd g;
+  Eigen::MatrixXd h;
+  double con[kMaxChannels], cj[kMaxChannels * kMaxParams];
+  const int max_outer = 3 * static_cast<int>(np) + 2;
+  for (int outer = 0; outer < max_outer; ++outer) {
+    cost.na = 0;
+    for (std::size_t p = 0; p < np; ++p)
+      if (px->est[p] && !(held >> p & 1)) cost.active[cost.na++] = static_cast<int>(p);
+    for (std::size_t p = 0; p < np; ++p) cost.base[p] = theta[p];
+    double next[kMaxParams];
+    for (std::size_t p = 0; p < np; ++p) next[p] = theta[p];
+    if (cost.na > 0) {
+      Eigen::VectorXd v(cost.na);
+      for (int j = 0; j < cost.na; ++j) v[j] = cost.ToParam(cost.active[j], theta[cost.active[j]]);
+      const auto& summary = solver.Solve(cost, &v);
+      iters += std::max(summary.iterations, 0);
+      if (!v.allFinite()) break;
+      for (int j = 0; j < cost.na; ++j) next[cost.active[j]] = cost.ToTheta(cost.active[j], v[j]);
+      px->ApplyTies(next);
+    }
+    // Cut the step at the first bound it crosses and hold that parameter there.
+    double alpha = 1.0;
+    int hit = -1;
+    double hit_value = 0;
+    for (int j = 0; j < cost.na; ++j) {
+      const int p = cost.active[j];
+      const double d = next[p] - theta[p];
+      if (next[p] < px->lower[p] && d < 0) {
+        const double a = (px->lower[p] - theta[p]) / d;
+        if (a < alpha) {
+          alpha = a;
+          hit = p;
+          hit_value = px->lower[p];
+        }
+      } else if (next[p] > px->upper[p] && d > 0) {
+        const double a = (px->upper[p] - theta[p]) / d;
+        if (a < alpha) {
+          alpha = a;
+          hit = p;
+          hit_value = px->upper[p];
+        }
+      }
+    }
+    if (hit >= 0) {
+      alpha = std::max(alpha, 0.0);
+      for (int j = 0; j < cost.na; ++j) {
+        const int p = cost.active[j];
+        theta[p] = std::min(std::max(theta[p] + alpha * (next[p] - theta[p]), px->lower[p]),
+                            px->upper[p]);
+      }
+      theta[hit] = hit_value;
+      px->ApplyTies(theta);
+      held |= static_cast<std::uint8_t>(1u << hit);
+      continue;
+    }
+    for (std::size_t p = 0; p < np; ++p) theta[p] = next[p];
+    // Stationarity: release the held parameter whose multiplier points back
+    // inside with the largest predicted gain; else check convergence.
+    TableNormalEquations(t, *px, theta, &g, &h, con, cj);
+    std::vector<int> free_set;
+    for (int j = 0; j < cost.na; ++j) free_set.push_back(cost.active[j]);
+    const double base = PredictedDecrease(g, h, free_set);
+    int release = -1;
+    double best = tol;
+    for (std::size_t p = 0; p < np; ++p) {
+      if (!(held >> p & 1)) continue;
+      const bool at_lower = theta[p] <= px->lower[p];
+      if (!(at_lower ? g[p] < 0 : g[p] > 0)) continue;
+      std::vector<int> with = free_set;
+      with.push_back(static_cast<int>(p));
+      const double gain = PredictedDecrease(g, h, with) - base;
+      if (gain > best) {
+        best = gain;
+        release = static_cast<int>(p);
+      }
+    }
+    if (release >= 0) {
+      held &= static_cast<std::uint8_t>(~(1u << release));
+      continue;
+    }
+    ok = base < tol;
+    // A free parameter that converged onto its bound (within 1e-3 of its
+    // conditional standard deviation; fractions approach 0 asymptotically in
+    // the solver's log space) is held there.
+    if (ok) {
+      int snap = -1;
+      for (int j = 0; j < cost.na && snap < 0; ++j) {
+        const int p = cost.active[j];
+        const double sd = h(p, p) > 0 ? 1.0 / std::sqrt(h(p, p)) : 0.0;
+        if (theta[p] - px->lower[p] < 1e-3 * sd) {
+          theta[p] = px->lower[p];
+          snap = p;
+        } else if (px->upper[p] - theta[p] < 1e-3 * sd) {
+          theta[p] = px->upper[p];
+          snap = p;
+        }
+      }
+      if (snap >= 0) {
+        px->ApplyTies(theta);
+        held |= static_cast<std::uint8_t>(1u << snap);
+        ok = false;
+        continue;
+      }
+    }
+    break;
+  }
+  for (std::size_t p = 0; p < np; ++p) px->theta[p] = theta[p];
+  px->iterations += iters;
+  px->bound_mask = held;
+  if (!ok) {
+    px->status = PixelStatus::kFailed;
+    return;
+  }
+  px->status = held ? PixelStatus::kAtBound : PixelStatus::kConverged;
+  FinishWith(px, con, cj, ws);
+}
+
+
+void Inverter::Columns(Pixel* px, Workspace* ws) const {
+  const std::size_t ns = px->ns, np = px->np;
+  const double tp = px->theta[ns], sg = px->theta[ns + 1];
+  ws->Integral(tp, t_amb_);
+  const double i = ws->int_i, di = ws->int_di;
+  const double t_min = std::min(t_amb_, px->lower[ns]);
+  for (std::size_t s = 0; s < ns; ++s) {
+    const double k = column_factor_[s], x = px->theta[s];
+    px->col[s] = k * x * sg * i;
+    px->ppm[s] = 1e6 * kSqrt2Pi * x * sg;
+    // Gradients over (x_s, T_peak, sigma).
+    const int idx[3] = {static_cast<int>(s), static_cast<int>(ns), static_cast<int>(ns + 1)};
+    const double gc[3] = {k * sg * i, k * x * sg * di, k * x * i};
+    const double gp[3] = {1e6 * kSqrt2Pi * sg, 0.0, 1e6 * kSqrt2Pi * x};
+    double vc = 0, vp = 0;
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b) {
+        const double cv = px->cov[idx[a] * np + idx[b]];
+        vc += gc[a] * cv * gc[b];
+        vp += gp[a] * cv * gp[b];
+      }
+    const double cap_c = k * px->upper[s] * px->upper[ns + 1] * kSqrt2Pi / t_min;
+    const double cap_p = 1e6 * kSqrt2Pi * px->upper[s] * px->upper[ns + 1];
+    px->col_sig[s] = std::min(std::sqrt(std::max(vc, 0.0)), cap_c);
+    px->ppm_sig[s] = std::min(std::sqrt(std::max(vp, 0.0)), cap_p);
+  }
+}
+
+void Inverter::FinishWith(Pixel* px, const double* con, const double* jac_in, Workspace* ws) const {
+  const std::size_t nc = px->nc, np = px->np, ns = px->ns;
+  px->prior_chi2 = 0;
+  for (std::size_t p = 0; p < np; ++p)
+    if (px->est[p] && px->prior_sigma[p] > 0) {
+      const double r = (px->theta[p] - px->nominal[p]) / px->prior_sigma[p];
+      px->prior_chi2 += r * r;
+    }
+  double jac[kMaxChannels * kMaxParams];
+  std::copy(jac_in, jac_in + nc * np, jac);
+  px->FoldJacobian(jac, nc);
+  px->chi2 = 0;
+  for (std::size_t c = 0; c < nc; ++c) {
+    const double r = (con[c] - px->y[c]) / px->noise[c];
+    px->chi2 += r * r;
+  }
+  int est[kMaxParams];
+  int ne = 0, npr = 0;
+  for (std::size_t p = 0; p < np; ++p)
+    if (px->est[p]) {
+      est[ne++] = static_cast<int>(p);
+      if (px->prior_sigma[p] > 0) ++npr;
+    }
+  std::fill(px->cov, px->cov + np * np, 0.0);
+  std::fill(px->psig, px->psig + np, 0.0);
+  if (ne > 0) {
+    const int nr = static_cast<int>(nc) + npr;
+    Eigen::MatrixXd j = Eigen::MatrixXd::Zero(nr, ne);
+    int row = static_cast<int>(nc);
+    for (int e = 0; e < ne; ++e) {
+      const int p = est[e];
+      for (std::size_t c = 0; c < nc; ++c) j(c, e) = jac[c * np + p] / px->noise[c];
+      if (px->prior_sigma[p] > 0) j(row++, e) = 1.0 / px->prior_sigma[p];
+    }
+    Eigen::VectorXd d(ne);
+    for (int e = 0; e < ne; ++e) {
+      d[e] = j.col(e).norm();
+      if (!(d[e] > 0) || !std::isfinite(d[e])) d[e] = 1.0;
+      j.col(e) /= d[e];
+    }
+    Eigen::JacobiSVD<Eigen::MatrixXd> svd(j, Eigen::ComputeThinV);
+    const Eigen::VectorXd sv = svd.singularValues();
+    const double smax = sv.size() ? sv[0] : 0.0;
+    const double smin = (sv.size() == ne) ? sv[ne - 1] : 0.0;
+    px->cond = (smin > 0 && smax / smin < kConditionCap) ? smax / smin : kConditionCap;
+    const double floor = std::max(smax, 1e-300) * 1e-8;
+    Eigen::VectorXd inv2 = Eigen::VectorXd::Zero(ne);
+    for (int k = 0; k < ne; ++k) {
+      const double s = k < sv.size() ? std::max(sv[k], floor) : floor;
+      inv2[k] = 1.0 / (s * s);
+    }
+    const Eigen::MatrixXd& v = svd.matrixV();
+    const Eigen::MatrixXd covn = v * inv2.asDiagonal() * v.transpose();
+    px->log_det = 0;
+    for (int k = 0; k < ne; ++k) px->log_det += std::log(inv2[k]) - 2.0 * std::log(d[k]);
+    for (int a = 0; a < ne; ++a)
+      for (int b = 0; b < ne; ++b)
+        px->cov[est[a] * np + est[b]] = covn(a, b) / (d[a] * d[b]);
+    for (int a = 0; a < ne; ++a) {
+      const int p = est[a];
+      px->psig[p] = std::min(std::sqrt(std::max(px->cov[p * np + p], 0.0)), px->upper[p] - px->lower[p]);
+    }
+    // Tied fractions: x_s = ratio x_ref.
+    for (std::size_t s = 0; s < ns; ++s) {
+      const int r = px->tie_ref[s];
+      if (r < 0) continue;
+      const double k = px->tie_ratio[s];
+      for (std::size_t q = 0; q < np; ++q) px->cov[s * np + q] = k * px->cov[r * np + q];
+      for (std::size_t q = 0; q < np; ++q) px->cov[q * np + s] = k * px->cov[q * np + r];
+      px->psig[s] = k * px->psig[r];
+    }
+  } else {
+    px->cond = 1.0;
+  }
+  Columns(px, ws);
+}
+
+void Inverter::FillFailed(Pixel* px) const {
+  const std::size_t ns = px->ns, np = px->np;
+  px->status = PixelStatus::kFailed;
+  for (std::size_t p = 0; p < np; ++p) {
+    px->theta[p] = (p >= ns && std::isfinite(px->nominal[p])) ? px->nominal[p] : 0.0;
+    px->psig[p] = 0;
+  }
+  std::fill(px->cov, px->cov + np * np, 0.0);
+  for (std::size_t s = 0; s < ns; ++s) px->col[s] = px->col_sig[s] = px->ppm[s] = px->ppm_sig[s] = 0;
+  px->chi2 = 0;
+  px->cond = 0;
+  px->bound_mask = 0;
+}
+
+void Inverter::FillBelowDetection(Pixel* px, Workspace* ws) const {
+  const std::size_t nc = px->nc, ns = px->ns, np = px->np;
+  px->status = PixelStatus::kBelowDetection;
+  for (std::size_t p = 0; p < np; ++p) px->theta[p] = (p < ns && px->est[p]) ? 0.0 : px->nominal[p];
+  px->ApplyTies(px->theta);
+  std::fill(px->cov, px->cov + np * np, 0.0);
+  std::fill(px->psig, px->psig + np, 0.0);
+  px->chi2 = 0;
+  for (std::size_t c = 0; c < nc; ++c) px->chi2 += (px->y[c] / px->noise[c]) * (px->y[c] / px->noise[c]);
+  px->cond = 0;
+  px->bound_mask = 0;
+  Columns(px, ws);
+  // Noise-equivalent column (1 sigma) of each estimated species in the thin
+  // limit: the column whose contrast equals the noise, combined over
+  // channels (tied species contribute to their reference's signal).
+  const double tp = px->theta[ns], sg = px->theta[ns + 1];
+  double thin[kMaxChannels * kMaxParams];  // [c * ns + s] d(Delta L)/du_s
+  if (use_table_) {
+    for (std::size_t c = 0; c < nc; ++c)
+      for (std::size_t s = 0; s < ns; ++s) thin[c * ns + s] = table_->ThinSlope(c, s, tp, px->phi);
+  } else {
+    double th[kMaxParams], con[kMaxChannels], jac[kMaxChannels * kMaxParams];
+    for (std::size_t p = 0; p < np; ++p) th[p] = px->theta[p];
+    for (std::size_t s = 0; s < ns; ++s)
+      if (px->est[s] || px->tie_ref[s] >= 0) th[s] = 1e-9;
+    FullModelContrast(*model_, t_amb_, th, px->tbg, con, jac);
+    for (std::size_t c = 0; c < nc; ++c)
+      for (std::size_t s = 0; s < ns; ++s) thin[c * ns + s] = jac[c * np + s] / sg;
+  }
+  ws->Integral(tp, t_amb_);
+  const double t_min = std::min(t_amb_, px->lower[ns]);
+  for (std::size_t s = 0; s < ns; ++s) {
+    if (!px->est[s]) continue;
+    const double k = column_factor_[s];
+    double sc = 0, sp = 0;
+    for (std::size_t c = 0; c < nc; ++c) {
+      double g = thin[c * ns + s];
+      for (std::size_t s2 = 0; s2 < ns; ++s2)
+        if (px->tie_ref[s2] == static_cast<int>(s)) g += px->tie_ratio[s2] * thin[c * ns + s2];
+      const double dc = g / (k * ws->int_i) / px->noise[c];
+      const double dp = g / (1e6 * kSqrt2Pi) / px->noise[c];
+      sc += dc * dc;
+      sp += dp * dp;
+    }
+    const double cap_c = k * px->upper[s] * px->upper[ns + 1] * kSqrt2Pi / t_min;
+    const double cap_p = 1e6 * kSqrt2Pi * px->upper[s] * px->upper[ns + 1];
+    px->col_sig[s] = sc > 0 ? std::min(1.0 / std::sqrt(sc), cap_c) : cap_c;
+    px->ppm_sig[s] = sp > 0 ? std::min(1.0 / std::sqrt(sp), cap_p) : cap_p;
+    for (std::size_t s2 = 0; s2 < ns; ++s2)
+      if (px->tie_ref[s2] == static_cast<int>(s)) {
+        px->col_sig[s2] = px->tie_ratio[s2] * column_factor_[s2] / k * px->col_sig[s];
+        px->ppm_sig[s2] = px->tie_ratio[s2] * px->ppm_sig[s];
+      }
+  }
+}
+
+void Inverter::SolveNewton(Pixel* px, Workspace* ws) const {
+  const std::size_t ns = px->ns, np = px->np, s = newton_param_, c = 0;
+  const SceneTable& t = *table_;
+  const double tp = px->nominal[ns], sg = px->nominal[ns + 1];
+  const int r1 = t.basis_rank(c, s) + 1;
+  const int nu = t.num_u_nodes();
+  const double lu0 = t.min_log_u(), h = t.log_u_step(), u_min = std::exp(lu0);
+  if (ws->curve_channel != c || ws->curve_species != s || ws->curve_t != tp ||
+      ws->curve_sigma != sg) {
+    ws->curve_nodes.assign(static_cast<std::size_t>(nu) * r1, 0.0);
+    ws->curve_u.resize(nu);
+    for (int i = 0; i < nu; ++i) {
+      const double lu = lu0 + i * h;
+      ws->curve_u[i] = std::exp(lu);
+      t.RawValues(c, s, lu, std::exp(lu) / sg, tp, &ws->curve_nodes[static_cast<std::size_t>(i) * r1]);
+    }
+    ws->curve = UniformSpline(lu0, h, nu, r1, ws->curve_nodes, Extrapolation::kHold,
+                              Extrapolation::kLinear);
+    ws->curve_channel = c;
+    ws->curve_species = s;
+    ws->curve_t = tp;
+    ws->curve_sigma = sg;
+    ws->curve_r1 = r1;
+  }
+  const double* phi = px->phi + t.phi_offset(c, s);
+  auto contract = [&](const double* raw) {
+    double g = raw[0];
+    for (int r = 1; r < r1; ++r) g -= phi[r - 1] * raw[r];
+    return g;
+  };
+  const double g0 = contract(&ws->curve_nodes[0]);
+  double raw[64], slope[64];
+  // F(u) = u g(ln u) and dF/du, from u (or, when known, ln u).
+  auto eval_lu = [&](double u, double lu, double* f, double* df) {
+    if (!(u > u_min)) {
+      *f = u * g0;
+      *df = g0;
+      return;
+    }
+    ws->curve.Evaluate(lu, raw, slope);
+    const double g = contract(raw);
+    *f = u * g;
+    *df = g + contract(slope);  // d(u g)/du = g + dg/d(ln u)
+  };
+  auto eval = [&](double u, double* f, double* df) {
+    eval_lu(u, u > u_min ? std::log(u) : 0.0, f, df);
+  };
+  // Other species (fixed) add a constant.
+  double offset = 0;
+  for (std::size_t s2 = 0; s2 < ns; ++s2) {
+    if (s2 == s || !(px->nominal[s2] > 0)) continue;
+    double v, a, b, d;
+    t.SpeciesContrast(c, s2, px->nominal[s2] * sg, px->nominal[s2], tp, px->phi, &v, &a, &b, &d);
+    offset += v;
+  }
+  const double target = px->y[c] - offset;
+  const double u_lo = px->lower[s] * sg, u_hi = px->upper[s] * sg;
+  int iters = 0;
+  // Scan for the first bracket of F(u) - target from u_lo upwards.
+  double fa, dfa;
+  eval(u_lo, &fa, &dfa);
+  fa -= target;
+  double a = u_lo, b = u_lo, fb = fa;
+  bool bracket = fa == 0;
+  double root = u_lo;
+  if (!bracket) {
+    auto try_point = [&](double u, double f) {
+      if (bracket) return;
+      if ((f - target > 0) != (fa > 0) || f == target) {
+        b = u;
+        fb = f - target;
+        bracket = true;
+      } else {
+        a = u;
+        fa = f - target;
+      }
+    };
+    if (u_min > u_lo && u_min < u_hi) try_point(u_min, u_min * g0);
+    for (int i = 0; i < nu && !bracket; ++i) {
+      const double u = ws->curve_u[i];
+      if (u <= std::max(u_lo, u_min) || u >= u_hi) continue;
+      try_point(u, u * contract(&ws->curve_nodes[static_cast<std::size_t>(i) * r1]));
+    }
+    if (!bracket) {
+      double f, d;
+      eval(u_hi, &f, &d);
+      try_point(u_hi, f);
+    }
+  }
+  bool at_bound = false;
+  if (bracket && fa == 0) {
+    root = a;
+  } else if (bracket && fb == 0) {
+    root = b;
+  } else if (bracket && b <= u_min) {
+    root = g0 != 0 ? target / g0 : a;  // optically thin: linear
+    root = std::min(std::max(root, a), b);
+  } else if (bracket) {
+    // Safeguarded Newton in ln u inside [a, b].
+    double la = std::log(std::max(a, u_min)), lb = std::log(b);
+    double lu = la + (lb - la) * fa / (fa - fb);
+    for (iters = 1; iters <= 60; ++iters) {
+      double f, df;
+      const double u = std::exp(lu);
+      eval_lu(u, lu, &f, &df);
+      f -= target;
+      if ((f > 0) == (fa > 0)) la = lu; else lb = lu;
+      const double dfl = u * df;
+      double next = dfl != 0 ? lu - f / dfl : 0.5 * (la + lb);
+      if (!(next > la && next < lb)) next = 0.5 * (la + lb);
+      const double step = std::abs(next - lu);
+      lu = next;
+      if (step < 1e-12 || std::abs(f) < 1e-12 * px->noise[c]) break;
+    }
+    root = std::exp(lu);
+  } else {
+    // No solution inside the bounds: the nearer bound.
+    double fl, fh, d;
+    eval(u_lo, &fl, &d);
+    eval(u_hi, &fh, &d);
+    root = std::abs(fl - target) <= std::abs(fh - target) ? u_lo : u_hi;
+    at_bound = true;
+  }
+  double f, df;
+  eval(root, &f, &df);
+  for (std::size_t p = 0; p < np; ++p) px->theta[p] = px->nominal[p];
+  px->theta[s] = root / sg;
+  std::fill(px->cov, px->cov + np * np, 0.0);
+  std::fill(px->psig, px->psig + np, 0.0);
+  const double su = df != 0 ? std::min(px->noise[c] / std::abs(df), u_hi - u_lo) : u_hi - u_lo;
+  px->psig[s] = su / sg;
+  px->cov[s * np + s] = px->psig[s] * px->psig[s];
+  px->chi2 = ((f - target) / px->noise[c]) * ((f - target) / px->noise[c]);
+  px->cond = 1.0;
+  px->iterations = iters;
+  px->bound_mask = at_bound ? static_cast<std::uint8_t>(1u << s) : 0;
+  px->status = at_bound ? PixelStatus::kAtBound : PixelStatus::kConverged;
+  Columns(px, ws);
+}
+
+void Inverter::FullModelGuess(const Pixel& px, double* theta) const {
+  const std::size_t nc = px.nc, ns = px.ns, np = px.np;
+  double th[kMaxParams], con[kMaxChannels], jac[kMaxChannels * kMaxParams];
+  for (std::size_t p = 0; p < np; ++p) th[p] = px.nominal[p];
+  std::vector<int> free_s;
+  for (std::size_t s = 0; s < ns; ++s)
+    if (px.est[s]) {
+      free_s.push_back(static_cast<int>(s));
+      th[s] = 1e-9;
+    }
+  px.ApplyTies(th);
+  FullModelContrast(*model_, t_amb_, th, px.tbg, con, jac);
+  px.FoldJacobian(jac, nc);
+  for (std::size_t p = 0; p < np; ++p) theta[p] = px.nominal[p];
+  if (free_s.empty()) return;
+  Eigen::MatrixXd a(nc, free_s.size());
+  Eigen::VectorXd b(nc);
+  for (std::size_t c = 0; c < nc; ++c) {
+    b[c] = (px.y[c] - con[c]) / px.noise[c];
+    for (std::size_t k = 0; k < free_s.size(); ++k) a(c, k) = jac[c * np + free_s[k]] / px.noise[c];
+  }
+  Eigen::VectorXd u;
+  SmallNnls(a, b, &u);
+  for (std::size_t k = 0; k < free_s.size(); ++k) {
+    const int s = free_s[k];
+    theta[s] = std::min(std::max(u[k] + 1e-9, std::max(px.lower[s], 1e-7)), px.upper[s]);
+  }
+  px.ApplyTies(theta);
+}
+
+void Inverter::SolveFull(Pixel* px, const double* start, Workspace* ws) const {
+  const std::size_t ns = px->ns, np = px->np;
+  double theta[kMaxParams];
+  if (start) {
+    for (std::size_t p = 0; p < np; ++p) theta[p] = start[p];
+  } else {
+    FullModelGuess(*px, theta);
+  }
+  for (std::size_t p = 0; p < np; ++p) {
+    if (!px->est[p]) {
+      theta[p] = px->nominal[p];
+      continue;
+    }
+    // Strictly inside: a fraction at exactly 0 has no derivative in the full model.
+    const double lo = p < ns ? std::max(px->lower[p], std::min(1e-7, 0.5 * px->upper[p])) : px->lower[p];
+    theta[p] = std::min(std::max(theta[p], lo), px->upper[p]);
+  }
+  FullModelProblem fp;
+  fp.model = model_.get();
+  fp.ambient_temperature_K = t_amb_;
+  fp.num_channels = px->nc;
+  fp.num_species = ns;
+  fp.measured_contrast = px->y;
+  fp.noise = px->noise;
+  fp.background_temperature_K = px->tbg;
+  fp.estimated = px->est;
+  fp.lower = px->lower;
+  fp.upper = px->upper;
+  fp.prior_mean = px->nominal;
+  fp.prior_sigma = px->prior_sigma;
+  fp.tie_ref = px->tie_ref;
+  fp.tie_ratio = px->tie_ratio;
+  fp.max_iterations = options_.max_iterations;
+  int it = 0;
+  const bool ok = SolveFullModel(fp, theta, &it);
+  px->iterations += it;
+  px->ApplyTies(theta);
+  for (std::size_t p = 0; p < np; ++p) px->theta[p] = theta[p];
+  if (!ok || !std::all_of(theta, theta + np, [](double v) { return std::isfinite(v); })) {
+    px->status = PixelStatus::kFailed;
+    return;
+  }
+  px->bound_mask = 0;
+  for (std::size_t p = 0; p < np; ++p) {
+    if (!px->est[p]) continue;
+    const double tol = 1e-9 * std::max(1.0, std::abs(px->upper[p] - px->lower[p]));
+    if (theta[p] <= px->lower[p] + tol || theta[p] >= px->upper[p] - tol)
+      px->bound_mask |= static_cast<std::uint8_t>(1u << p);
+  }
+  px->status = px->bound_mask ? PixelStatus::kAtBound : PixelStatus::kConverged;
+  double con[kMaxChannels], jac[kMaxChannels * kMaxParams];
+  FullModelContrast(*model_, t_amb_, px->theta, px->tbg, con, jac);
+  FinishWith(px, con, jac, ws);
+}
+
+void Inverter::MergeModes(Pixel* a, const Pixel& b) const {
+  const std::size_t ns = a->ns, np = a->np;
+  // The same minimum reached twice?
+  bool distinct = false;
+  for (std::size_t p = 0; p < np; ++p) {
+    if (!a->est[p]) continue;
+    const double s = std::sqrt(a->psig[p] * a->psig[p] + b.psig[p] * b.psig[p]);
+    if (std::abs(a->theta[p] - b.theta[p]) > 0.5 * s) distinct = true;
+  }
+  if (!distinct) return;
+  const double da = a->chi2 + a->prior_chi2, db = b.chi2 + b.prior_chi2;
+  if (db - da < 4.0) a->flags |= kFlagAmbiguous;
+  // The two minima weighted by their likelihoods exp(-chi2 / 2).
+  const double lw = -0.5 * (db - da);
+  if (lw < -40) return;
+  const double wb = 1.0 / (1.0 + std::exp(-lw)), wa = 1.0 - wb;
+  auto spread = [&](double sa, double sb, double va, double vb) {
+    return std::sqrt(wa * sa * sa + wb * (sb * sb + (vb - va) * (vb - va)));
+  };
+  double d[kMaxParams];
+  for (std::size_t p = 0; p < np; ++p) d[p] = b.theta[p] - a->theta[p];
+  for (std::size_t i = 0; i < np; ++i)
+    for (std::size_t j = 0; j < np; ++j)
+      a->cov[i * np + j] = wa * a->cov[i * np + j] + wb * (b.cov[i * np + j] + d[i] * d[j]);
+  for (std::size_t p = 0; p < np; ++p)
+    if (a->est[p] || (p < ns && a->tie_ref[p] >= 0))
+      a->psig[p] = std::min(spread(a->psig[p], b.psig[p], a->theta[p], b.theta[p]),
+                            std::max(a->upper[p] - a->lower[p], a->psig[p]));
+  for (std::size_t s = 0; s < ns; ++s) {
+    a->col_sig[s] = spread(a->col_sig[s], b.col_sig[s], a->col[s], b.col[s]);
+    a->ppm_sig[s] = spread(a->ppm_sig[s], b.ppm_sig[s], a->ppm[s], b.ppm[s]);
+  }
+}
+
+void Inverter::WritePixel(const Pixel& px, const InversionOutput& o, std::size_t idx) const {
+  const std::size_t ns = px.ns, np = px.np;
+  o.status[idx] = static_cast<std::uint8_t>(px.status);
+  if (o.bound_mask) o.bound_mask[idx] = px.bound_mask;
+  if (o.flags) o.flags[idx] = px.flags;
+  if (o.parameters) std::copy(px.theta, px.theta + np, o.parameters + idx * np);
+  if (o.parameter_sigma) std::copy(px.psig, px.psig + np, o.parameter_sigma + idx * np);
+  if (o.covariance) std::copy(px.cov, px.cov + np * np, o.covariance + idx * np * np);
+  if (o.column_density) std::copy(px.col, px.col + ns, o.column_density + idx * ns);
+  if (o.column_density_sigma) std::copy(px.col_sig, px.col_sig + ns, o.column_density_sigma + idx * ns);
+  if (o.path_concentration) std::copy(px.ppm, px.ppm + ns, o.path_concentration + idx * ns);
+  if (o.path_concentration_sigma)
+    std::copy(px.ppm_sig, px.ppm_sig + ns, o.path_concentration_sigma + idx * ns);
+  if (o.chi2) o.chi2[idx] = px.chi2;
+  if (o.condition_number) o.condition_number[idx] = px.cond;
+  if (o.iterations) o.iterations[idx] = px.iterations;
+}
+
+void Inverter::InvertRow(const PixelBatch& b, const InversionOutput& out, std::size_t begin,
+                         std::size_t end, Workspace* ws) const {
+  const std::size_t nc = model_->num_channels(), np = model_->num_species() + 2;
+  const std::size_t n = b.num_pixels;
+  for (std::size_t f = 0; f < b.num_frames; ++f) {
+    ws->last_ok = false;
+    for (std::size_t i = begin; i < end; ++i) {
+      const std::size_t idx = f * n + i;
+      Pixel px;
+      px.iterations = 0;
+      std::fill(px.cov, px.cov + kMaxParams * kMaxParams, 0.0);
+      std::fill(px.psig, px.psig + kMaxParams, 0.0);
+      std::fill(px.col, px.col + kMaxParams, 0.0);
+      std::fill(px.col_sig, px.col_sig + kMaxParams, 0.0);
+      std::fill(px.ppm, px.ppm + kMaxParams, 0.0);
+      std::fill(px.ppm_sig, px.ppm_sig + kMaxParams, 0.0);
+      const bool ok = PreparePixel(b, f, i, &px);
+      if (!ok) {
+        FillFailed(&px);
+        WritePixel(px, out, idx);
+        ws->last_ok = false;
+        continue;
+      }
+      if (use_table_) {
+        table_->Background(px.tbg, ws->phi.data());
+        px.phi = ws->phi.data();
+      }
+      bool below = true;
+      for (std::size_t c = 0; c < nc; ++c)
+        below = below && std::abs(px.y[c]) < options_.detection_sigma * px.noise[c];
+      if (below) {
+        FillBelowDetection(&px, ws);
+        WritePixel(px, out, idx);
+        ws->last_ok = false;
+        continue;
+      }
+      double start[kMaxParams];
+      bool warm = false;
+      switch (options_.initial_guess) {
+        case InitialGuess::kNeighbour:
+          if (ws->last_ok && i > begin) {
+            std::copy(ws->last_theta, ws->last_theta + np, start);
+            warm = true;
+          }
+          break;
+        case InitialGuess::kPrevious:
+          if (f > 0 && out.parameters) {
+            const std::size_t prev = (f - 1) * n + i;
+            const auto st = static_cast<PixelStatus>(out.status[prev]);
+            if (st == PixelStatus::kConverged || st == PixelStatus::kAtBound) {
+              std::copy(out.parameters + prev * np, out.parameters + (prev + 1) * np, start);
+              warm = true;
+            }
+          }
+          break;
+        case InitialGuess::kGiven:
+          std::copy(b.initial + i * np, b.initial + (i + 1) * np, start);
+          warm = std::all_of(start, start + np, [](double v) { return std::isfinite(v); });
+          break;
+        case InitialGuess::kTable: break;
+      }
+      if (newton_) {
+        SolveNewton(&px, ws);
+      } else if (use_table_) {
+        const Pixel fresh = px;
+        auto cold = [&](Pixel* out) {
+          // Full solves from the coarse profile's best candidates; the best
+          // fit is kept and a distinct second minimum widens the uncertainty.
+          TableGuess(*out, &ws->guesses, ws);
+          const Pixel base = *out;
+          const std::size_t starts =
+              options_.num_starts == 0
+                  ? ws->guesses.size()
+                  : std::min<std::size_t>(ws->guesses.size(), static_cast<std::size_t>(options_.num_starts));
+          int total = 0;
+          std::vector<Pixel>& sol = ws->solutions;
+          sol.assign(starts, base);
+          for (std::size_t k = 0; k < starts; ++k) {
+            SolveTable(&sol[k], ws->guesses[k].th, ws);
+            total += sol[k].iterations;
+          }
+          std::size_t best = 0;
+          for (std::size_t k = 1; k < starts; ++k)
+            if (sol[k].solved() && (!sol[best].solved() || sol[k].chi2 + sol[k].prior_chi2 <
+                                                           sol[best].chi2 + sol[best].prior_chi2))
+              best = k;
+          *out = sol[best];
+          if (out->solved()) {
+            // The best other minimum (distinct from the best one), if any.
+            for (std::size_t k = 0; k < starts; ++k) {
+              if (k == best || !sol[k].solved()) continue;
+              MergeModes(out, sol[k]);
+              if (out->flags & kFlagAmbiguous) break;
+            }
+          }
+          out->iterations = total;
+        };
+        if (warm) {
+          SolveTable(&px, start, ws);
+          // A warm start that fails or fits badly is retried cold.
+          if (!px.solved() || px.chi2 > 9.0 * nc) {
+            Pixel alt = fresh;
+            cold(&alt);
+            alt.iterations += px.iterations;
+            if (alt.solved() && (!px.solved() || alt.chi2 < px.chi2)) px = alt;
+            else px.iterations = alt.iterations;
+          }
+        } else {
+          cold(&px);
+        }
+      } else {
+        SolveFull(&px, warm ? start : nullptr, ws);
+      }
+      if (px.status == PixelStatus::kFailed) {
+        const int it = px.iterations;
+        FillFailed(&px);
+        px.iterations = it;
+      }
+      WritePixel(px, out, idx);
+      ws->last_ok = px.solved();
+      std::copy(px.theta, px.theta + np, ws->last_theta);
+    }
+  }
+}
+
+void Inverter::Invert(const PixelBatch& b, const InversionOutput& out, const RunControl* control) const {
+  Require(b.num_pixels > 0, "the batch has no pixels");
+  Require(b.num_frames >= 1, "num_frames must be >= 1");
+  Require(b.radiance != nullptr, "radiance is missing");
+  Require((b.background_radiance != nullptr) != (b.background_temperature_K != nullptr),
+          "give exactly one of background_radiance and background_temperature_K");
+  Require(out.status != nullptr, "the status output is required");
+  Require(options_.initial_guess != InitialGuess::kGiven || b.initial != nullptr,
+          "initial_guess 'given' needs per-pixel start parameters (initial)");
+  const std::size_t chunk = b.row_length > 0 ? b.row_length : 256;
+  ParallelFor(
+      b.num_pixels, chunk,
+      [&](std::size_t lo, std::size_t hi) {
+        Workspace ws;
+        ws.phi.assign(use_table_ ? table_->background_size() : 0, 0.0);
+        InvertRow(b, out, lo, hi, &ws);
+      },
+      options_.num_threads, control);
+}
+
+}  // namespace qogi

@@ -1,0 +1,695 @@
+// The inversion against ground truth: splines against polynomials, the
+// per-scene table against the binned model it tabulates, and inversions of
+// pixels forward-modelled with known parameters, on synthetic line tables
+// (Lorentz lines) so that nothing but the numerics is tested here. The
+// HITRAN round trip and the thesis's gas-temperature finding are in
+// tests/python/test_inversion_hitran.py.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <memory>
+#include <random>
+#include <vector>
+
+#include "engine/inversion/band_table.h"
+#include "engine/inversion/bspline.h"
+#include "engine/inversion/full_model.h"
+#include "engine/inversion/inversion.h"
+#include "engine/inversion/march_kernel.h"
+#include "engine/rte/march.h"
+#include "engine/inversion/scene_table.h"
+#include "engine/optics/planck.h"
+
+namespace qogi {
+namespace {
+
+// ---------------------------------------------------------------------------
+// Splines.
+
+TEST(CubicSpline, ReproducesCubicsExactlyAndExtrapolatesLinearly) {
+  const int n = 9;
+  const double x0 = -1.0, h = 0.25;
+  auto f = [](double x) { return 2.0 - 3.0 * x + 0.5 * x * x - 0.7 * x * x * x; };
+  auto df = [](double x) { return -3.0 + x - 2.1 * x * x; };
+  std::vector<double> v(n);
+  for (int k = 0; k < n; ++k) v[k] = f(x0 + k * h);
+  const UniformSpline s(x0, h, n, 1, v);
+  for (double x = x0; x <= x0 + (n - 1) * h + 1e-12; x += 0.0371) {
+    EXPECT_NEAR(s.Value(x), f(x), 1e-12);
+    EXPECT_NEAR(s.Slope(x), df(x), 1e-11);
+  }
+  const double xe = x0 + (n - 1) * h;
+  EXPECT_NEAR(s.Value(xe + 0.5), f(xe) + 0.5 * df(xe), 1e-11);
+  EXPECT_NEAR(s.Slope(x0 - 2.0), df(x0), 1e-11);
+  const UniformSpline hold(x0, h, n, 1, v, Extrapolation::kHold, Extrapolation::kHold);
+  EXPECT_NEAR(hold.Value(x0 - 3.0), f(x0), 1e-12);
+  EXPECT_EQ(hold.Slope(x0 - 3.0), 0.0);
+}
+
+TEST(CubicSpline, ConvergesAtFourthOrder) {
+  auto err = [](int n) {
+    const double h = 3.0 / (n - 1);
+    std::vector<double> v(n);
+    for (int k = 0; k < n; ++k) v[k] = std::sin(k * h);
+    const UniformSpline s(0.0, h, n, 1, v);
+    double e = 0;
+    for (double x = 0; x <= 3.0; x += 0.001) e = std::max(e, std::abs(s.Value(x) - std::sin(x)));
+    return e;
+  };
+  const double e1 = err(16), e2 = err(31);
+  EXPECT_LT(e2, e1 / 12.0);  // 16 for h^4
+  EXPECT_LT(e2, 1e-5);
+}
+
+TEST(CubicSpline, RejectsTwoOrThreeNodes) {
+  EXPECT_THROW(CubicSplineAxis(2), std::invalid_argument);
+  EXPECT_THROW(CubicSplineAxis(3), std::invalid_argument);
+}
+
+TEST(MarchKernel, ExponentialWithinTwoUlp) {
+  double worst = 0;
+  for (double x = 0; x < 720; x = x * 1.001 + 1e-7) {
+    const double ref = std::exp(-x), v = ExpNegative(x);
+    if (ref < 1e-300) {
+      EXPECT_LE(v, 1e-300);
+      continue;
+    }
+    worst = std::max(worst, std::abs(v - ref) / ref);
+  }
+  EXPECT_LT(worst, 4.5e-16);
+  EXPECT_EQ(ExpNegative(0.0), 1.0);
+  EXPECT_EQ(ExpNegative(1e5), 0.0);
+}
+
+TEST(MarchKernel, IsTheLayerSchemeOfMarchH) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u01(0, 1);
+  const std::size_t n = 37;
+  std::vector<double> kf(n), kn(n), df(n), dn(n), de(n, 0.1), da(n, 0.2);
+  for (std::size_t j = 0; j < n; ++j) {
+    kf[j] = std::pow(10.0, -8 + 10 * u01(rng));
+    kn[j] = std::pow(10.0, -8 + 10 * u01(rng));
+    df[j] = u01(rng);
+    dn[j] = u01(rng);
+  }
+  std::vector<double> de2 = de, da2 = da;
+  MarchLayerPair(n, kf.data(), kn.data(), df.data(), dn.data(), 0.7, 0.01, de2.data(), da2.data());
+  for (std::size_t j = 0; j < n; ++j) {
+    const double e = MarchLayer<double>(de[j], 0.7 * kf[j], 0.7 * kn[j], df[j], dn[j], 0.01);
+    const double a = MarchLayer<double>(da[j], 0.7 * kf[j], 0.7 * kn[j], 1.0, 1.0, 0.01);
+    EXPECT_NEAR(de2[j], e, 1e-14 * std::abs(e) + 1e-300);
+    EXPECT_NEAR(da2[j], a, 1e-14 * std::abs(a) + 1e-300);
+  }
+}
+
+TEST(BandTable, MatchesTheChannelQuadratureAndInvertsIt) {
+  std::vector<double> nu, r;
+  for (double x = 2800; x <= 3300; x += 1.0) {
+    nu.push_back(x);
+    r.push_back(0.8 / (1 + std::exp(-(x - 2950) / 4.0)) / (1 + std::exp((x - 3150) / 4.0)));
+  }
+  const SpectralResponse ch(nu, r, "test");
+  const BandTable t(ch, 150.0, 700.0);
+  double worst = 0, worst_d = 0, worst_t = 0;
+  for (double temp = 150.3; temp < 700; temp += 7.77) {
+    const double l = ch.BandRadiance(temp);
+    worst = std::max(worst, std::abs(t.Radiance(temp) / l - 1));
+    worst_d = std::max(worst_d, std::abs(t.Derivative(temp) / ch.BandRadianceDerivative(temp) - 1));
+    double back = 0;
+    ASSERT_TRUE(t.Temperature(l, &back));
+    worst_t = std::max(worst_t, std::abs(back - temp));
+  }
+  EXPECT_LT(worst, 1e-8);
+  EXPECT_LT(worst_d, 1e-6);
+  EXPECT_LT(worst_t, 1e-7);
+  double dummy;
+  EXPECT_FALSE(t.Temperature(ch.BandRadiance(120.0), &dummy));
+  EXPECT_FALSE(t.Temperature(std::nan(""), &dummy));
+}
+
+// ---------------------------------------------------------------------------
+// Synthetic spectroscopy: "CH4" lines at 2950-3100 cm-1 and "CO2" lines at
+// 2150-2300 cm-1 (spectrally separate, as the real bands are).
+
+AbsorberTable LorentzTable(const std::string& species, double nu0, double nu1, double lo,
+                           double hi, unsigned seed, bool with_self, int n_lines = 150) {
+  AbsorberTable t;
+  t.species = species;
+  t.pressure_Pa = constants::kAtm;
+  t.dnu_cm1 = 0.02;
+  t.nu0_cm1 = nu0;
+  t.n_nu = static_cast<std::size_t>(std::round((nu1 - nu0) / t.dnu_cm1)) + 1;
+  for (double temp = 200; temp <= 600 + 1e-9; temp += 25) t.temperatures_K.push_back(temp);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u01(0, 1);
+  struct Line { double nu, s, e; };
+  std::vector<Line> lines;
+  // Low-lying lines (lower-state energy 0-400 cm-1) in the lower half of the
+  // band, hot lines (1200-2400 cm-1) in the upper half: as in a real band's
+  // rotational structure, the band shape then depends on temperature, which
+  // is what lets several channels measure it.
+  for (int l = 0; l < n_lines; ++l) {
+    const double nu = lo + (hi - lo) * u01(rng);
+    const double e = nu < 0.5 * (lo + hi) ? 400 * u01(rng) : 1200 + 1200 * u01(rng);
+    lines.push_back({nu, 2e-19 * std::pow(10.0, -3 * u01(rng)), e});
+  }
+  const std::size_t nt = t.temperatures_K.size();
+  t.sigma_air.assign(nt * t.n_nu, 0.f);
+  if (with_self) t.sigma_self.assign(nt * t.n_nu, 0.f);
+  for (std::size_t it = 0; it < nt; ++it) {
+    const double temp = t.temperatures_K[it];
+    const double ga = 0.06 * std::pow(296.0 / temp, 0.75), gs = 0.08 * std::pow(296.0 / temp, 0.75);
+    for (const Line& l : lines) {
+      const double s = l.s * std::pow(296.0 / temp, 1.5) *
+                       std::exp(-constants::kC2 * l.e * (1 / temp - 1 / 296.0));
+      const long j0 = std::max<long>(0, static_cast<long>((l.nu - 10 - nu0) / t.dnu_cm1));
+      const long j1 = std::min<long>(t.n_nu - 1, static_cast<long>((l.nu + 10 - nu0) / t.dnu_cm1));
+      for (long j = j0; j <= j1; ++j) {
+        const double dx = nu0 + j * t.dnu_cm1 - l.nu;
+        t.sigma_air[it * t.n_nu + j] += static_cast<float>(s * ga / constants::kPi / (dx * dx + ga * ga));
+        if (with_self)
+          t.sigma_self[it * t.n_nu + j] += static_cast<float>(s * gs / constants::kPi / (dx * dx + gs * gs));
+      }
+    }
+  }
+  return t;
+}
+
+SpectralResponse Bandpass(double lo, double hi, const std::string& name) {
+  std::vector<double> nu, r;
+  for (double x = lo - 20; x <= hi + 20; x += 0.5) {
+    nu.push_back(x);
+    r.push_back(0.8 / (1 + std::exp(-(x - lo) / 3.0)) / (1 + std::exp((x - hi) / 3.0)));
+  }
+  return SpectralResponse(nu, r, name);
+}
+
+BinnedModelOptions CoarseOptions() {
+  BinnedModelOptions o;
+  o.num_nodes = 65;  // fewer nodes keep the tests fast; the table reproduces whatever the model does
+  return o;
+}
+
+struct Fixture {
+  std::shared_ptr<const BinnedModel> model;
+  std::shared_ptr<const SceneTable> table;
+  double t_amb = 293.0;
+  Fixture() {
+    std::vector<SpectralResponse> ch{Bandpass(2140, 3110, "open"), Bandpass(2150, 2300, "co2"),
+                                     Bandpass(2960, 3090, "ch4"), Bandpass(2960, 3020, "ch4 cold")};
+    std::vector<AbsorberTable> tabs{LorentzTable("CH4", 2930, 3120, 2955, 3095, 1, true, 80),
+                                    LorentzTable("CO2", 2130, 2320, 2155, 2295, 2, true, 80)};
+    model = std::make_shared<BinnedModel>(ch, tabs, CoarseOptions());
+    SceneTableOptions so;
+    so.ambient_temperature_K = t_amb;
+    so.min_peak_temperature_K = 250;
+    so.max_peak_temperature_K = 450;
+    so.negligible_fraction = 0;  // every bin: the table must reproduce the model exactly on its nodes
+    so.max_sigma_m = 2.0;
+    so.num_threads = 2;
+    table = std::make_shared<SceneTable>(model, so);
+  }
+};
+
+const Fixture& F() {
+  static const Fixture f;
+  return f;
+}
+
+TEST(SceneTable, SeesNoOverlapAndBuildsOneTablePerAbsorbingPair) {
+  const SceneTable& t = *F().table;
+  EXPECT_TRUE(SceneTable::SpectralOverlaps(t.model()).empty());
+  EXPECT_TRUE(t.has_table(0, 0) && t.has_table(0, 1));   // open channel sees both
+  EXPECT_TRUE(!t.has_table(1, 0) && t.has_table(1, 1));  // CO2 channel: CO2 only
+  EXPECT_TRUE(t.has_table(2, 0) && !t.has_table(2, 1));  // CH4 channel: CH4 only
+  for (std::size_t c = 0; c < 4; ++c)
+    for (std::size_t s = 0; s < 2; ++s)
+      if (t.has_table(c, s)) {
+        EXPECT_LE(t.basis_rank(c, s), 12);
+      }
+}
+
+TEST(SceneTable, EqualsTheBinnedModelOnItsNodes) {
+  // On grid nodes the spline interpolates exactly, so any difference is the
+  // decomposition E - sum phi_r A_r itself (and the Planck basis truncation).
+  const Fixture& f = F();
+  const SceneTable& t = *f.table;
+  const BinnedModel& m = *f.model;
+  const double lu0 = t.min_log_u(), h = t.log_u_step();
+  const double hx = 1.0 / (t.num_fraction_nodes() - 1);
+  const double ht = (t.max_peak_temperature_K() - t.min_peak_temperature_K()) /
+                    (t.num_temperature_nodes() - 1);
+  std::vector<double> phi(t.background_size());
+  double worst = 0;
+  for (int iu : {3, 17, 30, t.num_u_nodes() - 8}) {
+    for (int ix : {1, 3}) {
+      for (int it : {2, 9, t.num_temperature_nodes() - 3}) {
+        const double u = std::exp(lu0 + iu * h);
+        const double x = ix * hx, tp = t.min_peak_temperature_K() + it * ht;
+        if (u / x > t.options().max_sigma_m) continue;
+        // Species 0 alone (species 1 at 0), then species 1 alone.
+        for (int s = 0; s < 2; ++s) {
+          double xs[2] = {0, 0};
+          xs[s] = x;
+          const double tbg[4] = {tp - 15, tp - 12, tp - 20, tp - 11};
+          t.Background(tbg, phi.data());
+          std::vector<double> tab(4), ref(4);
+          t.Contrast(xs, tp, u / x, phi.data(), tab.data(), nullptr);
+          const Path p = m.GaussianPath<double>(xs, tp, f.t_amb, u / x);
+          m.Contrast<double>(p, tbg, ref.data());
+          for (int c = 0; c < 4; ++c) {
+            if (ref[c] == 0) {
+              EXPECT_EQ(tab[c], 0.0);
+              continue;
+            }
+            worst = std::max(worst, std::abs(tab[c] / ref[c] - 1));
+          }
+        }
+      }
+    }
+  }
+  EXPECT_LT(worst, 2e-8);
+}
+
+TEST(SceneTable, InterpolationErrorAndDerivativesAreSmall) {
+  const TableErrorReport r = MeasureTableError(*F().table, 60, 7, 1e-3, true);
+  EXPECT_LT(r.max_relative_error, 2e-3);
+  EXPECT_LT(r.rms_relative_error, 3e-4);
+  EXPECT_LT(r.max_jacobian_error, 5e-3);
+}
+
+TEST(SceneTable, ThinLimitIsLinearInTheColumn) {
+  const SceneTable& t = *F().table;
+  std::vector<double> phi(t.background_size());
+  const double tbg[4] = {280, 280, 280, 280};
+  t.Background(tbg, phi.data());
+  const double u0 = t.min_column_proxy_m();
+  double v1, v2, a, b, d;
+  t.SpeciesContrast(2, 0, 0.5 * u0, 0.0, 320.0, phi.data(), &v1, &a, &b, &d);
+  t.SpeciesContrast(2, 0, 0.25 * u0, 0.0, 320.0, phi.data(), &v2, &a, &b, &d);
+  EXPECT_NEAR(v1 / v2, 2.0, 1e-12);
+  EXPECT_NEAR(a, t.ThinSlope(2, 0, 320.0, phi.data()), 1e-12 * std::abs(a));
+  // A negative u (a solver's trial step) continues the line.
+  t.SpeciesContrast(2, 0, -0.25 * u0, 0.0, 320.0, phi.data(), &v1, &a, &b, &d);
+  EXPECT_NEAR(v1, -v2, 1e-12 * std::abs(v2));
+}
+
+TEST(SceneTable, RefusesSpectrallyOverlappingSpecies) {
+  std::vector<SpectralResponse> ch{Bandpass(2960, 3090, "A")};
+  std::vector<AbsorberTable> tabs{LorentzTable("CH4", 2930, 3120, 2955, 3095, 1, true, 40),
+                                  LorentzTable("CO2", 2930, 3120, 2955, 3095, 2, false, 40)};
+  auto m = std::make_shared<BinnedModel>(ch, tabs, CoarseOptions());
+  EXPECT_FALSE(SceneTable::SpectralOverlaps(*m).empty());
+  SceneTableOptions so;
+  EXPECT_THROW(SceneTable(m, so), std::invalid_argument);
+}
+
+TEST(SceneTableOptions, RejectBadValues) {
+  SceneTableOptions o;
+  o.nodes_per_decade = 1;
+  EXPECT_THROW(o.Check(), std::invalid_argument);
+  o = SceneTableOptions();
+  o.max_background_K = 100;
+  EXPECT_THROW(o.Check(), std::invalid_argument);
+  o = SceneTableOptions();
+  o.ambient_temperature_K = -3;
+  EXPECT_THROW(o.Check(), std::invalid_argument);
+}
+
+// ---------------------------------------------------------------------------
+// Inversions of binned-model pixels with known truth.
+
+struct Truth {
+  double x[2], tp, sigma;
+  double tbg[4];
+};
+
+// Radiance per channel of a plume (binned model) over blackbody backgrounds.
+std::vector<double> Radiance(const BinnedModel& m, double t_amb, const Truth& t) {
+  const Path p = m.GaussianPath<double>(t.x, t.tp, t_amb, t.sigma);
+  std::vector<double> l(m.num_channels());
+  m.Contrast<double>(p, t.tbg, l.data());
+  for (std::size_t c = 0; c < l.size(); ++c) l[c] += m.channels()[c].BandRadiance(t.tbg[c]);
+  return l;
+}
+
+struct Batch {
+  std::size_t n = 0, nc = 0;
+  std::vector<double> radiance, tbg;
+  PixelBatch Make() const {
+    PixelBatch b;
+    b.num_pixels = n;
+    b.radiance = radiance.data();
+    b.background_temperature_K = tbg.data();
+    return b;
+  }
+};
+
+Batch MakeBatch(const BinnedModel& m, double t_amb, const std::vector<Truth>& truth) {
+  Batch b;
+  b.n = truth.size();
+  b.nc = m.num_channels();
+  b.radiance.assign(b.nc * b.n, 0.0);
+  b.tbg.assign(b.nc * b.n, 0.0);
+  for (std::size_t i = 0; i < b.n; ++i) {
+    const auto l = Radiance(m, t_amb, truth[i]);
+    for (std::size_t c = 0; c < b.nc; ++c) {
+      b.radiance[c * b.n + i] = l[c];
+      b.tbg[c * b.n + i] = truth[i].tbg[c];
+    }
+  }
+  return b;
+}
+
+std::vector<Truth> RandomTruth(int n, unsigned seed, double t_amb) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u01(0, 1);
+  std::vector<Truth> out;
+  for (int i = 0; i < n; ++i) {
+    Truth t;
+    const double total = std::pow(10.0, -3 + 2.5 * u01(rng));
+    t.x[0] = total * (0.3 + 0.4 * u01(rng));
+    t.x[1] = total - t.x[0];
+    t.tp = t_amb + 5 + 65 * u01(rng);
+    t.sigma = 0.02 + 0.1 * u01(rng);
+    // Backgrounds colder than all of the gas (its edges are at ambient), so
+    // that the contrast grows monotonically with the column.
+    for (double& b : t.tbg) b = t_amb - 10 - 10 * u01(rng);
+    out.push_back(t);
+  }
+  return out;
+}
+
+InversionOptions MultichannelOptions() {
+  InversionOptions o;
+  o.fractions = {ParameterSpec{ParameterMode::kFree, 1e-3, 0, 0, 1},
+                 ParameterSpec{ParameterMode::kFree, 1e-3, 0, 0, 1}};
+  o.temperature = ParameterSpec{ParameterMode::kFree, 0, 0, 250, 450};
+  o.sigma = ParameterSpec{ParameterMode::kFixed, 0.05, 0, 0, 0};
+  o.num_threads = 2;
+  return o;
+}
+
+TEST(Inverter, RecoversMultichannelPlumesExactlyWithoutNoise) {
+  const Fixture& f = F();
+  auto truth = RandomTruth(40, 11, f.t_amb);
+  const Batch b = MakeBatch(*f.model, f.t_amb, truth);
+  InversionOptions o = MultichannelOptions();
+  std::vector<double> sig(b.n);
+  for (std::size_t i = 0; i < b.n; ++i) sig[i] = truth[i].sigma;
+  const Inverter inv(f.model, f.table, f.t_amb, o);
+  ASSERT_TRUE(inv.uses_table());
+  PixelBatch pb = b.Make();
+  pb.sigma_m = sig.data();
+  InversionResult r;
+  r.Allocate(b.n, 1, 2);
+  inv.Invert(pb, r.Output());
+  double worst_c = 0, worst_t = 0;
+  for (std::size_t i = 0; i < b.n; ++i) {
+    EXPECT_EQ(r.status[i], static_cast<int>(PixelStatus::kConverged))
+        << "pixel " << i << " truth x " << truth[i].x[0] << " " << truth[i].x[1] << " T "
+        << truth[i].tp << " got " << r.parameters[i * 4] << " " << r.parameters[i * 4 + 1] << " "
+        << r.parameters[i * 4 + 2] << " chi2 " << r.chi2[i] << " it " << r.iterations[i];
+    GaussianPlume g;
+    g.peak_fractions = {truth[i].x[0], truth[i].x[1]};
+    g.peak_temperature_K = truth[i].tp;
+    g.ambient_temperature_K = f.t_amb;
+    g.sigma_m = truth[i].sigma;
+    const auto col = GaussianColumnDensity(g, f.model->molar_masses());
+    for (int s = 0; s < 2; ++s)
+      worst_c = std::max(worst_c, std::abs(r.column_density[i * 2 + s] / col[s] - 1));
+    worst_t = std::max(worst_t, std::abs(r.parameters[i * 4 + 2] - truth[i].tp));
+    // Uncertainties are finite and positive; chi2 ~ 0 without noise.
+    EXPECT_GT(r.column_density_sigma[i * 2], 0.0);
+    EXPECT_LT(r.chi2[i], 1e-2);
+  }
+  // The table's interpolation error is the only error source here.
+  EXPECT_LT(worst_c, 5e-3);
+  EXPECT_LT(worst_t, 0.3);
+}
+
+// Both species free, the gas temperature known: the fast path (table +
+// TinySolver) and ceres::Solve on the full binned model must find the same
+// solution and uncertainty; then with the temperature free, Ceres started at
+// the fast solution must stay there (it is the full model's minimum too).
+TEST(Inverter, FastPathAgreesWithCeresOnTheFullModel) {
+  const Fixture& f = F();
+  auto truth = RandomTruth(6, 12, f.t_amb);
+  Batch b = MakeBatch(*f.model, f.t_amb, truth);
+  std::vector<double> tp(b.n), sig(b.n);
+  for (std::size_t i = 0; i < b.n; ++i) {
+    tp[i] = truth[i].tp;
+    sig[i] = truth[i].sigma;
+  }
+  std::mt19937 rng(5);
+  std::normal_distribution<double> nd(0, 1);
+  InversionOptions o = MultichannelOptions();
+  o.temperature = ParameterSpec{ParameterMode::kFixed, 0, 0, 0, 0};
+  const Inverter fast(f.model, f.table, f.t_amb, o);
+  for (std::size_t c = 0; c < b.nc; ++c)
+    for (std::size_t i = 0; i < b.n; ++i)
+      b.radiance[c * b.n + i] += nd(rng) * fast.ChannelNoise(c, b.tbg[c * b.n + i]);
+  PixelBatch pb = b.Make();
+  pb.peak_temperature_K = tp.data();
+  pb.sigma_m = sig.data();
+  o.solver = SolverKind::kFullModel;
+  const Inverter full(f.model, f.table, f.t_amb, o);
+  EXPECT_FALSE(full.uses_table());
+  InversionResult a, c;
+  a.Allocate(b.n, 1, 2);
+  c.Allocate(b.n, 1, 2);
+  fast.Invert(pb, a.Output());
+  full.Invert(pb, c.Output());
+  for (std::size_t i = 0; i < b.n; ++i) {
+    ASSERT_EQ(a.status[i], c.status[i]) << "pixel " << i;
+    for (int s = 0; s < 2; ++s) {
+      const double ca = a.column_density[i * 2 + s], cc = c.column_density[i * 2 + s];
+      EXPECT_NEAR(ca, cc, 2e-3 * std::abs(cc) + 0.02 * c.column_density_sigma[i * 2 + s]);
+      EXPECT_NEAR(a.column_density_sigma[i * 2 + s] / c.column_density_sigma[i * 2 + s], 1.0, 0.02);
+    }
+  }
+  // Temperature free: Ceres on the full model, started at the fast solution.
+  o = MultichannelOptions();
+  const Inverter fast_t(f.model, f.table, f.t_amb, o);
+  InversionResult at;
+  at.Allocate(b.n, 1, 2);
+  pb.peak_temperature_K = nullptr;
+  fast_t.Invert(pb, at.Output());
+  o.solver = SolverKind::kFullModel;
+  o.initial_guess = InitialGuess::kGiven;
+  const Inverter full_t(f.model, f.table, f.t_amb, o);
+  pb.initial = at.parameters.data();
+  InversionResult ct;
+  ct.Allocate(b.n, 1, 2);
+  full_t.Invert(pb, ct.Output());
+  for (std::size_t i = 0; i < b.n; ++i) {
+    if (at.status[i] != 0) continue;
+    ASSERT_EQ(ct.status[i], 0) << "pixel " << i;
+    EXPECT_NEAR(at.parameters[i * 4 + 2], ct.parameters[i * 4 + 2], 0.1 * ct.parameter_sigma[i * 4 + 2] + 0.05);
+    for (int s = 0; s < 2; ++s)
+      EXPECT_NEAR(at.column_density[i * 2 + s], ct.column_density[i * 2 + s],
+                  0.1 * ct.column_density_sigma[i * 2 + s] + 2e-3 * ct.column_density[i * 2 + s]);
+  }
+}
+
+TEST(Inverter, StatusesBelowDetectionAtBoundAndFailed) {
+  const Fixture& f = F();
+  std::vector<Truth> truth(4);
+  for (auto& t : truth) {
+    t.x[0] = 0.05;
+    t.x[1] = 0.05;
+    t.tp = 340;
+    t.sigma = 0.05;
+    for (double& v : t.tbg) v = 320;
+  }
+  truth[0].x[0] = truth[0].x[1] = 0.0;  // no gas: below detection
+  truth[2].x[1] = 0.0;                  // no CO2: CO2 fraction on its lower bound
+  Batch b = MakeBatch(*f.model, f.t_amb, truth);
+  b.radiance[0 * b.n + 3] = std::nan("");  // a dead pixel
+  const Inverter inv(f.model, f.table, f.t_amb, MultichannelOptions());
+  InversionResult r;
+  r.Allocate(b.n, 1, 2);
+  inv.Invert(b.Make(), r.Output());
+  EXPECT_EQ(r.status[0], static_cast<int>(PixelStatus::kBelowDetection));
+  EXPECT_EQ(r.column_density[0], 0.0);
+  EXPECT_GT(r.column_density_sigma[0], 0.0);  // the noise-equivalent column
+  EXPECT_EQ(r.status[1], static_cast<int>(PixelStatus::kConverged));
+  EXPECT_EQ(r.status[2], static_cast<int>(PixelStatus::kAtBound));
+  EXPECT_EQ(r.bound_mask[2], 1u << 1);
+  EXPECT_EQ(r.parameters[2 * 4 + 1], 0.0);
+  EXPECT_EQ(r.status[3], static_cast<int>(PixelStatus::kFailed));
+  for (double v : r.column_density) EXPECT_TRUE(std::isfinite(v));
+  for (double v : r.column_density_sigma) EXPECT_TRUE(std::isfinite(v));
+}
+
+TEST(Inverter, SingleChannelNewtonMatchesTheGeneralSolvers) {
+  // One channel, CH4 only, T_peak and sigma fixed: the Newton path.
+  const Fixture& f = F();
+  std::vector<SpectralResponse> ch{f.model->channels()[2]};
+  std::vector<AbsorberTable> tabs{LorentzTable("CH4", 2930, 3120, 2955, 3095, 1, true)};
+  auto m = std::make_shared<BinnedModel>(ch, tabs, CoarseOptions());
+  SceneTableOptions so;
+  so.ambient_temperature_K = f.t_amb;
+  so.max_sigma_m = 2.0;
+  auto t = std::make_shared<SceneTable>(m, so);
+  InversionOptions o;
+  o.fractions = {ParameterSpec{ParameterMode::kFree, 1e-3, 0, 0, 1}};
+  o.temperature = ParameterSpec{ParameterMode::kFixed, 320.0, 0, 0, 0};
+  o.sigma = ParameterSpec{ParameterMode::kFixed, 0.04, 0, 0, 0};
+  const Inverter newton(m, t, f.t_amb, o);
+  ASSERT_TRUE(newton.uses_newton());
+  std::vector<double> xs = {3e-3, 1e-2, 5e-2, 0.3, 0.9};
+  const std::size_t n = xs.size() + 2;
+  std::vector<double> rad(n), tbg(n, 300.0);
+  for (std::size_t i = 0; i < xs.size(); ++i) {
+    const Path p = m->GaussianPath<double>(&xs[i], 320.0, f.t_amb, 0.04);
+    double dl;
+    m->Contrast<double>(p, &tbg[i], &dl);
+    rad[i] = m->channels()[0].BandRadiance(300.0) + dl;
+  }
+  // A pixel colder than its background although the gas is assumed warmer
+  // needs a negative column: held at x = 0. One brighter than any column can make: x = 1.
+  rad[n - 2] = m->channels()[0].BandRadiance(300.0) - 0.05;
+  rad[n - 1] = m->channels()[0].BandRadiance(330.0);
+  PixelBatch b;
+  b.num_pixels = n;
+  b.radiance = rad.data();
+  b.background_temperature_K = tbg.data();
+  InversionResult r;
+  r.Allocate(n, 1, 1);
+  newton.Invert(b, r.Output());
+  for (std::size_t i = 0; i < xs.size(); ++i) {
+    EXPECT_EQ(r.status[i], static_cast<int>(PixelStatus::kConverged));
+    EXPECT_NEAR(r.parameters[i * 3] / xs[i], 1.0, 2e-3) << "x = " << xs[i];
+  }
+  EXPECT_EQ(r.status[n - 2], static_cast<int>(PixelStatus::kAtBound));
+  EXPECT_EQ(r.parameters[(n - 2) * 3], 0.0);
+  EXPECT_EQ(r.status[n - 1], static_cast<int>(PixelStatus::kAtBound));
+  EXPECT_EQ(r.parameters[(n - 1) * 3], 1.0);
+  // The same pixels through ceres::Solve on the full model.
+  o.solver = SolverKind::kFullModel;
+  const Inverter full(m, t, f.t_amb, o);
+  InversionResult c;
+  c.Allocate(n, 1, 1);
+  full.Invert(b, c.Output());
+  for (std::size_t i = 0; i < xs.size(); ++i) {
+    EXPECT_NEAR(r.parameters[i * 3] / c.parameters[i * 3], 1.0, 2e-3);
+    EXPECT_NEAR(r.column_density_sigma[i] / c.column_density_sigma[i], 1.0, 1e-2);
+  }
+}
+
+TEST(Inverter, WarmStartsReachTheSameAnswers) {
+  const Fixture& f = F();
+  auto truth = RandomTruth(12, 21, f.t_amb);
+  const Batch b = MakeBatch(*f.model, f.t_amb, truth);
+  InversionOptions o = MultichannelOptions();
+  InversionResult base, nb, prev;
+  base.Allocate(b.n, 1, 2);
+  const Inverter a(f.model, f.table, f.t_amb, o);
+  a.Invert(b.Make(), base.Output());
+  o.initial_guess = InitialGuess::kNeighbour;
+  const Inverter n(f.model, f.table, f.t_amb, o);
+  nb.Allocate(b.n, 1, 2);
+  n.Invert(b.Make(), nb.Output());
+  // Two frames of the same image: the second starts from the first.
+  o.initial_guess = InitialGuess::kPrevious;
+  const Inverter p(f.model, f.table, f.t_amb, o);
+  std::vector<double> rad2 = b.radiance;
+  rad2.insert(rad2.end(), b.radiance.begin(), b.radiance.end());
+  PixelBatch pb = b.Make();
+  pb.num_frames = 2;
+  pb.radiance = rad2.data();
+  prev.Allocate(b.n, 2, 2);
+  p.Invert(pb, prev.Output());
+  for (std::size_t i = 0; i < b.n; ++i)
+    for (int s = 0; s < 2; ++s) {
+      const double ref = base.column_density[i * 2 + s];
+      EXPECT_NEAR(nb.column_density[i * 2 + s], ref, 1e-6 * ref);
+      EXPECT_NEAR(prev.column_density[(b.n + i) * 2 + s], ref, 1e-6 * ref);
+      EXPECT_LE(prev.iterations[b.n + i], prev.iterations[i]);
+    }
+}
+
+TEST(Inverter, FreeSigmaIsIllConditionedButTheColumnIsNot) {
+  const Fixture& f = F();
+  auto truth = RandomTruth(10, 31, f.t_amb);
+  for (auto& t : truth) {
+    t.x[0] *= 30;
+    t.x[1] *= 30;
+    const double sum = t.x[0] + t.x[1];
+    if (sum > 0.9) {
+      t.x[0] *= 0.9 / sum;
+      t.x[1] *= 0.9 / sum;
+    }
+  }
+  const Batch b = MakeBatch(*f.model, f.t_amb, truth);
+  InversionOptions o = MultichannelOptions();
+  o.temperature = ParameterSpec{ParameterMode::kFixed, 0, 0, 0, 0};  // known, per pixel
+  o.sigma = ParameterSpec{ParameterMode::kPrior, 0.07, 0.03, 0.005, 1.0};
+  const Inverter inv(f.model, f.table, f.t_amb, o);
+  std::vector<double> tp(b.n);
+  for (std::size_t i = 0; i < b.n; ++i) tp[i] = truth[i].tp;
+  PixelBatch pb = b.Make();
+  pb.peak_temperature_K = tp.data();
+  InversionResult r;
+  r.Allocate(b.n, 1, 2);
+  inv.Invert(pb, r.Output());
+  for (std::size_t i = 0; i < b.n; ++i) {
+    ASSERT_LE(r.status[i], 1);
+    // x and sigma trade off (their product is what the radiance measures):
+    // strongly anti-correlated, sigma poorly determined, the column density
+    // (proportional to x sigma) far better.
+    const double* cv = &r.covariance[i * 16];
+    const double corr = cv[0 * 4 + 3] / std::sqrt(cv[0 * 4 + 0] * cv[3 * 4 + 3]);
+    EXPECT_LT(corr, -0.9);
+    const double rel_sigma = r.parameter_sigma[i * 4 + 3] / r.parameters[i * 4 + 3];
+    const double rel_col = r.column_density_sigma[i * 2] / r.column_density[i * 2];
+    EXPECT_GT(rel_sigma, 3 * rel_col);
+    EXPECT_GT(r.condition_number[i], 10.0);
+  }
+}
+
+TEST(InversionOptions, RejectBadValues) {
+  InversionOptions o;
+  o.netd_K = {0.017, 0.02};
+  EXPECT_THROW(o.Check(2, 4), std::invalid_argument);
+  o = InversionOptions();
+  o.fractions = {ParameterSpec{ParameterMode::kFree, 0.1, 0, 0.5, 0.2}};
+  EXPECT_THROW(o.Check(1, 1), std::invalid_argument);
+  o = InversionOptions();
+  o.sigma = ParameterSpec{ParameterMode::kPrior, 0.05, 0.0, 0, 0};
+  EXPECT_THROW(o.Check(1, 1), std::invalid_argument);
+  o = InversionOptions();
+  o.fractions = {ParameterSpec{ParameterMode::kFixed, 0.1, 0, 0, 1}};
+  EXPECT_THROW(o.Check(1, 1), std::invalid_argument);  // nothing to estimate
+  try {
+    InversionOptions p;
+    p.detection_sigma = -1;
+    p.Check(1, 1);
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("detection_sigma"), std::string::npos);
+  }
+}
+
+TEST(GaussianProfileIntegral, MatchesEquation6) {
+  for (double tp : {250.0, 293.0, 363.0, 500.0}) {
+    GaussianPlume g;
+    g.peak_fractions = {0.3};
+    g.peak_temperature_K = tp;
+    g.ambient_temperature_K = 293.0;
+    g.sigma_m = 0.1;
+    const double ref = GaussianColumnDensity(g, {16.0425e-3})[0];
+    double i, di;
+    GaussianProfileIntegral(tp, 293.0, &i, &di);
+    const double k = 16.0425e-3 * constants::kAtm / (constants::kAvogadro * constants::kBoltzmann);
+    EXPECT_NEAR(k * 0.3 * 0.1 * i / ref, 1.0, 1e-12);
+    double ip, im;
+    GaussianProfileIntegral(tp + 0.01, 293.0, &ip, nullptr);
+    GaussianProfileIntegral(tp - 0.01, 293.0, &im, nullptr);
+    EXPECT_NEAR(di, (ip - im) / 0.02, 1e-7 * std::abs(di));
+  }
+}
+
+}  // namespace
+}  // namespace qogi

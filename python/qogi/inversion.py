@@ -1,0 +1,760 @@
+"""Per-pixel inversion: Gaussian-plume parameters, column densities and their
+uncertainties from measured band radiances.
+
+Each pixel's measured contrast ``y_c = L_c - L_bg,c`` in every channel c is
+matched, in the least-squares sense, by the forward model's contrast of a
+Gaussian plume (thesis eqs. 4-6, :mod:`qogi.forward`) with peak volume
+fractions ``x_i``, peak temperature ``T_peak`` and depth ``sigma``. The
+residuals are normalised by each channel's radiance noise
+
+    n_c = NETD_c x dL_c/dT (T_bg,c)
+
+(optionally widened by a relative model error), and a Gaussian prior on any
+parameter adds ``(theta - mean) / prior_sigma``. The column density of
+species i (eq. 6) and its path concentration follow from the solution:
+
+    c_i = (M_i / N_A) integral x_i(s) p / (k_B T(s)) ds   [kg/m2],
+    ppm m_i = 1e6 integral x_i(s) ds = 1e6 sqrt(2 pi) x_i sigma,
+
+with 1-sigma uncertainties from the solver's covariance ``(J^T J)^-1``
+(noise-normalised residuals) propagated through their Jacobians.
+
+Each parameter is fixed, free within bounds, or free with a prior
+(:func:`fixed`, :func:`free`, :func:`prior`). Typical set-ups:
+
+* single channel (a GF320): one species free, ``temperature="ambient"`` (or
+  the known gas temperature), ``sigma_m`` given or from the plume width
+  (:func:`plume_depth_from_width`); solved by a bracketed Newton iteration;
+* multichannel (the fast-m150): the species free, ``temperature=free()``;
+  ``sigma`` fixed or with a prior. A free sigma is nearly degenerate with the
+  fractions (without self-broadening the radiance depends on ``x_i`` and
+  ``sigma`` only through ``x_i sigma``); the column density stays well
+  determined either way, and ``condition_number`` reports the degeneracy.
+
+The fast path evaluates a per-scene table of the fast forward model (built
+once per ambient temperature in seconds, cached; its error against the binned
+model is printed by ``benchmarks/bench_inversion.py``) and solves with Ceres'
+TinySolver; spectrally overlapping species fall back to ``ceres::Solve`` on
+the full binned model. See ``docs/inversion.md``.
+
+Every pixel gets a status: ``converged``, ``at_bound`` (a parameter held on
+a bound; ``bound_mask`` says which), ``below_detection`` (|y_c| < k n_c in
+every channel, decided before solving), ``failed`` (non-finite input, a
+background outside the tables, or no convergence), or ``masked`` (not
+selected). Outputs are never NaN; :meth:`InversionResult.masked` gives masked
+arrays of the usable pixels.
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass, field
+from typing import Dict, Mapping, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from . import _engine
+from .forward import ForwardModel
+
+__all__ = [
+    "Parameter",
+    "fixed",
+    "free",
+    "prior",
+    "tied",
+    "Inversion",
+    "InversionResult",
+    "scene_table",
+    "plume_depth_from_width",
+    "STATUS_NAMES",
+    "CONVERGED",
+    "AT_BOUND",
+    "BELOW_DETECTION",
+    "FAILED",
+    "MASKED",
+    "AMBIGUOUS",
+]
+
+CONVERGED, AT_BOUND, BELOW_DETECTION, FAILED, MASKED = 0, 1, 2, 3, 4
+#: Flag bit: a second, distinct solution fits within chi2 + 4 of the reported
+#: one; the uncertainties include the spread between the two.
+AMBIGUOUS = 1
+#: Status names by code.
+STATUS_NAMES = ("converged", "at_bound", "below_detection", "failed", "masked")
+
+#: Default bounds of a free peak temperature relative to ambient [K].
+DEFAULT_TEMPERATURE_SPAN_K = (-10.0, 100.0)
+
+
+# ---------------------------------------------------------------------------
+# Parameter specifications
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """How one parameter is treated.
+
+    Attributes
+    ----------
+    mode : {"fixed", "free", "prior", "tied"}
+    value : float or None
+        Fixed value, prior mean, start value of a free parameter, or the
+        ratio of a tied fraction.
+    prior_sigma : float or None
+        1-sigma width of a Gaussian prior (mode "prior").
+    lower, upper : float or None
+        Bounds of an estimated parameter (None: the default bounds).
+    tied_to : str or None
+        For a tied fraction: the species it follows.
+    """
+
+    mode: str
+    value: Optional[float] = None
+    prior_sigma: Optional[float] = None
+    lower: Optional[float] = None
+    upper: Optional[float] = None
+    tied_to: Optional[str] = None
+
+
+def fixed(value: float) -> Parameter:
+    """A parameter held at ``value``."""
+    return Parameter("fixed", float(value))
+
+
+def free(lower: Optional[float] = None, upper: Optional[float] = None,
+         start: Optional[float] = None) -> Parameter:
+    """An estimated parameter within ``[lower, upper]`` (default bounds when None)."""
+    return Parameter("free", None if start is None else float(start), None,
+                     None if lower is None else float(lower),
+                     None if upper is None else float(upper))
+
+
+def prior(mean: float, sigma: float, lower: Optional[float] = None,
+          upper: Optional[float] = None) -> Parameter:
+    """An estimated parameter with a Gaussian prior N(mean, sigma^2)."""
+    if not (np.isfinite(sigma) and sigma > 0):
+        raise ValueError(f"prior sigma must be finite and > 0; got {sigma}")
+    return Parameter("prior", float(mean), float(sigma),
+                     None if lower is None else float(lower),
+                     None if upper is None else float(upper))
+
+
+def tied(species: str, ratio: float) -> Parameter:
+    """A fraction following another species': ``x = ratio x_species`` (a
+    known composition; e.g. ``tied("CH4", 1.0)`` for CO2 in a 50/50 mix).
+    With the composition known, the ratio of different bands' contrasts
+    measures the gas temperature (Planck's law differs between bands)."""
+    if not (np.isfinite(ratio) and ratio > 0):
+        raise ValueError(f"tied ratio must be finite and > 0; got {ratio}")
+    return Parameter("tied", float(ratio), tied_to=str(species))
+
+
+def _as_parameter(p, name: str) -> Parameter:
+    if isinstance(p, Parameter):
+        if p.mode not in ("fixed", "free", "prior", "tied"):
+            raise ValueError(f"{name}: mode must be 'fixed', 'free', 'prior' or 'tied'; "
+                             f"got {p.mode!r}")
+        return p
+    if isinstance(p, str):
+        if p == "free":
+            return free()
+        raise ValueError(f"{name}: expected a number, 'free', or qogi.inversion.fixed/free/prior(...);"
+                         f" got {p!r}")
+    try:
+        return fixed(float(p))
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected a number, 'free', or qogi.inversion.fixed/free/prior(...);"
+                         f" got {p!r}") from None
+
+
+_MODES = {"fixed": _engine.ParameterMode.fixed, "free": _engine.ParameterMode.free,
+          "prior": _engine.ParameterMode.prior, "tied": _engine.ParameterMode.tied}
+
+
+def _spec(p: Parameter, default_value: float, default_bounds: Tuple[float, float],
+          species: Optional[Sequence[str]] = None):
+    if p.mode == "tied":
+        if species is None:
+            raise ValueError("only fractions can be tied")
+        if p.tied_to not in species:
+            raise ValueError(f"tied to {p.tied_to!r}, which is not one of the species {list(species)}")
+        return _engine.ParameterSpec(_MODES["tied"], p.value, 0.0, 0.0, 0.0,
+                                     list(species).index(p.tied_to))
+    lo = default_bounds[0] if p.lower is None else p.lower
+    hi = default_bounds[1] if p.upper is None else p.upper
+    value = default_value if p.value is None else p.value
+    if p.mode == "fixed":
+        return _engine.ParameterSpec(_MODES["fixed"], value, 0.0, 0.0, 0.0)
+    return _engine.ParameterSpec(_MODES[p.mode], value, p.prior_sigma or 0.0, lo, hi)
+
+
+# ---------------------------------------------------------------------------
+# Scene tables (cached per model and scene)
+
+_tables: Dict[tuple, object] = {}
+_tables_lock = threading.Lock()
+
+
+def scene_table(model: ForwardModel, ambient_temperature_K: float, *,
+                min_peak_temperature_K: float, max_peak_temperature_K: float,
+                max_sigma_m: float = 2.0, progress=None, **options):
+    """The per-scene table of ``model``'s fast forward model, built once and
+    cached for this process.
+
+    Parameters
+    ----------
+    model : ForwardModel
+    ambient_temperature_K : float, K
+        T_amb of the scene (edges of the plume).
+    min_peak_temperature_K, max_peak_temperature_K : float, K
+        Range of peak temperatures the inversion may use.
+    max_sigma_m : float, m, default 2
+        Largest plume depth sigma (the table covers x sigma <= it).
+    options
+        Further :class:`qogi._engine.SceneTableOptions` fields
+        (``temperature_step_K=5``, ``nodes_per_decade=8``, ``fraction_nodes=4``,
+        ``thin_optical_depth=1e-5``, ``min_background_K=150``,
+        ``max_background_K=700``, ``planck_tolerance=1e-8``, ``num_nodes=0``,
+        ``num_threads=0``).
+
+    Returns
+    -------
+    qogi._engine.SceneTable, or None when the species overlap spectrally
+    (then only the full binned model can be inverted).
+    """
+    fast = model.fast
+    if _engine.spectral_overlaps(fast):
+        return None
+    opts = _engine.SceneTableOptions(ambient_temperature_K=float(ambient_temperature_K),
+                                     min_peak_temperature_K=float(min_peak_temperature_K),
+                                     max_peak_temperature_K=float(max_peak_temperature_K),
+                                     max_sigma_m=float(max_sigma_m), **options)
+    key = (id(fast), tuple(sorted(opts.to_dict().items())))
+    with _tables_lock:
+        hit = _tables.get(key)
+    if hit is not None and hit[0] is fast:
+        return hit[1]
+    table = _engine.SceneTable(fast, opts, progress)
+    with _tables_lock:
+        if len(_tables) >= 8:
+            _tables.pop(next(iter(_tables)))
+        _tables[key] = (fast, table)
+    return table
+
+
+# ---------------------------------------------------------------------------
+# Results
+
+
+@dataclass
+class InversionResult:
+    """Per-pixel results; arrays have the input's pixel shape (with a leading
+    frame axis for :meth:`Inversion.invert_frames`).
+
+    Fill values (never NaN): ``below_detection`` pixels have fractions 0,
+    column densities 0 and ``column_density_sigma`` the 1-sigma
+    noise-equivalent column (optically thin, all channels); ``failed`` and
+    ``masked`` pixels have zeros. Use :attr:`valid` or :meth:`masked`.
+    """
+
+    species: list
+    status: np.ndarray
+    bound_mask: np.ndarray          # bit p: parameter p held on a bound
+    flags: np.ndarray               # bit 0: AMBIGUOUS
+    parameter_names: list
+    parameters: np.ndarray          # (..., P): fractions, T_peak [K], sigma [m]
+    parameter_sigma: np.ndarray     # (..., P)
+    covariance: np.ndarray          # (..., P, P)
+    column_density: Dict[str, np.ndarray]             # kg/m2
+    column_density_sigma: Dict[str, np.ndarray]       # kg/m2
+    path_concentration_ppm_m: Dict[str, np.ndarray]   # ppm m
+    path_concentration_sigma_ppm_m: Dict[str, np.ndarray]
+    chi2: np.ndarray
+    condition_number: np.ndarray
+    iterations: np.ndarray
+    info: dict = field(default_factory=dict)
+
+    @property
+    def peak_fraction(self) -> Dict[str, np.ndarray]:
+        """Peak volume fraction x_i,peak per species."""
+        return {s: self.parameters[..., k] for k, s in enumerate(self.species)}
+
+    @property
+    def peak_fraction_sigma(self) -> Dict[str, np.ndarray]:
+        return {s: self.parameter_sigma[..., k] for k, s in enumerate(self.species)}
+
+    @property
+    def peak_temperature_K(self) -> np.ndarray:
+        return self.parameters[..., len(self.species)]
+
+    @property
+    def peak_temperature_sigma_K(self) -> np.ndarray:
+        return self.parameter_sigma[..., len(self.species)]
+
+    @property
+    def sigma_m(self) -> np.ndarray:
+        """Gaussian plume depth sigma [m] (FWHM = 2.3548 sigma)."""
+        return self.parameters[..., len(self.species) + 1]
+
+    @property
+    def sigma_sigma_m(self) -> np.ndarray:
+        return self.parameter_sigma[..., len(self.species) + 1]
+
+    @property
+    def valid(self) -> np.ndarray:
+        """Pixels with a solution (converged or on a bound)."""
+        return (self.status == CONVERGED) | (self.status == AT_BOUND)
+
+    def masked(self, values, include_below_detection: bool = False) -> np.ma.MaskedArray:
+        """``values`` (an array of this result) masked outside the usable
+        pixels (converged, at a bound, and optionally below detection)."""
+        ok = self.valid | (include_below_detection & (self.status == BELOW_DETECTION))
+        v = np.asarray(values)
+        mask = ~ok
+        while mask.ndim < v.ndim:
+            mask = mask[..., None]
+        return np.ma.masked_array(v, mask=np.broadcast_to(mask, v.shape))
+
+    def counts(self) -> Dict[str, int]:
+        """Number of pixels per status."""
+        return {name: int(np.sum(self.status == k)) for k, name in enumerate(STATUS_NAMES)}
+
+    def frame_mean(self, species: str) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per pixel over frames (leading axis): mean column density [kg/m2]
+        of the frames with a solution or below detection (those count as 0),
+        its 1-sigma uncertainty sqrt(sum sigma^2) / n, and n."""
+        if self.status.ndim < 2:
+            raise ValueError("frame_mean needs a frame axis (a result of invert_frames)")
+        use = self.valid | (self.status == BELOW_DETECTION)
+        n = use.sum(axis=0)
+        c = np.where(use, self.column_density[species], 0.0).sum(axis=0)
+        v = np.where(use, self.column_density_sigma[species] ** 2, 0.0).sum(axis=0)
+        nn = np.maximum(n, 1)
+        return c / nn, np.sqrt(v) / nn, n
+
+
+# ---------------------------------------------------------------------------
+# The inversion
+
+
+class Inversion:
+    """Inverts pixels' band radiances for Gaussian-plume parameters.
+
+    Parameters
+    ----------
+    model : ForwardModel
+        Channels, species and cross-section tables.
+    ambient_temperature_K : float, K
+        T_amb of the scene (the plume's edges).
+    netd_K : float or sequence, K
+        NETD, one value or one per channel (the noise model above).
+    fractions : dict, optional
+        ``{species: spec}`` with spec a number (fixed), ``"free"``, or
+        :func:`fixed`/:func:`free`/:func:`prior`/:func:`tied`; species left
+        out are fixed at 0. Default: every species free in [0, 1].
+    temperature : "ambient", number, "free" or Parameter, optional
+        T_peak [K]. Default: ``"ambient"`` (fixed) with one channel,
+        ``free()`` within ``ambient + (-10, +100) K`` with several.
+    sigma_m : number or Parameter, m, default 0.05
+        Plume depth sigma (per-pixel values may be given to :meth:`invert`,
+        e.g. from :func:`plume_depth_from_width`). Default bounds when
+        estimated: [1e-4 m, max_sigma_m].
+    temperature_range_K : (float, float), optional
+        Peak temperatures the table must cover when per-pixel temperatures
+        are given to :meth:`invert` (default: from ``temperature``).
+    max_sigma_m : float, m, default 2
+        Largest plume depth the table covers.
+    detection_sigma : float, default 3
+        k of the detection test |y_c| < k n_c (in every channel).
+    model_error_fraction : float, default 0
+        Relative model uncertainty added in quadrature to each channel's noise.
+    initial_guess : {"table", "neighbour", "previous"}, default "table"
+        Coarse table lookup, the previous pixel of the same image row, or (for
+        frame sequences) the same pixel's previous frame; warm starts fall back
+        to the table guess when they fail.
+    solver : {"auto", "table", "full_model"}, default "auto"
+    max_iterations : int, default 100
+    num_starts : int, default 0
+        Full solves from the coarse lookup's best candidates (0 = all of
+        them). With the temperature free the chi2 landscape often has two
+        branches (thin and hot, thick and cooler); starting from every
+        candidate finds both, and a second solution within chi2 + 4 widens the
+        reported uncertainty (flag ``AMBIGUOUS``).
+    tolerance_chi2 : float, default 0.01
+        Converged when a Gauss-Newton step would lower chi2 by less than this
+        (the parameters are then within ~0.1 standard deviation of the optimum).
+    table_options : dict, optional
+        Further options of :func:`scene_table`.
+    num_threads : int, default 0 (all cores)
+    progress : callable(fraction) -> bool or None, optional
+        Progress of the table build; return False to cancel.
+    """
+
+    def __init__(self, model: ForwardModel, ambient_temperature_K: float, *, netd_K,
+                 fractions: Optional[Mapping[str, object]] = None, temperature=None,
+                 sigma_m: Union[float, Parameter] = 0.05,
+                 temperature_range_K: Optional[Tuple[float, float]] = None,
+                 max_sigma_m: float = 2.0, detection_sigma: float = 3.0,
+                 model_error_fraction: float = 0.0, initial_guess: str = "table",
+                 solver: str = "auto", max_iterations: int = 100, tolerance_chi2: float = 0.01,
+                 num_starts: int = 0,
+                 table_options: Optional[dict] = None, num_threads: int = 0, progress=None):
+        if not isinstance(model, ForwardModel):
+            raise ValueError(f"model must be a qogi.ForwardModel; got {type(model).__name__}")
+        t_amb = float(ambient_temperature_K)
+        lo_m, hi_m = model.temperature_range_K
+        if not (np.isfinite(t_amb) and lo_m <= t_amb <= hi_m):
+            raise ValueError(f"ambient_temperature_K must be within the tables' range "
+                             f"[{lo_m:g}, {hi_m:g}] K; got {ambient_temperature_K}")
+        self.model = model
+        self.species = list(model.species)
+        self.ambient_temperature_K = t_amb
+        nc = len(model.channels)
+        netd = np.atleast_1d(np.asarray(netd_K, dtype=float))
+        if netd.size not in (1, nc) or np.any(~np.isfinite(netd)) or np.any(netd <= 0):
+            raise ValueError(f"netd_K needs one positive value or one per channel ({nc}); "
+                             f"got {netd_K}")
+        self.netd_K = netd
+        # Fractions.
+        if fractions is None:
+            fr = {s: free() for s in self.species}
+        else:
+            unknown = set(fractions) - set(self.species)
+            if unknown:
+                raise ValueError(f"fractions has species {sorted(unknown)} the model does not have; "
+                                 f"the model's species are {self.species}")
+            fr = {s: _as_parameter(fractions.get(s, 0.0), f"fractions[{s!r}]")
+                  for s in self.species}
+        self.fractions = fr
+        # Temperature.
+        if temperature is None:
+            temperature = "ambient" if nc == 1 else free()
+        if isinstance(temperature, str) and temperature == "ambient":
+            temperature = fixed(t_amb)
+        self.temperature = _as_parameter(temperature, "temperature")
+        self.sigma = _as_parameter(sigma_m, "sigma_m")
+        # Table range of peak temperatures.
+        t = self.temperature
+        if t.mode == "fixed":
+            lo, hi = t.value - 10.0, t.value + 10.0
+        else:
+            lo = t.lower if t.lower is not None else t_amb + DEFAULT_TEMPERATURE_SPAN_K[0]
+            hi = t.upper if t.upper is not None else t_amb + DEFAULT_TEMPERATURE_SPAN_K[1]
+        if temperature_range_K is not None:
+            lo, hi = float(temperature_range_K[0]), float(temperature_range_K[1])
+        lo, hi = max(lo, lo_m), min(hi, hi_m)
+        if not hi - lo >= 5.0:
+            raise ValueError(f"the peak temperature range [{lo:g}, {hi:g}] K (within the tables' "
+                             f"[{lo_m:g}, {hi_m:g}] K) is too narrow or empty")
+        self.temperature_range_K = (lo, hi)
+        self.max_sigma_m = float(max_sigma_m)
+        tb_opts = dict(table_options or {})
+        if num_threads and "num_threads" not in tb_opts:
+            tb_opts["num_threads"] = num_threads
+        guesses = {"table": _engine.InitialGuess.table, "neighbour": _engine.InitialGuess.neighbour,
+                   "previous": _engine.InitialGuess.previous}
+        if initial_guess not in guesses:
+            raise ValueError(f"initial_guess must be one of {sorted(guesses)}; got {initial_guess!r}")
+        solvers = {"auto": _engine.SolverKind.auto, "table": _engine.SolverKind.table,
+                   "full_model": _engine.SolverKind.full_model}
+        if solver not in solvers:
+            raise ValueError(f"solver must be one of {sorted(solvers)}; got {solver!r}")
+        # Validate the specifications before the (seconds-long) table build.
+        for sp in self.species:
+            _spec(self.fractions[sp], 1e-3, (0.0, 1.0), self.species)
+        if not any(self.fractions[sp].mode in ("free", "prior") for sp in self.species) and \
+                self.temperature.mode == "fixed" and self.sigma.mode == "fixed":
+            raise ValueError("every parameter is fixed: make at least one species' fraction, the "
+                             "temperature or sigma free")
+        self.table = None
+        if solver != "full_model":
+            self.table = scene_table(model, t_amb, min_peak_temperature_K=lo,
+                                     max_peak_temperature_K=hi, max_sigma_m=self.max_sigma_m,
+                                     progress=progress, **tb_opts)
+            if self.table is None and solver == "table":
+                raise ValueError("solver 'table' needs spectrally separate species: "
+                                 + "; ".join(_engine.spectral_overlaps(model.fast))
+                                 + "; use solver='full_model'")
+        self._settings = dict(num_starts=int(num_starts), detection_sigma=float(detection_sigma),
+                              model_error_fraction=float(model_error_fraction),
+                              max_iterations=int(max_iterations),
+                              tolerance_chi2=float(tolerance_chi2),
+                              solver=solvers[solver], num_threads=int(num_threads))
+        self._guess = guesses[initial_guess]
+        self.initial_guess = initial_guess
+        self._inverters: Dict[tuple, object] = {}
+        # Build once now so that bad settings fail here.
+        self._inverter(self._guess, 1.0)
+
+    # -- engine objects ---------------------------------------------------------
+    def _options(self, guess, noise_scale: float):
+        specs = []
+        for s in self.species:
+            specs.append(_spec(self.fractions[s], 1e-3, (0.0, 1.0), self.species))
+        t_lo, t_hi = self.temperature_range_K
+        tspec = _spec(self.temperature, self.ambient_temperature_K,
+                      (t_lo, t_hi))
+        sspec = _spec(self.sigma, 0.05, (1e-4, self.max_sigma_m))
+        netd = list(self.netd_K * noise_scale)
+        return _engine.InversionOptions(fractions=specs, temperature=tspec, sigma=sspec,
+                                        netd_K=netd, initial_guess=guess, **self._settings)
+
+    def _inverter(self, guess, noise_scale: float):
+        key = (int(guess), float(noise_scale))
+        inv = self._inverters.get(key)
+        if inv is None:
+            inv = _engine.Inverter(self.model.fast, self.table, self.ambient_temperature_K,
+                                   self._options(guess, noise_scale))
+            self._inverters[key] = inv
+        return inv
+
+    @property
+    def uses_table(self) -> bool:
+        """Whether pixels are solved on the per-scene table (else the full model)."""
+        return bool(self._inverter(self._guess, 1.0).uses_table)
+
+    @property
+    def parameter_names(self) -> list:
+        return [f"x_{s}" for s in self.species] + ["peak_temperature_K", "sigma_m"]
+
+    def channel_noise(self, background_temperature_K) -> np.ndarray:
+        """Radiance noise n_c [W/(m2 sr)] per channel at background temperatures."""
+        inv = self._inverter(self._guess, 1.0)
+        t = np.broadcast_to(np.asarray(background_temperature_K, dtype=float),
+                            (len(self.model.channels),))
+        return np.array([inv.channel_noise(c, float(t[c])) for c in range(len(t))])
+
+    # -- inputs -----------------------------------------------------------------
+    def _per_pixel(self, a, name: str, spatial: Tuple[int, ...]) -> np.ndarray:
+        arr = np.asarray(a, dtype=float)
+        try:
+            out = np.broadcast_to(arr, spatial)
+        except ValueError:
+            raise ValueError(f"{name} has shape {arr.shape}; expected the pixel shape "
+                             f"{spatial}") from None
+        return out.reshape(-1)
+
+    def _background(self, a, name: str, spatial: Tuple[int, ...], frames: Optional[int]):
+        """(F or 1, C, N) from a per-channel array (C,), an image (C, ...), or
+        per-frame images (T, C, ...) when frames is given."""
+        nc = len(self.model.channels)
+        arr = np.asarray(a, dtype=float)
+        if frames is not None and arr.ndim == len(spatial) + 2:
+            if arr.shape[0] != frames:
+                raise ValueError(f"{name} has {arr.shape[0]} frames; the radiance has {frames}")
+            arr3 = arr
+        else:
+            if arr.ndim == 1 and arr.shape[0] == nc:
+                arr = arr.reshape((nc,) + (1,) * len(spatial))
+            try:
+                arr3 = np.broadcast_to(arr, (nc,) + spatial)[None]
+            except ValueError:
+                raise ValueError(f"{name} has shape {arr.shape}; expected {(nc,) + spatial}, "
+                                 f"({nc},) or per frame") from None
+        return arr3.reshape(arr3.shape[0], nc, -1)
+
+    def _run(self, radiance, frame_axis: bool, *, background_radiance, background_temperature_K,
+             mask, sigma_m, peak_temperature_K, guess, noise_scale, progress):
+        nc = len(self.model.channels)
+        rad = np.asarray(radiance, dtype=float)
+        lead = 1 if frame_axis else 0
+        if rad.ndim < 1 + lead or rad.shape[lead] != nc:
+            where = "(T, C, ...)" if frame_axis else "(C, ...)"
+            raise ValueError(f"radiance must be {where} with C = {nc} channels; got shape {rad.shape}")
+        frames = rad.shape[0] if frame_axis else 1
+        spatial = rad.shape[lead + 1:]
+        if (background_radiance is None) == (background_temperature_K is None):
+            raise ValueError("give exactly one of background_radiance and background_temperature_K")
+        rad3 = rad.reshape((frames, nc, -1))
+        n = rad3.shape[2]
+        use_l = background_radiance is not None
+        bg = self._background(background_radiance if use_l else background_temperature_K,
+                              "background_radiance" if use_l else "background_temperature_K",
+                              spatial, frames if frame_axis else None)
+        sel = None
+        if mask is not None:
+            m = np.asarray(mask, dtype=bool)
+            if m.shape != spatial:
+                raise ValueError(f"mask has shape {m.shape}; expected the pixel shape {spatial}")
+            sel = np.flatnonzero(m.reshape(-1))
+        sg = None if sigma_m is None else self._per_pixel(sigma_m, "sigma_m", spatial)
+        tp = (None if peak_temperature_K is None
+              else self._per_pixel(peak_temperature_K, "peak_temperature_K", spatial))
+        if tp is not None:
+            lo, hi = self.temperature_range_K
+            bad = (~np.isfinite(tp)) | (tp < lo) | (tp > hi)
+            if np.any(bad if sel is None else bad[sel]):
+                raise ValueError(f"peak_temperature_K values must lie within the table's range "
+                                 f"[{lo:g}, {hi:g}] K (set temperature_range_K); got "
+                                 f"{np.nanmin(tp):g}-{np.nanmax(tp):g} K")
+        if sg is not None:
+            bad = (~np.isfinite(sg)) | (sg <= 0) | (sg > self.max_sigma_m)
+            if np.any(bad if sel is None else bad[sel]):
+                raise ValueError(f"sigma_m values must be finite and within (0, "
+                                 f"{self.max_sigma_m:g}] m (max_sigma_m)")
+        if sel is not None:
+            rad3 = rad3[:, :, sel]
+            bg = bg[:, :, sel]
+            sg = None if sg is None else sg[sel]
+            tp = None if tp is None else tp[sel]
+        row = spatial[-1] if len(spatial) >= 2 and sel is None else 0
+        inv = self._inverter(guess, noise_scale)
+        kw = dict(sigma_m=None if sg is None else np.ascontiguousarray(sg),
+                  peak_temperature_K=None if tp is None else np.ascontiguousarray(tp),
+                  row_length=row, progress=progress)
+        kw["background_radiance" if use_l else "background_temperature_K"] = np.ascontiguousarray(bg)
+        out = inv.invert(np.ascontiguousarray(rad3), **kw)
+        if sel is not None:
+            full = {}
+            for k, v in out.items():
+                a = np.zeros((frames, n) + v.shape[2:], dtype=v.dtype)
+                a[:, sel] = v
+                full[k] = a
+            full["status"][:, np.setdiff1d(np.arange(n), sel)] = MASKED
+            out = full
+        shape = ((frames,) if frame_axis else ()) + spatial
+
+        def rs(a):
+            return a.reshape(shape + a.shape[2:])
+
+        col, csig = rs(out["column_density"]), rs(out["column_density_sigma"])
+        ppm, psig = rs(out["path_concentration"]), rs(out["path_concentration_sigma"])
+        sp = self.species
+        return InversionResult(
+            species=list(sp), status=rs(out["status"]), bound_mask=rs(out["bound_mask"]),
+            flags=rs(out["flags"]),
+            parameter_names=self.parameter_names, parameters=rs(out["parameters"]),
+            parameter_sigma=rs(out["parameter_sigma"]), covariance=rs(out["covariance"]),
+            column_density={s: col[..., k] for k, s in enumerate(sp)},
+            column_density_sigma={s: csig[..., k] for k, s in enumerate(sp)},
+            path_concentration_ppm_m={s: ppm[..., k] for k, s in enumerate(sp)},
+            path_concentration_sigma_ppm_m={s: psig[..., k] for k, s in enumerate(sp)},
+            chi2=rs(out["chi2"]), condition_number=rs(out["condition_number"]),
+            iterations=rs(out["iterations"]),
+            info=dict(num_channels=nc, noise_scale=noise_scale, uses_table=bool(inv.uses_table)))
+
+    # -- public -----------------------------------------------------------------
+    def invert(self, radiance, *, background_radiance=None, background_temperature_K=None,
+               mask=None, sigma_m=None, peak_temperature_K=None, progress=None) -> InversionResult:
+        """Invert one image (or a set of pixels).
+
+        Parameters
+        ----------
+        radiance : array (C, ...), W/(m2 sr)
+            Band radiance per channel: (C,), (C, N) or (C, H, W).
+        background_radiance : array, W/(m2 sr), optional
+            The gas-free background per channel: same shape, or (C,).
+        background_temperature_K : array, K, optional
+            Or the background as a blackbody temperature per channel.
+        mask : bool array (...), optional
+            Pixels to invert (the others get status ``masked``).
+        sigma_m, peak_temperature_K : array (...), optional
+            Per-pixel plume depth [m] and peak temperature [K]: the fixed
+            value, prior mean or start value of those parameters.
+        progress : callable(fraction) -> bool or None, optional
+            Return False to cancel (Ctrl-C also cancels).
+
+        Returns
+        -------
+        InversionResult
+        """
+        return self._run(radiance, False, background_radiance=background_radiance,
+                         background_temperature_K=background_temperature_K, mask=mask,
+                         sigma_m=sigma_m, peak_temperature_K=peak_temperature_K,
+                         guess=self._guess, noise_scale=1.0, progress=progress)
+
+    def invert_frames(self, frames, *, background_radiance=None, background_temperature_K=None,
+                      mask=None, sigma_m=None, peak_temperature_K=None, warm_start: bool = True,
+                      progress=None) -> InversionResult:
+        """Invert every frame of ``frames`` (T, C, ...); the background is one
+        image (C, ...) / (C,) or one per frame (T, C, ...).
+
+        With ``warm_start`` each pixel starts from its own solution in the
+        previous frame (falling back to the table guess when that fails).
+        Averaging the per-frame column densities
+        (:meth:`InversionResult.frame_mean`) is the order of averaging that
+        stays unbiased when the contrast-column relation is nonlinear;
+        compare :meth:`invert_mean`.
+        """
+        guess = _engine.InitialGuess.previous if warm_start else self._guess
+        return self._run(frames, True, background_radiance=background_radiance,
+                         background_temperature_K=background_temperature_K, mask=mask,
+                         sigma_m=sigma_m, peak_temperature_K=peak_temperature_K, guess=guess,
+                         noise_scale=1.0, progress=progress)
+
+    def invert_mean(self, frames, *, background_radiance=None, background_temperature_K=None,
+                    mask=None, sigma_m=None, peak_temperature_K=None,
+                    progress=None) -> InversionResult:
+        """Invert the time-averaged image of ``frames`` (T, C, ...).
+
+        The noise of the mean image is taken as NETD / sqrt(T) (independent
+        frames). With a fluctuating plume this order of averaging is biased
+        low, because the contrast is a concave function of the column (the
+        contrast of the mean column exceeds the mean contrast); prefer
+        :meth:`invert_frames` and :meth:`InversionResult.frame_mean`.
+        """
+        fr = np.asarray(frames, dtype=float)
+        if fr.ndim < 2:
+            raise ValueError(f"frames must be (T, C, ...); got shape {fr.shape}")
+        t = fr.shape[0]
+        bgr, bgt = background_radiance, background_temperature_K
+        if bgt is not None and np.ndim(bgt) == fr.ndim:
+            raise ValueError("invert_mean needs one background image; average per-frame "
+                             "backgrounds as radiance and pass background_radiance")
+        if bgr is not None and np.ndim(bgr) == fr.ndim:
+            bgr = np.mean(np.asarray(bgr, dtype=float), axis=0)
+        return self._run(fr.mean(axis=0), False, background_radiance=bgr,
+                         background_temperature_K=bgt, mask=mask, sigma_m=sigma_m,
+                         peak_temperature_K=peak_temperature_K, guess=self._guess,
+                         noise_scale=1.0 / np.sqrt(t), progress=progress)
+
+    def __repr__(self) -> str:
+        return (f"Inversion(species={self.species}, channels={len(self.model.channels)}, "
+                f"T_amb={self.ambient_temperature_K:g} K, temperature={self.temperature}, "
+                f"sigma={self.sigma}, uses_table={self.uses_table})")
+
+
+# ---------------------------------------------------------------------------
+# Plume depth from the plume width
+
+
+def plume_depth_from_width(contrast, pixel_size_m: float, *, axis: int = -1,
+                           threshold: float = 0.0) -> np.ndarray:
+    """Gaussian depth sigma [m] of an axisymmetric plume from its width across
+    the image.
+
+    For an axisymmetric plume whose cross-section is Gaussian, the depth along
+    the line of sight equals the width across it: the standard deviation of
+    the plume's transverse profile. Along ``axis`` (across the plume) this
+    takes the profile of ``contrast`` (contrast, or a first-pass column
+    density; values <= ``threshold`` are ignored) and returns its second
+    central moment, sqrt(sum w (s - s_bar)^2 / sum w), times ``pixel_size_m``
+    (the pixel's footprint at the plume: IFOV x distance).
+
+    Parameters
+    ----------
+    contrast : array (..., n)
+        Non-negative profile(s) across the plume (e.g. rows of an image of a
+        vertical plume).
+    pixel_size_m : float, m
+    axis : int, default -1
+        The transverse axis.
+    threshold : float, default 0
+        Values at or below it (noise) do not count.
+
+    Returns
+    -------
+    ndarray
+        sigma [m] per profile (the other axes); 0 where no value exceeds the
+        threshold.
+    """
+    c = np.moveaxis(np.asarray(contrast, dtype=float), axis, -1)
+    if not (np.isfinite(pixel_size_m) and pixel_size_m > 0):
+        raise ValueError(f"pixel_size_m must be finite and > 0; got {pixel_size_m}")
+    w = np.where(np.isfinite(c) & (c > threshold), c, 0.0)
+    s = np.arange(c.shape[-1], dtype=float)
+    tot = w.sum(axis=-1)
+    safe = np.where(tot > 0, tot, 1.0)
+    mean = (w * s).sum(axis=-1) / safe
+    var = (w * (s - mean[..., None]) ** 2).sum(axis=-1) / safe
+    return np.where(tot > 0, np.sqrt(var) * pixel_size_m, 0.0)

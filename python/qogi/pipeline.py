@@ -1,0 +1,792 @@
+"""The quantification pipeline: a recording in, emission-rate time series out.
+
+Stages (DESIGN.md), for each frame:
+
+1. **Background**: the gas-free band radiance of each channel, beside each
+   control surface (default), from a user region, or a temporal percentile.
+2. **Column density**: the contrast ``L - L_bg`` is inverted per pixel for the
+   Gaussian-plume parameters (:mod:`qogi.inversion`): single channel with the
+   gas temperature given or ambient, or several channels with it inferred;
+   column density per species with its 1-sigma uncertainty and a status.
+   Pixels on the control surfaces get the full inversion; the velocity field
+   around them uses a fast single-channel column proxy (the velocimetry needs
+   the shape of the field, not its absolute scale).
+3. **Velocity**: velocimetry on the column-density field (default: the
+   continuity-equation "fluid" flow), or a given wind / exit speed.
+4. **Flux** (thesis eq. 12): ``F = sum_k c_k (v_k . n_k) dl_k`` along each surface,
+   per frame and species.
+5. **Rate and uncertainty**: the mean of the per-frame rates with a 90 %
+   interval combining the temporal standard error (with autocorrelation), the
+   column-density uncertainty and the velocimetry's systematic uncertainty.
+
+See docs/pipeline_api.md for the public contract and docs/validation.md for
+the measured accuracy.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from typing import Callable, Dict, List, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from .recording import Recording, RecordingError
+from .result import Result, SpeciesRate, SurfaceResult
+from .surfaces import Region, Surface
+
+__all__ = ["QuantifyConfig", "quantify", "Cancelled", "VELOCITY_SYSTEMATIC"]
+
+#: Relative systematic uncertainty (1 sigma) of the mass-weighted normal
+#: velocity for each velocimetry source, used in the uncertainty budget.
+#: From the velocimetry study on the synthetic presets (docs/velocimetry.md);
+#: "wind" and "exit" are user-given speeds whose relation to the gas velocity at
+#: the surface is unknown to qogi and are given a wide band.
+VELOCITY_SYSTEMATIC = {"fluid": 0.08, "horn-schunck": 0.25, "lucas-kanade": 0.3,
+                       "farneback": 0.3, "dis": 0.3, "piv": 0.2, "wind": 0.5, "exit": 0.5}
+#: Relative systematic uncertainty (1 sigma) of column densities from the
+#: Gaussian line-of-sight model (profile shape; docs/inversion.md).
+COLUMN_SYSTEMATIC = 0.05
+
+
+class Cancelled(Exception):
+    """Raised by :func:`quantify` when its progress callback returns False.
+    ``.partial`` holds the Result of the frames finished so far."""
+
+    def __init__(self, message: str, partial: Optional[Result] = None):
+        super().__init__(message)
+        self.partial = partial
+
+
+_VELOCITY_SOURCES = ("fluid", "horn-schunck", "lucas-kanade", "farneback", "dis", "piv",
+                     "wind", "exit")
+
+
+@dataclasses.dataclass
+class QuantifyConfig:
+    """Settings of :func:`quantify` (validated on construction; see
+    docs/pipeline_api.md for each field)."""
+
+    species: List[str] = dataclasses.field(default_factory=lambda: ["CH4"])
+    gas_temperature: Union[str, float] = "ambient"
+    velocity: str = "fluid"
+    wind_speed_m_s: Optional[float] = None
+    exit_velocity_m_s: Optional[float] = None
+    averaging: str = "per-frame"
+    background: Union[str, Region] = "beside-surface"
+    background_percentile: float = 5.0
+    source: Optional[Tuple[float, float]] = None
+    distance_m: Optional[float] = None
+    ambient_temperature_K: Optional[float] = None
+    pressure_Pa: Optional[float] = None
+    sigma_m: Optional[float] = None
+    frames: Optional[Tuple[int, int]] = None
+    num_threads: int = 0
+    composition: Optional[Dict[str, float]] = None
+    column_density: str = "inversion"
+    velocity_systematic: Optional[float] = None
+    column_systematic: float = COLUMN_SYSTEMATIC
+
+    def __post_init__(self):
+        if isinstance(self.species, str):
+            self.species = [self.species]
+        self.species = list(self.species)
+        if not self.species:
+            raise ValueError("species is empty; e.g. species=['CH4']")
+        from . import _engine
+        for sp in self.species:
+            _engine.molar_mass(sp)
+        g = self.gas_temperature
+        if isinstance(g, str):
+            if g not in ("ambient", "infer"):
+                raise ValueError(f"gas_temperature must be 'ambient', 'infer' or a temperature in K; got {g!r}")
+        elif not (np.isfinite(g) and 150.0 <= float(g) <= 600.0):
+            raise ValueError(f"gas_temperature must be within [150, 600] K; got {g}")
+        if self.velocity not in _VELOCITY_SOURCES:
+            raise ValueError(f"velocity must be one of {', '.join(_VELOCITY_SOURCES)}; got {self.velocity!r}")
+        if self.velocity == "wind" and not (self.wind_speed_m_s is not None and
+                                            0 < self.wind_speed_m_s <= 100):
+            raise ValueError("velocity='wind' needs wind_speed_m_s within (0, 100] m/s; got "
+                             f"{self.wind_speed_m_s}")
+        if self.velocity == "exit" and not (self.exit_velocity_m_s is not None and
+                                            0 < self.exit_velocity_m_s <= 500):
+            raise ValueError("velocity='exit' needs exit_velocity_m_s within (0, 500] m/s; got "
+                             f"{self.exit_velocity_m_s}")
+        if self.averaging not in ("per-frame", "time-averaged"):
+            raise ValueError(f"averaging must be 'per-frame' or 'time-averaged'; got {self.averaging!r}")
+        if isinstance(self.background, str):
+            if self.background not in ("beside-surface", "percentile"):
+                raise ValueError("background must be 'beside-surface', 'percentile' or a qogi.Region; "
+                                 f"got {self.background!r}")
+        elif not isinstance(self.background, Region):
+            raise ValueError(f"background must be a string or a qogi.Region; got {self.background!r}")
+        if not 0 <= self.background_percentile <= 50:
+            raise ValueError(f"background_percentile must be within [0, 50]; got {self.background_percentile}")
+        for name, lo, hi in (("distance_m", 1e-3, 1e5), ("ambient_temperature_K", 180, 350),
+                             ("pressure_Pa", 3e4, 1.1e5), ("sigma_m", 1e-4, 10.0)):
+            v = getattr(self, name)
+            if v is not None and not (np.isfinite(v) and lo <= v <= hi):
+                raise ValueError(f"{name} must be within [{lo:g}, {hi:g}]; got {v}")
+        if self.frames is not None:
+            a, b = self.frames
+            if not (0 <= a < b):
+                raise ValueError(f"frames must be (start, stop) with 0 <= start < stop; got {self.frames}")
+            self.frames = (int(a), int(b))
+        if self.column_density not in ("inversion", "truth"):
+            raise ValueError(f"column_density must be 'inversion' or 'truth' (validation); got {self.column_density!r}")
+        if self.velocity_systematic is not None and not 0 <= self.velocity_systematic <= 1:
+            raise ValueError(f"velocity_systematic must be within [0, 1]; got {self.velocity_systematic}")
+        if not 0 <= self.column_systematic <= 1:
+            raise ValueError(f"column_systematic must be within [0, 1]; got {self.column_systematic}")
+        if self.source is not None:
+            self.source = (float(self.source[0]), float(self.source[1]))
+        if self.composition is not None:
+            comp = {str(k): float(v) for k, v in dict(self.composition).items()}
+            missing = [sp for sp in self.species if sp not in comp]
+            if missing or any(not (np.isfinite(v) and v > 0) for v in comp.values()):
+                raise ValueError("composition needs a volume fraction > 0 for every species "
+                                 f"quantified ({self.species}); got {self.composition}")
+            self.composition = comp
+
+    def to_dict(self) -> dict:
+        d = dataclasses.asdict(self)
+        if isinstance(self.background, Region):
+            d["background"] = dataclasses.asdict(self.background)
+        return d
+
+
+# ---------------------------------------------------------------------------
+# Helpers
+
+def _bilinear(img: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """Sample img (..., H, W) at float pixel positions xy (N, 2) -> (..., N)."""
+    h, w = img.shape[-2:]
+    x = np.clip(xy[:, 0], 0, w - 1)
+    y = np.clip(xy[:, 1], 0, h - 1)
+    x0 = np.minimum(np.floor(x).astype(int), w - 2) if w > 1 else np.zeros(len(x), int)
+    y0 = np.minimum(np.floor(y).astype(int), h - 2) if h > 1 else np.zeros(len(y), int)
+    fx, fy = x - x0, y - y0
+    x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
+    return (img[..., y0, x0] * (1 - fx) * (1 - fy) + img[..., y0, x1] * fx * (1 - fy)
+            + img[..., y1, x0] * (1 - fx) * fy + img[..., y1, x1] * fx * fy)
+
+
+def _effective_samples(x: np.ndarray) -> float:
+    """Effective number of independent samples of a series (integrated
+    autocorrelation time, summed until the autocorrelation first drops below
+    zero)."""
+    x = np.asarray(x, dtype=float)
+    x = x[np.isfinite(x)]
+    n = len(x)
+    if n < 3:
+        return float(n)
+    d = x - x.mean()
+    var = np.dot(d, d) / n
+    if var <= 0:
+        return float(n)
+    tau = 1.0
+    for k in range(1, n // 2):
+        rho = np.dot(d[:-k], d[k:]) / (n * var)
+        if rho <= 0:
+            break
+        tau += 2 * rho
+    return max(1.0, n / tau)
+
+
+class _Scene:
+    """Scene constants of a run (the recording's, overridden by the config)."""
+
+    def __init__(self, rec: Recording, cfg: QuantifyConfig):
+        sc = rec.scene
+        self.distance_m = cfg.distance_m or sc.distance_m
+        self.ambient_K = cfg.ambient_temperature_K or sc.ambient_temperature_K
+        self.pressure_Pa = cfg.pressure_Pa or sc.pressure_Pa
+        self.ifov = rec.camera.ifov_rad
+        self.frame_rate = rec.camera.frame_rate_hz
+        self.pixel_m = self.distance_m * self.ifov
+        self.m_s_per_px_frame = self.pixel_m * self.frame_rate
+        self.netd = rec.camera.netd_K or 0.02
+        self.gas_K = (self.ambient_K if cfg.gas_temperature in ("ambient", "infer")
+                      else float(cfg.gas_temperature))
+
+
+def _check_inputs(rec: Recording, surfaces: Sequence[Surface], cfg: QuantifyConfig) -> None:
+    if not surfaces:
+        raise ValueError("no control surface given; draw one or use qogi.auto_surfaces")
+    w, h = rec.width, rec.height
+    for k, s in enumerate(surfaces):
+        p = np.asarray(s.points)
+        if np.any(p[:, 0] < 0) or np.any(p[:, 0] > w - 1) or np.any(p[:, 1] < 0) or \
+                np.any(p[:, 1] > h - 1):
+            raise ValueError(f"surface {s.name or k} has points outside the {w}x{h} image: {s.points}")
+    if cfg.gas_temperature == "infer" and rec.n_channels < 2:
+        raise ValueError("gas_temperature='infer' needs a camera with >= 2 channels; this recording "
+                         f"has {rec.n_channels}: give the gas temperature or use 'ambient'")
+    if cfg.column_density == "truth":
+        if rec.truth is None or not all(f"column_density_kg_m2_{sp}" in rec.truth.datasets
+                                        for sp in cfg.species):
+            raise ValueError("column_density='truth' needs a synthetic recording with truth maps "
+                             "(qogi synth ... --truth-maps)")
+    if cfg.frames is not None and cfg.frames[1] > rec.n_frames:
+        raise ValueError(f"frames {cfg.frames} exceed the recording's {rec.n_frames} frames")
+    if isinstance(cfg.background, Region):
+        r = cfg.background.clip(w, h)
+        if r.x1 <= r.x0 or r.y1 <= r.y0:
+            raise ValueError(f"background region {cfg.background} lies outside the {w}x{h} image")
+
+
+# ---------------------------------------------------------------------------
+# Background
+
+class _Background:
+    """Gas-free band radiance per channel: along each surface's samples and on
+    the analysis region (the latter for the velocity field)."""
+
+    def __init__(self, rec: Recording, cfg: QuantifyConfig, roi: Region, frames: range,
+                 channel_sign: np.ndarray, say, typical_temperature_K: float):
+        self.cfg = cfg
+        self.roi = roi
+        self.typical_temperature_K = typical_temperature_K
+        self.percentile_img = None
+        if cfg.background == "percentile":
+            # Sign-aware: a plume warmer than the background raises radiance,
+            # so its background is a low percentile; a colder one a high one.
+            sl = roi.slices()
+            stack = []
+            # At most 200 frames spread over the run bound the memory.
+            use = list(frames)[::max(1, len(frames) // 200)]
+            for k, f in enumerate(use):
+                stack.append(rec.frame(f, quantity="radiance")[:, sl[0], sl[1]])
+                if k % 50 == 0:
+                    say(0.02 * k / len(use), "background (temporal percentile)")
+            stack = np.asarray(stack)
+            lo = np.percentile(stack, cfg.background_percentile, axis=0)
+            hi = np.percentile(stack, 100 - cfg.background_percentile, axis=0)
+            self.percentile_img = np.where(channel_sign[:, None, None] >= 0, lo, hi)
+
+    def region_mean(self, frame: np.ndarray, region: Region) -> np.ndarray:
+        r = region.clip(frame.shape[-1], frame.shape[-2])
+        return frame[:, r.y0:r.y1, r.x0:r.x1].reshape(frame.shape[0], -1).mean(axis=1)
+
+    def along(self, frame: np.ndarray, surface: Surface, xy: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """Background radiance (C, N) at the surface samples xy."""
+        cfg = self.cfg
+        if isinstance(cfg.background, Region):
+            return np.repeat(self.region_mean(frame, cfg.background)[:, None], len(xy), axis=1)
+        if cfg.background == "percentile":
+            return _bilinear(self.percentile_img, xy - [self.roi.x0, self.roi.y0])
+        # Beside the surface: the mean radiance of short stretches just beyond
+        # both ends, interpolated linearly along the surface.
+        p = np.asarray(surface.points)
+        ends = []
+        for a, b in ((p[0], p[1]), (p[-1], p[-2])):
+            d = (a - b) / np.hypot(*(a - b))
+            pts = np.array([a + d * s for s in np.arange(2.0, 8.0, 1.0)])
+            h, w = frame.shape[-2:]
+            pts[:, 0] = np.clip(pts[:, 0], 0, w - 1)
+            pts[:, 1] = np.clip(pts[:, 1], 0, h - 1)
+            ends.append(_bilinear(frame, pts).mean(axis=-1))
+        return ends[0][:, None] * (1 - t)[None, :] + ends[1][:, None] * t[None, :]
+
+    def field(self, frame_roi: np.ndarray, horizontal: bool) -> np.ndarray:
+        """Background over the analysis region (C, h, w)."""
+        cfg = self.cfg
+        if isinstance(cfg.background, Region):
+            return None
+        if cfg.background == "percentile":
+            return self.percentile_img
+        c, h, w = frame_roi.shape
+        k = 4
+        if horizontal:  # interpolate along x between the region's left and right strips
+            left = frame_roi[:, :, :k].mean(axis=2)
+            right = frame_roi[:, :, -k:].mean(axis=2)
+            t = np.linspace(0, 1, w)
+            return left[:, :, None] * (1 - t) + right[:, :, None] * t
+        top = frame_roi[:, :k, :].mean(axis=1)
+        bottom = frame_roi[:, -k:, :].mean(axis=1)
+        t = np.linspace(0, 1, h)
+        return top[:, None, :] * (1 - t)[None, :, None] + bottom[:, None, :] * t[None, :, None]
+
+
+# ---------------------------------------------------------------------------
+# The run
+
+def quantify(recording: Union[Recording, str], surfaces: Sequence[Surface],
+             config: Optional[QuantifyConfig] = None,
+             progress: Optional[Callable[[float, str], Optional[bool]]] = None,
+             keep_maps: bool = False) -> Result:
+    """Emission-rate time series of each species through each control surface.
+
+    Parameters
+    ----------
+    recording : qogi.Recording or path
+    surfaces : list of qogi.Surface
+        Lines or polylines in pixel coordinates; sign convention in
+        :mod:`qogi.surfaces` (left-hand normal positive), or oriented away from
+        ``config.source`` when given.
+    config : QuantifyConfig, optional
+    progress : callable(fraction, message) -> bool or None
+        Returning False cancels: :class:`Cancelled` is raised with the partial
+        result of the frames finished so far.
+    keep_maps : bool
+        Keep per-frame column-density and velocity maps (``Result.maps``).
+
+    Returns
+    -------
+    qogi.Result
+    """
+    from .recording import open_recording
+
+    cfg = config or QuantifyConfig()
+    rec = open_recording(recording) if not isinstance(recording, Recording) else recording
+    surfaces = [s if isinstance(s, Surface) else Surface(s) for s in surfaces]
+    surfaces = [Surface(s.points, s.name or f"S{k + 1}") for k, s in enumerate(surfaces)]
+    if cfg.source is not None:
+        surfaces = [s.oriented_away_from(cfg.source) for s in surfaces]
+    _check_inputs(rec, surfaces, cfg)
+    return _run(rec, surfaces, cfg, progress, keep_maps)
+
+
+class _TruthColumns:
+    """Column densities from a synthetic recording's truth maps (validation:
+    isolates the velocimetry and flux from the inversion)."""
+
+    def __init__(self, rec: Recording, cfg: QuantifyConfig):
+        self.ds = {sp: rec.truth.datasets[f"column_density_kg_m2_{sp}"] for sp in cfg.species}
+
+    def frame(self, f: int, roi: Region) -> Dict[str, np.ndarray]:
+        sl = roi.slices()
+        return {sp: np.asarray(d[f, sl[0], sl[1]], dtype=np.float64) for sp, d in self.ds.items()}
+
+
+def _merge_results(a, b, sel: np.ndarray):
+    """InversionResult ``a`` (pixels on the first axis) with the pixels
+    selected by ``sel`` taken from ``b``."""
+    import copy
+    out = copy.copy(a)
+    for name in ("status", "bound_mask", "flags", "parameters", "parameter_sigma", "covariance",
+                 "chi2", "condition_number", "iterations"):
+        x = np.array(getattr(a, name))
+        x[sel] = np.asarray(getattr(b, name))[sel]
+        setattr(out, name, x)
+    for name in ("column_density", "column_density_sigma", "path_concentration_ppm_m",
+                 "path_concentration_sigma_ppm_m"):
+        d = {}
+        for sp, v in getattr(a, name).items():
+            x = np.array(v)
+            x[sel] = np.asarray(getattr(b, name)[sp])[sel]
+            d[sp] = x
+        setattr(out, name, d)
+    return out
+
+
+def _gaussian_width(profile: np.ndarray, cut: float = 0.2) -> float:
+    """Standard deviation [samples] of a Gaussian-like profile from the second
+    moment of its part above ``cut`` x its maximum (noise in the wings would
+    inflate a plain second moment), corrected for the truncation: for a
+    Gaussian cut at z_c = sqrt(2 ln(1/cut)) the moment is
+    sigma^2 (1 - 2 z_c phi(z_c) / (2 Phi(z_c) - 1))."""
+    p = np.asarray(profile, dtype=float)
+    p = np.where(np.isfinite(p), p, 0.0)
+    top = p.max() if p.size else 0.0
+    if not top > 0:
+        return float("nan")
+    w = np.where(p > cut * top, p, 0.0)
+    s = np.arange(p.size, dtype=float)
+    tot = w.sum()
+    mean = (w * s).sum() / tot
+    var = (w * (s - mean) ** 2).sum() / tot
+    zc = math.sqrt(2.0 * math.log(1.0 / cut))
+    phi = math.exp(-0.5 * zc * zc) / math.sqrt(2.0 * math.pi)
+    big_phi = 0.5 * (1.0 + math.erf(zc / math.sqrt(2.0)))
+    factor = 1.0 - 2.0 * zc * phi / (2.0 * big_phi - 1.0)
+    return math.sqrt(var / factor)
+
+
+class _InvertedColumns:
+    """Column densities by the per-pixel inversion (qogi.inversion).
+
+    Surface samples get the configured inversion (single channel with the gas
+    temperature given or ambient, or every channel with the temperature
+    inferred), with the plume depth sigma from the plume's width across the
+    surface (axisymmetric plume) unless given. The velocity field around the
+    surfaces uses a single-channel column proxy at the assumed gas
+    temperature (Newton inversion, fast): velocimetry needs the field's shape,
+    not its absolute scale.
+    """
+
+    def __init__(self, rec: Recording, cfg: QuantifyConfig, scene: _Scene, roi: Region,
+                 horizontal: bool, background: "_Background"):
+        from . import inversion as inv
+        from .forward import forward_model
+
+        self.rec, self.cfg, self.scene, self.roi = rec, cfg, scene, roi
+        self.horizontal = horizontal
+        self.background = background
+        channels = rec.channels
+        self.model = forward_model(channels, cfg.species, scene.pressure_Pa)
+        netd = rec.camera.netd_K or 0.02
+        if cfg.gas_temperature == "infer":
+            temperature = inv.free(scene.ambient_K - 10.0, scene.ambient_K + 150.0)
+        else:
+            temperature = inv.fixed(scene.gas_K)
+        # A known composition ties the species' fractions (then the ratios of
+        # the bands' contrasts measure the temperature); otherwise each is free.
+        fractions = None
+        if cfg.composition is not None and len(cfg.species) > 1:
+            ref = cfg.species[0]
+            fractions = {ref: "free"}
+            for sp in cfg.species[1:]:
+                fractions[sp] = inv.tied(ref, cfg.composition[sp] / cfg.composition[ref])
+        self._inv_kw = dict(netd_K=netd, fractions=fractions, temperature=temperature,
+                            num_threads=cfg.num_threads)
+        self.inv_module = inv
+        # The velocity proxy: a monotone lookup from the contrast of the
+        # channel most sensitive to the first species to its column density,
+        # at the assumed gas temperature, a typical depth and the scene's
+        # background (velocimetry needs the field's shape, not its scale).
+        bg_t = background.typical_temperature_K
+        sens = []
+        for c, ch in enumerate(channels):
+            l = self.model.band_radiance({cfg.species[0]: 1e-3}, scene.gas_K, 0.02,
+                                         scene.ambient_K, bg_t)[c]
+            n = netd * ch.band_radiance_derivative(bg_t)
+            sens.append(abs(l - ch.band_radiance(bg_t)) / n)
+        self.proxy_channel = int(np.argmax(sens))
+        x = np.geomspace(1e-7, 1.0, 160)
+        sig = cfg.sigma_m or 0.02
+        l = self.model.band_radiance({cfg.species[0]: x}, scene.gas_K, sig, scene.ambient_K,
+                                     bg_t)[:, self.proxy_channel]
+        contrast = np.abs(l - channels[self.proxy_channel].band_radiance(bg_t))
+        cols = self.model.column_density({cfg.species[0]: x}, scene.gas_K, sig,
+                                         scene.ambient_K)[cfg.species[0]]
+        keep = np.concatenate([[True], np.diff(contrast) > 0])
+        self._proxy_contrast = np.concatenate([[0.0], contrast[keep]])
+        self._proxy_column = np.concatenate([[0.0], cols[keep]])
+        self.sigma_m: Dict[int, float] = {}
+
+    def proxy_field(self, frame: np.ndarray) -> np.ndarray:
+        sl = self.roi.slices()
+        c = self.proxy_channel
+        fr = frame[c:c + 1, sl[0], sl[1]].astype(np.float64)
+        bg = self.background.field(frame[:, sl[0], sl[1]].astype(np.float64), self.horizontal)
+        if bg is None:  # a uniform region background
+            bg = self.background.region_mean(frame, self.cfg.background)[:, None, None]
+        dl = np.abs(fr[0] - np.asarray(bg)[c])
+        return np.interp(dl, self._proxy_contrast, self._proxy_column).astype(np.float32)
+
+    def collect(self, frame: np.ndarray, surfaces: Sequence[Surface], samples) -> np.ndarray:
+        """The velocity proxy field of one frame; stores the radiance and the
+        background at the surface samples for :meth:`finish`."""
+        field = self.proxy_field(frame)
+        f64 = frame.astype(np.float64)
+        rad, bg, prof = [], [], []
+        for s, (xy, n, dl, t) in zip(surfaces, samples):
+            rad.append(_bilinear(f64, xy))
+            bg.append(self.background.along(f64, s, xy, t))
+            prof.append(_bilinear(field.astype(np.float64), xy - [self.roi.x0, self.roi.y0]))
+        if not hasattr(self, "_rad"):
+            self._rad, self._bg, self._prof = [], [], []
+        self._rad.append(np.concatenate(rad, axis=1))
+        self._bg.append(np.concatenate(bg, axis=1))
+        self._prof.append(prof)
+        return field
+
+    def finish(self, samples, time_averaged: bool = False, progress=None):
+        """Inverts the stored samples of every frame in one call. Returns per
+        surface ``(columns {sp: (T, N)}, sigmas {sp: (T, N)})`` and the status
+        counts. The plume depth of each surface is the Gaussian width of its
+        time-averaged proxy column profile (axisymmetric plume), unless given."""
+        from . import inversion as inv
+
+        nt = len(self._rad)
+        sizes = [len(x[0]) for x in samples]
+        edges = np.concatenate([[0], np.cumsum(sizes)])
+        sig = np.empty(edges[-1])
+        for j in range(len(samples)):
+            if self.cfg.sigma_m is not None:
+                sigma = self.cfg.sigma_m
+            else:
+                mean_prof = np.mean([p[j] for p in self._prof], axis=0)
+                sigma = _gaussian_width(mean_prof) * self.scene.pixel_m
+                if not (np.isfinite(sigma) and sigma > 0):
+                    sigma = 0.02
+            self.sigma_m[j] = float(sigma)
+            sig[edges[j]:edges[j + 1]] = sigma
+        rad = np.asarray(self._rad)          # (T, C, N)
+        bg = np.asarray(self._bg)
+        # The plume depth: given, or the width of the time-averaged plume
+        # across each surface (axisymmetric plume), held fixed with one
+        # channel and as a Gaussian prior (50 %) when the temperature is
+        # inferred (a free depth is nearly degenerate with the fractions).
+        if self.cfg.sigma_m is not None or self.cfg.gas_temperature != "infer":
+            sigma_param = inv.fixed(float(np.median(sig)))
+            sigma_pixels = sig
+        else:
+            sigma_param = None
+            sigma_pixels = sig
+        if time_averaged:
+            res = self._invert(rad.mean(axis=0), bg.mean(axis=0), sigma_pixels, sigma_param,
+                               noise_scale=1.0 / math.sqrt(nt), progress=progress)
+            res_cols = {sp: np.repeat(res.column_density[sp][None], nt, axis=0)
+                        for sp in self.cfg.species}
+            res_sig = {sp: np.repeat(res.column_density_sigma[sp][None], nt, axis=0)
+                       for sp in self.cfg.species}
+            ok = np.repeat((res.valid | (res.status == inv.BELOW_DETECTION))[None], nt, axis=0)
+            counts = res.counts()
+        else:
+            # Every frame's pixels in one call, each from the coarse table
+            # guess: warm starts from the previous frame can follow the wrong
+            # branch of the temperature-column ambiguity of hot plumes.
+            c_, n_ = rad.shape[1], rad.shape[2]
+            flat = self._invert(rad.transpose(1, 0, 2).reshape(c_, nt * n_),
+                                bg.transpose(1, 0, 2).reshape(c_, nt * n_),
+                                np.tile(sigma_pixels, nt), sigma_param, 1.0, progress)
+            res_cols = {sp: flat.column_density[sp].reshape(nt, n_) for sp in self.cfg.species}
+            res_sig = {sp: flat.column_density_sigma[sp].reshape(nt, n_) for sp in self.cfg.species}
+            ok = (flat.valid | (flat.status == inv.BELOW_DETECTION)).reshape(nt, n_)
+            counts = flat.counts()
+        out = []
+        for j in range(len(samples)):
+            a, b = edges[j], edges[j + 1]
+            cols = {sp: np.where(ok[:, a:b], res_cols[sp][:, a:b], np.nan) for sp in self.cfg.species}
+            sigs = {sp: np.where(ok[:, a:b], res_sig[sp][:, a:b], 0.0) for sp in self.cfg.species}
+            out.append((cols, sigs))
+        return out, counts
+
+    def _invert(self, rad, bg, sigma_pixels, sigma_param, noise_scale, progress):
+        """One inversion call; with an inferred temperature and no given depth,
+        a Gaussian prior on sigma centred on each pixel's width estimate."""
+        inv = self.inv_module
+        if sigma_param is None:
+            # The prior's centre varies per surface: group the pixels by it.
+            out = None
+            res_all = {}
+            for val in np.unique(sigma_pixels):
+                sel = sigma_pixels == val
+                inversion = inv.Inversion(self.model, self.scene.ambient_K,
+                                          sigma_m=inv.prior(float(val), 0.5 * float(val),
+                                                            1e-3, 0.5), **self._inv_kw)
+                res_all[float(val)] = (sel, inversion.invert(rad, background_radiance=bg,
+                                                             mask=sel, progress=progress))
+            # Merge: each pixel from the run that selected it.
+            sels = list(res_all.values())
+            out = sels[0][1]
+            for sel, r in sels[1:]:
+                out = _merge_results(out, r, sel)
+            return out
+        inversion = inv.Inversion(self.model, self.scene.ambient_K, sigma_m=sigma_param,
+                                  **self._inv_kw)
+        if noise_scale != 1.0:
+            return inversion.invert_mean(rad[None] if rad.ndim == 2 else rad,
+                                         background_radiance=bg, sigma_m=sigma_pixels,
+                                         progress=progress)
+        return inversion.invert(rad, background_radiance=bg, sigma_m=sigma_pixels,
+                                progress=progress)
+
+
+def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress, keep_maps):
+    from . import velocimetry as vel
+
+    t_start = time.perf_counter()
+
+    def say(fraction: float, message: str) -> None:
+        if progress is not None and progress(min(1.0, max(0.0, fraction)), message) is False:
+            raise Cancelled("quantification cancelled")
+
+    scene = _Scene(rec, cfg)
+    start, stop = cfg.frames or (0, rec.n_frames)
+    frames = range(start, stop)
+    nf = len(frames)
+    if nf < 2 and cfg.velocity not in ("wind", "exit"):
+        raise ValueError("velocimetry needs at least 2 frames; give more frames or a wind speed")
+    h, w = rec.height, rec.width
+    # The velocity field is computed over the whole frame: the flow solvers
+    # need room around the surfaces (a crop through the plume is an open
+    # boundary they cannot see across).
+    roi = Region(0, 0, w, h)
+    horizontal = all(abs(np.diff(np.asarray(s.points)[:, 0])).sum() >=
+                     abs(np.diff(np.asarray(s.points)[:, 1])).sum() for s in surfaces)
+    samples = []
+    for s in surfaces:
+        xy, n, dl = s.samples(step_px=1.0)
+        t = np.concatenate([[0.0], np.cumsum(dl)])[:-1] + 0.5 * dl
+        samples.append((xy, n, dl * scene.pixel_m, t / s.length_px))
+
+    t_bg_guess = rec.scene.background_temperature_K
+    if t_bg_guess is None:
+        first = rec.frame(start, quantity="radiometric_temperature")
+        t_bg_guess = float(np.median(first))
+    channel_sign = np.full(rec.n_channels, 1.0 if scene.gas_K >= t_bg_guess else -1.0)
+    background = _Background(rec, cfg, roi, frames, channel_sign, say, t_bg_guess)
+
+    if cfg.column_density == "truth":
+        columns = _TruthColumns(rec, cfg)
+    else:
+        say(0.01, "cross-section tables and the scene's inversion table")
+        columns = _InvertedColumns(rec, cfg, scene, roi, horizontal, background)
+
+    # -- per frame: column densities over the region and on the surfaces -----
+    col_fields = np.zeros((nf, roi.y1 - roi.y0, roi.x1 - roi.x0), dtype=np.float32)
+    surf_cols = [{sp: np.full((nf, len(x[0])), np.nan) for sp in cfg.species} for x in samples]
+    surf_sig = [{sp: np.zeros((nf, len(x[0]))) for sp in cfg.species} for x in samples]
+    status_counts: Dict[str, int] = {}
+    kept_maps: Dict[int, dict] = {}
+    done = 0
+
+    def invert_collected(n_done: int, time_averaged: bool) -> None:
+        if cfg.column_density == "truth" or n_done == 0:
+            return
+        per_surface, counts = columns.finish(
+            samples, time_averaged=time_averaged,
+            progress=lambda fr_: say(0.35 + 0.25 * fr_, "inverting the surfaces' pixels"))
+        for j in range(len(samples)):
+            for sp in cfg.species:
+                surf_cols[j][sp][:n_done] = per_surface[j][0][sp]
+                surf_sig[j][sp][:n_done] = per_surface[j][1][sp]
+        for key, v in counts.items():
+            status_counts[key] = status_counts.get(key, 0) + int(v)
+
+    time_averaged = cfg.averaging == "time-averaged"
+    try:
+        for k, f in enumerate(frames):
+            fr = rec.frame(f, quantity="radiance")
+            if cfg.column_density == "truth":
+                fields = columns.frame(f, roi)
+                if time_averaged:
+                    acc = fields if k == 0 else {sp: acc[sp] + fields[sp] for sp in fields}
+                col_fields[k] = sum(fields.values())
+                for j, (xy, n, dl, t) in enumerate(samples):
+                    for sp in cfg.species:
+                        surf_cols[j][sp][k] = _bilinear(fields[sp], xy - [roi.x0, roi.y0])
+                status_counts["converged"] = status_counts.get("converged", 0) + \
+                    sum(len(x[0]) for x in samples)
+            else:
+                col_fields[k] = columns.collect(fr, surfaces, samples)
+            done = k + 1
+            say(0.05 + 0.3 * done / nf, f"background and column field, frame {done}/{nf}")
+        if time_averaged and cfg.column_density == "truth":
+            for j, (xy, n, dl, t) in enumerate(samples):
+                for sp in cfg.species:
+                    surf_cols[j][sp][:] = _bilinear(acc[sp] / nf, xy - [roi.x0, roi.y0])
+        invert_collected(done, time_averaged)
+    except Cancelled:
+        try:
+            invert_collected(done, time_averaged)
+        except Cancelled:
+            pass
+        raise Cancelled("quantification cancelled", partial=_finish(
+            rec, surfaces, cfg, scene, samples, frames, done, col_fields, surf_cols, surf_sig,
+            None, status_counts, kept_maps, t_start, complete=False)) from None
+
+    # -- velocity --------------------------------------------------------------
+    flows = None
+    if cfg.velocity not in ("wind", "exit"):
+        # Every frame's field (also for the time-averaged order: the gas
+        # moves, the averaged field does not).
+        velocity_frames = col_fields[:done]
+        source_mask = None
+        if cfg.source is not None:
+            sx, sy = cfg.source[0] - roi.x0, cfg.source[1] - roi.y0
+            yy, xx = np.mgrid[0:velocity_frames.shape[1], 0:velocity_frames.shape[2]]
+            rad = max(3.0, 0.5 * (rec.scene.distance_m and 0) + 6.0)
+            source_mask = ((xx - sx) ** 2 + (yy - sy) ** 2) <= rad ** 2
+            if not source_mask.any():
+                source_mask = None
+        scale = np.percentile(velocity_frames, 99.5)
+        norm = velocity_frames / scale if scale > 0 else velocity_frames
+        try:
+            seq = vel.optical_flow_sequence(
+                np.ascontiguousarray(norm, dtype=np.float32), method=cfg.velocity,
+                source_mask=source_mask, warm_start=True, workers=0,
+                progress=lambda fr_: say(0.6 + 0.3 * fr_, "velocimetry"))
+        except KeyboardInterrupt:
+            raise Cancelled("quantification cancelled", partial=None) from None
+        flows = seq
+    return _finish(rec, surfaces, cfg, scene, samples, frames, done, col_fields, surf_cols,
+                   surf_sig, flows, status_counts, kept_maps, t_start, complete=True,
+                   keep_maps=keep_maps, roi=roi)
+
+
+def _pair_velocity(flows, k: int, n: int):
+    """Velocity field (u, v) [px/frame] at frame k: the mean of the flows into
+    and out of it (one of them at the ends)."""
+    m = len(flows)
+    if m == 0:
+        return None
+    a = flows[min(k, m - 1)]
+    if 0 < k <= m - 1:
+        b = flows[k - 1]
+        return 0.5 * (a.u + b.u), 0.5 * (a.v + b.v)
+    if k > m - 1:
+        b = flows[m - 1]
+        return b.u, b.v
+    return a.u, a.v
+
+
+def _finish(rec, surfaces, cfg, scene, samples, frames, done, col_fields, surf_cols, surf_sig,
+            flows, status_counts, kept_maps, t_start, complete, keep_maps=False, roi=None):
+    from . import _engine
+
+    times = np.asarray(rec.time_s)[frames.start:frames.start + done]
+    vsys = cfg.velocity_systematic if cfg.velocity_systematic is not None else \
+        VELOCITY_SYSTEMATIC[cfg.velocity]
+    results = []
+    for j, (s, (xy, n, dl, t)) in enumerate(zip(surfaces, samples)):
+        per_species = {}
+        vn = np.zeros((done, len(xy)))
+        for k in range(done):
+            if cfg.velocity == "wind":
+                vn[k] = cfg.wind_speed_m_s
+            elif cfg.velocity == "exit":
+                vn[k] = cfg.exit_velocity_m_s
+            elif flows is not None:
+                uv = _pair_velocity(flows, k, done)
+                if uv is not None:
+                    u = _bilinear(uv[0], xy - [roi.x0, roi.y0])
+                    v = _bilinear(uv[1], xy - [roi.x0, roi.y0])
+                    vn[k] = (u * n[:, 0] + v * n[:, 1]) * scene.m_s_per_px_frame
+            if keep_maps and roi is not None and k not in kept_maps and flows is not None and \
+                    (k % max(1, done // 10) == 0):
+                uv = _pair_velocity(flows, k, done)
+                kept_maps[k] = {"column_density_kg_m2": {cfg.species[0]: col_fields[k]},
+                                "velocity_px_per_frame": uv, "origin": (roi.x0, roi.y0)}
+        for sp in cfg.species:
+            c = surf_cols[j][sp][:done]
+            sig = surf_sig[j][sp][:done]
+            good = np.isfinite(c)
+            flux = np.where(good, c, 0.0) * vn * dl[None, :]
+            rate = flux.sum(axis=1)
+            rate[~good.any(axis=1)] = np.nan
+            pixels = good.sum(axis=1)
+            mean = float(np.nanmean(rate)) if np.isfinite(rate).any() else float("nan")
+            finite = rate[np.isfinite(rate)]
+            n_eff = _effective_samples(finite) if finite.size else 0.0
+            sd = float(np.std(finite, ddof=1)) if finite.size > 1 else 0.0
+            temporal = sd / math.sqrt(n_eff) if n_eff > 0 else 0.0
+            col_rand = math.sqrt(float(np.sum((vn * sig * dl[None, :]) ** 2))) / max(1, finite.size)
+            terms = {
+                "temporal": temporal * 3600,
+                "velocity": abs(mean) * vsys * 3600,
+                "column density": math.sqrt(col_rand ** 2 + (abs(mean) * cfg.column_systematic) ** 2)
+                * 3600,
+            }
+            sigma = math.sqrt(sum(v * v for v in terms.values()))
+            mean_h = mean * 3600
+            ci = (mean_h - 1.645 * sigma, mean_h + 1.645 * sigma)
+            dominant = max(terms, key=terms.get)
+            truth = None
+            if rec.truth is not None and sp in rec.truth.emission_rate_kg_s:
+                truth = rec.truth.emission_rate_kg_s[sp] * 3600
+            per_species[sp] = SpeciesRate(
+                species=sp, time_s=times, rate_kg_s=rate, mean_kg_h=mean_h, ci90_kg_h=ci,
+                n_frames=int(finite.size), molar_mass_kg_mol=_engine.molar_mass(sp),
+                uncertainty_terms_kg_h=terms, dominant_uncertainty=dominant, pixels_used=pixels,
+                truth_kg_h=truth)
+        results.append(SurfaceResult(s, per_species))
+    info = {"seconds": time.perf_counter() - t_start, "frames": int(done),
+            "frame_rate_hz": float(scene.frame_rate), "pixel_m": float(scene.pixel_m),
+            "gas_temperature_K": float(scene.gas_K), "velocity_systematic": float(vsys)}
+    return Result(results, config=cfg, recording_path=str(rec.path), pixel_status=status_counts,
+                  maps=kept_maps, info=info, complete=complete)

@@ -1,0 +1,271 @@
+"""Results of a quantification: emission-rate time series per surface and
+species, the mean with its 90 % interval, and exports (JSON, CSV, plots)."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+from typing import Dict, List, Optional
+
+import numpy as np
+
+from .surfaces import Surface
+
+__all__ = ["SpeciesRate", "SurfaceResult", "Result", "STANDARD_CONDITIONS",
+           "kg_s_to_slpm"]
+
+#: Standard conditions used for SLPM: 20 C and 1 atm (as many mass-flow
+#: controllers use; the simulator's presets use the same).
+STANDARD_CONDITIONS = {"temperature_K": 293.15, "pressure_Pa": 101325.0}
+R_GAS = 8.314462618
+
+
+def kg_s_to_slpm(rate_kg_s: float, molar_mass_kg_mol: float,
+                 standard=STANDARD_CONDITIONS) -> float:
+    """Mass rate [kg/s] to standard litres per minute at ``standard`` conditions."""
+    volume_m3_s = rate_kg_s / molar_mass_kg_mol * R_GAS * standard["temperature_K"] / \
+        standard["pressure_Pa"]
+    return volume_m3_s * 1000.0 * 60.0
+
+
+def _f(x):
+    """JSON-safe float (None for NaN/inf)."""
+    if x is None:
+        return None
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+@dataclasses.dataclass
+class SpeciesRate:
+    """Emission rate of one species through one surface.
+
+    ``rate_kg_s`` is the per-frame series (NaN where a frame could not be
+    quantified); ``mean_kg_h`` the mean rate and ``ci90_kg_h`` its 90 %
+    interval; ``uncertainty_terms_kg_h`` the 1-sigma contributions (combined in
+    quadrature) and ``dominant_uncertainty`` the largest of them.
+    """
+
+    species: str
+    time_s: np.ndarray
+    rate_kg_s: np.ndarray
+    mean_kg_h: float
+    ci90_kg_h: tuple
+    n_frames: int
+    molar_mass_kg_mol: float
+    uncertainty_terms_kg_h: Dict[str, float]
+    dominant_uncertainty: str
+    pixels_used: np.ndarray
+    truth_kg_h: Optional[float] = None
+
+    @property
+    def rate_kg_h(self) -> np.ndarray:
+        return self.rate_kg_s * 3600.0
+
+    @property
+    def mean_g_h(self) -> float:
+        return self.mean_kg_h * 1000.0
+
+    @property
+    def mean_slpm(self) -> float:
+        return kg_s_to_slpm(self.mean_kg_h / 3600.0, self.molar_mass_kg_mol)
+
+    @property
+    def sigma_kg_h(self) -> float:
+        return math.sqrt(sum(v * v for v in self.uncertainty_terms_kg_h.values()))
+
+    @property
+    def error_vs_truth(self) -> Optional[float]:
+        """(mean - truth) / truth, when the recording carries the truth."""
+        if self.truth_kg_h is None or self.truth_kg_h == 0:
+            return None
+        return self.mean_kg_h / self.truth_kg_h - 1.0
+
+    def to_dict(self) -> dict:
+        d = {
+            "mean_kg_h": _f(self.mean_kg_h),
+            "ci90_kg_h": [_f(self.ci90_kg_h[0]), _f(self.ci90_kg_h[1])],
+            "mean_g_h": _f(self.mean_g_h),
+            "mean_slpm": _f(self.mean_slpm),
+            "n_frames": int(self.n_frames),
+            "uncertainty_terms_kg_h": {k: _f(v) for k, v in self.uncertainty_terms_kg_h.items()},
+            "dominant_uncertainty": self.dominant_uncertainty,
+            "time_s": [_f(t) for t in self.time_s],
+            "rate_kg_h": [_f(r) for r in self.rate_kg_h],
+            "pixels_used": [int(p) for p in self.pixels_used],
+        }
+        if self.truth_kg_h is not None:
+            d["truth_kg_h"] = _f(self.truth_kg_h)
+            d["error_vs_truth"] = _f(self.error_vs_truth)
+        return d
+
+
+@dataclasses.dataclass
+class SurfaceResult:
+    surface: Surface
+    species: Dict[str, SpeciesRate]
+
+    def to_dict(self) -> dict:
+        d = self.surface.to_dict()
+        d["species"] = {k: v.to_dict() for k, v in self.species.items()}
+        return d
+
+
+class Result:
+    """What :func:`qogi.quantify` returns (see docs/pipeline_api.md)."""
+
+    def __init__(self, surfaces: List[SurfaceResult], *, config, recording_path: str,
+                 pixel_status: Dict[str, int], maps: Optional[dict] = None,
+                 info: Optional[dict] = None, complete: bool = True):
+        self.surfaces = surfaces
+        self.config = config
+        self.recording_path = recording_path
+        self.pixel_status = dict(pixel_status)
+        self._maps = maps or {}
+        self.info = dict(info or {})
+        self.complete = complete
+        self.standard_conditions = dict(STANDARD_CONDITIONS)
+
+    # -- access --------------------------------------------------------------
+    def maps(self, frame: int) -> dict:
+        """Per-pixel maps of one frame (needs ``keep_maps=True``): column
+        density per species [kg/m2], velocity (u, v) [px/frame], status."""
+        if frame not in self._maps:
+            raise KeyError(f"no maps kept for frame {frame}; run quantify(..., keep_maps=True) "
+                           f"(frames with maps: {sorted(self._maps)[:5]}...)")
+        return self._maps[frame]
+
+    @property
+    def map_frames(self) -> List[int]:
+        return sorted(self._maps)
+
+    def total(self, species: str, surface: int = 0) -> SpeciesRate:
+        return self.surfaces[surface].species[species]
+
+    # -- exports -------------------------------------------------------------
+    def to_dict(self) -> dict:
+        cfg = self.config.to_dict() if hasattr(self.config, "to_dict") else dict(self.config)
+        return {
+            "format": "qogi-result", "version": 1,
+            "recording": self.recording_path,
+            "complete": bool(self.complete),
+            "standard_conditions": self.standard_conditions,
+            "config": cfg,
+            "pixel_status": self.pixel_status,
+            "info": {k: (_f(v) if isinstance(v, float) else v) for k, v in self.info.items()},
+            "surfaces": [s.to_dict() for s in self.surfaces],
+        }
+
+    def to_json(self, path: Optional[os.PathLike] = None, indent: int = 2) -> str:
+        """The result as JSON (schema: docs/pipeline_api.md); written to
+        ``path`` when given. Returns the text."""
+        text = json.dumps(self.to_dict(), indent=indent)
+        if path is not None:
+            with open(path, "w") as fh:
+                fh.write(text + "\n")
+        return text
+
+    def to_csv(self, path: os.PathLike) -> None:
+        """One row per frame, surface and species: time, rate (kg/h), pixels."""
+        import csv
+        with open(path, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["surface", "species", "time_s", "rate_kg_h", "pixels_used"])
+            for s in self.surfaces:
+                for sp, r in s.species.items():
+                    for t, v, n in zip(r.time_s, r.rate_kg_h, r.pixels_used):
+                        w.writerow([s.surface.name, sp, f"{t:.6f}",
+                                    "" if not np.isfinite(v) else f"{v:.6g}", int(n)])
+
+    def summary(self) -> str:
+        """A few lines for people."""
+        lines = [f"qogi result for {os.path.basename(str(self.recording_path))}"
+                 f"{'' if self.complete else ' (PARTIAL: cancelled or interrupted)'}"]
+        for s in self.surfaces:
+            for sp, r in s.species.items():
+                lo, hi = r.ci90_kg_h
+                line = (f"  {s.surface.name:>12s} {sp:4s} {r.mean_kg_h:9.4g} kg/h "
+                        f"[90% {lo:.4g} .. {hi:.4g}]  ({r.mean_g_h:.4g} g/h, {r.mean_slpm:.4g} SLPM)"
+                        f"  {r.n_frames} frames, dominant: {r.dominant_uncertainty}")
+                if r.truth_kg_h is not None:
+                    inside = lo <= r.truth_kg_h <= hi
+                    line += (f"\n  {'':>12s}      truth {r.truth_kg_h:.4g} kg/h, error "
+                             f"{100 * r.error_vs_truth:+.1f} %, truth "
+                             f"{'inside' if inside else 'OUTSIDE'} the 90 % interval")
+                lines.append(line)
+        st = ", ".join(f"{k} {v}" for k, v in self.pixel_status.items())
+        lines.append(f"  pixels: {st}")
+        return "\n".join(lines)
+
+    def plot(self, path: Optional[os.PathLike] = None, kind: str = "rates"):
+        """A matplotlib figure: ``kind="rates"`` the emission-rate time series per
+        surface and species with the mean and its 90 % band (and the truth);
+        ``kind="maps"`` the column density and velocity of a kept frame."""
+        import matplotlib
+        if path is not None:
+            matplotlib.use("Agg", force=False)
+        import matplotlib.pyplot as plt
+
+        if kind == "rates":
+            species = sorted({sp for s in self.surfaces for sp in s.species})
+            fig, axes = plt.subplots(len(species), 1, figsize=(9, 3.2 * len(species)),
+                                     squeeze=False, sharex=True)
+            for ax, sp in zip(axes[:, 0], species):
+                for k, s in enumerate(self.surfaces):
+                    if sp not in s.species:
+                        continue
+                    r = s.species[sp]
+                    color = f"C{k % 10}"
+                    ax.plot(r.time_s, r.rate_kg_h, color=color, lw=0.8, alpha=0.8,
+                            label=f"{s.surface.name}: {r.mean_kg_h:.3g} kg/h")
+                    if r.time_s.size:
+                        ax.axhline(r.mean_kg_h, color=color, lw=1.5)
+                        ax.axhspan(r.ci90_kg_h[0], r.ci90_kg_h[1], color=color, alpha=0.12)
+                truth = next((s.species[sp].truth_kg_h for s in self.surfaces
+                              if sp in s.species and s.species[sp].truth_kg_h is not None), None)
+                if truth is not None:
+                    ax.axhline(truth, color="k", ls="--", lw=1.2, label=f"truth {truth:.3g} kg/h")
+                ax.set_ylabel(f"{sp} emission rate [kg/h]")
+                ax.grid(alpha=0.3)
+                ax.legend(fontsize=8, loc="upper right")
+            axes[-1, 0].set_xlabel("time [s]")
+            fig.suptitle("emission rate per surface (lines: mean; bands: 90 % interval)")
+            fig.tight_layout()
+        elif kind == "maps":
+            if not self._maps:
+                raise ValueError("no maps kept; run quantify(..., keep_maps=True)")
+            f = self.map_frames[len(self.map_frames) // 2]
+            m = self._maps[f]
+            cols = m["column_density_kg_m2"]
+            fig, axes = plt.subplots(1, len(cols) + 1, figsize=(5 * (len(cols) + 1), 4),
+                                     squeeze=False)
+            for ax, (sp, c) in zip(axes[0], cols.items()):
+                im = ax.imshow(c * 1e3, cmap="magma", vmin=0)
+                fig.colorbar(im, ax=ax, label=f"{sp} column density [g/m2]")
+                for s in self.surfaces:
+                    p = np.asarray(s.surface.points) - np.asarray(m.get("origin", (0, 0)))
+                    ax.plot(p[:, 0], p[:, 1], "c-", lw=1.5)
+                ax.set_title(f"frame {f}")
+            u, v = m["velocity_px_per_frame"]
+            total = sum(cols.values())
+            gas = total > 0.05 * np.max(total) if np.max(total) > 0 else np.zeros_like(total, bool)
+            speed = np.where(gas, np.hypot(u, v), np.nan)
+            ax = axes[0, -1]
+            im = ax.imshow(speed, cmap="viridis")
+            fig.colorbar(im, ax=ax, label="speed where there is gas [px/frame]")
+            step = max(1, min(u.shape) // 24)
+            yy, xx = np.mgrid[0:u.shape[0]:step, 0:u.shape[1]:step]
+            g = gas[::step, ::step]
+            # Image axes run y down, as v does: the arrows need no flip.
+            ax.quiver(xx[g], yy[g], u[::step, ::step][g], v[::step, ::step][g], color="k",
+                      angles="xy")
+            ax.set_title("velocity (arrows: gas pixels)")
+            fig.tight_layout()
+        else:
+            raise ValueError(f"kind must be 'rates' or 'maps'; got {kind!r}")
+        if path is not None:
+            fig.savefig(path, dpi=110)
+            plt.close(fig)
+        return fig

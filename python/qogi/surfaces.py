@@ -1,0 +1,195 @@
+"""Control surfaces in the image: lines and polylines across which flux is counted.
+
+Pixel coordinates: x to the right, y down, origin at the top-left pixel centre.
+Sign convention: flux through a surface is positive along its **left-hand
+normal** when walking from its first point to its last in the image as
+displayed (x right, y down). A horizontal line drawn left to right therefore
+counts upward flow (towards smaller y) as positive. For a segment direction
+``d = (dx, dy)`` that normal is ``(dy, -dx) / |d|``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import List, Optional, Sequence, Tuple
+
+import numpy as np
+
+__all__ = ["Surface", "Region", "auto_surfaces"]
+
+Point = Tuple[float, float]
+
+
+@dataclasses.dataclass
+class Surface:
+    """A control surface: a line (2 points) or polyline (>= 2 points) in pixels.
+
+    Parameters
+    ----------
+    points : sequence of (x, y)
+        Vertices in pixel coordinates (floats allowed).
+    name : str
+        Shown in results and plots (default ``S1``, ``S2``... by position).
+    """
+
+    points: List[Point]
+    name: str = ""
+
+    def __post_init__(self):
+        pts = np.asarray(self.points, dtype=float)
+        if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 2:
+            raise ValueError(f"a surface needs at least 2 points (x, y); got {self.points!r}")
+        if not np.all(np.isfinite(pts)):
+            raise ValueError(f"surface points must be finite; got {self.points!r}")
+        seg = np.diff(pts, axis=0)
+        if np.any(np.hypot(seg[:, 0], seg[:, 1]) == 0):
+            raise ValueError(f"surface {self.name!r} has two equal consecutive points; "
+                             "remove the duplicate")
+        self.points = [(float(x), float(y)) for x, y in pts]
+
+    @property
+    def length_px(self) -> float:
+        d = np.diff(np.asarray(self.points), axis=0)
+        return float(np.hypot(d[:, 0], d[:, 1]).sum())
+
+    def reversed(self) -> "Surface":
+        return Surface(list(reversed(self.points)), self.name)
+
+    def oriented_away_from(self, source: Point) -> "Surface":
+        """This surface with its points reversed if needed, so that flow away
+        from ``source`` (x, y) counts as positive."""
+        xy, n, w = self.samples(step_px=1.0)
+        away = xy - np.asarray(source, dtype=float)
+        if float(np.sum(np.einsum("ij,ij->i", away, n) * w)) < 0:
+            return self.reversed()
+        return self
+
+    def samples(self, step_px: float = 0.5):
+        """Points along the surface with their unit normals and lengths.
+
+        Returns ``(xy (N, 2), normal (N, 2), length_px (N,))``: midpoints of
+        sub-segments of at most ``step_px``, the left-hand unit normal of their
+        segment, and their lengths in pixels (summing to the surface length).
+        """
+        pts = np.asarray(self.points, dtype=float)
+        xy, nrm, ln = [], [], []
+        for a, b in zip(pts[:-1], pts[1:]):
+            d = b - a
+            L = float(np.hypot(*d))
+            k = max(1, int(np.ceil(L / step_px)))
+            t = (np.arange(k) + 0.5) / k
+            xy.append(a + t[:, None] * d)
+            nrm.append(np.repeat([[d[1] / L, -d[0] / L]], k, axis=0))
+            ln.append(np.full(k, L / k))
+        return np.concatenate(xy), np.concatenate(nrm), np.concatenate(ln)
+
+    def bounds(self, margin: float = 0.0) -> Tuple[float, float, float, float]:
+        p = np.asarray(self.points)
+        return (float(p[:, 0].min() - margin), float(p[:, 1].min() - margin),
+                float(p[:, 0].max() + margin), float(p[:, 1].max() + margin))
+
+    def to_dict(self) -> dict:
+        return {"name": self.name, "points": [list(p) for p in self.points]}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "Surface":
+        return cls([tuple(p) for p in d["points"]], d.get("name", ""))
+
+    @classmethod
+    def parse(cls, text: str, name: str = "") -> "Surface":
+        """From ``"x0,y0,x1,y1[,x2,y2...]"`` (the CLI's ``--surface``)."""
+        try:
+            v = [float(s) for s in text.replace(";", ",").split(",") if s.strip()]
+        except ValueError:
+            raise ValueError(f"surface {text!r}: expected numbers x0,y0,x1,y1[,...]") from None
+        if len(v) < 4 or len(v) % 2:
+            raise ValueError(f"surface {text!r}: expected an even number (>= 4) of coordinates "
+                             "x0,y0,x1,y1[,x2,y2...]")
+        return cls(list(zip(v[0::2], v[1::2])), name)
+
+
+@dataclasses.dataclass
+class Region:
+    """A pixel rectangle ``[x0, x1) x [y0, y1)`` (e.g. a gas-free background patch)."""
+
+    x0: int
+    y0: int
+    x1: int
+    y1: int
+
+    def __post_init__(self):
+        for f in ("x0", "y0", "x1", "y1"):
+            setattr(self, f, int(getattr(self, f)))
+        if self.x1 <= self.x0 or self.y1 <= self.y0:
+            raise ValueError(f"region {self} is empty: need x0 < x1 and y0 < y1")
+
+    def clip(self, width: int, height: int) -> "Region":
+        r = Region(max(0, self.x0), max(0, self.y0), min(width, self.x1), min(height, self.y1))
+        return r
+
+    def slices(self) -> Tuple[slice, slice]:
+        return slice(self.y0, self.y1), slice(self.x0, self.x1)
+
+    @classmethod
+    def parse(cls, text: str) -> "Region":
+        v = [int(float(s)) for s in text.split(",")]
+        if len(v) != 4:
+            raise ValueError(f"region {text!r}: expected x0,y0,x1,y1")
+        return cls(*v)
+
+
+def auto_surfaces(column_or_contrast: np.ndarray, distances_px: Sequence[float],
+                  source: Optional[Point] = None, threshold: float = 0.1,
+                  margin_px: float = 10.0) -> List[Surface]:
+    """Detect the plume in a (time-averaged) column-density or contrast image
+    and place straight surfaces across it at the given distances from the source.
+
+    The plume mask is where the image exceeds ``threshold`` times its 99.5th
+    percentile. Without ``source``, the source is taken as the mask's point
+    nearest the image's bottom edge, and the plume direction as the principal
+    axis of the mask (oriented away from the source). Each surface is
+    perpendicular to that axis, at ``distance`` along it, spanning the mask's
+    width there plus ``margin_px`` on both sides, oriented so that flow away
+    from the source is positive.
+    """
+    img = np.abs(np.asarray(column_or_contrast, dtype=float))
+    if img.ndim != 2:
+        raise ValueError(f"auto_surfaces needs a 2-D image; got shape {img.shape}")
+    ref = np.percentile(img, 99.5)
+    if not ref > 0:
+        raise ValueError("no plume detected: the image is zero everywhere")
+    mask = img > threshold * ref
+    ys, xs = np.nonzero(mask)
+    if len(xs) < 10:
+        raise ValueError("no plume detected: fewer than 10 pixels above the threshold")
+    w = img[ys, xs]
+    if source is None:
+        i = int(np.argmax(ys))
+        source = (float(xs[i]), float(ys[i]))
+    src = np.asarray(source, dtype=float)
+    pts = np.stack([xs, ys], axis=1).astype(float)
+    c = np.average(pts, axis=0, weights=w)
+    cov = np.cov((pts - c).T, aweights=w)
+    evals, evecs = np.linalg.eigh(cov)
+    axis = evecs[:, -1]
+    if np.dot(c - src, axis) < 0:
+        axis = -axis
+    perp = np.array([axis[1], -axis[0]])
+    out = []
+    h, wd = img.shape
+    for k, dist in enumerate(distances_px):
+        # Extent of the mask across the axis near this distance.
+        along = (pts - src) @ axis
+        near = np.abs(along - dist) < 3
+        if near.any():
+            across = (pts[near] - src) @ perp
+            lo, hi = across.min() - margin_px, across.max() + margin_px
+        else:
+            lo, hi = -margin_px, margin_px
+        a = src + dist * axis + lo * perp
+        b = src + dist * axis + hi * perp
+        a = np.clip(a, 0, [wd - 1, h - 1])
+        b = np.clip(b, 0, [wd - 1, h - 1])
+        s = Surface([tuple(a), tuple(b)], name=f"A{k + 1} ({dist:g} px)")
+        out.append(s.oriented_away_from(tuple(src)))
+    return out
