@@ -783,7 +783,7 @@ def transport_flux(frames: ArrayLike, axis: str = "up",
     TransportFlux
     """
     _check_axis(axis)
-    stack = np.asarray(frames, dtype=np.float64)
+    stack = np.asarray(frames, dtype=np.float32)
     if stack.ndim != 3 or stack.shape[0] < 3:
         raise ValueError(f"frames must be a (T, H, W) stack with T >= 3; got shape {stack.shape}")
     if not np.all(np.isfinite(stack)):
@@ -791,7 +791,7 @@ def transport_flux(frames: ArrayLike, axis: str = "up",
     turned = _along_axis(stack, axis)
     T, H, _ = turned.shape
     k_end = _axis_index(source_index, axis, H)
-    I = turned.sum(axis=2)                                    # (T, H)
+    I = turned.sum(axis=2, dtype=np.float64)                  # (T, H)
     lines = I[:, :k_end]
     if not np.any(lines.std(axis=0) > 1e-4 * np.abs(lines).mean(axis=0)):
         raise ValueError("the frames do not change over time (a steady plume): its flux level "
@@ -887,7 +887,7 @@ def calibrate_flux_level(seq: FlowSequence, frames: ArrayLike, axis: str = "up",
     fu, fv = frame_velocity(seq)
     along = {"up": -fv, "down": fv, "left": -fu, "right": fu}[axis]
     sum_axis = 2 if axis in ("up", "down") else 1
-    flow_flux = (stack.astype(np.float64) * along).sum(axis=sum_axis).mean(axis=0)
+    flow_flux = (stack * along).sum(axis=sum_axis, dtype=np.float64).mean(axis=0)
     good = np.isfinite(tf.flux) & (flow_flux > min_fraction * max(float(np.nanmax(
         np.abs(flow_flux))), 1e-300)) & (tf.flux > 0)
     n = len(flow_flux)
