@@ -39,6 +39,12 @@ All but ``"fluid"`` assume the pattern is only moved, and so track texture,
 not mass. For large displacements (15 Hz cameras: ~20 px/frame near the exit)
 use the pyramids (``levels``) and the warm start of :func:`optical_flow_sequence`.
 
+For a flux through a surface use :func:`plume_frame_velocity`: the velocity
+at the frame times (:func:`frame_velocity`) with the flux level taken from
+the transport of the plume's line-integrated column (:func:`transport_flux`,
+:func:`calibrate_flux_level`), which mass conservation per frame pair leaves
+to the regulariser.
+
 Post-processing (pure functions returning new arrays and masks):
 :func:`normalised_median_test`, :func:`replace_vectors`, :func:`validate`,
 :func:`temporal_filter`, :func:`plume_mask`, :func:`restrict_to_mask`.
