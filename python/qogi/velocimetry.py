@@ -691,10 +691,12 @@ class TransportFlux:
     ----------
     flux : ndarray
         Time-averaged flux through each line across the axis, towards
-        ``axis`` [frame unit x px^2/frame]: the sum over the line of frame
-        value x velocity. NaN in the source and beyond the last line with gas.
+        ``axis``: the sum over the line's pixels of frame value x velocity
+        [frame unit x px/frame]. NaN in the source and beyond the last line
+        with gas. For kg/s with column density in kg/m2, multiply by the
+        pixel size [m] squared and the frame rate [1/s].
     line_column : ndarray
-        Time-averaged sum of the frames over each line [frame unit x px].
+        Time-averaged sum of the frames over each line's pixels [frame unit].
     velocity : ndarray
         ``flux / line_column``: the time-averaged mass-weighted velocity
         towards ``axis`` [px/frame].
