@@ -207,6 +207,9 @@ void BindVelocimetry(py::module_& m) {
              "weight of short-scale vorticity, >= 0 (default 0)")
       .field("div_curl_scale", &FluidFlowOptions::div_curl_scale,
              "scale [px] below which div/curl are penalised, > 0 (default 8)")
+      .field("smoothness_scale", &FluidFlowOptions::smoothness_scale,
+             "scale [px] above which the flow is not smoothed, >= 0, 0 = classic "
+             "smoothness (default 8)")
       .field("levels", &FluidFlowOptions::levels, "pyramid levels, 1-12 (default 5)")
       .field("min_level_size", &FluidFlowOptions::min_level_size,
              "smallest side of the coarsest level [px] (default 16)")
@@ -392,6 +395,41 @@ void BindVelocimetry(py::module_& m) {
           return py::make_tuple(au, av, ak);
         },
         py::arg("u"), py::arg("v"), py::arg("valid"), py::arg("options"));
+
+  m.def("frame_velocity",
+        [](const FloatArray& u, const FloatArray& v) {
+          CheckNdim(u, 3, "u");
+          CheckNdim(v, 3, "v");
+          for (int d = 0; d < 3; ++d)
+            Require(v.shape(d) == u.shape(d), "u and v must have the same (T-1, H, W) shape");
+          const auto su = Slices(u, CV_32FC1), sv = Slices(v, CV_32FC1);
+          std::vector<cv::Mat> ou, ov;
+          {
+            py::gil_scoped_release release;
+            FrameVelocity(su, sv, ou, ov);
+          }
+          const py::ssize_t T = u.shape(0) + 1, H = u.shape(1), W = u.shape(2);
+          py::array_t<float> au({T, H, W}), av({T, H, W});
+          const auto du = Slices(au, CV_32FC1), dv = Slices(av, CV_32FC1);
+          for (py::ssize_t t = 0; t < T; ++t) {
+            ou[t].copyTo(du[t]);
+            ov[t].copyTo(dv[t]);
+          }
+          return py::make_tuple(au, av);
+        },
+        py::arg("u"), py::arg("v"));
+
+  m.def("invert_displacement",
+        [](const FloatArray& u, const FloatArray& v, int iterations) {
+          const cv::Mat mu = FloatMat(u, "u"), mv = FloatMat(v, "v");
+          cv::Mat bu, bv;
+          {
+            py::gil_scoped_release release;
+            InvertDisplacement(mu, mv, iterations, bu, bv);
+          }
+          return py::make_tuple(ToArray<float>(bu), ToArray<float>(bv));
+        },
+        py::arg("u"), py::arg("v"), py::arg("iterations"));
 
   m.def("plume_mask",
         [](const FloatArray& density, const PlumeMaskOptions& o) {

@@ -39,6 +39,12 @@ All but ``"fluid"`` assume the pattern is only moved, and so track texture,
 not mass. For large displacements (15 Hz cameras: ~20 px/frame near the exit)
 use the pyramids (``levels``) and the warm start of :func:`optical_flow_sequence`.
 
+For a flux through a surface use :func:`plume_frame_velocity`: the velocity
+at the frame times (:func:`frame_velocity`) with the flux level taken from
+the transport of the plume's line-integrated column (:func:`transport_flux`,
+:func:`calibrate_flux_level`), which mass conservation per frame pair leaves
+to the regulariser.
+
 Post-processing (pure functions returning new arrays and masks):
 :func:`normalised_median_test`, :func:`replace_vectors`, :func:`validate`,
 :func:`temporal_filter`, :func:`plume_mask`, :func:`restrict_to_mask`.
@@ -77,6 +83,13 @@ __all__ = [
     "replace_vectors",
     "validate",
     "temporal_filter",
+    "frame_velocity",
+    "invert_displacement",
+    "AXES",
+    "TransportFlux",
+    "transport_flux",
+    "calibrate_flux_level",
+    "plume_frame_velocity",
     "plume_mask",
     "restrict_to_mask",
     "set_num_threads",
@@ -567,6 +580,388 @@ def temporal_filter(u, v=None, valid=None, window: int = 5, statistic: str = "me
         return FlowSequence(fu, fv, seq.quality.copy(), fk.astype(bool),
                             seq.residual_ratio.copy(), seq.method)
     return fu, fv, fk.astype(bool)
+
+
+def invert_displacement(u: ArrayLike, v: ArrayLike, iterations: int = 10
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """Backward displacement of a forward map ``x -> x + w(x)``.
+
+    Returns ``b`` with ``y + w(y) = x`` for ``y = x + b(x)``, by the fixed-point
+    iteration ``y = x - w(y)`` (``w`` sampled bilinearly; at most
+    ``iterations`` sweeps, fewer once the mean change is below 1e-4 px;
+    converges where the map does not fold, ``|grad w| < 1``).
+
+    Parameters
+    ----------
+    u, v : array (H, W), px/frame
+        Forward displacement of the pixels of the first frame.
+
+    Returns
+    -------
+    (bu, bv) : ndarray (H, W) float32, px/frame
+        Where the gas at each pixel of the second frame was in the first,
+        relative to that pixel.
+    """
+    if iterations < 1:
+        raise ValueError(f"iterations must be >= 1; got {iterations}")
+    return _engine.invert_displacement(_field(u, "u"), _field(v, "v"), int(iterations))
+
+
+def frame_velocity(u, v=None) -> tuple[np.ndarray, np.ndarray]:
+    """Velocity [px/frame] at the time of each frame of a sequence.
+
+    Pair k's forward displacement ``w_k`` (what every method returns) is the
+    mean velocity along the path of the gas from frame k to k + 1, not the
+    velocity at frame k: where the gas accelerates, they differ by half the
+    acceleration times the frame interval (e.g. 0.3 m/s, 50 %, at 15 Hz just
+    above a laminar exit). The central difference of the trajectory through
+    each pixel at frame t,
+
+        v_t(x) = (w_t(x) - b_t(x)) / 2,
+
+    with ``b_t`` the inverse of ``w_{t-1}`` (:func:`invert_displacement`), is
+    exact for constant acceleration. Multiply by the column of frame t for the
+    flux at frame t. The first frame gets ``w_0``, the last ``-b_{T-1}``.
+
+    Parameters
+    ----------
+    u : array (T - 1, H, W) or FlowSequence
+        Forward displacements of the T - 1 consecutive pairs [px/frame].
+    v : array (T - 1, H, W), when ``u`` is an array
+
+    Returns
+    -------
+    (u, v) : ndarray (T, H, W) float32, px/frame
+    """
+    if isinstance(u, FlowSequence):
+        u, v = u.u, u.v
+    if v is None:
+        raise ValueError("frame_velocity needs v (or a FlowSequence as u)")
+    uu = np.ascontiguousarray(u, dtype=np.float32)
+    vv = np.ascontiguousarray(v, dtype=np.float32)
+    if uu.ndim != 3 or vv.shape != uu.shape or uu.shape[0] < 1:
+        raise ValueError(f"u and v must be (T-1, H, W) stacks of one shape with T-1 >= 1; "
+                         f"got {uu.shape} and {vv.shape}")
+    return _engine.frame_velocity(uu, vv)
+
+
+
+# -- flux level from the transport of the line-integrated column -------------
+
+#: Directions a plume may be analysed along by :func:`transport_flux`.
+AXES = ("up", "down", "left", "right")
+
+
+def _along_axis(stack: np.ndarray, axis: str) -> np.ndarray:
+    """View of a (T, H, W) stack turned so that ``axis`` points to row 0."""
+    if axis == "up":
+        return stack
+    if axis == "down":
+        return stack[:, ::-1, :]
+    if axis == "left":
+        return stack.transpose(0, 2, 1)
+    return stack.transpose(0, 2, 1)[:, ::-1, :]
+
+
+def _check_axis(axis: str) -> None:
+    if axis not in AXES:
+        raise ValueError(f"axis must be one of {AXES} (the direction the plume leaves the "
+                         f"source in the image); got {axis!r}")
+
+
+def _axis_index(index: Optional[float], axis: str, n: int) -> int:
+    """The source's line in the turned stack (n: lines along the axis)."""
+    if index is None:
+        return n
+    i = int(round(float(index)))
+    if not 0 <= i < n:
+        what = "row" if axis in ("up", "down") else "column"
+        raise ValueError(f"source_index must be a {what} inside the frame, 0 ... {n - 1}; "
+                         f"got {index}")
+    return i if axis in ("up", "left") else n - 1 - i
+
+
+@dataclass
+class TransportFlux:
+    """Time-averaged transport of a plume along one image axis
+    (:func:`transport_flux`). Arrays are indexed by the row (``axis`` "up" or
+    "down") or the column ("left", "right") of the frames.
+
+    Attributes
+    ----------
+    flux : ndarray
+        Time-averaged flux through each line across the axis, towards
+        ``axis``: the sum over the line's pixels of frame value x velocity
+        [frame unit x px/frame]. NaN in the source and beyond the last line
+        with gas. For kg/s with column density in kg/m2, multiply by the
+        pixel size [m] squared and the frame rate [1/s].
+    line_column : ndarray
+        Time-averaged sum of the frames over each line's pixels [frame unit].
+    velocity : ndarray
+        ``flux / line_column``: the time-averaged mass-weighted velocity
+        towards ``axis`` [px/frame].
+    displacement : ndarray
+        The steady displacement of each line's material level over one frame
+        [px/frame]; NaN where it was not solved (the gas crossing the line
+        within one frame came from the source).
+    axis : str
+    """
+
+    flux: np.ndarray
+    line_column: np.ndarray
+    velocity: np.ndarray
+    displacement: np.ndarray
+    axis: str
+
+
+def _solve_levels(C: np.ndarray, I: np.ndarray, K: np.ndarray, k_end: int,
+                  iterations: int = 100):
+    """Gauss-Newton for the steady level displacements d_k and the outflows
+    O_t in ``C_t(k + d_k) = C_{t+1}(k) + O_t``, each O_t fitted to the
+    current levels (variable projection: the reduced system is the Schur
+    complement of the O block)."""
+    H = I.shape[1]
+    n = len(K)
+    scale = max(float(np.abs(I).max()), 1e-300)
+    Cs, Is = C / scale, I / scale
+    target = Cs[1:, K]
+    d = np.ones(n)
+    ok = np.ones(n, bool)
+    for _ in range(iterations):
+        ok = (K + d) <= k_end
+        y = np.clip(K + d, 0.0, H - 1e-9)
+        k0 = np.floor(y).astype(int)
+        f = y - k0
+        cb = Cs[:-1, k0] * (1.0 - f) + Cs[:-1, k0 + 1] * f
+        g = Is[:-1, k0] * ok                      # d C_t(y) / dy, (T - 1, n)
+        e = (cb - target) * ok
+        cnt = max(int(ok.sum()), 1)
+        r = e - (e.sum(1) / cnt)[:, None] * ok    # after the best outflows O_t
+        A = np.diag((g * g).sum(0)) - (g.T @ g) / cnt
+        A[np.diag_indices(n)] += 1e-9 * max(float(np.diag(A).max()), 1e-300) + 1e-12
+        step = np.clip(np.linalg.solve(A, -(g * r).sum(0)), -4.0, 4.0)
+        d = np.maximum(d + step, 0.0)
+        if np.abs(step).max() < 1e-4:
+            break
+    ok = (K + d) <= k_end
+    return d, ok
+
+
+def transport_flux(frames: ArrayLike, axis: str = "up",
+                   source_index: Optional[float] = None) -> TransportFlux:
+    """Time-averaged flux of a plume along an image axis, from the transport
+    of its line-integrated column (time of flight of its structures).
+
+    Summed over the lines across the axis, the continuity equation becomes
+    one-dimensional and exact: with ``C_t(y)`` the column summed over the
+    lines above level ``y`` (towards ``axis``), the gas that crosses level
+    ``k`` during frame t came from level ``k + d_k``:
+
+        C_t(k + d_k) = C_{t+1}(k) + O_t,
+
+    ``O_t`` being what left through the far edge of the frame. A steady
+    plume fits any flux level (mass conservation does not fix it); the
+    structures carried along it do: over many frames, one steady
+    displacement ``d_k`` per level and one outflow per frame are solved by
+    Gauss-Newton in the least-squares sense. The time-averaged flux through
+    level k is then ``mean_t (C_t(k + d_k) - C_t(k))``; at levels whose
+    displacement reaches into the source (near the exit at low frame rates)
+    it follows from the nearest solved level by the exact mass balance of
+    the lines between them. This is the time-averaged flux of the plume, not
+    of each frame: where the velocity at a level fluctuates together with
+    the column, their covariance is not seen.
+
+    Requires that the gas leaves only through the far edge (not the sides)
+    and the whole plume width is in the frame. The frames must be
+    proportional to column density (zero without gas).
+
+    Parameters
+    ----------
+    frames : array (T, H, W)
+        T >= 3 column-density frames (any linear unit).
+    axis : {"up", "down", "left", "right"}
+        Direction of the plume's transport in the image.
+    source_index : float, optional
+        Row ("up", "down") or column of the source's exit: lines beyond it
+        (inside the stack) are the source. None: the gas enters across the
+        near edge of the frame.
+
+    Returns
+    -------
+    TransportFlux
+    """
+    _check_axis(axis)
+    stack = np.asarray(frames, dtype=np.float32)
+    if stack.ndim != 3 or stack.shape[0] < 3:
+        raise ValueError(f"frames must be a (T, H, W) stack with T >= 3; got shape {stack.shape}")
+    if not np.all(np.isfinite(stack)):
+        raise ValueError("frames must be finite (replace NaN pixels by 0 or an estimate)")
+    turned = _along_axis(stack, axis)
+    T, H, _ = turned.shape
+    k_end = _axis_index(source_index, axis, H)
+    I = turned.sum(axis=2, dtype=np.float64)                  # (T, H)
+    lines = I[:, :k_end]
+    if not np.any(lines.std(axis=0) > 1e-4 * np.abs(lines).mean(axis=0)):
+        raise ValueError("the frames do not change over time (a steady plume): its flux level "
+                         "cannot be measured from the transport of its structures; give "
+                         "frames in which the plume fluctuates")
+    C = np.concatenate([np.zeros((T, 1)), np.cumsum(I, axis=1)], axis=1)
+    mean_line = I.mean(axis=0)
+    gas = np.nonzero(mean_line[:k_end] > 1e-3 * max(float(np.abs(mean_line[:k_end]).max()),
+                                                    1e-300))[0]
+    flux_b = np.full(H + 1, np.nan)                          # at boundaries k (top of line k)
+    disp_b = np.full(H + 1, np.nan)
+    if len(gas):
+        K = np.arange(gas[0], k_end + 1)
+        d, ok = _solve_levels(C, I, K, k_end)
+        y = np.clip(K + d, 0.0, H - 1e-9)
+        k0 = np.floor(y).astype(int)
+        f = y - k0
+        cb = C[:-1, k0] * (1.0 - f) + C[:-1, k0 + 1] * f
+        fl = (cb - C[:-1, K]).mean(axis=0)
+        flux_b[K[ok]] = fl[ok]
+        disp_b[K[ok]] = d[ok]
+        if ok.any() and not ok.all():
+            # Levels fed from the source: the flux of the nearest solved level
+            # plus the mean change of the mass between them.
+            jr = np.nonzero(ok)[0].max()
+            for j in np.nonzero(~ok)[0]:
+                m = C[:, K[j]] - C[:, K[jr]]
+                flux_b[K[j]] = fl[jr] + (m[-1] - m[0]) / (T - 1)
+    flux = 0.5 * (flux_b[:-1] + flux_b[1:])
+    flux[k_end:] = np.nan
+    disp = 0.5 * (disp_b[:-1] + disp_b[1:])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        velocity = np.where(mean_line > 0, flux / mean_line, np.nan)
+    if axis in ("down", "right"):
+        flux, mean_line, velocity, disp = (a[::-1].copy() for a in (flux, mean_line, velocity,
+                                                                     disp))
+    return TransportFlux(flux, mean_line, velocity, disp, axis)
+
+
+def calibrate_flux_level(seq: FlowSequence, frames: ArrayLike, axis: str = "up",
+                         source_index: Optional[float] = None, smooth_px: float = 2.0,
+                         min_fraction: float = 0.05
+                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Velocity at each frame time (:func:`frame_velocity`), rescaled line by
+    line so that its time-averaged flux along ``axis`` equals the transport
+    flux of the frames (:func:`transport_flux`).
+
+    The 2-D flow (e.g. the fluid method) supplies the shape of the velocity
+    field in space and time; the flux *level*, which mass conservation
+    leaves to the regulariser in a steady plume, is taken from the time of
+    flight of the plume's structures. Per line across the axis the factor is
+
+        s = transport flux / mean_t sum_line frame_t x v_t,
+
+    with ``v_t`` the velocity along the axis at frame t
+    (:func:`frame_velocity`), smoothed along the axis over ``smooth_px``
+    (Gaussian sigma) on the lines carrying at least ``min_fraction`` of the
+    largest flux, and extended to the others from the nearest such line.
+    Both components of the frame velocity are multiplied by it. (Scaling the
+    pairs' displacements instead would not do: at 15 Hz the gas crosses
+    ~20 lines per frame, and the inversion in :func:`frame_velocity` mixes
+    the factors of lines far apart.)
+
+    Parameters
+    ----------
+    seq : FlowSequence
+        Displacements of the T - 1 pairs of ``frames``.
+    frames : array (T, H, W)
+        The column-density frames the sequence was computed from.
+    axis, source_index
+        As for :func:`transport_flux`.
+    smooth_px : float, default 2
+    min_fraction : float, default 0.05
+
+    Returns
+    -------
+    (u, v, scale)
+        Velocity at the T frame times [px/frame], (T, H, W) float32, and the
+        factor per line (rows for "up" and "down", columns otherwise).
+    """
+    _check_axis(axis)
+    stack = np.asarray(frames, dtype=np.float32)
+    T = stack.shape[0] if stack.ndim == 3 else 0
+    if stack.ndim != 3 or seq.u.shape != (T - 1,) + stack.shape[1:]:
+        raise ValueError(f"frames must be the (T, H, W) stack of the sequence's T - 1 = "
+                         f"{seq.u.shape[0]} pairs of {seq.u.shape[1:]} frames; got shape "
+                         f"{stack.shape}")
+    if not smooth_px >= 0:
+        raise ValueError(f"smooth_px must be >= 0; got {smooth_px}")
+    if not 0 < min_fraction < 1:
+        raise ValueError(f"min_fraction must be in (0, 1); got {min_fraction}")
+    tf = transport_flux(stack, axis, source_index)
+    fu, fv = frame_velocity(seq)
+    along = {"up": -fv, "down": fv, "left": -fu, "right": fu}[axis]
+    sum_axis = 2 if axis in ("up", "down") else 1
+    flow_flux = (stack * along).sum(axis=sum_axis, dtype=np.float64).mean(axis=0)
+    good = np.isfinite(tf.flux) & (flow_flux > min_fraction * max(float(np.nanmax(
+        np.abs(flow_flux))), 1e-300)) & (tf.flux > 0)
+    n = len(flow_flux)
+    if not good.any():
+        raise ValueError("no line carries a flux along the axis in both the flow and the "
+                         "transport of the frames; check axis and source_index")
+    ratio = np.where(good, tf.flux / np.where(good, flow_flux, 1.0), 0.0)
+    if smooth_px > 0:
+        x = np.arange(n)
+        kern = np.exp(-0.5 * ((x[:, None] - x[None, :]) / smooth_px) ** 2) * good[None, :]
+        w = kern.sum(axis=1)
+        smooth = np.where(w > 1e-6, (kern * ratio[None, :]).sum(axis=1) / np.maximum(w, 1e-300),
+                          np.nan)
+    else:
+        smooth = np.where(good, ratio, np.nan)
+    idx = np.nonzero(np.isfinite(smooth))[0]
+    nearest = idx[np.abs(np.arange(n)[:, None] - idx[None, :]).argmin(axis=1)]
+    scale = smooth[nearest].astype(np.float32)
+    shape = (1, n, 1) if axis in ("up", "down") else (1, 1, n)
+    s = scale.reshape(shape)
+    return (fu * s).astype(np.float32), (fv * s).astype(np.float32), scale
+
+
+
+def plume_frame_velocity(frames: ArrayLike, axis: str = "up",
+                         source_index: Optional[float] = None,
+                         method: str = DEFAULT_METHOD, options=None,
+                         masks: Optional[ArrayLike] = None,
+                         source_mask: Optional[ArrayLike] = None, flux_level: bool = True,
+                         workers: int = 1,
+                         progress: Optional[Callable[[float], Optional[bool]]] = None
+                         ) -> tuple[np.ndarray, np.ndarray]:
+    """Velocity of a plume at each frame time, for the flux through a surface.
+
+    The recommended chain on a recording's column-density frames:
+    :func:`optical_flow_sequence` (warm-started, ``method``), the velocity at
+    the frame times (:func:`frame_velocity`), and, with ``flux_level``, the
+    flux level from the transport of the line-integrated column
+    (:func:`calibrate_flux_level`). The flux at frame t through a surface is
+    then frame t's column times the returned velocity's normal component.
+
+    Parameters
+    ----------
+    frames : array (T, H, W)
+        T >= 3 column-density frames (zero without gas).
+    axis, source_index
+        The plume's direction of transport in the image and the row (column)
+        of its source, as for :func:`transport_flux`.
+    method, options, masks, source_mask, workers, progress
+        As for :func:`optical_flow_sequence`.
+    flux_level : bool, default True
+        Take the flux level from :func:`calibrate_flux_level`. Needs the
+        whole plume width in the frame and the gas leaving through the far
+        edge only; otherwise give False (the flow's own level).
+
+    Returns
+    -------
+    (u, v) : ndarray (T, H, W) float32, px/frame
+    """
+    seq = optical_flow_sequence(frames, method=method, options=options, masks=masks,
+                                source_mask=source_mask, warm_start=True, workers=workers,
+                                progress=progress)
+    if not flux_level:
+        return frame_velocity(seq)
+    u, v, _ = calibrate_flux_level(seq, frames, axis, source_index)
+    return u, v
 
 
 def plume_mask(density: ArrayLike, threshold: float = 0.0, relative_threshold: float = 0.1,

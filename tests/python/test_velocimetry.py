@@ -61,9 +61,9 @@ def epe(f, tu, tv, margin=16):
 
 # The C++ field names, as documented in the engine headers.
 FIELDS = {
-    "fluid": ("alpha", "alpha_div", "alpha_curl", "div_curl_scale", "levels",
-              "min_level_size", "finest_level", "warm_levels", "warps", "iterations",
-              "tolerance"),
+    "fluid": ("alpha", "alpha_div", "alpha_curl", "div_curl_scale", "smoothness_scale",
+              "levels", "min_level_size", "finest_level", "warm_levels", "warps",
+              "iterations", "tolerance"),
     "horn_schunck": ("alpha", "levels", "min_level_size", "finest_level", "warm_levels",
                      "warps", "iterations", "tolerance"),
     "lucas_kanade": ("window_sigma", "levels", "min_level_size", "finest_level",
@@ -270,6 +270,35 @@ def test_temporal_filter_removes_a_spike_in_a_sequence():
         vel.temporal_filter(seq, window=4)
     with pytest.raises(ValueError, match="statistic must be 'median' or 'mean'"):
         vel.temporal_filter(seq, statistic="mode")
+
+
+def test_frame_velocity_is_exact_for_accelerating_gas_where_pairs_lag():
+    """Trajectories x(t) = x0 + a t + g t^2 / 2 (every pixel): pair k moves the
+    gas by a + g (k + 1/2); the velocity at frame t is a + g t."""
+    T, a, g = 6, 2.0, 0.6
+    v = np.stack([np.full((40, 48), -(a + g * (k + 0.5)), np.float32) for k in range(T - 1)])
+    seq = vel.FlowSequence(np.zeros_like(v), v, np.ones_like(v), np.ones(v.shape, bool),
+                           np.zeros(T - 1), "fluid")
+    fu, fv = vel.frame_velocity(seq)
+    assert fv.shape == (T, 40, 48)
+    assert fv[1:-1, 20, 24] == pytest.approx([-(a + g * t) for t in range(1, T - 1)], abs=1e-4)
+    assert np.abs(fu).max() < 1e-6
+    with pytest.raises(ValueError, match="same shape|one shape"):
+        vel.frame_velocity(v, v[:, :10])
+
+
+def test_invert_displacement_undoes_a_rotation():
+    x, y = grid()
+    th, cx, cy = 0.04, 63.5, 47.5
+    u = cx + np.cos(th) * (x - cx) - np.sin(th) * (y - cy) - x
+    v = cy + np.sin(th) * (x - cx) + np.cos(th) * (y - cy) - y
+    bu, bv = vel.invert_displacement(u, v)
+    ex = cx + np.cos(th) * (x - cx) + np.sin(th) * (y - cy) - x
+    ey = cy - np.sin(th) * (x - cx) + np.cos(th) * (y - cy) - y
+    sl = (slice(8, -8), slice(8, -8))
+    assert np.abs(bu - ex)[sl].max() < 2e-3 and np.abs(bv - ey)[sl].max() < 2e-3
+    with pytest.raises(ValueError, match="iterations must be >= 1"):
+        vel.invert_displacement(u, v, iterations=0)
 
 
 def test_plume_mask_and_restrict_to_mask():

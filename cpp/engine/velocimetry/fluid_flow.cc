@@ -9,6 +9,7 @@ void FluidFlowOptions::Check() const {
   CheckNonNegative(alpha_div, "FluidFlowOptions.alpha_div");
   CheckNonNegative(alpha_curl, "FluidFlowOptions.alpha_curl");
   CheckPositive(div_curl_scale, "FluidFlowOptions.div_curl_scale", "px");
+  CheckNonNegative(smoothness_scale, "FluidFlowOptions.smoothness_scale", "px");
   CheckInRange(levels, 1, 12, "FluidFlowOptions.levels");
   CheckInRange(min_level_size, 4, 4096, "FluidFlowOptions.min_level_size", "px");
   CheckInRange(finest_level, 0, 10, "FluidFlowOptions.finest_level");
@@ -40,6 +41,7 @@ void FluidFlow::CalcChecked(const cv::Mat& prev, const cv::Mat& next,
   s.alpha_div = options_.alpha_div;
   s.alpha_curl = options_.alpha_curl;
   s.div_curl_scale = options_.div_curl_scale;
+  s.smoothness_scale = options_.smoothness_scale;
   s.levels = options_.levels;
   s.min_level_size = options_.min_level_size;
   s.finest_level = options_.finest_level;
@@ -47,6 +49,9 @@ void FluidFlow::CalcChecked(const cv::Mat& prev, const cv::Mat& next,
   s.warm_levels = options_.warm_levels;
   s.iterations = options_.iterations;
   s.tolerance = options_.tolerance;
+  // The mask only marks valid output here: the scaling (hence the balance of
+  // data and regularisation) must not depend on it either.
+  s.scale_over_mask = false;
   solver_.Solve(prev, next, mask, source_mask_, warm, s, flow);
 }
 

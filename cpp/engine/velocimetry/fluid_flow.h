@@ -24,11 +24,12 @@
 // approximation det ~ exp(div w)). It is linearised at each warp of a coarse-to-fine pyramid as
 // det(1 + grad w0) div(rho1(x + w0) dw) and solved with
 //
-//   min  sum W (rho1(x+w) det(1+grad w) - rho0)^2 + alpha sum |grad u|^2+|grad v|^2
+//   min  sum W (rho1(x+w) det(1+grad w) - rho0)^2 + alpha sum |grad (w - G(w))|^2
 //          + alpha_div sum (div w - xi)^2 + alpha_curl sum (curl w - zeta)^2
 //
-// where xi, zeta are the divergence and vorticity of the flow smoothed over
-// div_curl_scale (auxiliary fields updated at each warp): the auxiliary-field
+// where G(w) is the flow smoothed over smoothness_scale and xi, zeta are the
+// divergence and vorticity of the flow smoothed over div_curl_scale
+// (auxiliary fields updated at each warp): the auxiliary-field
 // form of the second-order div-curl regulariser of Suter (CVPR 1994) and
 // Corpetti et al. (2002). Why it matters here: mass conservation alone fixes
 // only div(rho w), so any w + (1/rho) curl(psi) fits the data as well; those
@@ -74,6 +75,15 @@ struct FluidFlowOptions {
   // Scale [px at full resolution] below which divergence and vorticity are
   // penalised (Gaussian sigma of xi and zeta). > 0. Default 8.
   double div_curl_scale = 8.0;
+  // Scale [px at full resolution] above which the flow is not smoothed: the
+  // smoothness term penalises the gradient of w - G(w) (G a Gaussian of this
+  // sigma, taken at the start of each warp, an auxiliary field like the
+  // div-curl targets), so that the plume-scale acceleration and deceleration
+  // of the gas are left to mass conservation instead of being pulled towards
+  // a uniform flow (that pull read the flux 20-30 % lower on the synthetic
+  // plume presets; docs/velocimetry.md, "The plume study"). 0 = classic
+  // first-order smoothness of w. >= 0. Default 8.
+  double smoothness_scale = 8.0;
   // Maximum number of pyramid levels (1 = no pyramid); each level halves the
   // size, so ~2^(levels-1) px/frame of motion can be recovered. [1, 12].
   // Default 5.

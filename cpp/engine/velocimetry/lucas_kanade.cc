@@ -59,7 +59,21 @@ void LucasKanadeFlow::CalcChecked(const cv::Mat& prev, const cv::Mat& next,
     u_ = cv::Mat::zeros(p0_[top].size(), CV_32FC1);
     v_ = cv::Mat::zeros(p0_[top].size(), CV_32FC1);
   }
-  const float tikhonov = static_cast<float>(0.1 * o.min_eigenvalue);
+  // Tikhonov damping of each step at the validity threshold: along a
+  // direction the window does not constrain (aperture problem, e.g. along a
+  // smooth plume column) the step shrinks by lambda / (lambda + tau) instead
+  // of growing to kMaxStep; with 0.1 tau such steps drifted and, fed back
+  // by warm starts, grew without bound over a plume sequence.
+  const float tikhonov = static_cast<float>(o.min_eigenvalue);
+  // Start of every pixel (warm start or zero), kept where the window turns
+  // out not to support a vector (below).
+  if (warm) {
+    flow.u.copyTo(start_u_);
+    flow.v.copyTo(start_v_);
+  } else {
+    start_u_ = cv::Mat::zeros(prev.size(), CV_32FC1);
+    start_v_ = cv::Mat::zeros(prev.size(), CV_32FC1);
+  }
   const double sigma = o.window_sigma;
   for (int l = top; l >= finest; --l) {
     if (l < top) {
@@ -73,7 +87,7 @@ void LucasKanadeFlow::CalcChecked(const cv::Mat& prev, const cv::Mat& next,
     cv::GaussianBlur(gx_.mul(gy_), sxy_, cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
     cv::GaussianBlur(gy_.mul(gy_), syy_, cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
     for (int it = 0; it < o.iterations; ++it) {
-      Warp(p1_[l], u_, v_, warped_);
+      Warp(p1_[l], u_, v_, warped_, &inside_);
       cv::Mat it_img = warped_ - i0;
       cv::GaussianBlur(gx_.mul(it_img), bx_, cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
       cv::GaussianBlur(gy_.mul(it_img), by_, cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
@@ -86,7 +100,11 @@ void LucasKanadeFlow::CalcChecked(const cv::Mat& prev, const cv::Mat& next,
           const float* ey = by_.ptr<float>(y);
           float* pu = u_.ptr<float>(y);
           float* pv = v_.ptr<float>(y);
+          const uchar* in = inside_.ptr<uchar>(y);
           for (int x = 0; x < i0.cols; ++x) {
+            // x + w beyond the frame: no data to move it (the gas has left);
+            // Gauss-Newton steps there would follow the replicated border.
+            if (!in[x]) continue;
             const float aa = a[x] + tikhonov, cc = c[x] + tikhonov;
             const float det = aa * cc - b[x] * b[x];
             if (!(det > 0.f)) continue;
@@ -133,7 +151,15 @@ void LucasKanadeFlow::CalcChecked(const cv::Mat& prev, const cv::Mat& next,
     for (int x = 0; x < lam.cols; ++x) {
       const float l = std::max(pl[x], 0.f);
       pq[x] = l / (l + tau);
-      if (l < tau) pv[x] = 0;
+      if (l < tau) {
+        // Unsupported (aperture problem): keep the start. Gauss-Newton steps
+        // along a direction the window does not constrain follow noise; fed
+        // back by warm starts over a sequence they grew without bound on
+        // smooth plume columns (hundreds of px/frame).
+        pv[x] = 0;
+        flow.u.at<float>(y, x) = start_u_.at<float>(y, x);
+        flow.v.at<float>(y, x) = start_v_.at<float>(y, x);
+      }
     }
   }
 }

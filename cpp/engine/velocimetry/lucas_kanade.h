@@ -18,6 +18,8 @@
 // quality: lambda_min / (lambda_min + min_eigenvalue), lambda_min the smaller
 // eigenvalue of the window's structure tensor S (0.5 at the threshold).
 // valid: lambda_min >= min_eigenvalue, inside the gas mask, x + w in frame.
+// Where lambda_min < min_eigenvalue the vector keeps its start (the warm
+// start, or 0): the window does not determine it.
 #pragma once
 
 #include "engine/velocimetry/flow.h"
@@ -61,6 +63,7 @@ class LucasKanadeFlow : public OpticalFlow {
  private:
   LucasKanadeOptions options_;
   cv::Mat i0n_, i1n_, u_, v_, un_, vn_, warped_, gx_, gy_, sxx_, sxy_, syy_, bx_, by_;
+  cv::Mat start_u_, start_v_, inside_;
   std::vector<cv::Mat> p0_, p1_;
 };
 

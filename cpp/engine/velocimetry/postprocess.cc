@@ -127,6 +127,75 @@ void ReplaceVectors(const cv::Mat& u, const cv::Mat& v, const cv::Mat& keep,
   v_out = cv_;
 }
 
+void InvertDisplacement(const cv::Mat& u, const cv::Mat& v, int iterations, cv::Mat& bu,
+                        cv::Mat& bv) {
+  Require(u.type() == CV_32FC1 && v.type() == CV_32FC1,
+          "u and v must be float32 single-channel maps (CV_32FC1)");
+  Require(!u.empty() && u.size() == v.size(),
+          "u and v must be non-empty and of one size; got " + SizeText(u) + " and " +
+              SizeText(v));
+  Require(iterations >= 1, "iterations must be >= 1; got " + std::to_string(iterations));
+  const int W = u.cols, H = u.rows;
+  cv::Mat map_x(u.size(), CV_32FC1), map_y(u.size(), CV_32FC1), wu, wv;
+  bu = -u;
+  bv = -v;
+  for (int it = 0; it < iterations; ++it) {
+    // y = x + b; b_new = -w(y) (bilinear, border replicated).
+    ParallelRows(H, W, [&](int y0, int y1) {
+      for (int y = y0; y < y1; ++y) {
+        const float* pu = bu.ptr<float>(y);
+        const float* pv = bv.ptr<float>(y);
+        float* mx = map_x.ptr<float>(y);
+        float* my = map_y.ptr<float>(y);
+        for (int x = 0; x < W; ++x) {
+          mx[x] = x + pu[x];
+          my[x] = y + pv[x];
+        }
+      }
+    });
+    cv::remap(u, wu, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+    cv::remap(v, wv, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+    // Mean change of this sweep; stop below 1e-4 px (folds, where the
+    // iteration does not converge, must not keep the whole map iterating).
+    const double change = (cv::norm(wu + bu, cv::NORM_L1) + cv::norm(wv + bv, cv::NORM_L1)) /
+                          (2.0 * W * H);
+    bu = -wu;
+    bv = -wv;
+    if (change < 1e-4) break;
+  }
+}
+
+void FrameVelocity(const std::vector<cv::Mat>& u, const std::vector<cv::Mat>& v,
+                   std::vector<cv::Mat>& u_out, std::vector<cv::Mat>& v_out) {
+  Require(!u.empty() && u.size() == v.size(),
+          "u and v must hold the same number (>= 1) of pair displacements; got " +
+              std::to_string(u.size()) + " and " + std::to_string(v.size()));
+  for (std::size_t k = 0; k < u.size(); ++k) {
+    Require(u[k].type() == CV_32FC1 && v[k].type() == CV_32FC1,
+            "u and v must be float32 single-channel maps (CV_32FC1)");
+    Require(u[k].size() == u[0].size() && v[k].size() == u[0].size(),
+            "every displacement map must have one size " + SizeText(u[0]) + "; pair " +
+                std::to_string(k) + " has " + SizeText(u[k]) + " and " + SizeText(v[k]));
+  }
+  constexpr int kIterations = 10;
+  const std::size_t n = u.size();
+  u_out.assign(n + 1, cv::Mat());
+  v_out.assign(n + 1, cv::Mat());
+  u_out[0] = u[0].clone();
+  v_out[0] = v[0].clone();
+  cv::Mat bu, bv;
+  for (std::size_t t = 1; t <= n; ++t) {
+    InvertDisplacement(u[t - 1], v[t - 1], kIterations, bu, bv);
+    if (t < n) {
+      u_out[t] = 0.5 * (u[t] - bu);
+      v_out[t] = 0.5 * (v[t] - bv);
+    } else {
+      u_out[t] = -bu;
+      v_out[t] = -bv;
+    }
+  }
+}
+
 void TemporalFilterOptions::Check() const {
   CheckInRange(window, 1, 1001, "TemporalFilterOptions.window", "frames");
   Require(window % 2 == 1, "TemporalFilterOptions.window must be odd; got " +

@@ -1,12 +1,15 @@
 // Post-processing: the normalised median test finds planted outliers and
 // nothing else, replacement restores a linear field exactly, temporal
-// filtering removes a spike, and the plume mask follows a known blob.
+// filtering removes a spike, the plume mask follows a known blob, a
+// displacement map is inverted, and frame velocities are exact for uniformly
+// accelerated trajectories.
 #include "engine/velocimetry/postprocess.h"
 
 #include <gtest/gtest.h>
 
 #include <opencv2/imgproc.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -165,6 +168,58 @@ TEST(PlumeMask, FollowsABlobAndDropsSpecks) {
   EXPECT_EQ(mask.at<uchar>(60, 80), 1);
   o.dilate_radius = 3;
   EXPECT_GT(cv::countNonZero(PlumeMask(rho, o)), cv::countNonZero(mask));
+}
+
+TEST(InvertDisplacement, MapsBackARotationAndDrift) {
+  // phi(x) = c + R (x - c) + d; its inverse is c + R^T (x - c - d).
+  const int W = 96, H = 80;
+  const double th = 0.05, cx = 47.5, cy = 39.5, dx = 2.5, dy = -1.5;
+  cv::Mat u(H, W, CV_32F), v(H, W, CV_32F);
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) {
+      const double rx = x - cx, ry = y - cy;
+      u.at<float>(y, x) = static_cast<float>(cx + std::cos(th) * rx - std::sin(th) * ry + dx - x);
+      v.at<float>(y, x) = static_cast<float>(cy + std::sin(th) * rx + std::cos(th) * ry + dy - y);
+    }
+  cv::Mat bu, bv;
+  InvertDisplacement(u, v, 20, bu, bv);
+  double worst = 0;
+  for (int y = 10; y < H - 10; ++y)
+    for (int x = 10; x < W - 10; ++x) {
+      const double rx = x - cx - dx, ry = y - cy - dy;
+      const double ex = cx + std::cos(th) * rx + std::sin(th) * ry - x;
+      const double ey = cy - std::sin(th) * rx + std::cos(th) * ry - y;
+      worst = std::max({worst, std::abs(bu.at<float>(y, x) - ex),
+                        std::abs(bv.at<float>(y, x) - ey)});
+    }
+  EXPECT_LT(worst, 2e-3);
+  EXPECT_THROW(InvertDisplacement(u, v, 0, bu, bv), std::invalid_argument);
+}
+
+TEST(FrameVelocity, ExactForUniformAccelerationWhereThePairDisplacementIsNot) {
+  // Gas rising with y(t) = y0 - (a t + g t^2 / 2), a = 1.5 px/frame, g = 0.8
+  // px/frame^2 along rows, everywhere: pair k displaces by a + g (k + 1/2),
+  // the velocity at frame t is a + g t.
+  const int W = 64, H = 48, T = 5;
+  const double a = 1.5, g = 0.8;
+  std::vector<cv::Mat> u(T - 1), v(T - 1);
+  for (int k = 0; k < T - 1; ++k) {
+    u[k] = cv::Mat::zeros(H, W, CV_32F);
+    v[k] = cv::Mat(H, W, CV_32F, cv::Scalar(-(a + g * (k + 0.5))));
+  }
+  std::vector<cv::Mat> fu, fv;
+  FrameVelocity(u, v, fu, fv);
+  ASSERT_EQ(fu.size(), static_cast<std::size_t>(T));
+  for (int t = 1; t < T - 1; ++t) {
+    EXPECT_NEAR(fv[t].at<float>(24, 32), -(a + g * t), 1e-4) << t;
+    EXPECT_NEAR(fu[t].at<float>(24, 32), 0.0, 1e-6);
+    // The pair displacement alone is off by g / 2.
+    EXPECT_NEAR(v[t].at<float>(24, 32) - fv[t].at<float>(24, 32), -0.5 * g, 1e-4);
+  }
+  EXPECT_NEAR(fv[0].at<float>(24, 32), -(a + 0.5 * g), 1e-6);  // one-sided ends
+  EXPECT_NEAR(fv[T - 1].at<float>(24, 32), -(a + g * (T - 1.5)), 1e-4);
+  std::vector<cv::Mat> none;
+  EXPECT_THROW(FrameVelocity(none, none, fu, fv), std::invalid_argument);
 }
 
 }  // namespace

@@ -147,8 +147,9 @@ void VariationalSolver::Solve(const cv::Mat& prev, const cv::Mat& next,
   alpha_div_ = s.alpha_div;
   alpha_curl_ = s.alpha_curl;
   div_curl_scale_ = s.div_curl_scale;
+  smoothness_scale_ = s.smoothness_scale;
   const cv::Size full = prev.size();
-  const double sd = PairStdDev(prev, next, mask);
+  const double sd = PairStdDev(prev, next, s.scale_over_mask ? mask : cv::Mat());
   if (!(sd > 0)) {
     // Two constant frames carry no information on motion: keep the start
     // (warm or zero) and report every vector invalid.
@@ -246,7 +247,19 @@ void VariationalSolver::SolveLevel(int level, int finest, const VariationalSetti
     Linearise(level, s);
     // res = -(A^T W r0 + R'(w0)), x = 0, p = P res.
     ForwardPass(u_.ptr<float>(), v_.ptr<float>(), /*rhs=*/true);
-    AdjointPass(u_.ptr<float>(), v_.ptr<float>(), ru, rv);
+    if (smoothness_scale_ > 0) {
+      // The smoothness acts on w - G(w0): its gradient at w = w0 is alpha L
+      // (w0 - G(w0)), which AdjointPass forms from its argument (the data and
+      // div-curl parts come from g, del, kap of the pass above).
+      const double sigma = smoothness_scale_ / static_cast<double>(1 << level);
+      cv::GaussianBlur(u_, smooth_u_, cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
+      cv::GaussianBlur(v_, smooth_v_, cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
+      cv::subtract(u_, smooth_u_, smooth_u_);
+      cv::subtract(v_, smooth_v_, smooth_v_);
+      AdjointPass(smooth_u_.ptr<float>(), smooth_v_.ptr<float>(), ru, rv);
+    } else {
+      AdjointPass(u_.ptr<float>(), v_.ptr<float>(), ru, rv);
+    }
     Partials prz{}, prr{};
     ParallelStripes(H, W, [&](int st, int y0, int y1) {
       const std::size_t b = static_cast<std::size_t>(y0) * W;

@@ -17,10 +17,13 @@
 //                the velocity varies during the frame interval),
 //                A dw = det(1 + grad w0) div(rho1(x + w0) dw)   (central
 //                differences; div and its adjoint are exact transposes)
-//   R(w) = alpha sum |grad u|^2 + |grad v|^2            (forward differences)
+//   R(w) = alpha sum |grad (u - us)|^2 + |grad (v - vs)|^2   (forward differences)
 //        + alpha_div  sum (div w - xi)^2 + alpha_curl sum (curl w - zeta)^2
 //
-// where xi and zeta, the smooth parts of the divergence and the vorticity,
+// with (us, vs) = 0, or with smoothness_scale > 0 the current flow smoothed
+// over that scale (so that only short-scale variations of the flow are
+// penalised and plume-scale acceleration and spreading are left to the data),
+// and where xi and zeta, the smooth parts of the divergence and the vorticity,
 // are auxiliary fields updated before each warp as the Gaussian-filtered
 // (sigma = div_curl_scale) divergence and curl of the current flow. This is
 // the auxiliary-field form of the second-order div-curl regulariser of
@@ -50,6 +53,11 @@ struct VariationalSettings {
   double alpha_div = 0.0;
   double alpha_curl = 0.0;
   double div_curl_scale = 8.0;  // px at full resolution
+  // > 0: the smoothness term penalises the gradient of w - G(w0) instead of
+  // w (G a Gaussian of sigma smoothness_scale px at full resolution, w0 the
+  // flow at the start of the warp): an auxiliary field like xi and zeta.
+  // 0 = classic first-order smoothness.
+  double smoothness_scale = 0.0;
   int levels = 1;
   int min_level_size = 16;
   int finest_level = 0;
@@ -57,6 +65,9 @@ struct VariationalSettings {
   int iterations = 10;
   int warm_levels = 0;  // levels solved after a warm start (0 = all)
   double tolerance = 1e-3;
+  // Scale the frames by the pair's standard deviation over the gas mask (when
+  // given) rather than over the whole frame.
+  bool scale_over_mask = true;
 };
 
 class VariationalSolver {
@@ -91,6 +102,8 @@ class VariationalSolver {
   // a = rho (warped next), b = det(1 + grad w0). w = data weight, r = r0.
   std::vector<float> a_, b_, w_, r_, c_;  // c = w b^2 (continuity)
   std::vector<float> g_, del_, kap_;
+  cv::Mat smooth_u_, smooth_v_;  // w0 - share G(w0): the smoothness's rhs argument
+  double smoothness_scale_ = 0;
   cv::Mat xi_, zeta_, quality_level_;  // smooth divergence and vorticity targets
   std::vector<float> pre_a_, pre_b_, pre_c_;  // inverse block preconditioner
   std::vector<float> x_, res_, p_, q_;  // conjugate-gradient vectors (u then v)
