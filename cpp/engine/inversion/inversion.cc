@@ -1047,6 +1047,21 @@ void Inverter::ProfileGuess(const Pixel& px, std::vector<GuessCandidate>* out, i
     all.push_back(k);
     ws->profile_predicted.push_back(predicted);
   }
+  // The nodes beside the best minimum start solves too: a second minimum
+  // closer than the node spacing (a well-determined temperature) shows no
+  // local minimum of its own on the nodes.
+  std::size_t jb = 0;
+  for (std::size_t j = 1; j < m; ++j)
+    if (f[j] < f[jb]) jb = j;
+  for (std::size_t j : {jb - 1, jb + 1}) {
+    if (jb == 0 && j == jb - 1) continue;
+    if (j >= m) continue;
+    GuessCandidate k;
+    std::copy(ws->profile_theta[j].begin(), ws->profile_theta[j].end(), k.th);
+    k.cost = f[j];
+    all.push_back(k);
+    ws->profile_predicted.push_back(f[jb]);
+  }
   // Best node first; minima that cannot come within 25 of it carry no
   // likelihood weight (exp(-12.5)) and are dropped; at most 4 are polished.
   const double best = *std::min_element(f.begin(), f.end());
@@ -1056,7 +1071,7 @@ void Inverter::ProfileGuess(const Pixel& px, std::vector<GuessCandidate>* out, i
   all.resize(keep);
   std::sort(all.begin(), all.end(),
             [](const GuessCandidate& a, const GuessCandidate& b) { return a.cost < b.cost; });
-  if (all.size() > 4) all.resize(4);
+  if (all.size() > 6) all.resize(6);
 }
 
 void Inverter::SolveTable(Pixel* px, const double* start, Workspace* ws, bool precise) const {
