@@ -93,8 +93,9 @@ enum class ColdStart : int {
   // bounds) the fractions are solved with T_peak and sigma held (the
   // fractions problem is small and nearly linear; the table is
   // pre-contracted at the nodes), continuing from the neighbouring node;
-  // every local minimum of the profile within chi2 + 25 of the best (at most
-  // 4) is refined by a parabola and polished with all parameters free.
+  // every local minimum of the profile within chi2 + 25 of the best, refined
+  // by a parabola, and the two nodes beside the best one (at most 6 starts)
+  // are polished with all parameters free.
   kProfile = 0,
   // Full solves from several candidates of a coarse lookup (temperature_candidates,
   // guess_iterations, num_starts). Slower; kept for comparison.
@@ -103,7 +104,7 @@ enum class ColdStart : int {
 
 enum class SolverKind : int {
   kAuto = 0,       // the per-scene table when the species are spectrally separate, else the full model
-  kTable = 1,      // the per-scene table (TinySolver / Newton); fails if species overlap
+  kTable = 1,      // the per-scene table (Levenberg-Marquardt / Newton); fails if species overlap
   kFullModel = 2,  // ceres::Solve on the full BinnedModel (automatic differentiation); slow
 };
 
