@@ -230,6 +230,9 @@ void BindInversion(py::module_& m) {
       .value("neighbour", InitialGuess::kNeighbour)
       .value("previous", InitialGuess::kPrevious)
       .value("given", InitialGuess::kGiven);
+  py::enum_<ColdStart>(m, "ColdStart")
+      .value("profile", ColdStart::kProfile)
+      .value("starts", ColdStart::kStarts);
   py::enum_<SolverKind>(m, "SolverKind")
       .value("auto", SolverKind::kAuto)
       .value("table", SolverKind::kTable)
@@ -260,7 +263,7 @@ void BindInversion(py::module_& m) {
                        ParameterSpec sigma, std::vector<double> netd, double detection_sigma,
                        double model_error_fraction, int max_iterations, double tolerance_chi2,
                        InitialGuess guess, int candidates, int guess_iterations, int starts,
-                       SolverKind solver, int threads) {
+                       SolverKind solver, int threads, ColdStart cold_start) {
              InversionOptions o;
              o.fractions = std::move(fractions);
              o.temperature = temperature;
@@ -276,6 +279,7 @@ void BindInversion(py::module_& m) {
              o.num_starts = starts;
              o.solver = solver;
              o.num_threads = threads;
+             o.cold_start = cold_start;
              return o;
            }),
            py::arg("fractions") = std::vector<ParameterSpec>(),
@@ -291,7 +295,8 @@ void BindInversion(py::module_& m) {
            py::arg("guess_iterations") = InversionOptions().guess_iterations,
            py::arg("num_starts") = InversionOptions().num_starts,
            py::arg("solver") = InversionOptions().solver,
-           py::arg("num_threads") = InversionOptions().num_threads)
+           py::arg("num_threads") = InversionOptions().num_threads,
+           py::arg("cold_start") = InversionOptions().cold_start)
       .def_readonly("fractions", &InversionOptions::fractions)
       .def_readonly("temperature", &InversionOptions::temperature)
       .def_readonly("sigma", &InversionOptions::sigma)
@@ -305,7 +310,8 @@ void BindInversion(py::module_& m) {
       .def_readonly("guess_iterations", &InversionOptions::guess_iterations)
       .def_readonly("num_starts", &InversionOptions::num_starts)
       .def_readonly("solver", &InversionOptions::solver)
-      .def_readonly("num_threads", &InversionOptions::num_threads);
+      .def_readonly("num_threads", &InversionOptions::num_threads)
+      .def_readonly("cold_start", &InversionOptions::cold_start);
 
   m.def("pixel_status_name", [](int s) { return std::string(PixelStatusName(static_cast<PixelStatus>(s))); },
         py::arg("status"));

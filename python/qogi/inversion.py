@@ -374,12 +374,19 @@ class Inversion:
         to the table guess when they fail.
     solver : {"auto", "table", "full_model"}, default "auto"
     max_iterations : int, default 100
+    cold_start : {"profile", "starts"}, default "profile"
+        How a pixel is solved without a warm start when the temperature is
+        free. With the temperature free the chi2 landscape often has two
+        branches (thin and hot, thick and cooler); both methods look for every
+        minimum, and a second solution within chi2 + 4 widens the reported
+        uncertainty (flag ``AMBIGUOUS``). ``"profile"``: chi2 profiled over
+        T_peak (the fractions solved at each of the table's temperature nodes),
+        every local minimum polished with all parameters free. ``"starts"``:
+        full solves from several candidates of a coarse lookup (slower; see
+        ``num_starts``).
     num_starts : int, default 0
-        Full solves from the coarse lookup's best candidates (0 = all of
-        them). With the temperature free the chi2 landscape often has two
-        branches (thin and hot, thick and cooler); starting from every
-        candidate finds both, and a second solution within chi2 + 4 widens the
-        reported uncertainty (flag ``AMBIGUOUS``).
+        ``cold_start="starts"`` only: full solves from the coarse lookup's best
+        candidates (0 = all of them).
     tolerance_chi2 : float, default 0.01
         Converged when a Gauss-Newton step would lower chi2 by less than this
         (the parameters are then within ~0.1 standard deviation of the optimum).
@@ -402,7 +409,7 @@ class Inversion:
                  max_sigma_m: float = 2.0, detection_sigma: float = 3.0,
                  model_error_fraction: float = 0.0, initial_guess: str = "table",
                  solver: str = "auto", max_iterations: int = 100, tolerance_chi2: float = 0.01,
-                 num_starts: int = 0,
+                 num_starts: int = 0, cold_start: str = "profile",
                  table_options: Optional[dict] = None, num_threads: int = 0, progress=None,
                  table=None):
         if not isinstance(model, ForwardModel):
@@ -461,6 +468,9 @@ class Inversion:
                    "previous": _engine.InitialGuess.previous}
         if initial_guess not in guesses:
             raise ValueError(f"initial_guess must be one of {sorted(guesses)}; got {initial_guess!r}")
+        colds = {"profile": _engine.ColdStart.profile, "starts": _engine.ColdStart.starts}
+        if cold_start not in colds:
+            raise ValueError(f"cold_start must be one of {sorted(colds)}; got {cold_start!r}")
         solvers = {"auto": _engine.SolverKind.auto, "table": _engine.SolverKind.table,
                    "full_model": _engine.SolverKind.full_model}
         if solver not in solvers:
@@ -495,7 +505,8 @@ class Inversion:
                               model_error_fraction=float(model_error_fraction),
                               max_iterations=int(max_iterations),
                               tolerance_chi2=float(tolerance_chi2),
-                              solver=solvers[solver], num_threads=int(num_threads))
+                              solver=solvers[solver], num_threads=int(num_threads),
+                              cold_start=colds[cold_start])
         self._guess = guesses[initial_guess]
         self.initial_guess = initial_guess
         self._inverters: Dict[tuple, object] = {}

@@ -87,6 +87,7 @@ class QuantifyConfig:
     column_density: str = "inversion"
     velocity_systematic: Optional[float] = None
     column_systematic: float = COLUMN_SYSTEMATIC
+    flux_level: bool = True
 
     def __post_init__(self):
         if isinstance(self.species, str):
@@ -249,6 +250,7 @@ class _Background:
                  channel_sign: np.ndarray, say, typical_temperature_K: float):
         self.cfg = cfg
         self.roi = roi
+        self.channel_sign = np.asarray(channel_sign, dtype=float)
         self.typical_temperature_K = typical_temperature_K
         self.percentile_img = None
         if cfg.background == "percentile":
@@ -497,17 +499,46 @@ class _InvertedColumns:
             n = netd * ch.band_radiance_derivative(bg_t)
             sens.append(abs(l - ch.band_radiance(bg_t)) / n)
         self.proxy_channel = int(np.argmax(sens))
+        self._bg_t = bg_t
+        self._set_proxy_lookup(0.0 if cfg.gas_temperature == "infer" else None)
+        self.sigma_m: Dict[int, float] = {}
+
+    def _set_proxy_lookup(self, k_K_per_fraction: Optional[float]) -> None:
+        """The contrast -> column lookup of the velocity proxy: at the assumed
+        gas temperature (None), or along the plume's mixing line
+        T_peak = T_amb + k x once the temperature has been inferred (then
+        the proxy stays proportional to the column where the gas cools as it
+        rises, which the velocimetry's mass balance needs)."""
+        cfg, scene = self.cfg, self.scene
         x = np.geomspace(1e-7, 1.0, 160)
         sig = cfg.sigma_m or 0.02
-        l = self.model.band_radiance({cfg.species[0]: x}, scene.gas_K, sig, scene.ambient_K,
-                                     bg_t)[:, self.proxy_channel]
-        contrast = np.abs(l - channels[self.proxy_channel].band_radiance(bg_t))
-        cols = self.model.column_density({cfg.species[0]: x}, scene.gas_K, sig,
-                                         scene.ambient_K)[cfg.species[0]]
+        if k_K_per_fraction is None:
+            t = np.full_like(x, scene.gas_K)
+        else:
+            lo, hi = self.temperature_range_K
+            t = np.clip(scene.ambient_K + k_K_per_fraction * x, lo, hi)
+        ch = self.rec.channels[self.proxy_channel]
+        # x: the released gas's total peak fraction (the mixing line's x).
+        fr = {cfg.species[0]: x}
+        if cfg.composition is not None:
+            total = sum(cfg.composition[sp] for sp in cfg.species)
+            fr = {sp: x * cfg.composition[sp] / total for sp in cfg.species}
+        l = self.model.band_radiance(fr, t, sig, scene.ambient_K, self._bg_t)[:, self.proxy_channel]
+        contrast = np.abs(l - ch.band_radiance(self._bg_t))
+        cols = self.model.column_density(fr, t, sig, scene.ambient_K)[cfg.species[0]]
         keep = np.concatenate([[True], np.diff(contrast) > 0])
         self._proxy_contrast = np.concatenate([[0.0], contrast[keep]])
         self._proxy_column = np.concatenate([[0.0], cols[keep]])
-        self.sigma_m: Dict[int, float] = {}
+
+    def _lookup(self, contrast) -> np.ndarray:
+        c = np.asarray(contrast)
+        return np.sign(c) * np.interp(np.abs(c), self._proxy_contrast, self._proxy_column)
+
+    def contrast_to_column(self, contrast: np.ndarray) -> np.ndarray:
+        """Signed proxy contrast fields -> column proxy (in place, float32)."""
+        for k in range(contrast.shape[0]):
+            contrast[k] = self._lookup(contrast[k])
+        return contrast
 
     def proxy_field(self, frame: np.ndarray) -> np.ndarray:
         sl = self.roi.slices()
@@ -516,12 +547,16 @@ class _InvertedColumns:
         bg = self.background.field(frame[:, sl[0], sl[1]].astype(np.float64), self.horizontal)
         if bg is None:  # a uniform region background
             bg = self.background.region_mean(frame, self.cfg.background)[:, None, None]
-        dl = np.abs(fr[0] - np.asarray(bg)[c])
-        return np.interp(dl, self._proxy_contrast, self._proxy_column).astype(np.float32)
+        # Signed (gas contrast positive): noise averages out of the sums the
+        # velocimetry's flux level takes along the plume.
+        dl = self.background.channel_sign[c] * (fr[0] - np.asarray(bg)[c])
+        return dl.astype(np.float32)
 
     def collect(self, frame: np.ndarray, surfaces: Sequence[Surface], samples) -> np.ndarray:
-        """The velocity proxy field of one frame; stores the radiance and the
-        background at the surface samples for :meth:`finish`."""
+        """The signed proxy-channel contrast field of one frame (converted to
+        a column proxy by :meth:`contrast_to_column` once the lookup is
+        final); stores the radiance and the background at the surface samples
+        for :meth:`finish`."""
         field = self.proxy_field(frame)
         f64 = frame.astype(np.float64)
         rad, bg, prof = [], [], []
@@ -551,7 +586,7 @@ class _InvertedColumns:
             if self.cfg.sigma_m is not None:
                 sigma = self.cfg.sigma_m
             else:
-                mean_prof = np.mean([p[j] for p in self._prof], axis=0)
+                mean_prof = np.mean([self._lookup(p[j]) for p in self._prof], axis=0)
                 sigma = _gaussian_width(mean_prof) * self.scene.pixel_m
                 if not (np.isfinite(sigma) and sigma > 0):
                     sigma = 0.02
@@ -683,6 +718,7 @@ class _InvertedColumns:
                 self.k_sigma = float(math.sqrt(max(chi2, 1.0) / np.sum(w * x[keep] ** 2)))
                 self.mixing_pixels = int(keep.sum())
         k = self.k_K_per_fraction
+        self._set_proxy_lookup(k)
 
         # 2. Every pixel-frame: x = g(x) with T_peak = T_amb + k x. In u = ln x
         # the root of phi(u) = ln g(e^u) - u is bracketed by x -> 0 (g(0) > 0:
@@ -872,6 +908,8 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
                 for sp in cfg.species:
                     surf_cols[j][sp][:] = _bilinear(acc[sp] / nf, xy - [roi.x0, roi.y0])
         invert_collected(done, time_averaged)
+        if cfg.column_density != "truth":
+            columns.contrast_to_column(col_fields[:done])
     except Cancelled:
         try:
             invert_collected(done, time_averaged)
@@ -883,6 +921,7 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
 
     # -- velocity --------------------------------------------------------------
     flows = None
+    velocity_info: Dict[str, str] = {}
     if cfg.velocity not in ("wind", "exit"):
         # Every frame's field (also for the time-averaged order: the gas
         # moves, the averaged field does not).
@@ -897,38 +936,46 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
                 source_mask = None
         scale = np.percentile(velocity_frames, 99.5)
         norm = velocity_frames / scale if scale > 0 else velocity_frames
+        norm = np.ascontiguousarray(norm, dtype=np.float32)
         try:
             seq = vel.optical_flow_sequence(
-                np.ascontiguousarray(norm, dtype=np.float32), method=cfg.velocity,
-                source_mask=source_mask, warm_start=True, workers=0,
+                norm, method=cfg.velocity, source_mask=source_mask, warm_start=True, workers=0,
                 progress=lambda fr_: say(0.6 + 0.3 * fr_, "velocimetry"))
         except KeyboardInterrupt:
             raise Cancelled("quantification cancelled", partial=None) from None
-        flows = seq
+        # The velocity at each frame's time; with the fluid method and a known
+        # source, the flux level from the transport of the line-integrated
+        # column (time of flight of the plume's structures: mass conservation
+        # alone cannot fix it in a steady plume; docs/velocimetry.md).
+        flux_note = "off: " + ("a method other than fluid" if cfg.velocity != "fluid" else
+                               "flux_level=False" if not cfg.flux_level else
+                               "no source given" if cfg.source is None else
+                               "fewer than 3 frames" if done < 3 else "")
+        flows = None
+        if flux_note == "off: ":
+            pts = np.concatenate([np.asarray(s.points, float) for s in surfaces])
+            dx, dy = pts.mean(axis=0) - np.asarray(cfg.source)
+            if abs(dy) >= abs(dx):
+                axis, index = ("up" if dy < 0 else "down"), cfg.source[1] - roi.y0
+            else:
+                axis, index = ("right" if dx > 0 else "left"), cfg.source[0] - roi.x0
+            try:
+                u, v, _ = vel.calibrate_flux_level(seq, norm, axis, index)
+                flows = (u, v)
+                flux_note = f"on: transport of the line-integrated column, axis {axis}"
+            except ValueError as e:
+                flux_note = f"off: {e}"
+        if flows is None:
+            flows = vel.frame_velocity(seq)
+        velocity_info["flux_level"] = flux_note
     return _finish(rec, surfaces, cfg, scene, samples, frames, done, col_fields, surf_cols,
                    surf_sig, flows, status_counts, kept_maps, t_start, complete=True,
-                   keep_maps=keep_maps, roi=roi, columns=columns)
-
-
-def _pair_velocity(flows, k: int, n: int):
-    """Velocity field (u, v) [px/frame] at frame k: the mean of the flows into
-    and out of it (one of them at the ends)."""
-    m = len(flows)
-    if m == 0:
-        return None
-    a = flows[min(k, m - 1)]
-    if 0 < k <= m - 1:
-        b = flows[k - 1]
-        return 0.5 * (a.u + b.u), 0.5 * (a.v + b.v)
-    if k > m - 1:
-        b = flows[m - 1]
-        return b.u, b.v
-    return a.u, a.v
+                   keep_maps=keep_maps, roi=roi, columns=columns, velocity_info=velocity_info)
 
 
 def _finish(rec, surfaces, cfg, scene, samples, frames, done, col_fields, surf_cols, surf_sig,
             flows, status_counts, kept_maps, t_start, complete, keep_maps=False, roi=None,
-            columns=None):
+            columns=None, velocity_info=None):
     from . import _engine
 
     times = np.asarray(rec.time_s)[frames.start:frames.start + done]
@@ -953,7 +1000,7 @@ def _finish(rec, surfaces, cfg, scene, samples, frames, done, col_fields, surf_c
             elif cfg.velocity == "exit":
                 vn[k] = cfg.exit_velocity_m_s
             elif flows is not None:
-                uv = _pair_velocity(flows, k, done)
+                uv = (flows[0][k], flows[1][k])
                 if uv is not None:
                     u = _bilinear(uv[0], xy - [roi.x0, roi.y0])
                     v = _bilinear(uv[1], xy - [roi.x0, roi.y0])
@@ -961,7 +1008,7 @@ def _finish(rec, surfaces, cfg, scene, samples, frames, done, col_fields, surf_c
             # Maps are keyed by the recording's frame index.
             if keep_maps and roi is not None and frames.start + k not in kept_maps and \
                     flows is not None and (k % max(1, done // 10) == 0):
-                uv = _pair_velocity(flows, k, done)
+                uv = (flows[0][k], flows[1][k])
                 kept_maps[frames.start + k] = {"column_density_kg_m2": {cfg.species[0]: col_fields[k]},
                                 "velocity_px_per_frame": uv, "origin": (roi.x0, roi.y0)}
         for sp in cfg.species:
@@ -1000,6 +1047,6 @@ def _finish(rec, surfaces, cfg, scene, samples, frames, done, col_fields, surf_c
     info = {"seconds": time.perf_counter() - t_start, "frames": int(done),
             "frame_rate_hz": float(scene.frame_rate), "pixel_m": float(scene.pixel_m),
             "gas_temperature_K": float(scene.gas_K), "velocity_systematic": float(vsys),
-            "column_systematic": float(col_sys), **mixing}
+            "column_systematic": float(col_sys), **mixing, **(velocity_info or {})}
     return Result(results, config=cfg, recording_path=str(rec.path), pixel_status=status_counts,
                   maps=kept_maps, info=info, complete=complete)

@@ -196,6 +196,26 @@ def test_tied_composition_and_priors(model):
     assert 0 < res.sigma_sigma_m <= 0.01 + 1e-12  # no more uncertain than its prior
 
 
+def test_profile_cold_start_finds_the_minima_of_exhaustive_starts(model):
+    """With the temperature free, the default cold start (chi2 profiled over
+    T_peak, its local minima polished) must fit every pixel as well as full
+    solves started from every candidate of the coarse lookup, and flag the
+    same pixels ambiguous (two minima within chi2 + 4)."""
+    x, tp, sg, tb, rad = plumes(model, 150, 5)
+    rng = np.random.default_rng(6)
+    inv = {k: qogi.Inversion(model, T_AMB, netd_K=NETD, temperature=free(290.0, 360.0),
+                             max_sigma_m=1.0, cold_start=k) for k in ("profile", "starts")}
+    noise = inv["profile"].channel_noise(tb[0])[:, None]
+    rad = rad + rng.standard_normal(rad.shape) * noise
+    r = {k: v.invert(rad, background_temperature_K=tb, sigma_m=sg) for k, v in inv.items()}
+    ok = r["starts"].valid
+    assert ok.sum() >= 140 and np.all(r["profile"].valid[ok])
+    worse = r["profile"].chi2[ok] - r["starts"].chi2[ok]
+    assert np.all(worse < 0.05), np.sort(worse)[-5:]
+    amb = {k: (v.flags & 1).astype(bool) for k, v in r.items()}
+    assert np.mean(amb["profile"][ok] == amb["starts"][ok]) > 0.95
+
+
 def test_scene_tables_are_cached(model):
     a = qogi.inversion.scene_table(model, T_AMB, min_peak_temperature_K=290.0,
                                    max_peak_temperature_K=310.0, max_sigma_m=1.0)
@@ -239,6 +259,7 @@ def test_plume_depth_from_width():
     (dict(fractions={"CH4": 0.1, "CO2": 0.1}, temperature=fixed(300.0)), ["every parameter is fixed"]),
     (dict(initial_guess="psychic"), ["initial_guess"]),
     (dict(solver="magic"), ["solver"]),
+    (dict(cold_start="lucky"), ["cold_start"]),
 ])
 def test_bad_settings(model, kwargs, words):
     args = dict(netd_K=NETD, max_sigma_m=1.0)

@@ -1,9 +1,8 @@
 #include "engine/inversion/inversion.h"
 
-#include <ceres/tiny_solver.h>
-
 #include <Eigen/Dense>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -105,6 +104,8 @@ void InversionOptions::Check(std::size_t ns, std::size_t nc) const {
   Require(temperature_candidates >= 1 && temperature_candidates <= 50,
           "temperature_candidates must be within [1, 50]; got " +
               std::to_string(temperature_candidates));
+  const int cs = static_cast<int>(cold_start);
+  Require(cs >= 0 && cs <= 1, "cold_start must be profile (0) or starts (1); got " + std::to_string(cs));
   const int sk = static_cast<int>(solver);
   Require(sk >= 0 && sk <= 2, "solver must be auto (0), table (1) or full_model (2); got " +
                                   std::to_string(sk));
@@ -216,69 +217,12 @@ struct Inverter::Pixel {
   }
 };
 
-// The residual function for TinySolver over the active (estimated, not held)
-// parameters, scaled to O(1).
-struct TableCost {
-  using Scalar = double;
-  enum { NUM_RESIDUALS = Eigen::Dynamic, NUM_PARAMETERS = Eigen::Dynamic };
-  const SceneTable* table = nullptr;
-  std::size_t nc = 0, ns = 0, np = 0;
-  // Fractions as ln(x + kLogEps) instead of x / scale: the column-temperature
-  // trade-off (u (B(T) - B(T_bg)) ~ const) is far straighter in ln x, so
-  // Levenberg-Marquardt does not creep along a curved valley, and guesses off
-  // by orders of magnitude converge in a few steps.
-  bool log_fractions = false;
-  const double* y = nullptr;
-  const double* noise = nullptr;
-  const double* phi = nullptr;
-  const double* scale = nullptr;
-  const double* prior_mean = nullptr;
-  const double* prior_sigma = nullptr;
-  const Inverter::Pixel* px = nullptr;  // for the ties
-  int active[kMaxParams];
-  int na = 0;
-  int priors[kMaxParams];  // parameters with a prior (estimated)
-  int npr = 0;
-  double base[kMaxParams];
-  int NumResiduals() const { return static_cast<int>(nc) + npr; }
-  int NumParameters() const { return na; }
-  // Fractions and sigma in log space (sigma > 0: x sigma is what the
-  // radiance sees, a straight line in (ln x, ln sigma)).
-  bool IsLog(int a) const {
-    return log_fractions && (a < static_cast<int>(ns) || a == static_cast<int>(ns) + 1);
-  }
-  double ToTheta(int a, double p) const { return IsLog(a) ? std::exp(p) - kLogEps : p * scale[a]; }
-  double ToParam(int a, double theta) const {
-    return IsLog(a) ? std::log(theta + kLogEps) : theta / scale[a];
-  }
-  double Slope(int a, double theta) const { return IsLog(a) ? theta + kLogEps : scale[a]; }
-  bool operator()(const double* p, double* r, double* jac) const {
-    double th[kMaxParams];
-    for (std::size_t k = 0; k < np; ++k) th[k] = base[k];
-    for (int j = 0; j < na; ++j) th[active[j]] = ToTheta(active[j], p[j]);
-    px->ApplyTies(th);
-    double con[kMaxChannels], cj[kMaxChannels * kMaxParams];
-    table->Contrast(th, th[ns], th[ns + 1], phi, con, jac ? cj : nullptr);
-    if (jac) px->FoldJacobian(cj, nc);
-    const int nr = NumResiduals();
-    for (std::size_t c = 0; c < nc; ++c) r[c] = (con[c] - y[c]) / noise[c];
-    for (int k = 0; k < npr; ++k) r[nc + k] = (th[priors[k]] - prior_mean[priors[k]]) / prior_sigma[priors[k]];
-    if (jac) {
-      for (int j = 0; j < na; ++j) {
-        const int a = active[j];
-        const double d = Slope(a, th[a]);  // d theta / d parameter
-        double* col = jac + static_cast<std::size_t>(j) * nr;
-        for (std::size_t c = 0; c < nc; ++c) col[c] = cj[c * np + a] * d / noise[c];
-        for (int k = 0; k < npr; ++k) col[nc + k] = priors[k] == a ? d / prior_sigma[a] : 0.0;
-      }
-    }
-    return true;
-  }
-};
-
 struct Inverter::Workspace {
   std::vector<double> phi;
-  ceres::TinySolver<TableCost> solver;
+  // The T_peak profile: cost and parameters per temperature.
+  std::vector<double> profile_cost;
+  std::vector<std::array<double, kMaxParams>> profile_theta;
+  std::vector<double> profile_predicted;  // per local minimum
   // Newton curve cache.
   std::size_t curve_channel = static_cast<std::size_t>(-1), curve_species = 0;
   double curve_t = -1, curve_sigma = -1;
@@ -387,6 +331,21 @@ Inverter::Inverter(std::shared_ptr<const BinnedModel> model, std::shared_ptr<con
   newton_ = use_table_ && nc == 1 && n_est == 1 && !ties && which < static_cast<int>(ns) &&
             specs_[which].mode == ParameterMode::kFree;
   newton_param_ = which < 0 ? 0 : static_cast<std::size_t>(which);
+  // The profile's temperatures: the bounds of T_peak and the table's nodes
+  // strictly between them.
+  if (use_table_ && !newton_ && options_.cold_start == ColdStart::kProfile &&
+      (tp.mode == ParameterMode::kFree || tp.mode == ParameterMode::kPrior)) {
+    const double lo = tp.lower, hi = tp.upper;
+    const int nt = table_->num_temperature_nodes();
+    const double t0 = table_->min_peak_temperature_K();
+    const double h = (table_->max_peak_temperature_K() - t0) / (nt - 1);
+    slices_.push_back(table_->MakeSlice(lo));
+    for (int k = 0; k < nt; ++k) {
+      const double tk = t0 + k * h;
+      if (tk > lo + 0.25 * h && tk < hi - 0.25 * h) slices_.push_back(table_->MakeSlice(tk));
+    }
+    slices_.push_back(table_->MakeSlice(hi));
+  }
 }
 
 double Inverter::ChannelNoise(std::size_t c, double t_bg) const {
@@ -511,7 +470,432 @@ static void SmallNnls(const Eigen::MatrixXd& a, const Eigen::VectorXd& b, Eigen:
   }
 }
 
-void Inverter::TableGuess(const Pixel& px, std::vector<GuessCandidate>* out, Workspace* ws) const {
+// --- the small bounded Levenberg-Marquardt solver -----------------------------
+
+namespace {
+
+constexpr std::size_t kMaxRows = kMaxChannels + kMaxParams;  // channels and priors
+
+// Solver coordinates of parameter p (S = number of species): ln(theta + kLogEps)
+// for the fractions and sigma (x sigma is what the radiance sees: the
+// column-temperature trade-off is a straight valley there), T_peak / 10 K.
+inline double ToParam(std::size_t p, std::size_t ns, double theta) {
+  return p == ns ? theta / 10.0 : std::log(theta + kLogEps);
+}
+inline double ToTheta(std::size_t p, std::size_t ns, double v) {
+  return p == ns ? 10.0 * v : std::exp(v) - kLogEps;
+}
+inline double Slope(std::size_t p, std::size_t ns, double theta) {  // d theta / d v
+  return p == ns ? 10.0 : theta + kLogEps;
+}
+
+// x = (A + extra I)^-1 b for a symmetric positive semi-definite n x n A
+// (row-major, n <= kMaxParams), computed on A scaled to unit diagonal (a
+// ridge of 1e-10 keeps singular directions finite); returns b . x.
+double SolveScaled(const double* a, const double* b, int n, double extra, double* x) {
+  double d[kMaxParams], l[kMaxParams * kMaxParams], z[kMaxParams];
+  for (int i = 0; i < n; ++i) d[i] = std::sqrt(std::max(a[i * n + i], 1e-300));
+  for (double ridge = 1e-10;; ridge *= 1e3) {
+    bool ok = true;
+    for (int i = 0; i < n && ok; ++i)
+      for (int j = 0; j <= i; ++j) {
+        double v = a[i * n + j] / (d[i] * d[j]) + (i == j ? ridge + extra : 0.0);
+        for (int k = 0; k < j; ++k) v -= l[i * n + k] * l[j * n + k];
+        if (i == j) {
+          if (!(v > 0)) {
+            ok = false;
+            break;
+          }
+          l[i * n + i] = std::sqrt(v);
+        } else {
+          l[i * n + j] = v / l[j * n + j];
+        }
+      }
+    if (ok || ridge > 1) break;
+  }
+  for (int i = 0; i < n; ++i) {
+    double v = b[i] / d[i];
+    for (int k = 0; k < i; ++k) v -= l[i * n + k] * z[k];
+    z[i] = v / l[i * n + i];
+  }
+  double dot = 0;
+  for (int i = n - 1; i >= 0; --i) {
+    double v = z[i];
+    for (int k = i + 1; k < n; ++k) v -= l[k * n + i] * z[k];
+    z[i] = v / l[i * n + i];
+    x[i] = z[i] / d[i];
+    dot += b[i] * x[i];
+  }
+  return std::isfinite(dot) ? dot : 0.0;
+}
+
+// chi2 decrease predicted by a Gauss-Newton step over the parameters in
+// set[0..n) (g = J^T r, h = J^T J over all np parameters, row-major).
+double PredictedDecrease(const double* g, const double* h, std::size_t np, const int* set, int n) {
+  if (n == 0) return 0.0;
+  double hs[kMaxParams * kMaxParams], gs[kMaxParams], step[kMaxParams];
+  for (int a = 0; a < n; ++a) {
+    gs[a] = g[set[a]];
+    for (int b = 0; b < n; ++b) hs[a * n + b] = h[set[a] * np + set[b]];
+  }
+  return SolveScaled(hs, gs, n, 0.0, step);
+}
+
+struct LmSettings {
+  std::uint8_t estimate = 0;  // bit p: parameter p is varied
+  int max_iterations = 100;
+  double tolerance = 0.01;    // converged: the Gauss-Newton step would lower chi2 by less
+  double stop = 1e-5;         // iterate on while it would lower chi2 by more than this (<= tolerance)
+  // Stop at the first failed or slow Gauss-Newton step below the tolerance
+  // (false: iterate on to `stop`, however slowly).
+  bool stop_when_slow = true;
+};
+
+// Minimises the sum of squares of eval's residuals over the parameters in
+// settings.estimate within [px.lower, px.upper], from theta (updated in
+// place, ties applied), with Levenberg-Marquardt steps in the solver
+// coordinates. A step crossing a bound is cut there and the parameter held
+// (*held, bit p); a held parameter is released when its multiplier points
+// inside and releasing it would lower chi2 by more than the tolerance (a
+// fraction released from 0 restarts at its one-dimensional Newton step); a
+// free parameter converging onto a bound (within 1e-3 of its conditional
+// standard deviation; fractions approach 0 asymptotically in log
+// coordinates) is held there. eval(theta, r, jac) fills the residuals r and
+// their derivatives jac[row * np + p] (ties folded) and returns false when
+// they are not finite. On return r, jac and *cost belong to theta. Returns
+// whether it converged.
+template <class Eval>
+bool BoundedLm(const Inverter::Pixel& px, const LmSettings& set, std::size_t nr, Eval&& eval,
+               double* theta, std::uint8_t* held_io, double* r, double* jac, double* cost,
+               int* iterations) {
+  const std::size_t np = px.np, ns = px.ns;
+  std::uint8_t held = *held_io;
+  auto sum_sq = [&](const double* v) {
+    double c = 0;
+    for (std::size_t k = 0; k < nr; ++k) c += v[k] * v[k];
+    return c;
+  };
+  // A parameter starting on a bound is held there until its multiplier
+  // releases it (in log coordinates a fraction at 0 could not move).
+  for (std::size_t p = 0; p < np; ++p)
+    if ((set.estimate >> p & 1) && (theta[p] <= px.lower[p] || theta[p] >= px.upper[p]))
+      held |= static_cast<std::uint8_t>(1u << p);
+  if (!eval(theta, r, jac)) return false;
+  *cost = sum_sq(r);
+  double mu = 1e-3, nu = 2.0, last_dec = 0;
+  int it = 0, changes = 0;
+  bool gn_accepted = false, gn_failed = false;
+  int accepted_since_gn_failure = 3;
+  bool ok = false;
+  double g[kMaxParams], h[kMaxParams * kMaxParams];
+  double rt[kMaxRows], jt[kMaxRows * kMaxParams], trial[kMaxParams];
+  int act[kMaxParams], est[kMaxParams];
+  for (;;) {
+    // Gradient and Gauss-Newton matrix over the varied parameters.
+    int ne = 0, na = 0;
+    for (std::size_t p = 0; p < np; ++p) {
+      if (!(set.estimate >> p & 1)) continue;
+      est[ne++] = static_cast<int>(p);
+      if (!(held >> p & 1)) act[na++] = static_cast<int>(p);
+    }
+    for (int a = 0; a < ne; ++a) {
+      const int p = est[a];
+      double gp = 0;
+      for (std::size_t k = 0; k < nr; ++k) gp += r[k] * jac[k * np + p];
+      g[p] = gp;
+      for (int b = 0; b <= a; ++b) {
+        const int q = est[b];
+        double hv = 0;
+        for (std::size_t k = 0; k < nr; ++k) hv += jac[k * np + p] * jac[k * np + q];
+        h[p * np + q] = h[q * np + p] = hv;
+      }
+    }
+    const double dec = PredictedDecrease(g, h, np, act, na);
+    // Below the tolerance, iterate on while Gauss-Newton converges fast
+    // (small residuals: quadratically, and solutions from different starts
+    // then agree to many digits); stop at the first slow or failed
+    // Gauss-Newton step (with larger residuals, in a curved valley, the
+    // linear model no longer describes the last digits, which are far below
+    // the noise anyway).
+    const bool slow = set.stop_when_slow && dec < set.tolerance &&
+                      (gn_failed || (gn_accepted && dec > 0.1 * last_dec));
+    gn_accepted = false;
+    if (dec < set.stop || slow || it >= set.max_iterations || mu > 1e12) {
+      if (dec >= set.tolerance) break;  // out of iterations (or no progress possible)
+      // Release the held parameter whose multiplier points inside with the
+      // largest predicted gain.
+      int release = -1;
+      double best = set.tolerance;
+      if (changes < 3 * static_cast<int>(np) + 2) {
+        for (int a = 0; a < ne; ++a) {
+          const int p = est[a];
+          if (!(held >> p & 1)) continue;
+          const bool at_lower = theta[p] <= px.lower[p];
+          if (!(at_lower ? g[p] < 0 : g[p] > 0)) continue;
+          int with[kMaxParams];
+          std::copy(act, act + na, with);
+          with[na] = p;
+          const double gain = PredictedDecrease(g, h, np, with, na + 1) - dec;
+          if (gain > best) {
+            best = gain;
+            release = p;
+          }
+        }
+      }
+      if (release >= 0) {
+        held &= static_cast<std::uint8_t>(~(1u << release));
+        ++changes;
+        // Released from a bound: the one-dimensional Newton step (a fraction at
+        // 0 has no leverage in log coordinates).
+        const double step = h[release * np + release] > 0 ? -g[release] / h[release * np + release] : 0.0;
+        double v = theta[release] + step;
+        v = std::min(std::max(v, px.lower[release]), px.upper[release]);
+        std::copy(theta, theta + np, trial);
+        trial[release] = v;
+        px.ApplyTies(trial);
+        if (eval(trial, rt, jt)) {
+          const double ct = sum_sq(rt);
+          if (ct < *cost) {
+            std::copy(trial, trial + np, theta);
+            std::copy(rt, rt + nr, r);
+            std::copy(jt, jt + nr * np, jac);
+            *cost = ct;
+          }
+        }
+        mu = 1e-3;
+        nu = 2.0;
+        ++it;
+        continue;
+      }
+      // Hold a free parameter whose Gauss-Newton step would cross its bound
+      // (fractions approach 0 only asymptotically in log coordinates), or
+      // that converged onto its bound.
+      int snap = -1;
+      if (na > 0 && changes < 3 * static_cast<int>(np) + 2) {
+        double hs[kMaxParams * kMaxParams], gs[kMaxParams], dx[kMaxParams];
+        for (int a = 0; a < na; ++a) {
+          gs[a] = -g[act[a]];
+          for (int b = 0; b < na; ++b) hs[a * na + b] = h[act[a] * np + act[b]];
+        }
+        SolveScaled(hs, gs, na, 0.0, dx);
+        double worst = 0, snap_value = 0;
+        for (int a = 0; a < na; ++a) {
+          const int p = act[a];
+          const double sd = h[p * np + p] > 0 ? 1.0 / std::sqrt(h[p * np + p]) : 0.0;
+          if (!(sd > 0)) continue;
+          const double below = (px.lower[p] - (theta[p] + dx[a])) / sd;
+          const double above = ((theta[p] + dx[a]) - px.upper[p]) / sd;
+          if (below > worst) {
+            worst = below;
+            snap = p;
+            snap_value = px.lower[p];
+          }
+          if (above > worst) {
+            worst = above;
+            snap = p;
+            snap_value = px.upper[p];
+          }
+        }
+        // Only when the bound fits as well (the step of an ill-conditioned
+        // valley can be far longer than its chi2 gain suggests).
+        if (snap >= 0) {
+          std::copy(theta, theta + np, trial);
+          trial[snap] = snap_value;
+          px.ApplyTies(trial);
+          if (eval(trial, rt, jt) && sum_sq(rt) <= *cost + set.tolerance) {
+            held |= static_cast<std::uint8_t>(1u << snap);
+            ++changes;
+            std::copy(trial, trial + np, theta);
+            std::copy(rt, rt + nr, r);
+            std::copy(jt, jt + nr * np, jac);
+            *cost = sum_sq(rt);
+            continue;
+          }
+          snap = -1;
+        }
+      }
+      for (int a = 0; a < na && snap < 0 && changes < 3 * static_cast<int>(np) + 2; ++a) {
+        const int p = act[a];
+        const double sd = h[p * np + p] > 0 ? 1.0 / std::sqrt(h[p * np + p]) : 0.0;
+        if (theta[p] - px.lower[p] < 1e-3 * sd && theta[p] != px.lower[p]) {
+          theta[p] = px.lower[p];
+          snap = p;
+        } else if (px.upper[p] - theta[p] < 1e-3 * sd && theta[p] != px.upper[p]) {
+          theta[p] = px.upper[p];
+          snap = p;
+        } else if (theta[p] == px.lower[p] || theta[p] == px.upper[p]) {
+          snap = p;
+        }
+      }
+      if (snap >= 0) {
+        held |= static_cast<std::uint8_t>(1u << snap);
+        ++changes;
+        px.ApplyTies(theta);
+        if (!eval(theta, r, jac)) break;
+        *cost = sum_sq(r);
+        continue;
+      }
+      ok = true;
+      break;
+    }
+    ++it;
+    gn_failed = false;
+    // Levenberg-Marquardt step in solver coordinates, cut at the first bound.
+    double gs[kMaxParams], hs[kMaxParams * kMaxParams], sl[kMaxParams], dv[kMaxParams];
+    for (int a = 0; a < na; ++a) {
+      const int p = act[a];
+      sl[a] = Slope(p, ns, theta[p]);
+      gs[a] = -g[p] * sl[a];
+    }
+    for (int a = 0; a < na; ++a)
+      for (int b = 0; b < na; ++b) hs[a * na + b] = h[act[a] * np + act[b]] * sl[a] * sl[b];
+    // Near the optimum pure Gauss-Newton steps (quadratic convergence for
+    // small residuals); damped steps elsewhere.
+    // (After a failed one, only once a few damped steps have succeeded.)
+    const bool gn = dec < set.tolerance && nu <= 2.0 && accepted_since_gn_failure >= 3;
+    SolveScaled(hs, gs, na, gn ? 0.0 : mu, dv);
+    // A trust region in log coordinates: at most a factor e^5 per step.
+    double alpha = 1.0, hit_value = 0;
+    for (int a = 0; a < na; ++a)
+      if (act[a] != static_cast<int>(ns) && std::abs(dv[a]) * alpha > 5.0) alpha = 5.0 / std::abs(dv[a]);
+    int hit = -1;
+    for (int a = 0; a < na; ++a) {
+      const int p = act[a];
+      const double v = ToParam(p, ns, theta[p]);
+      if (dv[a] < 0) {
+        const double lo = ToParam(p, ns, px.lower[p]);
+        if (v + dv[a] < lo) {
+          const double al = (lo - v) / dv[a];
+          if (al < alpha) {
+            alpha = al;
+            hit = p;
+            hit_value = px.lower[p];
+          }
+        }
+      } else if (dv[a] > 0) {
+        const double hi = ToParam(p, ns, px.upper[p]);
+        if (v + dv[a] > hi) {
+          const double al = (hi - v) / dv[a];
+          if (al < alpha) {
+            alpha = al;
+            hit = p;
+            hit_value = px.upper[p];
+          }
+        }
+      }
+    }
+    alpha = std::max(alpha, 0.0);
+    std::copy(theta, theta + np, trial);
+    for (int a = 0; a < na; ++a) {
+      const int p = act[a];
+      trial[p] = std::min(std::max(ToTheta(p, ns, ToParam(p, ns, theta[p]) + alpha * dv[a]),
+                                   px.lower[p]),
+                          px.upper[p]);
+    }
+    if (hit >= 0) trial[hit] = hit_value;
+    if (hit >= 0 && alpha < 1e-12) {
+      // Already on that bound and pushing out of it: hold it there.
+      held |= static_cast<std::uint8_t>(1u << hit);
+      ++changes;
+      continue;
+    }
+    px.ApplyTies(trial);
+    double ct = std::numeric_limits<double>::infinity();
+    if (eval(trial, rt, jt)) ct = sum_sq(rt);
+    if (ct < *cost) {
+      // Gain ratio against the linear model's decrease.
+      double model = 0;
+      for (int a = 0; a < na; ++a) {
+        double hv = 0;
+        for (int b = 0; b < na; ++b) hv += hs[a * na + b] * alpha * dv[b];
+        model += alpha * dv[a] * (2.0 * gs[a] - hv);
+      }
+      const double rho = model > 0 ? (*cost - ct) / model : 1.0;
+      std::copy(trial, trial + np, theta);
+      std::copy(rt, rt + nr, r);
+      std::copy(jt, jt + nr * np, jac);
+      *cost = ct;
+      if (hit >= 0) {
+        held |= static_cast<std::uint8_t>(1u << hit);
+        ++changes;
+      }
+      const double t = 2.0 * rho - 1.0;
+      mu *= std::max(1.0 / 3.0, 1.0 - t * t * t);
+      nu = 2.0;
+      gn_accepted = gn && hit < 0;
+      last_dec = dec;
+      ++accepted_since_gn_failure;
+    } else {
+      gn_failed = gn;
+      if (gn) accepted_since_gn_failure = 0;
+      mu *= nu;
+      nu *= 2.0;
+    }
+  }
+  *held_io = held;
+  *iterations += it;
+  return ok;
+}
+
+// Residual rows of a pixel: one per channel, then one per estimated
+// parameter with a prior.
+std::size_t NumRows(const Inverter::Pixel& px) {
+  std::size_t n = px.nc;
+  for (std::size_t p = 0; p < px.np; ++p)
+    if (px.est[p] && px.prior_sigma[p] > 0) ++n;
+  return n;
+}
+
+// Fills the prior rows (from row nc on) of the residuals and their derivatives.
+void PriorRows(const Inverter::Pixel& px, const double* theta, double* r, double* jac) {
+  std::size_t row = px.nc;
+  for (std::size_t p = 0; p < px.np; ++p) {
+    if (!(px.est[p] && px.prior_sigma[p] > 0)) continue;
+    r[row] = (theta[p] - px.nominal[p]) / px.prior_sigma[p];
+    if (jac) {
+      std::fill(jac + row * px.np, jac + (row + 1) * px.np, 0.0);
+      jac[row * px.np + p] = 1.0 / px.prior_sigma[p];
+    }
+    ++row;
+  }
+}
+
+}  // namespace
+
+void Inverter::ThinGuess(const Pixel& px, double tc, double* th) const {
+  const std::size_t nc = px.nc, ns = px.ns;
+  const SceneTable& t = *table_;
+  const double sigma = th[ns + 1];
+  std::vector<int> free_s;
+  for (std::size_t s = 0; s < ns; ++s)
+    if (px.est[s]) free_s.push_back(static_cast<int>(s));
+  th[ns] = tc;
+  for (int s : free_s) th[s] = 0.0;
+  px.ApplyTies(th);
+  if (free_s.empty()) return;
+  double con[kMaxChannels];
+  t.Contrast(th, tc, sigma, px.phi, con, nullptr);  // the fixed species
+  Eigen::MatrixXd a(nc, free_s.size());
+  Eigen::VectorXd b(nc);
+  for (std::size_t c = 0; c < nc; ++c) {
+    b[c] = (px.y[c] - con[c]) / px.noise[c];
+    for (std::size_t j = 0; j < free_s.size(); ++j) {
+      double slope = t.ThinSlope(c, free_s[j], tc, px.phi);
+      for (std::size_t s2 = 0; s2 < ns; ++s2)  // tied species follow (u_s2 = ratio u)
+        if (px.tie_ref[s2] == free_s[j]) slope += px.tie_ratio[s2] * t.ThinSlope(c, s2, tc, px.phi);
+      a(c, j) = slope / px.noise[c];
+    }
+  }
+  Eigen::VectorXd u;
+  SmallNnls(a, b, &u);
+  for (std::size_t j = 0; j < free_s.size(); ++j) {
+    const int s = free_s[j];
+    th[s] = std::min(std::max(u[j] / sigma, px.lower[s]), px.upper[s]);
+  }
+  px.ApplyTies(th);
+}
+
+void Inverter::TableGuess(const Pixel& px, std::vector<GuessCandidate>* out, Workspace*) const {
   const std::size_t nc = px.nc, ns = px.ns, np = px.np;
   const SceneTable& t = *table_;
   std::vector<double> cands;
@@ -522,304 +906,211 @@ void Inverter::TableGuess(const Pixel& px, std::vector<GuessCandidate>* out, Wor
       cands.push_back(n == 1 ? 0.5 * (px.lower[ns] + px.upper[ns])
                              : px.lower[ns] + (px.upper[ns] - px.lower[ns]) * k / (n - 1));
   }
-  const double sigma = px.nominal[ns + 1];
-  std::vector<int> free_s;
+  std::uint8_t fractions = 0;
   for (std::size_t s = 0; s < ns; ++s)
-    if (px.est[s]) free_s.push_back(static_cast<int>(s));
-  auto chi2_of = [&](const double* th) {
+    if (px.est[s]) fractions |= static_cast<std::uint8_t>(1u << s);
+  const std::size_t nr = NumRows(px);
+  auto eval = [&](const double* th, double* r, double* jac) {
     double con[kMaxChannels];
-    t.Contrast(th, th[ns], th[ns + 1], px.phi, con, nullptr);
-    double cost = 0;
+    t.Contrast(th, th[ns], th[ns + 1], px.phi, con, jac);
+    px.FoldJacobian(jac, nc);
     for (std::size_t c = 0; c < nc; ++c) {
-      const double r = (con[c] - px.y[c]) / px.noise[c];
-      cost += r * r;
+      r[c] = (con[c] - px.y[c]) / px.noise[c];
+      for (std::size_t p = 0; p < np; ++p) jac[c * np + p] /= px.noise[c];
     }
-    for (std::size_t p = 0; p < np; ++p)
-      if (px.est[p] && px.prior_sigma[p] > 0) {
-        const double r = (th[p] - px.nominal[p]) / px.prior_sigma[p];
-        cost += r * r;
-      }
-    return cost;
+    PriorRows(px, th, r, jac);
+    return std::all_of(r, r + nr, [](double v) { return std::isfinite(v); });
   };
-  // Optically thin least squares for the free fractions at each candidate temperature.
-  using Cand = GuessCandidate;
-  std::vector<Cand>& all = *out;
+  std::vector<GuessCandidate>& all = *out;
   all.clear();
   for (double tc : cands) {
-    Cand k;
+    GuessCandidate k;
     for (std::size_t p = 0; p < np; ++p) k.th[p] = px.nominal[p];
-    k.th[ns] = tc;
-    for (int s : free_s) k.th[s] = 0.0;
-    px.ApplyTies(k.th);
-    if (!free_s.empty()) {
-      double con[kMaxChannels];
-      t.Contrast(k.th, tc, sigma, px.phi, con, nullptr);  // the fixed species
-      Eigen::MatrixXd a(nc, free_s.size());
-      Eigen::VectorXd b(nc);
-      for (std::size_t c = 0; c < nc; ++c) {
-        b[c] = (px.y[c] - con[c]) / px.noise[c];
-        for (std::size_t j = 0; j < free_s.size(); ++j) {
-          double slope = t.ThinSlope(c, free_s[j], tc, px.phi);
-          for (std::size_t s2 = 0; s2 < ns; ++s2)  // tied species follow (u_s2 = ratio u)
-            if (px.tie_ref[s2] == free_s[j])
-              slope += px.tie_ratio[s2] * t.ThinSlope(c, s2, tc, px.phi);
-          a(c, j) = slope / px.noise[c];
-        }
-      }
-      Eigen::VectorXd u;
-      SmallNnls(a, b, &u);
-      for (std::size_t j = 0; j < free_s.size(); ++j) {
-        const int s = free_s[j];
-        k.th[s] = std::min(std::max(u[j] / sigma, px.lower[s]), px.upper[s]);
-      }
-      px.ApplyTies(k.th);
+    ThinGuess(px, tc, k.th);
+    double r[kMaxRows], jac[kMaxRows * kMaxParams];
+    if (!eval(k.th, r, jac)) continue;
+    k.cost = 0;
+    for (std::size_t i = 0; i < nr; ++i) k.cost += r[i] * r[i];
+    // The thin limit underestimates optically thick columns: with several
+    // candidates (a coarse profile of chi2 over T_peak) refine the fractions
+    // of each by a few iterations with the temperature held.
+    if (cands.size() > 1 && fractions && options_.guess_iterations > 0) {
+      GuessCandidate refined = k;
+      LmSettings set;
+      set.estimate = fractions;
+      set.max_iterations = options_.guess_iterations;
+      set.tolerance = set.stop = options_.tolerance_chi2;
+      std::uint8_t held = 0;
+      int it = 0;
+      BoundedLm(px, set, nr, eval, refined.th, &held, r, jac, &refined.cost, &it);
+      if (refined.cost < k.cost) k = refined;
     }
-    k.cost = chi2_of(k.th);
     all.push_back(k);
   }
-  // The thin limit underestimates optically thick columns: refine the
-  // fractions of every candidate by a few Levenberg-Marquardt iterations with
-  // the temperature held (a coarse profile of chi2 over T_peak); keep the best.
-  if (!free_s.empty()) {
-    TableCost cost;
-    cost.px = &px;
-    cost.table = &t;
-    cost.nc = nc;
-    cost.ns = ns;
-    cost.np = np;
-    cost.y = px.y;
-    cost.noise = px.noise;
-    cost.phi = px.phi;
-    double scale[kMaxParams];
-    cost.scale = scale;
-    cost.prior_mean = px.nominal;
-    cost.prior_sigma = px.prior_sigma;
-    cost.npr = 0;
-    for (int s : free_s)
-      if (px.prior_sigma[s] > 0) cost.priors[cost.npr++] = s;
-    cost.log_fractions = true;
-    ceres::TinySolver<TableCost>& solver = ws->solver;
-    solver.options.max_num_iterations = options_.guess_iterations;
-    solver.options.function_tolerance = 1e-3;
-    solver.options.parameter_tolerance = 1e-6;
-    solver.options.gradient_tolerance = 1e-10;
-    for (Cand& cd : all) {
-      // Species the thin fit put at zero stay there.
-      cost.na = 0;
-      for (int s : free_s)
-        if (cd.th[s] > 0) cost.active[cost.na++] = s;
-      if (cost.na == 0) continue;
-      for (std::size_t p = 0; p < np; ++p) {
-        cost.base[p] = cd.th[p];
-        scale[p] = 1.0;
+  std::sort(all.begin(), all.end(),
+            [](const GuessCandidate& a, const GuessCandidate& b) { return a.cost < b.cost; });
+}
+
+void Inverter::ProfileGuess(const Pixel& px, std::vector<GuessCandidate>* out, int* iterations,
+                            Workspace* ws) const {
+  const std::size_t nc = px.nc, ns = px.ns, np = px.np, m = slices_.size();
+  const SceneTable& t = *table_;
+  std::uint8_t fractions = 0;
+  for (std::size_t s = 0; s < ns; ++s)
+    if (px.est[s]) fractions |= static_cast<std::uint8_t>(1u << s);
+  const std::size_t nr = NumRows(px);
+  const double sigma = px.nominal[ns + 1];
+  const SceneTable::Slice* slice = nullptr;
+  auto eval = [&](const double* th, double* r, double* jac) {
+    double con[kMaxChannels], d_dx[kMaxChannels * kMaxParams];
+    t.SliceContrast(*slice, th, sigma, px.phi, con, d_dx);
+    for (std::size_t c = 0; c < nc; ++c) {
+      r[c] = (con[c] - px.y[c]) / px.noise[c];
+      double* row = jac + c * np;
+      for (std::size_t s = 0; s < ns; ++s) row[s] = d_dx[c * ns + s] / px.noise[c];
+      row[ns] = row[ns + 1] = 0.0;
+    }
+    px.FoldJacobian(jac, nc);
+    PriorRows(px, th, r, jac);
+    return std::all_of(r, r + nr, [](double v) { return std::isfinite(v); });
+  };
+  ws->profile_cost.resize(m);
+  ws->profile_theta.resize(m);
+  double th[kMaxParams];
+  for (std::size_t p = 0; p < np; ++p) th[p] = px.nominal[p];
+  // From the hottest temperature down: there the optically thin guess is
+  // close, and continuing from it towards colder (thicker) solutions follows
+  // the branch on which the contrast grows with the column. (Starting cold
+  // would follow the self-absorbed branch beyond the contrast's maximum,
+  // where the plume's cooler edges hide its hot core.)
+  ThinGuess(px, slices_[m - 1].peak_temperature_K, th);
+  LmSettings set;
+  set.estimate = fractions;
+  set.max_iterations = 20;
+  // A profile locates minima; the full solve polishes them.
+  set.tolerance = set.stop = std::max(options_.tolerance_chi2, 0.01);
+  std::uint8_t held = 0;
+  double r[kMaxRows], jac[kMaxRows * kMaxParams];
+  for (std::size_t jj = 0; jj < m; ++jj) {
+    // Continuation: the fractions of the neighbouring temperature.
+    const std::size_t j = m - 1 - jj;
+    slice = &slices_[j];
+    th[ns] = slice->peak_temperature_K;
+    px.ApplyTies(th);
+    double cost = std::numeric_limits<double>::infinity();
+    if (fractions) {
+      BoundedLm(px, set, nr, eval, th, &held, r, jac, &cost, iterations);
+    } else if (eval(th, r, jac)) {
+      cost = 0;
+      for (std::size_t i = 0; i < nr; ++i) cost += r[i] * r[i];
+    }
+    ws->profile_cost[j] = std::isfinite(cost) ? cost : std::numeric_limits<double>::max();
+    std::copy(th, th + np, ws->profile_theta[j].begin());
+  }
+  // Local minima, each refined by the parabola through it and its neighbours.
+  const std::vector<double>& f = ws->profile_cost;
+  std::vector<GuessCandidate>& all = *out;
+  all.clear();
+  ws->profile_predicted.clear();
+  for (std::size_t j = 0; j < m; ++j) {
+    if (j > 0 && f[j] > f[j - 1]) continue;
+    if (j + 1 < m && f[j] >= f[j + 1]) continue;
+    GuessCandidate k;
+    std::copy(ws->profile_theta[j].begin(), ws->profile_theta[j].end(), k.th);
+    k.cost = f[j];
+    double predicted = f[j];  // the parabola's minimum (a poor guess on steep profiles: only a filter)
+    if (j > 0 && j + 1 < m) {
+      const double a = slices_[j - 1].peak_temperature_K, b = slices_[j].peak_temperature_K,
+                   c = slices_[j + 1].peak_temperature_K;
+      const double fa = f[j - 1], fb = f[j], fc = f[j + 1];
+      const double num = (b - a) * (b - a) * (fb - fc) - (b - c) * (b - c) * (fb - fa);
+      const double den = (b - a) * (fb - fc) - (b - c) * (fb - fa);
+      if (den < 0) {  // convex
+        const double tm = std::min(std::max(b - 0.5 * num / den, a), c);
+        // The parabola's value at tm (Lagrange form).
+        const double pm = fa * (tm - b) * (tm - c) / ((a - b) * (a - c)) +
+                          fb * (tm - a) * (tm - c) / ((b - a) * (b - c)) +
+                          fc * (tm - a) * (tm - b) / ((c - a) * (c - b));
+        predicted = std::max(std::min(fb, pm), 0.0);
+        // Fractions interpolated (in log) towards the neighbour on tm's side.
+        const std::size_t o = tm < b ? j - 1 : j + 1;
+        const double w = (tm - b) / (slices_[o].peak_temperature_K - b);
+        for (std::size_t s = 0; s < ns; ++s) {
+          if (!px.est[s]) continue;
+          const double l0 = std::log(k.th[s] + kLogEps), l1 = std::log(ws->profile_theta[o][s] + kLogEps);
+          k.th[s] = std::min(std::max(std::exp(l0 + w * (l1 - l0)) - kLogEps, px.lower[s]), px.upper[s]);
+        }
+        k.th[ns] = tm;
+        px.ApplyTies(k.th);
       }
-      Eigen::VectorXd v(cost.na);
-      for (int j = 0; j < cost.na; ++j) v[j] = cost.ToParam(cost.active[j], cd.th[cost.active[j]]);
-      solver.Solve(cost, &v);
-      if (!v.allFinite()) continue;
-      Cand r = cd;
-      for (int j = 0; j < cost.na; ++j) {
-        const int s = cost.active[j];
-        r.th[s] = std::min(std::max(cost.ToTheta(s, v[j]), px.lower[s]), px.upper[s]);
-      }
-      px.ApplyTies(r.th);
-      r.cost = chi2_of(r.th);
-      if (r.cost < cd.cost) cd = r;
     }
+    all.push_back(k);
+    ws->profile_predicted.push_back(predicted);
   }
-  std::sort(all.begin(), all.end(), [](const Cand& a, const Cand& b) { return a.cost < b.cost; });
+  // The nodes beside the best minimum start solves too: a second minimum
+  // closer than the node spacing (a well-determined temperature) shows no
+  // local minimum of its own on the nodes.
+  std::size_t jb = 0;
+  for (std::size_t j = 1; j < m; ++j)
+    if (f[j] < f[jb]) jb = j;
+  for (std::size_t j : {jb - 1, jb + 1}) {
+    if (jb == 0 && j == jb - 1) continue;
+    if (j >= m) continue;
+    GuessCandidate k;
+    std::copy(ws->profile_theta[j].begin(), ws->profile_theta[j].end(), k.th);
+    k.cost = f[j];
+    all.push_back(k);
+    ws->profile_predicted.push_back(f[jb]);
+  }
+  // Best node first; minima that cannot come within 25 of it carry no
+  // likelihood weight (exp(-12.5)) and are dropped; at most 4 are polished.
+  const double best = *std::min_element(f.begin(), f.end());
+  std::size_t keep = 0;
+  for (std::size_t i = 0; i < all.size(); ++i)
+    if (ws->profile_predicted[i] <= best + 25.0) all[keep++] = all[i];
+  all.resize(keep);
+  std::sort(all.begin(), all.end(),
+            [](const GuessCandidate& a, const GuessCandidate& b) { return a.cost < b.cost; });
+  if (all.size() > 6) all.resize(6);
 }
 
-// Gradient g = J^T r of chi2/2 and Gauss-Newton matrix H = J^T J over all
-// parameters (noise-normalised residuals and priors) at theta.
-static void TableNormalEquations(const SceneTable& t, const Inverter::Pixel& px,
-                                 const double* theta, Eigen::VectorXd* g, Eigen::MatrixXd* h,
-                                 double* con, double* cj) {
-  const std::size_t nc = px.nc, ns = px.ns, np = ns + 2;
-  const double *y = px.y, *noise = px.noise, *prior_mean = px.nominal, *prior_sigma = px.prior_sigma;
-  const bool* est = px.est;
-  t.Contrast(theta, theta[ns], theta[ns + 1], px.phi, con, cj);
-  px.FoldJacobian(cj, nc);
-  g->setZero(np);
-  h->setZero(np, np);
-  for (std::size_t c = 0; c < nc; ++c) {
-    const double r = (con[c] - y[c]) / noise[c];
-    for (std::size_t a = 0; a < np; ++a) {
-      if (!est[a]) continue;
-      const double da = cj[c * np + a] / noise[c];
-      (*g)[a] += r * da;
-      for (std::size_t b = 0; b < np; ++b)
-        if (est[b]) (*h)(a, b) += da * cj[c * np + b] / noise[c];
-    }
-  }
-  for (std::size_t a = 0; a < np; ++a)
-    if (est[a] && prior_sigma[a] > 0) {
-      (*g)[a] += (theta[a] - prior_mean[a]) / (prior_sigma[a] * prior_sigma[a]);
-      (*h)(a, a) += 1.0 / (prior_sigma[a] * prior_sigma[a]);
-    }
-}
-
-// chi2 decrease predicted by a Gauss-Newton step over the parameters in `set`.
-static double PredictedDecrease(const Eigen::VectorXd& g, const Eigen::MatrixXd& h,
-                         const std::vector<int>& set) {
-  const int n = static_cast<int>(set.size());
-  if (n == 0) return 0.0;
-  Eigen::MatrixXd hs(n, n);
-  Eigen::VectorXd gs(n);
-  for (int a = 0; a < n; ++a) {
-    gs[a] = g[set[a]];
-    for (int b = 0; b < n; ++b) hs(a, b) = h(set[a], set[b]);
-  }
-  // Scale to unit diagonal; a tiny ridge keeps singular directions finite.
-  Eigen::VectorXd d = hs.diagonal().cwiseMax(1e-300).cwiseSqrt();
-  for (int a = 0; a < n; ++a)
-    for (int b = 0; b < n; ++b) hs(a, b) /= d[a] * d[b];
-  hs.diagonal().array() += 1e-10;
-  const Eigen::VectorXd gn = gs.cwiseQuotient(d);
-  const Eigen::VectorXd step = hs.ldlt().solve(gn);
-  return gn.dot(step);  // = 2 x (decrease of chi2 / 2) = decrease of chi2
-}
-
-void Inverter::SolveTable(Pixel* px, const double* start, Workspace* ws) const {
+void Inverter::SolveTable(Pixel* px, const double* start, Workspace* ws, bool precise) const {
   const std::size_t nc = px->nc, ns = px->ns, np = px->np;
   const SceneTable& t = *table_;
   double theta[kMaxParams];
+  LmSettings set;
   for (std::size_t p = 0; p < np; ++p) {
     theta[p] = px->est[p] ? std::min(std::max(start[p], px->lower[p]), px->upper[p]) : px->nominal[p];
-    if (p < ns && px->est[p]) px->scale[p] = std::max(theta[p], 1e-6);
+    if (px->est[p]) set.estimate |= static_cast<std::uint8_t>(1u << p);
   }
   px->ApplyTies(theta);
-  TableCost cost;
-  cost.px = px;
-  cost.log_fractions = true;
-  cost.table = &t;
-  cost.nc = nc;
-  cost.ns = ns;
-  cost.np = np;
-  cost.y = px->y;
-  cost.noise = px->noise;
-  cost.phi = px->phi;
-  cost.scale = px->scale;
-  cost.prior_mean = px->nominal;
-  cost.prior_sigma = px->prior_sigma;
-  cost.npr = 0;
-  for (std::size_t p = 0; p < np; ++p)
-    if (px->est[p] && px->prior_sigma[p] > 0) cost.priors[cost.npr++] = static_cast<int>(p);
-  ceres::TinySolver<TableCost>& solver = ws->solver;
-  solver.options.max_num_iterations = options_.max_iterations;
-  solver.options.function_tolerance = 1e-9;
-  solver.options.parameter_tolerance = 1e-10;
-  solver.options.gradient_tolerance = 1e-12;
-  const double tol = options_.tolerance_chi2;
+  set.max_iterations = options_.max_iterations;
+  set.tolerance = options_.tolerance_chi2;
+  // Precise: iterate on to 1e-8 of the tolerance, so that solutions from
+  // different starts (cold, warm) agree to many digits; in ill-conditioned
+  // curved valleys this takes many small steps. Otherwise stop once below
+  // the tolerance as soon as Gauss-Newton steps slow down or fail.
+  set.stop = 1e-10 * options_.tolerance_chi2;
+  set.stop_when_slow = !precise;
+  const std::size_t nr = NumRows(*px);
+  const Pixel& cpx = *px;
+  auto eval = [&](const double* th, double* r, double* jac) {
+    double con[kMaxChannels];
+    t.Contrast(th, th[ns], th[ns + 1], cpx.phi, con, jac);
+    if (jac) cpx.FoldJacobian(jac, nc);
+    for (std::size_t c = 0; c < nc; ++c) {
+      r[c] = (con[c] - cpx.y[c]) / cpx.noise[c];
+      if (jac)
+        for (std::size_t p = 0; p < np; ++p) jac[c * np + p] /= cpx.noise[c];
+    }
+    PriorRows(cpx, th, r, jac);
+    return std::all_of(r, r + nr, [](double v) { return std::isfinite(v); }) &&
+           (!jac || std::all_of(jac, jac + nr * np, [](double v) { return std::isfinite(v); }));
+  };
   std::uint8_t held = 0;
-  bool ok = false;
+  double r[kMaxRows], jac[kMaxRows * kMaxParams], cost = 0;
   int iters = 0;
-  Eigen::VectorXd g;
-  Eigen::MatrixXd h;
-  double con[kMaxChannels], cj[kMaxChannels * kMaxParams];
-  const int max_outer = 3 * static_cast<int>(np) + 2;
-  for (int outer = 0; outer < max_outer; ++outer) {
-    cost.na = 0;
-    for (std::size_t p = 0; p < np; ++p)
-      if (px->est[p] && !(held >> p & 1)) cost.active[cost.na++] = static_cast<int>(p);
-    for (std::size_t p = 0; p < np; ++p) cost.base[p] = theta[p];
-    double next[kMaxParams];
-    for (std::size_t p = 0; p < np; ++p) next[p] = theta[p];
-    if (cost.na > 0) {
-      Eigen::VectorXd v(cost.na);
-      for (int j = 0; j < cost.na; ++j) v[j] = cost.ToParam(cost.active[j], theta[cost.active[j]]);
-      const auto& summary = solver.Solve(cost, &v);
-      iters += std::max(summary.iterations, 0);
-      if (!v.allFinite()) break;
-      for (int j = 0; j < cost.na; ++j) next[cost.active[j]] = cost.ToTheta(cost.active[j], v[j]);
-      px->ApplyTies(next);
-    }
-    // Cut the step at the first bound it crosses and hold that parameter there.
-    double alpha = 1.0;
-    int hit = -1;
-    double hit_value = 0;
-    for (int j = 0; j < cost.na; ++j) {
-      const int p = cost.active[j];
-      const double d = next[p] - theta[p];
-      if (next[p] < px->lower[p] && d < 0) {
-        const double a = (px->lower[p] - theta[p]) / d;
-        if (a < alpha) {
-          alpha = a;
-          hit = p;
-          hit_value = px->lower[p];
-        }
-      } else if (next[p] > px->upper[p] && d > 0) {
-        const double a = (px->upper[p] - theta[p]) / d;
-        if (a < alpha) {
-          alpha = a;
-          hit = p;
-          hit_value = px->upper[p];
-        }
-      }
-    }
-    if (hit >= 0) {
-      alpha = std::max(alpha, 0.0);
-      for (int j = 0; j < cost.na; ++j) {
-        const int p = cost.active[j];
-        theta[p] = std::min(std::max(theta[p] + alpha * (next[p] - theta[p]), px->lower[p]),
-                            px->upper[p]);
-      }
-      theta[hit] = hit_value;
-      px->ApplyTies(theta);
-      held |= static_cast<std::uint8_t>(1u << hit);
-      continue;
-    }
-    for (std::size_t p = 0; p < np; ++p) theta[p] = next[p];
-    // Stationarity: release the held parameter whose multiplier points back
-    // inside with the largest predicted gain; else check convergence.
-    TableNormalEquations(t, *px, theta, &g, &h, con, cj);
-    std::vector<int> free_set;
-    for (int j = 0; j < cost.na; ++j) free_set.push_back(cost.active[j]);
-    const double base = PredictedDecrease(g, h, free_set);
-    int release = -1;
-    double best = tol;
-    for (std::size_t p = 0; p < np; ++p) {
-      if (!(held >> p & 1)) continue;
-      const bool at_lower = theta[p] <= px->lower[p];
-      if (!(at_lower ? g[p] < 0 : g[p] > 0)) continue;
-      std::vector<int> with = free_set;
-      with.push_back(static_cast<int>(p));
-      const double gain = PredictedDecrease(g, h, with) - base;
-      if (gain > best) {
-        best = gain;
-        release = static_cast<int>(p);
-      }
-    }
-    if (release >= 0) {
-      held &= static_cast<std::uint8_t>(~(1u << release));
-      continue;
-    }
-    ok = base < tol;
-    // A free parameter that converged onto its bound (within 1e-3 of its
-    // conditional standard deviation; fractions approach 0 asymptotically in
-    // the solver's log space) is held there.
-    if (ok) {
-      int snap = -1;
-      for (int j = 0; j < cost.na && snap < 0; ++j) {
-        const int p = cost.active[j];
-        const double sd = h(p, p) > 0 ? 1.0 / std::sqrt(h(p, p)) : 0.0;
-        if (theta[p] - px->lower[p] < 1e-3 * sd) {
-          theta[p] = px->lower[p];
-          snap = p;
-        } else if (px->upper[p] - theta[p] < 1e-3 * sd) {
-          theta[p] = px->upper[p];
-          snap = p;
-        }
-      }
-      if (snap >= 0) {
-        px->ApplyTies(theta);
-        held |= static_cast<std::uint8_t>(1u << snap);
-        ok = false;
-        continue;
-      }
-    }
-    break;
-  }
+  const bool ok = BoundedLm(*px, set, nr, eval, theta, &held, r, jac, &cost, &iters);
   for (std::size_t p = 0; p < np; ++p) px->theta[p] = theta[p];
   px->iterations += iters;
   px->bound_mask = held;
@@ -828,7 +1119,12 @@ void Inverter::SolveTable(Pixel* px, const double* start, Workspace* ws) const {
     return;
   }
   px->status = held ? PixelStatus::kAtBound : PixelStatus::kConverged;
-  FinishWith(px, con, cj, ws);
+  double con[kMaxChannels];
+  for (std::size_t c = 0; c < nc; ++c) {
+    con[c] = r[c] * px->noise[c] + px->y[c];
+    for (std::size_t p = 0; p < np; ++p) jac[c * np + p] *= px->noise[c];
+  }
+  FinishWith(px, con, jac, ws);
 }
 
 
@@ -1349,20 +1645,33 @@ void Inverter::InvertRow(const PixelBatch& b, const InversionOutput& out, std::s
         SolveNewton(&px, ws);
       } else if (use_table_) {
         const Pixel fresh = px;
+        const bool profile = !slices_.empty() && px.est[model_->num_species()];
         auto cold = [&](Pixel* out) {
-          // Full solves from the coarse profile's best candidates; the best
-          // fit is kept and a distinct second minimum widens the uncertainty.
-          TableGuess(*out, &ws->guesses, ws);
-          const Pixel base = *out;
-          const std::size_t starts =
-              options_.num_starts == 0
-                  ? ws->guesses.size()
-                  : std::min<std::size_t>(ws->guesses.size(), static_cast<std::size_t>(options_.num_starts));
+          // Full solves from the profile's minima (or the coarse lookup's
+          // best candidates); the best fit is kept and a distinct second
+          // minimum widens the uncertainty.
           int total = 0;
+          std::size_t starts = 0;
+          if (profile) {
+            ProfileGuess(*out, &ws->guesses, &total, ws);
+            starts = ws->guesses.size();
+          } else {
+            TableGuess(*out, &ws->guesses, ws);
+            starts = options_.num_starts == 0
+                         ? ws->guesses.size()
+                         : std::min<std::size_t>(ws->guesses.size(),
+                                                 static_cast<std::size_t>(options_.num_starts));
+          }
+          if (starts == 0) {
+            out->status = PixelStatus::kFailed;
+            out->iterations = total;
+            return;
+          }
+          const Pixel base = *out;
           std::vector<Pixel>& sol = ws->solutions;
           sol.assign(starts, base);
           for (std::size_t k = 0; k < starts; ++k) {
-            SolveTable(&sol[k], ws->guesses[k].th, ws);
+            SolveTable(&sol[k], ws->guesses[k].th, ws, starts == 1);
             total += sol[k].iterations;
           }
           std::size_t best = 0;
@@ -1370,6 +1679,13 @@ void Inverter::InvertRow(const PixelBatch& b, const InversionOutput& out, std::s
             if (sol[k].solved() && (!sol[best].solved() || sol[k].chi2 + sol[k].prior_chi2 <
                                                            sol[best].chi2 + sol[best].prior_chi2))
               best = k;
+          if (starts > 1 && sol[best].solved()) {
+            // The best minimum, converged to full precision.
+            Pixel precise = base;
+            SolveTable(&precise, sol[best].theta, ws, true);
+            total += precise.iterations;
+            if (precise.solved()) sol[best] = precise;
+          }
           *out = sol[best];
           if (out->solved()) {
             // The best other minimum (distinct from the best one), if any.

@@ -23,14 +23,17 @@
 //     between bands).
 //
 // Solvers. The default fast path evaluates the per-scene table (SceneTable)
-// and solves with Ceres' TinySolver (Levenberg-Marquardt on parameters of
-// order one: ln(x + 1e-9) for fractions, ln sigma, T_peak / 10 K), with bounds
+// and solves with a small Levenberg-Marquardt solver on parameters of order
+// one (ln(x + 1e-9) for fractions, ln sigma, T_peak / 10 K) with bounds
 // handled by an explicit active set: a step that crosses a bound is cut at the
 // bound, the parameter is held there, and it is released again when its
-// multiplier points back inside (KKT check). Cold starts solve from every
-// candidate of a coarse profile over T_peak and keep the best minimum; a
-// distinct second minimum within chi2 + 4 sets kFlagAmbiguous and widens the
-// uncertainties (see MergeModes). With one
+// multiplier points back inside (KKT check). With T_peak estimated, cold
+// starts profile chi2 over T_peak (the fractions solved at each of the
+// table's temperature nodes, where the table is pre-contracted: variable
+// projection), and polish every local minimum of the profile with all
+// parameters free; the best is reported, and a distinct second minimum within
+// chi2 + 4 sets kFlagAmbiguous and widens the uncertainties (see MergeModes).
+// With one
 // channel and one unknown fraction the problem is a root: a bracketed
 // Newton iteration on a per-(T_peak, sigma) curve of the table. The general
 // path (SolverKind::kFullModel, and the only one when species overlap
@@ -85,9 +88,23 @@ enum class InitialGuess : int {
   kGiven = 3,      // the caller's per-pixel start parameters (PixelBatch::initial)
 };
 
+enum class ColdStart : int {
+  // Profile chi2 over T_peak: at each temperature node of the table (and the
+  // bounds) the fractions are solved with T_peak and sigma held (the
+  // fractions problem is small and nearly linear; the table is
+  // pre-contracted at the nodes), continuing from the neighbouring node;
+  // every local minimum of the profile within chi2 + 25 of the best, refined
+  // by a parabola, and the two nodes beside the best one (at most 6 starts)
+  // are polished with all parameters free.
+  kProfile = 0,
+  // Full solves from several candidates of a coarse lookup (temperature_candidates,
+  // guess_iterations, num_starts). Slower; kept for comparison.
+  kStarts = 1,
+};
+
 enum class SolverKind : int {
   kAuto = 0,       // the per-scene table when the species are spectrally separate, else the full model
-  kTable = 1,      // the per-scene table (TinySolver / Newton); fails if species overlap
+  kTable = 1,      // the per-scene table (Levenberg-Marquardt / Newton); fails if species overlap
   kFullModel = 2,  // ceres::Solve on the full BinnedModel (automatic differentiation); slow
 };
 
@@ -115,14 +132,19 @@ struct InversionOptions {
   // the noise. Default 0.01, within [1e-12, 1].
   double tolerance_chi2 = 0.01;
   InitialGuess initial_guess = InitialGuess::kTable;  // default kTable
-  int temperature_candidates = 5;  // T_peak candidates of the table guess when T_peak is estimated, 1-50. Default 5
-  int guess_iterations = 3;  // fraction refinements per candidate of the table guess, 0-100. Default 3
-  // Full solves from the best candidates of the table guess, 0-50 (0 = every
-  // candidate; default). The best fit is kept; distinct other minima widen
-  // its uncertainty by their likelihood weight. With the temperature free the
-  // chi2 landscape often has two branches (a thin hot plume and a thick
-  // cooler one give nearly the same contrasts in broadband channels), which
-  // only starts from every candidate find reliably.
+  // How a pixel without a warm start is solved when T_peak is estimated (the
+  // table path). With the temperature free the chi2 landscape often has two
+  // branches (a thin hot plume and a thick cooler one give nearly the same
+  // contrasts in broadband channels): both cold starts look for every minimum.
+  // Default kProfile.
+  ColdStart cold_start = ColdStart::kProfile;
+  // kStarts only: T_peak candidates of the coarse lookup (the nominal value
+  // and this many across the bounds), 1-50. Default 5
+  int temperature_candidates = 5;
+  int guess_iterations = 3;  // kStarts only: fraction refinements per candidate, 0-100. Default 3
+  // kStarts only: full solves from the best candidates of the coarse lookup,
+  // 0-50 (0 = every candidate; default). The best fit is kept; distinct other
+  // minima widen its uncertainty by their likelihood weight.
   int num_starts = 0;
   SolverKind solver = SolverKind::kAuto;  // default kAuto
   int num_threads = 0;  // threads over pixels; 0 = all cores
@@ -232,7 +254,8 @@ class Inverter {
                  std::size_t end, Workspace* ws) const;
   bool PreparePixel(const PixelBatch& batch, std::size_t frame, std::size_t pixel,
                     Pixel* px) const;
-  void SolveTable(Pixel* px, const double* start, Workspace* ws) const;
+  // precise: converge far below the tolerance (see LmSettings in the .cc).
+  void SolveTable(Pixel* px, const double* start, Workspace* ws, bool precise = true) const;
   void SolveNewton(Pixel* px, Workspace* ws) const;
   void SolveFull(Pixel* px, const double* start, Workspace* ws) const;
   struct GuessCandidate {
@@ -242,6 +265,13 @@ class Inverter {
   // Coarse lookup: per candidate peak temperature, the optically thin least
   // squares for the fractions, refined by a few iterations; sorted by cost.
   void TableGuess(const Pixel& px, std::vector<GuessCandidate>* candidates, Workspace* ws) const;
+  // The profile of chi2 over T_peak (ColdStart::kProfile): its local minima,
+  // best first, as starts for full solves. Adds its iterations to *iterations.
+  void ProfileGuess(const Pixel& px, std::vector<GuessCandidate>* minima, int* iterations,
+                    Workspace* ws) const;
+  // Optically thin non-negative least squares for the free fractions at
+  // temperature tc (theta's other entries kept).
+  void ThinGuess(const Pixel& px, double tc, double* theta) const;
   // Combines two solutions of one pixel (two minima).
   void MergeModes(Pixel* best, const Pixel& other) const;
   void FullModelGuess(const Pixel& px, double* theta) const;
@@ -261,6 +291,9 @@ class Inverter {
   std::vector<BandTable> bands_;
   std::vector<double> netd_;  // per channel
   std::vector<double> column_factor_;  // K_s = M_s p / (N_A k_B)
+  // The table contracted at the profile's temperatures (the bounds of T_peak
+  // and the table's nodes between them); empty unless T_peak is estimated on the table path.
+  std::vector<SceneTable::Slice> slices_;
   bool use_table_ = false;
   bool newton_ = false;
   std::size_t newton_param_ = 0;

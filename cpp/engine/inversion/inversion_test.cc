@@ -294,6 +294,32 @@ TEST(SceneTable, ThinLimitIsLinearInTheColumn) {
   EXPECT_NEAR(v1, -v2, 1e-12 * std::abs(v2));
 }
 
+TEST(SceneTable, SlicesEqualTheTableAtTheirTemperature) {
+  // A slice is the table contracted over T_peak: the same values and
+  // fraction derivatives as Contrast() at that temperature, on a node and between nodes.
+  const SceneTable& t = *F().table;
+  std::vector<double> phi(t.background_size());
+  const double tbg[4] = {281, 279, 283, 276};
+  t.Background(tbg, phi.data());
+  for (double tp : {t.min_peak_temperature_K() + 3 * (t.max_peak_temperature_K() -
+                                                      t.min_peak_temperature_K()) /
+                                                     (t.num_temperature_nodes() - 1),
+                    331.7}) {
+    const SceneTable::Slice sl = t.MakeSlice(tp);
+    for (double scale : {1e-4, 1e-2, 0.3}) {
+      const double x[2] = {scale, 0.6 * scale}, sigma = 0.07;
+      double ref[4], jac[4 * 4], val[4], d_dx[4 * 2];
+      t.Contrast(x, tp, sigma, phi.data(), ref, jac);
+      t.SliceContrast(sl, x, sigma, phi.data(), val, d_dx);
+      for (int c = 0; c < 4; ++c) {
+        EXPECT_NEAR(val[c], ref[c], 1e-12 * std::abs(ref[c]) + 1e-300) << "channel " << c;
+        for (int s = 0; s < 2; ++s)
+          EXPECT_NEAR(d_dx[c * 2 + s], jac[c * 4 + s], 1e-12 * std::abs(jac[c * 4 + s]) + 1e-300);
+      }
+    }
+  }
+}
+
 TEST(SceneTable, RefusesSpectrallyOverlappingSpecies) {
   std::vector<SpectralResponse> ch{Bandpass(2960, 3090, "A")};
   std::vector<AbsorberTable> tabs{LorentzTable("CH4", 2930, 3120, 2955, 3095, 1, true, 40),

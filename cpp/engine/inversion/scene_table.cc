@@ -664,6 +664,84 @@ int SceneTable::RawValues(std::size_t c, std::size_t s, double lu, double x, dou
   return r1;
 }
 
+SceneTable::Slice SceneTable::MakeSlice(double tp) const {
+  Slice sl;
+  sl.peak_temperature_K = tp;
+  const SplineWeights wt = axis_t_.Weights((tp - t_lo_) / h_t_);
+  const int nuc = nu_ + 2;
+  std::size_t size = 0;
+  for (const Table& t : tables_) {
+    sl.offset.push_back(size);
+    size += static_cast<std::size_t>(t.nx > 1 ? nx_ + 2 : 1) * nuc * (t.rank + 1);
+  }
+  sl.coef.assign(size, 0.0);
+  sl.phi.assign(tables_.size() * kMaxRank, 0.0);
+  for (std::size_t i = 0; i < tables_.size(); ++i) {
+    const Table& t = tables_[i];
+    const std::size_t block = static_cast<std::size_t>(t.nx > 1 ? nx_ + 2 : 1) * nuc * (t.rank + 1);
+    double* out = &sl.coef[sl.offset[i]];
+    for (int a = 0; a < wt.count; ++a) {
+      const double* in = &t.coef[static_cast<std::size_t>(wt.first + a) * block];
+      for (std::size_t k = 0; k < block; ++k) out[k] += wt.w[a] * in[k];
+    }
+    double dphi[kMaxRank];
+    Phi(t, tp, &sl.phi[i * kMaxRank], dphi);
+  }
+  return sl;
+}
+
+void SceneTable::SliceContrast(const Slice& sl, const double* x, double sigma, const double* phi,
+                               double* contrast, double* d_dx) const {
+  for (std::size_t c = 0; c < nc_; ++c) contrast[c] = 0;
+  if (d_dx)
+    for (std::size_t k = 0; k < nc_ * ns_; ++k) d_dx[k] = 0;
+  const double u_lo = std::exp(lu_lo_);
+  const int nuc = nu_ + 2;
+  for (std::size_t s = 0; s < ns_; ++s) {
+    const double u = x[s] * sigma;
+    const bool thin = !(u > u_lo);
+    const double lu = thin ? lu_lo_ : std::log(u);
+    const SplineWeights wu =
+        axis_u_.Weights((lu - lu_lo_) / h_lu_, Extrapolation::kHold, Extrapolation::kLinear);
+    SplineWeights wx;
+    bool wx_ready = false;
+    for (std::size_t c = 0; c < nc_; ++c) {
+      const int i = index_[c * ns_ + s];
+      if (i < 0) continue;
+      const Table& t = tables_[i];
+      if (!wx_ready) {
+        wx = t.nx > 1 ? axis_x_.Weights(x[s] / h_x_) : axis_one_.Weights(0);
+        wx_ready = true;
+      }
+      const int r1 = t.rank + 1;
+      double dphi[kMaxRank];
+      const double* pt = &sl.phi[static_cast<std::size_t>(i) * kMaxRank];
+      const double* pb = phi + t.phi_offset;
+      for (int r = 0; r < t.rank; ++r) dphi[r] = pt[r] - pb[r];
+      double g = 0, g_u = 0, g_x = 0;
+      for (int b = 0; b < wx.count; ++b) {
+        const double* row = &sl.coef[sl.offset[i] + (static_cast<std::size_t>(wx.first + b) * nuc + wu.first) * r1];
+        double b0 = 0, bu = 0;
+        for (int k = 0; k < wu.count; ++k) {
+          const double* cv = row + k * r1;
+          double v = cv[0];
+          for (int r = 0; r < t.rank; ++r) v += dphi[r] * cv[1 + r];
+          b0 += wu.w[k] * v;
+          bu += wu.dw[k] * v;
+        }
+        g += wx.w[b] * b0;
+        g_u += wx.w[b] * bu;
+        g_x += wx.dw[b] * b0;
+      }
+      contrast[c] += u * g;
+      if (d_dx) {
+        const double d_du = thin ? g : g + g_u / h_lu_;
+        d_dx[c * ns_ + s] += d_du * sigma + (t.nx > 1 ? u * g_x / h_x_ : 0.0);
+      }
+    }
+  }
+}
+
 void SceneTable::Contrast(const double* x, double tp, double sigma, const double* phi,
                           double* contrast, double* jac) const {
   const std::size_t np = ns_ + 2;

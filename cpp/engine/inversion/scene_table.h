@@ -128,6 +128,26 @@ class SceneTable {
   void Contrast(const double* x, double peak_temperature_K, double sigma_m, const double* phi,
                 double* contrast, double* jacobian) const;
 
+  // The table at one fixed peak temperature: every (channel, species)
+  // table contracted over the T_peak axis, and phi_r(T_peak). It does not
+  // depend on the pixel, so an inversion builds slices once (e.g. at the
+  // table's temperature nodes) and evaluates them for every pixel at a third
+  // of the cost of Contrast(): a profile of chi2 over T_peak solves for the
+  // fractions at fixed temperatures.
+  struct Slice {
+    double peak_temperature_K = 0;
+    std::vector<std::size_t> offset;  // per table: start of its block in coef and phi
+    std::vector<double> coef;         // per table [(ix * NU + iu) * (R + 1) + r]
+    std::vector<double> phi;          // per table phi_r(T_peak), R values
+  };
+  Slice MakeSlice(double peak_temperature_K) const;
+  // Contrast [W/(m2 sr)] of every channel at the slice's T_peak, fractions
+  // x[s] and depth sigma [m], and, when d_dx is not null, d contrast / d x_s
+  // at fixed sigma into d_dx[c * n_species + s]. Equals Contrast() at that
+  // temperature (to rounding).
+  void SliceContrast(const Slice& slice, const double* x, double sigma_m, const double* phi,
+                     double* contrast, double* d_dx) const;
+
   // One species' contribution to one channel as u g(ln u, x, T_peak), with
   // d/du, d/dx (self-broadening axis at fixed u) and d/dT_peak.
   void SpeciesContrast(std::size_t channel, std::size_t species, double u, double x,
