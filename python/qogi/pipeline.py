@@ -504,40 +504,90 @@ class _InvertedColumns:
         self.sigma_m: Dict[int, float] = {}
 
     def _set_proxy_lookup(self, k_K_per_fraction: Optional[float]) -> None:
-        """The contrast -> column lookup of the velocity proxy: at the assumed
+        """The contrast -> column lookups of the velocity proxy: at the assumed
         gas temperature (None), or along the plume's mixing line
-        T_peak = T_amb + k x once the temperature has been inferred (then
-        the proxy stays proportional to the column where the gas cools as it
-        rises, which the velocimetry's mass balance needs)."""
+        T_peak = T_amb + k x once the temperature has been inferred, for a
+        grid of plume depths (see :meth:`contrast_to_column`)."""
+        self._k_proxy = k_K_per_fraction
+        self._proxy_contrast, self._proxy_column = self._lookup_nodes(
+            np.array([self.cfg.sigma_m or 0.02]))[0]
+        self._grid = None
+
+    def _lookup_nodes(self, sigmas: np.ndarray) -> list:
+        """(contrast, column) nodes of the monotone lookup per depth."""
         cfg, scene = self.cfg, self.scene
         x = np.geomspace(1e-7, 1.0, 160)
-        sig = cfg.sigma_m or 0.02
-        if k_K_per_fraction is None:
+        if self._k_proxy is None:
             t = np.full_like(x, scene.gas_K)
         else:
             lo, hi = self.temperature_range_K
-            t = np.clip(scene.ambient_K + k_K_per_fraction * x, lo, hi)
-        ch = self.rec.channels[self.proxy_channel]
+            t = np.clip(scene.ambient_K + self._k_proxy * x, lo, hi)
         # x: the released gas's total peak fraction (the mixing line's x).
         fr = {cfg.species[0]: x}
         if cfg.composition is not None:
             total = sum(cfg.composition[sp] for sp in cfg.species)
             fr = {sp: x * cfg.composition[sp] / total for sp in cfg.species}
-        l = self.model.band_radiance(fr, t, sig, scene.ambient_K, self._bg_t)[:, self.proxy_channel]
-        contrast = np.abs(l - ch.band_radiance(self._bg_t))
-        cols = self.model.column_density(fr, t, sig, scene.ambient_K)[cfg.species[0]]
-        keep = np.concatenate([[True], np.diff(contrast) > 0])
-        self._proxy_contrast = np.concatenate([[0.0], contrast[keep]])
-        self._proxy_column = np.concatenate([[0.0], cols[keep]])
+        ch = self.rec.channels[self.proxy_channel]
+        n, m = len(sigmas), len(x)
+        frs = {sp: np.tile(v, n) for sp, v in fr.items()}
+        ts = np.tile(t, n)
+        sg = np.repeat(np.asarray(sigmas, float), m)
+        l = self.model.band_radiance(frs, ts, sg, scene.ambient_K, self._bg_t)[:, self.proxy_channel]
+        contrast = np.abs(l - ch.band_radiance(self._bg_t)).reshape(n, m)
+        cols = self.model.column_density(frs, ts, sg, scene.ambient_K)[cfg.species[0]].reshape(n, m)
+        out = []
+        for i in range(n):
+            keep = np.concatenate([[True], np.diff(contrast[i]) > 0])
+            out.append((np.concatenate([[0.0], contrast[i][keep]]),
+                        np.concatenate([[0.0], cols[i][keep]])))
+        return out
 
-    def _lookup(self, contrast) -> np.ndarray:
+    def _lookup(self, contrast, nodes=None) -> np.ndarray:
         c = np.asarray(contrast)
-        return np.sign(c) * np.interp(np.abs(c), self._proxy_contrast, self._proxy_column)
+        nc, ncol = nodes if nodes is not None else (self._proxy_contrast, self._proxy_column)
+        return np.sign(c) * np.interp(np.abs(c), nc, ncol)
 
     def contrast_to_column(self, contrast: np.ndarray) -> np.ndarray:
-        """Signed proxy contrast fields -> column proxy (in place, float32)."""
-        for k in range(contrast.shape[0]):
-            contrast[k] = self._lookup(contrast[k])
+        """Signed proxy contrast fields (T, H, W) -> column proxy, in place.
+
+        The velocimetry's mass balance needs a field proportional to the
+        column all along the plume, and a single-channel lookup depends on the
+        plume's depth (saturation): the depth grows downstream. Without a
+        given depth, each line across the plume (rows for horizontal
+        surfaces, columns otherwise) gets the lookup of its own depth, the
+        Gaussian width of the time-averaged plume across that line
+        (axisymmetric plume), interpolated between lookups on a grid of
+        depths; lines without a measurable plume take the nearest line's."""
+        if self.cfg.sigma_m is not None or contrast.shape[0] == 0:
+            for k in range(contrast.shape[0]):
+                contrast[k] = self._lookup(contrast[k])
+            return contrast
+        view = contrast if self.horizontal else contrast.transpose(0, 2, 1)
+        mean = self._lookup(view.mean(axis=0))              # (lines, across)
+        top = mean.max()
+        lines = np.arange(mean.shape[0])
+        widths = np.full(mean.shape[0], np.nan)
+        for r in lines:
+            if top > 0 and mean[r].max() > 0.05 * top:
+                widths[r] = _gaussian_width(mean[r]) * self.scene.pixel_m
+        ok = np.isfinite(widths) & (widths > 0)
+        if not ok.any():
+            for k in range(contrast.shape[0]):
+                contrast[k] = self._lookup(contrast[k])
+            return contrast
+        widths = np.interp(lines, lines[ok], widths[ok])
+        grid = np.geomspace(0.002, 0.5, 15)
+        nodes = self._lookup_nodes(grid)
+        u = np.interp(np.log(np.clip(widths, grid[0], grid[-1])), np.log(grid),
+                      np.arange(grid.size))
+        j0 = np.minimum(np.floor(u).astype(int), grid.size - 2)
+        w = (u - j0)[:, None]
+        self.line_depths_m = widths
+        for j in np.unique(j0):
+            rows = np.flatnonzero(j0 == j)
+            block = view[:, rows, :]
+            view[:, rows, :] = ((1.0 - w[rows]) * self._lookup(block, nodes[j]) +
+                                w[rows] * self._lookup(block, nodes[j + 1]))
         return contrast
 
     def proxy_field(self, frame: np.ndarray) -> np.ndarray:
@@ -667,15 +717,17 @@ class _InvertedColumns:
         s2 = np.tile(sig, nt)
         kw = dict(self._inv_kw)
         kw.pop("temperature")
-        free_t = inv.Inversion(self.model, t_amb, temperature=inv.free(lo, hi), sigma_m=0.05,
-                               table=self.table, **kw)
         fixed_t = inv.Inversion(self.model, t_amb, temperature=inv.fixed(t_amb), sigma_m=0.05,
                                 temperature_range_K=(lo, hi), table=self.table, **kw)
 
         def stage(a, b, label):
             return lambda f: progress(a + (b - a) * f) if progress else None
 
-        # 1. The mixing line's slope from the best-determined pixels.
+        # 1. The mixing line's slope: the scene parameter k that minimises the
+        # total chi2 of a sample of the detected pixel-frames (<= 3000, contrast
+        # >= 10x noise) solved on the line (a profile likelihood over a grid of
+        # k, refined by a parabola). Pixel-by-pixel free temperatures are too
+        # weakly determined (and two-branched) to average into k.
         t_bg = [float(ch.radiometric_temperature(float(np.median(b2[c]))))
                 for c, ch in enumerate(self.rec.channels)]
         noise = fixed_t.channel_noise(np.asarray(t_bg))[:, None]
@@ -684,42 +736,7 @@ class _InvertedColumns:
         cand = np.flatnonzero(snr >= 10.0)
         if cand.size > 3000:
             cand = np.sort(rng.choice(cand, 3000, replace=False))
-        self.k_K_per_fraction, self.k_sigma = 0.0, 0.0
-        self.mixing_pixels = 0
-        if cand.size >= 5:
-            cal = free_t.invert(r2[:, cand], background_radiance=b2[:, cand], sigma_m=s2[cand],
-                                progress=stage(0.0, 0.3, "temperature"))
-            x = sum(cal.peak_fraction[sp] for sp in cfg.species)
-            dt = cal.peak_temperature_K - t_amb
-            ts = cal.peak_temperature_sigma_K
-            ok = (cal.status == inv.CONVERGED) & ((cal.flags & inv.AMBIGUOUS) == 0) & (x > 0) & \
-                (ts > 0)
-            # Weighted least squares of dT = k x through the origin (weights
-            # 1 / sigma_T^2), with 3-sigma clipping of the residuals: faint
-            # pixels, whose temperature the bands cannot pin down, weigh little,
-            # and fits on the wrong (thin-hot) branch drop out.
-            x, dt, ts = x[ok], dt[ok], ts[ok]
-            keep = np.ones(x.size, bool)
-            k = 0.0
-            for _ in range(10):
-                if keep.sum() < 5:
-                    break
-                w = 1.0 / ts[keep] ** 2
-                k = float(np.sum(w * x[keep] * dt[keep]) / np.sum(w * x[keep] ** 2))
-                z = (dt - k * x) / ts
-                new_keep = np.abs(z) < 3.0
-                if np.array_equal(new_keep, keep):
-                    break
-                keep = new_keep
-            if keep.sum() >= 5:
-                w = 1.0 / ts[keep] ** 2
-                chi2 = float(np.sum(w * (dt[keep] - k * x[keep]) ** 2)) / max(1, keep.sum() - 1)
-                self.k_K_per_fraction = k
-                self.k_sigma = float(math.sqrt(max(chi2, 1.0) / np.sum(w * x[keep] ** 2)))
-                self.mixing_pixels = int(keep.sum())
-        k = self.k_K_per_fraction
-        self._set_proxy_lookup(k)
-
+        self.k_K_per_fraction, self.k_sigma, self.mixing_pixels = 0.0, 0.0, int(cand.size)
         # 2. Every pixel-frame: x = g(x) with T_peak = T_amb + k x. In u = ln x
         # the root of phi(u) = ln g(e^u) - u is bracketed by x -> 0 (g(0) > 0:
         # phi > 0) and x = g(0) (phi <= 0 when g decreases, as it does for gas
@@ -735,8 +752,6 @@ class _InvertedColumns:
         def solve(kk, idx, a, b, passes=7):
             span = (b - a) / passes
             out, g0 = g(np.zeros(idx.size), kk, idx, a, a + span)
-            if kk == 0.0:
-                return out
             out = _owned(out)
             live = np.flatnonzero((g0 > 0) & out.valid)
             ua = np.full(live.size, math.log(1e-7))
@@ -768,6 +783,40 @@ class _InvertedColumns:
                 live, ua, fa, ub, fb, side = (live[keep], ua[keep], fa[keep], ub[keep], fb[keep],
                                               side[keep])
             return out
+
+
+        if cand.size >= 5:
+            step = 10.0
+            grid = np.arange(lo - t_amb, hi - t_amb + 1e-9, step)
+            chi = []
+            for i, kk in enumerate(grid):
+                r = solve(float(kk), cand, 0.3 * i / grid.size, 0.3 * (i + 1) / grid.size)
+                chi.append(r.chi2)
+            chi = np.asarray(chi)                             # (k values, pixels)
+            good = np.all(np.isfinite(chi), axis=0)
+            # Per-pixel chi2 capped (robust: a few saturated pixels that no
+            # temperature fits must not decide the scene's k).
+            total = np.minimum(chi[:, good], 50.0).sum(axis=1)
+            i = int(np.argmin(total))
+            k = float(grid[i])
+            dof = max(1, int(good.sum()) - 1)
+            scale = max(1.0, total[i] / dof)  # model error widens Delta chi2 = 1
+            if 0 < i < grid.size - 1:
+                y0, y1, y2 = total[i - 1], total[i], total[i + 1]
+                curv = (y0 - 2 * y1 + y2) / step ** 2
+                if curv > 0:
+                    k = float(np.clip(grid[i] - 0.5 * (y2 - y0) / step / curv,
+                                      grid[i] - 0.5 * step, grid[i] + 0.5 * step))
+            # 1-sigma: where the (interpolated) total rises by `scale` from its
+            # minimum, on the flatter side.
+            fine = np.linspace(grid[0], grid[-1], 1 + 20 * (grid.size - 1))
+            curve = np.interp(fine, grid, total)
+            inside = fine[curve <= total[i] + scale]
+            self.k_sigma = float(max(k - inside.min(), inside.max() - k, 0.5 * step)) \
+                if inside.size else float(step)
+            self.k_K_per_fraction = k
+        k = self.k_K_per_fraction
+        self._set_proxy_lookup(k)
 
         everything = np.arange(nt * n)
         flat = solve(k, everything, 0.3, 0.9)
@@ -886,6 +935,7 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
             status_counts[key] = status_counts.get(key, 0) + int(v)
 
     time_averaged = cfg.averaging == "time-averaged"
+    velocity_info: Dict[str, object] = {}
     try:
         for k, f in enumerate(frames):
             fr = rec.frame(f, quantity="radiance")
@@ -910,6 +960,8 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
         invert_collected(done, time_averaged)
         if cfg.column_density != "truth":
             columns.contrast_to_column(col_fields[:done])
+            velocity_info["proxy_anchor"] = _anchor_proxy(
+                col_fields[:done], samples, surf_cols, cfg.species[0], horizontal, roi)
     except Cancelled:
         try:
             invert_collected(done, time_averaged)
@@ -921,7 +973,6 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
 
     # -- velocity --------------------------------------------------------------
     flows = None
-    velocity_info: Dict[str, str] = {}
     if cfg.velocity not in ("wind", "exit"):
         # Every frame's field (also for the time-averaged order: the gas
         # moves, the averaged field does not).
@@ -934,43 +985,98 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
             source_mask = ((xx - sx) ** 2 + (yy - sy) ** 2) <= rad ** 2
             if not source_mask.any():
                 source_mask = None
-        scale = np.percentile(velocity_frames, 99.5)
-        norm = velocity_frames / scale if scale > 0 else velocity_frames
-        norm = np.ascontiguousarray(norm, dtype=np.float32)
-        try:
-            seq = vel.optical_flow_sequence(
-                norm, method=cfg.velocity, source_mask=source_mask, warm_start=True, workers=0,
-                progress=lambda fr_: say(0.6 + 0.3 * fr_, "velocimetry"))
-        except KeyboardInterrupt:
-            raise Cancelled("quantification cancelled", partial=None) from None
-        # The velocity at each frame's time; with the fluid method and a known
-        # source, the flux level from the transport of the line-integrated
-        # column (time of flight of the plume's structures: mass conservation
-        # alone cannot fix it in a steady plume; docs/velocimetry.md).
+        # With the fluid method and a known source, the flux level comes from
+        # the transport of the line-integrated column (time of flight of the
+        # plume's structures: mass conservation alone cannot fix it in a
+        # steady plume; docs/velocimetry.md).
         flux_note = "off: " + ("a method other than fluid" if cfg.velocity != "fluid" else
                                "flux_level=False" if not cfg.flux_level else
                                "no source given" if cfg.source is None else
                                "fewer than 3 frames" if done < 3 else "")
-        flows = None
+        crop = (slice(None), slice(None))
         if flux_note == "off: ":
             pts = np.concatenate([np.asarray(s.points, float) for s in surfaces])
             dx, dy = pts.mean(axis=0) - np.asarray(cfg.source)
             if abs(dy) >= abs(dx):
                 axis, index = ("up" if dy < 0 else "down"), cfg.source[1] - roi.y0
+                coord, size = pts[:, 1] - roi.y0, velocity_frames.shape[1]
             else:
                 axis, index = ("right" if dx > 0 else "left"), cfg.source[0] - roi.x0
+                coord, size = pts[:, 0] - roi.x0, velocity_frames.shape[2]
+            # The field only up to a margin beyond the farthest surface: the
+            # transport balance sums the column beyond each line, and the
+            # proxy is calibrated (anchored) only up to the surfaces; the gas
+            # leaving through the cut is the balance's outflow term.
+            far = coord.min() if axis in ("up", "left") else coord.max()
+            margin = max(24.0, 0.5 * abs(index - far))
+            if axis in ("up", "left"):
+                cut = slice(int(max(0, np.floor(far - margin))), None)
+            else:
+                cut = slice(0, int(min(size, np.ceil(far + margin) + 1)))
+            crop = (cut, slice(None)) if axis in ("up", "down") else (slice(None), cut)
+            if axis in ("up", "left"):
+                index -= cut.start
+        field = velocity_frames[:, crop[0], crop[1]]
+        mask = source_mask[crop[0], crop[1]] if source_mask is not None else None
+        scale = np.percentile(field, 99.5)
+        norm = np.ascontiguousarray(field / scale if scale > 0 else field, dtype=np.float32)
+        try:
+            seq = vel.optical_flow_sequence(
+                norm, method=cfg.velocity, source_mask=mask, warm_start=True, workers=0,
+                progress=lambda fr_: say(0.6 + 0.3 * fr_, "velocimetry"))
+        except KeyboardInterrupt:
+            raise Cancelled("quantification cancelled", partial=None) from None
+        uv = None
+        if flux_note == "off: ":
             try:
                 u, v, _ = vel.calibrate_flux_level(seq, norm, axis, index)
-                flows = (u, v)
+                uv = (u, v)
                 flux_note = f"on: transport of the line-integrated column, axis {axis}"
             except ValueError as e:
                 flux_note = f"off: {e}"
-        if flows is None:
-            flows = vel.frame_velocity(seq)
+        if uv is None:
+            uv = vel.frame_velocity(seq)
+        # Back into the whole frame (no velocity outside the analysed part).
+        flows = tuple(np.zeros_like(velocity_frames) for _ in range(2))
+        for full, part in zip(flows, uv):
+            full[:, crop[0], crop[1]] = part
         velocity_info["flux_level"] = flux_note
     return _finish(rec, surfaces, cfg, scene, samples, frames, done, col_fields, surf_cols,
                    surf_sig, flows, status_counts, kept_maps, t_start, complete=True,
                    keep_maps=keep_maps, roi=roi, columns=columns, velocity_info=velocity_info)
+
+
+def _anchor_proxy(fields: np.ndarray, samples, surf_cols, species: str, horizontal: bool,
+                  roi: Region) -> Dict[str, float]:
+    """Scales the velocity proxy (T, H, W) line by line to the inverted
+    columns where both exist: along each surface, the ratio of the full
+    inversion's column sum to the proxy's (over every frame) is the proxy's
+    calibration there; lines between surfaces take it interpolated, lines
+    beyond the outermost surfaces the nearest one's. The velocimetry's mass
+    balance needs the proxy proportional to the column along the plume, which
+    a single-channel lookup cannot promise where the gas cools and thins.
+    Returns {line: ratio} of the anchors (for the record)."""
+    pos, ratio = [], []
+    for (xy, n, dl, t), cols in zip(samples, surf_cols):
+        inv = cols[species][:fields.shape[0]]
+        good = np.isfinite(inv)
+        if not good.any():
+            continue
+        prox = np.stack([_bilinear(fields[k], xy - [roi.x0, roi.y0])
+                         for k in range(fields.shape[0])])
+        a, b = float(np.sum(np.where(good, inv, 0.0))), float(np.sum(np.where(good, prox, 0.0)))
+        if a > 0 and b > 0:
+            pos.append(float(np.mean(xy[:, 1] - roi.y0 if horizontal else xy[:, 0] - roi.x0)))
+            ratio.append(a / b)
+    if not pos:
+        return {}
+    order = np.argsort(pos)
+    pos, ratio = np.asarray(pos)[order], np.asarray(ratio)[order]
+    view = fields if horizontal else fields.transpose(0, 2, 1)
+    lines = np.arange(view.shape[1])
+    scale = np.exp(np.interp(lines, pos, np.log(ratio))).astype(np.float32)
+    view *= scale[None, :, None]
+    return {f"{p:.0f}": float(r) for p, r in zip(pos, ratio)}
 
 
 def _finish(rec, surfaces, cfg, scene, samples, frames, done, col_fields, surf_cols, surf_sig,
