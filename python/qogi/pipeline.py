@@ -43,7 +43,7 @@ __all__ = ["QuantifyConfig", "quantify", "Cancelled", "VELOCITY_SYSTEMATIC"]
 #: From the velocimetry study on the synthetic presets (docs/velocimetry.md);
 #: "wind" and "exit" are user-given speeds whose relation to the gas velocity at
 #: the surface is unknown to qogi and are given a wide band.
-VELOCITY_SYSTEMATIC = {"fluid": 0.08, "horn_schunck": 0.25, "lucas_kanade": 0.3,
+VELOCITY_SYSTEMATIC = {"fluid": 0.10, "horn_schunck": 0.25, "lucas_kanade": 0.3,
                        "farneback": 0.3, "dis": 0.3, "piv": 0.2, "wind": 0.5, "exit": 0.5}
 #: Relative systematic uncertainty (1 sigma) of column densities from the
 #: Gaussian line-of-sight model (profile shape; docs/inversion.md).
@@ -1008,7 +1008,7 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
             # proxy is calibrated (anchored) only up to the surfaces; the gas
             # leaving through the cut is the balance's outflow term.
             far = coord.min() if axis in ("up", "left") else coord.max()
-            margin = max(24.0, 0.5 * abs(index - far))
+            margin = max(48.0, abs(index - far))
             if axis in ("up", "left"):
                 cut = slice(int(max(0, np.floor(far - margin))), None)
             else:
