@@ -516,7 +516,7 @@ class _InvertedColumns:
     def _lookup_nodes(self, sigmas: np.ndarray) -> list:
         """(contrast, column) nodes of the monotone lookup per depth."""
         cfg, scene = self.cfg, self.scene
-        x = np.geomspace(1e-7, 1.0, 160)
+        x = np.geomspace(1e-7, 1.0, 64)
         if self._k_proxy is None:
             t = np.full_like(x, scene.gas_K)
         else:
@@ -576,7 +576,7 @@ class _InvertedColumns:
                 contrast[k] = self._lookup(contrast[k])
             return contrast
         widths = np.interp(lines, lines[ok], widths[ok])
-        grid = np.geomspace(0.002, 0.5, 15)
+        grid = np.geomspace(0.002, 0.5, 9)
         nodes = self._lookup_nodes(grid)
         u = np.interp(np.log(np.clip(widths, grid[0], grid[-1])), np.log(grid),
                       np.arange(grid.size))
