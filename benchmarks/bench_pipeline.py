@@ -21,13 +21,12 @@ import os
 import tempfile
 import time
 
-import numpy as np
 
 import qogi
 from qogi import render
 from qogi.pipeline import QuantifyConfig, quantify
 from qogi.recording import RecordingWriter
-from qogi.surfaces import Surface
+from qogi.surfaces import truth_surfaces
 
 CASES = [
     ("lab-ch4-5slpm-gf320", 60.0, 4.0, "ambient", None),
@@ -46,18 +45,6 @@ def looped(src_path, dst_path, duration_s):
     return dst_path
 
 
-def surfaces(rec):
-    rows = rec.truth.datasets["plane_row"][:]
-    heights = rec.truth.datasets["plane_height_m"][:]
-    fp = rec.scene.distance_m * rec.camera.ifov_rad
-    i = int(np.argmin(heights))
-    ex, ey = rec.width / 2 - 0.5, float(rows[i] + heights[i] / fp)
-    half = 50 if rec.height == 256 else 40
-    out = [Surface([(ex - half, r), (ex + half, r)], name=f"{h * 100:.0f} cm")
-           for h, r in zip(heights, rows) if round(h * 100) in (4, 8, 12)]
-    return out, (ex, ey)
-
-
 def main():
     scale = float(os.environ.get("QOGI_BENCH_SCALE", "1"))
     with tempfile.TemporaryDirectory() as d:
@@ -68,7 +55,8 @@ def main():
             t_render = time.perf_counter() - t
             path = looped(src, os.path.join(d, "rec.h5"), duration)
             rec = qogi.open_recording(path)
-            surf, source = surfaces(rec)
+            surf, source = truth_surfaces(rec, heights_m=(0.04, 0.08, 0.12),
+                                          half_width_px=50 if rec.height == 256 else 40)
             cfg = QuantifyConfig(species=list(rec.scene.species), gas_temperature=gas,
                                  composition=comp, source=source)
             times = []

@@ -36,7 +36,7 @@ import numpy as np
 import qogi
 from qogi import render
 from qogi.pipeline import QuantifyConfig, quantify
-from qogi.surfaces import Surface
+from qogi.surfaces import truth_surfaces
 
 CASES = {
     "m150": dict(preset="lab-ch4co2-90c-m150", camera=None, duration_s=2.0,
@@ -69,22 +69,10 @@ def ensure_recording(cache: Path, case: str, seed: int) -> Path:
     return path
 
 
-def surfaces_for(rec) -> list:
-    rows = rec.truth.datasets["plane_row"][:]
-    heights = rec.truth.datasets["plane_height_m"][:]
-    half = 50 if rec.height == 256 else 40
-    x0 = exit_pixel(rec)[0]
-    return [Surface([(x0 - half, r), (x0 + half, r)], name=f"{h * 100:.0f} cm")
-            for h, r in zip(heights, rows) if h <= MAX_HEIGHT_M and 0 <= r < rec.height]
-
-
-def exit_pixel(rec):
-    """The stack exit in pixels: below the lowest control plane by its height."""
-    rows = rec.truth.datasets["plane_row"][:]
-    heights = rec.truth.datasets["plane_height_m"][:]
-    fp = rec.scene.distance_m * rec.camera.ifov_rad
-    i = int(np.argmin(heights))
-    return rec.width / 2 - 0.5, float(rows[i] + heights[i] / fp)
+def surfaces_for(rec):
+    """Surfaces on the truth planes up to 12 cm, and the exit pixel."""
+    return truth_surfaces(rec, max_height_m=MAX_HEIGHT_M,
+                          half_width_px=50 if rec.height == 256 else 40)
 
 
 def run_case(cache: Path, case: str, seed: int) -> dict:
@@ -93,10 +81,11 @@ def run_case(cache: Path, case: str, seed: int) -> dict:
         return json.loads(out_json.read_text())
     c = CASES[case]
     rec = qogi.open_recording(ensure_recording(cache, case, seed))
+    surfaces, source = surfaces_for(rec)
     cfg = QuantifyConfig(species=list(rec.scene.species), gas_temperature=c["gas_temperature"],
-                         composition=c["composition"], source=exit_pixel(rec))
+                         composition=c["composition"], source=source)
     t = time.perf_counter()
-    res = quantify(rec, surfaces_for(rec), cfg)
+    res = quantify(rec, surfaces, cfg)
     seconds = time.perf_counter() - t
     rows = []
     for s in res.surfaces:

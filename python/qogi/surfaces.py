@@ -15,7 +15,7 @@ from typing import List, Optional, Sequence, Tuple
 
 import numpy as np
 
-__all__ = ["Surface", "Region", "auto_surfaces"]
+__all__ = ["Surface", "Region", "auto_surfaces", "truth_surfaces"]
 
 Point = Tuple[float, float]
 
@@ -193,3 +193,51 @@ def auto_surfaces(column_or_contrast: np.ndarray, distances_px: Sequence[float],
         s = Surface([tuple(a), tuple(b)], name=f"A{k + 1} ({dist:g} px)")
         out.append(s.oriented_away_from(tuple(src)))
     return out
+
+
+def truth_surfaces(recording, heights_m: Optional[Sequence[float]] = None,
+                   max_height_m: Optional[float] = None,
+                   half_width_px: Optional[float] = None):
+    """Horizontal control surfaces on a synthetic recording's truth planes.
+
+    A recording written by ``qogi synth`` stores the image row of each
+    horizontal control plane above the stack exit (``/truth`` datasets
+    ``plane_height_m`` and ``plane_row``); this places a surface on each,
+    centred on the exit, and returns the exit pixel for
+    ``QuantifyConfig(source=...)``.
+
+    Parameters
+    ----------
+    recording : qogi.Recording
+        A synthetic recording with those truth datasets.
+    heights_m : sequence of float, m, optional
+        The planes to use (matched to the stored heights within 1 mm); default all.
+    max_height_m : float, m, optional
+        Only planes up to this height.
+    half_width_px : float, px, optional
+        Half the surface length; default a third of the image width, at most 50 px.
+
+    Returns
+    -------
+    (list of Surface, (x, y) exit pixel)
+    """
+    truth = getattr(recording, "truth", None)
+    if truth is None or "plane_row" not in truth.datasets or "plane_height_m" not in truth.datasets:
+        raise ValueError("truth_surfaces needs a synthetic recording with /truth plane_row and "
+                         "plane_height_m (written by qogi synth)")
+    rows = np.asarray(truth.datasets["plane_row"][:], dtype=float)
+    heights = np.asarray(truth.datasets["plane_height_m"][:], dtype=float)
+    pixel_m = recording.scene.distance_m * recording.camera.ifov_rad
+    i = int(np.argmin(heights))
+    exit_xy = (recording.width / 2 - 0.5, float(rows[i] + heights[i] / pixel_m))
+    half = half_width_px if half_width_px is not None else min(50.0, recording.width / 3)
+    out = []
+    for h, r in zip(heights, rows):
+        if max_height_m is not None and h > max_height_m + 1e-9:
+            continue
+        if heights_m is not None and not any(abs(h - x) < 1e-3 for x in heights_m):
+            continue
+        if 0 <= r < recording.height:
+            out.append(Surface([(exit_xy[0] - half, float(r)), (exit_xy[0] + half, float(r))],
+                               name=f"{h * 100:.0f} cm"))
+    return out, exit_xy

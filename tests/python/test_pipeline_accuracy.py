@@ -13,21 +13,14 @@ import pytest
 import qogi
 from qogi import render
 from qogi.pipeline import QuantifyConfig, quantify
-from qogi.surfaces import Surface
+from qogi.surfaces import truth_surfaces
 
 HEIGHTS_CM = (4, 8, 12)
 
 
 def _surfaces(rec):
-    rows = rec.truth.datasets["plane_row"][:]
-    heights = rec.truth.datasets["plane_height_m"][:]
-    fp = rec.scene.distance_m * rec.camera.ifov_rad
-    i = int(np.argmin(heights))
-    ex, ey = rec.width / 2 - 0.5, float(rows[i] + heights[i] / fp)
-    half = 50 if rec.height == 256 else 40
-    surf = [Surface([(ex - half, r), (ex + half, r)], name=f"{h * 100:.0f} cm")
-            for h, r in zip(heights, rows) if int(round(h * 100)) in HEIGHTS_CM]
-    return surf, (ex, ey)
+    return truth_surfaces(rec, heights_m=[h / 100 for h in HEIGHTS_CM],
+                          half_width_px=50 if rec.height == 256 else 40)
 
 
 def _column_ratio(rec, **cfg):
