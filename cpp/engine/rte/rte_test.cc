@@ -13,6 +13,7 @@
 #include "engine/rte/binned_model.h"
 #include "engine/rte/exact_model.h"
 #include "engine/rte/path.h"
+#include "engine/rte/synthetic_spectra_test.h"
 
 namespace qogi {
 namespace {
@@ -21,49 +22,17 @@ namespace {
 // cm/molecule, lower-state energies 0-2000 cm-1 (hot lines grow with T).
 AbsorberTable SyntheticTable(const std::string& species, double nu0, double nu1,
                              unsigned seed, bool with_self) {
-  AbsorberTable t;
-  t.species = species;
-  t.pressure_Pa = constants::kAtm;
-  t.dnu_cm1 = 0.02;
-  t.nu0_cm1 = nu0;
-  t.n_nu = static_cast<std::size_t>(std::round((nu1 - nu0) / t.dnu_cm1)) + 1;
-  for (double temp = 200; temp <= 800 + 1e-9; temp += 25) t.temperatures_K.push_back(temp);
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> u01(0, 1);
-  struct Line { double nu, s, e; };
-  std::vector<Line> lines;
+  std::vector<testing_support::TestLine> lines;
   for (int l = 0; l < 300; ++l)
     lines.push_back({nu0 + 5 + (nu1 - nu0 - 10) * u01(rng),
                      2e-19 * std::pow(10.0, -4 * u01(rng)), 2000 * u01(rng)});
-  const std::size_t nt = t.temperatures_K.size();
-  t.sigma_air.assign(nt * t.n_nu, 0.f);
-  if (with_self) t.sigma_self.assign(nt * t.n_nu, 0.f);
-  for (std::size_t it = 0; it < nt; ++it) {
-    const double temp = t.temperatures_K[it];
-    const double ga = 0.06 * std::pow(296.0 / temp, 0.75), gs = 0.08 * std::pow(296.0 / temp, 0.75);
-    for (const Line& l : lines) {
-      const double s = l.s * std::pow(296.0 / temp, 1.5) *
-                       std::exp(-constants::kC2 * l.e * (1 / temp - 1 / 296.0));
-      const long j0 = std::max<long>(0, static_cast<long>((l.nu - 10 - nu0) / t.dnu_cm1));
-      const long j1 = std::min<long>(t.n_nu - 1, static_cast<long>((l.nu + 10 - nu0) / t.dnu_cm1));
-      for (long j = j0; j <= j1; ++j) {
-        const double dx = nu0 + j * t.dnu_cm1 - l.nu;
-        t.sigma_air[it * t.n_nu + j] += static_cast<float>(s * ga / constants::kPi / (dx * dx + ga * ga));
-        if (with_self)
-          t.sigma_self[it * t.n_nu + j] += static_cast<float>(s * gs / constants::kPi / (dx * dx + gs * gs));
-      }
-    }
-  }
-  return t;
+  return testing_support::LorentzAbsorberTable(species, nu0, nu1, 800, lines, with_self);
 }
 
 SpectralResponse Bandpass(double lo, double hi, const std::string& name) {
-  std::vector<double> nu, r;
-  for (double x = lo - 20; x <= hi + 20; x += 0.5) {
-    nu.push_back(x);
-    r.push_back(0.8 / (1 + std::exp(-(x - lo) / 3.0)) / (1 + std::exp((x - hi) / 3.0)));
-  }
-  return SpectralResponse(nu, r, name);
+  return testing_support::TestBandpass(lo, hi, name);
 }
 
 struct Fixture {
