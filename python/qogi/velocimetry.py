@@ -714,18 +714,68 @@ class TransportFlux:
     axis: str
 
 
+def _coarse_displacements(I: np.ndarray, K: np.ndarray, k_end: int,
+                          half_window: int = 8, subpixel: bool = False) -> np.ndarray:
+    """Whole-pixel start values of the level displacements: per level k, the
+    shift d (0 <= d, k + d <= k_end) that maximises the correlation over time
+    and the lines k - half_window ... k + half_window of the line sums
+    ``I_{t+1}(j)`` and ``I_t(j + d)`` (their temporal anomalies). A plume
+    carried by wind at 15 Hz moves tens of lines per frame: Gauss-Newton from
+    d = 1 stops in the first local minimum of the aliased misfit."""
+    T, H = I.shape
+    A = I - I.mean(axis=0)
+    d_max = int(min(max(k_end - int(K[0]), 1), H - 1))
+    best = np.full(len(K), -np.inf)
+    d0 = np.ones(len(K))
+    box = np.ones(2 * half_window + 1)
+    curve = []
+
+    def window(v):  # sum over lines j in [k - hw, k + hw], per line k
+        return np.convolve(v, box, mode="same")
+
+    for d in range(0, d_max + 1):
+        a, b = A[:-1, d:], A[1:, :H - d]          # a[:, j] = I_t(j + d), b = I_{t+1}(j)
+        ab = window((a * b).sum(axis=0))
+        aa = window((a * a).sum(axis=0))
+        bb = window((b * b).sum(axis=0))
+        idx = K[K < H - d]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            r = ab[idx] / np.sqrt(aa[idx] * bb[idx])
+        r = np.where(np.isfinite(r) & (idx + d <= k_end), r, -np.inf)
+        rr = np.full(len(K), -np.inf)
+        rr[K < H - d] = r
+        curve.append(rr)
+        sel = rr > best
+        best[sel] = rr[sel]
+        d0[sel] = d
+    curve = np.asarray(curve)                          # (d, levels)
+    if subpixel:
+        j = np.arange(len(K))
+        di = d0.astype(int)
+        inner = (di > 0) & (di < len(curve) - 1)
+        y0 = np.where(inner, curve[np.clip(di - 1, 0, len(curve) - 1), j], 0.0)
+        y2 = np.where(inner, curve[np.clip(di + 1, 0, len(curve) - 1), j], 0.0)
+        y1 = best
+        den = y0 - 2 * y1 + y2
+        with np.errstate(invalid="ignore", divide="ignore"):
+            off = np.where(inner & np.isfinite(den) & (den < 0), 0.5 * (y0 - y2) / den, 0.0)
+        d0 = d0 + np.clip(np.nan_to_num(off), -0.5, 0.5)
+    return np.maximum(d0, 0.5)
+
+
 def _solve_levels(C: np.ndarray, I: np.ndarray, K: np.ndarray, k_end: int,
                   iterations: int = 100):
     """Gauss-Newton for the steady level displacements d_k and the outflows
     O_t in ``C_t(k + d_k) = C_{t+1}(k) + O_t``, each O_t fitted to the
     current levels (variable projection: the reduced system is the Schur
-    complement of the O block)."""
+    complement of the O block), from the correlation of the line sums
+    (:func:`_coarse_displacements`)."""
     H = I.shape[1]
     n = len(K)
     scale = max(float(np.abs(I).max()), 1e-300)
     Cs, Is = C / scale, I / scale
     target = Cs[1:, K]
-    d = np.ones(n)
+    d = _coarse_displacements(I, K, k_end)
     ok = np.ones(n, bool)
     for _ in range(iterations):
         ok = (K + d) <= k_end
@@ -841,7 +891,7 @@ def transport_flux(frames: ArrayLike, axis: str = "up",
 
 def calibrate_flux_level(seq: FlowSequence, frames: ArrayLike, axis: str = "up",
                          source_index: Optional[float] = None, smooth_px: float = 2.0,
-                         min_fraction: float = 0.05
+                         min_fraction: float = 0.05, max_factor: float = 5.0
                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Velocity at each frame time (:func:`frame_velocity`), rescaled line by
     line so that its time-averaged flux along ``axis`` equals the transport
@@ -863,6 +913,15 @@ def calibrate_flux_level(seq: FlowSequence, frames: ArrayLike, axis: str = "up",
     ~20 lines per frame, and the inversion in :func:`frame_velocity` mixes
     the factors of lines far apart.)
 
+    A line's factor is used only within [1 / ``max_factor``, ``max_factor``]:
+    outside it the flow does not measure the transport there (e.g. a plume
+    carried by wind tens of pixels per frame, beyond what the flow can
+    follow, or a flow running against the transport). When fewer than half
+    of the lines that carry the transport flux have a usable factor, the flow
+    is not used at all: the velocity is the transport's own, the time-averaged
+    mass-weighted velocity of each line (:attr:`TransportFlux.velocity`),
+    along the axis at every pixel and frame, and ``scale`` is all NaN.
+
     Parameters
     ----------
     seq : FlowSequence
@@ -873,12 +932,14 @@ def calibrate_flux_level(seq: FlowSequence, frames: ArrayLike, axis: str = "up",
         As for :func:`transport_flux`.
     smooth_px : float, default 2
     min_fraction : float, default 0.05
+    max_factor : float, default 5
 
     Returns
     -------
     (u, v, scale)
         Velocity at the T frame times [px/frame], (T, H, W) float32, and the
-        factor per line (rows for "up" and "down", columns otherwise).
+        factor per line (rows for "up" and "down", columns otherwise; all NaN
+        when the transport velocity replaced the flow).
     """
     _check_axis(axis)
     stack = np.asarray(frames, dtype=np.float32)
@@ -896,13 +957,21 @@ def calibrate_flux_level(seq: FlowSequence, frames: ArrayLike, axis: str = "up",
     along = {"up": -fv, "down": fv, "left": -fu, "right": fu}[axis]
     sum_axis = 2 if axis in ("up", "down") else 1
     flow_flux = (stack * along).sum(axis=sum_axis, dtype=np.float64).mean(axis=0)
-    good = np.isfinite(tf.flux) & (flow_flux > min_fraction * max(float(np.nanmax(
-        np.abs(flow_flux))), 1e-300)) & (tf.flux > 0)
-    n = len(flow_flux)
-    if not good.any():
-        raise ValueError("no line carries a flux along the axis in both the flow and the "
-                         "transport of the frames; check axis and source_index")
+    if not max_factor > 1:
+        raise ValueError(f"max_factor must be > 1; got {max_factor}")
+    carries = np.isfinite(tf.flux) & (tf.flux > min_fraction * max(float(np.nanmax(
+        np.where(np.isfinite(tf.flux), tf.flux, 0.0))), 1e-300))
+    if not carries.any():
+        raise ValueError("no line carries a flux along the axis in the transport of the "
+                         "frames; check axis and source_index")
+    good = carries & (flow_flux > min_fraction * max(float(np.nanmax(np.abs(flow_flux))),
+                                                     1e-300))
     ratio = np.where(good, tf.flux / np.where(good, flow_flux, 1.0), 0.0)
+    good &= (ratio >= 1.0 / max_factor) & (ratio <= max_factor)
+    n = len(flow_flux)
+    if good.sum() < 0.5 * carries.sum():
+        return _transport_velocity(tf, stack.shape) + (np.full(n, np.nan, np.float32),)
+    ratio = np.where(good, ratio, 0.0)
     if smooth_px > 0:
         x = np.arange(n)
         kern = np.exp(-0.5 * ((x[:, None] - x[None, :]) / smooth_px) ** 2) * good[None, :]
@@ -918,6 +987,23 @@ def calibrate_flux_level(seq: FlowSequence, frames: ArrayLike, axis: str = "up",
     s = scale.reshape(shape)
     return (fu * s).astype(np.float32), (fv * s).astype(np.float32), scale
 
+
+
+def _transport_velocity(tf: TransportFlux, shape: tuple) -> tuple[np.ndarray, np.ndarray]:
+    """(u, v) [px/frame], (T, H, W) float32: each line's time-averaged
+    transport velocity along the axis (extended to lines without one from the
+    nearest line that has one), the same at every pixel of the line and frame."""
+    vel = np.asarray(tf.velocity, float)
+    ok = np.isfinite(vel) & (np.asarray(tf.line_column) > 0)
+    idx = np.flatnonzero(ok)
+    n = vel.size
+    line = vel[idx[np.abs(np.arange(n)[:, None] - idx[None, :]).argmin(axis=1)]]
+    sign = -1.0 if tf.axis in ("up", "left") else 1.0
+    along = (sign * line).astype(np.float32)
+    zero = np.zeros(shape, np.float32)
+    if tf.axis in ("up", "down"):
+        return zero, np.broadcast_to(along[None, :, None], shape).copy()
+    return np.broadcast_to(along[None, None, :], shape).copy(), zero
 
 
 def plume_frame_velocity(frames: ArrayLike, axis: str = "up",
