@@ -47,7 +47,15 @@ def cmd_quantify(args: argparse.Namespace) -> int:
         rec = open_recording(args.recording)
         surfaces = [Surface.parse(s, name=f"S{k + 1}") for k, s in enumerate(args.surface or [])]
         if args.auto_surfaces:
-            surfaces += _auto(rec, args, cfg)
+            auto, source = _auto(rec, args, cfg)
+            surfaces += auto
+            if cfg.source is None:
+                # The detected source orients the surfaces and gives the
+                # default velocimetry its transport flux level.
+                cfg.source = source
+                if not args.quiet:
+                    print(f"qogi quantify: source detected at x={source[0]:.1f}, "
+                          f"y={source[1]:.1f} (give --source X,Y to set it)", file=sys.stderr)
         if not surfaces:
             print("qogi quantify: give at least one --surface x0,y0,x1,y1 (or --auto-surfaces)",
                   file=sys.stderr)
@@ -83,16 +91,10 @@ def cmd_quantify(args: argparse.Namespace) -> int:
 
 
 def _auto(rec, args, cfg):
-    import numpy as np
+    from .surfaces import auto_surfaces, plume_image
 
-    from .surfaces import auto_surfaces
-
-    n = min(rec.n_frames, 50)
-    frames = rec.frames(0, n, quantity="radiance")
-    contrast = frames - np.median(frames, axis=(0, 2, 3), keepdims=True)
-    img = np.abs(contrast).mean(axis=(0, 1))
     dists = [float(v) for v in args.auto_surfaces.split(",")]
-    return auto_surfaces(img, dists, source=cfg.source)
+    return auto_surfaces(plume_image(rec), dists, source=cfg.source, return_source=True)
 
 
 def add_commands(sub) -> None:

@@ -15,7 +15,7 @@ from typing import List, Optional, Sequence, Tuple
 
 import numpy as np
 
-__all__ = ["Surface", "Region", "auto_surfaces", "truth_surfaces"]
+__all__ = ["Surface", "Region", "auto_surfaces", "plume_image", "truth_surfaces"]
 
 Point = Tuple[float, float]
 
@@ -138,19 +138,70 @@ class Region:
         return cls(*v)
 
 
+def _smooth_background(img: np.ndarray, iterations: int = 4) -> np.ndarray:
+    """Robust quadratic surface through a 2-D image: least squares, then
+    refitted without the pixels more than 2.5 sigma above or below it (a
+    plume), a few times."""
+    h, w = img.shape
+    y, x = np.mgrid[0:h, 0:w]
+    x = (x.ravel() - 0.5 * w) / w
+    y = (y.ravel() - 0.5 * h) / h
+    a = np.stack([np.ones_like(x), x, y, x * x, x * y, y * y], axis=1)
+    v = img.ravel()
+    keep = np.ones(v.size, bool)
+    for _ in range(iterations):
+        coef, *_ = np.linalg.lstsq(a[keep], v[keep], rcond=None)
+        r = v - a @ coef
+        sd = 1.4826 * np.median(np.abs(r[keep] - np.median(r[keep])))
+        if not sd > 0:
+            break
+        keep = np.abs(r) < 2.5 * sd
+    return (a @ coef).reshape(h, w)
+
+
+def plume_image(recording, max_frames: int = 50) -> np.ndarray:
+    """A plume-detection image for :func:`auto_surfaces` from a recording's
+    first ``max_frames`` frames, in units of the camera noise, averaged over
+    the channels: the mean band radiance's departure from a smooth background
+    (a robust quadratic surface: a sky's elevation gradient, a plate's
+    vignetting) plus each pixel's temporal standard deviation (a turbulent
+    plume fluctuates, a static background does not), each divided by the
+    channel's median temporal standard deviation (its noise)."""
+    n = min(int(recording.n_frames), int(max_frames))
+    if n < 2:
+        raise ValueError("plume detection needs at least 2 frames")
+    frames = np.asarray(recording.frames(0, n, quantity="radiance"), dtype=np.float64)
+    mean = frames.mean(axis=0)                                # (C, H, W)
+    sd = frames.std(axis=0)
+    out = np.zeros(mean.shape[1:])
+    for c in range(mean.shape[0]):
+        noise = float(np.median(sd[c]))
+        noise = noise if noise > 0 else 1.0
+        out += (np.abs(mean[c] - _smooth_background(mean[c])) + sd[c]) / noise
+    return out / mean.shape[0]
+
+
 def auto_surfaces(column_or_contrast: np.ndarray, distances_px: Sequence[float],
                   source: Optional[Point] = None, threshold: float = 0.1,
-                  margin_px: float = 10.0) -> List[Surface]:
+                  margin_px: float = 10.0, return_source: bool = False):
     """Detect the plume in a (time-averaged) column-density or contrast image
     and place straight surfaces across it at the given distances from the source.
 
     The plume mask is where the image exceeds ``threshold`` times its 99.5th
-    percentile. Without ``source``, the source is taken as the mask's point
-    nearest the image's bottom edge, and the plume direction as the principal
-    axis of the mask (oriented away from the source). Each surface is
+    percentile (:func:`plume_image` makes a suitable image from a recording).
+    The plume direction is the principal axis of the mask. Without
+    ``source``, the source is the mask's end along that axis where the plume
+    is narrower (plumes widen downstream: the stack of a lab release, the
+    upwind end of a plume bent by wind), at the mask's mean position across
+    the axis there; the axis is oriented away from the source. Each surface is
     perpendicular to that axis, at ``distance`` along it, spanning the mask's
-    width there plus ``margin_px`` on both sides, oriented so that flow away
+    width there plus the larger of ``margin_px`` and half that width on both
+    sides (its background is taken just beyond its ends), oriented so that flow away
     from the source is positive.
+
+    Returns the list of surfaces, or ``(surfaces, (x, y) source)`` with
+    ``return_source=True`` (e.g. for ``QuantifyConfig(source=...)``, which
+    turns on the transport flux level of the default velocimetry).
     """
     img = np.abs(np.asarray(column_or_contrast, dtype=float))
     if img.ndim != 2:
@@ -163,15 +214,21 @@ def auto_surfaces(column_or_contrast: np.ndarray, distances_px: Sequence[float],
     if len(xs) < 10:
         raise ValueError("no plume detected: fewer than 10 pixels above the threshold")
     w = img[ys, xs]
-    if source is None:
-        i = int(np.argmax(ys))
-        source = (float(xs[i]), float(ys[i]))
-    src = np.asarray(source, dtype=float)
     pts = np.stack([xs, ys], axis=1).astype(float)
     c = np.average(pts, axis=0, weights=w)
     cov = np.cov((pts - c).T, aweights=w)
     evals, evecs = np.linalg.eigh(cov)
     axis = evecs[:, -1]
+    if source is None:
+        along = (pts - c) @ axis
+        across = (pts - c) @ np.array([axis[1], -axis[0]])
+        lo, hi = np.percentile(along, [2.0, 98.0])
+        span = max(hi - lo, 1.0)
+        w_lo = float(np.std(across[along <= lo + 0.15 * span]))
+        w_hi = float(np.std(across[along >= hi - 0.15 * span]))
+        tip = along <= lo + 0.05 * span if w_lo <= w_hi else along >= hi - 0.05 * span
+        source = tuple(float(v) for v in pts[tip].mean(axis=0))
+    src = np.asarray(source, dtype=float)
     if np.dot(c - src, axis) < 0:
         axis = -axis
     perp = np.array([axis[1], -axis[0]])
@@ -183,7 +240,8 @@ def auto_surfaces(column_or_contrast: np.ndarray, distances_px: Sequence[float],
         near = np.abs(along - dist) < 3
         if near.any():
             across = (pts[near] - src) @ perp
-            lo, hi = across.min() - margin_px, across.max() + margin_px
+            pad = max(margin_px, 0.5 * float(across.max() - across.min()))
+            lo, hi = across.min() - pad, across.max() + pad
         else:
             lo, hi = -margin_px, margin_px
         a = src + dist * axis + lo * perp
@@ -192,6 +250,8 @@ def auto_surfaces(column_or_contrast: np.ndarray, distances_px: Sequence[float],
         b = np.clip(b, 0, [wd - 1, h - 1])
         s = Surface([tuple(a), tuple(b)], name=f"A{k + 1} ({dist:g} px)")
         out.append(s.oriented_away_from(tuple(src)))
+    if return_source:
+        return out, (float(src[0]), float(src[1]))
     return out
 
 
