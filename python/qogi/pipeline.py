@@ -253,10 +253,9 @@ class _Background:
         self.channel_sign = np.asarray(channel_sign, dtype=float)
         self.typical_temperature_K = typical_temperature_K
         self.percentile_img = None
-        # Extent (lo, hi) of the surfaces across the plume in region
-        # coordinates (columns for horizontal surfaces, rows otherwise): the
-        # field's background strips lie just beyond it (set by the run).
-        self.band = None
+        # The background's static shape beyond a straight line across the
+        # region (set by the run from its time-averaged frames).
+        self.shape_correction = None
         if cfg.background == "percentile":
             # Sign-aware: a plume warmer than the background raises radiance,
             # so its background is a low percentile; a colder one a high one.
@@ -304,27 +303,36 @@ class _Background:
             return None
         if cfg.background == "percentile":
             return self.percentile_img
-        # Beside the surfaces, as along them: per line along the plume, the
-        # mean of 4-px strips 2-6 px beyond the surfaces' extent across it,
-        # interpolated linearly in between; outside that band the field is
-        # its own background (zero contrast: the surfaces span the plume). A
-        # strip at the frame's edge instead would carry a non-linear
-        # background (a sky's elevation gradient across a wind-blown plume)
-        # into the plume as a false column.
-        view = frame_roi if horizontal else frame_roi.transpose(0, 2, 1)
-        n = view.shape[2]
-        lo, hi = self.band if self.band is not None else (0.0, n - 1.0)
-        a0, a1 = int(np.clip(np.floor(lo) - 6, 0, n - 1)), int(np.clip(np.floor(lo) - 2, 1, n))
-        b0, b1 = int(np.clip(np.ceil(hi) + 3, 0, n - 1)), int(np.clip(np.ceil(hi) + 7, 1, n))
-        left = view[:, :, a0:max(a1, a0 + 1)].mean(axis=2)
-        right = view[:, :, b0:max(b1, b0 + 1)].mean(axis=2)
-        x = np.arange(n, dtype=float)
-        ca, cb = 0.5 * (a0 + max(a1, a0 + 1) - 1), 0.5 * (b0 + max(b1, b0 + 1) - 1)
-        t = np.clip((x - ca) / max(cb - ca, 1.0), 0.0, 1.0)
-        bg = left[:, :, None] * (1 - t) + right[:, :, None] * t
-        inside = (x >= ca) & (x <= cb)
-        bg = np.where(inside[None, None, :], bg, view)
-        return bg if horizontal else bg.transpose(0, 2, 1)
+        # Per line along the plume, linear between 4-px strips at the region's
+        # edges across it, plus the static shape of the background that a
+        # straight line misses (a sky's elevation gradient across a
+        # wind-blown plume, vignetting): the robust quadratic surface of the
+        # time-averaged frames minus its own edge-to-edge interpolation.
+        bg = self._edge_interpolation(frame_roi, horizontal)
+        if self.shape_correction is not None:
+            bg = bg + self.shape_correction[horizontal]
+        return bg
+
+    @staticmethod
+    def _edge_interpolation(img: np.ndarray, horizontal: bool) -> np.ndarray:
+        k = 4
+        if horizontal:  # along x between the left and right strips
+            left = img[..., :, :k].mean(axis=-1)
+            right = img[..., :, -k:].mean(axis=-1)
+            t = np.linspace(0, 1, img.shape[-1])
+            return left[..., None] * (1 - t) + right[..., None] * t
+        top = img[..., :k, :].mean(axis=-2)
+        bottom = img[..., -k:, :].mean(axis=-2)
+        t = np.linspace(0, 1, img.shape[-2])[:, None]
+        return top[..., None, :] * (1 - t) + bottom[..., None, :] * t
+
+    def set_static_shape(self, mean_roi: np.ndarray) -> None:
+        """From the time-averaged region (C, h, w): the background's static
+        shape beyond the edge-to-edge interpolation, per orientation."""
+        from .surfaces import _smooth_background
+        smooth = np.stack([_smooth_background(m) for m in mean_roi])
+        self.shape_correction = {o: smooth - self._edge_interpolation(smooth, o)
+                                 for o in (True, False)}
 
 
 # ---------------------------------------------------------------------------
@@ -937,9 +945,11 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
         t_bg_guess = float(np.median(first))
     channel_sign = np.full(rec.n_channels, 1.0 if scene.gas_K >= t_bg_guess else -1.0)
     background = _Background(rec, cfg, roi, frames, channel_sign, say, t_bg_guess)
-    across = np.concatenate([np.asarray(s.points)[:, 0 if horizontal else 1] for s in surfaces])
-    offset = roi.x0 if horizontal else roi.y0
-    background.band = (float(across.min()) - offset, float(across.max()) - offset)
+    if not isinstance(cfg.background, Region) and cfg.background != "percentile":
+        sample = list(frames)[::max(1, len(frames) // 50)][:50]
+        sl = roi.slices()
+        background.set_static_shape(np.mean(
+            [rec.frame(f, quantity="radiance")[:, sl[0], sl[1]] for f in sample], axis=0))
 
     if cfg.column_density == "truth":
         columns = _TruthColumns(rec, cfg)

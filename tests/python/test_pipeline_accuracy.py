@@ -131,7 +131,7 @@ def test_stack_in_crosswind_end_to_end(wind_rec):
     # slow or backwards), so the flux level comes from the transport of the
     # line-integrated column alone; before that fallback, and with the field's
     # background interpolated across the sky's elevation gradient, the rates
-    # came out with the wrong sign. Measured: -4.6 % at all three.
+    # came out with the wrong sign. Measured: -4.9 to -5.0 %.
     path, (ex, ey) = wind_rec
     rec = qogi.open_recording(path)
     surf = [Surface([(ex + d, ey - 45), (ex + d, ey + 45)], name=f"{d} px") for d in (50, 100, 150)]
