@@ -28,7 +28,7 @@ from .spectra import (
     voigt_profile,
 )
 from . import camera  # noqa: F401  (qogi.camera: calibration, noise, warm optics)
-from .surfaces import Region, Surface, auto_surfaces, plume_image
+from .surfaces import Region, Surface, auto_surfaces, detect_source, plume_image
 from .pipeline import Cancelled, QuantifyConfig, quantify
 from .result import Result
 from .camera import (Calibration, CalibrationScene, ChannelOptics, add_netd_noise,
@@ -46,6 +46,7 @@ __all__ = [
     "Result",
     "Surface",
     "auto_surfaces",
+    "detect_source",
     "plume_image",
     "quantify",
     "__version__",

@@ -945,11 +945,31 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
         t_bg_guess = float(np.median(first))
     channel_sign = np.full(rec.n_channels, 1.0 if scene.gas_K >= t_bg_guess else -1.0)
     background = _Background(rec, cfg, roi, frames, channel_sign, say, t_bg_guess)
-    if not isinstance(cfg.background, Region) and cfg.background != "percentile":
+    # Up to 50 frames spread over the run: the background's static shape and,
+    # without a given source, the plume's source for the flux level of the
+    # default velocimetry (the surfaces keep their own orientation).
+    velocity_info: Dict[str, object] = {}
+    source = cfg.source
+    want_source = (source is None and cfg.velocity == "fluid" and cfg.flux_level and
+                   cfg.column_density != "truth")
+    sample_frames = None
+    if want_source or (not isinstance(cfg.background, Region) and
+                       cfg.background != "percentile"):
         sample = list(frames)[::max(1, len(frames) // 50)][:50]
+        sample_frames = np.asarray([rec.frame(f, quantity="radiance") for f in sample],
+                                   dtype=np.float64)
+    if not isinstance(cfg.background, Region) and cfg.background != "percentile":
         sl = roi.slices()
-        background.set_static_shape(np.mean(
-            [rec.frame(f, quantity="radiance")[:, sl[0], sl[1]] for f in sample], axis=0))
+        background.set_static_shape(sample_frames[:, :, sl[0], sl[1]].mean(axis=0))
+    if want_source and len(sample_frames) >= 2:
+        from .surfaces import _plume_image, detect_source
+        try:
+            source = detect_source(_plume_image(sample_frames))
+            velocity_info["source"] = (f"detected at x={source[0]:.1f}, y={source[1]:.1f} "
+                                       f"(for the flux level; give source= to set it)")
+        except ValueError as e:
+            velocity_info["source"] = f"not detected: {e}"
+    del sample_frames
 
     if cfg.column_density == "truth":
         columns = _TruthColumns(rec, cfg)
@@ -979,7 +999,6 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
             status_counts[key] = status_counts.get(key, 0) + int(v)
 
     time_averaged = cfg.averaging == "time-averaged"
-    velocity_info: Dict[str, object] = {}
     try:
         for k, f in enumerate(frames):
             fr = rec.frame(f, quantity="radiance")
@@ -1022,8 +1041,8 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
         # moves, the averaged field does not).
         velocity_frames = col_fields[:done]
         source_mask = None
-        if cfg.source is not None:
-            sx, sy = cfg.source[0] - roi.x0, cfg.source[1] - roi.y0
+        if source is not None:
+            sx, sy = source[0] - roi.x0, source[1] - roi.y0
             yy, xx = np.mgrid[0:velocity_frames.shape[1], 0:velocity_frames.shape[2]]
             rad = max(3.0, 0.5 * (rec.scene.distance_m and 0) + 6.0)
             source_mask = ((xx - sx) ** 2 + (yy - sy) ** 2) <= rad ** 2
@@ -1035,17 +1054,17 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
         # steady plume; docs/velocimetry.md).
         flux_note = "off: " + ("a method other than fluid" if cfg.velocity != "fluid" else
                                "flux_level=False" if not cfg.flux_level else
-                               "no source given" if cfg.source is None else
+                               "no source given or detected" if source is None else
                                "fewer than 3 frames" if done < 3 else "")
         crop = (slice(None), slice(None))
         if flux_note == "off: ":
             pts = np.concatenate([np.asarray(s.points, float) for s in surfaces])
-            dx, dy = pts.mean(axis=0) - np.asarray(cfg.source)
+            dx, dy = pts.mean(axis=0) - np.asarray(source)
             if abs(dy) >= abs(dx):
-                axis, index = ("up" if dy < 0 else "down"), cfg.source[1] - roi.y0
+                axis, index = ("up" if dy < 0 else "down"), source[1] - roi.y0
                 coord, size = pts[:, 1] - roi.y0, velocity_frames.shape[1]
             else:
-                axis, index = ("right" if dx > 0 else "left"), cfg.source[0] - roi.x0
+                axis, index = ("right" if dx > 0 else "left"), source[0] - roi.x0
                 coord, size = pts[:, 0] - roi.x0, velocity_frames.shape[2]
             # The field only up to a margin beyond the farthest surface: the
             # transport balance sums the column beyond each line, and the

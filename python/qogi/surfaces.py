@@ -15,7 +15,7 @@ from typing import List, Optional, Sequence, Tuple
 
 import numpy as np
 
-__all__ = ["Surface", "Region", "auto_surfaces", "plume_image", "truth_surfaces"]
+__all__ = ["Surface", "Region", "auto_surfaces", "detect_source", "plume_image", "truth_surfaces"]
 
 Point = Tuple[float, float]
 
@@ -170,7 +170,11 @@ def plume_image(recording, max_frames: int = 50) -> np.ndarray:
     n = min(int(recording.n_frames), int(max_frames))
     if n < 2:
         raise ValueError("plume detection needs at least 2 frames")
-    frames = np.asarray(recording.frames(0, n, quantity="radiance"), dtype=np.float64)
+    return _plume_image(np.asarray(recording.frames(0, n, quantity="radiance"), dtype=np.float64))
+
+
+def _plume_image(frames: np.ndarray) -> np.ndarray:
+    """:func:`plume_image` of a (T, C, H, W) radiance stack."""
     mean = frames.mean(axis=0)                                # (C, H, W)
     sd = frames.std(axis=0)
     out = np.zeros(mean.shape[1:])
@@ -179,6 +183,45 @@ def plume_image(recording, max_frames: int = 50) -> np.ndarray:
         noise = noise if noise > 0 else 1.0
         out += (np.abs(mean[c] - _smooth_background(mean[c])) + sd[c]) / noise
     return out / mean.shape[0]
+
+
+def _plume_axis(image: np.ndarray, threshold: float):
+    """Mask pixels (N, 2) as (x, y), their weights, the weighted centre and
+    the principal axis of the plume in a detection image."""
+    img = np.abs(np.asarray(image, dtype=float))
+    if img.ndim != 2:
+        raise ValueError(f"plume detection needs a 2-D image; got shape {img.shape}")
+    ref = np.percentile(img, 99.5)
+    if not ref > 0:
+        raise ValueError("no plume detected: the image is zero everywhere")
+    mask = img > threshold * ref
+    ys, xs = np.nonzero(mask)
+    if len(xs) < 10:
+        raise ValueError("no plume detected: fewer than 10 pixels above the threshold")
+    w = img[ys, xs]
+    pts = np.stack([xs, ys], axis=1).astype(float)
+    c = np.average(pts, axis=0, weights=w)
+    cov = np.cov((pts - c).T, aweights=w)
+    evals, evecs = np.linalg.eigh(cov)
+    return pts, w, c, evecs[:, -1]
+
+
+def detect_source(image: np.ndarray, threshold: float = 0.1) -> Point:
+    """The source of the plume in a detection image (:func:`plume_image`):
+    the end of the plume mask's principal axis where the plume is narrower
+    (plumes widen downstream: the stack of a rising plume, the upwind end of
+    one bent by wind), at the mask's mean position there. Raises ValueError
+    when no plume stands out."""
+    pts, w, c, axis = _plume_axis(image, threshold)
+    along = (pts - c) @ axis
+    across = (pts - c) @ np.array([axis[1], -axis[0]])
+    lo, hi = np.percentile(along, [2.0, 98.0])
+    span = max(hi - lo, 1.0)
+    w_lo = float(np.std(across[along <= lo + 0.15 * span]))
+    w_hi = float(np.std(across[along >= hi - 0.15 * span]))
+    tip = along <= lo + 0.05 * span if w_lo <= w_hi else along >= hi - 0.05 * span
+    x, y = pts[tip].mean(axis=0)
+    return float(x), float(y)
 
 
 def auto_surfaces(column_or_contrast: np.ndarray, distances_px: Sequence[float],
@@ -204,30 +247,9 @@ def auto_surfaces(column_or_contrast: np.ndarray, distances_px: Sequence[float],
     turns on the transport flux level of the default velocimetry).
     """
     img = np.abs(np.asarray(column_or_contrast, dtype=float))
-    if img.ndim != 2:
-        raise ValueError(f"auto_surfaces needs a 2-D image; got shape {img.shape}")
-    ref = np.percentile(img, 99.5)
-    if not ref > 0:
-        raise ValueError("no plume detected: the image is zero everywhere")
-    mask = img > threshold * ref
-    ys, xs = np.nonzero(mask)
-    if len(xs) < 10:
-        raise ValueError("no plume detected: fewer than 10 pixels above the threshold")
-    w = img[ys, xs]
-    pts = np.stack([xs, ys], axis=1).astype(float)
-    c = np.average(pts, axis=0, weights=w)
-    cov = np.cov((pts - c).T, aweights=w)
-    evals, evecs = np.linalg.eigh(cov)
-    axis = evecs[:, -1]
+    pts, w, c, axis = _plume_axis(img, threshold)
     if source is None:
-        along = (pts - c) @ axis
-        across = (pts - c) @ np.array([axis[1], -axis[0]])
-        lo, hi = np.percentile(along, [2.0, 98.0])
-        span = max(hi - lo, 1.0)
-        w_lo = float(np.std(across[along <= lo + 0.15 * span]))
-        w_hi = float(np.std(across[along >= hi - 0.15 * span]))
-        tip = along <= lo + 0.05 * span if w_lo <= w_hi else along >= hi - 0.05 * span
-        source = tuple(float(v) for v in pts[tip].mean(axis=0))
+        source = detect_source(img, threshold)
     src = np.asarray(source, dtype=float)
     if np.dot(c - src, axis) < 0:
         axis = -axis

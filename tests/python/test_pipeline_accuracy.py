@@ -143,6 +143,20 @@ def test_stack_in_crosswind_end_to_end(wind_rec):
         assert abs(r.error_vs_truth) < 0.3, (s.surface.name, r.error_vs_truth)
 
 
+def test_source_is_detected_for_the_flux_level_when_not_given(wind_rec):
+    # Surfaces drawn top to bottom count rightward flow as positive (left-hand
+    # normal); without a source the fluid flow alone had no flux level (lab
+    # release: -53 to -77 %). The detected source gives it the transport's.
+    path, (ex, ey) = wind_rec
+    rec = qogi.open_recording(path)
+    surf = [Surface([(ex + d, ey - 45), (ex + d, ey + 45)]) for d in (50, 150)]
+    res = quantify(rec, surf, QuantifyConfig(species=["CH4"]))
+    assert res.info["source"].startswith("detected"), res.info["source"]
+    assert res.info["flux_level"].startswith("on"), res.info["flux_level"]
+    for s in res.surfaces:
+        assert abs(s.species["CH4"].error_vs_truth) < 0.3, s.species["CH4"].error_vs_truth
+
+
 def test_auto_surfaces_find_the_bent_plume_and_its_source(wind_rec, tmp_path):
     # No surface and no source given: the plume is found in its fluctuations
     # and its departure from a smooth background (the sky's gradient is far
