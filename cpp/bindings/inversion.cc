@@ -6,6 +6,7 @@
 
 #include "common.h"
 #include "engine/inversion/inversion.h"
+#include "engine/inversion/mixing_line.h"
 #include "engine/inversion/scene_table.h"
 #include "engine/rte/binned_model.h"
 
@@ -104,6 +105,65 @@ void BindInversion(py::module_& m) {
       .def("__repr__", [](const SceneTableOptions& o) {
         return "SceneTableOptions(" + py::str(SceneTableOptionsDict(o)).cast<std::string>() + ")";
       });
+
+  py::class_<MixingLineInverter>(m, "MixingLineInverter",
+                                 "Per-pixel inversion on a plume's mixing line "
+                                 "(engine/inversion/mixing_line.h).")
+      .def(py::init([](std::shared_ptr<SceneTable> table) {
+             py::gil_scoped_release release;
+             return std::make_unique<MixingLineInverter>(std::move(table));
+           }),
+           py::arg("table"))
+      .def(
+          "invert",
+          [](const MixingLineInverter& self, const DoubleArray& radiance,
+             const DoubleArray& background, const DoubleArray& sigma, double slope,
+             std::vector<double> composition, std::vector<double> netd, double detection_sigma,
+             int max_iterations, int num_threads, py::object progress) {
+            const std::size_t nc = self.table().num_channels();
+            CheckNdim(radiance, 2, "radiance");
+            const std::size_t n = Dim(radiance, 0);
+            if (Dim(radiance, 1) != nc || background.ndim() != 2 || Dim(background, 0) != n ||
+                Dim(background, 1) != nc || static_cast<std::size_t>(sigma.size()) != n)
+              throw std::invalid_argument(
+                  "invert needs radiance and background_radiance (N, " + std::to_string(nc) +
+                  ") and sigma_m (N,); got " + Shape(radiance) + ", " + Shape(background) +
+                  ", " + Shape(sigma));
+            MixingLineOptions o;
+            o.slope_K_per_fraction = slope;
+            o.composition = std::move(composition);
+            o.netd_K = std::move(netd);
+            o.detection_sigma = detection_sigma;
+            o.max_iterations = max_iterations;
+            o.num_threads = num_threads;
+            py::array_t<double> x(n), xs(n), tp(n), chi2(n);
+            py::array_t<std::int32_t> status(n), iters(n);
+            MixingLineOutput out{x.mutable_data(), xs.mutable_data(), tp.mutable_data(),
+                                 chi2.mutable_data(), status.mutable_data(),
+                                 iters.mutable_data()};
+            RunControl control = MakeRunControl(progress);
+            {
+              py::gil_scoped_release release;
+              self.Invert(o, n, radiance.data(), background.data(), sigma.data(), out,
+                          &control);
+            }
+            py::dict d;
+            d["fraction"] = x;
+            d["fraction_sigma"] = xs;
+            d["peak_temperature_K"] = tp;
+            d["chi2"] = chi2;
+            d["status"] = status;
+            d["iterations"] = iters;
+            return d;
+          },
+          py::arg("radiance"), py::arg("background_radiance"), py::arg("sigma_m"),
+          py::arg("slope_K_per_fraction"), py::arg("composition"), py::arg("netd_K"),
+          py::arg("detection_sigma") = 3.0, py::arg("max_iterations") = 50,
+          py::arg("num_threads") = 0, py::arg("progress") = py::none(),
+          "Least-squares total peak fraction X of each pixel (rows of radiance and "
+          "background_radiance (N, C)) on T_peak = T_amb + k X with x_s = w_s X. Returns a dict "
+          "of (N,) arrays: fraction, fraction_sigma, peak_temperature_K, chi2, status "
+          "(PixelStatus), iterations.");
 
   m.def("spectral_overlaps", &SceneTable::SpectralOverlaps, py::arg("model"),
         "Channels in which several species absorb in the same bin (empty: the per-scene "

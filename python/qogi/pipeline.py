@@ -296,13 +296,16 @@ class _Background:
             ends.append(_bilinear(frame, pts).mean(axis=-1))
         return ends[0][:, None] * (1 - t)[None, :] + ends[1][:, None] * t[None, :]
 
-    def field(self, frame_roi: np.ndarray, horizontal: bool) -> np.ndarray:
-        """Background over the analysis region (C, h, w)."""
+    def field(self, frame_roi: np.ndarray, horizontal: bool,
+              channel: Optional[int] = None) -> np.ndarray:
+        """Background over the analysis region: (C, h, w) for the frame's
+        channels (C, h, w), or (h, w) for ``channel`` given one channel's
+        (h, w)."""
         cfg = self.cfg
         if isinstance(cfg.background, Region):
             return None
         if cfg.background == "percentile":
-            return self.percentile_img
+            return self.percentile_img if channel is None else self.percentile_img[channel]
         # Per line along the plume, linear between 4-px strips at the region's
         # edges across it, plus the static shape of the background that a
         # straight line misses (a sky's elevation gradient across a
@@ -310,7 +313,8 @@ class _Background:
         # time-averaged frames minus its own edge-to-edge interpolation.
         bg = self._edge_interpolation(frame_roi, horizontal)
         if self.shape_correction is not None:
-            bg = bg + self.shape_correction[horizontal]
+            corr = self.shape_correction[horizontal]
+            bg = bg + (corr if channel is None else corr[channel])
         return bg
 
     @staticmethod
@@ -632,13 +636,13 @@ class _InvertedColumns:
     def proxy_field(self, frame: np.ndarray) -> np.ndarray:
         sl = self.roi.slices()
         c = self.proxy_channel
-        fr = frame[c:c + 1, sl[0], sl[1]].astype(np.float64)
-        bg = self.background.field(frame[:, sl[0], sl[1]].astype(np.float64), self.horizontal)
+        fr = frame[c, sl[0], sl[1]].astype(np.float64)
+        bg = self.background.field(fr, self.horizontal, channel=c)
         if bg is None:  # a uniform region background
-            bg = self.background.region_mean(frame, self.cfg.background)[:, None, None]
+            bg = self.background.region_mean(frame, self.cfg.background)[c]
         # Signed (gas contrast positive): noise averages out of the sums the
         # velocimetry's flux level takes along the plume.
-        dl = self.background.channel_sign[c] * (fr[0] - np.asarray(bg)[c])
+        dl = self.background.channel_sign[c] * (fr - bg)
         return dl.astype(np.float32)
 
     def collect(self, frame: np.ndarray, surfaces: Sequence[Surface], samples) -> np.ndarray:
@@ -647,12 +651,11 @@ class _InvertedColumns:
         final); stores the radiance and the background at the surface samples
         for :meth:`finish`."""
         field = self.proxy_field(frame)
-        f64 = frame.astype(np.float64)
         rad, bg, prof = [], [], []
         for s, (xy, n, dl, t) in zip(surfaces, samples):
-            rad.append(_bilinear(f64, xy))
-            bg.append(self.background.along(f64, s, xy, t))
-            prof.append(_bilinear(field.astype(np.float64), xy - [self.roi.x0, self.roi.y0]))
+            rad.append(_bilinear(frame, xy))
+            bg.append(self.background.along(frame, s, xy, t))
+            prof.append(_bilinear(field, xy - [self.roi.x0, self.roi.y0]))
         if not hasattr(self, "_rad"):
             self._rad, self._bg, self._prof = [], [], []
         self._rad.append(np.concatenate(rad, axis=1))
@@ -733,18 +736,21 @@ class _InvertedColumns:
         a plume) has, at every point, a temperature excess proportional to
         its volume fraction: T - T_amb = k x (the Gaussian line-of-sight model
         has this shape: both follow g(s)). One k holds for the whole scene,
-        so it is measured once: a random sample (<= 3000) of the pixel-frames
-        with contrast >= 10x noise is inverted with every parameter of the
-        multichannel model free (peak fractions, T_peak), and k is the
-        weighted least-squares slope of T_peak - T_amb against x_peak (weights
-        1/sigma_T^2, 3-sigma clipping), so the pixels whose temperature the
-        bands pin down carry it. Then each pixel-frame has one unknown, x,
-        with T_peak = T_amb + k x: solved as a root of x = g(x) (g: the fixed-
-        temperature inversion at T(x)) by bracketed regula falsi, each step
-        one fast fixed-temperature pass over the pixels not yet converged. This avoids the two-branch
+        so it is measured once: on a random sample (<= 3000) of the
+        pixel-frames with contrast >= 10x noise solved on the line for each k
+        of a 10 K grid, k minimises the summed chi2 (each pixel's capped at
+        50), refined by a parabola; its 1-sigma is where that profile rises
+        by the reduced chi2. Then each pixel-frame has one unknown, x,
+        with T_peak = T_amb + k x: with a known composition (or one species)
+        its least-squares value on the line (qogi.inversion.
+        invert_on_mixing_line: a coarse scan and Gauss-Newton in ln x on the
+        scene table, ~40,000 px/s per core); otherwise a root of x = g(x) (g:
+        the fixed-temperature inversion at T(x)) by bracketed regula falsi,
+        each step one fast fixed-temperature pass over the pixels not yet
+        converged. This avoids the two-branch
         (thin-hot / thick-cool) ambiguity of free per-pixel temperatures in
-        noisy frames and costs a few fixed-temperature passes instead of a
-        multi-start four-parameter solve per pixel. The uncertainty of k is
+        noisy frames and costs one line solve instead of a multi-start
+        four-parameter solve per pixel. The uncertainty of k is
         carried into the column-density term (:attr:`k_relative_effect`).
         """
         inv = self.inv_module
@@ -823,6 +829,18 @@ class _InvertedColumns:
                                               side[keep])
             return out
 
+
+        # With a known composition (or one species) each pixel-frame is one
+        # least-squares problem on the line (the engine's mixing-line
+        # inverter: a coarse scan and Gauss-Newton in ln x); otherwise the
+        # fixed-point passes above.
+        comp = cfg.composition or ({cfg.species[0]: 1.0} if len(cfg.species) == 1 else None)
+        if comp is not None:
+            def solve(kk, idx, a, b):  # noqa: F811 (the direct solve replaces the passes)
+                return inv.invert_on_mixing_line(
+                    self.model, self.table, kk, r2[:, idx], b2[:, idx], s2[idx],
+                    netd_K=self._inv_kw["netd_K"], composition=comp,
+                    num_threads=cfg.num_threads, progress=stage(a, b, "columns"))
 
         if cand.size >= 5:
             step = 10.0
@@ -1021,10 +1039,24 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
                 for sp in cfg.species:
                     surf_cols[j][sp][:] = _bilinear(acc[sp] / nf, xy - [roi.x0, roi.y0])
         invert_collected(done, time_averaged)
+        # The velocity field's part of the region (all of it without a
+        # source): only there is the proxy turned into a column (the rest
+        # is zeroed).
+        transport = None
+        crop = (slice(0, col_fields.shape[1]), slice(0, col_fields.shape[2]))
+        if source is not None and cfg.velocity not in ("wind", "exit"):
+            transport = _transport_crop(surfaces, source, roi, col_fields.shape[1:])
+            crop = transport[2]
+            keep = np.zeros(col_fields.shape[1:], bool)
+            keep[crop] = True
+            col_fields[:done, ~keep] = 0.0
         if cfg.column_density != "truth":
-            columns.contrast_to_column(col_fields[:done])
+            part = col_fields[:done, crop[0], crop[1]]
+            columns.contrast_to_column(part)
+            sub = Region(roi.x0 + crop[1].start, roi.y0 + crop[0].start,
+                         roi.x0 + crop[1].stop, roi.y0 + crop[0].stop)
             velocity_info["proxy_anchor"] = _anchor_proxy(
-                col_fields[:done], samples, surf_cols, cfg.species[0], horizontal, roi)
+                part, samples, surf_cols, cfg.species[0], horizontal, sub)
     except Cancelled:
         try:
             invert_collected(done, time_averaged)
@@ -1056,29 +1088,8 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
                                "flux_level=False" if not cfg.flux_level else
                                "no source given or detected" if source is None else
                                "fewer than 3 frames" if done < 3 else "")
-        crop = (slice(None), slice(None))
         if flux_note == "off: ":
-            pts = np.concatenate([np.asarray(s.points, float) for s in surfaces])
-            dx, dy = pts.mean(axis=0) - np.asarray(source)
-            if abs(dy) >= abs(dx):
-                axis, index = ("up" if dy < 0 else "down"), source[1] - roi.y0
-                coord, size = pts[:, 1] - roi.y0, velocity_frames.shape[1]
-            else:
-                axis, index = ("right" if dx > 0 else "left"), source[0] - roi.x0
-                coord, size = pts[:, 0] - roi.x0, velocity_frames.shape[2]
-            # The field only up to a margin beyond the farthest surface: the
-            # transport balance sums the column beyond each line, and the
-            # proxy is calibrated (anchored) only up to the surfaces; the gas
-            # leaving through the cut is the balance's outflow term.
-            far = coord.min() if axis in ("up", "left") else coord.max()
-            margin = max(48.0, abs(index - far))
-            if axis in ("up", "left"):
-                cut = slice(int(max(0, np.floor(far - margin))), None)
-            else:
-                cut = slice(0, int(min(size, np.ceil(far + margin) + 1)))
-            crop = (cut, slice(None)) if axis in ("up", "down") else (slice(None), cut)
-            if axis in ("up", "left"):
-                index -= cut.start
+            axis, index, _ = transport
         field = velocity_frames[:, crop[0], crop[1]]
         mask = source_mask[crop[0], crop[1]] if source_mask is not None else None
         scale = np.percentile(field, 99.5)
@@ -1111,6 +1122,33 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
     return _finish(rec, surfaces, cfg, scene, samples, frames, done, col_fields, surf_cols,
                    surf_sig, flows, status_counts, kept_maps, t_start, complete=True,
                    keep_maps=keep_maps, roi=roi, columns=columns, velocity_info=velocity_info)
+
+
+def _transport_crop(surfaces, source, roi: Region, shape: Tuple[int, int]):
+    """The plume's axis in the image (``up``, ``down``, ``left``, ``right``:
+    from the source towards the surfaces), the source's line along it in the
+    region (index) and the part of the region the velocity field uses: up to
+    a margin beyond the farthest surface (the transport balance sums the
+    column beyond each line, and the proxy is calibrated only up to the
+    surfaces; the gas leaving through the cut is the balance's outflow term).
+    Returns (axis, index, (row slice, column slice))."""
+    pts = np.concatenate([np.asarray(s.points, float) for s in surfaces])
+    dx, dy = pts.mean(axis=0) - np.asarray(source)
+    if abs(dy) >= abs(dx):
+        axis, index = ("up" if dy < 0 else "down"), source[1] - roi.y0
+        coord, size = pts[:, 1] - roi.y0, shape[0]
+    else:
+        axis, index = ("right" if dx > 0 else "left"), source[0] - roi.x0
+        coord, size = pts[:, 0] - roi.x0, shape[1]
+    far = coord.min() if axis in ("up", "left") else coord.max()
+    margin = max(48.0, abs(index - far))
+    if axis in ("up", "left"):
+        cut = slice(int(min(size - 1, max(0, np.floor(far - margin)))), size)
+        index -= cut.start
+    else:
+        cut = slice(0, int(max(1, min(size, np.ceil(far + margin) + 1))))
+    crop = (cut, slice(0, shape[1])) if axis in ("up", "down") else (slice(0, shape[0]), cut)
+    return axis, index, crop
 
 
 def _anchor_proxy(fields: np.ndarray, samples, surf_cols, species: str, horizontal: bool,

@@ -15,6 +15,7 @@
 #include "engine/inversion/bspline.h"
 #include "engine/inversion/full_model.h"
 #include "engine/inversion/inversion.h"
+#include "engine/inversion/mixing_line.h"
 #include "engine/inversion/march_kernel.h"
 #include "engine/rte/march.h"
 #include "engine/inversion/scene_table.h"
@@ -684,6 +685,62 @@ TEST(GaussianProfileIntegral, MatchesEquation6) {
     GaussianProfileIntegral(tp - 0.01, 293.0, &im, nullptr);
     EXPECT_NEAR(di, (ip - im) / 0.02, 1e-7 * std::abs(di));
   }
+}
+
+// The mixing-line inverter: contrasts made by the table itself on the line
+// T = T_amb + k X (x = w X) are recovered to solver precision, on and off the
+// line's temperature range; zero contrast is below detection; bad options are
+// refused by name.
+TEST(MixingLineInverter, RecoversTheLineFractionExactlyWithoutNoise) {
+  const Fixture& f = F();
+  const SceneTable& t = *f.table;
+  MixingLineInverter inv(f.table);
+  MixingLineOptions o;
+  o.slope_K_per_fraction = 120.0;
+  o.composition = {0.5, 0.5};
+  o.netd_K = {0.02};
+  const std::size_t nc = t.num_channels();
+  const std::vector<double> xs{3e-3, 0.01, 0.02, 0.1, 0.4, 0.9, 0.0};
+  const std::vector<double> sg{0.03, 0.05, 0.02, 0.01, 0.03, 0.005, 0.02};
+  const double t_bg = 283.0;
+  std::vector<double> tbg(nc, t_bg), phi(t.background_size()), l_bg(nc);
+  t.Background(tbg.data(), phi.data());
+  for (std::size_t c = 0; c < nc; ++c)
+    l_bg[c] = BandTable(t.model().channels()[c], 150, 700, 0.5).Radiance(t_bg);
+  const std::size_t n = xs.size();
+  std::vector<double> rad(n * nc), bg(n * nc);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double x[2] = {0.5 * xs[i], 0.5 * xs[i]};
+    const double tp = std::min(f.t_amb + o.slope_K_per_fraction * xs[i], 450.0);
+    std::vector<double> m(nc);
+    t.Contrast(x, tp, sg[i], phi.data(), m.data(), nullptr);
+    for (std::size_t c = 0; c < nc; ++c) {
+      rad[i * nc + c] = l_bg[c] + m[c];
+      bg[i * nc + c] = l_bg[c];
+    }
+  }
+  std::vector<double> x(n), xsig(n), tp(n), chi2(n);
+  std::vector<std::int32_t> status(n), iters(n);
+  inv.Invert(o, n, rad.data(), bg.data(), sg.data(),
+             {x.data(), xsig.data(), tp.data(), chi2.data(), status.data(), iters.data()});
+  for (std::size_t i = 0; i + 1 < n; ++i) {
+    EXPECT_EQ(status[i], static_cast<int>(PixelStatus::kConverged)) << i;
+    EXPECT_NEAR(x[i] / xs[i], 1.0, 1e-5) << "X " << xs[i];
+    EXPECT_LT(chi2[i], 1e-8);
+    EXPECT_GT(xsig[i], 0);
+  }
+  EXPECT_EQ(status[n - 1], static_cast<int>(PixelStatus::kBelowDetection));
+  EXPECT_EQ(x[n - 1], 0.0);
+  EXPECT_GT(xsig[n - 1], 0.0);  // the thin-limit 1-sigma
+  MixingLineOptions bad = o;
+  bad.composition = {1.0};
+  EXPECT_THROW(inv.Invert(bad, n, rad.data(), bg.data(), sg.data(),
+                          {x.data(), xsig.data(), tp.data(), chi2.data(), status.data(),
+                           iters.data()}),
+               std::invalid_argument);
+  bad = o;
+  bad.netd_K = {0.0};
+  EXPECT_THROW(bad.Check(2, nc), std::invalid_argument);
 }
 
 }  // namespace
