@@ -11,11 +11,15 @@ Cases (each over seeds 0..N-1; recordings are cached under --cache):
 * ``heated-1ch``: lab-heated-ch4-55c-gf320 quantified single channel with the
   gas temperature assumed ambient (what a single-channel tool does);
 * ``heated-4ch``: the same release rendered through the four-channel
-  fast-m150 camera (same pixel footprint), gas temperature inferred.
+  fast-m150 camera (same pixel footprint), gas temperature inferred;
+* ``wind``: stack-20kgh-wind6-gf320 (20 kg/h CH4 from a 3.18 m stack in a
+  6 m/s crosswind, GF320 at 10 m against the sky, 15 Hz: the gas crosses
+  ~28 px per frame), vertical surfaces 50, 100, 150 px downwind.
 
-Control surfaces: horizontal lines 100 px wide (m150) or 80 px (GF320)
-centred on the exit at the truth's control-plane rows up to 12 cm above the
-exit; the exit is given as the source (flow away from it is positive).
+Control surfaces (lab cases): horizontal lines 100 px wide (m150) or 80 px
+(GF320) centred on the exit at the truth's control-plane rows up to 12 cm
+above the exit; the exit is given as the source (flow away from it is
+positive).
 
 Usage:
     .venv/bin/python scripts/validate_pipeline.py --seeds 10 [--cases m150 gf320 ...]
@@ -36,7 +40,7 @@ import numpy as np
 import qogi
 from qogi import render
 from qogi.pipeline import QuantifyConfig, quantify
-from qogi.surfaces import truth_surfaces
+from qogi.surfaces import Surface, truth_surfaces
 
 CASES = {
     "m150": dict(preset="lab-ch4co2-90c-m150", camera=None, duration_s=2.0,
@@ -47,7 +51,11 @@ CASES = {
                        gas_temperature="ambient", composition=None),
     "heated-4ch": dict(preset="lab-heated-ch4-55c-gf320", camera="fast-m150", duration_s=2.0,
                        gas_temperature="infer", composition=None),
+    "wind": dict(preset="stack-20kgh-wind6-gf320", camera=None, duration_s=10.0,
+                 gas_temperature="ambient", composition=None),
 }
+#: Downwind distances [px] of the vertical surfaces of the crosswind case.
+WIND_DISTANCES_PX = (50, 100, 150)
 MAX_HEIGHT_M = 0.125
 
 
@@ -69,8 +77,19 @@ def ensure_recording(cache: Path, case: str, seed: int) -> Path:
     return path
 
 
-def surfaces_for(rec):
-    """Surfaces on the truth planes up to 12 cm, and the exit pixel."""
+def surfaces_for(rec, case: str):
+    """Surfaces on the truth planes up to 12 cm, and the exit pixel; for the
+    crosswind stack, vertical lines 50-150 px downwind of the exit (from the
+    preset's geometry), 90 px tall."""
+    if case == "wind":
+        from qogi import synth
+        name = CASES[case]["preset"]
+        view, rel = synth.preset_view(name), synth.preset_release(name)
+        fp = view.distance_m * view.ifov_rad
+        ex = 0.5 * (view.width_px - 1) + (rel.exit_x_m - view.center_x_m) / fp
+        ey = 0.5 * (view.height_px - 1) - (rel.stack_height_m - view.center_z_m) / fp
+        return [Surface([(ex + d, ey - 45), (ex + d, ey + 45)], name=f"{d} px")
+                for d in WIND_DISTANCES_PX], (ex, ey)
     return truth_surfaces(rec, max_height_m=MAX_HEIGHT_M,
                           half_width_px=50 if rec.height == 256 else 40)
 
@@ -81,7 +100,7 @@ def run_case(cache: Path, case: str, seed: int) -> dict:
         return json.loads(out_json.read_text())
     c = CASES[case]
     rec = qogi.open_recording(ensure_recording(cache, case, seed))
-    surfaces, source = surfaces_for(rec)
+    surfaces, source = surfaces_for(rec, case)
     cfg = QuantifyConfig(species=list(rec.scene.species), gas_temperature=c["gas_temperature"],
                          composition=c["composition"], source=source)
     t = time.perf_counter()

@@ -284,6 +284,11 @@ class App:
             dpg.add_button(label="Finish surface", callback=s(lambda *a: self.vm.finish_drawing()))
             dpg.add_button(label="Undo point", callback=s(lambda *a: self.vm.undo_point()))
             dpg.add_button(label="Cancel drawing", callback=s(lambda *a: self.vm.cancel_drawing()))
+        with dpg.group(horizontal=True):
+            dpg.add_button(label="Automatic surfaces at", tag="auto_surfaces_button",
+                           callback=s(lambda *a: self.on_auto_surfaces()))
+            dpg.add_input_text(tag="auto_distances", default_value="30, 60, 90", width=110)
+            dpg.add_text("px from the source")
         dpg.add_text("Flux counts positive in the direction of each surface's arrow: the "
                      "left-hand side walking from its first point to its last. Reverse a "
                      "surface to flip it, or set the source (Analysis) to orient them all "
@@ -296,6 +301,15 @@ class App:
         with dpg.group(horizontal=True):
             dpg.add_button(label="Pick region", callback=s(lambda *a: self.set_mode("region")))
             dpg.add_button(label="Clear region", callback=s(lambda *a: self.vm.set_region(None)))
+
+    def on_auto_surfaces(self) -> None:
+        text = dpg.get_value("auto_distances") or ""
+        try:
+            dists = [float(v) for v in text.replace(";", ",").split(",") if v.strip()]
+        except ValueError:
+            self.vm._error(f"distances: give numbers of pixels separated by commas; got {text!r}")
+            return
+        self.vm.auto_surfaces(dists)
 
     def _build_analysis_tab(self) -> None:
         s = self._safe

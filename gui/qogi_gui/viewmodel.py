@@ -25,7 +25,7 @@ import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Dict, List, Optional, Tuple
+from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -743,6 +743,54 @@ class ViewModel:
         self.rev["surfaces"] += 1
         self._changed_inputs()
         return True
+
+    def auto_surfaces(self, distances_px: Sequence[float] = (30.0, 60.0, 90.0)) -> bool:
+        """Detect the plume (qogi.plume_image of the first 50 frames) and add
+        straight surfaces across it at these distances from its source
+        (qogi.auto_surfaces); without a source set, the detected one is set
+        too (it orients the surfaces and gives the velocimetry its flux level)."""
+        import qogi
+
+        if self.recording is None:
+            return self._error("open a recording before placing surfaces")
+        try:
+            dists = [float(d) for d in distances_px]
+        except (TypeError, ValueError):
+            return self._error(f"distances must be numbers of pixels; got {distances_px!r}")
+        if not dists or any(not (d > 0) for d in dists):
+            return self._error("give one or more distances > 0 px, e.g. 30, 60, 90")
+        source = None
+        if self.settings.use_source:
+            try:
+                source = (float(self.settings.source_x), float(self.settings.source_y))
+            except ValueError:
+                source = None
+        try:
+            found, src = qogi.auto_surfaces(qogi.plume_image(self.recording), dists,
+                                            source=source, return_source=True)
+        except ValueError as e:
+            return self._error(f"automatic surfaces: {e}")
+        r = self.recording
+        added = 0
+        for surf in found:
+            pts = [(min(max(x, 0.0), r.width - 1.0), min(max(y, 0.0), r.height - 1.0))
+                   for x, y in surf.points]
+            name = surf.name
+            k = 2
+            while any(s.name == name for s in self.surfaces):
+                name = f"{surf.name} {k}"
+                k += 1
+            if self.add_surface(pts, name):
+                added += 1
+        if source is None:
+            self.settings.use_source = True
+            self.settings.source_x, self.settings.source_y = f"{src[0]:.1f}", f"{src[1]:.1f}"
+            self.rev["settings"] += 1
+            self.rev["surfaces"] += 1
+        self._info(f"{added} surface(s) placed across the plume at "
+                   f"{', '.join(f'{d:g}' for d in dists)} px from the source at "
+                   f"({src[0]:.1f}, {src[1]:.1f}) px")
+        return added > 0
 
     def _surface(self, index: int) -> Optional[SurfaceDraft]:
         if not 0 <= index < len(self.surfaces):

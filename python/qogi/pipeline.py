@@ -332,11 +332,26 @@ class _Background:
 
     def set_static_shape(self, mean_roi: np.ndarray) -> None:
         """From the time-averaged region (C, h, w): the background's static
-        shape beyond the edge-to-edge interpolation, per orientation."""
+        shape beyond the edge-to-edge interpolation, per orientation, used
+        only where the smooth surface describes the gas-free pixels at least
+        twice as well as that interpolation does (a plate or a linear
+        gradient needs no correction, and gets none)."""
         from .surfaces import _smooth_background
+
+        def mad(r):
+            return float(np.median(np.abs(r - np.median(r))))
+
         smooth = np.stack([_smooth_background(m) for m in mean_roi])
-        self.shape_correction = {o: smooth - self._edge_interpolation(smooth, o)
-                                 for o in (True, False)}
+        self.shape_correction = {}
+        for o in (True, False):
+            lin = self._edge_interpolation(mean_roi, o)
+            corr = smooth - self._edge_interpolation(smooth, o)
+            use = np.zeros(len(mean_roi), bool)
+            for c in range(len(mean_roi)):
+                r_smooth = mean_roi[c] - smooth[c]
+                free = np.abs(r_smooth - np.median(r_smooth)) <= 2.5 * 1.4826 * mad(r_smooth)
+                use[c] = mad((mean_roi[c] - lin[c])[free]) > 2.0 * mad(r_smooth[free])
+            self.shape_correction[o] = corr * use[:, None, None]
 
 
 # ---------------------------------------------------------------------------

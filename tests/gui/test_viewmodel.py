@@ -758,3 +758,25 @@ def test_map_keys_are_placed_on_recording_frames():
     assert results.map_frame_keys(absolute) == {5: 5, 7: 7}
     assert results.map_frame_keys(NS(map_frames=[0, 3], config=NS(frames=None))) == {0: 0, 3: 3}
     assert results.map_frame_keys(NS(map_frames=[], config=NS(frames=(5, 9)))) == {}
+
+
+def test_automatic_surfaces_cross_the_rising_blob_and_set_the_source(opened):
+    # The test recording's warm blob rises up the middle column (x = 16): the
+    # surfaces must cross it horizontally at the asked distances from the
+    # detected source on that column, which becomes the analysis source.
+    assert opened.auto_surfaces([3, 6])
+    assert len(opened.surfaces) == 2
+    assert opened.settings.use_source
+    sx, sy = float(opened.settings.source_x), float(opened.settings.source_y)
+    assert abs(sx - W / 2) < 3
+    for s, d in zip(opened.surfaces, (3, 6)):
+        (x0, y0), (x1, y1) = s.points[0], s.points[-1]
+        assert abs(y1 - y0) < abs(x1 - x0)          # across the rise
+        assert min(x0, x1) < W / 2 < max(x0, x1)
+        assert abs(abs(0.5 * (y0 + y1) - sy) - d) < 1.5
+    # Again: new names, nothing replaced; bad input is an error message.
+    assert opened.auto_surfaces([4])
+    assert len({s.name for s in opened.surfaces}) == 3
+    assert not opened.auto_surfaces([])
+    assert not opened.auto_surfaces(["x"])
+    assert any("distances" in e for e in errors(opened))
