@@ -255,12 +255,17 @@ class Inverter {
   bool PreparePixel(const PixelBatch& batch, std::size_t frame, std::size_t pixel,
                     Pixel* px) const;
   // precise: converge far below the tolerance (see LmSettings in the .cc).
-  void SolveTable(Pixel* px, const double* start, Workspace* ws, bool precise = true) const;
+  // With T_peak estimated the solve is a variable projection over T_peak
+  // (ProfileLm in the .cc); curvature is a first estimate of the chi2
+  // profile's curvature there (d^2 chi2 / dT_peak^2 / 2 [1/K^2]; 0 = unknown).
+  void SolveTable(Pixel* px, const double* start, Workspace* ws, bool precise = true,
+                  double curvature = 0.0) const;
   void SolveNewton(Pixel* px, Workspace* ws) const;
   void SolveFull(Pixel* px, const double* start, Workspace* ws) const;
   struct GuessCandidate {
     double cost;              // chi2 (with priors) of the candidate
     double th[8];             // parameters (species + 2 <= 8)
+    double curvature = 0;     // of the chi2 profile over T_peak there (see SolveTable; 0 = unknown)
   };
   // Coarse lookup: per candidate peak temperature, the optically thin least
   // squares for the fractions, refined by a few iterations; sorted by cost.
