@@ -1166,6 +1166,21 @@ void Inverter::ProfileGuess(const Pixel& px, std::vector<GuessCandidate>* out, i
     const std::size_t j = m - 1 - jj;
     slice = &slices_[j];
     th[ns] = slice->peak_temperature_K;
+    // ... extrapolated (in log) along the last two temperatures, where the
+    // fraction is off its bounds at both.
+    if (jj >= 2) {
+      const auto& p1 = ws->profile_theta[j + 1];
+      const auto& p2 = ws->profile_theta[j + 2];
+      const double w = (th[ns] - p1[ns]) / (p1[ns] - p2[ns]);
+      for (std::size_t s = 0; s < ns; ++s) {
+        if (!px.est[s] || (held >> s & 1)) continue;
+        if (!(p1[s] > px.lower[s] && p2[s] > px.lower[s] && p1[s] < px.upper[s] && p2[s] < px.upper[s]))
+          continue;
+        const double l1 = std::log(p1[s] + kLogEps), l2 = std::log(p2[s] + kLogEps);
+        const double dl = std::min(std::max(w * (l1 - l2), -1.0), 1.0);
+        th[s] = std::min(std::max(std::exp(l1 + dl) - kLogEps, px.lower[s]), px.upper[s]);
+      }
+    }
     px.ApplyTies(th);
     double cost = std::numeric_limits<double>::infinity();
     if (fractions) {
