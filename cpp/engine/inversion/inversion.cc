@@ -1391,32 +1391,36 @@ void Inverter::FinishWith(Pixel* px, const double* con, const double* jac_in, Wo
   std::fill(px->psig, px->psig + np, 0.0);
   if (ne > 0) {
     const int nr = static_cast<int>(nc) + npr;
-    Eigen::MatrixXd j = Eigen::MatrixXd::Zero(nr, ne);
+    // Fixed largest sizes: no heap allocations per pixel.
+    using Matrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor, kMaxRows, kMaxParams>;
+    using Square = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor, kMaxParams, kMaxParams>;
+    using Vector = Eigen::Matrix<double, Eigen::Dynamic, 1, Eigen::ColMajor, kMaxParams, 1>;
+    Matrix j = Matrix::Zero(nr, ne);
     int row = static_cast<int>(nc);
     for (int e = 0; e < ne; ++e) {
       const int p = est[e];
       for (std::size_t c = 0; c < nc; ++c) j(c, e) = jac[c * np + p] / px->noise[c];
       if (px->prior_sigma[p] > 0) j(row++, e) = 1.0 / px->prior_sigma[p];
     }
-    Eigen::VectorXd d(ne);
+    Vector d(ne);
     for (int e = 0; e < ne; ++e) {
       d[e] = j.col(e).norm();
       if (!(d[e] > 0) || !std::isfinite(d[e])) d[e] = 1.0;
       j.col(e) /= d[e];
     }
-    Eigen::JacobiSVD<Eigen::MatrixXd> svd(j, Eigen::ComputeThinV);
-    const Eigen::VectorXd sv = svd.singularValues();
+    Eigen::JacobiSVD<Matrix> svd(j, Eigen::ComputeThinV);
+    const Vector sv = svd.singularValues();
     const double smax = sv.size() ? sv[0] : 0.0;
     const double smin = (sv.size() == ne) ? sv[ne - 1] : 0.0;
     px->cond = (smin > 0 && smax / smin < kConditionCap) ? smax / smin : kConditionCap;
     const double floor = std::max(smax, 1e-300) * 1e-8;
-    Eigen::VectorXd inv2 = Eigen::VectorXd::Zero(ne);
+    Vector inv2 = Vector::Zero(ne);
     for (int k = 0; k < ne; ++k) {
       const double s = k < sv.size() ? std::max(sv[k], floor) : floor;
       inv2[k] = 1.0 / (s * s);
     }
-    const Eigen::MatrixXd& v = svd.matrixV();
-    const Eigen::MatrixXd covn = v * inv2.asDiagonal() * v.transpose();
+    const Square& v = svd.matrixV();
+    const Square covn = v * inv2.asDiagonal() * v.transpose();
     px->log_det = 0;
     for (int k = 0; k < ne; ++k) px->log_det += std::log(inv2[k]) - 2.0 * std::log(d[k]);
     for (int a = 0; a < ne; ++a)
