@@ -887,8 +887,14 @@ bool ProfileLm(const Inverter::Pixel& px, const LmSettings& set, std::size_t nr,
   std::uint8_t held = static_cast<std::uint8_t>(*held_io & ~t_bit);
   bool ok = false;
   int used = 0;
+  // Far from the profile's minimum z need not be solved to the last digit:
+  // the inner solves stop at 1e-3 of the last predicted profile decrease
+  // (within [set.stop, tolerance]; the reduced slope is then accurate to
+  // second order), and at set.stop before convergence is declared.
+  double max_step = kMaxStep, dec = std::numeric_limits<double>::infinity();
   for (;;) {
     theta[ns] = t;
+    inner.stop = std::min(std::max(1e-3 * dec, set.stop), std::max(set.tolerance, set.stop));
     inner.max_iterations = std::max(set.max_iterations - used, 1);
     int it = 0;
     const bool inner_ok = BoundedLm(px, inner, nr, eval, theta, &held, r, jac, cost, &it);
@@ -940,16 +946,20 @@ bool ProfileLm(const Inverter::Pixel& px, const LmSettings& set, std::size_t nr,
     if (same < 0 && num_last > 0) s = 0;  // a new branch: the old curvature does not hold
     if (same < 0) same = num_last < 4 ? num_last++ : 3;
     last[same] = Point{held, t, g};
-    if ((t <= lo && g >= 0) || (t >= hi && g <= 0)) {
-      held |= t_bit;
+    // Done at a bound where the slope points out, or when a Newton step
+    // would gain less than set.stop (the tolerance); z to set.stop first.
+    const bool at_bound = (t <= lo && g >= 0) || (t >= hi && g <= 0);
+    const double dec_t = s > 0 ? g * g / s : std::numeric_limits<double>::infinity();
+    if (at_bound || dec_t < set.stop || (set.stop_when_slow && dec_t < set.tolerance)) {
+      if (inner.stop > set.stop && !set.stop_when_slow) {
+        dec = 0;
+        continue;
+      }
+      if (at_bound) held |= t_bit;
       ok = true;
       break;
     }
-    const double dec = s > 0 ? g * g / s : std::numeric_limits<double>::infinity();
-    if (dec < set.stop || (set.stop_when_slow && dec < set.tolerance)) {
-      ok = true;
-      break;
-    }
+    dec = dec_t;
     if (used >= set.max_iterations) break;
     if (g > 0) {
       b = t;
@@ -967,7 +977,11 @@ bool ProfileLm(const Inverter::Pixel& px, const LmSettings& set, std::size_t nr,
     } else {
       tn = t + (g > 0 ? -kTrialStep : kTrialStep);
     }
-    tn = std::min(std::max(tn, t - kMaxStep), t + kMaxStep);
+    // Steps of at most max_step, doubled while the slope keeps its sign
+    // (a long descent, e.g. to a bound).
+    const bool clamped = std::abs(tn - t) > max_step;
+    tn = std::min(std::max(tn, t - max_step), t + max_step);
+    if (clamped && !bracketed) max_step *= 2;
     if (bracketed && (!(tn > a && tn < b) || std::abs(tn - t) > 0.5 * last_step)) {
       tn = 0.5 * (a + b);  // bisection when the step leaves the bracket or does not shrink
     } else {
@@ -1740,16 +1754,18 @@ void Inverter::SolveFull(Pixel* px, const double* start, Workspace* ws) const {
   FinishWith(px, con, jac, ws);
 }
 
+bool Inverter::Distinct(const Pixel& a, const Pixel& b) {
+  for (std::size_t p = 0; p < a.np; ++p) {
+    if (!a.est[p]) continue;
+    const double s = std::sqrt(a.psig[p] * a.psig[p] + b.psig[p] * b.psig[p]);
+    if (std::abs(a.theta[p] - b.theta[p]) > 0.5 * s) return true;
+  }
+  return false;
+}
+
 void Inverter::MergeModes(Pixel* a, const Pixel& b) const {
   const std::size_t ns = a->ns, np = a->np;
-  // The same minimum reached twice?
-  bool distinct = false;
-  for (std::size_t p = 0; p < np; ++p) {
-    if (!a->est[p]) continue;
-    const double s = std::sqrt(a->psig[p] * a->psig[p] + b.psig[p] * b.psig[p]);
-    if (std::abs(a->theta[p] - b.theta[p]) > 0.5 * s) distinct = true;
-  }
-  if (!distinct) return;
+  if (!Distinct(*a, b)) return;  // the same minimum reached twice
   const double da = a->chi2 + a->prior_chi2, db = b.chi2 + b.prior_chi2;
   if (db - da < 4.0) a->flags |= kFlagAmbiguous;
   // The two minima weighted by their likelihoods exp(-chi2 / 2).
@@ -1892,11 +1908,25 @@ void Inverter::InvertRow(const PixelBatch& b, const InversionOutput& out, std::s
                                                            sol[best].chi2 + sol[best].prior_chi2))
               best = k;
           if (starts > 1 && sol[best].solved()) {
-            // The best minimum, converged to full precision.
-            Pixel precise = base;
-            SolveTable(&precise, sol[best].theta, ws, true, sol[best].curvature);
-            total += precise.iterations;
-            if (precise.solved()) sol[best] = precise;
+            // The best minimum converged to full precision, and so is any
+            // distinct one within the tolerance of it (which of the two fits
+            // best is decided only at full precision).
+            const double best_cost = sol[best].chi2 + sol[best].prior_chi2;
+            std::size_t chosen = best;
+            for (std::size_t k = 0; k < starts; ++k) {
+              if (!sol[k].solved()) continue;
+              if (k != best && !(sol[k].chi2 + sol[k].prior_chi2 < best_cost + options_.tolerance_chi2 &&
+                                 Distinct(sol[k], sol[best])))
+                continue;
+              Pixel precise = base;
+              SolveTable(&precise, sol[k].theta, ws, true, sol[k].curvature);
+              total += precise.iterations;
+              if (!precise.solved()) continue;
+              sol[k] = precise;  // (before the comparison: k may be the chosen one)
+              if (precise.chi2 + precise.prior_chi2 < sol[chosen].chi2 + sol[chosen].prior_chi2)
+                chosen = k;
+            }
+            best = chosen;
           }
           *out = sol[best];
           if (out->solved()) {

@@ -277,6 +277,9 @@ class Inverter {
   // Optically thin non-negative least squares for the free fractions at
   // temperature tc (theta's other entries kept).
   void ThinGuess(const Pixel& px, double tc, double* theta) const;
+  // Whether two solutions of one pixel are distinct minima (some estimated
+  // parameter differs by more than half their combined uncertainty).
+  static bool Distinct(const Pixel& a, const Pixel& b);
   // Combines two solutions of one pixel (two minima).
   void MergeModes(Pixel* best, const Pixel& other) const;
   void FullModelGuess(const Pixel& px, double* theta) const;
