@@ -948,9 +948,12 @@ bool ProfileLm(const Inverter::Pixel& px, const LmSettings& set, std::size_t nr,
     last[same] = Point{held, t, g};
     // Done at a bound where the slope points out, or when a Newton step
     // would gain less than set.stop (the tolerance); z to set.stop first.
+    // A Newton step that would cross a bound leads there instead (on flat
+    // profiles the bound is the minimum, however small the predicted gain).
     const bool at_bound = (t <= lo && g >= 0) || (t >= hi && g <= 0);
     const double dec_t = s > 0 ? g * g / s : std::numeric_limits<double>::infinity();
-    if (at_bound || dec_t < set.stop || (set.stop_when_slow && dec_t < set.tolerance)) {
+    const bool crosses = s > 0 && (t - g / s < lo || t - g / s > hi);
+    if (at_bound || (!crosses && (dec_t < set.stop || (set.stop_when_slow && dec_t < set.tolerance)))) {
       if (inner.stop > set.stop && !set.stop_when_slow) {
         dec = 0;
         continue;
@@ -1171,8 +1174,10 @@ void Inverter::ProfileGuess(const Pixel& px, std::vector<GuessCandidate>* out, i
   LmSettings set;
   set.estimate = fractions;
   set.max_iterations = 20;
-  // A profile locates minima; the full solve polishes them.
-  set.tolerance = set.stop = std::max(options_.tolerance_chi2, 0.01);
+  // A profile locates minima; the full solve polishes them. Its costs must
+  // be accurate well below the tolerance: on flat profiles (a weakly
+  // determined temperature) their errors would make spurious local minima.
+  set.tolerance = set.stop = std::max(0.3 * options_.tolerance_chi2, 3e-3);
   std::uint8_t held = 0;
   double r[kMaxRows], jac[kMaxRows * kMaxParams];
   for (std::size_t jj = 0; jj < m; ++jj) {
