@@ -231,6 +231,7 @@ struct Inverter::Workspace {
   std::vector<double> curve_nodes;  // [node * r1 + r]
   std::vector<double> curve_u;      // u at the nodes [m]
   UniformSpline curve;
+  SceneTable::PeakTerms peak;  // the table's terms at the last T_peak evaluated
   // Profile integral cache.
   double int_t = -1, int_i = 0, int_di = 0;
   std::vector<Inverter::GuessCandidate> guesses;
@@ -1320,7 +1321,9 @@ void Inverter::SolveTable(Pixel* px, const double* start, Workspace* ws, bool pr
   const Pixel& cpx = *px;
   auto eval = [&](const double* th, double* r, double* jac) {
     double con[kMaxChannels];
-    t.Contrast(th, th[ns], th[ns + 1], cpx.phi, con, jac);
+    // The T_peak terms are reused while T_peak stays (ProfileLm's inner solves).
+    if (ws->peak.peak_temperature_K != th[ns]) t.MakePeakTerms(th[ns], &ws->peak);
+    t.Contrast(th, ws->peak, th[ns + 1], cpx.phi, con, jac);
     if (jac) cpx.FoldJacobian(jac, nc);
     for (std::size_t c = 0; c < nc; ++c) {
       r[c] = (con[c] - cpx.y[c]) / cpx.noise[c];

@@ -614,12 +614,18 @@ void SumCellAnyRank(const double* base, std::size_t a_stride, std::size_t b_stri
 
 void SceneTable::Accumulate(const Table& t, const SplineWeights& wu, const SplineWeights& wx,
                             const SplineWeights& wt, double tp, const double* phi_bg, double* g,
-                            double* g_lu, double* g_x, double* g_t) const {
+                            double* g_lu, double* g_x, double* g_t, const double* phi_tp,
+                            const double* dphi_tp) const {
   const int r1 = t.rank + 1;
   const int nxc = t.nx > 1 ? nx_ + 2 : 1;
   const int nuc = nu_ + 2;
   double dphi[kMaxRank], dphi_dt[kMaxRank];
-  Phi(t, tp, dphi, dphi_dt);
+  if (phi_tp) {
+    std::copy(phi_tp, phi_tp + t.rank, dphi);
+    std::copy(dphi_tp, dphi_tp + t.rank, dphi_dt);
+  } else {
+    Phi(t, tp, dphi, dphi_dt);
+  }
   const double* pb = phi_bg + t.phi_offset;
   for (int r = 0; r < t.rank; ++r) dphi[r] -= pb[r];
   // g = Etilde + sum_r (phi_r(T_peak) - phi_r(T_bg)) A_r/u, and the sum
@@ -780,11 +786,30 @@ void SceneTable::SliceContrast(const Slice& sl, const double* x, double sigma, c
 
 void SceneTable::Contrast(const double* x, double tp, double sigma, const double* phi,
                           double* contrast, double* jac) const {
+  ContrastAt(x, axis_t_.Weights((tp - t_lo_) / h_t_), tp, nullptr, sigma, phi, contrast, jac);
+}
+
+void SceneTable::MakePeakTerms(double tp, PeakTerms* terms) const {
+  terms->peak_temperature_K = tp;
+  terms->wt = axis_t_.Weights((tp - t_lo_) / h_t_);
+  terms->phi.resize(tables_.size() * kMaxRank);
+  terms->dphi.resize(tables_.size() * kMaxRank);
+  for (std::size_t i = 0; i < tables_.size(); ++i)
+    Phi(tables_[i], tp, &terms->phi[i * kMaxRank], &terms->dphi[i * kMaxRank]);
+}
+
+void SceneTable::Contrast(const double* x, const PeakTerms& terms, double sigma, const double* phi,
+                          double* contrast, double* jac) const {
+  ContrastAt(x, terms.wt, terms.peak_temperature_K, &terms, sigma, phi, contrast, jac);
+}
+
+void SceneTable::ContrastAt(const double* x, const SplineWeights& wt, double tp,
+                            const PeakTerms* terms, double sigma, const double* phi,
+                            double* contrast, double* jac) const {
   const std::size_t np = ns_ + 2;
   for (std::size_t c = 0; c < nc_; ++c) contrast[c] = 0;
   if (jac)
     for (std::size_t k = 0; k < nc_ * np; ++k) jac[k] = 0;
-  const SplineWeights wt = axis_t_.Weights((tp - t_lo_) / h_t_);
   const double u_lo = std::exp(lu_lo_);
   for (std::size_t s = 0; s < ns_; ++s) {
     const double u = x[s] * sigma;
@@ -803,7 +828,9 @@ void SceneTable::Contrast(const double* x, double tp, double sigma, const double
         wx_ready = true;
       }
       double g, g_lu, g_x, g_t;
-      Accumulate(t, wu, wx, wt, tp, phi, &g, &g_lu, &g_x, jac ? &g_t : nullptr);
+      const double* pt = terms ? &terms->phi[static_cast<std::size_t>(i) * kMaxRank] : nullptr;
+      const double* dpt = terms ? &terms->dphi[static_cast<std::size_t>(i) * kMaxRank] : nullptr;
+      Accumulate(t, wu, wx, wt, tp, phi, &g, &g_lu, &g_x, jac ? &g_t : nullptr, pt, dpt);
       contrast[c] += u * g;
       if (jac) {
         const double d_du = thin ? g : g + g_lu;
