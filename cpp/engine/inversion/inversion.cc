@@ -868,7 +868,11 @@ bool ProfileLm(const Inverter::Pixel& px, const LmSettings& set, std::size_t nr,
                int* iterations, double* curvature) {
   const std::size_t np = px.np, ns = px.ns;
   const std::uint8_t t_bit = static_cast<std::uint8_t>(1u << ns);
-  constexpr double kTrialStep = 1.0, kMaxStep = 10.0;  // [K]
+  // A first step of at most kMaxStep: starts come from the profile over the
+  // table's temperature nodes (5 K apart), which has located the minimum
+  // within a node spacing, and with a composition known the profile can be
+  // narrow (a longer step would cross into the next minimum).
+  constexpr double kTrialStep = 1.0, kMaxStep = 2.5;  // [K]
   LmSettings inner = set;
   inner.estimate = static_cast<std::uint8_t>(set.estimate & ~t_bit);
   const double lo = px.lower[ns], hi = px.upper[ns];
