@@ -33,6 +33,10 @@
 // projection), and polish every local minimum of the profile with all
 // parameters free; the best is reported, and a distinct second minimum within
 // chi2 + 4 sets kFlagAmbiguous and widens the uncertainties (see MergeModes).
+// Every solve with T_peak estimated (polish or warm start) is itself a
+// variable projection: the other parameters by Levenberg-Marquardt at fixed
+// T_peak, the profile minimised in T_peak by safeguarded Newton steps with its
+// exact slope (joint steps crawl along the curved column-temperature valley).
 // With one
 // channel and one unknown fraction the problem is a root: a bracketed
 // Newton iteration on a per-(T_peak, sigma) curve of the table. The general
