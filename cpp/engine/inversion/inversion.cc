@@ -940,13 +940,9 @@ bool ProfileLm(const Inverter::Pixel& px, const LmSettings& set, std::size_t nr,
     int same = -1;
     for (int k = 0; k < num_last; ++k)
       if (last[k].held == held) same = k;
-    bool measured = false;
     if (same >= 0 && last[same].t != t) {
       const double secant = (g - last[same].g) / (t - last[same].t);
-      if (secant > 0) {
-        s = secant;
-        measured = true;
-      }
+      if (secant > 0) s = secant;
     }
     if (same < 0 && num_last > 0) s = 0;  // a new branch: the old curvature does not hold
     if (same < 0) same = num_last < 4 ? num_last++ : 3;
