@@ -208,6 +208,7 @@ struct Inverter::Pixel {
   double prior_chi2 = 0;  // sum of squared prior residuals at the solution
   double log_det = 0;     // ln det of the estimated parameters' covariance
   int iterations = 0;
+  double curvature = 0;  // of the chi2 profile over T_peak at the solution (ProfileLm)
   double chi2 = 0, cond = 0;
   double cov[kMaxParams * kMaxParams];
   double psig[kMaxParams];
@@ -230,12 +231,14 @@ struct Inverter::Workspace {
   std::vector<double> curve_nodes;  // [node * r1 + r]
   std::vector<double> curve_u;      // u at the nodes [m]
   UniformSpline curve;
+  SceneTable::PeakTerms peak;  // the table's terms at the last T_peak evaluated
   // Profile integral cache.
   double int_t = -1, int_i = 0, int_di = 0;
   std::vector<Inverter::GuessCandidate> guesses;
   std::vector<Inverter::Pixel> solutions;
   // Warm start of the neighbour path.
   double last_theta[kMaxParams];
+  double last_curvature = 0;
   bool last_ok = false;
   void Integral(double tp, double ta) {
     if (tp != int_t) {
@@ -837,6 +840,179 @@ bool BoundedLm(const Inverter::Pixel& px, const LmSettings& set, std::size_t nr,
   return ok;
 }
 
+// Minimises like BoundedLm, with T_peak (parameter S) estimated, by variable
+// projection: the other parameters z are solved by BoundedLm at fixed T_peak
+// (nearly linear and well conditioned: a few Gauss-Newton steps), and the
+// profile chi2_min(T_peak) is minimised in one dimension. Joint steps do
+// poorly here: in the curved column-temperature valley their quadratic model
+// holds only for tiny steps, and the residuals' curvature (absent from
+// J^T J) dominates the profile's (by two orders of magnitude on noisy
+// pixels), so Gauss-Newton overestimates steps along the valley. The
+// profile's slope is exact (envelope theorem: the T_peak component of the
+// gradient at the fixed-T_peak solution); its curvature comes from the
+// slopes at the last two temperatures with the same parameters on bounds
+// (a bound that becomes active kinks the profile's slope), first from the
+// caller's estimate. Newton steps on the slope, safeguarded by the bracket
+// of its sign change (bisection when a step leaves it or it stops halving).
+// Each new temperature starts z from the valley's tangent
+// dz/dT = -H_zz^-1 H_zT (Gauss-Newton).
+// curvature: first estimate of d(slope)/dT_peak (slope = J_T . r, half the
+// chi2 derivative) [1/K^2], 0 when unknown (then a 1 K trial step); on
+// return the last estimate. Converged when z has converged and a Newton
+// step in T_peak would lower chi2 by less than set.stop (or, with
+// stop_when_slow, the tolerance); T_peak is held on a bound where its slope
+// points out.
+template <class Eval>
+bool ProfileLm(const Inverter::Pixel& px, const LmSettings& set, std::size_t nr, Eval&& eval,
+               double* theta, std::uint8_t* held_io, double* r, double* jac, double* cost,
+               int* iterations, double* curvature) {
+  const std::size_t np = px.np, ns = px.ns;
+  const std::uint8_t t_bit = static_cast<std::uint8_t>(1u << ns);
+  // A first step of at most kMaxStep: starts come from the profile over the
+  // table's temperature nodes (5 K apart), which has located the minimum
+  // within a node spacing, and with a composition known the profile can be
+  // narrow (a longer step would cross into the next minimum).
+  constexpr double kTrialStep = 1.0, kMaxStep = 2.5;  // [K]
+  LmSettings inner = set;
+  inner.estimate = static_cast<std::uint8_t>(set.estimate & ~t_bit);
+  const double lo = px.lower[ns], hi = px.upper[ns];
+  // Bracket [a, b] of the slope's sign change (a: slope < 0, b: slope > 0
+  // once known; the bounds until then), and the last step's length.
+  double a = lo, b = hi, last_step = hi - lo;
+  bool a_known = false, b_known = false;
+  // The last temperature and slope per set of held parameters (branch).
+  struct Point {
+    std::uint8_t held;
+    double t, g;
+  };
+  Point last[4];
+  int num_last = 0;
+  double t = std::min(std::max(theta[ns], lo), hi);
+  double s = *curvature;
+  std::uint8_t held = static_cast<std::uint8_t>(*held_io & ~t_bit);
+  bool ok = false;
+  int used = 0;
+  // Far from the profile's minimum z need not be solved to the last digit:
+  // the inner solves stop at 1e-3 of the last predicted profile decrease
+  // (within [set.stop, tolerance]; the reduced slope is then accurate to
+  // second order), and at set.stop before convergence is declared.
+  double max_step = kMaxStep, dec = std::numeric_limits<double>::infinity();
+  for (;;) {
+    theta[ns] = t;
+    inner.stop = std::min(std::max(1e-3 * dec, set.stop), std::max(set.tolerance, set.stop));
+    inner.max_iterations = std::max(set.max_iterations - used, 1);
+    int it = 0;
+    const bool inner_ok = BoundedLm(px, inner, nr, eval, theta, &held, r, jac, cost, &it);
+    used += it + 1;  // its iterations and its first evaluation
+    if (!inner_ok) break;
+    // The profile's slope: the T_peak gradient reduced by z's (zero once z
+    // has converged; the reduction removes the first-order error of an
+    // inexact z, which the ill-conditioning amplifies), and the tangent.
+    int act[kMaxParams], na = 0;
+    for (std::size_t p = 0; p < np; ++p)
+      if ((inner.estimate >> p & 1) && !(held >> p & 1)) act[na++] = static_cast<int>(p);
+    double g = 0;
+    for (std::size_t k = 0; k < nr; ++k) g += r[k] * jac[k * np + ns];
+    double dz[kMaxParams];
+    if (na > 0) {
+      double hzz[kMaxParams * kMaxParams], hzt[kMaxParams], gz[kMaxParams], x[kMaxParams];
+      for (int i = 0; i < na; ++i) {
+        double v = 0, w = 0;
+        for (std::size_t k = 0; k < nr; ++k) {
+          v += jac[k * np + act[i]] * jac[k * np + ns];
+          w += jac[k * np + act[i]] * r[k];
+        }
+        hzt[i] = v;
+        gz[i] = w;
+        for (int j = 0; j <= i; ++j) {
+          double h = 0;
+          for (std::size_t k = 0; k < nr; ++k) h += jac[k * np + act[i]] * jac[k * np + act[j]];
+          hzz[i * na + j] = hzz[j * na + i] = h;
+        }
+      }
+      SolveScaled(hzz, hzt, na, 0.0, x);
+      for (int i = 0; i < na; ++i) {
+        g -= x[i] * gz[i];
+        dz[i] = -x[i];
+      }
+    }
+    // Curvature: secant with the last temperature on the same branch.
+    int same = -1;
+    for (int k = 0; k < num_last; ++k)
+      if (last[k].held == held) same = k;
+    if (same >= 0 && last[same].t != t) {
+      const double secant = (g - last[same].g) / (t - last[same].t);
+      if (secant > 0) s = secant;
+    }
+    if (same < 0 && num_last > 0) s = 0;  // a new branch: the old curvature does not hold
+    if (same < 0) same = num_last < 4 ? num_last++ : 3;
+    last[same] = Point{held, t, g};
+    // Done at a bound where the slope points out, or when a Newton step
+    // would gain less than set.stop (the tolerance); z to set.stop first.
+    // A Newton step that would cross a bound leads there instead (on flat
+    // profiles the bound is the minimum, however small the predicted gain).
+    const bool at_bound = (t <= lo && g >= 0) || (t >= hi && g <= 0);
+    const double dec_t = s > 0 ? g * g / s : std::numeric_limits<double>::infinity();
+    const bool crosses = s > 0 && (t - g / s < lo || t - g / s > hi);
+    if (at_bound || (!crosses && (dec_t < set.stop || (set.stop_when_slow && dec_t < set.tolerance)))) {
+      if (inner.stop > set.stop && !set.stop_when_slow) {
+        dec = 0;
+        continue;
+      }
+      if (at_bound) held |= t_bit;
+      ok = true;
+      break;
+    }
+    dec = dec_t;
+    if (used >= set.max_iterations) break;
+    if (g > 0) {
+      b = t;
+      b_known = true;
+    } else {
+      a = t;
+      a_known = true;
+    }
+    const bool bracketed = a_known && b_known;
+    double tn;
+    if (s > 0) {
+      tn = t - g / s;
+    } else if (bracketed) {
+      tn = 0.5 * (a + b);
+    } else {
+      tn = t + (g > 0 ? -kTrialStep : kTrialStep);
+    }
+    // Steps of at most max_step, doubled while the slope keeps its sign
+    // (a long descent, e.g. to a bound).
+    const bool clamped = std::abs(tn - t) > max_step;
+    tn = std::min(std::max(tn, t - max_step), t + max_step);
+    if (clamped && !bracketed) max_step *= 2;
+    if (bracketed && (!(tn > a && tn < b) || std::abs(tn - t) > 0.5 * last_step)) {
+      tn = 0.5 * (a + b);  // bisection when the step leaves the bracket or does not shrink
+    } else {
+      if (tn <= a) tn = a_known ? 0.5 * (a + t) : a;
+      if (tn >= b) tn = b_known ? 0.5 * (b + t) : b;
+    }
+    last_step = std::abs(tn - t);
+    if (tn == t) {  // the bracket has shrunk to rounding
+      ok = dec < set.tolerance;
+      break;
+    }
+    for (int i = 0; i < na; ++i) {
+      const int p = act[i];
+      // In solver coordinates, at most a factor e per temperature step.
+      const double dv = std::min(std::max(dz[i] * (tn - t) / Slope(p, ns, theta[p]), -1.0), 1.0);
+      theta[p] = std::min(std::max(ToTheta(p, ns, ToParam(p, ns, theta[p]) + dv), px.lower[p]),
+                          px.upper[p]);
+    }
+    px.ApplyTies(theta);
+    t = tn;
+  }
+  *held_io = held;
+  *iterations += used;
+  *curvature = s;
+  return ok;
+}
+
 // Residual rows of a pixel: one per channel, then one per estimated
 // parameter with a prior.
 std::size_t NumRows(const Inverter::Pixel& px) {
@@ -844,6 +1020,18 @@ std::size_t NumRows(const Inverter::Pixel& px) {
   for (std::size_t p = 0; p < px.np; ++p)
     if (px.est[p] && px.prior_sigma[p] > 0) ++n;
   return n;
+}
+
+// The 99 % quantile of chi2 (with priors) for the pixel's degrees of freedom
+// (residual rows minus estimated parameters, at least 1), by the
+// Wilson-Hilferty approximation (within 1 % for one degree of freedom).
+double FitThreshold(const Inverter::Pixel& px) {
+  int ne = 0;
+  for (std::size_t p = 0; p < px.np; ++p) ne += px.est[p] ? 1 : 0;
+  const double k = std::max(1.0, static_cast<double>(NumRows(px)) - ne);
+  const double c = 2.0 / (9.0 * k);
+  const double q = 1.0 - c + 2.3263 * std::sqrt(c);
+  return k * q * q * q;
 }
 
 // Fills the prior rows (from row nc on) of the residuals and their derivatives.
@@ -987,8 +1175,10 @@ void Inverter::ProfileGuess(const Pixel& px, std::vector<GuessCandidate>* out, i
   LmSettings set;
   set.estimate = fractions;
   set.max_iterations = 20;
-  // A profile locates minima; the full solve polishes them.
-  set.tolerance = set.stop = std::max(options_.tolerance_chi2, 0.01);
+  // A profile locates minima; the full solve polishes them. Its costs must
+  // be accurate well below the tolerance: on flat profiles (a weakly
+  // determined temperature) their errors would make spurious local minima.
+  set.tolerance = set.stop = std::max(0.3 * options_.tolerance_chi2, 3e-3);
   std::uint8_t held = 0;
   double r[kMaxRows], jac[kMaxRows * kMaxParams];
   for (std::size_t jj = 0; jj < m; ++jj) {
@@ -996,6 +1186,21 @@ void Inverter::ProfileGuess(const Pixel& px, std::vector<GuessCandidate>* out, i
     const std::size_t j = m - 1 - jj;
     slice = &slices_[j];
     th[ns] = slice->peak_temperature_K;
+    // ... extrapolated (in log) along the last two temperatures, where the
+    // fraction is off its bounds at both.
+    if (jj >= 2) {
+      const auto& p1 = ws->profile_theta[j + 1];
+      const auto& p2 = ws->profile_theta[j + 2];
+      const double w = (th[ns] - p1[ns]) / (p1[ns] - p2[ns]);
+      for (std::size_t s = 0; s < ns; ++s) {
+        if (!px.est[s] || (held >> s & 1)) continue;
+        if (!(p1[s] > px.lower[s] && p2[s] > px.lower[s] && p1[s] < px.upper[s] && p2[s] < px.upper[s]))
+          continue;
+        const double l1 = std::log(p1[s] + kLogEps), l2 = std::log(p2[s] + kLogEps);
+        const double dl = std::min(std::max(w * (l1 - l2), -1.0), 1.0);
+        th[s] = std::min(std::max(std::exp(l1 + dl) - kLogEps, px.lower[s]), px.upper[s]);
+      }
+    }
     px.ApplyTies(th);
     double cost = std::numeric_limits<double>::infinity();
     if (fractions) {
@@ -1032,6 +1237,19 @@ void Inverter::ProfileGuess(const Pixel& px, std::vector<GuessCandidate>* out, i
                           fb * (tm - a) * (tm - c) / ((b - a) * (b - c)) +
                           fc * (tm - a) * (tm - b) / ((c - a) * (c - b));
         predicted = std::max(std::min(fb, pm), 0.0);
+        // Half the parabola's second derivative: the profile's curvature for
+        // ProfileLm, unless a fraction reaches a bound between the nodes
+        // (which kinks the profile).
+        auto on_bound = [&](std::size_t node) {
+          unsigned mask = 0;
+          for (std::size_t s = 0; s < ns; ++s) {
+            const double v = ws->profile_theta[node][s];
+            if (px.est[s] && (v <= px.lower[s] || v >= px.upper[s])) mask |= 1u << s;
+          }
+          return mask;
+        };
+        if (on_bound(j - 1) == on_bound(j) && on_bound(j) == on_bound(j + 1))
+          k.curvature = fa / ((a - b) * (a - c)) + fb / ((b - a) * (b - c)) + fc / ((c - a) * (c - b));
         // Fractions interpolated (in log) towards the neighbour on tm's side.
         const std::size_t o = tm < b ? j - 1 : j + 1;
         const double w = (tm - b) / (slices_[o].peak_temperature_K - b);
@@ -1053,12 +1271,16 @@ void Inverter::ProfileGuess(const Pixel& px, std::vector<GuessCandidate>* out, i
   std::size_t jb = 0;
   for (std::size_t j = 1; j < m; ++j)
     if (f[j] < f[jb]) jb = j;
+  double best_curvature = 0;
+  for (std::size_t i = 0; i < all.size(); ++i)
+    if (all[i].cost == f[jb]) best_curvature = all[i].curvature;
   for (std::size_t j : {jb - 1, jb + 1}) {
     if (jb == 0 && j == jb - 1) continue;
     if (j >= m) continue;
     GuessCandidate k;
     std::copy(ws->profile_theta[j].begin(), ws->profile_theta[j].end(), k.th);
     k.cost = f[j];
+    k.curvature = best_curvature;
     all.push_back(k);
     ws->profile_predicted.push_back(f[jb]);
   }
@@ -1074,7 +1296,8 @@ void Inverter::ProfileGuess(const Pixel& px, std::vector<GuessCandidate>* out, i
   if (all.size() > 6) all.resize(6);
 }
 
-void Inverter::SolveTable(Pixel* px, const double* start, Workspace* ws, bool precise) const {
+void Inverter::SolveTable(Pixel* px, const double* start, Workspace* ws, bool precise,
+                          double curvature) const {
   const std::size_t nc = px->nc, ns = px->ns, np = px->np;
   const SceneTable& t = *table_;
   double theta[kMaxParams];
@@ -1086,17 +1309,21 @@ void Inverter::SolveTable(Pixel* px, const double* start, Workspace* ws, bool pr
   px->ApplyTies(theta);
   set.max_iterations = options_.max_iterations;
   set.tolerance = options_.tolerance_chi2;
-  // Precise: iterate on to 1e-8 of the tolerance, so that solutions from
-  // different starts (cold, warm) agree to many digits; in ill-conditioned
-  // curved valleys this takes many small steps. Otherwise stop once below
-  // the tolerance as soon as Gauss-Newton steps slow down or fail.
+  // Precise: iterate on to 1e-10 of the tolerance, so that solutions from
+  // different starts (cold, warm) agree to many digits (with T_peak
+  // estimated, ProfileLm gets there in a few steps; joint steps in the
+  // curved column-temperature valley would take dozens). Otherwise stop
+  // once below the tolerance (or as soon as Gauss-Newton steps slow down or
+  // fail).
   set.stop = 1e-10 * options_.tolerance_chi2;
   set.stop_when_slow = !precise;
   const std::size_t nr = NumRows(*px);
   const Pixel& cpx = *px;
   auto eval = [&](const double* th, double* r, double* jac) {
     double con[kMaxChannels];
-    t.Contrast(th, th[ns], th[ns + 1], cpx.phi, con, jac);
+    // The T_peak terms are reused while T_peak stays (ProfileLm's inner solves).
+    if (ws->peak.peak_temperature_K != th[ns]) t.MakePeakTerms(th[ns], &ws->peak);
+    t.Contrast(th, ws->peak, th[ns + 1], cpx.phi, con, jac);
     if (jac) cpx.FoldJacobian(jac, nc);
     for (std::size_t c = 0; c < nc; ++c) {
       r[c] = (con[c] - cpx.y[c]) / cpx.noise[c];
@@ -1110,7 +1337,10 @@ void Inverter::SolveTable(Pixel* px, const double* start, Workspace* ws, bool pr
   std::uint8_t held = 0;
   double r[kMaxRows], jac[kMaxRows * kMaxParams], cost = 0;
   int iters = 0;
-  const bool ok = BoundedLm(*px, set, nr, eval, theta, &held, r, jac, &cost, &iters);
+  const bool ok = px->est[ns] ? ProfileLm(*px, set, nr, eval, theta, &held, r, jac, &cost, &iters,
+                                          &curvature)
+                              : BoundedLm(*px, set, nr, eval, theta, &held, r, jac, &cost, &iters);
+  px->curvature = curvature;
   for (std::size_t p = 0; p < np; ++p) px->theta[p] = theta[p];
   px->iterations += iters;
   px->bound_mask = held;
@@ -1183,32 +1413,36 @@ void Inverter::FinishWith(Pixel* px, const double* con, const double* jac_in, Wo
   std::fill(px->psig, px->psig + np, 0.0);
   if (ne > 0) {
     const int nr = static_cast<int>(nc) + npr;
-    Eigen::MatrixXd j = Eigen::MatrixXd::Zero(nr, ne);
+    // Fixed largest sizes: no heap allocations per pixel.
+    using Matrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor, kMaxRows, kMaxParams>;
+    using Square = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor, kMaxParams, kMaxParams>;
+    using Vector = Eigen::Matrix<double, Eigen::Dynamic, 1, Eigen::ColMajor, kMaxParams, 1>;
+    Matrix j = Matrix::Zero(nr, ne);
     int row = static_cast<int>(nc);
     for (int e = 0; e < ne; ++e) {
       const int p = est[e];
       for (std::size_t c = 0; c < nc; ++c) j(c, e) = jac[c * np + p] / px->noise[c];
       if (px->prior_sigma[p] > 0) j(row++, e) = 1.0 / px->prior_sigma[p];
     }
-    Eigen::VectorXd d(ne);
+    Vector d(ne);
     for (int e = 0; e < ne; ++e) {
       d[e] = j.col(e).norm();
       if (!(d[e] > 0) || !std::isfinite(d[e])) d[e] = 1.0;
       j.col(e) /= d[e];
     }
-    Eigen::JacobiSVD<Eigen::MatrixXd> svd(j, Eigen::ComputeThinV);
-    const Eigen::VectorXd sv = svd.singularValues();
+    Eigen::JacobiSVD<Matrix> svd(j, Eigen::ComputeThinV);
+    const Vector sv = svd.singularValues();
     const double smax = sv.size() ? sv[0] : 0.0;
     const double smin = (sv.size() == ne) ? sv[ne - 1] : 0.0;
     px->cond = (smin > 0 && smax / smin < kConditionCap) ? smax / smin : kConditionCap;
     const double floor = std::max(smax, 1e-300) * 1e-8;
-    Eigen::VectorXd inv2 = Eigen::VectorXd::Zero(ne);
+    Vector inv2 = Vector::Zero(ne);
     for (int k = 0; k < ne; ++k) {
       const double s = k < sv.size() ? std::max(sv[k], floor) : floor;
       inv2[k] = 1.0 / (s * s);
     }
-    const Eigen::MatrixXd& v = svd.matrixV();
-    const Eigen::MatrixXd covn = v * inv2.asDiagonal() * v.transpose();
+    const Square& v = svd.matrixV();
+    const Square covn = v * inv2.asDiagonal() * v.transpose();
     px->log_det = 0;
     for (int k = 0; k < ne; ++k) px->log_det += std::log(inv2[k]) - 2.0 * std::log(d[k]);
     for (int a = 0; a < ne; ++a)
@@ -1528,16 +1762,18 @@ void Inverter::SolveFull(Pixel* px, const double* start, Workspace* ws) const {
   FinishWith(px, con, jac, ws);
 }
 
+bool Inverter::Distinct(const Pixel& a, const Pixel& b) {
+  for (std::size_t p = 0; p < a.np; ++p) {
+    if (!a.est[p]) continue;
+    const double s = std::sqrt(a.psig[p] * a.psig[p] + b.psig[p] * b.psig[p]);
+    if (std::abs(a.theta[p] - b.theta[p]) > 0.5 * s) return true;
+  }
+  return false;
+}
+
 void Inverter::MergeModes(Pixel* a, const Pixel& b) const {
   const std::size_t ns = a->ns, np = a->np;
-  // The same minimum reached twice?
-  bool distinct = false;
-  for (std::size_t p = 0; p < np; ++p) {
-    if (!a->est[p]) continue;
-    const double s = std::sqrt(a->psig[p] * a->psig[p] + b.psig[p] * b.psig[p]);
-    if (std::abs(a->theta[p] - b.theta[p]) > 0.5 * s) distinct = true;
-  }
-  if (!distinct) return;
+  if (!Distinct(*a, b)) return;  // the same minimum reached twice
   const double da = a->chi2 + a->prior_chi2, db = b.chi2 + b.prior_chi2;
   if (db - da < 4.0) a->flags |= kFlagAmbiguous;
   // The two minima weighted by their likelihoods exp(-chi2 / 2).
@@ -1671,7 +1907,7 @@ void Inverter::InvertRow(const PixelBatch& b, const InversionOutput& out, std::s
           std::vector<Pixel>& sol = ws->solutions;
           sol.assign(starts, base);
           for (std::size_t k = 0; k < starts; ++k) {
-            SolveTable(&sol[k], ws->guesses[k].th, ws, starts == 1);
+            SolveTable(&sol[k], ws->guesses[k].th, ws, starts == 1, ws->guesses[k].curvature);
             total += sol[k].iterations;
           }
           std::size_t best = 0;
@@ -1680,11 +1916,25 @@ void Inverter::InvertRow(const PixelBatch& b, const InversionOutput& out, std::s
                                                            sol[best].chi2 + sol[best].prior_chi2))
               best = k;
           if (starts > 1 && sol[best].solved()) {
-            // The best minimum, converged to full precision.
-            Pixel precise = base;
-            SolveTable(&precise, sol[best].theta, ws, true);
-            total += precise.iterations;
-            if (precise.solved()) sol[best] = precise;
+            // The best minimum converged to full precision, and so is any
+            // distinct one within the tolerance of it (which of the two fits
+            // best is decided only at full precision).
+            const double best_cost = sol[best].chi2 + sol[best].prior_chi2;
+            std::size_t chosen = best;
+            for (std::size_t k = 0; k < starts; ++k) {
+              if (!sol[k].solved()) continue;
+              if (k != best && !(sol[k].chi2 + sol[k].prior_chi2 < best_cost + options_.tolerance_chi2 &&
+                                 Distinct(sol[k], sol[best])))
+                continue;
+              Pixel precise = base;
+              SolveTable(&precise, sol[k].theta, ws, true, sol[k].curvature);
+              total += precise.iterations;
+              if (!precise.solved()) continue;
+              sol[k] = precise;  // (before the comparison: k may be the chosen one)
+              if (precise.chi2 + precise.prior_chi2 < sol[chosen].chi2 + sol[chosen].prior_chi2)
+                chosen = k;
+            }
+            best = chosen;
           }
           *out = sol[best];
           if (out->solved()) {
@@ -1698,9 +1948,10 @@ void Inverter::InvertRow(const PixelBatch& b, const InversionOutput& out, std::s
           out->iterations = total;
         };
         if (warm) {
-          SolveTable(&px, start, ws);
-          // A warm start that fails or fits badly is retried cold.
-          if (!px.solved() || px.chi2 > 9.0 * nc) {
+          SolveTable(&px, start, ws, true, ws->last_curvature);
+          // A warm start that fails, or whose fit is improbable (it may have
+          // reached a local minimum), is retried cold.
+          if (!px.solved() || px.chi2 + px.prior_chi2 > FitThreshold(px)) {
             Pixel alt = fresh;
             cold(&alt);
             alt.iterations += px.iterations;
@@ -1721,6 +1972,7 @@ void Inverter::InvertRow(const PixelBatch& b, const InversionOutput& out, std::s
       WritePixel(px, out, idx);
       ws->last_ok = px.solved();
       std::copy(px.theta, px.theta + np, ws->last_theta);
+      ws->last_curvature = px.curvature;
     }
   }
 }

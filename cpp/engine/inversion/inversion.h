@@ -33,6 +33,10 @@
 // projection), and polish every local minimum of the profile with all
 // parameters free; the best is reported, and a distinct second minimum within
 // chi2 + 4 sets kFlagAmbiguous and widens the uncertainties (see MergeModes).
+// Every solve with T_peak estimated (polish or warm start) is itself a
+// variable projection: the other parameters by Levenberg-Marquardt at fixed
+// T_peak, the profile minimised in T_peak by safeguarded Newton steps with its
+// exact slope (joint steps crawl along the curved column-temperature valley).
 // With one
 // channel and one unknown fraction the problem is a root: a bracketed
 // Newton iteration on a per-(T_peak, sigma) curve of the table. The general
@@ -255,12 +259,17 @@ class Inverter {
   bool PreparePixel(const PixelBatch& batch, std::size_t frame, std::size_t pixel,
                     Pixel* px) const;
   // precise: converge far below the tolerance (see LmSettings in the .cc).
-  void SolveTable(Pixel* px, const double* start, Workspace* ws, bool precise = true) const;
+  // With T_peak estimated the solve is a variable projection over T_peak
+  // (ProfileLm in the .cc); curvature is a first estimate of the chi2
+  // profile's curvature there (d^2 chi2 / dT_peak^2 / 2 [1/K^2]; 0 = unknown).
+  void SolveTable(Pixel* px, const double* start, Workspace* ws, bool precise = true,
+                  double curvature = 0.0) const;
   void SolveNewton(Pixel* px, Workspace* ws) const;
   void SolveFull(Pixel* px, const double* start, Workspace* ws) const;
   struct GuessCandidate {
     double cost;              // chi2 (with priors) of the candidate
     double th[8];             // parameters (species + 2 <= 8)
+    double curvature = 0;     // of the chi2 profile over T_peak there (see SolveTable; 0 = unknown)
   };
   // Coarse lookup: per candidate peak temperature, the optically thin least
   // squares for the fractions, refined by a few iterations; sorted by cost.
@@ -272,6 +281,9 @@ class Inverter {
   // Optically thin non-negative least squares for the free fractions at
   // temperature tc (theta's other entries kept).
   void ThinGuess(const Pixel& px, double tc, double* theta) const;
+  // Whether two solutions of one pixel are distinct minima (some estimated
+  // parameter differs by more than half their combined uncertainty).
+  static bool Distinct(const Pixel& a, const Pixel& b);
   // Combines two solutions of one pixel (two minima).
   void MergeModes(Pixel* best, const Pixel& other) const;
   void FullModelGuess(const Pixel& px, double* theta) const;

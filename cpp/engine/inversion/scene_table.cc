@@ -546,56 +546,104 @@ void SceneTable::Phi(const Table& t, double temp, double* phi, double* dphi) con
   }
 }
 
-void SceneTable::Accumulate(const Table& t, const SplineWeights& wu, const SplineWeights& wx,
-                            const SplineWeights& wt, double tp, const double* phi_bg, double* g,
-                            double* g_lu, double* g_x, double* g_t) const {
-  const int r1 = t.rank + 1;
-  const int nxc = t.nx > 1 ? nx_ + 2 : 1;
-  const int nuc = nu_ + 2;
-  double dphi[kMaxRank], dphi_dt[kMaxRank];
-  Phi(t, tp, dphi, dphi_dt);
-  const double* pb = phi_bg + t.phi_offset;
-  for (int r = 0; r < t.rank; ++r) dphi[r] -= pb[r];
-  // g = Etilde + sum_r (phi_r(T_peak) - phi_r(T_bg)) A_r/u, and the sum
-  // sum_r dphi_r/dT A_r/u for the T_peak derivative.
+namespace {
+
+// The tensor-product sums of Accumulate over the (up to) 4 x 4 x 4
+// coefficient vectors of one table around a point: with v = c_0 + sum_r
+// dphi_r c_r and w = sum_r dphi_dt_r c_r (WithT),
+//   out = {sum wt wx wu v, sum wt wx dwu v, sum wt dwx wu v, sum dwt wx wu v,
+//          sum wt wx wu w}.
+// R1 (the vectors' length, rank + 1) is a compile-time constant for the
+// common ranks, so that the dot products unroll; 0 = r1 at run time.
+template <int R1, bool WithT>
+void SumCell(const double* base, std::size_t a_stride, std::size_t b_stride, int r1_runtime,
+             const SplineWeights& wu, const SplineWeights& wx, const SplineWeights& wt,
+             const double* dphi, const double* dphi_dt, double* out) {
+  const int r1 = R1 > 0 ? R1 : r1_runtime;
   double v0 = 0, vu = 0, vx = 0, vt = 0, w0 = 0;
   for (int a = 0; a < wt.count; ++a) {
     double a0 = 0, au = 0, ax = 0, aw = 0;
     for (int b = 0; b < wx.count; ++b) {
+      const double* row = base + a * a_stride + b * b_stride;
       double b0 = 0, bu = 0, bw = 0;
-      const double* row =
-          &t.coef[((static_cast<std::size_t>(wt.first + a) * nxc + wx.first + b) * nuc + wu.first) * r1];
       for (int k = 0; k < wu.count; ++k) {
         const double* cv = row + k * r1;
         double v = cv[0], w = 0;
-        if (g_t) {
-          for (int r = 0; r < t.rank; ++r) {
-            v += dphi[r] * cv[1 + r];
-            w += dphi_dt[r] * cv[1 + r];
-          }
-        } else {
-          for (int r = 0; r < t.rank; ++r) v += dphi[r] * cv[1 + r];
+        for (int r = 1; r < r1; ++r) {
+          v += dphi[r - 1] * cv[r];
+          if (WithT) w += dphi_dt[r - 1] * cv[r];
         }
         b0 += wu.w[k] * v;
         bu += wu.dw[k] * v;
-        bw += wu.w[k] * w;
+        if (WithT) bw += wu.w[k] * w;
       }
       a0 += wx.w[b] * b0;
       au += wx.w[b] * bu;
       ax += wx.dw[b] * b0;
-      aw += wx.w[b] * bw;
+      if (WithT) aw += wx.w[b] * bw;
     }
     v0 += wt.w[a] * a0;
     vu += wt.w[a] * au;
     vx += wt.w[a] * ax;
     vt += wt.dw[a] * a0;
-    w0 += wt.w[a] * aw;
+    if (WithT) w0 += wt.w[a] * aw;
   }
-  *g = v0;
+  out[0] = v0;
+  out[1] = vu;
+  out[2] = vx;
+  out[3] = vt;
+  out[4] = w0;
+}
+
+template <bool WithT>
+void SumCellAnyRank(const double* base, std::size_t a_stride, std::size_t b_stride, int r1,
+                    const SplineWeights& wu, const SplineWeights& wx, const SplineWeights& wt,
+                    const double* dphi, const double* dphi_dt, double* out) {
+  switch (r1) {
+#define QOGI_SUM_CELL_CASE(n) \
+  case n: return SumCell<n, WithT>(base, a_stride, b_stride, n, wu, wx, wt, dphi, dphi_dt, out);
+    QOGI_SUM_CELL_CASE(2) QOGI_SUM_CELL_CASE(3) QOGI_SUM_CELL_CASE(4) QOGI_SUM_CELL_CASE(5)
+    QOGI_SUM_CELL_CASE(6) QOGI_SUM_CELL_CASE(7) QOGI_SUM_CELL_CASE(8) QOGI_SUM_CELL_CASE(9)
+    QOGI_SUM_CELL_CASE(10) QOGI_SUM_CELL_CASE(11) QOGI_SUM_CELL_CASE(12)
+#undef QOGI_SUM_CELL_CASE
+    default: return SumCell<0, WithT>(base, a_stride, b_stride, r1, wu, wx, wt, dphi, dphi_dt, out);
+  }
+}
+
+}  // namespace
+
+void SceneTable::Accumulate(const Table& t, const SplineWeights& wu, const SplineWeights& wx,
+                            const SplineWeights& wt, double tp, const double* phi_bg, double* g,
+                            double* g_lu, double* g_x, double* g_t, const double* phi_tp,
+                            const double* dphi_tp) const {
+  const int r1 = t.rank + 1;
+  const int nxc = t.nx > 1 ? nx_ + 2 : 1;
+  const int nuc = nu_ + 2;
+  double dphi[kMaxRank], dphi_dt[kMaxRank];
+  if (phi_tp) {
+    std::copy(phi_tp, phi_tp + t.rank, dphi);
+    std::copy(dphi_tp, dphi_tp + t.rank, dphi_dt);
+  } else {
+    Phi(t, tp, dphi, dphi_dt);
+  }
+  const double* pb = phi_bg + t.phi_offset;
+  for (int r = 0; r < t.rank; ++r) dphi[r] -= pb[r];
+  // g = Etilde + sum_r (phi_r(T_peak) - phi_r(T_bg)) A_r/u, and the sum
+  // sum_r dphi_r/dT A_r/u for the T_peak derivative.
+  const std::size_t b_stride = static_cast<std::size_t>(nuc) * r1;
+  const std::size_t a_stride = nxc * b_stride;
+  const double* base =
+      &t.coef[((static_cast<std::size_t>(wt.first) * nxc + wx.first) * nuc + wu.first) * r1];
+  double sums[5];
+  if (g_t)
+    SumCellAnyRank<true>(base, a_stride, b_stride, r1, wu, wx, wt, dphi, dphi_dt, sums);
+  else
+    SumCellAnyRank<false>(base, a_stride, b_stride, r1, wu, wx, wt, dphi, dphi_dt, sums);
+  *g = sums[0];
   if (!g_t) return;
-  *g_lu = vu / h_lu_;
-  *g_x = t.nx > 1 ? vx / h_x_ : 0.0;
-  *g_t = vt / h_t_ + w0;
+  *g_lu = sums[1] / h_lu_;
+  *g_x = t.nx > 1 ? sums[2] / h_x_ : 0.0;
+  *g_t = sums[3] / h_t_ + sums[4];
 }
 
 void SceneTable::SpeciesContrast(std::size_t c, std::size_t s, double u, double x, double tp,
@@ -692,6 +740,9 @@ SceneTable::Slice SceneTable::MakeSlice(double tp) const {
 
 void SceneTable::SliceContrast(const Slice& sl, const double* x, double sigma, const double* phi,
                                double* contrast, double* d_dx) const {
+  SplineWeights one;  // the slice has no T_peak axis
+  one.count = 1;
+  one.w[0] = 1.0;
   for (std::size_t c = 0; c < nc_; ++c) contrast[c] = 0;
   if (d_dx)
     for (std::size_t k = 0; k < nc_ * ns_; ++k) d_dx[k] = 0;
@@ -718,21 +769,12 @@ void SceneTable::SliceContrast(const Slice& sl, const double* x, double sigma, c
       const double* pt = &sl.phi[static_cast<std::size_t>(i) * kMaxRank];
       const double* pb = phi + t.phi_offset;
       for (int r = 0; r < t.rank; ++r) dphi[r] = pt[r] - pb[r];
-      double g = 0, g_u = 0, g_x = 0;
-      for (int b = 0; b < wx.count; ++b) {
-        const double* row = &sl.coef[sl.offset[i] + (static_cast<std::size_t>(wx.first + b) * nuc + wu.first) * r1];
-        double b0 = 0, bu = 0;
-        for (int k = 0; k < wu.count; ++k) {
-          const double* cv = row + k * r1;
-          double v = cv[0];
-          for (int r = 0; r < t.rank; ++r) v += dphi[r] * cv[1 + r];
-          b0 += wu.w[k] * v;
-          bu += wu.dw[k] * v;
-        }
-        g += wx.w[b] * b0;
-        g_u += wx.w[b] * bu;
-        g_x += wx.dw[b] * b0;
-      }
+      const double* base =
+          &sl.coef[sl.offset[i] + (static_cast<std::size_t>(wx.first) * nuc + wu.first) * r1];
+      double sums[5];
+      SumCellAnyRank<false>(base, 0, static_cast<std::size_t>(nuc) * r1, r1, wu, wx, one, dphi,
+                            nullptr, sums);
+      const double g = sums[0], g_u = sums[1], g_x = sums[2];
       contrast[c] += u * g;
       if (d_dx) {
         const double d_du = thin ? g : g + g_u / h_lu_;
@@ -744,11 +786,30 @@ void SceneTable::SliceContrast(const Slice& sl, const double* x, double sigma, c
 
 void SceneTable::Contrast(const double* x, double tp, double sigma, const double* phi,
                           double* contrast, double* jac) const {
+  ContrastAt(x, axis_t_.Weights((tp - t_lo_) / h_t_), tp, nullptr, sigma, phi, contrast, jac);
+}
+
+void SceneTable::MakePeakTerms(double tp, PeakTerms* terms) const {
+  terms->peak_temperature_K = tp;
+  terms->wt = axis_t_.Weights((tp - t_lo_) / h_t_);
+  terms->phi.resize(tables_.size() * kMaxRank);
+  terms->dphi.resize(tables_.size() * kMaxRank);
+  for (std::size_t i = 0; i < tables_.size(); ++i)
+    Phi(tables_[i], tp, &terms->phi[i * kMaxRank], &terms->dphi[i * kMaxRank]);
+}
+
+void SceneTable::Contrast(const double* x, const PeakTerms& terms, double sigma, const double* phi,
+                          double* contrast, double* jac) const {
+  ContrastAt(x, terms.wt, terms.peak_temperature_K, &terms, sigma, phi, contrast, jac);
+}
+
+void SceneTable::ContrastAt(const double* x, const SplineWeights& wt, double tp,
+                            const PeakTerms* terms, double sigma, const double* phi,
+                            double* contrast, double* jac) const {
   const std::size_t np = ns_ + 2;
   for (std::size_t c = 0; c < nc_; ++c) contrast[c] = 0;
   if (jac)
     for (std::size_t k = 0; k < nc_ * np; ++k) jac[k] = 0;
-  const SplineWeights wt = axis_t_.Weights((tp - t_lo_) / h_t_);
   const double u_lo = std::exp(lu_lo_);
   for (std::size_t s = 0; s < ns_; ++s) {
     const double u = x[s] * sigma;
@@ -767,7 +828,9 @@ void SceneTable::Contrast(const double* x, double tp, double sigma, const double
         wx_ready = true;
       }
       double g, g_lu, g_x, g_t;
-      Accumulate(t, wu, wx, wt, tp, phi, &g, &g_lu, &g_x, jac ? &g_t : nullptr);
+      const double* pt = terms ? &terms->phi[static_cast<std::size_t>(i) * kMaxRank] : nullptr;
+      const double* dpt = terms ? &terms->dphi[static_cast<std::size_t>(i) * kMaxRank] : nullptr;
+      Accumulate(t, wu, wx, wt, tp, phi, &g, &g_lu, &g_x, jac ? &g_t : nullptr, pt, dpt);
       contrast[c] += u * g;
       if (jac) {
         const double d_du = thin ? g : g + g_lu;

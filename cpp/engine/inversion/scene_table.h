@@ -128,6 +128,19 @@ class SceneTable {
   void Contrast(const double* x, double peak_temperature_K, double sigma_m, const double* phi,
                 double* contrast, double* jacobian) const;
 
+  // What Contrast() computes from T_peak alone (its spline weights and every
+  // table's phi_r(T_peak) with d/dT): a solver that varies the other
+  // parameters at a fixed temperature computes them once.
+  struct PeakTerms {
+    double peak_temperature_K = -1;  // [K]; -1 = not made yet
+    SplineWeights wt;
+    std::vector<double> phi, dphi;  // per table [table * max rank + r]
+  };
+  void MakePeakTerms(double peak_temperature_K, PeakTerms* terms) const;
+  // Contrast() at terms' temperature.
+  void Contrast(const double* x, const PeakTerms& terms, double sigma_m, const double* phi,
+                double* contrast, double* jacobian) const;
+
   // The table at one fixed peak temperature: every (channel, species)
   // table contracted over the T_peak axis, and phi_r(T_peak). It does not
   // depend on the pixel, so an inversion builds slices once (e.g. at the
@@ -195,9 +208,14 @@ class SceneTable {
   void Phi(const Table& t, double temperature_K, double* phi, double* dphi) const;
   void BuildTable(Table* t, const std::vector<std::size_t>& bins, double t_peak, int it,
                   std::vector<double>* values) const;
+  // phi_tp, dphi_tp: phi_r(T_peak) and d/dT of table t (computed when null).
   void Accumulate(const Table& t, const SplineWeights& wu, const SplineWeights& wx,
                   const SplineWeights& wt, double peak_temperature_K, const double* phi,
-                  double* g, double* g_lu, double* g_x, double* g_t) const;
+                  double* g, double* g_lu, double* g_x, double* g_t,
+                  const double* phi_tp = nullptr, const double* dphi_tp = nullptr) const;
+  void ContrastAt(const double* x, const SplineWeights& wt, double peak_temperature_K,
+                  const PeakTerms* terms, double sigma_m, const double* phi, double* contrast,
+                  double* jacobian) const;
 
   std::shared_ptr<const BinnedModel> model_;
   SceneTableOptions options_;
