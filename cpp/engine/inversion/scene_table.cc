@@ -738,16 +738,9 @@ SceneTable::Slice SceneTable::MakeSlice(double tp) const {
   return sl;
 }
 
-void SceneTable::SliceContrast(const Slice& sl, const double* x, double sigma, const double* phi,
-                               double* contrast, double* d_dx) const {
-  SplineWeights one;  // the slice has no T_peak axis
-  one.count = 1;
-  one.w[0] = 1.0;
-  for (std::size_t c = 0; c < nc_; ++c) contrast[c] = 0;
-  if (d_dx)
-    for (std::size_t k = 0; k < nc_ * ns_; ++k) d_dx[k] = 0;
+template <class F>
+void SceneTable::ForEachTable(const double* x, double sigma, F&& f) const {
   const double u_lo = std::exp(lu_lo_);
-  const int nuc = nu_ + 2;
   for (std::size_t s = 0; s < ns_; ++s) {
     const double u = x[s] * sigma;
     const bool thin = !(u > u_lo);
@@ -764,24 +757,40 @@ void SceneTable::SliceContrast(const Slice& sl, const double* x, double sigma, c
         wx = t.nx > 1 ? axis_x_.Weights(x[s] / h_x_) : axis_one_.Weights(0);
         wx_ready = true;
       }
-      const int r1 = t.rank + 1;
-      double dphi[kMaxRank];
-      const double* pt = &sl.phi[static_cast<std::size_t>(i) * kMaxRank];
-      const double* pb = phi + t.phi_offset;
-      for (int r = 0; r < t.rank; ++r) dphi[r] = pt[r] - pb[r];
-      const double* base =
-          &sl.coef[sl.offset[i] + (static_cast<std::size_t>(wx.first) * nuc + wu.first) * r1];
-      double sums[5];
-      SumCellAnyRank<false>(base, 0, static_cast<std::size_t>(nuc) * r1, r1, wu, wx, one, dphi,
-                            nullptr, sums);
-      const double g = sums[0], g_u = sums[1], g_x = sums[2];
-      contrast[c] += u * g;
-      if (d_dx) {
-        const double d_du = thin ? g : g + g_u / h_lu_;
-        d_dx[c * ns_ + s] += d_du * sigma + (t.nx > 1 ? u * g_x / h_x_ : 0.0);
-      }
+      f(s, c, static_cast<std::size_t>(i), t, u, thin, wu, wx);
     }
   }
+}
+
+void SceneTable::SliceContrast(const Slice& sl, const double* x, double sigma, const double* phi,
+                               double* contrast, double* d_dx) const {
+  SplineWeights one;  // the slice has no T_peak axis
+  one.count = 1;
+  one.w[0] = 1.0;
+  for (std::size_t c = 0; c < nc_; ++c) contrast[c] = 0;
+  if (d_dx)
+    for (std::size_t k = 0; k < nc_ * ns_; ++k) d_dx[k] = 0;
+  const int nuc = nu_ + 2;
+  ForEachTable(x, sigma, [&](std::size_t s, std::size_t c, std::size_t i, const Table& t,
+                             double u, bool thin, const SplineWeights& wu,
+                             const SplineWeights& wx) {
+    const int r1 = t.rank + 1;
+    double dphi[kMaxRank];
+    const double* pt = &sl.phi[i * kMaxRank];
+    const double* pb = phi + t.phi_offset;
+    for (int r = 0; r < t.rank; ++r) dphi[r] = pt[r] - pb[r];
+    const double* base =
+        &sl.coef[sl.offset[i] + (static_cast<std::size_t>(wx.first) * nuc + wu.first) * r1];
+    double sums[5];
+    SumCellAnyRank<false>(base, 0, static_cast<std::size_t>(nuc) * r1, r1, wu, wx, one, dphi,
+                          nullptr, sums);
+    const double g = sums[0], g_u = sums[1], g_x = sums[2];
+    contrast[c] += u * g;
+    if (d_dx) {
+      const double d_du = thin ? g : g + g_u / h_lu_;
+      d_dx[c * ns_ + s] += d_du * sigma + (t.nx > 1 ? u * g_x / h_x_ : 0.0);
+    }
+  });
 }
 
 void SceneTable::Contrast(const double* x, double tp, double sigma, const double* phi,
@@ -810,37 +819,22 @@ void SceneTable::ContrastAt(const double* x, const SplineWeights& wt, double tp,
   for (std::size_t c = 0; c < nc_; ++c) contrast[c] = 0;
   if (jac)
     for (std::size_t k = 0; k < nc_ * np; ++k) jac[k] = 0;
-  const double u_lo = std::exp(lu_lo_);
-  for (std::size_t s = 0; s < ns_; ++s) {
-    const double u = x[s] * sigma;
-    const bool thin = !(u > u_lo);
-    const double lu = thin ? lu_lo_ : std::log(u);
-    const SplineWeights wu =
-        axis_u_.Weights((lu - lu_lo_) / h_lu_, Extrapolation::kHold, Extrapolation::kLinear);
-    SplineWeights wx;
-    bool wx_ready = false;
-    for (std::size_t c = 0; c < nc_; ++c) {
-      const int i = index_[c * ns_ + s];
-      if (i < 0) continue;
-      const Table& t = tables_[i];
-      if (!wx_ready) {
-        wx = t.nx > 1 ? axis_x_.Weights(x[s] / h_x_) : axis_one_.Weights(0);
-        wx_ready = true;
-      }
-      double g, g_lu, g_x, g_t;
-      const double* pt = terms ? &terms->phi[static_cast<std::size_t>(i) * kMaxRank] : nullptr;
-      const double* dpt = terms ? &terms->dphi[static_cast<std::size_t>(i) * kMaxRank] : nullptr;
-      Accumulate(t, wu, wx, wt, tp, phi, &g, &g_lu, &g_x, jac ? &g_t : nullptr, pt, dpt);
-      contrast[c] += u * g;
-      if (jac) {
-        const double d_du = thin ? g : g + g_lu;
-        double* row = jac + c * np;
-        row[s] += d_du * sigma + u * g_x;
-        row[ns_] += u * g_t;
-        row[ns_ + 1] += d_du * x[s];
-      }
+  ForEachTable(x, sigma, [&](std::size_t s, std::size_t c, std::size_t i, const Table& t,
+                             double u, bool thin, const SplineWeights& wu,
+                             const SplineWeights& wx) {
+    double g, g_lu, g_x, g_t;
+    const double* pt = terms ? &terms->phi[i * kMaxRank] : nullptr;
+    const double* dpt = terms ? &terms->dphi[i * kMaxRank] : nullptr;
+    Accumulate(t, wu, wx, wt, tp, phi, &g, &g_lu, &g_x, jac ? &g_t : nullptr, pt, dpt);
+    contrast[c] += u * g;
+    if (jac) {
+      const double d_du = thin ? g : g + g_lu;
+      double* row = jac + c * np;
+      row[s] += d_du * sigma + u * g_x;
+      row[ns_] += u * g_t;
+      row[ns_ + 1] += d_du * x[s];
     }
-  }
+  });
 }
 
 TableErrorReport MeasureTableError(const SceneTable& table, int num_samples, unsigned seed,

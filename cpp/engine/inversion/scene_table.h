@@ -213,6 +213,12 @@ class SceneTable {
                   const SplineWeights& wt, double peak_temperature_K, const double* phi,
                   double* g, double* g_lu, double* g_x, double* g_t,
                   const double* phi_tp = nullptr, const double* dphi_tp = nullptr) const;
+  // Calls f(s, c, i, table, u, thin, wu, wx) for every (species, channel)
+  // table of a plume with fractions x and depth sigma: u = x_s sigma, thin
+  // when u is below the table's range, wu and wx the spline weights in ln u
+  // and x_s (the loop shared by Contrast and SliceContrast).
+  template <class F>
+  void ForEachTable(const double* x, double sigma, F&& f) const;
   void ContrastAt(const double* x, const SplineWeights& wt, double peak_temperature_K,
                   const PeakTerms* terms, double sigma_m, const double* phi, double* contrast,
                   double* jacobian) const;
