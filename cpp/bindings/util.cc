@@ -3,6 +3,7 @@
 #include <stdexcept>
 
 #include "engine/util/check.h"
+#include "engine/util/lookup.h"
 
 namespace qogi {
 
@@ -41,6 +42,36 @@ void BindUtil(py::module_& m) {
   });
   m.def("resolve_threads", &ResolveThreads, py::arg("requested") = 0,
         "Number of worker threads used for `requested` (0 = all cores).");
+  m.def(
+      "lookup_lines",
+      [](py::array_t<float, py::array::c_style> stack, bool lines_are_rows,
+         const py::array_t<double, py::array::c_style | py::array::forcecast>& x,
+         const py::array_t<double, py::array::c_style | py::array::forcecast>& y,
+         const py::array_t<int, py::array::c_style | py::array::forcecast>& node_of_line,
+         const py::array_t<double, py::array::c_style | py::array::forcecast>& weight_of_line,
+         int num_threads) {
+        CheckNdim(stack, 3, "stack");
+        CheckNdim(x, 2, "x");
+        CheckNdim(y, 2, "y");
+        if (x.shape(0) != y.shape(0) || x.shape(1) != y.shape(1))
+          throw std::invalid_argument("x and y must have the same shape (tables, nodes)");
+        const std::size_t t = stack.shape(0), h = stack.shape(1), w = stack.shape(2);
+        const std::size_t lines = lines_are_rows ? h : w;
+        if (static_cast<std::size_t>(node_of_line.size()) != lines ||
+            static_cast<std::size_t>(weight_of_line.size()) != lines)
+          throw std::invalid_argument("node_of_line and weight_of_line need one value per line (" +
+                                      std::to_string(lines) + ")");
+        float* data = stack.mutable_data();
+        RunControl control = MakeRunControl();
+        py::gil_scoped_release release;
+        LookupLines(data, t, h, w, lines_are_rows, x.data(), y.data(), x.shape(0), x.shape(1),
+                    node_of_line.data(), weight_of_line.data(), num_threads, &control);
+      },
+      py::arg("stack"), py::arg("lines_are_rows"), py::arg("x"), py::arg("y"),
+      py::arg("node_of_line"), py::arg("weight_of_line"), py::arg("num_threads") = 0,
+      "In place on a C-contiguous float32 (T, H, W) stack: each value v becomes sign(v) "
+      "((1 - w) f_j(|v|) + w f_{j+1}(|v|)) with j, w those of its line (row or column) and "
+      "f_j numpy.interp through (x[j], y[j]) (engine/util/lookup.h).");
 }
 
 }  // namespace qogi

@@ -648,13 +648,21 @@ class _InvertedColumns:
         u = np.interp(np.log(np.clip(widths, grid[0], grid[-1])), np.log(grid),
                       np.arange(grid.size))
         j0 = np.minimum(np.floor(u).astype(int), grid.size - 2)
-        w = (u - j0)[:, None]
         self.line_depths_m = widths
-        for j in np.unique(j0):
-            rows = np.flatnonzero(j0 == j)
-            block = view[:, rows, :]
-            view[:, rows, :] = ((1.0 - w[rows]) * self._lookup(block, nodes[j]) +
-                                w[rows] * self._lookup(block, nodes[j + 1]))
+        from . import _engine
+
+        # Every value through its line's two depth lookups (the engine's
+        # LookupLines: numpy.interp per node table, blended per line), on a
+        # contiguous copy when the field is a view.
+        m = max(len(c) for c, _ in nodes)
+        xs = np.array([np.pad(c, (0, m - len(c)), mode="edge") for c, _ in nodes])
+        ys = np.array([np.pad(k, (0, m - len(k)), mode="edge") for _, k in nodes])
+        work = contrast if (contrast.flags.c_contiguous and contrast.dtype == np.float32) \
+            else np.ascontiguousarray(contrast, dtype=np.float32)
+        _engine.lookup_lines(work, bool(self.horizontal), xs, ys, j0.astype(np.int32),
+                             np.clip(u - j0, 0.0, 1.0), num_threads=self.cfg.num_threads)
+        if work is not contrast:
+            contrast[...] = work
         return contrast
 
     def proxy_field(self, frame: np.ndarray) -> np.ndarray:
