@@ -826,7 +826,7 @@ class _InvertedColumns:
                                  peak_temperature_K=t, progress=stage(a, b, "columns"))
             return res, sum(res.peak_fraction[sp] for sp in cfg.species)
 
-        def solve(kk, idx, a, b, passes=7):
+        def solve_passes(kk, idx, a, b, passes=7):
             span = (b - a) / passes
             out, g0 = g(np.zeros(idx.size), kk, idx, a, a + span)
             out = _owned(out)
@@ -867,12 +867,14 @@ class _InvertedColumns:
         # inverter: a coarse scan and Gauss-Newton in ln x); otherwise the
         # fixed-point passes above.
         comp = cfg.composition or ({cfg.species[0]: 1.0} if len(cfg.species) == 1 else None)
-        if comp is not None:
-            def solve(kk, idx, a, b):  # noqa: F811 (the direct solve replaces the passes)
-                return inv.invert_on_mixing_line(
-                    self.model, self.table, kk, r2[:, idx], b2[:, idx], s2[idx],
-                    netd_K=self._inv_kw["netd_K"], composition=comp,
-                    num_threads=cfg.num_threads, progress=stage(a, b, "columns"))
+
+        def solve_line(kk, idx, a, b):
+            return inv.invert_on_mixing_line(
+                self.model, self.table, kk, r2[:, idx], b2[:, idx], s2[idx],
+                netd_K=self._inv_kw["netd_K"], composition=comp,
+                num_threads=cfg.num_threads, progress=stage(a, b, "columns"))
+
+        solve = solve_line if comp is not None else solve_passes
 
         if cand.size >= 5:
             step = 10.0

@@ -715,7 +715,7 @@ class TransportFlux:
 
 
 def _coarse_displacements(I: np.ndarray, K: np.ndarray, k_end: int,
-                          half_window: int = 8, subpixel: bool = False) -> np.ndarray:
+                          half_window: int = 8) -> np.ndarray:
     """Whole-pixel start values of the level displacements: per level k, the
     shift d (0 <= d, k + d <= k_end) that maximises the correlation over time
     and the lines k - half_window ... k + half_window of the line sums
@@ -728,7 +728,6 @@ def _coarse_displacements(I: np.ndarray, K: np.ndarray, k_end: int,
     best = np.full(len(K), -np.inf)
     d0 = np.ones(len(K))
     box = np.ones(2 * half_window + 1)
-    curve = []
 
     def window(v):  # sum over lines j in [k - hw, k + hw], per line k
         return np.convolve(v, box, mode="same")
@@ -744,22 +743,9 @@ def _coarse_displacements(I: np.ndarray, K: np.ndarray, k_end: int,
         r = np.where(np.isfinite(r) & (idx + d <= k_end), r, -np.inf)
         rr = np.full(len(K), -np.inf)
         rr[K < H - d] = r
-        curve.append(rr)
         sel = rr > best
         best[sel] = rr[sel]
         d0[sel] = d
-    curve = np.asarray(curve)                          # (d, levels)
-    if subpixel:
-        j = np.arange(len(K))
-        di = d0.astype(int)
-        inner = (di > 0) & (di < len(curve) - 1)
-        y0 = np.where(inner, curve[np.clip(di - 1, 0, len(curve) - 1), j], 0.0)
-        y2 = np.where(inner, curve[np.clip(di + 1, 0, len(curve) - 1), j], 0.0)
-        y1 = best
-        den = y0 - 2 * y1 + y2
-        with np.errstate(invalid="ignore", divide="ignore"):
-            off = np.where(inner & np.isfinite(den) & (den < 0), 0.5 * (y0 - y2) / den, 0.0)
-        d0 = d0 + np.clip(np.nan_to_num(off), -0.5, 0.5)
     return np.maximum(d0, 0.5)
 
 
