@@ -119,7 +119,8 @@ void BindInversion(py::module_& m) {
           [](const MixingLineInverter& self, const DoubleArray& radiance,
              const DoubleArray& background, const DoubleArray& sigma, double slope,
              std::vector<double> composition, std::vector<double> netd, double detection_sigma,
-             int max_iterations, int num_threads, py::object progress) {
+             int max_iterations, int num_threads, int line_nodes_per_unit,
+             py::object progress) {
             const std::size_t nc = self.table().num_channels();
             CheckNdim(radiance, 2, "radiance");
             const std::size_t n = Dim(radiance, 0);
@@ -136,6 +137,7 @@ void BindInversion(py::module_& m) {
             o.detection_sigma = detection_sigma;
             o.max_iterations = max_iterations;
             o.num_threads = num_threads;
+            o.line_nodes_per_unit = line_nodes_per_unit;
             py::array_t<double> x(n), xs(n), tp(n), chi2(n);
             py::array_t<std::int32_t> status(n), iters(n);
             MixingLineOutput out{x.mutable_data(), xs.mutable_data(), tp.mutable_data(),
@@ -159,7 +161,8 @@ void BindInversion(py::module_& m) {
           py::arg("radiance"), py::arg("background_radiance"), py::arg("sigma_m"),
           py::arg("slope_K_per_fraction"), py::arg("composition"), py::arg("netd_K"),
           py::arg("detection_sigma") = 3.0, py::arg("max_iterations") = 50,
-          py::arg("num_threads") = 0, py::arg("progress") = py::none(),
+          py::arg("num_threads") = 0, py::arg("line_nodes_per_unit") = 16,
+          py::arg("progress") = py::none(),
           "Least-squares total peak fraction X of each pixel (rows of radiance and "
           "background_radiance (N, C)) on T_peak = T_amb + k X with x_s = w_s X. Returns a dict "
           "of (N,) arrays: fraction, fraction_sigma, peak_temperature_K, chi2, status "

@@ -397,27 +397,22 @@ void BindVelocimetry(py::module_& m) {
         py::arg("u"), py::arg("v"), py::arg("valid"), py::arg("options"));
 
   m.def("frame_velocity",
-        [](const FloatArray& u, const FloatArray& v) {
+        [](const FloatArray& u, const FloatArray& v, int num_threads) {
           CheckNdim(u, 3, "u");
           CheckNdim(v, 3, "v");
           for (int d = 0; d < 3; ++d)
             Require(v.shape(d) == u.shape(d), "u and v must have the same (T-1, H, W) shape");
           const auto su = Slices(u, CV_32FC1), sv = Slices(v, CV_32FC1);
-          std::vector<cv::Mat> ou, ov;
-          {
-            py::gil_scoped_release release;
-            FrameVelocity(su, sv, ou, ov);
-          }
           const py::ssize_t T = u.shape(0) + 1, H = u.shape(1), W = u.shape(2);
           py::array_t<float> au({T, H, W}), av({T, H, W});
-          const auto du = Slices(au, CV_32FC1), dv = Slices(av, CV_32FC1);
-          for (py::ssize_t t = 0; t < T; ++t) {
-            ou[t].copyTo(du[t]);
-            ov[t].copyTo(dv[t]);
+          auto ou = Slices(au, CV_32FC1), ov = Slices(av, CV_32FC1);
+          {
+            py::gil_scoped_release release;
+            FrameVelocity(su, sv, ou, ov, num_threads);
           }
           return py::make_tuple(au, av);
         },
-        py::arg("u"), py::arg("v"));
+        py::arg("u"), py::arg("v"), py::arg("num_threads") = 0);
 
   m.def("invert_displacement",
         [](const FloatArray& u, const FloatArray& v, int iterations) {

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import threading
 import time
 from typing import Callable, Dict, List, Optional, Sequence, Tuple, Union
 
@@ -282,16 +283,20 @@ class _Background:
             self.percentile_img = np.where(channel_sign[:, None, None] >= 0, lo, hi)
 
     def region_mean(self, frame: np.ndarray, region: Region) -> np.ndarray:
+        """Mean of frames (..., C, H, W) over the region -> (..., C)."""
         r = region.clip(frame.shape[-1], frame.shape[-2])
-        return frame[:, r.y0:r.y1, r.x0:r.x1].reshape(frame.shape[0], -1).mean(axis=1)
+        return frame[..., r.y0:r.y1, r.x0:r.x1].mean(axis=(-2, -1))
 
     def along(self, frame: np.ndarray, surface: Surface, xy: np.ndarray, t: np.ndarray) -> np.ndarray:
-        """Background radiance (C, N) at the surface samples xy."""
+        """Background radiance (..., C, N) at the surface samples xy of frames
+        (..., C, H, W)."""
         cfg = self.cfg
+        n = len(xy)
         if isinstance(cfg.background, Region):
-            return np.repeat(self.region_mean(frame, cfg.background)[:, None], len(xy), axis=1)
+            return np.repeat(self.region_mean(frame, cfg.background)[..., None], n, axis=-1)
         if cfg.background == "percentile":
-            return _bilinear(self.percentile_img, xy - [self.roi.x0, self.roi.y0])
+            return np.broadcast_to(_bilinear(self.percentile_img, xy - [self.roi.x0, self.roi.y0]),
+                                   frame.shape[:-2] + (n,))
         # Beside the surface: the mean radiance of short stretches just beyond
         # both ends, interpolated linearly along the surface.
         p = np.asarray(surface.points)
@@ -303,7 +308,7 @@ class _Background:
             pts[:, 0] = np.clip(pts[:, 0], 0, w - 1)
             pts[:, 1] = np.clip(pts[:, 1], 0, h - 1)
             ends.append(_bilinear(frame, pts).mean(axis=-1))
-        return ends[0][:, None] * (1 - t)[None, :] + ends[1][:, None] * t[None, :]
+        return ends[0][..., None] * (1 - t) + ends[1][..., None] * t
 
     def field(self, frame_roi: np.ndarray, horizontal: bool,
               channel: Optional[int] = None) -> np.ndarray:
@@ -525,11 +530,22 @@ class _InvertedColumns:
         # then differs from the 5 K table by <= 2e-3 (median 3e-6) of the
         # contrast, well inside the fast model's own 0.5 % (docs/pipeline_api.md),
         # at half the build time.
-        self.table = inv.scene_table(self.model, scene.ambient_K,
-                                     min_peak_temperature_K=self.temperature_range_K[0],
-                                     max_peak_temperature_K=self.temperature_range_K[1],
-                                     temperature_step_K=10.0 if cfg.gas_temperature == "infer"
-                                     else 5.0, num_threads=cfg.num_threads)
+        # It is built on a worker thread (the engine releases the GIL) while
+        # the frames are read; the first use of :attr:`table` waits for it.
+        table_kw = dict(min_peak_temperature_K=self.temperature_range_K[0],
+                        max_peak_temperature_K=self.temperature_range_K[1],
+                        temperature_step_K=10.0 if cfg.gas_temperature == "infer" else 5.0,
+                        num_threads=cfg.num_threads)
+        self._table, self._table_error = None, None
+
+        def build() -> None:
+            try:
+                self._table = inv.scene_table(self.model, scene.ambient_K, **table_kw)
+            except BaseException as e:  # re-raised on the caller's thread
+                self._table_error = e
+
+        self._table_job = threading.Thread(target=build, name="qogi-scene-table", daemon=True)
+        self._table_job.start()
         self.k_K_per_fraction, self.k_sigma, self.k_relative_effect = None, 0.0, 0.0
         self.mixing_pixels = 0
         # A known composition ties the species' fractions (then the ratios of
@@ -550,7 +566,7 @@ class _InvertedColumns:
         bg_t = background.typical_temperature_K
         self._bg_t = bg_t
         contrast = self._contrast({cfg.species[0]: np.array([1e-3])}, np.array([scene.gas_K]),
-                                  np.array([0.02]))[0]
+                                  np.array([0.02]), use_table=False)[0]
         sens = [abs(contrast[c]) / (netd * ch.band_radiance_derivative(bg_t))
                 for c, ch in enumerate(channels)]
         self.proxy_channel = int(np.argmax(sens))
@@ -563,9 +579,24 @@ class _InvertedColumns:
         T_peak = T_amb + k x once the temperature has been inferred, for a
         grid of plume depths (see :meth:`contrast_to_column`)."""
         self._k_proxy = k_K_per_fraction
-        self._proxy_contrast, self._proxy_column = self._lookup_nodes(
-            np.array([self.cfg.sigma_m or 0.02]))[0]
+        self._proxy_nodes = None  # made on first use (needs the table)
         self._grid = None
+
+    @property
+    def table(self):
+        """The per-scene table (waits for the worker building it)."""
+        if self._table_job is not None:
+            self._table_job.join()
+            self._table_job = None
+        if self._table_error is not None:
+            raise self._table_error
+        return self._table
+
+    @property
+    def proxy_nodes(self):
+        if self._proxy_nodes is None:
+            self._proxy_nodes = self._lookup_nodes(np.array([self.cfg.sigma_m or 0.02]))[0]
+        return self._proxy_nodes
 
     def _lookup_nodes(self, sigmas: np.ndarray) -> list:
         """(contrast, column) nodes of the monotone lookup per depth."""
@@ -595,13 +626,13 @@ class _InvertedColumns:
         return out
 
     def _contrast(self, fractions: Dict[str, np.ndarray], peak_temperature_K: np.ndarray,
-                  sigma_m: np.ndarray) -> np.ndarray:
+                  sigma_m: np.ndarray, use_table: bool = True) -> np.ndarray:
         """Contrast (N, C) [W/(m2 sr)] of Gaussian plumes in front of the
         scene's typical background: from the per-scene table when there is
         one (thousands of times faster), else from the fast model."""
         tp = np.asarray(peak_temperature_K, float)
         sg = np.asarray(sigma_m, float)
-        if self.table is not None:
+        if use_table and self.table is not None:
             x = np.stack([np.asarray(fractions.get(sp, np.zeros_like(tp)), float)
                           for sp in self.cfg.species], axis=1)
             tbg = np.full((tp.size, len(self.rec.channels)), float(self._bg_t))
@@ -611,7 +642,7 @@ class _InvertedColumns:
 
     def _lookup(self, contrast, nodes=None) -> np.ndarray:
         c = np.asarray(contrast)
-        nc, ncol = nodes if nodes is not None else (self._proxy_contrast, self._proxy_column)
+        nc, ncol = nodes if nodes is not None else self.proxy_nodes
         return np.sign(c) * np.interp(np.abs(c), nc, ncol)
 
     def contrast_to_column(self, contrast: np.ndarray) -> np.ndarray:
@@ -666,33 +697,35 @@ class _InvertedColumns:
         return contrast
 
     def proxy_field(self, frame: np.ndarray) -> np.ndarray:
+        """The signed proxy-channel contrast of frames (..., C, H, W) over the
+        region -> (..., h, w) float32."""
         sl = self.roi.slices()
         c = self.proxy_channel
-        fr = frame[c, sl[0], sl[1]].astype(np.float64)
+        fr = frame[..., c, sl[0], sl[1]].astype(np.float64)
         bg = self.background.field(fr, self.horizontal, channel=c)
         if bg is None:  # a uniform region background
-            bg = self.background.region_mean(frame, self.cfg.background)[c]
+            bg = self.background.region_mean(frame, self.cfg.background)[..., c, None, None]
         # Signed (gas contrast positive): noise averages out of the sums the
         # velocimetry's flux level takes along the plume.
         dl = self.background.channel_sign[c] * (fr - bg)
         return dl.astype(np.float32)
 
-    def collect(self, frame: np.ndarray, surfaces: Sequence[Surface], samples) -> np.ndarray:
-        """The signed proxy-channel contrast field of one frame (converted to
-        a column proxy by :meth:`contrast_to_column` once the lookup is
-        final); stores the radiance and the background at the surface samples
-        for :meth:`finish`."""
-        field = self.proxy_field(frame)
+    def collect(self, frames: np.ndarray, surfaces: Sequence[Surface], samples) -> np.ndarray:
+        """The signed proxy-channel contrast fields (B, h, w) of a block of
+        frames (B, C, H, W) (converted to a column proxy by
+        :meth:`contrast_to_column` once the lookup is final); stores the
+        radiance and the background at the surface samples for :meth:`finish`."""
+        field = self.proxy_field(frames)
         rad, bg, prof = [], [], []
         for s, (xy, n, dl, t) in zip(surfaces, samples):
-            rad.append(_bilinear(frame, xy))
-            bg.append(self.background.along(frame, s, xy, t))
+            rad.append(_bilinear(frames, xy))
+            bg.append(self.background.along(frames, s, xy, t))
             prof.append(_bilinear(field, xy - [self.roi.x0, self.roi.y0]))
         if not hasattr(self, "_rad"):
             self._rad, self._bg, self._prof = [], [], []
-        self._rad.append(np.concatenate(rad, axis=1))
-        self._bg.append(np.concatenate(bg, axis=1))
-        self._prof.append(prof)
+        self._rad.extend(np.concatenate(rad, axis=-1))
+        self._bg.extend(np.concatenate(bg, axis=-1))
+        self._prof.extend([p[i] for p in prof] for i in range(len(frames)))
         return field
 
     def finish(self, samples, time_averaged: bool = False, progress=None):
@@ -794,8 +827,14 @@ class _InvertedColumns:
         s2 = np.tile(sig, nt)
         kw = dict(self._inv_kw)
         kw.pop("temperature")
-        fixed_t = inv.Inversion(self.model, t_amb, temperature=inv.fixed(t_amb), sigma_m=0.05,
-                                temperature_range_K=(lo, hi), table=self.table, **kw)
+        fixed = []  # the fixed-temperature inversion of the fixed-point passes, made on use
+
+        def fixed_t():
+            if not fixed:
+                fixed.append(inv.Inversion(self.model, t_amb, temperature=inv.fixed(t_amb),
+                                           sigma_m=0.05, temperature_range_K=(lo, hi),
+                                           table=self.table, **kw))
+            return fixed[0]
 
         def stage(a, b, label):
             return lambda f: progress(a + (b - a) * f) if progress else None
@@ -807,7 +846,9 @@ class _InvertedColumns:
         # weakly determined (and two-branched) to average into k.
         t_bg = [float(ch.radiometric_temperature(float(np.median(b2[c]))))
                 for c, ch in enumerate(self.rec.channels)]
-        noise = fixed_t.channel_noise(np.asarray(t_bg))[:, None]
+        netd = np.broadcast_to(np.asarray(self._inv_kw["netd_K"], float), (nc,))
+        noise = np.array([netd[c] * ch.band_radiance_derivative(t_bg[c])
+                          for c, ch in enumerate(self.rec.channels)])[:, None]
         snr = np.max(np.abs(r2 - b2) / noise, axis=0)
         rng = np.random.default_rng(0)
         cand = np.flatnonzero(snr >= 10.0)
@@ -822,7 +863,7 @@ class _InvertedColumns:
         # pixels not yet within 0.3 % of their root.
         def g(xv, kk, idx, a, b):
             t = np.clip(t_amb + kk * xv, lo, hi)
-            res = fixed_t.invert(r2[:, idx], background_radiance=b2[:, idx], sigma_m=s2[idx],
+            res = fixed_t().invert(r2[:, idx], background_radiance=b2[:, idx], sigma_m=s2[idx],
                                  peak_temperature_K=t, progress=stage(a, b, "columns"))
             return res, sum(res.peak_fraction[sp] for sp in cfg.species)
 
@@ -1052,9 +1093,8 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
 
     time_averaged = cfg.averaging == "time-averaged"
     try:
-        for k, f in enumerate(frames):
-            fr = rec.frame(f, quantity="radiance")
-            if cfg.column_density == "truth":
+        if cfg.column_density == "truth":
+            for k, f in enumerate(frames):
                 fields = columns.frame(f, roi)
                 if time_averaged:
                     acc = fields if k == 0 else {sp: acc[sp] + fields[sp] for sp in fields}
@@ -1064,10 +1104,17 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
                         surf_cols[j][sp][k] = _bilinear(fields[sp], xy - [roi.x0, roi.y0])
                 status_counts["converged"] = status_counts.get("converged", 0) + \
                     sum(len(x[0]) for x in samples)
-            else:
-                col_fields[k] = columns.collect(fr, surfaces, samples)
-            done = k + 1
-            say(0.05 + 0.3 * done / nf, f"background and column field, frame {done}/{nf}")
+                done = k + 1
+                say(0.05 + 0.3 * done / nf, f"column field, frame {done}/{nf}")
+        else:
+            # Blocks of frames: one read and one vectorised pass per block.
+            block = 25
+            for k in range(0, nf, block):
+                b = min(block, nf - k)
+                fr = rec.frames(start + k, start + k + b, quantity="radiance")
+                col_fields[k:k + b] = columns.collect(fr, surfaces, samples)
+                done = k + b
+                say(0.05 + 0.3 * done / nf, f"background and column field, frame {done}/{nf}")
         if time_averaged and cfg.column_density == "truth":
             for j, (xy, n, dl, t) in enumerate(samples):
                 for sp in cfg.species:
@@ -1126,7 +1173,9 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
             axis, index, _ = transport
         field = velocity_frames[:, crop[0], crop[1]]
         mask = source_mask[crop[0], crop[1]] if source_mask is not None else None
-        scale = np.percentile(field, 99.5)
+        # The flows' scale: the 99.5th percentile of (up to) 100 frames spread
+        # over the run.
+        scale = np.percentile(field[::max(1, field.shape[0] // 100)], 99.5)
         norm = np.ascontiguousarray(field / scale if scale > 0 else field, dtype=np.float32)
         try:
             seq = vel.optical_flow_sequence(
@@ -1148,10 +1197,8 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
                 flux_note = f"off: {e}"
         if uv is None:
             uv = vel.frame_velocity(seq)
-        # Back into the whole frame (no velocity outside the analysed part).
-        flows = tuple(np.zeros_like(velocity_frames) for _ in range(2))
-        for full, part in zip(flows, uv):
-            full[:, crop[0], crop[1]] = part
+        # The analysed part and its origin in the region (no velocity outside it).
+        flows = (uv[0], uv[1], (crop[1].start, crop[0].start))
         velocity_info["flux_level"] = flux_note
     return _finish(rec, surfaces, cfg, scene, samples, frames, done, col_fields, surf_cols,
                    surf_sig, flows, status_counts, kept_maps, t_start, complete=True,
@@ -1238,27 +1285,35 @@ def _finish(rec, surfaces, cfg, scene, samples, frames, done, col_fields, surf_c
                   "mixing_line_pixels": columns.mixing_pixels,
                   "mixing_line_column_effect": columns.k_relative_effect}
         col_sys = math.hypot(col_sys, columns.k_relative_effect)
+    if flows is not None and keep_maps and roi is not None:
+        # Maps (every tenth of the run) are keyed by the recording's frame
+        # index, the velocity back in the whole region.
+        fu, fv, (cx, cy) = flows
+        for k in range(0, done, max(1, done // 10)):
+            if frames.start + k in kept_maps:
+                continue
+            uv = tuple(np.zeros(col_fields.shape[1:], np.float32) for _ in range(2))
+            for full, part in zip(uv, (fu[k], fv[k])):
+                full[cy:cy + part.shape[0], cx:cx + part.shape[1]] = part
+            kept_maps[frames.start + k] = {
+                "column_density_kg_m2": {cfg.species[0]: col_fields[k]},
+                "velocity_px_per_frame": uv, "origin": (roi.x0, roi.y0)}
     results = []
     for j, (s, (xy, n, dl, t)) in enumerate(zip(surfaces, samples)):
         per_species = {}
         vn = np.zeros((done, len(xy)))
-        for k in range(done):
-            if cfg.velocity == "wind":
-                vn[k] = cfg.wind_speed_m_s
-            elif cfg.velocity == "exit":
-                vn[k] = cfg.exit_velocity_m_s
-            elif flows is not None:
-                uv = (flows[0][k], flows[1][k])
-                if uv is not None:
-                    u = _bilinear(uv[0], xy - [roi.x0, roi.y0])
-                    v = _bilinear(uv[1], xy - [roi.x0, roi.y0])
-                    vn[k] = (u * n[:, 0] + v * n[:, 1]) * scene.m_s_per_px_frame
-            # Maps are keyed by the recording's frame index.
-            if keep_maps and roi is not None and frames.start + k not in kept_maps and \
-                    flows is not None and (k % max(1, done // 10) == 0):
-                uv = (flows[0][k], flows[1][k])
-                kept_maps[frames.start + k] = {"column_density_kg_m2": {cfg.species[0]: col_fields[k]},
-                                "velocity_px_per_frame": uv, "origin": (roi.x0, roi.y0)}
+        if cfg.velocity == "wind":
+            vn[:] = cfg.wind_speed_m_s
+        elif cfg.velocity == "exit":
+            vn[:] = cfg.exit_velocity_m_s
+        elif flows is not None:
+            fu, fv, (cx, cy) = flows
+            p = xy - [roi.x0 + cx, roi.y0 + cy]
+            h, w = fu.shape[1:]
+            inside = (p[:, 0] >= 0) & (p[:, 0] <= w - 1) & (p[:, 1] >= 0) & (p[:, 1] <= h - 1)
+            u = _bilinear(fu[:done], p)
+            v = _bilinear(fv[:done], p)
+            vn = np.where(inside, (u * n[:, 0] + v * n[:, 1]) * scene.m_s_per_px_frame, 0.0)
         for sp in cfg.species:
             c = surf_cols[j][sp][:done]
             sig = surf_sig[j][sp][:done]

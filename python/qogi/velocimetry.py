@@ -942,9 +942,15 @@ def calibrate_flux_level(seq: FlowSequence, frames: ArrayLike, axis: str = "up",
         raise ValueError(f"min_fraction must be in (0, 1); got {min_fraction}")
     tf = transport_flux(stack, axis, source_index)
     fu, fv = frame_velocity(seq)
-    along = {"up": -fv, "down": fv, "left": -fu, "right": fu}[axis]
+    # Flux along the axis per line and frame (no whole-stack temporaries).
+    comp = fv if axis in ("up", "down") else fu
+    sign = -1.0 if axis in ("up", "left") else 1.0
     sum_axis = 2 if axis in ("up", "down") else 1
-    flow_flux = (stack * along).sum(axis=sum_axis, dtype=np.float64).mean(axis=0)
+    flow_flux = np.zeros(stack.shape[3 - sum_axis])
+    for t0 in range(0, T, 64):
+        part = stack[t0:t0 + 64] * comp[t0:t0 + 64]
+        flow_flux += part.sum(axis=sum_axis, dtype=np.float64).sum(axis=0)
+    flow_flux *= sign / T
     if not max_factor > 1:
         raise ValueError(f"max_factor must be > 1; got {max_factor}")
     carries = np.isfinite(tf.flux) & (tf.flux > min_fraction * max(float(np.nanmax(
@@ -973,7 +979,9 @@ def calibrate_flux_level(seq: FlowSequence, frames: ArrayLike, axis: str = "up",
     scale = smooth[nearest].astype(np.float32)
     shape = (1, n, 1) if axis in ("up", "down") else (1, 1, n)
     s = scale.reshape(shape)
-    return (fu * s).astype(np.float32), (fv * s).astype(np.float32), scale
+    fu *= s
+    fv *= s
+    return fu, fv, scale
 
 
 

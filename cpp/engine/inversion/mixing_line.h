@@ -33,6 +33,12 @@ struct MixingLineOptions {
   double min_fraction = 1e-9;         // lower bound of X
   double max_fraction = 1.0;          // upper bound of X (every x_s <= 1 as well)
   int max_iterations = 50;            // Gauss-Newton iterations per pixel (>= 1)
+  // Pixels sharing a plume depth (e.g. one control surface) are solved on a
+  // tabulation of the line's contrast in ln X with this many nodes per unit
+  // (cubic Hermite from the table's values and slopes; the table's contrast
+  // is affine in the background), when that is cheaper than evaluating the
+  // table per pixel. 0 = always evaluate the table. [0, 256].
+  int line_nodes_per_unit = 16;
   int num_threads = 0;                // 0 = all hardware threads
 
   // Throws std::invalid_argument naming the field.

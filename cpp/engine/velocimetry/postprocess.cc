@@ -4,9 +4,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <string>
 
 #include "engine/util/check.h"
+#include "engine/util/parallel.h"
 #include "engine/velocimetry/image_ops.h"
 
 namespace qogi {
@@ -127,6 +129,70 @@ void ReplaceVectors(const cv::Mat& u, const cv::Mat& v, const cv::Mat& keep,
   v_out = cv_;
 }
 
+namespace {
+
+// Bilinear sample of `m` at (x, y), the coordinates clamped to the image
+// (border replicated); NaN for non-finite coordinates.
+inline float SampleReplicate(const cv::Mat& m, float x, float y) {
+  if (!std::isfinite(x) || !std::isfinite(y)) return std::numeric_limits<float>::quiet_NaN();
+  const int W = m.cols, H = m.rows;
+  x = std::min(std::max(x, 0.0f), static_cast<float>(W - 1));
+  y = std::min(std::max(y, 0.0f), static_cast<float>(H - 1));
+  const int x0 = std::min(static_cast<int>(x), W - 1), y0 = std::min(static_cast<int>(y), H - 1);
+  const int x1 = std::min(x0 + 1, W - 1), y1 = std::min(y0 + 1, H - 1);
+  const float fx = x - x0, fy = y - y0;
+  const float* r0 = m.ptr<float>(y0);
+  const float* r1 = m.ptr<float>(y1);
+  const float top = r0[x0] + fx * (r0[x1] - r0[x0]);
+  const float bot = r1[x0] + fx * (r1[x1] - r1[x0]);
+  return top + fy * (bot - top);
+}
+
+// The fixed-point inversion on the calling thread; bu, bv are (re)allocated
+// by the caller to u's size. Scratch maps hold the previous sweep.
+void InvertDisplacementSerial(const cv::Mat& u, const cv::Mat& v, int iterations, cv::Mat& bu,
+                              cv::Mat& bv, cv::Mat& pu, cv::Mat& pv) {
+  const int W = u.cols, H = u.rows;
+  bu.create(u.size(), CV_32FC1);
+  bv.create(u.size(), CV_32FC1);
+  pu.create(u.size(), CV_32FC1);
+  pv.create(u.size(), CV_32FC1);
+  for (int y = 0; y < H; ++y) {
+    const float* su = u.ptr<float>(y);
+    const float* sv = v.ptr<float>(y);
+    float* du = bu.ptr<float>(y);
+    float* dv = bv.ptr<float>(y);
+    for (int x = 0; x < W; ++x) {
+      du[x] = -su[x];
+      dv[x] = -sv[x];
+    }
+  }
+  for (int it = 0; it < iterations; ++it) {
+    cv::swap(bu, pu);
+    cv::swap(bv, pv);
+    // y = x + b; b_new = -w(y) (bilinear, border replicated).
+    double change = 0.0;
+    for (int y = 0; y < H; ++y) {
+      const float* ou = pu.ptr<float>(y);
+      const float* ov = pv.ptr<float>(y);
+      float* du = bu.ptr<float>(y);
+      float* dv = bv.ptr<float>(y);
+      for (int x = 0; x < W; ++x) {
+        const float sx = x + ou[x], sy = y + ov[x];
+        du[x] = -SampleReplicate(u, sx, sy);
+        dv[x] = -SampleReplicate(v, sx, sy);
+        const float d = std::abs(du[x] - ou[x]) + std::abs(dv[x] - ov[x]);
+        if (std::isfinite(d)) change += d;
+      }
+    }
+    // Mean change of this sweep; stop below 1e-4 px (folds, where the
+    // iteration does not converge, must not keep the whole map iterating).
+    if (change / (2.0 * W * H) < 1e-4) break;
+  }
+}
+
+}  // namespace
+
 void InvertDisplacement(const cv::Mat& u, const cv::Mat& v, int iterations, cv::Mat& bu,
                         cv::Mat& bv) {
   Require(u.type() == CV_32FC1 && v.type() == CV_32FC1,
@@ -135,38 +201,12 @@ void InvertDisplacement(const cv::Mat& u, const cv::Mat& v, int iterations, cv::
           "u and v must be non-empty and of one size; got " + SizeText(u) + " and " +
               SizeText(v));
   Require(iterations >= 1, "iterations must be >= 1; got " + std::to_string(iterations));
-  const int W = u.cols, H = u.rows;
-  cv::Mat map_x(u.size(), CV_32FC1), map_y(u.size(), CV_32FC1), wu, wv;
-  bu = -u;
-  bv = -v;
-  for (int it = 0; it < iterations; ++it) {
-    // y = x + b; b_new = -w(y) (bilinear, border replicated).
-    ParallelRows(H, W, [&](int y0, int y1) {
-      for (int y = y0; y < y1; ++y) {
-        const float* pu = bu.ptr<float>(y);
-        const float* pv = bv.ptr<float>(y);
-        float* mx = map_x.ptr<float>(y);
-        float* my = map_y.ptr<float>(y);
-        for (int x = 0; x < W; ++x) {
-          mx[x] = x + pu[x];
-          my[x] = y + pv[x];
-        }
-      }
-    });
-    cv::remap(u, wu, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
-    cv::remap(v, wv, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
-    // Mean change of this sweep; stop below 1e-4 px (folds, where the
-    // iteration does not converge, must not keep the whole map iterating).
-    const double change = (cv::norm(wu + bu, cv::NORM_L1) + cv::norm(wv + bv, cv::NORM_L1)) /
-                          (2.0 * W * H);
-    bu = -wu;
-    bv = -wv;
-    if (change < 1e-4) break;
-  }
+  cv::Mat pu, pv;
+  InvertDisplacementSerial(u, v, iterations, bu, bv, pu, pv);
 }
 
 void FrameVelocity(const std::vector<cv::Mat>& u, const std::vector<cv::Mat>& v,
-                   std::vector<cv::Mat>& u_out, std::vector<cv::Mat>& v_out) {
+                   std::vector<cv::Mat>& u_out, std::vector<cv::Mat>& v_out, int num_threads) {
   Require(!u.empty() && u.size() == v.size(),
           "u and v must hold the same number (>= 1) of pair displacements; got " +
               std::to_string(u.size()) + " and " + std::to_string(v.size()));
@@ -179,21 +219,48 @@ void FrameVelocity(const std::vector<cv::Mat>& u, const std::vector<cv::Mat>& v,
   }
   constexpr int kIterations = 10;
   const std::size_t n = u.size();
-  u_out.assign(n + 1, cv::Mat());
-  v_out.assign(n + 1, cv::Mat());
-  u_out[0] = u[0].clone();
-  v_out[0] = v[0].clone();
-  cv::Mat bu, bv;
-  for (std::size_t t = 1; t <= n; ++t) {
-    InvertDisplacement(u[t - 1], v[t - 1], kIterations, bu, bv);
-    if (t < n) {
-      u_out[t] = 0.5 * (u[t] - bu);
-      v_out[t] = 0.5 * (v[t] - bv);
-    } else {
-      u_out[t] = -bu;
-      v_out[t] = -bv;
-    }
+  // Outputs already allocated by the caller (e.g. views of a numpy array)
+  // are written in place.
+  if (u_out.size() != n + 1 || v_out.size() != n + 1) {
+    u_out.assign(n + 1, cv::Mat());
+    v_out.assign(n + 1, cv::Mat());
   }
+  for (std::size_t t = 0; t <= n; ++t) {
+    u_out[t].create(u[0].size(), CV_32FC1);
+    v_out[t].create(u[0].size(), CV_32FC1);
+  }
+  u[0].copyTo(u_out[0]);
+  v[0].copyTo(v_out[0]);
+  // Frames are independent: one per worker at a time.
+  ParallelFor(
+      n, 1,
+      [&](std::size_t b, std::size_t e) {
+        cv::Mat bu, bv, pu, pv;
+        for (std::size_t t = b + 1; t <= e; ++t) {
+          InvertDisplacementSerial(u[t - 1], v[t - 1], kIterations, bu, bv, pu, pv);
+          const int H = bu.rows, W = bu.cols;
+          for (int y = 0; y < H; ++y) {
+            const float* ib = bu.ptr<float>(y);
+            const float* jb = bv.ptr<float>(y);
+            float* ou = u_out[t].ptr<float>(y);
+            float* ov = v_out[t].ptr<float>(y);
+            if (t < n) {
+              const float* wu = u[t].ptr<float>(y);
+              const float* wv = v[t].ptr<float>(y);
+              for (int x = 0; x < W; ++x) {
+                ou[x] = 0.5f * (wu[x] - ib[x]);
+                ov[x] = 0.5f * (wv[x] - jb[x]);
+              }
+            } else {
+              for (int x = 0; x < W; ++x) {
+                ou[x] = -ib[x];
+                ov[x] = -jb[x];
+              }
+            }
+          }
+        }
+      },
+      num_threads);
 }
 
 void TemporalFilterOptions::Check() const {

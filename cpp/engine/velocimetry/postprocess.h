@@ -90,9 +90,13 @@ void InvertDisplacement(const cv::Mat& u, const cv::Mat& v, int iterations, cv::
 // parcel leaving a laminar exit at 0.3 m/s and reaching 0.7 m/s 2 cm higher
 // accelerates by ~10 m/s2: at 15 Hz that is 0.3 m/s, i.e. 50 %, of error
 // in the forward displacement alone. Frame 0 gets w_0, frame T - 1 gets
-// -b_{T-1}. Needs T - 1 >= 1 pairs of one size.
+// -b_{T-1}. Needs T - 1 >= 1 pairs of one size. Frames are processed in
+// parallel on `num_threads` threads (0 = all); outputs passed in with T maps
+// of the right size and type (e.g. views of a caller's array) are written in
+// place.
 void FrameVelocity(const std::vector<cv::Mat>& u, const std::vector<cv::Mat>& v,
-                   std::vector<cv::Mat>& u_out, std::vector<cv::Mat>& v_out);
+                   std::vector<cv::Mat>& u_out, std::vector<cv::Mat>& v_out,
+                   int num_threads = 0);
 
 struct PlumeMaskOptions {
   // Absolute threshold in the input's unit (e.g. kg/m2): gas where the value
