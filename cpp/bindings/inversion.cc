@@ -43,6 +43,7 @@ py::dict SceneTableOptionsDict(const SceneTableOptions& o) {
   d["num_threads"] = o.num_threads;
   d["num_nodes"] = o.num_nodes;
   d["negligible_fraction"] = o.negligible_fraction;
+  d["linear_optical_depth"] = o.linear_optical_depth;
   return d;
 }
 
@@ -54,7 +55,7 @@ void BindInversion(py::module_& m) {
                                 "Settings of the per-scene table (see engine/inversion/scene_table.h).")
       .def(py::init([](double t_amb, double t_lo, double t_hi, double dt, double smax, int npd,
                        int nx, double thin, double bg_lo, double bg_hi, double tol, int threads,
-                       int nodes, double negligible) {
+                       int nodes, double negligible, double linear) {
              SceneTableOptions o;
              o.ambient_temperature_K = t_amb;
              o.min_peak_temperature_K = t_lo;
@@ -70,6 +71,7 @@ void BindInversion(py::module_& m) {
              o.num_threads = threads;
              o.num_nodes = nodes;
              o.negligible_fraction = negligible;
+             o.linear_optical_depth = linear;
              o.Check();
              return o;
            }),
@@ -86,7 +88,8 @@ void BindInversion(py::module_& m) {
            py::arg("planck_tolerance") = SceneTableOptions().planck_tolerance,
            py::arg("num_threads") = SceneTableOptions().num_threads,
            py::arg("num_nodes") = SceneTableOptions().num_nodes,
-           py::arg("negligible_fraction") = SceneTableOptions().negligible_fraction)
+           py::arg("negligible_fraction") = SceneTableOptions().negligible_fraction,
+           py::arg("linear_optical_depth") = SceneTableOptions().linear_optical_depth)
       .def_readonly("ambient_temperature_K", &SceneTableOptions::ambient_temperature_K)
       .def_readonly("min_peak_temperature_K", &SceneTableOptions::min_peak_temperature_K)
       .def_readonly("max_peak_temperature_K", &SceneTableOptions::max_peak_temperature_K)
@@ -101,6 +104,7 @@ void BindInversion(py::module_& m) {
       .def_readonly("num_threads", &SceneTableOptions::num_threads)
       .def_readonly("num_nodes", &SceneTableOptions::num_nodes)
       .def_readonly("negligible_fraction", &SceneTableOptions::negligible_fraction)
+      .def_readonly("linear_optical_depth", &SceneTableOptions::linear_optical_depth)
       .def("to_dict", &SceneTableOptionsDict)
       .def("__repr__", [](const SceneTableOptions& o) {
         return "SceneTableOptions(" + py::str(SceneTableOptionsDict(o)).cast<std::string>() + ")";

@@ -217,6 +217,7 @@ def scene_table(model: ForwardModel, ambient_temperature_K: float, *,
         (``temperature_step_K=5``, ``nodes_per_decade=8``, ``fraction_nodes=4``,
         ``thin_optical_depth=1e-5``, ``min_background_K=150``,
         ``max_background_K=700``, ``planck_tolerance=1e-8``, ``num_nodes=0``,
+        ``linear_optical_depth=1e-4``,
         ``num_threads=0``).
 
     Returns

@@ -311,15 +311,21 @@ class _Background:
         return ends[0][..., None] * (1 - t) + ends[1][..., None] * t
 
     def field(self, frame_roi: np.ndarray, horizontal: bool,
-              channel: Optional[int] = None) -> np.ndarray:
+              channel: Optional[int] = None, crop=None) -> np.ndarray:
         """Background over the analysis region: (C, h, w) for the frame's
         channels (C, h, w), or (h, w) for ``channel`` given one channel's
-        (h, w)."""
+        (h, w). With ``crop`` (row and column slices of the region), frame_roi
+        is that part and so is the background; the crop must keep every line
+        of the edge interpolation whole (all columns when ``horizontal``,
+        else all rows)."""
         cfg = self.cfg
         if isinstance(cfg.background, Region):
             return None
+        if crop is None:
+            crop = (slice(None), slice(None))
         if cfg.background == "percentile":
-            return self.percentile_img if channel is None else self.percentile_img[channel]
+            img = self.percentile_img if channel is None else self.percentile_img[channel]
+            return img[..., crop[0], crop[1]]
         # Per line along the plume, linear between 4-px strips at the region's
         # edges across it, plus the static shape of the background that a
         # straight line misses (a sky's elevation gradient across a
@@ -328,7 +334,7 @@ class _Background:
         bg = self._edge_interpolation(frame_roi, horizontal)
         if self.shape_correction is not None:
             corr = self.shape_correction[horizontal]
-            bg = bg + (corr if channel is None else corr[channel])
+            bg = bg + (corr if channel is None else corr[channel])[..., crop[0], crop[1]]
         return bg
 
     @staticmethod
@@ -696,13 +702,17 @@ class _InvertedColumns:
             contrast[...] = work
         return contrast
 
-    def proxy_field(self, frame: np.ndarray) -> np.ndarray:
+    def proxy_field(self, frame: np.ndarray, crop=None) -> np.ndarray:
         """The signed proxy-channel contrast of frames (..., C, H, W) over the
-        region -> (..., h, w) float32."""
+        region, or over ``crop`` (row and column slices of the region, see
+        :meth:`_Background.field`) -> (..., h, w) float32."""
         sl = self.roi.slices()
+        if crop is not None:
+            sl = (slice(sl[0].start + crop[0].start, sl[0].start + crop[0].stop),
+                  slice(sl[1].start + crop[1].start, sl[1].start + crop[1].stop))
         c = self.proxy_channel
         fr = frame[..., c, sl[0], sl[1]].astype(np.float64)
-        bg = self.background.field(fr, self.horizontal, channel=c)
+        bg = self.background.field(fr, self.horizontal, channel=c, crop=crop)
         if bg is None:  # a uniform region background
             bg = self.background.region_mean(frame, self.cfg.background)[..., c, None, None]
         # Signed (gas contrast positive): noise averages out of the sums the
@@ -710,17 +720,23 @@ class _InvertedColumns:
         dl = self.background.channel_sign[c] * (fr - bg)
         return dl.astype(np.float32)
 
-    def collect(self, frames: np.ndarray, surfaces: Sequence[Surface], samples) -> np.ndarray:
+    def collect(self, frames: np.ndarray, surfaces: Sequence[Surface], samples,
+                crop=None) -> np.ndarray:
         """The signed proxy-channel contrast fields (B, h, w) of a block of
-        frames (B, C, H, W) (converted to a column proxy by
-        :meth:`contrast_to_column` once the lookup is final); stores the
-        radiance and the background at the surface samples for :meth:`finish`."""
-        field = self.proxy_field(frames)
+        frames (B, C, H, W), over the region or its ``crop`` (which must hold
+        every surface sample; see :meth:`proxy_field`), converted to a column
+        proxy by :meth:`contrast_to_column` once the lookup is final; stores
+        the radiance and the background at the surface samples for
+        :meth:`finish`."""
+        field = self.proxy_field(frames, crop)
+        origin = [self.roi.x0, self.roi.y0]
+        if crop is not None:
+            origin = [self.roi.x0 + crop[1].start, self.roi.y0 + crop[0].start]
         rad, bg, prof = [], [], []
         for s, (xy, n, dl, t) in zip(surfaces, samples):
             rad.append(_bilinear(frames, xy))
             bg.append(self.background.along(frames, s, xy, t))
-            prof.append(_bilinear(field, xy - [self.roi.x0, self.roi.y0]))
+            prof.append(_bilinear(field, xy - origin))
         if not hasattr(self, "_rad"):
             self._rad, self._bg, self._prof = [], [], []
         self._rad.extend(np.concatenate(rad, axis=-1))
@@ -1072,6 +1088,21 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
 
     # -- per frame: column densities over the region and on the surfaces -----
     col_fields = np.zeros((nf, roi.y1 - roi.y0, roi.x1 - roi.x0), dtype=np.float32)
+    # The velocity field's part of the region (all of it without a source):
+    # only there is the proxy computed (when the background's edge
+    # interpolation runs along whole lines of it and it holds every surface
+    # sample) and turned into a column (the rest is zero).
+    transport = None
+    crop = (slice(0, col_fields.shape[1]), slice(0, col_fields.shape[2]))
+    if source is not None and cfg.velocity not in ("wind", "exit"):
+        transport = _transport_crop(surfaces, source, roi, col_fields.shape[1:])
+        crop = transport[2]
+    full_lines = crop[1] == slice(0, col_fields.shape[2]) if horizontal else \
+        crop[0] == slice(0, col_fields.shape[1])
+    pts = np.concatenate([x[0] for x in samples]) - [roi.x0, roi.y0]
+    inside = bool(np.all((pts[:, 0] >= crop[1].start) & (pts[:, 0] <= crop[1].stop - 1) &
+                         (pts[:, 1] >= crop[0].start) & (pts[:, 1] <= crop[0].stop - 1)))
+    field_crop = crop if (full_lines and inside) else None
     surf_cols = [{sp: np.full((nf, len(x[0])), np.nan) for sp in cfg.species} for x in samples]
     surf_sig = [{sp: np.zeros((nf, len(x[0]))) for sp in cfg.species} for x in samples]
     status_counts: Dict[str, int] = {}
@@ -1112,7 +1143,11 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
             for k in range(0, nf, block):
                 b = min(block, nf - k)
                 fr = rec.frames(start + k, start + k + b, quantity="radiance")
-                col_fields[k:k + b] = columns.collect(fr, surfaces, samples)
+                if field_crop is None:
+                    col_fields[k:k + b] = columns.collect(fr, surfaces, samples)
+                else:
+                    col_fields[k:k + b, crop[0], crop[1]] = columns.collect(
+                        fr, surfaces, samples, field_crop)
                 done = k + b
                 say(0.05 + 0.3 * done / nf, f"background and column field, frame {done}/{nf}")
         if time_averaged and cfg.column_density == "truth":
@@ -1120,14 +1155,7 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
                 for sp in cfg.species:
                     surf_cols[j][sp][:] = _bilinear(acc[sp] / nf, xy - [roi.x0, roi.y0])
         invert_collected(done, time_averaged)
-        # The velocity field's part of the region (all of it without a
-        # source): only there is the proxy turned into a column (the rest
-        # is zeroed).
-        transport = None
-        crop = (slice(0, col_fields.shape[1]), slice(0, col_fields.shape[2]))
-        if source is not None and cfg.velocity not in ("wind", "exit"):
-            transport = _transport_crop(surfaces, source, roi, col_fields.shape[1:])
-            crop = transport[2]
+        if transport is not None and (field_crop is None or cfg.column_density == "truth"):
             keep = np.zeros(col_fields.shape[1:], bool)
             keep[crop] = True
             col_fields[:done, ~keep] = 0.0

@@ -53,8 +53,9 @@ double ExpNegative(double x) { return ExpNeg(x); }
 #endif
 
 QOGI_MARCH_CLONES
-void MarchLayerPair(std::size_t n, const double* kf, const double* kn, const double* df,
-                    const double* dn, double u, double ds, double* de, double* da) {
+void MarchLayerPair(std::size_t n, const double* __restrict__ kf, const double* __restrict__ kn,
+                    const double* __restrict__ df, const double* __restrict__ dn, double u,
+                    double ds, double* __restrict__ de, double* __restrict__ da) {
   for (std::size_t j = 0; j < n; ++j) {
     const double a = u * kf[j], b = u * kn[j];
     const double tau = 0.5 * (a + b) * ds;
@@ -67,6 +68,33 @@ void MarchLayerPair(std::size_t n, const double* kf, const double* kn, const dou
     const double dd = df[j] - dn[j];
     de[j] = de[j] * t + dn[j] * (tau * f) + dd * (f - t) + 0.25 * dd * (a - b) * ds * (f * f);
     da[j] = da[j] * t + tau * f;
+  }
+}
+
+QOGI_MARCH_CLONES
+void MarchLayerPairSymmetric(std::size_t n, const double* __restrict__ kf,
+                             const double* __restrict__ kn, const double* __restrict__ df,
+                             const double* __restrict__ dn, double u, double ds,
+                             double* __restrict__ de, double* __restrict__ da,
+                             double* __restrict__ p, double* __restrict__ eb,
+                             double* __restrict__ ab) {
+  for (std::size_t j = 0; j < n; ++j) {
+    const double a = u * kf[j], b = u * kn[j];
+    const double tau = 0.5 * (a + b) * ds;
+    const double e = ExpNeg(tau);
+    const double series = 1.0 - tau * (0.5 - tau * (1.0 / 6.0));
+    const double exact = (1.0 - e) / (tau > 1e-300 ? tau : 1e-300);
+    const double f = tau < 1e-4 ? series : exact;
+    const double t = 1.0 - tau * f;
+    const double tf = tau * f;
+    const double dd = df[j] - dn[j];
+    const double q = 0.25 * dd * (a - b) * ds * (f * f);
+    de[j] = de[j] * t + dn[j] * tf + dd * (f - t) + q;
+    da[j] = da[j] * t + tf;
+    const double pj = p[j];
+    eb[j] += pj * (df[j] * tf - dd * (f - t) + q);
+    ab[j] += pj * tf;
+    p[j] = pj * t;
   }
 }
 

@@ -25,4 +25,19 @@ void MarchLayerPair(std::size_t n, const double* k_far, const double* k_near,
                     const double* d_far, const double* d_near, double u, double ds, double* de,
                     double* da);
 
+// The same layer, marched over the first half of a path that is symmetric
+// about its middle (a Gaussian plume's line of sight), also accumulating
+// what the mirrored second half contributes: with p the transmittance of
+// the layers already marched (1 at the start),
+//   eb <- eb + p (d_far tau f - (d_far - d_near)(f - t)
+//                 + (d_far - d_near)(u k_far - u k_near) ds f^2 / 4),
+//   ab <- ab + p tau f,   p <- p t,
+// (the mirrored layer's emission towards the observer is this layer's with
+// its ends swapped). After the half: emission = de p + eb, absorptance =
+// da p + ab, equal to marching the whole path to rounding, at half the
+// layers.
+void MarchLayerPairSymmetric(std::size_t n, const double* k_far, const double* k_near,
+                             const double* d_far, const double* d_near, double u, double ds,
+                             double* de, double* da, double* p, double* eb, double* ab);
+
 }  // namespace qogi

@@ -113,25 +113,46 @@ class LineTable {
   double sigma() const { return sigma_; }
   double node(int k) const { return v_lo_ + k * h_; }
 
-  // Fills node k (thread-safe for distinct k).
-  void Fill(int k, LineModel* model, std::vector<double>* phi, std::vector<double>* m0,
-            std::vector<double>* d0, std::vector<double>* m, std::vector<double>* d) {
+  // Fills node k (thread-safe for distinct k): per (channel, species) table
+  // its contribution with the background coefficients at zero, then with each
+  // of its own coefficients at one (the others do not enter it).
+  void Fill(int k, const SceneTable& table, const MixingLineOptions& o, std::vector<double>* phi) {
     const double big_x = std::exp(node(k));
-    std::fill(phi->begin(), phi->end(), 0.0);
-    model->Contrast(big_x, sigma_, phi->data(), m0->data(), d0->data());
+    const double t_raw = table.ambient_temperature_K() + o.slope_K_per_fraction * big_x;
+    const bool on_line =
+        t_raw > table.min_peak_temperature_K() && t_raw < table.max_peak_temperature_K();
+    const double tp =
+        std::clamp(t_raw, table.min_peak_temperature_K(), table.max_peak_temperature_K());
+    const double dt_dv = on_line ? o.slope_K_per_fraction * big_x : 0.0;
     double* pv = &val_[static_cast<std::size_t>(k) * nc_ * ne_];
     double* pd = &der_[static_cast<std::size_t>(k) * nc_ * ne_];
-    for (std::size_t c = 0; c < nc_; ++c) {
-      pv[c * ne_] = (*m0)[c];
-      pd[c * ne_] = (*d0)[c];
-    }
-    for (std::size_t j = 1; j < ne_; ++j) {
-      (*phi)[j - 1] = 1.0;
-      model->Contrast(big_x, sigma_, phi->data(), m->data(), d->data());
-      (*phi)[j - 1] = 0.0;
+    std::fill(pv, pv + nc_ * ne_, 0.0);
+    std::fill(pd, pd + nc_ * ne_, 0.0);
+    std::fill(phi->begin(), phi->end(), 0.0);
+    for (std::size_t s = 0; s < table.num_species(); ++s) {
+      const double xs = o.composition[s] * big_x, u = xs * sigma_;
       for (std::size_t c = 0; c < nc_; ++c) {
-        pv[c * ne_ + j] = (*m)[c] - (*m0)[c];
-        pd[c * ne_ + j] = (*d)[c] - (*d0)[c];
+        if (!table.has_table(c, s)) continue;
+        // value and d value / d ln X along the line.
+        auto eval = [&](double* value, double* slope) {
+          double v, d_du, d_dx, d_dt;
+          table.SpeciesContrast(c, s, u, xs, tp, phi->data(), &v, &d_du, &d_dx, &d_dt);
+          *value = v;
+          *slope = (d_du * sigma_ + d_dx) * xs + d_dt * dt_dv;
+        };
+        double v0, d0;
+        eval(&v0, &d0);
+        pv[c * ne_] += v0;
+        pd[c * ne_] += d0;
+        const std::size_t off = table.phi_offset(c, s);
+        for (int r = 0; r < table.basis_rank(c, s); ++r) {
+          (*phi)[off + r] = 1.0;
+          double v1, d1;
+          eval(&v1, &d1);
+          (*phi)[off + r] = 0.0;
+          pv[c * ne_ + 1 + off + r] += v1 - v0;
+          pd[c * ne_ + 1 + off + r] += d1 - d0;
+        }
       }
     }
   }
@@ -229,8 +250,14 @@ void MixingLineInverter::Invert(const MixingLineOptions& options, std::size_t n,
     std::sort(depths.begin(), depths.end());
     depths.erase(std::unique(depths.begin(), depths.end()), depths.end());
     const double nodes = std::ceil((u_hi - u_lo) * options.line_nodes_per_unit) + 1;
+    // A node costs one evaluation per background coefficient and table, of
+    // one (channel, species) table each: ~(P + tables) / tables Contrast()s.
+    std::size_t num_tables = 0;
+    for (std::size_t c = 0; c < nc; ++c)
+      for (std::size_t s = 0; s < ns; ++s) num_tables += table.has_table(c, s);
+    const double per_node = static_cast<double>(ne - 1 + num_tables) / std::max<std::size_t>(1, num_tables);
     if (depths.empty() ||
-        static_cast<double>(depths.size()) * nodes * ne > 0.5 * n * (scan_nodes + 10.0))
+        static_cast<double>(depths.size()) * nodes * per_node > 0.5 * n * (scan_nodes + 10.0))
       depths.clear();
     for (double d : depths)
       lines.emplace_back(nc, ne - 1, d, u_lo, u_hi, options.line_nodes_per_unit);
@@ -239,10 +266,9 @@ void MixingLineInverter::Invert(const MixingLineOptions& options, std::size_t n,
       ParallelFor(
           lines.size() * per, 16,
           [&](std::size_t b, std::size_t e) {
-            LineModel model(table, options);
-            std::vector<double> phi(ne - 1), m0(nc), d0(nc), m(nc), d(nc);
+            std::vector<double> phi(ne - 1);
             for (std::size_t i = b; i < e; ++i)
-              lines[i / per].Fill(static_cast<int>(i % per), &model, &phi, &m0, &d0, &m, &d);
+              lines[i / per].Fill(static_cast<int>(i % per), table, options, &phi);
           },
           options.num_threads, nullptr);
     }

@@ -28,6 +28,7 @@ void SceneTableOptions::Check() const {
   CheckInRange(max_background_K, min_background_K + 10.0, 2000.0, "max_background_K", "K");
   CheckInRange(planck_tolerance, 1e-14, 1e-4, "planck_tolerance");
   CheckInRange(negligible_fraction, 0.0, 1e-3, "negligible_fraction");
+  CheckInRange(linear_optical_depth, 1e-9, 1e-3, "linear_optical_depth");
   Require(num_nodes == 0 || (num_nodes >= 5 && num_nodes <= 10001 && num_nodes % 2 == 1),
           "num_nodes must be 0 (the model's) or odd within [5, 10001]; got " +
               std::to_string(num_nodes));
@@ -398,19 +399,52 @@ void SceneTable::BuildTable(Table* t, const std::vector<std::size_t>& bins, doub
   std::vector<double> dle(nb), dla(nb), dlec(nb), dlac(nb);
   const std::size_t block = 128;  // bins whose node data stay in cache while every u is marched
   // March bins [j0, j0 + m) at u; Richardson-combined results into dle, dla.
+  // The path is symmetric about its middle node (odd nn): only its first
+  // half is marched, the mirrored half's contribution accumulated alongside
+  // (MarchLayerPairSymmetric); with Richardson the coarse grid's layers must
+  // end on the middle node too.
+  const bool symmetric = nn % 2 == 1 && (!rich || ((nn - 1) / 2) % 2 == 0);
+  const int layers = symmetric ? (nn - 1) / 2 : nn - 1;
+  std::vector<double> pf(nb), ebf(nb), abf(nb), pc(nb), ebc(nb), abc(nb);
   auto march = [&](std::size_t j0, std::size_t m, double u) {
     std::fill(dle.begin(), dle.begin() + m, 0.0);
     std::fill(dla.begin(), dla.begin() + m, 0.0);
     std::fill(dlec.begin(), dlec.begin() + m, 0.0);
     std::fill(dlac.begin(), dlac.begin() + m, 0.0);
-    for (int k = 0; k + 1 < nn; ++k) {
-      MarchLayerPair(m, &kap[k * nb + j0], &kap[(k + 1) * nb + j0], &bbar[k * nb + j0],
-                     &bbar[(k + 1) * nb + j0], u, dz, dle.data(), dla.data());
-      if (rich && (k + 1) % 2 == 0)
-        MarchLayerPair(m, &kap[(k - 1) * nb + j0], &kap[(k + 1) * nb + j0],
-                       &bbar[(k - 1) * nb + j0], &bbar[(k + 1) * nb + j0], u, 2 * dz,
-                       dlec.data(), dlac.data());
+    if (symmetric) {
+      std::fill(pf.begin(), pf.begin() + m, 1.0);
+      std::fill(pc.begin(), pc.begin() + m, 1.0);
+      std::fill(ebf.begin(), ebf.begin() + m, 0.0);
+      std::fill(abf.begin(), abf.begin() + m, 0.0);
+      std::fill(ebc.begin(), ebc.begin() + m, 0.0);
+      std::fill(abc.begin(), abc.begin() + m, 0.0);
     }
+    for (int k = 0; k < layers; ++k) {
+      if (symmetric)
+        MarchLayerPairSymmetric(m, &kap[k * nb + j0], &kap[(k + 1) * nb + j0], &bbar[k * nb + j0],
+                                &bbar[(k + 1) * nb + j0], u, dz, dle.data(), dla.data(),
+                                pf.data(), ebf.data(), abf.data());
+      else
+        MarchLayerPair(m, &kap[k * nb + j0], &kap[(k + 1) * nb + j0], &bbar[k * nb + j0],
+                       &bbar[(k + 1) * nb + j0], u, dz, dle.data(), dla.data());
+      if (rich && (k + 1) % 2 == 0) {
+        if (symmetric)
+          MarchLayerPairSymmetric(m, &kap[(k - 1) * nb + j0], &kap[(k + 1) * nb + j0],
+                                  &bbar[(k - 1) * nb + j0], &bbar[(k + 1) * nb + j0], u, 2 * dz,
+                                  dlec.data(), dlac.data(), pc.data(), ebc.data(), abc.data());
+        else
+          MarchLayerPair(m, &kap[(k - 1) * nb + j0], &kap[(k + 1) * nb + j0],
+                         &bbar[(k - 1) * nb + j0], &bbar[(k + 1) * nb + j0], u, 2 * dz,
+                         dlec.data(), dlac.data());
+      }
+    }
+    if (symmetric)
+      for (std::size_t j = 0; j < m; ++j) {
+        dle[j] = dle[j] * pf[j] + ebf[j];
+        dla[j] = dla[j] * pf[j] + abf[j];
+        dlec[j] = dlec[j] * pc[j] + ebc[j];
+        dlac[j] = dlac[j] * pc[j] + abc[j];
+      }
     if (rich)
       for (std::size_t j = 0; j < m; ++j) {
         dle[j] = (4.0 * dle[j] - dlec[j]) * (1.0 / 3.0);
@@ -419,7 +453,7 @@ void SceneTable::BuildTable(Table* t, const std::vector<std::size_t>& bins, doub
   };
   // A bin whose whole-path optical depth stays below this is linear in u to
   // within half of it (relative): it is not marched but scaled from its slope.
-  const double kLinear = 1e-7;
+  const double kLinear = options_.linear_optical_depth;
   const int nx = t->nx;
   const int r1 = rank + 1;
   std::vector<double> suffix((nb + 1) * r1);

@@ -71,6 +71,12 @@ struct SceneTableOptions {
   // lines in the tail of another species' filter). 0 keeps every bin.
   // Default 1e-6 (about 1e-4 of a 1 K contrast), within [0, 1e-3].
   double negligible_fraction = 1e-6;
+  // A bin whose whole-path optical depth at a node's u stays below this is
+  // not marched there but scaled from its optically thin slope: linear in u
+  // to within half of it (relative), so the table's nodes differ from the
+  // binned model by at most ~this / 2 of a contrast (measured 1.3e-5 at
+  // 1e-4), for ~30 % less build time than 1e-7. Within [1e-9, 1e-3].
+  double linear_optical_depth = 1e-4;
   int num_threads = 0;                   // build threads; 0 = all cores
   void Check() const;
 };

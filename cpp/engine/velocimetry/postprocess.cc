@@ -131,63 +131,57 @@ void ReplaceVectors(const cv::Mat& u, const cv::Mat& v, const cv::Mat& keep,
 
 namespace {
 
-// Bilinear sample of `m` at (x, y), the coordinates clamped to the image
-// (border replicated); NaN for non-finite coordinates.
-inline float SampleReplicate(const cv::Mat& m, float x, float y) {
-  if (!std::isfinite(x) || !std::isfinite(y)) return std::numeric_limits<float>::quiet_NaN();
-  const int W = m.cols, H = m.rows;
+// Bilinear samples of u and v at (x, y), the coordinates clamped to the
+// image (border replicated); NaN for non-finite coordinates.
+inline void SampleReplicate(const cv::Mat& u, const cv::Mat& v, float x, float y, float* su,
+                            float* sv) {
+  if (!std::isfinite(x) || !std::isfinite(y)) {
+    *su = *sv = std::numeric_limits<float>::quiet_NaN();
+    return;
+  }
+  const int W = u.cols, H = u.rows;
   x = std::min(std::max(x, 0.0f), static_cast<float>(W - 1));
   y = std::min(std::max(y, 0.0f), static_cast<float>(H - 1));
   const int x0 = std::min(static_cast<int>(x), W - 1), y0 = std::min(static_cast<int>(y), H - 1);
   const int x1 = std::min(x0 + 1, W - 1), y1 = std::min(y0 + 1, H - 1);
   const float fx = x - x0, fy = y - y0;
-  const float* r0 = m.ptr<float>(y0);
-  const float* r1 = m.ptr<float>(y1);
-  const float top = r0[x0] + fx * (r0[x1] - r0[x0]);
-  const float bot = r1[x0] + fx * (r1[x1] - r1[x0]);
-  return top + fy * (bot - top);
+  const float w00 = (1 - fx) * (1 - fy), w01 = fx * (1 - fy), w10 = (1 - fx) * fy, w11 = fx * fy;
+  const float* a0 = u.ptr<float>(y0);
+  const float* a1 = u.ptr<float>(y1);
+  const float* b0 = v.ptr<float>(y0);
+  const float* b1 = v.ptr<float>(y1);
+  *su = w00 * a0[x0] + w01 * a0[x1] + w10 * a1[x0] + w11 * a1[x1];
+  *sv = w00 * b0[x0] + w01 * b0[x1] + w10 * b1[x0] + w11 * b1[x1];
 }
 
-// The fixed-point inversion on the calling thread; bu, bv are (re)allocated
-// by the caller to u's size. Scratch maps hold the previous sweep.
+// The fixed-point inversion on the calling thread, pixel by pixel (each
+// pixel's iteration uses only its own vector): at most `iterations` sweeps,
+// a pixel stopping once its vector moves by less than 1e-4 px (mean of the
+// two components).
 void InvertDisplacementSerial(const cv::Mat& u, const cv::Mat& v, int iterations, cv::Mat& bu,
-                              cv::Mat& bv, cv::Mat& pu, cv::Mat& pv) {
+                              cv::Mat& bv) {
   const int W = u.cols, H = u.rows;
   bu.create(u.size(), CV_32FC1);
   bv.create(u.size(), CV_32FC1);
-  pu.create(u.size(), CV_32FC1);
-  pv.create(u.size(), CV_32FC1);
   for (int y = 0; y < H; ++y) {
     const float* su = u.ptr<float>(y);
     const float* sv = v.ptr<float>(y);
     float* du = bu.ptr<float>(y);
     float* dv = bv.ptr<float>(y);
     for (int x = 0; x < W; ++x) {
-      du[x] = -su[x];
-      dv[x] = -sv[x];
-    }
-  }
-  for (int it = 0; it < iterations; ++it) {
-    cv::swap(bu, pu);
-    cv::swap(bv, pv);
-    // y = x + b; b_new = -w(y) (bilinear, border replicated).
-    double change = 0.0;
-    for (int y = 0; y < H; ++y) {
-      const float* ou = pu.ptr<float>(y);
-      const float* ov = pv.ptr<float>(y);
-      float* du = bu.ptr<float>(y);
-      float* dv = bv.ptr<float>(y);
-      for (int x = 0; x < W; ++x) {
-        const float sx = x + ou[x], sy = y + ov[x];
-        du[x] = -SampleReplicate(u, sx, sy);
-        dv[x] = -SampleReplicate(v, sx, sy);
-        const float d = std::abs(du[x] - ou[x]) + std::abs(dv[x] - ov[x]);
-        if (std::isfinite(d)) change += d;
+      // y = x + b; b_new = -w(y) (bilinear, border replicated).
+      float bx = -su[x], by = -sv[x];
+      for (int it = 0; it < iterations; ++it) {
+        float wx, wy;
+        SampleReplicate(u, v, x + bx, y + by, &wx, &wy);
+        const float change = 0.5f * (std::abs(wx + bx) + std::abs(wy + by));
+        bx = -wx;
+        by = -wy;
+        if (!(change >= 1e-4f)) break;  // converged (or NaN)
       }
+      du[x] = bx;
+      dv[x] = by;
     }
-    // Mean change of this sweep; stop below 1e-4 px (folds, where the
-    // iteration does not converge, must not keep the whole map iterating).
-    if (change / (2.0 * W * H) < 1e-4) break;
   }
 }
 
@@ -201,8 +195,7 @@ void InvertDisplacement(const cv::Mat& u, const cv::Mat& v, int iterations, cv::
           "u and v must be non-empty and of one size; got " + SizeText(u) + " and " +
               SizeText(v));
   Require(iterations >= 1, "iterations must be >= 1; got " + std::to_string(iterations));
-  cv::Mat pu, pv;
-  InvertDisplacementSerial(u, v, iterations, bu, bv, pu, pv);
+  InvertDisplacementSerial(u, v, iterations, bu, bv);
 }
 
 void FrameVelocity(const std::vector<cv::Mat>& u, const std::vector<cv::Mat>& v,
@@ -235,9 +228,9 @@ void FrameVelocity(const std::vector<cv::Mat>& u, const std::vector<cv::Mat>& v,
   ParallelFor(
       n, 1,
       [&](std::size_t b, std::size_t e) {
-        cv::Mat bu, bv, pu, pv;
+        cv::Mat bu, bv;
         for (std::size_t t = b + 1; t <= e; ++t) {
-          InvertDisplacementSerial(u[t - 1], v[t - 1], kIterations, bu, bv, pu, pv);
+          InvertDisplacementSerial(u[t - 1], v[t - 1], kIterations, bu, bv);
           const int H = bu.rows, W = bu.cols;
           for (int y = 0; y < H; ++y) {
             const float* ib = bu.ptr<float>(y);

@@ -71,7 +71,7 @@ void TemporalFilter(const std::vector<cv::Mat>& u, const std::vector<cv::Mat>& v
 // Backward displacement of a forward map x -> x + w(x): b(x) = y - x where
 // y + w(y) = x, by the fixed-point iteration y = x - w(y) (w sampled
 // bilinearly, replicated beyond the border), at most `iterations` sweeps,
-// stopping once the vectors move by less than 1e-4 px on average. Converges
+// each pixel stopping once its vector moves by less than 1e-4 px. Converges
 // where |grad w| < 1, i.e. wherever the map does not fold. u, v: CV_32F, one
 // size.
 void InvertDisplacement(const cv::Mat& u, const cv::Mat& v, int iterations, cv::Mat& bu,
