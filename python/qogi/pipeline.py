@@ -1088,21 +1088,12 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
 
     # -- per frame: column densities over the region and on the surfaces -----
     col_fields = np.zeros((nf, roi.y1 - roi.y0, roi.x1 - roi.x0), dtype=np.float32)
-    # The velocity field's part of the region (all of it without a source):
-    # only there is the proxy computed (when the background's edge
-    # interpolation runs along whole lines of it and it holds every surface
-    # sample) and turned into a column (the rest is zero).
+    # The flow's part of the region (all of it without a source).
     transport = None
     crop = (slice(0, col_fields.shape[1]), slice(0, col_fields.shape[2]))
     if source is not None and cfg.velocity not in ("wind", "exit"):
         transport = _transport_crop(surfaces, source, roi, col_fields.shape[1:])
         crop = transport[2]
-    full_lines = crop[1] == slice(0, col_fields.shape[2]) if horizontal else \
-        crop[0] == slice(0, col_fields.shape[1])
-    pts = np.concatenate([x[0] for x in samples]) - [roi.x0, roi.y0]
-    inside = bool(np.all((pts[:, 0] >= crop[1].start) & (pts[:, 0] <= crop[1].stop - 1) &
-                         (pts[:, 1] >= crop[0].start) & (pts[:, 1] <= crop[0].stop - 1)))
-    field_crop = crop if (full_lines and inside) else None
     surf_cols = [{sp: np.full((nf, len(x[0])), np.nan) for sp in cfg.species} for x in samples]
     surf_sig = [{sp: np.zeros((nf, len(x[0]))) for sp in cfg.species} for x in samples]
     status_counts: Dict[str, int] = {}
@@ -1143,11 +1134,7 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
             for k in range(0, nf, block):
                 b = min(block, nf - k)
                 fr = rec.frames(start + k, start + k + b, quantity="radiance")
-                if field_crop is None:
-                    col_fields[k:k + b] = columns.collect(fr, surfaces, samples)
-                else:
-                    col_fields[k:k + b, crop[0], crop[1]] = columns.collect(
-                        fr, surfaces, samples, field_crop)
+                col_fields[k:k + b] = columns.collect(fr, surfaces, samples)
                 done = k + b
                 say(0.05 + 0.3 * done / nf, f"background and column field, frame {done}/{nf}")
         if time_averaged and cfg.column_density == "truth":
@@ -1155,17 +1142,13 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
                 for sp in cfg.species:
                     surf_cols[j][sp][:] = _bilinear(acc[sp] / nf, xy - [roi.x0, roi.y0])
         invert_collected(done, time_averaged)
-        if transport is not None and (field_crop is None or cfg.column_density == "truth"):
-            keep = np.zeros(col_fields.shape[1:], bool)
-            keep[crop] = True
-            col_fields[:done, ~keep] = 0.0
         if cfg.column_density != "truth":
-            part = col_fields[:done, crop[0], crop[1]]
+            # The whole region: the flow runs on its part (crop), the flux
+            # level's transport balance on all of it.
+            part = col_fields[:done]
             columns.contrast_to_column(part)
-            sub = Region(roi.x0 + crop[1].start, roi.y0 + crop[0].start,
-                         roi.x0 + crop[1].stop, roi.y0 + crop[0].stop)
             velocity_info["proxy_anchor"] = _anchor_proxy(
-                part, samples, surf_cols, cfg.species[0], horizontal, sub)
+                part, samples, surf_cols, cfg.species[0], horizontal, roi)
     except Cancelled:
         try:
             invert_collected(done, time_averaged)
@@ -1198,7 +1181,7 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
                                "no source given or detected" if source is None else
                                "fewer than 3 frames" if done < 3 else "")
         if flux_note == "off: ":
-            axis, index, _ = transport
+            axis, index, _, region_index = transport
         field = velocity_frames[:, crop[0], crop[1]]
         mask = source_mask[crop[0], crop[1]] if source_mask is not None else None
         # The flows' scale: the 99.5th percentile of (up to) 100 frames spread
@@ -1214,7 +1197,13 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
         uv = None
         if flux_note == "off: ":
             try:
-                u, v, level = vel.calibrate_flux_level(seq, norm, axis, index)
+                # The level from the transport along the whole region (the
+                # plume's structures beyond the flow's part constrain it too;
+                # docs/velocimetry.md), in the flow field's units and lines.
+                tf = vel.transport_flux(velocity_frames, axis, region_index)
+                lines = crop[0] if axis in ("up", "down") else crop[1]
+                tf = tf.lines(lines, scale=1.0 / scale if scale > 0 else 1.0)
+                u, v, level = vel.calibrate_flux_level(seq, norm, axis, index, transport=tf)
                 uv = (u, v)
                 flux_note = (f"on: transport of the line-integrated column, axis {axis}"
                              if np.isfinite(level).any() else
@@ -1236,11 +1225,11 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
 def _transport_crop(surfaces, source, roi: Region, shape: Tuple[int, int]):
     """The plume's axis in the image (``up``, ``down``, ``left``, ``right``:
     from the source towards the surfaces), the source's line along it in the
-    region (index) and the part of the region the velocity field uses: up to
-    a margin beyond the farthest surface (the transport balance sums the
-    column beyond each line, and the proxy is calibrated only up to the
-    surfaces; the gas leaving through the cut is the balance's outflow term).
-    Returns (axis, index, (row slice, column slice))."""
+    part of the region the flow uses (index), that part: up to a margin
+    beyond the farthest surface (the gas leaving through the cut is the flow
+    balance's outflow), and the source's line in the whole region (for the
+    transport flux level, measured along all of it). Returns (axis, index,
+    (row slice, column slice), region_index)."""
     pts = np.concatenate([np.asarray(s.points, float) for s in surfaces])
     dx, dy = pts.mean(axis=0) - np.asarray(source)
     if abs(dy) >= abs(dx):
@@ -1250,6 +1239,7 @@ def _transport_crop(surfaces, source, roi: Region, shape: Tuple[int, int]):
         axis, index = ("right" if dx > 0 else "left"), source[0] - roi.x0
         coord, size = pts[:, 0] - roi.x0, shape[1]
     far = coord.min() if axis in ("up", "left") else coord.max()
+    region_index = index
     margin = max(48.0, abs(index - far))
     if axis in ("up", "left"):
         cut = slice(int(min(size - 1, max(0, np.floor(far - margin)))), size)
@@ -1257,7 +1247,7 @@ def _transport_crop(surfaces, source, roi: Region, shape: Tuple[int, int]):
     else:
         cut = slice(0, int(max(1, min(size, np.ceil(far + margin) + 1))))
     crop = (cut, slice(0, shape[1])) if axis in ("up", "down") else (slice(0, shape[0]), cut)
-    return axis, index, crop
+    return axis, index, crop, region_index
 
 
 def _anchor_proxy(fields: np.ndarray, samples, surf_cols, species: str, horizontal: bool,

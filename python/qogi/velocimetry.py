@@ -713,6 +713,13 @@ class TransportFlux:
     displacement: np.ndarray
     axis: str
 
+    def lines(self, sl: slice, scale: float = 1.0) -> "TransportFlux":
+        """The lines ``sl`` (rows for "up"/"down", columns otherwise) of this
+        result, its flux and line column multiplied by ``scale`` (e.g. to the
+        units of a rescaled field); velocities and displacements unchanged."""
+        return TransportFlux(self.flux[sl] * scale, self.line_column[sl] * scale,
+                             self.velocity[sl], self.displacement[sl], self.axis)
+
 
 def _coarse_displacements(I: np.ndarray, K: np.ndarray, k_end: int,
                           half_window: int = 8) -> np.ndarray:
@@ -877,7 +884,8 @@ def transport_flux(frames: ArrayLike, axis: str = "up",
 
 def calibrate_flux_level(seq: FlowSequence, frames: ArrayLike, axis: str = "up",
                          source_index: Optional[float] = None, smooth_px: float = 2.0,
-                         min_fraction: float = 0.05, max_factor: float = 2.5
+                         min_fraction: float = 0.05, max_factor: float = 2.5,
+                         transport: Optional[TransportFlux] = None
                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Velocity at each frame time (:func:`frame_velocity`), rescaled line by
     line so that its time-averaged flux along ``axis`` equals the transport
@@ -921,6 +929,14 @@ def calibrate_flux_level(seq: FlowSequence, frames: ArrayLike, axis: str = "up",
     smooth_px : float, default 2
     min_fraction : float, default 0.05
     max_factor : float, default 2.5
+    transport : TransportFlux, optional
+        The transport flux of the frames' lines (in the frames' units), e.g.
+        measured along a longer stretch of the plume than the frames hold
+        (:meth:`TransportFlux.lines` of a larger field's): the structures
+        beyond the frames constrain the level too (on the synthetic M150
+        release, 2 s records, the transport along the whole image reads
+        0.83-1.06 of the truth where only the flow's part read 0.72-1.09).
+        Default: :func:`transport_flux` of ``frames``.
 
     Returns
     -------
@@ -940,7 +956,15 @@ def calibrate_flux_level(seq: FlowSequence, frames: ArrayLike, axis: str = "up",
         raise ValueError(f"smooth_px must be >= 0; got {smooth_px}")
     if not 0 < min_fraction < 1:
         raise ValueError(f"min_fraction must be in (0, 1); got {min_fraction}")
-    tf = transport_flux(stack, axis, source_index)
+    if transport is None:
+        tf = transport_flux(stack, axis, source_index)
+    else:
+        n_lines = stack.shape[1] if axis in ("up", "down") else stack.shape[2]
+        if transport.axis != axis or len(transport.flux) != n_lines:
+            raise ValueError(f"transport must be along {axis!r} with one value per line of the "
+                             f"frames ({n_lines}); got {transport.axis!r} with "
+                             f"{len(transport.flux)}")
+        tf = transport
     fu, fv = frame_velocity(seq)
     # Flux along the axis per line and frame (no whole-stack temporaries).
     comp = fv if axis in ("up", "down") else fu

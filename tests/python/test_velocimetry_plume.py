@@ -168,6 +168,40 @@ def test_calibrate_flux_level_restores_a_flow_that_reads_30_percent_low(v0):
     np.testing.assert_allclose(scale[rows], 1 / 0.7, rtol=0.03)
 
 
+def test_calibrate_flux_level_takes_the_transport_of_a_longer_stretch():
+    # The flow covers the lower half of the plume (its 60 rows next to the
+    # source), the transport flux is measured along all of it and given for
+    # those rows: the flow's level follows it.
+    column, v_true, disp = _fluctuating_column(1.5)
+    full = vel.transport_flux(column, axis="up")
+    part = vel.TransportFlux(*(np.asarray(a)[60:] for a in (full.flux, full.line_column,
+                                                            full.velocity, full.displacement)),
+                             "up")
+    got = full.lines(slice(60, 120))
+    for a, b in zip((got.flux, got.line_column, got.velocity, got.displacement),
+                    (part.flux, part.line_column, part.velocity, part.displacement)):
+        np.testing.assert_array_equal(a, b)
+    more = full.lines(slice(60, 120), scale=1.5)
+    np.testing.assert_allclose(more.flux, 1.5 * got.flux)
+    np.testing.assert_allclose(more.line_column, 1.5 * got.line_column)
+    np.testing.assert_array_equal(more.velocity, got.velocity)
+    lower = column[:, 60:]
+    slow = vel.FlowSequence(np.zeros_like(disp[:, 60:]), 0.7 * disp[:, 60:],
+                            np.ones_like(disp[:, 60:]), np.ones(disp[:, 60:].shape, bool),
+                            np.zeros(disp.shape[0]), "exact")
+    u, v, scale = vel.calibrate_flux_level(slow, lower, axis="up", transport=got)
+    c = lower[1:-1].astype(np.float64)
+    mass_weighted = (c * -v[1:-1]).sum(axis=(0, 2)) / c.sum(axis=(0, 2))
+    rows = np.arange(5, 55)
+    err = mass_weighted[rows] / v_true[60:][rows] - 1.0
+    assert np.all(np.abs(err) < 0.02), err
+    # A transport in other units moves the level with it; a wrong one is refused.
+    _, v2, _ = vel.calibrate_flux_level(slow, lower, axis="up", transport=more)
+    np.testing.assert_allclose(v2[1:-1][:, rows], 1.5 * v[1:-1][:, rows], rtol=1e-5)
+    with pytest.raises(ValueError, match="transport must be along"):
+        vel.calibrate_flux_level(slow, lower, axis="up", transport=full)
+
+
 @pytest.fixture(scope="module")
 def plume_100hz_1s():
     return _case(100.0, 100, seed=3)
