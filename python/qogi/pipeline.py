@@ -98,6 +98,7 @@ class QuantifyConfig:
     velocity_systematic: Optional[float] = None
     column_systematic: Optional[float] = None
     flux_level: bool = True
+    pair_stride: Optional[int] = None
 
     def __post_init__(self):
         if isinstance(self.species, str):
@@ -152,6 +153,12 @@ class QuantifyConfig:
             raise ValueError(f"velocity_systematic must be within [0, 1]; got {self.velocity_systematic}")
         if self.column_systematic is not None and not 0 <= self.column_systematic <= 1:
             raise ValueError(f"column_systematic must be within [0, 1]; got {self.column_systematic}")
+        if self.pair_stride is not None and (isinstance(self.pair_stride, bool) or
+                                             not isinstance(self.pair_stride, int) or
+                                             not 1 <= self.pair_stride <= 100):
+            raise ValueError(f"pair_stride must be an integer within [1, 100] (frames between "
+                             f"the velocimetry's pairs) or None (automatic); got "
+                             f"{self.pair_stride!r}")
         if self.source is not None:
             self.source = (float(self.source[0]), float(self.source[1]))
         if self.composition is not None:
@@ -311,21 +318,15 @@ class _Background:
         return ends[0][..., None] * (1 - t) + ends[1][..., None] * t
 
     def field(self, frame_roi: np.ndarray, horizontal: bool,
-              channel: Optional[int] = None, crop=None) -> np.ndarray:
+              channel: Optional[int] = None) -> np.ndarray:
         """Background over the analysis region: (C, h, w) for the frame's
         channels (C, h, w), or (h, w) for ``channel`` given one channel's
-        (h, w). With ``crop`` (row and column slices of the region), frame_roi
-        is that part and so is the background; the crop must keep every line
-        of the edge interpolation whole (all columns when ``horizontal``,
-        else all rows)."""
+        (h, w); leading frame axes pass through."""
         cfg = self.cfg
         if isinstance(cfg.background, Region):
             return None
-        if crop is None:
-            crop = (slice(None), slice(None))
         if cfg.background == "percentile":
-            img = self.percentile_img if channel is None else self.percentile_img[channel]
-            return img[..., crop[0], crop[1]]
+            return self.percentile_img if channel is None else self.percentile_img[channel]
         # Per line along the plume, linear between 4-px strips at the region's
         # edges across it, plus the static shape of the background that a
         # straight line misses (a sky's elevation gradient across a
@@ -334,7 +335,7 @@ class _Background:
         bg = self._edge_interpolation(frame_roi, horizontal)
         if self.shape_correction is not None:
             corr = self.shape_correction[horizontal]
-            bg = bg + (corr if channel is None else corr[channel])[..., crop[0], crop[1]]
+            bg += corr if channel is None else corr[channel]
         return bg
 
     @staticmethod
@@ -343,12 +344,16 @@ class _Background:
         if horizontal:  # along x between the left and right strips
             left = img[..., :, :k].mean(axis=-1)
             right = img[..., :, -k:].mean(axis=-1)
-            t = np.linspace(0, 1, img.shape[-1])
-            return left[..., None] * (1 - t) + right[..., None] * t
+            t = np.linspace(0, 1, img.shape[-1]).astype(img.dtype, copy=False)
+            out = (right - left)[..., None] * t
+            out += left[..., None]
+            return out
         top = img[..., :k, :].mean(axis=-2)
         bottom = img[..., -k:, :].mean(axis=-2)
-        t = np.linspace(0, 1, img.shape[-2])[:, None]
-        return top[..., None, :] * (1 - t) + bottom[..., None, :] * t
+        t = np.linspace(0, 1, img.shape[-2])[:, None].astype(img.dtype, copy=False)
+        out = (bottom - top)[..., None, :] * t
+        out += top[..., None, :]
+        return out
 
     def set_static_shape(self, mean_roi: np.ndarray) -> None:
         """From the time-averaged region (C, h, w): the background's static
@@ -535,18 +540,28 @@ class _InvertedColumns:
         # 160 K of an inferred temperature, 10 K nodes: the cubic spline in T
         # then differs from the 5 K table by <= 2e-3 (median 3e-6) of the
         # contrast, well inside the fast model's own 0.5 % (docs/pipeline_api.md),
-        # at half the build time.
+        # at half the build time; and 6 nodes per decade of u = x sigma
+        # instead of 8: within 0.34 NETD (99 %: 0.08) of the 8-node table on
+        # the lab domain (x 1e-4 to 1, sigma 1 mm to 30 cm, 12-147 C), 22 %
+        # less build time.
         # It is built on a worker thread (the engine releases the GIL) while
         # the frames are read; the first use of :attr:`table` waits for it.
+        infer = cfg.gas_temperature == "infer"
         table_kw = dict(min_peak_temperature_K=self.temperature_range_K[0],
                         max_peak_temperature_K=self.temperature_range_K[1],
-                        temperature_step_K=10.0 if cfg.gas_temperature == "infer" else 5.0,
+                        temperature_step_K=10.0 if infer else 5.0,
+                        nodes_per_decade=6 if infer else 8,
                         num_threads=cfg.num_threads)
         self._table, self._table_error = None, None
+
+        line_solver = cfg.gas_temperature == "infer" and (
+            cfg.composition is not None or len(cfg.species) == 1)
 
         def build() -> None:
             try:
                 self._table = inv.scene_table(self.model, scene.ambient_K, **table_kw)
+                if line_solver and self._table is not None:
+                    inv._line_inverter(self._table)  # its band tables, cached
             except BaseException as e:  # re-raised on the caller's thread
                 self._table_error = e
 
@@ -702,36 +717,32 @@ class _InvertedColumns:
             contrast[...] = work
         return contrast
 
-    def proxy_field(self, frame: np.ndarray, crop=None) -> np.ndarray:
+    def proxy_field(self, frame: np.ndarray, out: Optional[np.ndarray] = None) -> np.ndarray:
         """The signed proxy-channel contrast of frames (..., C, H, W) over the
-        region, or over ``crop`` (row and column slices of the region, see
-        :meth:`_Background.field`) -> (..., h, w) float32."""
+        region -> (..., h, w) float32 (into ``out`` when given)."""
         sl = self.roi.slices()
-        if crop is not None:
-            sl = (slice(sl[0].start + crop[0].start, sl[0].start + crop[0].stop),
-                  slice(sl[1].start + crop[1].start, sl[1].start + crop[1].stop))
         c = self.proxy_channel
-        fr = frame[..., c, sl[0], sl[1]].astype(np.float64)
-        bg = self.background.field(fr, self.horizontal, channel=c, crop=crop)
+        # In float32 (the frames' own precision; its rounding, ~1e-7 of the
+        # radiance, is ~1e-4 of the NETD noise).
+        fr = frame[..., c, sl[0], sl[1]]
+        bg = self.background.field(fr, self.horizontal, channel=c)
         if bg is None:  # a uniform region background
             bg = self.background.region_mean(frame, self.cfg.background)[..., c, None, None]
         # Signed (gas contrast positive): noise averages out of the sums the
         # velocimetry's flux level takes along the plume.
-        dl = self.background.channel_sign[c] * (fr - bg)
-        return dl.astype(np.float32)
+        dl = np.subtract(fr, bg, out=out, dtype=np.float32)
+        dl *= np.float32(self.background.channel_sign[c])
+        return dl
 
     def collect(self, frames: np.ndarray, surfaces: Sequence[Surface], samples,
-                crop=None) -> np.ndarray:
+                out: Optional[np.ndarray] = None) -> np.ndarray:
         """The signed proxy-channel contrast fields (B, h, w) of a block of
-        frames (B, C, H, W), over the region or its ``crop`` (which must hold
-        every surface sample; see :meth:`proxy_field`), converted to a column
+        frames (B, C, H, W) (into ``out`` when given), converted to a column
         proxy by :meth:`contrast_to_column` once the lookup is final; stores
         the radiance and the background at the surface samples for
         :meth:`finish`."""
-        field = self.proxy_field(frames, crop)
+        field = self.proxy_field(frames, out)
         origin = [self.roi.x0, self.roi.y0]
-        if crop is not None:
-            origin = [self.roi.x0 + crop[1].start, self.roi.y0 + crop[0].start]
         rad, bg, prof = [], [], []
         for s, (xy, n, dl, t) in zip(surfaces, samples):
             rad.append(_bilinear(frames, xy))
@@ -744,10 +755,12 @@ class _InvertedColumns:
         self._prof.extend([p[i] for p in prof] for i in range(len(frames)))
         return field
 
-    def finish(self, samples, time_averaged: bool = False, progress=None):
+    def finish(self, samples, time_averaged: bool = False, progress=None, alongside=None):
         """Inverts the stored samples of every frame in one call. Returns per
         surface ``(columns {sp: (T, N)}, sigmas {sp: (T, N)})`` and the status
-        counts. The plume depth of each surface is the Gaussian width of its
+        counts. ``alongside`` (optional callable) runs on a worker thread while
+        the per-pixel solve runs once the proxy lookup is final (with the
+        temperature inferred), else after it; its exception is re-raised. The plume depth of each surface is the Gaussian width of its
         time-averaged proxy column profile (axisymmetric plume), unless given."""
         from . import inversion as inv
 
@@ -778,7 +791,7 @@ class _InvertedColumns:
             sigma_param = None
             sigma_pixels = sig
         if self.cfg.gas_temperature == "infer" and not time_averaged:
-            return self._finish_mixing(rad, bg, sig, edges, len(samples), progress)
+            return self._finish_mixing(rad, bg, sig, edges, len(samples), progress, alongside)
         if time_averaged:
             res = self._invert(rad.mean(axis=0), bg.mean(axis=0), sigma_pixels, sigma_param,
                                noise_scale=1.0 / math.sqrt(nt), progress=progress)
@@ -806,10 +819,12 @@ class _InvertedColumns:
             cols = {sp: np.where(ok[:, a:b], res_cols[sp][:, a:b], np.nan) for sp in self.cfg.species}
             sigs = {sp: np.where(ok[:, a:b], res_sig[sp][:, a:b], 0.0) for sp in self.cfg.species}
             out.append((cols, sigs))
+        if alongside is not None:
+            alongside()
         return out, counts
 
     # -- the inferred gas temperature, frame by frame -----------------------------
-    def _finish_mixing(self, rad, bg, sig, edges, n_surfaces, progress):
+    def _finish_mixing(self, rad, bg, sig, edges, n_surfaces, progress, alongside=None):
         """Per-frame columns with the gas temperature inferred through the
         plume's mixing line.
 
@@ -966,8 +981,28 @@ class _InvertedColumns:
         k = self.k_K_per_fraction
         self._set_proxy_lookup(k)
 
-        everything = np.arange(nt * n)
-        flat = solve(k, everything, 0.3, 0.9)
+        # What needs the final lookup (the proxy field's conversion) runs on a
+        # worker thread alongside the per-pixel solve.
+        job, failure = None, []
+        if alongside is not None:
+            self.proxy_nodes  # made here, before the worker uses it
+
+            def work() -> None:
+                try:
+                    alongside()
+                except BaseException as e:  # re-raised below
+                    failure.append(e)
+
+            job = threading.Thread(target=work, name="qogi-proxy", daemon=True)
+            job.start()
+        try:
+            everything = np.arange(nt * n)
+            flat = solve(k, everything, 0.3, 0.9)
+        finally:
+            if job is not None:
+                job.join()
+        if failure:
+            raise failure[0]
         # Sensitivity to k on every 5th frame: carried into the column term.
         self.k_relative_effect = 0.0
         if self.k_sigma > 0:
@@ -1100,12 +1135,13 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
     kept_maps: Dict[int, dict] = {}
     done = 0
 
-    def invert_collected(n_done: int, time_averaged: bool) -> None:
+    def invert_collected(n_done: int, time_averaged: bool, alongside=None) -> None:
         if cfg.column_density == "truth" or n_done == 0:
             return
         per_surface, counts = columns.finish(
             samples, time_averaged=time_averaged,
-            progress=lambda fr_: say(0.35 + 0.25 * fr_, "inverting the surfaces' pixels"))
+            progress=lambda fr_: say(0.35 + 0.25 * fr_, "inverting the surfaces' pixels"),
+            alongside=alongside)
         for j in range(len(samples)):
             for sp in cfg.species:
                 surf_cols[j][sp][:n_done] = per_surface[j][0][sp]
@@ -1129,24 +1165,25 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
                 done = k + 1
                 say(0.05 + 0.3 * done / nf, f"column field, frame {done}/{nf}")
         else:
-            # Blocks of frames: one read and one vectorised pass per block.
-            block = 25
+            # Blocks of frames: one read and one vectorised pass per block (at
+            # least ten blocks, for the progress and a cancel's partial result).
+            block = int(np.clip(nf // 10, 1, 25))
             for k in range(0, nf, block):
                 b = min(block, nf - k)
                 fr = rec.frames(start + k, start + k + b, quantity="radiance")
-                col_fields[k:k + b] = columns.collect(fr, surfaces, samples)
+                columns.collect(fr, surfaces, samples, out=col_fields[k:k + b])
                 done = k + b
                 say(0.05 + 0.3 * done / nf, f"background and column field, frame {done}/{nf}")
         if time_averaged and cfg.column_density == "truth":
             for j, (xy, n, dl, t) in enumerate(samples):
                 for sp in cfg.species:
                     surf_cols[j][sp][:] = _bilinear(acc[sp] / nf, xy - [roi.x0, roi.y0])
-        invert_collected(done, time_averaged)
+        # The proxy field over the whole region (the flow runs on its part,
+        # crop; the flux level's transport balance on all of it) is turned
+        # into a column alongside the surfaces' final solve.
+        part = col_fields[:done]
+        invert_collected(done, time_averaged, alongside=lambda: columns.contrast_to_column(part))
         if cfg.column_density != "truth":
-            # The whole region: the flow runs on its part (crop), the flux
-            # level's transport balance on all of it.
-            part = col_fields[:done]
-            columns.contrast_to_column(part)
             velocity_info["proxy_anchor"] = _anchor_proxy(
                 part, samples, surf_cols, cfg.species[0], horizontal, roi)
     except Cancelled:
@@ -1188,22 +1225,59 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
         # over the run.
         scale = np.percentile(field[::max(1, field.shape[0] // 100)], 99.5)
         norm = np.ascontiguousarray(field / scale if scale > 0 else field, dtype=np.float32)
+        # The flux level's transport along the whole region (the plume's
+        # structures beyond the flow's part constrain it too;
+        # docs/velocimetry.md), on a worker thread while the flow runs.
+        transport_result: list = []
+        job = None
+        if flux_note == "off: ":
+            def measure() -> None:
+                try:
+                    transport_result.append(vel.transport_flux(velocity_frames, axis,
+                                                               region_index))
+                except BaseException as e:  # reported as the level's note below
+                    transport_result.append(e)
+
+            job = threading.Thread(target=measure, name="qogi-transport", daemon=True)
+            job.start()
+        # Pairs `stride` frames apart where the plume moves little per frame
+        # (at 100 Hz a lab plume crosses ~1 px per frame): ~3 px per pair, at
+        # most every 4th frame, with the transport's flux level (which sets
+        # the level; the flow gives the pattern: the same rates to 0.1 % on
+        # the lab releases at strides 1-4, docs/velocimetry.md).
+        stride = cfg.pair_stride
+        if stride is None:
+            stride = 1
+            if flux_note == "off: ":
+                d = vel.typical_displacement(field, axis)
+                if np.isfinite(d) and d > 0:
+                    stride = int(np.clip(round(3.0 / d), 1, 4))
+        stride = max(1, min(int(stride), (norm.shape[0] - 1) // 2))
+        velocity_info["pair_stride"] = stride
+        fvel = None
         try:
             seq = vel.optical_flow_sequence(
-                norm, method=cfg.velocity, source_mask=mask, warm_start=True, workers=0,
-                progress=lambda fr_: say(0.6 + 0.3 * fr_, "velocimetry"))
+                norm[::stride], method=cfg.velocity, source_mask=mask, warm_start=True,
+                workers=0, progress=lambda fr_: say(0.6 + 0.3 * fr_, "velocimetry"))
+            if stride > 1:
+                fvel = vel.interpolate_frame_velocity(*vel.frame_velocity(seq), stride,
+                                                      norm.shape[0])
         except KeyboardInterrupt:
             raise Cancelled("quantification cancelled", partial=None) from None
+        finally:
+            if job is not None:
+                job.join()
         uv = None
         if flux_note == "off: ":
             try:
-                # The level from the transport along the whole region (the
-                # plume's structures beyond the flow's part constrain it too;
-                # docs/velocimetry.md), in the flow field's units and lines.
-                tf = vel.transport_flux(velocity_frames, axis, region_index)
+                tf = transport_result[0]
+                if isinstance(tf, BaseException):
+                    raise tf
+                # In the flow field's units and lines.
                 lines = crop[0] if axis in ("up", "down") else crop[1]
                 tf = tf.lines(lines, scale=1.0 / scale if scale > 0 else 1.0)
-                u, v, level = vel.calibrate_flux_level(seq, norm, axis, index, transport=tf)
+                u, v, level = vel.calibrate_flux_level(seq, norm, axis, index, transport=tf,
+                                                       frame_velocities=fvel)
                 uv = (u, v)
                 flux_note = (f"on: transport of the line-integrated column, axis {axis}"
                              if np.isfinite(level).any() else
@@ -1213,7 +1287,7 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
             except ValueError as e:
                 flux_note = f"off: {e}"
         if uv is None:
-            uv = vel.frame_velocity(seq)
+            uv = fvel if fvel is not None else vel.frame_velocity(seq)
         # The analysed part and its origin in the region (no velocity outside it).
         flows = (uv[0], uv[1], (crop[1].start, crop[0].start))
         velocity_info["flux_level"] = flux_note

@@ -466,9 +466,10 @@ class Recording:
         return out
 
     def _apply_nonfinite(self, block: np.ndarray, start: int) -> np.ndarray:
-        bad = ~np.isfinite(block)
-        if not bad.any():
+        # A finite sum (in float64: no overflow) means every value is finite.
+        if np.isfinite(block.sum(dtype=np.float64)):
             return block
+        bad = ~np.isfinite(block)
         if self.nonfinite == "invalid":
             block[bad] = np.nan
             return block

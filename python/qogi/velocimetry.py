@@ -882,10 +882,78 @@ def transport_flux(frames: ArrayLike, axis: str = "up",
     return TransportFlux(flux, mean_line, velocity, disp, axis)
 
 
+def typical_displacement(frames: ArrayLike, axis: str = "up", max_px: int = 16) -> float:
+    """Typical displacement [px/frame] of a plume's structures along ``axis``:
+    where the correlation of consecutive frames' line sums (their temporal
+    anomalies, over all lines) peaks among shifts 0 ... ``max_px`` (sub-pixel
+    by a parabola through the peak). NaN when the peak is at ``max_px`` (the
+    plume moves faster) or the frames do not change.
+
+    Used to choose how many frames apart the pairs of a sequence are
+    (``pair_stride`` of the pipeline): at 100 Hz a lab plume moves ~1 px per
+    frame, below what a flow resolves well relative to its own error."""
+    _check_axis(axis)
+    stack = np.asarray(frames, dtype=np.float32)
+    if stack.ndim != 3 or stack.shape[0] < 3:
+        raise ValueError(f"frames must be a (T, H, W) stack with T >= 3; got shape {stack.shape}")
+    if max_px < 2:
+        raise ValueError(f"max_px must be >= 2; got {max_px}")
+    turned = _along_axis(stack, axis)
+    I = turned.sum(axis=2, dtype=np.float64)
+    A = I - I.mean(axis=0)
+    H = A.shape[1]
+    top = min(max_px, H - 2)
+    r = np.full(top + 1, -np.inf)
+    for d in range(top + 1):
+        a, b = A[:-1, d:], A[1:, :H - d]
+        den = np.sqrt((a * a).sum() * (b * b).sum())
+        if den > 0:
+            r[d] = (a * b).sum() / den
+    k = int(np.argmax(r))
+    if not np.isfinite(r[k]) or k >= top:
+        return float("nan")
+    if k == 0:
+        return 0.0
+    y0, y1, y2 = r[k - 1], r[k], r[k + 1]
+    curv = y0 - 2 * y1 + y2
+    return float(k + (0.5 * (y0 - y2) / curv if curv < 0 else 0.0))
+
+
+def interpolate_frame_velocity(u: np.ndarray, v: np.ndarray, stride: int,
+                               frames: int) -> tuple[np.ndarray, np.ndarray]:
+    """Velocity [px/frame] at every one of ``frames`` frames from the velocity
+    at every ``stride``-th (``u``, ``v``: (ceil(frames / stride), H, W) in px
+    per ``stride`` frames, e.g. :func:`frame_velocity` of the sequence of
+    frames 0, stride, 2 stride, ...): linear in time between them, held after
+    the last. Returns float32 (frames, H, W) arrays."""
+    if stride < 1:
+        raise ValueError(f"stride must be >= 1; got {stride}")
+    n = u.shape[0]
+    if v.shape != u.shape or n != -(-frames // stride):
+        raise ValueError(f"u and v must hold ceil({frames} / {stride}) = {-(-frames // stride)} "
+                         f"frames of one shape; got {u.shape} and {v.shape}")
+    out_u = np.empty((frames,) + u.shape[1:], np.float32)
+    out_v = np.empty_like(out_u)
+    inv = np.float32(1.0 / stride)
+    for t in range(frames):
+        i, r = divmod(t, stride)
+        if r == 0 or i + 1 >= n:
+            np.multiply(u[min(i, n - 1)], inv, out=out_u[t])
+            np.multiply(v[min(i, n - 1)], inv, out=out_v[t])
+        else:
+            w = np.float32(r / stride)
+            np.multiply(u[i], (1 - w) * inv, out=out_u[t])
+            out_u[t] += u[i + 1] * (w * inv)
+            np.multiply(v[i], (1 - w) * inv, out=out_v[t])
+            out_v[t] += v[i + 1] * (w * inv)
+    return out_u, out_v
+
+
 def calibrate_flux_level(seq: FlowSequence, frames: ArrayLike, axis: str = "up",
                          source_index: Optional[float] = None, smooth_px: float = 2.0,
                          min_fraction: float = 0.05, max_factor: float = 2.5,
-                         transport: Optional[TransportFlux] = None
+                         transport: Optional[TransportFlux] = None,
+                         frame_velocities: Optional[tuple] = None
                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Velocity at each frame time (:func:`frame_velocity`), rescaled line by
     line so that its time-averaged flux along ``axis`` equals the transport
@@ -937,6 +1005,11 @@ def calibrate_flux_level(seq: FlowSequence, frames: ArrayLike, axis: str = "up",
         release, 2 s records, the transport along the whole image reads
         0.83-1.06 of the truth where only the flow's part read 0.72-1.09).
         Default: :func:`transport_flux` of ``frames``.
+    frame_velocities : (u, v), optional
+        The velocity at every frame of ``frames`` [px/frame], (T, H, W) each,
+        e.g. :func:`interpolate_frame_velocity` of a sequence of every n-th
+        frame; they are scaled in place. Default: :func:`frame_velocity` of
+        ``seq`` (then ``seq`` may be None with them given).
 
     Returns
     -------
@@ -948,7 +1021,12 @@ def calibrate_flux_level(seq: FlowSequence, frames: ArrayLike, axis: str = "up",
     _check_axis(axis)
     stack = np.asarray(frames, dtype=np.float32)
     T = stack.shape[0] if stack.ndim == 3 else 0
-    if stack.ndim != 3 or seq.u.shape != (T - 1,) + stack.shape[1:]:
+    if frame_velocities is not None:
+        fu, fv = frame_velocities
+        if stack.ndim != 3 or fu.shape != stack.shape or fv.shape != stack.shape:
+            raise ValueError(f"frame_velocities must be two arrays of the frames' shape "
+                             f"{stack.shape}; got {np.shape(fu)} and {np.shape(fv)}")
+    elif stack.ndim != 3 or seq.u.shape != (T - 1,) + stack.shape[1:]:
         raise ValueError(f"frames must be the (T, H, W) stack of the sequence's T - 1 = "
                          f"{seq.u.shape[0]} pairs of {seq.u.shape[1:]} frames; got shape "
                          f"{stack.shape}")
@@ -965,7 +1043,8 @@ def calibrate_flux_level(seq: FlowSequence, frames: ArrayLike, axis: str = "up",
                              f"frames ({n_lines}); got {transport.axis!r} with "
                              f"{len(transport.flux)}")
         tf = transport
-    fu, fv = frame_velocity(seq)
+    if frame_velocities is None:
+        fu, fv = frame_velocity(seq)
     # Flux along the axis per line and frame (no whole-stack temporaries).
     comp = fv if axis in ("up", "down") else fu
     sign = -1.0 if axis in ("up", "left") else 1.0

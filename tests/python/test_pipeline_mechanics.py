@@ -108,6 +108,8 @@ def test_cancel_keeps_the_frames_done(lab):
     (dict(averaging="sometimes"), ["averaging"]),
     (dict(background="guess"), ["background"]),
     (dict(frames=(5, 2)), ["frames"]),
+    (dict(pair_stride=0), ["pair_stride", "[1, 100]"]),
+    (dict(pair_stride=2.5), ["pair_stride", "None (automatic)"]),
 ])
 def test_config_rejects_bad_values(kwargs, words):
     with pytest.raises(ValueError) as e:

@@ -291,3 +291,54 @@ def test_calibrate_flux_level_falls_back_to_the_transport_velocity(wind_15hz):
     np.testing.assert_allclose(scale[cols], 1 / 0.7, rtol=0.05)
     with pytest.raises(ValueError, match="max_factor"):
         vel.calibrate_flux_level(slow, column, axis="right", source_index=exit_col, max_factor=1.0)
+
+
+# -- pairs several frames apart at high frame rates ----------------------------
+
+def test_typical_displacement_reads_the_structures_speed():
+    # The decelerating 1-D plume moves 0.5 v0 ... v0 px per frame.
+    for v0 in (2.0, 4.0):
+        column, v_true, _ = _fluctuating_column(v0)
+        d = vel.typical_displacement(column, axis="up")
+        assert v_true.min() - 0.2 < d < v_true.max() + 0.2, (v0, d)
+    fast, _, _ = _fluctuating_column(40.0)
+    assert np.isnan(vel.typical_displacement(fast, axis="up", max_px=8))
+    with pytest.raises(ValueError, match="max_px"):
+        vel.typical_displacement(fast, max_px=1)
+
+
+def test_interpolate_frame_velocity_is_linear_between_the_sampled_frames():
+    t = np.arange(0, 10, 3, dtype=np.float32)            # frames 0, 3, 6, 9
+    u = np.broadcast_to((3.0 * (1.0 + 0.5 * t))[:, None, None], (4, 2, 2)).astype(np.float32)
+    v = -u
+    fu, fv = vel.interpolate_frame_velocity(u, v, 3, 10)
+    want = 1.0 + 0.5 * np.arange(10)                      # px per frame at every frame
+    np.testing.assert_allclose(fu[:, 0, 0], want, rtol=1e-6)
+    np.testing.assert_allclose(fv[:, 1, 1], -want, rtol=1e-6)
+    with pytest.raises(ValueError, match="ceil"):
+        vel.interpolate_frame_velocity(u, v, 3, 13)
+
+
+def test_pairs_three_frames_apart_keep_the_flux_level_at_100_hz(plume_100hz_1s):
+    # The flow on every third frame, its frame velocities interpolated in
+    # time, calibrated by the transport of every frame: the same flux as
+    # consecutive pairs (the flow gives the pattern, the transport the level).
+    column, vz, source, rows, fp = plume_100hz_1s
+    exit_row = int(np.nonzero(source.any(axis=1))[0][0])
+    norm = column / np.percentile(column, 99.5)
+    tf = vel.transport_flux(norm, "up", exit_row)
+    est = {}
+    for stride in (1, 3):
+        seq = vel.optical_flow_sequence(norm[::stride], source_mask=source, workers=0)
+        fvel = None
+        if stride > 1:
+            fvel = vel.interpolate_frame_velocity(*vel.frame_velocity(seq), stride, len(norm))
+        u, v, _ = vel.calibrate_flux_level(seq, norm, "up", exit_row, transport=tf,
+                                           frame_velocities=fvel)
+        frames = np.arange(3, column.shape[0] - 3)
+        c = column[frames][:, rows].astype(np.float64)
+        est[stride] = (c * -v[frames][:, rows] * fp * 100.0).sum(axis=(0, 2))
+        true = (c * vz[frames][:, rows]).sum(axis=(0, 2))
+        assert np.all(np.abs(est[stride] / true - 1) < 0.15), (stride, est[stride] / true)
+    print("flux, pairs 3 frames apart / consecutive:", np.round(est[3] / est[1], 4))
+    np.testing.assert_allclose(est[3], est[1], rtol=0.03)

@@ -8,6 +8,7 @@
 #include "engine/optics/planck.h"
 #include "engine/rte/exact_model.h"
 #include "engine/util/check.h"
+#include "engine/util/parallel.h"
 
 namespace qogi {
 
@@ -56,7 +57,10 @@ BinnedModel::BinnedModel(std::vector<SpectralResponse> channels, std::vector<Abs
     has_self_.push_back(t.has_self());
   }
   bins_.resize(channels_.size());
-  for (std::size_t c = 0; c < channels_.size(); ++c) BuildChannel(c, tables);
+  // Channels are independent (each writes its own bins_[c]).
+  ParallelFor(channels_.size(), 1, [&](std::size_t b, std::size_t e) {
+    for (std::size_t c = b; c < e; ++c) BuildChannel(c, tables);
+  });
 }
 
 void BinnedModel::BuildChannel(std::size_t c, const std::vector<AbsorberTable>& tables) {
