@@ -742,14 +742,19 @@ TEST(GaussianProfileIntegral, MatchesEquation6) {
 // T = T_amb + k X (x = w X) are recovered to solver precision, on and off the
 // line's temperature range; zero contrast is below detection; bad options are
 // refused by name.
+MixingLineOptions LineOptions(double slope_K_per_fraction) {
+  MixingLineOptions o;
+  o.slope_K_per_fraction = slope_K_per_fraction;
+  o.composition = {0.5, 0.5};
+  o.netd_K = {0.02};
+  return o;
+}
+
 TEST(MixingLineInverter, RecoversTheLineFractionExactlyWithoutNoise) {
   const Fixture& f = F();
   const SceneTable& t = *f.table;
   MixingLineInverter inv(f.table);
-  MixingLineOptions o;
-  o.slope_K_per_fraction = 120.0;
-  o.composition = {0.5, 0.5};
-  o.netd_K = {0.02};
+  const MixingLineOptions o = LineOptions(120.0);
   const std::size_t nc = t.num_channels();
   const std::vector<double> xs{3e-3, 0.01, 0.02, 0.1, 0.4, 0.9, 0.0};
   const std::vector<double> sg{0.03, 0.05, 0.02, 0.01, 0.03, 0.005, 0.02};
@@ -802,10 +807,7 @@ TEST(MixingLineInverter, LineTablesAgreeWithTheTable) {
   const Fixture& f = F();
   const SceneTable& t = *f.table;
   MixingLineInverter inv(f.table);
-  MixingLineOptions o;
-  o.slope_K_per_fraction = 90.0;
-  o.composition = {0.5, 0.5};
-  o.netd_K = {0.02};
+  const MixingLineOptions o = LineOptions(90.0);
   const std::size_t nc = t.num_channels(), n = 4000;
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> u01(0.0, 1.0);

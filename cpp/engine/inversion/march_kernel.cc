@@ -42,6 +42,21 @@ inline __attribute__((always_inline)) double ExpNeg(double x) {
   return x < 708.0 ? v : 0.0;
 }
 
+// One layer of optical depth tau = (a + b) ds / 2: f = (1 - e^-tau) / tau
+// (its series below tau = 1e-4) and the transmittance t = 1 - tau f. Both
+// branches are computed (the division is safe), so the select vectorises.
+struct Layer {
+  double tau, f, t;
+};
+inline __attribute__((always_inline)) Layer LayerOf(double a, double b, double ds) {
+  const double tau = 0.5 * (a + b) * ds;
+  const double e = ExpNeg(tau);
+  const double series = 1.0 - tau * (0.5 - tau * (1.0 / 6.0));
+  const double exact = (1.0 - e) / (tau > 1e-300 ? tau : 1e-300);
+  const double f = tau < 1e-4 ? series : exact;
+  return {tau, f, 1.0 - tau * f};
+}
+
 }  // namespace
 
 double ExpNegative(double x) { return ExpNeg(x); }
@@ -58,16 +73,11 @@ void MarchLayerPair(std::size_t n, const double* __restrict__ kf, const double* 
                     double ds, double* __restrict__ de, double* __restrict__ da) {
   for (std::size_t j = 0; j < n; ++j) {
     const double a = u * kf[j], b = u * kn[j];
-    const double tau = 0.5 * (a + b) * ds;
-    const double e = ExpNeg(tau);
-    // Both branches are computed (the division is safe), so the select vectorises.
-    const double series = 1.0 - tau * (0.5 - tau * (1.0 / 6.0));
-    const double exact = (1.0 - e) / (tau > 1e-300 ? tau : 1e-300);
-    const double f = tau < 1e-4 ? series : exact;
-    const double t = 1.0 - tau * f;
+    const Layer l = LayerOf(a, b, ds);
+    const double f = l.f, t = l.t;
     const double dd = df[j] - dn[j];
-    de[j] = de[j] * t + dn[j] * (tau * f) + dd * (f - t) + 0.25 * dd * (a - b) * ds * (f * f);
-    da[j] = da[j] * t + tau * f;
+    de[j] = de[j] * t + dn[j] * (l.tau * f) + dd * (f - t) + 0.25 * dd * (a - b) * ds * (f * f);
+    da[j] = da[j] * t + l.tau * f;
   }
 }
 
@@ -80,13 +90,9 @@ void MarchLayerPairSymmetric(std::size_t n, const double* __restrict__ kf,
                              double* __restrict__ ab) {
   for (std::size_t j = 0; j < n; ++j) {
     const double a = u * kf[j], b = u * kn[j];
-    const double tau = 0.5 * (a + b) * ds;
-    const double e = ExpNeg(tau);
-    const double series = 1.0 - tau * (0.5 - tau * (1.0 / 6.0));
-    const double exact = (1.0 - e) / (tau > 1e-300 ? tau : 1e-300);
-    const double f = tau < 1e-4 ? series : exact;
-    const double t = 1.0 - tau * f;
-    const double tf = tau * f;
+    const Layer l = LayerOf(a, b, ds);
+    const double f = l.f, t = l.t;
+    const double tf = l.tau * f;
     const double dd = df[j] - dn[j];
     const double q = 0.25 * dd * (a - b) * ds * (f * f);
     de[j] = de[j] * t + dn[j] * tf + dd * (f - t) + q;
