@@ -554,8 +554,7 @@ class _InvertedColumns:
                         num_threads=cfg.num_threads)
         self._table, self._table_error = None, None
 
-        line_solver = cfg.gas_temperature == "infer" and (
-            cfg.composition is not None or len(cfg.species) == 1)
+        line_solver = infer and (cfg.composition is not None or len(cfg.species) == 1)
 
         def build() -> None:
             try:
@@ -760,7 +759,8 @@ class _InvertedColumns:
         surface ``(columns {sp: (T, N)}, sigmas {sp: (T, N)})`` and the status
         counts. ``alongside`` (optional callable) runs on a worker thread while
         the per-pixel solve runs once the proxy lookup is final (with the
-        temperature inferred), else after it; its exception is re-raised. The plume depth of each surface is the Gaussian width of its
+        temperature inferred), else after it; its exception is re-raised.
+        The plume depth of each surface is the Gaussian width of its
         time-averaged proxy column profile (axisymmetric plume), unless given."""
         from . import inversion as inv
 

@@ -721,6 +721,15 @@ class TransportFlux:
                              self.velocity[sl], self.displacement[sl], self.axis)
 
 
+def _shift_products(A: np.ndarray, d: int):
+    """Per line j, over time: sums of a b, a a and b b with a = A_t(j + d)
+    and b = A_{t+1}(j) (the line-sum anomalies A (T, H) of frame t shifted
+    by d lines against frame t + 1's), each (H - d,)."""
+    H = A.shape[1]
+    a, b = A[:-1, d:], A[1:, :H - d]
+    return (a * b).sum(axis=0), (a * a).sum(axis=0), (b * b).sum(axis=0)
+
+
 def _coarse_displacements(I: np.ndarray, K: np.ndarray, k_end: int,
                           half_window: int = 8) -> np.ndarray:
     """Whole-pixel start values of the level displacements: per level k, the
@@ -740,10 +749,7 @@ def _coarse_displacements(I: np.ndarray, K: np.ndarray, k_end: int,
         return np.convolve(v, box, mode="same")
 
     for d in range(0, d_max + 1):
-        a, b = A[:-1, d:], A[1:, :H - d]          # a[:, j] = I_t(j + d), b = I_{t+1}(j)
-        ab = window((a * b).sum(axis=0))
-        aa = window((a * a).sum(axis=0))
-        bb = window((b * b).sum(axis=0))
+        ab, aa, bb = (window(v) for v in _shift_products(A, d))
         idx = K[K < H - d]
         with np.errstate(invalid="ignore", divide="ignore"):
             r = ab[idx] / np.sqrt(aa[idx] * bb[idx])
@@ -901,14 +907,12 @@ def typical_displacement(frames: ArrayLike, axis: str = "up", max_px: int = 16) 
     turned = _along_axis(stack, axis)
     I = turned.sum(axis=2, dtype=np.float64)
     A = I - I.mean(axis=0)
-    H = A.shape[1]
-    top = min(max_px, H - 2)
+    top = min(max_px, A.shape[1] - 2)
     r = np.full(top + 1, -np.inf)
     for d in range(top + 1):
-        a, b = A[:-1, d:], A[1:, :H - d]
-        den = np.sqrt((a * a).sum() * (b * b).sum())
-        if den > 0:
-            r[d] = (a * b).sum() / den
+        ab, aa, bb = (float(v.sum()) for v in _shift_products(A, d))
+        if aa * bb > 0:
+            r[d] = ab / np.sqrt(aa * bb)
     k = int(np.argmax(r))
     if not np.isfinite(r[k]) or k >= top:
         return float("nan")
@@ -932,21 +936,20 @@ def interpolate_frame_velocity(u: np.ndarray, v: np.ndarray, stride: int,
     if v.shape != u.shape or n != -(-frames // stride):
         raise ValueError(f"u and v must hold ceil({frames} / {stride}) = {-(-frames // stride)} "
                          f"frames of one shape; got {u.shape} and {v.shape}")
-    out_u = np.empty((frames,) + u.shape[1:], np.float32)
-    out_v = np.empty_like(out_u)
     inv = np.float32(1.0 / stride)
-    for t in range(frames):
-        i, r = divmod(t, stride)
-        if r == 0 or i + 1 >= n:
-            np.multiply(u[min(i, n - 1)], inv, out=out_u[t])
-            np.multiply(v[min(i, n - 1)], inv, out=out_v[t])
-        else:
-            w = np.float32(r / stride)
-            np.multiply(u[i], (1 - w) * inv, out=out_u[t])
-            out_u[t] += u[i + 1] * (w * inv)
-            np.multiply(v[i], (1 - w) * inv, out=out_v[t])
-            out_v[t] += v[i + 1] * (w * inv)
-    return out_u, out_v
+    out = []
+    for src in (u, v):
+        dst = np.empty((frames,) + src.shape[1:], np.float32)
+        for t in range(frames):
+            i, r = divmod(t, stride)
+            if r == 0 or i + 1 >= n:
+                np.multiply(src[min(i, n - 1)], inv, out=dst[t])
+            else:
+                w = np.float32(r / stride)
+                np.multiply(src[i], (1 - w) * inv, out=dst[t])
+                dst[t] += src[i + 1] * (w * inv)
+        out.append(dst)
+    return out[0], out[1]
 
 
 def calibrate_flux_level(seq: FlowSequence, frames: ArrayLike, axis: str = "up",
