@@ -5,6 +5,7 @@ set -euo pipefail
 
 PACKAGES=(
   g++ make pkg-config
+  ccache                 # compiler cache: a second build (a clone, the wheel) reuses objects
   libeigen3-dev          # Eigen3
   libceres-dev           # Ceres Solver 2.1
   libopencv-dev          # OpenCV 4 (its CMake config lives only in the full dev package)

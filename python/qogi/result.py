@@ -11,6 +11,8 @@ from typing import Dict, List, Optional
 
 import numpy as np
 
+from .diagnostics import Diagnostic, Diagnostics
+from .files import atomic_open
 from .surfaces import Surface
 
 __all__ = ["SpeciesRate", "SurfaceResult", "Result", "STANDARD_CONDITIONS",
@@ -118,8 +120,12 @@ class Result:
 
     def __init__(self, surfaces: List[SurfaceResult], *, config, recording_path: str,
                  pixel_status: Dict[str, int], maps: Optional[dict] = None,
-                 info: Optional[dict] = None, complete: bool = True):
+                 info: Optional[dict] = None, complete: bool = True,
+                 warnings: Optional[List[Diagnostic]] = None):
         self.surfaces = surfaces
+        #: Machine-readable warnings (:class:`qogi.diagnostics.Diagnostic`):
+        #: what in this result cannot be fully trusted, and why.
+        self.warnings = Diagnostics(warnings or [])
         self.config = config
         self.recording_path = recording_path
         self.pixel_status = dict(pixel_status)
@@ -156,6 +162,7 @@ class Result:
             "format": "qogi-result", "version": 1,
             "recording": self.recording_path,
             "complete": bool(self.complete),
+            "warnings": [w.to_dict() for w in self.warnings],
             "standard_conditions": self.standard_conditions,
             "config": cfg,
             "pixel_status": self.pixel_status,
@@ -168,14 +175,14 @@ class Result:
         ``path`` when given. Returns the text."""
         text = json.dumps(self.to_dict(), indent=indent)
         if path is not None:
-            with open(path, "w") as fh:
+            with atomic_open(path, "w") as fh:
                 fh.write(text + "\n")
         return text
 
     def to_csv(self, path: os.PathLike) -> None:
         """One row per frame, surface and species: time, rate (kg/h), pixels."""
         import csv
-        with open(path, "w", newline="") as fh:
+        with atomic_open(path, "w", newline="") as fh:
             w = csv.writer(fh)
             w.writerow(["surface", "species", "time_s", "rate_kg_h", "pixels_used"])
             for s in self.surfaces:
@@ -202,6 +209,8 @@ class Result:
                 lines.append(line)
         st = ", ".join(f"{k} {v}" for k, v in self.pixel_status.items())
         lines.append(f"  pixels: {st}")
+        for w in self.warnings:
+            lines.append(f"  warning {w}")
         return "\n".join(lines)
 
     def plot(self, path: Optional[os.PathLike] = None, kind: str = "rates"):
@@ -271,6 +280,8 @@ class Result:
         else:
             raise ValueError(f"kind must be 'rates' or 'maps'; got {kind!r}")
         if path is not None:
-            fig.savefig(path, dpi=110)
+            from .files import atomic_path
+            with atomic_path(path) as tmp:
+                fig.savefig(tmp, dpi=110)
             plt.close(fig)
         return fig

@@ -1,0 +1,50 @@
+"""Exception types that say whose fault a failure is, and the command line's
+exit codes.
+
+* :class:`UsageError` (exit 2): the way qogi was called is wrong (a bad
+  argument, an output path that cannot be written, a missing required fact
+  such as the camera or distance). The message names what is wrong and how to
+  fix it.
+* :class:`DataError` (exit 3): the input data cannot give a trustworthy
+  answer (an unreadable or forged file, non-physical radiance, too few
+  frames). Both derive from :class:`ValueError`, so code that caught
+  ValueError keeps working.
+
+Anything else reaching the command line is a bug in qogi: it prints the
+traceback and asks for a report (exit 1).
+"""
+
+from __future__ import annotations
+
+__all__ = ["QogiError", "UsageError", "DataError", "EXIT_OK", "EXIT_INTERNAL", "EXIT_USAGE",
+           "EXIT_DATA", "EXIT_INTERRUPTED", "EXIT_CODES_HELP"]
+
+EXIT_OK = 0
+EXIT_INTERNAL = 1
+EXIT_USAGE = 2
+EXIT_DATA = 3
+EXIT_INTERRUPTED = 130
+
+EXIT_CODES_HELP = (
+    "exit status: 0 done; 1 internal error (a bug: please report it with the traceback); "
+    "2 usage error (bad argument, unwritable output, missing scene fact); 3 bad data "
+    "(unreadable file, non-physical input, or a result that is NaN/incomplete); "
+    "130 interrupted (Ctrl-C)")
+
+
+class QogiError(ValueError):
+    """Base of qogi's own errors: ``exit_code`` is the command line's status."""
+
+    exit_code = EXIT_USAGE
+
+
+class UsageError(QogiError):
+    """Bad argument or environment: fix the call (exit 2)."""
+
+    exit_code = EXIT_USAGE
+
+
+class DataError(QogiError):
+    """The input data cannot give a trustworthy answer (exit 3)."""
+
+    exit_code = EXIT_DATA
