@@ -15,15 +15,14 @@ import numpy as np
 import qogi
 from qogi.inversion import fixed, free, tied
 
-HITRAN = pathlib.Path(os.environ.get("QOGI_SHARED_DIR",
-                                     pathlib.Path(__file__).resolve().parents[2] / "shared")) / "hitran"
+HITRAN = qogi.spectra.bundled_hitran_dir()
 T_AMB = 293.15
 
 
 def main():
     cam = qogi.camera_preset("fast-m150")
     model = qogi.ForwardModel(cam, ["CH4", "CO2"],
-                              line_lists={"CH4": HITRAN / "CH4.par", "CO2": HITRAN / "CO2.par"},
+                              line_lists={"CH4": HITRAN / "CH4.par.gz", "CO2": HITRAN / "CO2.par.gz"},
                               exact_options=qogi._engine.ExactModelOptions(num_nodes=101))
     rng = np.random.default_rng(5)
     m, draws = 12, 100

@@ -5,7 +5,8 @@ HAPI 1.3 (R.V. Kochanov et al., "HITRAN Application Programming Interface
 ``absorptionCoefficient_Voigt`` with its defaults (50-half-width wings,
 pressure shift on, TIPS-2025 partition sums, no intensity threshold) and
 ``Diluent={'air': 1.0}``, ``HITRAN_units=True`` (cm2/molecule), p = 1 atm,
-0.01 cm-1 grid, on the shared line lists (../shared/hitran):
+0.01 cm-1 grid, on the line lists qogi ships (python/qogi/data/hitran; the
+records are those of the HITRAN files their MANIFEST.json names):
 
 * CH4.par, 2850-3200 cm-1 at 250, 296 and 350 K;
 * CO2.par, 2100-2300 cm-1 (the span the list covers) at 296 and 363 K;
@@ -15,7 +16,7 @@ Writes ``tests/data/hapi_reference.npz`` (float32 sigma per case, its grid,
 the settings and the SHA-256 of each line file). Run from the repository::
 
     .venv/bin/pip install hitran-api==1.3.0.0
-    .venv/bin/python scripts/make_hapi_references.py [--shared ../shared]
+    .venv/bin/python scripts/make_hapi_references.py [--line-lists FOLDER]
 
 HAPI's ``db_begin`` writes .header files beside the tables, so the line files
 are copied into a scratch folder first.
@@ -25,11 +26,11 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import gzip
 import hashlib
 import io
 import json
 import pathlib
-import shutil
 import tempfile
 import time
 
@@ -51,13 +52,15 @@ STEP = 0.01
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--shared", type=pathlib.Path, default=REPO.parent / "shared")
+    ap.add_argument("--line-lists", type=pathlib.Path,
+                    default=REPO / "python" / "qogi" / "data" / "hitran",
+                    help="folder of NAME.par.gz (default: the ones qogi ships)")
     args = ap.parse_args()
     with contextlib.redirect_stdout(io.StringIO()):
         import hapi
     if hapi.HAPI_VERSION != "1.3.0.0":
         raise SystemExit(f"expected HAPI 1.3.0.0, found {hapi.HAPI_VERSION}")
-    src = args.shared / "hitran"
+    src = args.line_lists
     arrays: dict[str, np.ndarray] = {}
     meta = {"hapi_version": hapi.HAPI_VERSION, "function": "absorptionCoefficient_Voigt",
             "Diluent": {"air": 1.0}, "HITRAN_units": True, "pressure_atm": 1.0,
@@ -66,8 +69,9 @@ def main() -> None:
             "cases": [], "line_files": {}}
     with tempfile.TemporaryDirectory() as tmp:
         for name in sorted({c[1] for c in CASES}):
-            shutil.copy(src / name, pathlib.Path(tmp) / name)
-            meta["line_files"][name] = hashlib.sha256((src / name).read_bytes()).hexdigest()
+            records = gzip.decompress((src / (name + ".gz")).read_bytes())
+            (pathlib.Path(tmp) / name).write_bytes(records)
+            meta["line_files"][name] = hashlib.sha256(records).hexdigest()
         with contextlib.redirect_stdout(io.StringIO()):
             hapi.db_begin(tmp)
         for species, fname, lo, hi, temp in CASES:

@@ -109,7 +109,7 @@ def add_commands(sub) -> None:
                     "surface away from the source instead.",
         epilog="example: qogi quantify lab.h5 --surface 100,207,220,207 --species CH4 "
                "--source 159.5,227 --json out.json --csv out.csv --plot out.png")
-    q.add_argument("recording", help="recording file (.h5, DESIGN.md contract)")
+    q.add_argument("recording", help="recording file (.h5, docs/recording.md contract)")
     q.add_argument("--surface", action="append", metavar="X0,Y0,X1,Y1[,X2,Y2...]",
                    help="a control surface (line or polyline) in pixels; repeatable")
     q.add_argument("--auto-surfaces", metavar="D1,D2,...",

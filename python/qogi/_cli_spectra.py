@@ -64,11 +64,21 @@ def cmd_xsec(args: argparse.Namespace) -> int:
 
 def cmd_hitran_list(args: argparse.Namespace) -> int:
     from . import _engine
-    from .spectra import find_line_lists, hitran_search_path, load_line_list
+    from .spectra import (bundled_hitran_dir, bundled_line_lists, find_line_lists,
+                          hitran_search_path, load_line_list)
 
+    bundled = bundled_hitran_dir()
+    print("shipped with qogi (used when no folder above it in the search path has the species):")
+    for e in bundled_line_lists():
+        isos = ",".join(str(i) for i in e["isotopologues"])
+        print(f"  {e['file']}: {e['species']} isotopologue(s) {isos}, {e['lines']} lines, "
+              f"{e['nu_min_cm1']:.2f}-{e['nu_max_cm1']:.2f} cm-1, {e['edition']}")
+        print(f"      from {e['source']}")
+        print(f"      cite {e['citation']}; sha256 of the records {e['sha256_records'][:16]}...")
     print("search path (first folder holding a species' files wins):")
     for p in hitran_search_path(args.path):
-        print(f"  {p}{'' if p.is_dir() else '  (missing)'}")
+        note = "  (shipped with qogi)" if p == bundled else ("" if p.is_dir() else "  (missing)")
+        print(f"  {p}{note}")
     species = args.species or sorted({_engine.molecule_formula(i["molecule"])
                                       for i in _engine.isotopologues()})
     found_any = False

@@ -52,7 +52,7 @@ def add_commands(sub) -> None:
         "synth", help="simulate a gas release and render it as a recording with exact truth",
         description="Simulate a turbulent buoyant release (Lagrangian puffs on a similarity "
                     "mean flow, docs/synthetic.md) and render it through a camera preset "
-                    "into a recording (DESIGN.md contract) whose /truth holds the exact "
+                    "into a recording (docs/recording.md contract) whose /truth holds the exact "
                     "emission rate and per-frame mass flux through horizontal planes. "
                     "Presets mirror the thesis's releases: `qogi synth --list`.",
         epilog="example: qogi synth lab-ch4-5slpm-gf320 -o lab.h5 --duration 5 --seed 1")

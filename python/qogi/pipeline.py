@@ -1,6 +1,6 @@
 """The quantification pipeline: a recording in, emission-rate time series out.
 
-Stages (DESIGN.md), for each frame:
+Stages (docs/pipeline_api.md), for each frame:
 
 1. **Background**: the gas-free band radiance of each channel, beside each
    control surface (default), from a user region, or a temporal percentile.

@@ -2,7 +2,7 @@
 
 A :class:`Recording` is the interchange object between cameras, the synthetic
 generator, the API, the CLI and the viewer. On disk it is one HDF5 file laid
-out as the recording contract (``docs/recording.md``, ../shared/DESIGN.md):
+out as the recording contract (``docs/recording.md``):
 
 ==========================  ====================================================
 ``/`` attrs                 ``format="qogi-recording"``, ``version=1``

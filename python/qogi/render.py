@@ -363,7 +363,7 @@ def render_recording(sim, camera, background: Background, path, *, seed: int = 0
                      truth_plane_heights_m: Optional[Sequence[float]] = None,
                      compression: Optional[str] = "lzf", progress=None, num_threads: int = 0,
                      max_bins: int = 48):
-    """Render a simulation into a recording file (DESIGN.md contract) with ``/truth``.
+    """Render a simulation into a recording file (docs/recording.md contract) with ``/truth``.
 
     ``/truth`` holds ``emission_rate_kg_s_<SPECIES>`` and datasets
     ``plane_height_m`` (P,), ``plane_row`` (P,) (image row of each horizontal

@@ -30,7 +30,9 @@ absorber's mole fraction (``self_fraction``), c2 = hc/k_B = 1.4387769 cm K:
 
 Line lists are found (see :func:`find_line_lists`) in user paths,
 ``$QOGI_HITRAN_PATH``, the per-user cache (``$QOGI_CACHE_DIR/hitran``, default
-``~/.cache/qogi/hitran``) and ``../shared/hitran`` next to a source checkout.
+``~/.cache/qogi/hitran``) and, last, the subsets the package ships
+(``qogi/data/hitran``: CH4, CO2 and H2O over every preset channel's band, with
+their provenance in ``MANIFEST.json``; :func:`bundled_line_lists`).
 """
 
 from __future__ import annotations
@@ -70,6 +72,8 @@ __all__ = [
     "voigt_profile",
     "faddeeva",
     "cache_dir",
+    "bundled_hitran_dir",
+    "bundled_line_lists",
     "fetch_hitran",
     "DEFAULT_TABLE_TEMPERATURES_K",
     "DEFAULT_TABLE_CUTOFF_CM1",
@@ -106,12 +110,24 @@ def cache_dir() -> pathlib.Path:
     return base / "qogi"
 
 
-def _checkout_hitran_dir() -> Optional[pathlib.Path]:
-    """``../shared/hitran`` beside a source checkout (None when installed)."""
-    root = pathlib.Path(__file__).resolve().parents[2]
-    if (root / "pyproject.toml").is_file() and (root / "cpp").is_dir():
-        return root.parent / "shared" / "hitran"
-    return None
+def bundled_hitran_dir() -> pathlib.Path:
+    """The folder of line-list subsets shipped inside the package."""
+    return pathlib.Path(__file__).resolve().parent / "data" / "hitran"
+
+
+def bundled_line_lists() -> list[dict]:
+    """What the package ships: one dict per file (``file``, ``species``,
+    ``isotopologues``, ``lines``, ``nu_min_cm1``, ``nu_max_cm1``, ``edition``,
+    ``citation``, ``source``, ``sha256_records``, ``sha256_gz``, ``bytes_gz``,
+    and ``path``), from ``MANIFEST.json`` beside the files."""
+    folder = bundled_hitran_dir()
+    manifest = json.loads((folder / "MANIFEST.json").read_text())
+    out = []
+    for entry in manifest["files"]:
+        e = dict(entry)
+        e["path"] = folder / entry["file"]
+        out.append(e)
+    return out
 
 
 def hitran_search_path(paths: Optional[Iterable[PathLike]] = None) -> list[pathlib.Path]:
@@ -121,15 +137,15 @@ def hitran_search_path(paths: Optional[Iterable[PathLike]] = None) -> list[pathl
     2. the folders in ``$QOGI_HITRAN_PATH`` (separated by ``os.pathsep``);
     3. the per-user cache, ``cache_dir() / "hitran"`` (where
        :func:`fetch_hitran` saves);
-    4. ``../shared/hitran`` next to a source checkout of qogi.
+    4. the subsets shipped with the package (:func:`bundled_hitran_dir`).
+
+    A user's own files therefore always win over the bundled ones.
     """
     out: list[pathlib.Path] = [pathlib.Path(p).expanduser() for p in (paths or [])]
     env = os.environ.get("QOGI_HITRAN_PATH", "")
     out += [pathlib.Path(p).expanduser() for p in env.split(os.pathsep) if p]
     out.append(cache_dir() / "hitran")
-    shared = _checkout_hitran_dir()
-    if shared is not None:
-        out.append(shared)
+    out.append(bundled_hitran_dir())
     return out
 
 

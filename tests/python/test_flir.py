@@ -1,4 +1,4 @@
-"""FLIR readers on the shared sample files (../shared/samples/flir, from the
+"""FLIR readers on the shared sample files (third-party, found beside the checkout or in $QOGI_SHARED_DIR; from the
 Thermimage R package), checked against values published in Thermimage's
 README for these very files, against CharLS's decoding of the .csq frames
 (tests/data/flir/csq_reference.json), and against physics."""

@@ -1,4 +1,4 @@
-"""The forward models on real HITRAN tables (../shared/hitran), every preset
+"""The forward models on real HITRAN tables (the HITRAN subsets qogi ships), every preset
 channel: physics limits, the thesis's Table 4, and the fast model against the
 exact one over the issue's domain."""
 
@@ -20,8 +20,8 @@ def channels():
 @pytest.fixture(scope="module")
 def model(channels, hitran_dir):
     return qogi.ForwardModel(channels, ["CH4", "CO2"],
-                             line_lists={"CH4": hitran_dir / "CH4.par",
-                                         "CO2": hitran_dir / "CO2.par"})
+                             line_lists={"CH4": hitran_dir / "CH4.par.gz",
+                                         "CO2": hitran_dir / "CO2.par.gz"})
 
 
 def contrast_error(lf, le, bg):

@@ -1,4 +1,4 @@
-"""The inversion on real HITRAN tables (../shared/hitran): the issue's round
+"""The inversion on real HITRAN tables (the HITRAN subsets qogi ships): the issue's round
 trip through the exact model with camera noise, and the thesis's finding that
 a wrongly assumed gas temperature biases single-channel column densities.
 
@@ -21,7 +21,7 @@ NETD_M150, NETD_GF320 = 0.017, 0.015
 def m150(hitran_dir):
     cam = qogi.camera_preset("fast-m150")
     model = qogi.ForwardModel(cam, ["CH4", "CO2"],
-                              line_lists={"CH4": hitran_dir / "CH4.par", "CO2": hitran_dir / "CO2.par"},
+                              line_lists={"CH4": hitran_dir / "CH4.par.gz", "CO2": hitran_dir / "CO2.par.gz"},
                               exact_options=qogi._engine.ExactModelOptions(num_nodes=101))
     return cam, model
 

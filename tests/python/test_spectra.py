@@ -4,6 +4,7 @@ finder, and the CLI."""
 
 from __future__ import annotations
 
+import gzip
 import hashlib
 import json
 import os
@@ -20,6 +21,14 @@ import qogi
 from qogi import _engine, spectra
 
 DATA = pathlib.Path(__file__).resolve().parents[1] / "data"
+
+
+def read_par_lines(path: pathlib.Path) -> list:
+    """The text records of a (possibly gzip-compressed) HITRAN .par file."""
+    raw = path.read_bytes()
+    if path.suffix == ".gz":
+        raw = gzip.decompress(raw)
+    return raw.decode().splitlines(keepends=True)
 
 
 @pytest.fixture(autouse=True)
@@ -40,9 +49,10 @@ def _hapi_cases():
 
 @pytest.mark.parametrize("case,meta", _hapi_cases(), ids=lambda v: v["key"] if "key" in v else "")
 def test_matches_hapi(case, meta, hitran_dir):
-    path = hitran_dir / case["line_file"]
-    # The reference was computed from exactly this file.
-    assert hashlib.sha256(path.read_bytes()).hexdigest() == meta["line_files"][case["line_file"]]
+    path = hitran_dir / (case["line_file"] + ".gz")
+    # The reference was computed from exactly these records (the package ships them gzipped).
+    records = gzip.decompress(path.read_bytes())
+    assert hashlib.sha256(records).hexdigest() == meta["line_files"][case["line_file"]]
     ref = np.load(DATA / "hapi_reference.npz")[case["key"]].astype(float)
     nu = case["nu0_cm1"] + case["step_cm1"] * np.arange(case["size"])
     sigma = qogi.cross_section(case["species"], nu, case["temperature_K"], 101325.0,
@@ -97,28 +107,28 @@ def test_partition_sum_and_errors():
 
 def test_absorption_coefficient_is_sigma_times_number_density(hitran_dir):
     nu = np.linspace(3050, 3060, 1001)
-    s = qogi.cross_section("CH4", nu, 300.0, 90000.0, hitran_dir / "CH4.par", self_fraction=0.1)
+    s = qogi.cross_section("CH4", nu, 300.0, 90000.0, hitran_dir / "CH4.par.gz", self_fraction=0.1)
     k = qogi.absorption_coefficient("CH4", nu, 300.0, 90000.0, mole_fraction=0.1,
-                                    line_list=hitran_dir / "CH4.par")
+                                    line_list=hitran_dir / "CH4.par.gz")
     n = 0.1 * 90000.0 / (1.380649e-23 * 300.0) * 1e-6
     np.testing.assert_allclose(k, s * n, rtol=1e-12)
 
 
 def test_irregular_grid_and_scalar(hitran_dir):
     nu = np.linspace(3000, 3010, 1001)
-    uniform = qogi.cross_section("CH4", nu, 296.0, line_list=hitran_dir / "CH4.par")
+    uniform = qogi.cross_section("CH4", nu, 296.0, line_list=hitran_dir / "CH4.par.gz")
     jittered = nu.copy()
     jittered[1:-1] += 1e-4 * np.sin(np.arange(nu.size - 2))
-    irregular = qogi.cross_section("CH4", jittered, 296.0, line_list=hitran_dir / "CH4.par")
+    irregular = qogi.cross_section("CH4", jittered, 296.0, line_list=hitran_dir / "CH4.par.gz")
     # Moving points by 1e-4 cm-1 changes sigma by at most the slope x 1e-4.
     slope = np.max(np.abs(np.gradient(uniform, nu)))
     assert np.max(np.abs(irregular - uniform)) <= slope * 1.1e-4
-    single = qogi.cross_section("CH4", 3005.0, 296.0, line_list=hitran_dir / "CH4.par")
+    single = qogi.cross_section("CH4", 3005.0, 296.0, line_list=hitran_dir / "CH4.par.gz")
     assert isinstance(single, float) and single == pytest.approx(uniform[500], rel=1e-12)
     with pytest.raises(ValueError, match="strictly increasing"):
-        qogi.cross_section("CH4", nu[::-1], 296.0, line_list=hitran_dir / "CH4.par")
+        qogi.cross_section("CH4", nu[::-1], 296.0, line_list=hitran_dir / "CH4.par.gz")
     with pytest.raises(ValueError, match="cutoff"):
-        qogi.cross_section("CH4", nu, 296.0, line_list=hitran_dir / "CH4.par", cutoff="wide")
+        qogi.cross_section("CH4", nu, 296.0, line_list=hitran_dir / "CH4.par.gz", cutoff="wide")
 
 
 # ---------------------------------------------------------------------------
@@ -176,7 +186,7 @@ def test_table_cache_reuse_and_rebuild(tmp_path, hitran_dir):
     assert files[0].stat().st_mtime_ns == stamp  # loaded, not rebuilt
     assert t2.metadata == t1.metadata
     np.testing.assert_array_equal(t2.sigma, t1.sigma)
-    assert t1.metadata["key"] and t1.metadata["sources"] == [str(hitran_dir / "CH4.par")]
+    assert t1.metadata["key"] and t1.metadata["sources"] == [str(hitran_dir / "CH4.par.gz")]
 
     # Every setting that changes the output makes another table.
     _small_table(pressure_Pa=50000.0)
@@ -235,8 +245,8 @@ def test_table_save_load_and_engine_handle(tmp_path):
 def _write_par(folder: pathlib.Path, name: str, hitran_dir, lo: float, hi: float) -> pathlib.Path:
     folder.mkdir(parents=True, exist_ok=True)
     out = folder / name
-    with open(hitran_dir / "CH4.par") as src, open(out, "w") as dst:
-        for line in src:
+    with open(out, "w") as dst:
+        for line in read_par_lines(hitran_dir / "CH4.par.gz"):
             if lo <= float(line[3:15]) <= hi:
                 dst.write(line)
     return out
@@ -250,38 +260,38 @@ def test_finder_order_and_merge(tmp_path, monkeypatch, hitran_dir):
     monkeypatch.setenv("QOGI_HITRAN_PATH", str(env))
     assert spectra.find_line_lists("CH4") == [a, b]
     lines = qogi.load_line_list("CH4")
-    direct = qogi.load_line_list("CH4", hitran_dir / "CH4.par", nu_min_cm1=3000, nu_max_cm1=3020)
+    direct = qogi.load_line_list("CH4", hitran_dir / "CH4.par.gz", nu_min_cm1=3000, nu_max_cm1=3020)
     np.testing.assert_array_equal(lines.nu_cm1, direct.nu_cm1)  # overlap counted once
     # A folder the user names comes first; a file the user names is used as is.
     user = tmp_path / "user"
     c = _write_par(user, "CH4.par", hitran_dir, 3100, 3101)
     assert spectra.find_line_lists("CH4", [user]) == [c]
     assert spectra.find_line_lists("CH4", [b]) == [b]
-    # The per-user cache folder comes after $QOGI_HITRAN_PATH, before the checkout.
+    # The per-user cache folder comes after $QOGI_HITRAN_PATH, before the bundled lists.
     cached = _write_par(spectra.cache_dir() / "hitran", "CH4.par", hitran_dir, 3200, 3201)
     assert spectra.find_line_lists("CH4") == [a, b]
     monkeypatch.delenv("QOGI_HITRAN_PATH")
     assert spectra.find_line_lists("CH4") == [cached]
     cached.unlink()
-    assert spectra.find_line_lists("CH4") == [hitran_dir / "CH4.par"]
+    assert spectra.find_line_lists("CH4") == [hitran_dir / "CH4.par.gz"]
     with pytest.raises(FileNotFoundError, match="QOGI_HITRAN_PATH"):
         spectra.find_line_lists("NO2")
     with pytest.raises(FileNotFoundError, match="not found"):
         qogi.load_line_list("CH4", tmp_path / "missing.par")
 
 
-def test_default_water_list_merges_both_shared_files(hitran_dir):
+def test_default_water_list_merges_both_bundled_files(hitran_dir):
     files = spectra.find_line_lists("H2O")
-    assert files == [hitran_dir / "H2O.par", hitran_dir / "H2O_HITRAN2012_all.par.gz"]
+    assert files == [hitran_dir / "H2O.par.gz", hitran_dir / "H2O_HITRAN2012.par.gz"]
     lines = qogi.load_line_list("H2O", nu_min_cm1=3600, nu_max_cm1=3900)
-    newer = qogi.load_line_list("H2O", hitran_dir / "H2O.par", nu_min_cm1=3600, nu_max_cm1=3900)
+    newer = qogi.load_line_list("H2O", hitran_dir / "H2O.par.gz", nu_min_cm1=3600, nu_max_cm1=3900)
     main = lines.isotopologue == 1
     np.testing.assert_array_equal(lines.nu_cm1[main], newer.nu_cm1)  # main isotopologue: newer file only
     assert set(np.unique(lines.isotopologue)) == {1, 2, 3, 4, 5}  # + minor ones from 2012
 
 
 def test_malformed_line_file_error(tmp_path, hitran_dir):
-    good = (hitran_dir / "CH4.par").read_text().splitlines()[:3]
+    good = [r.rstrip("\n") for r in read_par_lines(hitran_dir / "CH4.par.gz")[:3]]
     bad = good[1][:20] + "x" + good[1][21:]
     path = tmp_path / "CH4.par"
     path.write_text("\n".join([good[0], bad, good[2]]) + "\n")
@@ -318,7 +328,7 @@ def test_line_list_from_arrays_and_selection():
 # HITRANonline fetch (no network: the HTTP call is replaced)
 
 def test_fetch_hitran_builds_the_query_and_validates(tmp_path, monkeypatch, hitran_dir):
-    body = "".join((hitran_dir / "CH4.par").read_text().splitlines(keepends=True)[:50]).encode()
+    body = "".join(read_par_lines(hitran_dir / "CH4.par.gz")[:50]).encode()
     seen = {}
 
     class Reply:
@@ -373,6 +383,68 @@ def test_cli_xsec_and_hitran_list(tmp_path, hitran_dir):
     r = subprocess.run([sys.executable, "-m", "qogi", "hitran", "list", "CH4"],
                        capture_output=True, text=True, check=True, env=env)
     assert "CH4.par" in r.stdout and "2832.8614-3246.3010" in r.stdout
+    assert "shipped with qogi" in r.stdout and "HITRAN2020" in r.stdout
+    assert "doi:10.1016/j.jqsrt.2021.107949" in r.stdout
     r = subprocess.run([sys.executable, "-m", "qogi", "xsec", "CH4", "--range", "3000", "3010",
                         "--cutoff", "wide"], capture_output=True, text=True, env=env)
     assert r.returncode != 0 and "--cutoff" in r.stderr
+
+
+# ---------------------------------------------------------------------------
+# What the package ships
+
+def test_bundled_line_lists_match_their_manifest():
+    """Each shipped file holds exactly the records its provenance names: line
+    count, wavenumber span and sha256 of the uncompressed records."""
+    entries = spectra.bundled_line_lists()
+    assert {e["species"] for e in entries} == {"CH4", "CO2", "H2O"}
+    for e in entries:
+        records = gzip.decompress(e["path"].read_bytes())
+        assert hashlib.sha256(records).hexdigest() == e["sha256_records"], e["file"]
+        lines = records.decode().splitlines()
+        assert len(lines) == e["lines"]
+        nu = np.array([float(r[3:15]) for r in lines])
+        assert nu.min() == pytest.approx(e["nu_min_cm1"]) and nu.max() == pytest.approx(e["nu_max_cm1"])
+        assert e["citation"] and e["edition"] and e["source"]
+
+
+def test_bundled_lists_cover_every_preset_channel():
+    """Every channel of every shipped camera preset sees lines of the gases the
+    presets quantify: CH4 over the CH4 bands, CO2 over the CO2 band."""
+    cover = {}
+    for e in spectra.bundled_line_lists():
+        lo, hi = cover.get(e["species"], (np.inf, -np.inf))
+        cover[e["species"]] = (min(lo, e["nu_min_cm1"]), max(hi, e["nu_max_cm1"]))
+    for name in qogi.camera_preset_names():
+        for ch in qogi.camera_preset(name).channels:
+            nu, r = np.asarray(ch.nu_cm1), np.asarray(ch.response)
+            band = nu[r > 0.5 * r.max()]
+            lo, hi = band.min(), band.max()
+            seen = [sp for sp, (a, b) in cover.items() if a < hi and b > lo]
+            assert seen, f"{name} {ch.name}: no bundled lines in {lo:.0f}-{hi:.0f} cm-1"
+
+
+def test_a_users_own_file_takes_precedence_over_the_bundled_one(tmp_path, monkeypatch, hitran_dir):
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "CH4.par").write_text("".join(read_par_lines(hitran_dir / "CH4.par.gz")[:100]))
+    monkeypatch.setenv("QOGI_HITRAN_PATH", str(mine))
+    assert spectra.find_line_lists("CH4") == [mine / "CH4.par"]
+    assert len(qogi.load_line_list("CH4")) == 100
+    monkeypatch.delenv("QOGI_HITRAN_PATH")
+    assert spectra.find_line_lists("CH4") == [hitran_dir / "CH4.par.gz"]
+
+
+def test_nothing_in_the_package_reads_beside_the_checkout():
+    """A user's install has nothing beside it: no source file of the package,
+    the viewer or the build may refer to the project's shared folder or its
+    design notes."""
+    repo = pathlib.Path(__file__).resolve().parents[2]
+    offenders = []
+    for folder in ("python", "gui", "cpp", "cmake"):
+        for f in (repo / folder).rglob("*"):
+            if f.suffix in (".py", ".cc", ".h", ".cmake", ".txt", ".in") and f.is_file():
+                text = f.read_text(errors="replace")
+                if any(w in text for w in ("../" + "shared", "shared/" + "hitran", "DESIGN" + ".md")):
+                    offenders.append(str(f.relative_to(repo)))
+    assert not offenders, offenders

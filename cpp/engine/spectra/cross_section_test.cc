@@ -8,7 +8,7 @@
 #include <stdexcept>
 #include <vector>
 
-#include "engine/spectra/shared_data_test.h"
+#include "engine/spectra/test_data.h"
 #include "engine/spectra/voigt.h"
 #include "engine/util/check.h"
 
@@ -36,7 +36,7 @@ LineList OneLine(double nu, double s, double gair) {
 }
 
 const LineList& Ch4() {
-  static const LineList l = ReadLineFile(testing_util::HitranDir() + "/CH4.par");
+  static const LineList l = ReadLineFile(testing_util::HitranDir() + "/CH4.par.gz");
   return l;
 }
 

@@ -7,7 +7,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "engine/spectra/shared_data_test.h"
+#include "engine/spectra/test_data.h"
 
 namespace qogi {
 namespace {
@@ -230,8 +230,8 @@ TEST(LineList, MergeKeepsHigherPriorityAndNeverCountsALineTwice) {
   EXPECT_EQ(MergeLineLists({older, older}).size(), older.size());
 }
 
-TEST(LineList, SharedCh4FileMatchesItsProvenance) {
-  const LineList l = ReadLineFile(HitranDir() + "/CH4.par");
+TEST(LineList, BundledCh4FileMatchesItsProvenance) {
+  const LineList l = ReadLineFile(HitranDir() + "/CH4.par.gz");
   ASSERT_EQ(l.size(), 25126u);
   EXPECT_DOUBLE_EQ(l.nu_cm1.front(), 2832.861365);
   EXPECT_DOUBLE_EQ(l.nu_cm1.back(), 3246.301046);
@@ -246,9 +246,9 @@ TEST(LineList, SharedCh4FileMatchesItsProvenance) {
   }
 }
 
-TEST(LineList, SharedWaterFilesMergeWithoutOverlap) {
-  const std::string newer = HitranDir() + "/H2O.par";
-  const std::string older = HitranDir() + "/H2O_HITRAN2012_all.par.gz";
+TEST(LineList, BundledWaterFilesMergeWithoutOverlap) {
+  const std::string newer = HitranDir() + "/H2O.par.gz";
+  const std::string older = HitranDir() + "/H2O_HITRAN2012.par.gz";
   LineSelection s;
   s.nu_min_cm1 = 1800, s.nu_max_cm1 = 6700;
   const LineList a = ReadLineFile(newer, s), b = ReadLineFile(older, s);

@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/spectra/shared_data_test.h"
+#include "engine/spectra/test_data.h"
 
 namespace qogi {
 namespace {
@@ -30,7 +30,7 @@ struct Fixture {
   Fixture() {
     LineSelection sel;
     sel.nu_min_cm1 = 3025, sel.nu_max_cm1 = 3085;
-    lines = ReadLineFile(testing_util::HitranDir() + "/CH4.par", sel);
+    lines = ReadLineFile(testing_util::HitranDir() + "/CH4.par.gz", sel);
     grid = WavenumberGrid::FromRange(3050, 3060, 0.01);
     for (double t = 200; t <= 800; t += 10) temps.push_back(t);
   }

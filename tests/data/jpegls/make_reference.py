@@ -29,7 +29,8 @@ import jpeg_ls
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-SHARED = Path(os.environ.get("QOGI_SHARED_DIR", HERE.parents[3] / "shared"))
+# The folder holding samples/flir/SampleCSQ.csq (third-party, not in the repository).
+SHARED = Path(os.environ["QOGI_SHARED_DIR"])
 
 
 def fnv1a64(samples: np.ndarray) -> int:

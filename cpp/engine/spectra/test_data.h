@@ -1,4 +1,4 @@
-// Helpers for the spectra tests: the shared HITRAN files and scratch files.
+// Helpers for the spectra tests: the HITRAN files the package ships, and scratch files.
 #pragma once
 
 #include <gtest/gtest.h>
@@ -11,12 +11,9 @@
 namespace qogi {
 namespace testing_util {
 
-// ../shared/hitran next to the checkout, or $QOGI_SHARED_DIR/hitran.
-inline std::string HitranDir() {
-  const char* env = std::getenv("QOGI_SHARED_DIR");
-  const std::string shared = env ? env : std::string(QOGI_SOURCE_DIR) + "/../shared";
-  return shared + "/hitran";
-}
+// The gzip-compressed HITRAN subsets shipped in the Python package
+// (python/qogi/data/hitran, provenance in its MANIFEST.json).
+inline std::string HitranDir() { return std::string(QOGI_SOURCE_DIR) + "/python/qogi/data/hitran"; }
 
 // A fresh scratch directory, removed when the object goes out of scope.
 class ScratchDir {
