@@ -24,7 +24,7 @@ endif
 ENGINE_SOURCES := $(shell find cpp cmake -type f 2>/dev/null) CMakeLists.txt pyproject.toml
 CONSUMER_SOURCES := $(shell find examples/cpp_consumer -type f 2>/dev/null)
 
-.PHONY: all setup build demo test test-cpp test-python consumer bench gui clean distclean
+.PHONY: all setup build demo test test-cpp test-python consumer bench gui wheel check-clang clean distclean
 
 all: build
 
@@ -47,9 +47,11 @@ $(STAMPS)/pydeps: $(STAMPS)/system requirements/dev.txt requirements/constraints
 
 # The package in editable mode: Python sources are used in place; the
 # extension and the C++ tests are built in $(BUILD) (incrementally).
+# WERROR=ON (as CI sets it) makes warnings in qogi's own C++ errors.
+WERROR ?= OFF
 $(STAMPS)/built: $(STAMPS)/pydeps $(ENGINE_SOURCES)
 	$(VPY) -m pip install -q --no-build-isolation --no-deps -e . \
-	  -Cbuild-dir=$(BUILD) -Ccmake.define.QOGI_BUILD_TESTS=ON
+	  -Cbuild-dir=$(BUILD) -Ccmake.define.QOGI_BUILD_TESTS=ON -Ccmake.define.QOGI_WERROR=$(WERROR)
 	@# Type stubs of the extension for editors and mypy (generated, not committed).
 	$(VENV)/bin/pybind11-stubgen qogi._engine -o build/stubs --ignore-all-errors >/dev/null \
 	  && cp build/stubs/qogi/_engine.pyi python/qogi/_engine.pyi
@@ -83,6 +85,28 @@ test-python: $(STAMPS)/built
 bench: $(STAMPS)/built
 	$(VPY) -m pip install -q -r requirements/bench.txt -c requirements/constraints.txt
 	$(VPY) benchmarks/run_all.py
+
+# A wheel that runs without the -dev packages: built by scikit-build-core,
+# repaired by auditwheel (every non-system shared library copied in, renamed),
+# then installed into a fresh venv and run from outside the checkout.
+WHEEL_DIR ?= dist
+wheel: $(STAMPS)/pydeps
+	$(VPY) -m pip install -q -r requirements/wheel.txt -c requirements/constraints.txt
+	rm -rf build/wheel $(WHEEL_DIR)/qogi-*.whl
+	$(VPY) -m pip wheel -q --no-build-isolation --no-deps -w build/wheel/raw . \
+	  -Cbuild-dir=build/wheel/cmake
+	PATH=$(abspath $(VENV))/bin:$$PATH $(VENV)/bin/auditwheel repair -w $(WHEEL_DIR) build/wheel/raw/qogi-*.whl
+	$(VENV)/bin/auditwheel show $(WHEEL_DIR)/qogi-*.whl
+	@ls -l $(WHEEL_DIR)/qogi-*.whl
+	PYTHON=$(PYTHON) scripts/check_wheel.sh $(WHEEL_DIR)/qogi-*.whl
+
+# The engine, its tests and the bindings built with clang, warnings as errors.
+check-clang: $(STAMPS)/pydeps
+	$(VENV)/bin/cmake -S . -B build/clang -G Ninja -DCMAKE_CXX_COMPILER=clang++ \
+	  -DQOGI_WERROR=ON -DQOGI_BUILD_TESTS=ON -DQOGI_BUILD_PYTHON=ON \
+	  -Dpybind11_DIR=$$($(VPY) -m pybind11 --cmakedir) -DPython_EXECUTABLE=$(abspath $(VPY))
+	$(VENV)/bin/cmake --build build/clang
+	$(VENV)/bin/ctest --test-dir build/clang --output-on-failure -j $(JOBS)
 
 # `make gui` or `make gui REC=path/to/recording.h5`
 gui: $(STAMPS)/built

@@ -8,6 +8,12 @@
 #   A GoogleTest executable registered with ctest (only when QOGI_BUILD_TESTS).
 
 set(QOGI_WARNINGS -Wall -Wextra -Wno-unused-parameter)
+# CI builds qogi's own sources (engine, tests, bindings) with warnings as
+# errors, with g++ and with clang; third-party headers are not affected.
+option(QOGI_WERROR "Treat compiler warnings in qogi's own sources as errors" OFF)
+if(QOGI_WERROR)
+  list(APPEND QOGI_WARNINGS -Werror)
+endif()
 
 function(qogi_add_module)
   cmake_parse_arguments(ARG "" "NAME" "SOURCES;DEPS" ${ARGN})
@@ -37,7 +43,7 @@ function(qogi_add_test)
   add_executable(${ARG_NAME} ${ARG_SOURCES})
   target_compile_options(${ARG_NAME} PRIVATE ${QOGI_WARNINGS})
   target_link_libraries(${ARG_NAME} PRIVATE ${ARG_DEPS} GTest::gtest_main)
-  # Tests that read the shared HITRAN files find them through this variable.
+  # Tests that read the bundled HITRAN files find them through this variable.
   target_compile_definitions(${ARG_NAME} PRIVATE
     QOGI_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
   add_test(NAME ${ARG_NAME} COMMAND ${ARG_NAME})

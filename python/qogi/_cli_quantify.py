@@ -160,6 +160,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
     out = os.path.abspath(args.output)
     os.makedirs(out, exist_ok=True)
+    if args.quick:
+        args.duration = min(args.duration, 3.0)
     preset = args.preset
     p = synth.preset(preset)
     rec_path = os.path.join(out, f"{preset}.h5")
@@ -189,6 +191,12 @@ def cmd_demo(args: argparse.Namespace) -> int:
     print(result.summary())
     result.to_json(os.path.join(out, "result.json"))
     result.to_csv(os.path.join(out, "result.csv"))
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        print(f"4. wrote {out}/result.json, result.csv (plots need matplotlib: "
+              "pip install 'qogi[plot]')")
+        return 0
     result.plot(os.path.join(out, "rates.png"), kind="rates")
     result.plot(os.path.join(out, "maps.png"), kind="maps")
     print(f"4. wrote {out}/result.json, result.csv, rates.png (emission-rate time series per "
@@ -205,6 +213,8 @@ def add_demo_command(sub) -> None:
                     "the truth with its 90%% interval, and write plots.")
     d.add_argument("--preset", default="lab-ch4-5slpm-gf320", help="synthetic preset (qogi synth --list)")
     d.add_argument("--duration", type=float, default=10.0, help="seconds to simulate (default 10)")
+    d.add_argument("--quick", action="store_true",
+                   help="a short run (3 s of video) to check an installation")
     d.add_argument("--seed", type=int, default=1)
     d.add_argument("-o", "--output", default="qogi-demo", help="output folder (default ./qogi-demo)")
     d.add_argument("-q", "--quiet", action="store_true")

@@ -3,13 +3,15 @@
 #include <cstdint>
 #include <cstring>
 
+#include "engine/util/portability.h"
+
 namespace qogi {
 namespace {
 
 // exp(-x), x >= 0: n = round(-x / ln 2), r = -x - n ln 2 in [-ln2/2, ln2/2]
 // (ln 2 split in two parts, Cody-Waite), exp(r) by its Taylor series to r^12
 // (truncation < 2e-16 relative), times 2^n built in the exponent bits.
-inline __attribute__((always_inline)) double ExpNeg(double x) {
+QOGI_ALWAYS_INLINE double ExpNeg(double x) {
   const double kLog2e = 1.4426950408889634;
   const double kLn2Hi = 6.93147180369123816490e-01;
   const double kLn2Lo = 1.90821492927058770002e-10;
@@ -48,7 +50,7 @@ inline __attribute__((always_inline)) double ExpNeg(double x) {
 struct Layer {
   double tau, f, t;
 };
-inline __attribute__((always_inline)) Layer LayerOf(double a, double b, double ds) {
+QOGI_ALWAYS_INLINE Layer LayerOf(double a, double b, double ds) {
   const double tau = 0.5 * (a + b) * ds;
   const double e = ExpNeg(tau);
   const double series = 1.0 - tau * (0.5 - tau * (1.0 / 6.0));
@@ -61,16 +63,12 @@ inline __attribute__((always_inline)) Layer LayerOf(double a, double b, double d
 
 double ExpNegative(double x) { return ExpNeg(x); }
 
-#if defined(__GNUC__) && defined(__x86_64__) && !defined(__clang__)
-#define QOGI_MARCH_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
-#else
-#define QOGI_MARCH_CLONES
-#endif
+#define QOGI_MARCH_CLONES QOGI_TARGET_CLONES("arch=x86-64-v4", "arch=x86-64-v3", "default")
 
 QOGI_MARCH_CLONES
-void MarchLayerPair(std::size_t n, const double* __restrict__ kf, const double* __restrict__ kn,
-                    const double* __restrict__ df, const double* __restrict__ dn, double u,
-                    double ds, double* __restrict__ de, double* __restrict__ da) {
+void MarchLayerPair(std::size_t n, const double* QOGI_RESTRICT kf, const double* QOGI_RESTRICT kn,
+                    const double* QOGI_RESTRICT df, const double* QOGI_RESTRICT dn, double u,
+                    double ds, double* QOGI_RESTRICT de, double* QOGI_RESTRICT da) {
   for (std::size_t j = 0; j < n; ++j) {
     const double a = u * kf[j], b = u * kn[j];
     const Layer l = LayerOf(a, b, ds);
@@ -82,12 +80,12 @@ void MarchLayerPair(std::size_t n, const double* __restrict__ kf, const double* 
 }
 
 QOGI_MARCH_CLONES
-void MarchLayerPairSymmetric(std::size_t n, const double* __restrict__ kf,
-                             const double* __restrict__ kn, const double* __restrict__ df,
-                             const double* __restrict__ dn, double u, double ds,
-                             double* __restrict__ de, double* __restrict__ da,
-                             double* __restrict__ p, double* __restrict__ eb,
-                             double* __restrict__ ab) {
+void MarchLayerPairSymmetric(std::size_t n, const double* QOGI_RESTRICT kf,
+                             const double* QOGI_RESTRICT kn, const double* QOGI_RESTRICT df,
+                             const double* QOGI_RESTRICT dn, double u, double ds,
+                             double* QOGI_RESTRICT de, double* QOGI_RESTRICT da,
+                             double* QOGI_RESTRICT p, double* QOGI_RESTRICT eb,
+                             double* QOGI_RESTRICT ab) {
   for (std::size_t j = 0; j < n; ++j) {
     const double a = u * kf[j], b = u * kn[j];
     const Layer l = LayerOf(a, b, ds);

@@ -10,7 +10,6 @@ void RenderContrast(const BinnedModel& model, const RayBatch& rays, double t_amb
                     const double* t_bg, std::size_t bg_stride, float* out, int num_threads,
                     const RunControl* control) {
   const std::size_t ns = model.num_species();
-  const std::size_t nc = model.num_channels();
   Require(rays.fraction.size() == ns, "RenderContrast: the rays carry " +
                                           std::to_string(rays.fraction.size()) +
                                           " species; the model has " + std::to_string(ns));

@@ -3,15 +3,11 @@
 #include <cmath>
 
 #include "engine/util/check.h"
+#include "engine/util/portability.h"
 
 // Multiversioned kernels: an AVX2 clone is picked at load time on CPUs that
-// have it (GCC function multiversioning; the rest of the library keeps the
-// baseline ISA).
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
-#define QOGI_KERNEL __attribute__((target_clones("avx2", "default")))
-#else
-#define QOGI_KERNEL
-#endif
+// have it (the rest of the library keeps the baseline ISA).
+#define QOGI_KERNEL QOGI_TARGET_CLONES("avx2", "default")
 
 namespace qogi {
 namespace {

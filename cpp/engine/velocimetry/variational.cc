@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 
+#include "engine/util/portability.h"
 #include "engine/velocimetry/image_ops.h"
 
 namespace qogi {
@@ -28,13 +29,13 @@ double Sum(const Partials& p) {
 
 // Row kernels. Pointers are row starts; the loops run over the row's
 // interior [1, n-1) (neighbours up / down are the rows above / below). Plain
-// functions with __restrict parameters so that the compiler vectorises them.
+// functions with QOGI_RESTRICT parameters so that the compiler vectorises them.
 
 // g = 0.5 c div(a p) (continuity data term, central differences).
-void ForwardContRow(int n, const float* __restrict c, const float* __restrict a,
-                    const float* __restrict a_up, const float* __restrict a_dn,
-                    const float* __restrict pu, const float* __restrict pv_up,
-                    const float* __restrict pv_dn, float* __restrict g) {
+void ForwardContRow(int n, const float* QOGI_RESTRICT c, const float* QOGI_RESTRICT a,
+                    const float* QOGI_RESTRICT a_up, const float* QOGI_RESTRICT a_dn,
+                    const float* QOGI_RESTRICT pu, const float* QOGI_RESTRICT pv_up,
+                    const float* QOGI_RESTRICT pv_dn, float* QOGI_RESTRICT g) {
   for (int i = 1; i < n - 1; ++i)
     g[i] = 0.5f * c[i] *
            (a[i + 1] * pu[i + 1] - a[i - 1] * pu[i - 1] + a_dn[i] * pv_dn[i] -
@@ -42,11 +43,11 @@ void ForwardContRow(int n, const float* __restrict c, const float* __restrict a,
 }
 
 // del = ad div p, kap = ac curl p (kap skipped when null).
-void DivCurlRow(int n, float ad, float ac, const float* __restrict pu,
-                const float* __restrict pu_up,
-                const float* __restrict pu_dn, const float* __restrict pv,
-                const float* __restrict pv_up, const float* __restrict pv_dn,
-                float* __restrict del, float* __restrict kap) {
+void DivCurlRow(int n, float ad, float ac, const float* QOGI_RESTRICT pu,
+                const float* QOGI_RESTRICT pu_up,
+                const float* QOGI_RESTRICT pu_dn, const float* QOGI_RESTRICT pv,
+                const float* QOGI_RESTRICT pv_up, const float* QOGI_RESTRICT pv_dn,
+                float* QOGI_RESTRICT del, float* QOGI_RESTRICT kap) {
   const float hd = 0.5f * ad, hc = 0.5f * ac;
   for (int i = 1; i < n - 1; ++i)
     del[i] = hd * (pu[i + 1] - pu[i - 1] + pv_dn[i] - pv_up[i]);
@@ -56,12 +57,12 @@ void DivCurlRow(int n, float ad, float ac, const float* __restrict pu,
 }
 
 // (ou, ov) = D^T del + C^T kap on the row interior (kap may be null).
-void DivCurlAdjointRow(int n, const float* __restrict del,
-                       const float* __restrict del_up,
-                       const float* __restrict del_dn, const float* __restrict kap,
-                       const float* __restrict kap_up,
-                       const float* __restrict kap_dn, float* __restrict ou,
-                       float* __restrict ov) {
+void DivCurlAdjointRow(int n, const float* QOGI_RESTRICT del,
+                       const float* QOGI_RESTRICT del_up,
+                       const float* QOGI_RESTRICT del_dn, const float* QOGI_RESTRICT kap,
+                       const float* QOGI_RESTRICT kap_up,
+                       const float* QOGI_RESTRICT kap_dn, float* QOGI_RESTRICT ou,
+                       float* QOGI_RESTRICT ov) {
   for (int i = 1; i < n - 1; ++i) {
     ou[i] = 0.5f * (del[i - 1] - del[i + 1]);
     ov[i] = 0.5f * (del_up[i] - del_dn[i]);
@@ -75,13 +76,13 @@ void DivCurlAdjointRow(int n, const float* __restrict del,
 
 // (ou, ov) (+)= A^T g + alpha L p on the row interior; returns <p, o> there.
 template <bool kContinuity, bool kAccumulate>
-float AdjointRow(int n, float alpha, const float* __restrict a,
-                 const float* __restrict b, const float* __restrict g,
-                 const float* __restrict g_up, const float* __restrict g_dn,
-                 const float* __restrict pu, const float* __restrict pu_up,
-                 const float* __restrict pu_dn, const float* __restrict pv,
-                 const float* __restrict pv_up, const float* __restrict pv_dn,
-                 float* __restrict ou, float* __restrict ov) {
+float AdjointRow(int n, float alpha, const float* QOGI_RESTRICT a,
+                 const float* QOGI_RESTRICT b, const float* QOGI_RESTRICT g,
+                 const float* QOGI_RESTRICT g_up, const float* QOGI_RESTRICT g_dn,
+                 const float* QOGI_RESTRICT pu, const float* QOGI_RESTRICT pu_up,
+                 const float* QOGI_RESTRICT pu_dn, const float* QOGI_RESTRICT pv,
+                 const float* QOGI_RESTRICT pv_up, const float* QOGI_RESTRICT pv_dn,
+                 float* QOGI_RESTRICT ou, float* QOGI_RESTRICT ov) {
   float dot = 0.f;
   for (int i = 1; i < n - 1; ++i) {
     float su, sv;
@@ -106,10 +107,10 @@ float AdjointRow(int n, float alpha, const float* __restrict a,
 }
 
 // res -= step q; returns <res, P res> and <res, res> in rz, rr.
-void UpdateResidual(int n, float step, const float* __restrict qu,
-                    const float* __restrict qv, const float* __restrict pa,
-                    const float* __restrict pb, const float* __restrict pc,
-                    float* __restrict ru, float* __restrict rv, float& rz,
+void UpdateResidual(int n, float step, const float* QOGI_RESTRICT qu,
+                    const float* QOGI_RESTRICT qv, const float* QOGI_RESTRICT pa,
+                    const float* QOGI_RESTRICT pb, const float* QOGI_RESTRICT pc,
+                    float* QOGI_RESTRICT ru, float* QOGI_RESTRICT rv, float& rz,
                     float& rr) {
   float sz = 0.f, sr = 0.f;
   for (int i = 0; i < n; ++i) {
@@ -124,11 +125,11 @@ void UpdateResidual(int n, float step, const float* __restrict qu,
 }
 
 // x += step p; p = P res + beta p.
-void UpdateDirection(int n, float step, float beta, const float* __restrict ru,
-                     const float* __restrict rv, const float* __restrict pa,
-                     const float* __restrict pb, const float* __restrict pc,
-                     float* __restrict xu, float* __restrict xv,
-                     float* __restrict pu, float* __restrict pv) {
+void UpdateDirection(int n, float step, float beta, const float* QOGI_RESTRICT ru,
+                     const float* QOGI_RESTRICT rv, const float* QOGI_RESTRICT pa,
+                     const float* QOGI_RESTRICT pb, const float* QOGI_RESTRICT pc,
+                     float* QOGI_RESTRICT xu, float* QOGI_RESTRICT xv,
+                     float* QOGI_RESTRICT pu, float* QOGI_RESTRICT pv) {
   for (int i = 0; i < n; ++i) {
     xu[i] += step * pu[i];
     xv[i] += step * pv[i];
