@@ -27,11 +27,6 @@ struct PlumeBatch {
   std::size_t tbg_stride = 0;  // 1 (one per plume) or n_channels (per channel)
 };
 
-PathT<double> PlumePath(const PlumeBatch& b, std::size_t i, double pressure, int nodes, double zmax) {
-  return SampleGaussianPlume<double>(b.x + i * b.ns, b.ns, b.tp[i], b.ta[i], b.sigma[i], pressure,
-                                     nodes, zmax);
-}
-
 PlumeBatch MakeBatch(const DoubleArray& x, const DoubleArray& tp, const DoubleArray& ta,
                      const DoubleArray& sigma, const DoubleArray& tbg, std::size_t ns,
                      std::size_t nc) {

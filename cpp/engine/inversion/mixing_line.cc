@@ -409,7 +409,11 @@ void MixingLineInverter::Invert(const MixingLineOptions& options, std::size_t n,
                 r.swap(rt);
                 dr.swap(drt);
                 accepted = true;
-                if (std::abs(du) < 1e-7) converged = true;
+                // Converged when the step is below 1e-7 in ln X, or below a
+                // millionth of ln X's own 1-sigma (1 / sqrt(jj)): on a pixel
+                // with no information (sigma_X >> X) the flat chi2 otherwise
+                // lets the last bits decide between converged and failed.
+                if (std::abs(du) < 1e-7 || std::abs(du) * std::sqrt(jj) < 1e-6) converged = true;
                 break;
               }
               step *= 0.5;

@@ -8,8 +8,6 @@
 namespace qogi::synth {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-
 MixingModel MixingOf(const Release& r) {
   return MixingModel(r.ReleasedGas(), r.exit_temperature_K, GasMixture::DryAir(),
                      r.ambient_temperature_K, r.pressure_Pa);

@@ -24,8 +24,10 @@
 #endif
 
 // Function multi-versioning: one clone per listed target, chosen at load time
-// (GNU ifunc). Only g++ on x86-64 Linux; elsewhere the default build is used.
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
+// (GNU ifunc). g++ and clang >= 14 on x86-64 Linux; elsewhere the default build
+// is used.
+#if defined(__x86_64__) && defined(__linux__) && \
+    ((defined(__GNUC__) && !defined(__clang__)) || (defined(__clang__) && __clang_major__ >= 14))
 #define QOGI_TARGET_CLONES(...) __attribute__((target_clones(__VA_ARGS__)))
 #else
 #define QOGI_TARGET_CLONES(...)
