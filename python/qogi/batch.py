@@ -223,7 +223,10 @@ def _parsers() -> Dict[str, Any]:
 
 
 def _read_toml(path: pathlib.Path) -> Tuple[dict, List[Tuple[str, dict]]]:
-    import tomllib
+    try:
+        import tomllib
+    except ImportError:  # Python < 3.11: the same parser as a package
+        import tomli as tomllib
     try:
         doc = tomllib.loads(path.read_text())
     except (OSError, UnicodeDecodeError) as e:
@@ -251,7 +254,8 @@ def _read_toml(path: pathlib.Path) -> Tuple[dict, List[Tuple[str, dict]]]:
 
 def _read_csv(path: pathlib.Path) -> List[Tuple[str, dict]]:
     try:
-        text = path.read_text(newline="")
+        with open(path, newline="", encoding="utf-8-sig") as fh:
+            text = fh.read()
     except (OSError, UnicodeDecodeError) as e:
         raise UsageError(f"manifest {path}: cannot read it ({e})") from e
     lines = [ln for ln in text.splitlines(keepends=True)]
