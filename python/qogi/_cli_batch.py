@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
 from .errors import EXIT_DATA, EXIT_INTERRUPTED, EXIT_OK, UsageError
 
@@ -19,6 +20,8 @@ def cmd_batch(args: argparse.Namespace) -> int:
                        retries=args.retries, timeout_s=args.timeout,
                        plots=True if args.plots else None, progress=not args.quiet)
     except KeyboardInterrupt:
+        print(f"qogi batch: interrupted; the rows done are kept in {args.output}: run the same "
+              "command with --resume to finish", file=sys.stderr)
         return EXIT_INTERRUPTED
     return EXIT_OK if (df["status"] == "ok").all() else EXIT_DATA
 

@@ -375,7 +375,8 @@ def load_manifest(path: Union[str, os.PathLike], *, check_files: bool = True) ->
             col = next((k for k in fields if k in str(e)), None)
             what = f"column {col!r}: " if col else ""
             raise UsageError(f"{where}: {what}{e}") from None
-        rows.append(Row(name=name, path=str(rec), surfaces=surfaces, auto_distances_px=dists,
+        rows.append(Row(name=name, path=str(rec), surfaces=surfaces,
+                        auto_distances_px=dists if surfaces == "auto" else None,
                         config=cfg, camera=v.get("camera"), ifov_rad=v.get("ifov_rad"),
                         plots=bool(v.get("plots", False)), timeout_s=v.get("timeout_s"),
                         where=where))
@@ -389,19 +390,47 @@ class _TimedOut(Exception):
     pass
 
 
-def _engine_threads(requested: Optional[int]) -> int:
-    """Engine threads for one recording: as asked, else this machine's CPUs
-    shared among the worker's task slots."""
-    if requested:
-        return int(requested)
+def _cpu_count() -> int:
     from dask.system import CPU_COUNT
+    return int(CPU_COUNT)
+
+
+def _host(address: str) -> str:
+    return address.rsplit(":", 1)[0] if address else ""
+
+
+def _threads_by_host(client) -> Dict[str, int]:
+    """Engine threads per recording on each host of a running cluster: the
+    host's CPUs shared among all task slots of its workers (several worker
+    processes on one node share its cores)."""
+    workers = client.scheduler_info(n_workers=-1).get("workers", {})
+    cpus = client.run(_cpu_count, on_error="ignore")
+    slots: Dict[str, int] = {}
+    host_cpus: Dict[str, int] = {}
+    for addr, w in workers.items():
+        h = _host(addr)
+        slots[h] = slots.get(h, 0) + int(w.get("nthreads", 1))
+        if isinstance(cpus.get(addr), int):
+            host_cpus[h] = max(host_cpus.get(h, 0), cpus[addr])
+    return {h: max(1, host_cpus[h] // max(1, n)) for h, n in slots.items() if h in host_cpus}
+
+
+def _engine_threads(job: dict) -> int:
+    """Engine threads for one recording: as asked, else from the cluster's
+    host table, else this machine's CPUs shared among the worker's slots."""
+    if job.get("threads"):
+        return int(job["threads"])
+    address = _worker_address()
+    by_host = job.get("threads_by_host") or {}
+    if _host(address) in by_host:
+        return int(by_host[_host(address)])
     slots = 1
     try:
         from distributed import get_worker
         slots = max(1, int(get_worker().state.nthreads))
     except (ImportError, ValueError, AttributeError):
         pass
-    return max(1, CPU_COUNT // slots)
+    return max(1, _cpu_count() // slots)
 
 
 def _remove_stale_temporaries(folder: pathlib.Path) -> None:
@@ -449,7 +478,8 @@ def run_row(job: dict) -> dict:
             "qogi_version": __version__, "worker": _worker_address(),
             "manifest_row": row.where}
     t0 = time.perf_counter()
-    cfg = dataclasses.replace(row.config, num_threads=_engine_threads(job.get("threads")))
+    cfg = dataclasses.replace(row.config, num_threads=_engine_threads(job))
+    meta["engine_threads"] = cfg.num_threads
     deadline = None if row.timeout_s is None else t0 + row.timeout_s
     stage = {"message": "opening the recording"}
 
@@ -558,7 +588,9 @@ def failed_row(meta: dict) -> dict:
 
 
 def _meta_columns(b: dict) -> dict:
-    return {"run_time_s": _num(b.get("run_time_s")), "qogi_version": b.get("qogi_version", ""),
+    return {"run_time_s": _num(b.get("run_time_s")),
+            "engine_threads": int(b.get("engine_threads") or 0),
+            "qogi_version": b.get("qogi_version", ""),
             "config_hash": b.get("config_hash", ""), "worker": b.get("worker", ""),
             "manifest_row": b.get("manifest_row", ""), "reused": bool(b.get("reused", False))}
 
@@ -573,7 +605,7 @@ def _num(x):
 
 
 _LEADING = ["name", "path", "status", "error_type", "error", "complete"]
-_TRAILING = ["n_warnings", "warnings", "run_time_s", "qogi_version", "config_hash", "worker",
+_TRAILING = ["n_warnings", "warnings", "run_time_s", "engine_threads", "qogi_version", "config_hash", "worker",
              "manifest_row", "reused"]
 
 
@@ -592,7 +624,8 @@ def summary_frame(rows: Sequence[dict]):
         df[k] = pd.to_numeric(df[k], errors="coerce").astype("float64")
     for k in ("complete", "reused"):
         df[k] = df[k].astype(bool)
-    df["n_warnings"] = pd.to_numeric(df["n_warnings"], errors="coerce").fillna(0).astype("int64")
+    for k in ("n_warnings", "engine_threads"):
+        df[k] = pd.to_numeric(df[k], errors="coerce").fillna(0).astype("int64")
     for k in ("name", "path", "status", "error_type", "error", "warnings", "qogi_version",
               "config_hash", "worker", "manifest_row"):
         df[k] = df[k].fillna("").astype(str)
@@ -753,8 +786,7 @@ def run(manifest: Union[str, os.PathLike], outdir: Union[str, os.PathLike], *,
         if scheduler is None:
             n = workers or default_workers(len(jobs))
             if threads is None:
-                from dask.system import CPU_COUNT
-                threads = max(1, CPU_COUNT // n)
+                threads = max(1, _cpu_count() // n)
                 for _, j in jobs:
                     j["threads"] = threads
             with dask.config.set({"distributed.scheduler.allowed-failures": retries}):
@@ -770,6 +802,10 @@ def run(manifest: Union[str, os.PathLike], outdir: Union[str, os.PathLike], *,
             raise UsageError(f"--scheduler {scheduler}: cannot connect ({e}); start it with "
                              "`dask scheduler` and check the address") from None
         try:
+            if scheduler is not None and threads is None:
+                by_host = _threads_by_host(client)
+                for _, j in jobs:
+                    j["threads_by_host"] = by_host
             link, why = _dashboard(client)
             say(f"qogi batch: Dask dashboard at {link}" if link else
                 f"qogi batch: Dask dashboard not available: {why}")
@@ -807,7 +843,10 @@ def _collect(client, jobs, rows, results, out, retries, say, progress, as_comple
             if fut.status == "finished":
                 row = fut.result()
             else:
-                exc = fut.exception()
+                try:
+                    exc = fut.exception()
+                except Exception as e:  # noqa: BLE001 - a cancelled future raises its reason
+                    exc = e
                 meta = {"name": rows[k].name, "path": rows[k].path,
                         "config_hash": job["config_hash"],
                         "qogi_version": __version__, "manifest_row": rows[k].where,

@@ -12,15 +12,14 @@ import sys
 import time
 
 import numpy as np
+import pandas as pd
 import pytest
+from dask.system import CPU_COUNT
 
-pd = pytest.importorskip("pandas")
-pytest.importorskip("distributed")
-
-import qogi  # noqa: E402
-from qogi import batch, render, synth  # noqa: E402
-from qogi.errors import UsageError  # noqa: E402
-from qogi.presets import camera_preset  # noqa: E402
+import qogi
+from qogi import batch, render, synth
+from qogi.errors import UsageError
+from qogi.presets import camera_preset
 
 # Small frames keep the test quick: a 160x128 window of the GF320 lab scene
 # (same pixel footprint), 1.5 s at 15 Hz, the exit 6 px above the bottom row.
@@ -159,6 +158,8 @@ def test_four_recordings_on_two_workers_three_ok_one_failed(clips, first_batch):
     assert list(csv["status"]) == list(df["status"])
     assert len(set(df["config_hash"])) == 4 and set(df["qogi_version"]) == {qogi.__version__}
     assert (df["run_time_s"] > 0).all() and not df["reused"].any()
+    # Two workers share the CPUs: the engine of each gets half of them.
+    assert set(df["engine_threads"]) == {max(1, CPU_COUNT // 2)}
     for name in ("a", "b", "c"):
         d = json.loads((out / name / "result.json").read_text())
         assert d["format"] == "qogi-result" and d["batch"]["status"] == "ok"
@@ -247,12 +248,14 @@ def test_the_same_batch_on_a_scheduler_started_separately(clips, first_batch, tm
                                               "--nworkers", "2", "--nthreads", "1",
                                               "--no-dashboard"], stdout=log, stderr=log))
         out = tmp_path / "out"
-        r = run_cli("batch", write_csv(clips), "-o", out, "--scheduler", address, "--threads", "1")
+        r = run_cli("batch", write_csv(clips), "-o", out, "--scheduler", address)
         assert r.returncode == 3, r.stderr
         assert "dashboard not available" in r.stderr
         df = pd.read_parquet(out / "summary.parquet")
         check_three_ok_one_failed(df, clips)
         assert all(w.startswith("tcp://127.0.0.1:") for w in df["worker"])
+        # Two worker processes of one thread on this host share its CPUs.
+        assert set(df["engine_threads"]) == {max(1, CPU_COUNT // 2)}
         # The same numbers as on the local cluster.
         ref = first_batch[1].set_index("name")
         got = df.set_index("name")
