@@ -399,36 +399,23 @@ def _host(address: str) -> str:
     return address.rsplit(":", 1)[0] if address else ""
 
 
-def _threads_by_host(client) -> Dict[str, int]:
-    """Engine threads per recording on each host of a running cluster: the
-    host's CPUs shared among all task slots of its workers (several worker
-    processes on one node share its cores)."""
-    workers = client.scheduler_info(n_workers=-1).get("workers", {})
-    cpus = client.run(_cpu_count, on_error="ignore")
-    slots: Dict[str, int] = {}
-    host_cpus: Dict[str, int] = {}
-    for addr, w in workers.items():
-        h = _host(addr)
-        slots[h] = slots.get(h, 0) + int(w.get("nthreads", 1))
-        if isinstance(cpus.get(addr), int):
-            host_cpus[h] = max(host_cpus.get(h, 0), cpus[addr])
-    return {h: max(1, host_cpus[h] // max(1, n)) for h, n in slots.items() if h in host_cpus}
-
-
 def _engine_threads(job: dict) -> int:
-    """Engine threads for one recording: as asked, else from the cluster's
-    host table, else this machine's CPUs shared among the worker's slots."""
+    """Engine threads for one recording: as asked, else this host's CPUs
+    divided among the task slots of all workers on the host (several worker
+    processes on one node share its cores), as the scheduler knows them when
+    the task starts."""
     if job.get("threads"):
         return int(job["threads"])
-    address = _worker_address()
-    by_host = job.get("threads_by_host") or {}
-    if _host(address) in by_host:
-        return int(by_host[_host(address)])
     slots = 1
     try:
-        from distributed import get_worker
-        slots = max(1, int(get_worker().state.nthreads))
-    except (ImportError, ValueError, AttributeError):
+        from distributed import get_client, get_worker
+        worker = get_worker()
+        slots = max(1, int(worker.state.nthreads))
+        host = _host(worker.address)
+        workers = get_client().scheduler_info(n_workers=-1).get("workers", {})
+        slots = max(slots, sum(int(w.get("nthreads", 1)) for a, w in workers.items()
+                               if _host(a) == host))
+    except (ImportError, ValueError, AttributeError, OSError):
         pass
     return max(1, _cpu_count() // slots)
 
@@ -802,10 +789,6 @@ def run(manifest: Union[str, os.PathLike], outdir: Union[str, os.PathLike], *,
             raise UsageError(f"--scheduler {scheduler}: cannot connect ({e}); start it with "
                              "`dask scheduler` and check the address") from None
         try:
-            if scheduler is not None and threads is None:
-                by_host = _threads_by_host(client)
-                for _, j in jobs:
-                    j["threads_by_host"] = by_host
             link, why = _dashboard(client)
             say(f"qogi batch: Dask dashboard at {link}" if link else
                 f"qogi batch: Dask dashboard not available: {why}")

@@ -15,6 +15,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from dask.system import CPU_COUNT
+from distributed import Client
 
 import qogi
 from qogi import batch, render, synth
@@ -247,6 +248,8 @@ def test_the_same_batch_on_a_scheduler_started_separately(clips, first_batch, tm
         procs.append(subprocess.Popen(dask + ["worker", address, "--host", "127.0.0.1",
                                               "--nworkers", "2", "--nthreads", "1",
                                               "--no-dashboard"], stdout=log, stderr=log))
+        with Client(address, timeout=60) as c:
+            c.wait_for_workers(2, timeout=120)
         out = tmp_path / "out"
         r = run_cli("batch", write_csv(clips), "-o", out, "--scheduler", address)
         assert r.returncode == 3, r.stderr
