@@ -502,11 +502,12 @@ def run_row(job: dict) -> dict:
     meta["status"] = "ok"
     d = result.to_dict()
     d["batch"] = meta
-    _write_json(folder / RESULT_JSON, d)
     if row.plots:
         result.plot(folder / "rates.png", kind="rates")
         if result.map_frames:
             result.plot(folder / "maps.png", kind="maps")
+    # Last: an existing result.json means the row's outputs are all there.
+    _write_json(folder / RESULT_JSON, d)
     try:
         os.unlink(folder / FAILURE_JSON)
     except FileNotFoundError:
@@ -572,6 +573,15 @@ def failed_row(meta: dict) -> dict:
            "complete": False, "n_warnings": 0, "warnings": ""}
     row.update(_meta_columns(meta))
     return row
+
+
+def pending_row(row: Row) -> dict:
+    """A row not run (yet): interrupted batch, or still running at a
+    periodic summary."""
+    r = {"name": row.name, "path": row.path, "status": "not run", "error_type": "",
+         "error": "", "complete": False, "n_warnings": 0, "warnings": ""}
+    r.update(_meta_columns({"manifest_row": row.where}))
+    return r
 
 
 def _meta_columns(b: dict) -> dict:
@@ -796,24 +806,30 @@ def run(manifest: Union[str, os.PathLike], outdir: Union[str, os.PathLike], *,
                      ProgressBar)
         except KeyboardInterrupt:
             # What finished is on disk; the summary says what is missing.
-            write_summary(summary_frame([r for r in results if r is not None]), out)
+            write_summary(_table(rows, results), out)
             raise
         finally:
             client.close()
             if cluster is not None:
                 cluster.close()
-    df = summary_frame([r for r in results if r is not None])
+    df = _table(rows, results)
     write_summary(df, out)
     n_ok = int((df["status"] == "ok").sum())
-    say(f"qogi batch: {n_ok} ok, {len(df) - n_ok} failed; summary in {out / SUMMARY_CSV} "
+    say(f"qogi batch: {n_ok} ok, {int((df['status'] == 'failed').sum())} failed; summary in {out / SUMMARY_CSV} "
         f"and {SUMMARY_PARQUET}")
     return df
 
 
+def _table(rows: Sequence[Row], results: Sequence[Optional[dict]]):
+    return summary_frame([r if r is not None else pending_row(row)
+                          for row, r in zip(rows, results)])
+
+
 def _collect(client, jobs, rows, results, out, retries, say, progress, as_completed,
              ProgressBar) -> None:
-    keys = [f"qogi-batch-{j['row'].name}-{j['config_hash'][:8]}-{os.getpid()}-{k}"
-            for k, j in jobs]
+    import uuid
+    token = uuid.uuid4().hex[:8]       # one batch's keys never collide with another's
+    keys = [f"qogi-batch-{j['row'].name}-{j['config_hash'][:8]}-{token}-{k}" for k, j in jobs]
     futures = client.map(run_row, [j for _, j in jobs], key=keys, retries=retries, pure=False)
     index = {f.key: (k, j) for f, (k, j) in zip(futures, jobs)}
     bar = ProgressBar("qogi batch ", enabled=progress)
@@ -834,7 +850,7 @@ def _collect(client, jobs, rows, results, out, retries, say, progress, as_comple
                         "config_hash": job["config_hash"],
                         "qogi_version": __version__, "manifest_row": rows[k].where,
                         "error_type": type(exc).__name__,
-                        "error": f"{exc} (after {retries} retries)"}
+                        "error": f"{exc} (retried up to {retries} times)"}
                 row = failed_row(meta)
             fut.release()
             results[k] = row
@@ -848,7 +864,7 @@ def _collect(client, jobs, rows, results, out, retries, say, progress, as_comple
             bar(done / len(jobs), f"{n_ok} ok, {n_failed} failed, {len(jobs) - done} remaining, "
                                   f"{per_h:.0f} recordings/h")
             if time.perf_counter() - last_summary > _SUMMARY_INTERVAL_S:
-                write_summary(summary_frame([r for r in results if r is not None]), out)
+                write_summary(_table(rows, results), out)
                 last_summary = time.perf_counter()
     finally:
         bar.close()

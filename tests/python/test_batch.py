@@ -367,3 +367,12 @@ def test_a_timeout_and_a_wrong_camera_fail_their_row_with_the_reason(clips, tmp_
     assert cam["status"] == "failed" and "4 channel(s)" in cam["error"]
     assert not (tmp_path / "a" / "result.json").exists()
     assert json.loads((tmp_path / "a" / "failure.json").read_text())["batch"]["status"] == "failed"
+
+
+def test_the_command_line_refuses_a_bad_manifest_before_starting(folder):
+    m = manifest(folder, "path,surfaces,velocity\nx.h5,\"1,2,3,4\",telepathy\n")
+    r = run_cli("batch", m, "-o", folder / "out")
+    assert r.returncode == 2
+    assert "line 2" in r.stderr and "velocity" in r.stderr and "fluid" in r.stderr
+    assert not (folder / "out").exists()
+    assert "batch" in run_cli("--help").stdout
