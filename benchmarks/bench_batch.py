@@ -10,9 +10,12 @@ time includes starting the cluster, as a user sees it. The recordings are
 four synthetic releases (seeds 0-3) looped to length from five different
 start frames: 20 files, each one task.
 
-The load average is printed before and after: on a machine shared with other
-work the ratio says how much a second worker gains under that load, not on an
-idle machine. QOGI_BENCH_RUNS=2 repeats the pair (1, 2, 1, 2) to show the spread.
+The load average is printed before and after, and the CPUs the batch
+obtained (the tasks' CPU seconds over the wall time): on a machine shared with
+other work the ratio says how much a second worker gains under that load, not
+on an idle machine. With 1 worker the engine runs 2 threads, with 2 workers 1
+each, so both hold two runnable threads; a second worker gains by running the
+serial (Python) parts of two recordings at once. QOGI_BENCH_RUNS=2 repeats the pair (1, 2, 1, 2) to show the spread.
 """
 
 import os
@@ -74,9 +77,11 @@ def main():
                 per_hour[workers].append(3600.0 * N_RECORDINGS / wall)
                 truth = df["S1/CH4 truth_kg_h"].iloc[0]
                 err = (df["S1/CH4 mean_kg_h"] / truth - 1.0) * 100
+                cpu = df["cpu_time_s"].sum()
                 print(f"  {workers} worker(s): {wall:6.1f} s wall, {per_hour[workers][-1]:6.0f} "
                       f"recordings/h ({ok}/{N_RECORDINGS} ok; per recording "
-                      f"{df['run_time_s'].mean():.1f} s in its task; S1 error vs truth "
+                      f"{df['run_time_s'].mean():.1f} s wall and {cpu / len(df):.1f} CPU s in "
+                      f"its task; CPUs obtained {cpu / wall:.2f}; S1 error vs truth "
                       f"{err.mean():+.1f} % mean) [{before} -> {load()}]")
         for rep, (one, two) in enumerate(zip(per_hour[1], per_hour[2])):
             print(f"  scaling, pair {rep + 1}: 2 workers / 1 worker = {two / one:.2f}x "

@@ -54,7 +54,7 @@ def add_commands(sub) -> None:
                    help="skip rows whose result exists with the same config hash")
     b.add_argument("--overwrite", action="store_true",
                    help="redo every row although OUTDIR holds a batch already")
-    b.add_argument("--retries", type=int, default=2,
+    b.add_argument("--retries", type=int, default=2, metavar="N",
                    help="reruns of a task that failed for a reason other than bad input "
                         "(worker lost, out of memory; default 2)")
     b.add_argument("--timeout", type=float, metavar="S",

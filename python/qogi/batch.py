@@ -464,7 +464,7 @@ def run_row(job: dict) -> dict:
     meta = {"name": row.name, "path": row.path, "config_hash": job["config_hash"],
             "qogi_version": __version__, "worker": _worker_address(),
             "manifest_row": row.where}
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     cfg = dataclasses.replace(row.config, num_threads=_engine_threads(job))
     meta["engine_threads"] = cfg.num_threads
     deadline = None if row.timeout_s is None else t0 + row.timeout_s
@@ -499,6 +499,8 @@ def run_row(job: dict) -> dict:
         return _failed(folder, meta, t0, type(e).__name__, str(e),
                        traceback.format_exc())
     meta["run_time_s"] = time.perf_counter() - t0
+    # The worker process runs one recording at a time: its CPU time is this one's.
+    meta["cpu_time_s"] = time.process_time() - c0
     meta["status"] = "ok"
     d = result.to_dict()
     d["batch"] = meta
@@ -585,7 +587,7 @@ def pending_row(row: Row) -> dict:
 
 
 def _meta_columns(b: dict) -> dict:
-    return {"run_time_s": _num(b.get("run_time_s")),
+    return {"run_time_s": _num(b.get("run_time_s")), "cpu_time_s": _num(b.get("cpu_time_s")),
             "engine_threads": int(b.get("engine_threads") or 0),
             "qogi_version": b.get("qogi_version", ""),
             "config_hash": b.get("config_hash", ""), "worker": b.get("worker", ""),
@@ -602,7 +604,7 @@ def _num(x):
 
 
 _LEADING = ["name", "path", "status", "error_type", "error", "complete"]
-_TRAILING = ["n_warnings", "warnings", "run_time_s", "engine_threads", "qogi_version", "config_hash", "worker",
+_TRAILING = ["n_warnings", "warnings", "run_time_s", "cpu_time_s", "engine_threads", "qogi_version", "config_hash", "worker",
              "manifest_row", "reused"]
 
 
@@ -617,7 +619,7 @@ def summary_frame(rows: Sequence[dict]):
                 middle.append(k)
     cols = _LEADING + middle + _TRAILING
     df = pd.DataFrame([{k: r.get(k) for k in cols} for r in rows], columns=cols)
-    for k in middle + ["run_time_s"]:
+    for k in middle + ["run_time_s", "cpu_time_s"]:
         df[k] = pd.to_numeric(df[k], errors="coerce").astype("float64")
     for k in ("complete", "reused"):
         df[k] = df[k].astype(bool)
@@ -726,6 +728,15 @@ def run(manifest: Union[str, os.PathLike], outdir: Union[str, os.PathLike], *,
         ``plots``).
     progress : bool
         Draw the progress bar and messages on stderr.
+    log : file, optional
+        Where the messages go (default stderr; the bar is always on stderr).
+
+    Raises
+    ------
+    UsageError
+        A bad manifest or argument, an OUTDIR holding a batch without
+        ``resume``/``overwrite``, a scheduler that cannot be reached; before
+        any recording runs.
     """
     import dask
     from distributed import Client, LocalCluster, as_completed

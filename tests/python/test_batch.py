@@ -159,6 +159,7 @@ def test_four_recordings_on_two_workers_three_ok_one_failed(clips, first_batch):
     assert list(csv["status"]) == list(df["status"])
     assert len(set(df["config_hash"])) == 4 and set(df["qogi_version"]) == {qogi.__version__}
     assert (df["run_time_s"] > 0).all() and not df["reused"].any()
+    assert (df.loc[df["status"] == "ok", "cpu_time_s"] > 0).all()
     # Two workers share the CPUs: the engine of each gets half of them.
     assert set(df["engine_threads"]) == {max(1, CPU_COUNT // 2)}
     for name in ("a", "b", "c"):
@@ -376,3 +377,17 @@ def test_the_command_line_refuses_a_bad_manifest_before_starting(folder):
     assert "line 2" in r.stderr and "velocity" in r.stderr and "fluid" in r.stderr
     assert not (folder / "out").exists()
     assert "batch" in run_cli("--help").stdout
+
+
+@pytest.mark.slow
+def test_an_environment_error_is_retried_then_recorded(clips, tmp_path):
+    # The row's output folder is taken by a file: not bad input, so the task
+    # raises, Dask reruns it (retries=1) and the row records the last error.
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "a").write_text("in the way")
+    m = manifest(clips, f"path,surfaces\na.h5,\"{','.join(map(str, SURFACE))}\"\n", "one.csv")
+    df = batch.run(m, out, workers=1, retries=1, progress=False)
+    row = df.iloc[0]
+    assert (row["name"], row["status"], row["error_type"]) == ("a", "failed", "FileExistsError")
+    assert "retried up to 1 times" in row["error"]
