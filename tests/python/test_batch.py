@@ -211,6 +211,9 @@ def test_a_killed_batch_resumes_with_only_the_missing_rows(clips, tmp_path):
     r = run_cli("batch", manifest, "-o", out, "--workers", "2", "--resume")
     assert r.returncode == 3, r.stderr        # the corrupt row fails again
     assert f"{len(done)} of 4 rows already done" in r.stderr
+    # The progress line: done, failed, remaining, throughput; the dashboard line.
+    assert "1 failed, 0 remaining" in r.stderr and "recordings/h" in r.stderr
+    assert "Dask dashboard" in r.stderr
     df = pd.read_parquet(out / "summary.parquet")
     check_three_ok_one_failed(df, clips)
     # Rows finished before the kill were read back, not recomputed.
