@@ -580,7 +580,7 @@ def failed_row(meta: dict) -> dict:
 def pending_row(row: Row) -> dict:
     """A row not run (yet): interrupted batch, or still running at a
     periodic summary."""
-    r = {"name": row.name, "path": row.path, "status": "not run", "error_type": "",
+    r = {"name": row.name, "path": row.path, "status": "not done", "error_type": "",
          "error": "", "complete": False, "n_warnings": 0, "warnings": ""}
     r.update(_meta_columns({"manifest_row": row.where}))
     return r
@@ -640,7 +640,8 @@ def write_summary(df, outdir: pathlib.Path) -> None:
         df.to_parquet(tmp, index=False)
 
 
-def _reusable(row: Row, outdir: pathlib.Path, config_hash: str) -> Optional[dict]:
+def _reusable(row: Row, outdir: pathlib.Path, config_hash: str,
+              reused: bool = True) -> Optional[dict]:
     """The summary row of an existing result with the same config hash."""
     p = outdir / row.name / RESULT_JSON
     try:
@@ -651,7 +652,7 @@ def _reusable(row: Row, outdir: pathlib.Path, config_hash: str) -> Optional[dict
     if b.get("config_hash") != config_hash or b.get("status") != "ok":
         return None
     r = summary_row(d)
-    r["reused"] = True
+    r["reused"] = reused
     return r
 
 
@@ -774,9 +775,9 @@ def run(manifest: Union[str, os.PathLike], outdir: Union[str, os.PathLike], *,
 
     # 2. The jobs: rows not already done.
     results: List[Optional[dict]] = [None] * len(rows)
+    hashes = [r.config_hash() for r in rows]
     jobs = []
-    for k, r in enumerate(rows):
-        h = r.config_hash()
+    for k, (r, h) in enumerate(zip(rows, hashes)):
         done = _reusable(r, out, h) if resume else None
         if done is not None:
             results[k] = done
@@ -813,17 +814,17 @@ def run(manifest: Union[str, os.PathLike], outdir: Union[str, os.PathLike], *,
             link, why = _dashboard(client)
             say(f"qogi batch: Dask dashboard at {link}" if link else
                 f"qogi batch: Dask dashboard not available: {why}")
-            _collect(client, jobs, rows, results, out, retries, say, progress, as_completed,
-                     ProgressBar)
+            _collect(client, jobs, rows, results, hashes, out, retries, say, progress,
+                     as_completed, ProgressBar)
         except KeyboardInterrupt:
             # What finished is on disk; the summary says what is missing.
-            write_summary(_table(rows, results), out)
+            write_summary(_table(rows, results, out, hashes), out)
             raise
         finally:
             client.close()
             if cluster is not None:
                 cluster.close()
-    df = _table(rows, results)
+    df = _table(rows, results, out, hashes)
     write_summary(df, out)
     n_ok = int((df["status"] == "ok").sum())
     say(f"qogi batch: {n_ok} ok, {int((df['status'] == 'failed').sum())} failed; summary in {out / SUMMARY_CSV} "
@@ -831,12 +832,19 @@ def run(manifest: Union[str, os.PathLike], outdir: Union[str, os.PathLike], *,
     return df
 
 
-def _table(rows: Sequence[Row], results: Sequence[Optional[dict]]):
-    return summary_frame([r if r is not None else pending_row(row)
-                          for row, r in zip(rows, results)])
+def _table(rows: Sequence[Row], results: Sequence[Optional[dict]], out: pathlib.Path,
+           hashes: Sequence[str]):
+    """The summary of every row: collected results, else a result this run
+    wrote but did not collect yet (interrupted), else "not done"."""
+    table = []
+    for row, r, h in zip(rows, results, hashes):
+        if r is None:
+            r = _reusable(row, out, h, reused=False) or pending_row(row)
+        table.append(r)
+    return summary_frame(table)
 
 
-def _collect(client, jobs, rows, results, out, retries, say, progress, as_completed,
+def _collect(client, jobs, rows, results, hashes, out, retries, say, progress, as_completed,
              ProgressBar) -> None:
     import uuid
     token = uuid.uuid4().hex[:8]       # one batch's keys never collide with another's
@@ -875,7 +883,7 @@ def _collect(client, jobs, rows, results, out, retries, say, progress, as_comple
             bar(done / len(jobs), f"{n_ok} ok, {n_failed} failed, {len(jobs) - done} remaining, "
                                   f"{per_h:.0f} recordings/h")
             if time.perf_counter() - last_summary > _SUMMARY_INTERVAL_S:
-                write_summary(_table(rows, results), out)
+                write_summary(_table(rows, results, out, hashes), out)
                 last_summary = time.perf_counter()
     finally:
         bar.close()
