@@ -89,6 +89,8 @@ def build_parser() -> argparse.ArgumentParser:
     from ._cli_quantify import add_demo_command
     add_quantify_commands(sub)
     add_demo_command(sub)
+    from ._cli_batch import add_commands as add_batch_commands
+    add_batch_commands(sub)
     return p
 
 
