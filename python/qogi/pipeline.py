@@ -175,6 +175,25 @@ class QuantifyConfig:
             d["background"] = dataclasses.asdict(self.background)
         return d
 
+    @classmethod
+    def from_dict(cls, d: dict) -> "QuantifyConfig":
+        """The config :meth:`to_dict` wrote (JSON-friendly lists accepted);
+        unknown keys raise ``qogi.UsageError`` (qogi.config_io)."""
+        from .config_io import config_from_dict
+        return config_from_dict(d)
+
+    @classmethod
+    def from_toml(cls, path) -> "QuantifyConfig":
+        """The config of a settings file (TOML, or a result JSON); see qogi.config_io."""
+        from .config_io import load_settings
+        return load_settings(path).config
+
+    def to_toml(self, path, surfaces=(), units=None) -> None:
+        """Write this config (and optionally surfaces and the reporting unit)
+        as a settings file that :meth:`from_toml` and ``--config`` read back."""
+        from .config_io import write_toml
+        write_toml(path, self, surfaces, units)
+
 
 # ---------------------------------------------------------------------------
 # Helpers
