@@ -24,8 +24,11 @@ detectable rate is
     ``F_min = (k + z) NEC v w``
 
 with ``v`` the measured gas speed normal to the surface (column-weighted) and
-``w`` the measured effective width (median over the frames that saw gas).
-Where no frame saw gas, ``w`` is the surface's length (the widest plume the
+``w`` the measured effective width: of the time-averaged contrast profile
+along the surface when its peak is significant (its noise is sqrt(frames)
+lower than a frame's, and it shows the plume's wings that a frame's
+thresholded columns cut off), else the median over the frames that saw gas.
+Where neither saw gas, ``w`` is the surface's length (the widest plume the
 surface can hold: the limit is then an upper bound) and ``v`` the median
 normal speed the run used. ``docs/detection_limit.md`` compares it with the
 pipeline's detections on a synthetic sweep and with Zeng and Morris's GF320
@@ -174,11 +177,16 @@ def surface_detection_limit(model, species: str, netd_K, background_K: float, ga
     the plume, and its width then replaces the surface length."""
     nec = noise_equivalent_column(model, species, netd_K, background_K, gas_K, ambient_K)
     v = normal_velocity(columns, vn_m_s)
-    w = effective_width(columns, dl_m)
-    width_from = "measured in the frames"
-    if w is None and mean_snr is not None:
+    # The time-averaged contrast shows the plume's whole width (its noise is
+    # sqrt(frames) lower); a frame's columns only the part above the per-pixel
+    # threshold, too narrow near the limit.
+    w, width_from = None, ""
+    if mean_snr is not None:
         w = _mean_profile_width(mean_snr, dl_m, detection_sigma=DETECTION_SIGMA)
-        width_from = "measured on the time-averaged contrast"
+        width_from = "time-averaged contrast"
+    if w is None:
+        w = effective_width(columns, dl_m)
+        width_from = "columns of the frames"
     if w is None:
         w, width_from = float(np.sum(dl_m)), "surface length (no gas seen: an upper bound)"
     limit = detection_limit_kg_s(nec, v, w, confidence) * 3600.0
