@@ -20,6 +20,7 @@ from typing import Optional
 
 import numpy as np
 
+from .detection import DETECTION_SIGMA
 from .files import atomic_path
 
 __all__ = ["write_report", "file_sha256"]
@@ -99,8 +100,10 @@ def _draw_scene(ax, result, recording):
         arrow = 0.06 * max(img.shape)
         ax.annotate("", xy=(mid[0] + arrow * nm[0], mid[1] + arrow * nm[1]), xytext=tuple(mid),
                     arrowprops=dict(arrowstyle="-|>", color=color, lw=1.5))
-        ax.text(p[0, 0], p[0, 1] - 3, s.surface.name, color=color, fontsize=7, ha="left",
-                va="bottom", fontweight="bold")
+        end = p[np.argmax(p[:, 0])]
+        ax.text(end[0] + 4, end[1], s.surface.name, color=color, fontsize=7, ha="left",
+                va="center", fontweight="bold",
+                bbox=dict(boxstyle="round,pad=0.15", fc="white", ec="none", alpha=0.7))
     src = getattr(result.config, "source", None)
     if src is not None:
         ax.plot([src[0]], [src[1]], marker="x", color="#ff4040", ms=8, mew=2)
@@ -130,7 +133,7 @@ def _draw_rates(ax, result):
     ax.set_ylabel(f"emission rate [{unit}]", fontsize=8)
     ax.tick_params(labelsize=7)
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=6.5, loc="upper right", framealpha=0.85)
+    ax.legend(fontsize=6.5, loc="best", framealpha=0.85)
     ax.set_title("emission rate per frame (lines: mean; bands: 90 % interval; dashed black: "
                  "truth, synthetic recordings)", fontsize=7.5, color=_MUTED)
 
@@ -140,11 +143,13 @@ def _table(ax, header, rows, col_widths=None, font=7.0):
     if not rows:
         ax.text(0, 0.5, "none", fontsize=font, color=_MUTED)
         return
-    t = ax.table(cellText=rows, colLabels=header, loc="upper left", cellLoc="left",
-                 colLoc="left", colWidths=col_widths)
+    # Pinned to the axes' width, rows of a fixed height (0.024 of the page).
+    row_h = 0.024 / ax.get_position().height
+    h = min(1.0, row_h * (len(rows) + 1))
+    t = ax.table(cellText=rows, colLabels=header, cellLoc="left", colLoc="left",
+                 colWidths=col_widths, bbox=(0.0, 1.0 - h, 1.0, h))
     t.auto_set_font_size(False)
     t.set_fontsize(font)
-    t.scale(1, 1.35)
     for (r, _c), cell in t.get_celld().items():
         cell.set_edgecolor("#c8ced6")
         cell.set_linewidth(0.5)
@@ -203,7 +208,7 @@ def _page_two(fig, result, sha):
     from .units import standard_conditions_text
     _header(fig, result, sha, " (continued)")
     u = result.units
-    ax = fig.add_axes([0.06, 0.70, 0.88, 0.19])
+    ax = fig.add_axes([0.06, 0.60, 0.88, 0.275])
     fig.text(0.06, 0.895, "Uncertainty budget (1 sigma, combined in quadrature; "
              "90 % interval = mean +- 1.645 sigma)", fontsize=9, fontweight="bold", color=_INK)
     terms = sorted({t for s in result.surfaces for r in s.species.values()
@@ -214,9 +219,31 @@ def _page_two(fig, result, sha):
             tv = [_fmt(r.in_units(r.uncertainty_terms_kg_h.get(t, math.nan), u), 3) for t in terms]
             rows.append([s.surface.name, sp] + tv + [_fmt(r.in_units(r.sigma_kg_h, u), 3),
                                                      r.dominant_uncertainty])
-    _table(ax, ["surface", "species"] + [f"{t} [{u}]" for t in terms] +
-           [f"total [{u}]", "dominant"], rows)
-    y = 0.66
+    _table(ax, ["surface", "species"] + [f"{t}\n[{u}]" for t in terms] +
+           [f"total\n[{u}]", "dominant"], rows)
+    y = 0.875 - 0.024 * (len(rows) + 1) - 0.04
+    drows = []
+    for s in result.surfaces:
+        for sp, r in s.species.items():
+            d = r.detection or {}
+            if r.detection_limit_kg_h is None or not d:
+                continue
+            nec = d.get("noise_equivalent_column_kg_m2")
+            drows.append([s.surface.name, sp, _fmt(r.in_units(r.detection_limit_kg_h, u), 3),
+                          "-" if nec is None else f"{nec * 1e3:.3g}",
+                          _fmt(d.get("velocity_m_s"), 3), _fmt(100 * d.get("width_m", math.nan), 3),
+                          str(d.get("width_from", "")).split(" (")[0],
+                          "yes" if r.detected else "no"])
+    if drows:
+        fig.text(0.06, y, f"Detection limit = (k + z) x NEC x velocity x width  (k = "
+                 f"{DETECTION_SIGMA:g}; z: seen in 95 % of frames)", fontsize=9,
+                 fontweight="bold", color=_INK)
+        h = 0.024 * (len(drows) + 1) + 0.005
+        ax = fig.add_axes([0.06, y - 0.012 - h, 0.88, h])
+        _table(ax, ["surface", "species", f"limit\n[{u}]", "noise-equivalent\ncolumn [g/m2]",
+                    "velocity\n[m/s]", "width\n[cm]", "width from", "detected"], drows,
+               col_widths=[0.17, 0.08, 0.1, 0.14, 0.1, 0.09, 0.22, 0.1])
+        y -= 0.012 + h + 0.04
     fig.text(0.06, y, f"Warnings ({len(result.warnings)})", fontsize=9, fontweight="bold",
              color=_INK)
     wl = _wrap([f"- {w}" for w in result.warnings] or ["none"], 120)
@@ -271,12 +298,17 @@ def write_report(result, path: os.PathLike, recording=None) -> str:
         page1.text(0.06, 0.265, f"Surfaces and species [{u}]", fontsize=9, fontweight="bold",
                    color=_INK)
         ax = page1.add_axes([0.06, 0.08, 0.88, 0.175])
-        _table(ax, ["surface", "species", "mean", "90 % interval", "detection limit",
-                    "frames", "dominant uncertainty", "truth (error)"], _rate_rows(result),
-               col_widths=[0.14, 0.08, 0.1, 0.17, 0.12, 0.07, 0.16, 0.16])
+        _table(ax, ["surface", "species", "mean", "90 % interval", "detection\nlimit",
+                    "frames", "dominant\nuncertainty", "truth (error)"], _rate_rows(result),
+               col_widths=[0.19, 0.08, 0.09, 0.16, 0.1, 0.07, 0.14, 0.17])
+        conf = next((r.detection.get("confidence") for s in result.surfaces
+                     for r in s.species.values() if r.detection), None)
         page1.text(0.06, 0.04, "Flux counts positive along each surface's arrow (left-hand "
-                   "normal from its first point to its last, x right, y down). Detection limit "
-                   "'-': not computed for this run.", fontsize=6.5, color=_MUTED)
+                   "normal from its first point to its last, x right, y down).\nDetection "
+                   "limit: the smallest rate seen in "
+                   f"{'95' if conf is None else f'{100 * conf:.0f}'} % of frames (qogi.detection); "
+                   "below it the rate reads 'not detected'; '-': not computed.",
+                   fontsize=6.5, color=_MUTED, va="bottom")
         page2 = plt.figure(figsize=_A4)
         _page_two(page2, result, sha)
         with atomic_path(path, suffix=".pdf") as tmp:

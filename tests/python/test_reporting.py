@@ -216,7 +216,7 @@ def test_pdf_report_pages_render_and_say_what_matters(lab, tmp_path):
                    "Scene", "Emission rate", "Surfaces and species", "Uncertainty budget",
                    "velocity", "column density", "temporal", "Warnings (1)", "test-warning",
                    "Settings", "gas_temperature = ambient", "source = (159.5, 227.0)",
-                   f"{r.mean_kg_h:.4g}", "detection limit", "20 C (68 F)"):
+                   f"{r.mean_kg_h:.4g}", "Detection limit", "noise-equivalent", "20 C (68 F)"):
         assert needle in text, needle
     subprocess.run(["pdftoppm", "-r", "40", "-png", str(pdf), str(tmp_path / "page")], check=True)
     pages = sorted(tmp_path.glob("page-*.png"))
