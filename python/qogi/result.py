@@ -234,7 +234,7 @@ class Result:
 
     def to_csv(self, path: os.PathLike, summary: bool = True) -> None:
         """One row per frame, surface and species: time, rate (kg/h), pixels,
-        and the rate in :attr:`units` with its unit. With ``summary`` (default)
+        and (units other than kg/h) ``rate_<unit>`` in :attr:`units`. With ``summary`` (default)
         also ``<name>.summary.csv`` beside it: one row per surface and species
         with the mean, the 90 % interval, the detection limit, whether it was
         detected, the unit and the standard conditions (see
@@ -242,17 +242,20 @@ class Result:
         import csv
 
         from .units import unit_slug
+        extra = self.units != "kg/h"
         with atomic_open(path, "w", newline="") as fh:
             w = csv.writer(fh)
-            w.writerow(["surface", "species", "time_s", "rate_kg_h", "pixels_used",
-                        f"rate_{unit_slug(self.units)}"])
+            w.writerow(["surface", "species", "time_s", "rate_kg_h", "pixels_used"]
+                       + ([f"rate_{unit_slug(self.units)}"] if extra else []))
             for s in self.surfaces:
                 for sp, r in s.species.items():
                     conv = r.in_units(r.rate_kg_h, self.units)
                     for t, v, n, c in zip(r.time_s, r.rate_kg_h, r.pixels_used, conv):
-                        w.writerow([s.surface.name, sp, f"{t:.6f}",
-                                    "" if not np.isfinite(v) else f"{v:.6g}", int(n),
-                                    "" if not np.isfinite(c) else f"{c:.6g}"])
+                        row = [s.surface.name, sp, f"{t:.6f}",
+                               "" if not np.isfinite(v) else f"{v:.6g}", int(n)]
+                        if extra:
+                            row.append("" if not np.isfinite(c) else f"{c:.6g}")
+                        w.writerow(row)
         if summary:
             self.to_summary_csv(self.summary_csv_path(path))
 
