@@ -162,8 +162,9 @@ def report_text(result, recording_summary: dict, surfaces: Sequence[SurfaceDraft
         lines.append(f"- {k}: {v}")
     lines += ["", "## Emission rates", "",
               "| surface | species | mean [kg/h] | 90% interval [kg/h] | [g/h] | [SLPM] | truth "
-              "[kg/h] | error | frames (valid) | pixels (median) | dominant uncertainty |",
-              "|---|---|---|---|---|---|---|---|---|---|---|"]
+              "[kg/h] | error | frames (valid) | pixels (median) | dominant uncertainty | "
+              "detection limit [kg/h] |",
+              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rate_rows(result):
         err = r.error_pct
         lines.append(
@@ -171,7 +172,8 @@ def report_text(result, recording_summary: dict, surfaces: Sequence[SurfaceDraft
             f"to {_fmt(r.ci90_kg_h[1], 4)} | {_fmt(r.mean_g_h, 4)} | {_fmt(r.mean_slpm, 4)} | "
             f"{_fmt(r.truth_kg_h, 4) if r.truth_kg_h is not None else '-'} | "
             f"{f'{err:+.1f} %' if err is not None else '-'} | {r.n_frames} "
-            f"({r.n_frames_valid}) | {_fmt(r.pixels_median, 4)} | {r.dominant_uncertainty} |")
+            f"({r.n_frames_valid}) | {_fmt(r.pixels_median, 4)} | {r.dominant_uncertainty} | "
+            f"{r.detection_text} |")
     sc_std = standard_conditions_text(result)
     if sc_std:
         lines += ["", f"SLPM at standard conditions: {sc_std}."]

@@ -589,6 +589,7 @@ def test_export_everything(with_result, tmp_path):
     assert img.shape == (3 * H, 3 * W, 3)
     report = (out / "run_report.md").read_text()
     assert "| A | CH4 |" in report and "test camera" in report and "run.csv" in report
+    assert "detection limit [kg/h]" in report
     assert vm.store.last_dir == str(out)
 
 
