@@ -16,6 +16,7 @@ PACKAGES=(
   libgl1-mesa-dri        # Mesa's llvmpipe software OpenGL (the viewer under Xvfb; a mere Recommends of libgl1)
   libx11-6 libxrandr2 libxinerama1 libxcursor1 libxi6   # X11 libraries Dear PyGui's GLFW loads
   libxtst6               # XTEST: the smoke test clicks and drags with real X input events
+  poppler-utils          # pdftoppm/pdftotext: the tests render and read the PDF report
 )
 
 missing=()

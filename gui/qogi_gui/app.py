@@ -388,7 +388,8 @@ class App:
                            default_value="qogi")
         with dpg.group(horizontal=True):
             for label, kind in (("CSV", "csv"), ("JSON", "json"), ("Plots PNG", "plots"),
-                                ("Frame PNG", "frame"), ("Report", "report")):
+                                ("Frame PNG", "frame"), ("Report", "report"),
+                                ("Report PDF", "report_pdf")):
                 dpg.add_button(label=label, callback=s(lambda sd, a, u: self.on_export(u)),
                                user_data=kind)
         with dpg.group(horizontal=True):
@@ -904,9 +905,11 @@ class App:
                                  "exist")
             return self.screenshot(folder / f"{stem}_window.png")
         target = {"csv": f"{stem}.csv", "json": f"{stem}.json", "plots": f"{stem}_rates.png",
-                  "frame": f"{stem}_frame.png", "report": f"{stem}_report.md"}
+                  "frame": f"{stem}_frame.png", "report": f"{stem}_report.md",
+                  "report_pdf": f"{stem}_report.pdf"}
         fn = {"csv": vm.export_csv, "json": vm.export_json, "plots": vm.export_plots,
-              "frame": vm.export_frame, "report": vm.export_report}
+              "frame": vm.export_frame, "report": vm.export_report,
+              "report_pdf": vm.export_report}
         if kind == "all":
             return vm.export_all(folder, stem)
         return fn[kind](folder / target[kind])

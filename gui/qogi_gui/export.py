@@ -4,7 +4,8 @@ CSV, JSON and plots are the pipeline's own writers (``Result.to_csv``,
 ``Result.to_json``, ``Result.plot``), so a file exported from the viewer is
 the same as one from ``qogi quantify``. The frame PNG is what the window
 shows (colour-mapped frame, column-density overlay, surfaces with their flux
-direction, background region); the report is short Markdown for people.
+direction, background region); the report is short Markdown for people, or
+the PDF of ``qogi quantify --report`` (``qogi.report``).
 """
 
 from __future__ import annotations
@@ -20,7 +21,8 @@ import numpy as np
 from .results import pixel_status_rows, rate_rows, standard_conditions_text
 from .surfaces import SurfaceDraft, RegionDraft, flow_arrow
 
-__all__ = ["check_writable", "write_frame_png", "write_plots", "write_report", "ExportError"]
+__all__ = ["check_writable", "write_frame_png", "write_plots", "write_report", "write_pdf_report",
+           "ExportError"]
 
 
 class ExportError(ValueError):
@@ -160,8 +162,9 @@ def report_text(result, recording_summary: dict, surfaces: Sequence[SurfaceDraft
         lines.append(f"- {k}: {v}")
     lines += ["", "## Emission rates", "",
               "| surface | species | mean [kg/h] | 90% interval [kg/h] | [g/h] | [SLPM] | truth "
-              "[kg/h] | error | frames (valid) | pixels (median) | dominant uncertainty |",
-              "|---|---|---|---|---|---|---|---|---|---|---|"]
+              "[kg/h] | error | frames (valid) | pixels (median) | dominant uncertainty | "
+              "detection limit [kg/h] |",
+              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rate_rows(result):
         err = r.error_pct
         lines.append(
@@ -169,7 +172,8 @@ def report_text(result, recording_summary: dict, surfaces: Sequence[SurfaceDraft
             f"to {_fmt(r.ci90_kg_h[1], 4)} | {_fmt(r.mean_g_h, 4)} | {_fmt(r.mean_slpm, 4)} | "
             f"{_fmt(r.truth_kg_h, 4) if r.truth_kg_h is not None else '-'} | "
             f"{f'{err:+.1f} %' if err is not None else '-'} | {r.n_frames} "
-            f"({r.n_frames_valid}) | {_fmt(r.pixels_median, 4)} | {r.dominant_uncertainty} |")
+            f"({r.n_frames_valid}) | {_fmt(r.pixels_median, 4)} | {r.dominant_uncertainty} | "
+            f"{r.detection_text} |")
     sc_std = standard_conditions_text(result)
     if sc_std:
         lines += ["", f"SLPM at standard conditions: {sc_std}."]
@@ -183,6 +187,19 @@ def report_text(result, recording_summary: dict, surfaces: Sequence[SurfaceDraft
     if files:
         lines += ["", "## Files", ""] + [f"- `{Path(f).name}`" for f in files]
     return "\n".join(lines) + "\n"
+
+
+def write_pdf_report(result, path: os.PathLike, recording=None) -> Path:
+    """The one-recording PDF report (``qogi.report.write_report``, as
+    ``qogi quantify --report``): scene, rates, table, budget, warnings, settings."""
+    from qogi.report import write_report as write_pdf
+
+    p = check_writable(path)
+    if p.suffix.lower() != ".pdf":
+        raise ExportError(f"{p}: the report is written as PDF; use a .pdf file name")
+    _use_agg()
+    write_pdf(result, p, recording=recording)
+    return p
 
 
 def write_report(path: os.PathLike, text: str) -> Path:

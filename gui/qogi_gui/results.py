@@ -36,6 +36,18 @@ class RateRow:
     n_frames_valid: int
     pixels_median: float
     dominant_uncertainty: str
+    #: qogi.detection's limit [kg/h] (None: not computed) and whether the mean
+    #: is above it (None: no limit).
+    detection_limit_kg_h: Optional[float] = None
+    detected: Optional[bool] = None
+
+    @property
+    def detection_text(self) -> str:
+        """``"0.0011"``, ``"< 0.0011 (not detected)"`` or ``"-"`` (kg/h)."""
+        if self.detection_limit_kg_h is None or not math.isfinite(self.detection_limit_kg_h):
+            return "-"
+        x = f"{self.detection_limit_kg_h:.3g}"
+        return f"< {x} (not detected)" if self.detected is False else x
 
     @property
     def error_pct(self) -> Optional[float]:
@@ -77,7 +89,9 @@ def rate_rows(result) -> List[RateRow]:
                 n_frames=int(getattr(r, "n_frames", rate.size)),
                 n_frames_valid=int(np.count_nonzero(np.isfinite(rate))),
                 pixels_median=float(np.median(pix)) if pix.size else math.nan,
-                dominant_uncertainty=str(getattr(r, "dominant_uncertainty", ""))))
+                dominant_uncertainty=str(getattr(r, "dominant_uncertainty", "")),
+                detection_limit_kg_h=getattr(r, "detection_limit_kg_h", None),
+                detected=getattr(r, "detected", None)))
     return rows
 
 

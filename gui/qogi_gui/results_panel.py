@@ -69,6 +69,7 @@ def build_results_panel(app, parent) -> None:
                 ("frames (valid)", lambda r: f"{r.n_frames} ({r.n_frames_valid})"),
                 ("pixels (median)", lambda r: _fmt(r.pixels_median, 4)),
                 ("dominant uncertainty", lambda r: r.dominant_uncertainty or "-"),
+                ("detection limit [kg/h]", lambda r: r.detection_text),
             ]
             for label, fn in lines:
                 with dpg.table_row():

@@ -31,7 +31,7 @@ import numpy as np
 
 from . import display, results
 from .export import (ExportError, check_writable, render_frame_rgb, report_text,
-                     write_frame_png, write_plots, write_report)
+                     write_frame_png, write_pdf_report, write_plots, write_report)
 from .jobs import CANCELLED, DONE, FAILED, Job
 from .settings import BACKGROUNDS, AnalysisSettings, SettingsError
 from .store import UserStore
@@ -1078,14 +1078,18 @@ class ViewModel:
                            self.result_settings, files)
 
     def export_report(self, path) -> bool:
-        """A short Markdown report of the result."""
+        """The report of the result: a PDF (``qogi.report``, the same as
+        ``qogi quantify --report``) when ``path`` ends in .pdf, else short Markdown."""
         if not self._need_result():
             return False
+        if Path(os.fspath(path)).suffix.lower() == ".pdf":
+            return self._export("report", lambda: write_pdf_report(self.result, path,
+                                                                   self.recording))
         return self._export("report", lambda: write_report(path, self.report()))
 
     def export_all(self, folder, stem: str = "qogi") -> bool:
-        """Everything into ``folder``: <stem>.csv, .json, _rates.png (and
-        _rates_maps.png), _frame.png and _report.md."""
+        """Everything into ``folder``: <stem>.csv (and .summary.csv), .json,
+        _rates.png (and _rates_maps.png), _frame.png, _report.md and _report.pdf."""
         if not self._need_result():
             return False
         f = Path(os.fspath(folder)).expanduser()
@@ -1096,7 +1100,10 @@ class ViewModel:
               and self.export_frame(f / f"{stem}_frame.png"))
         if not ok:
             return False
-        files = sorted(p for p in f.glob(f"{stem}*") if p.suffix in (".csv", ".json", ".png"))
+        if not self.export_report(f / f"{stem}_report.pdf"):
+            return False
+        files = sorted(p for p in f.glob(f"{stem}*")
+                       if p.suffix in (".csv", ".json", ".png", ".pdf"))
         return self._export("report", lambda: write_report(f / f"{stem}_report.md",
                                                            self.report(files)))
 

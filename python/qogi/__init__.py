@@ -31,6 +31,7 @@ from . import camera  # noqa: F401  (qogi.camera: calibration, noise, warm optic
 from .surfaces import Region, Surface, auto_surfaces, detect_source, plume_image
 from .pipeline import Cancelled, QuantifyConfig, quantify
 from .result import Result
+from . import units  # noqa: F401  (qogi.units.convert: kg/h, SLPM, scfh, mcf/day...)
 from .camera import (Calibration, CalibrationScene, ChannelOptics, add_netd_noise,
                      add_warm_optics, camera_optics, correct_warm_optics, fit_calibration,
                      netd_radiance_sigma, warm_optics_radiance)

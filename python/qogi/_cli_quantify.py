@@ -8,32 +8,39 @@ import sys
 
 
 def _config_from_args(args):
-    from .pipeline import QuantifyConfig
+    """The QuantifyConfig of the command line: the settings file's
+    (``--config``), with every flag given explicitly overriding it."""
+    from .config_io import config_from_dict
     from .surfaces import Region
 
-    gas = "ambient"
+    over = {}
     if args.infer_temperature:
-        gas = "infer"
+        over["gas_temperature"] = "infer"
     elif args.gas_temperature is not None:
-        gas = args.gas_temperature
-    velocity = args.velocity
+        over["gas_temperature"] = args.gas_temperature
+    if args.velocity is not None:
+        over["velocity"] = args.velocity
     if args.wind_speed is not None:
-        velocity = "wind"
+        over.update(velocity="wind", wind_speed_m_s=args.wind_speed)
     if args.exit_velocity is not None:
-        velocity = "exit"
-    background = args.background
-    if background not in ("beside-surface", "percentile"):
-        background = Region.parse(background)
-    frames = None
+        over.update(velocity="exit", exit_velocity_m_s=args.exit_velocity)
+    if args.background is not None:
+        over["background"] = (args.background if args.background in ("beside-surface", "percentile")
+                              else Region.parse(args.background))
     if args.frames:
         a, b = args.frames.split(":")
-        frames = (int(a), int(b))
-    source = tuple(float(v) for v in args.source.split(",")) if args.source else None
-    return QuantifyConfig(species=args.species or ["CH4"], gas_temperature=gas, velocity=velocity,
-                          wind_speed_m_s=args.wind_speed, exit_velocity_m_s=args.exit_velocity,
-                          averaging=args.averaging, background=background, source=source,
-                          distance_m=args.distance, sigma_m=args.sigma, frames=frames,
-                          num_threads=args.threads)
+        over["frames"] = (int(a), int(b))
+    if args.source:
+        over["source"] = tuple(float(v) for v in args.source.split(","))
+    for key, value in (("species", args.species), ("averaging", args.averaging),
+                       ("distance_m", args.distance), ("sigma_m", args.sigma),
+                       ("num_threads", args.threads)):
+        if value is not None:
+            over[key] = value
+    base = {}
+    if getattr(args, "settings", None) is not None:
+        base = args.settings.config.to_dict()
+    return config_from_dict({**base, **over})
 
 
 def cmd_quantify(args: argparse.Namespace) -> int:
@@ -43,9 +50,16 @@ def cmd_quantify(args: argparse.Namespace) -> int:
     from .surfaces import Surface
 
     try:
+        from .config_io import load_settings
+        from .units import parse_unit
+        args.settings = load_settings(args.config) if args.config else None
+        units = parse_unit(args.units) if args.units else \
+            ((args.settings.units if args.settings else None) or "kg/h")
         cfg = _config_from_args(args)
         rec = open_recording(args.recording)
         surfaces = [Surface.parse(s, name=f"S{k + 1}") for k, s in enumerate(args.surface or [])]
+        if not surfaces and not args.auto_surfaces and args.settings is not None:
+            surfaces = list(args.settings.surfaces)
         if args.auto_surfaces:
             auto, source = _auto(rec, args, cfg)
             surfaces += auto
@@ -65,7 +79,7 @@ def cmd_quantify(args: argparse.Namespace) -> int:
         return 2
     bar = ProgressBar("quantify ", enabled=not args.quiet)
     try:
-        result = quantify(rec, surfaces, cfg, progress=bar, keep_maps=bool(args.plot))
+        result = quantify(rec, surfaces, cfg, progress=bar, keep_maps=bool(args.plot or args.report))
     except Cancelled as e:
         bar.close()
         print("qogi quantify: cancelled", file=sys.stderr)
@@ -77,11 +91,20 @@ def cmd_quantify(args: argparse.Namespace) -> int:
         print(f"qogi quantify: error: {e}", file=sys.stderr)
         return 2
     bar.close()
-    print(result.summary())
-    if args.json:
+    result.units = units
+    # With --json - the JSON is the standard output; the summary goes to stderr.
+    print(result.summary(), file=sys.stderr if args.json == "-" else sys.stdout)
+    if args.json == "-":
+        sys.stdout.write(result.to_json() + "\n")
+    elif args.json:
         result.to_json(args.json)
     if args.csv:
         result.to_csv(args.csv)
+    if args.save_config:
+        cfg.to_toml(args.save_config, surfaces, units)
+    if args.report:
+        from .report import write_report
+        write_report(result, args.report, recording=rec)
     if args.plot:
         result.plot(args.plot, kind="rates")
         root, ext = os.path.splitext(args.plot)
@@ -121,7 +144,7 @@ def add_commands(sub) -> None:
     t.add_argument("--infer-temperature", action="store_true",
                    help="infer the gas temperature (needs >= 2 channels)")
     v = q.add_mutually_exclusive_group()
-    v.add_argument("--velocity", default="fluid", type=lambda m: m.replace("-", "_"),
+    v.add_argument("--velocity", default=None, type=lambda m: m.replace("-", "_"),
                    choices=["fluid", "horn_schunck", "lucas_kanade", "farneback", "dis", "piv"],
                    help="velocimetry method (default: fluid, the continuity-equation flow)")
     v.add_argument("--wind-speed", type=float, metavar="M_S",
@@ -129,18 +152,30 @@ def add_commands(sub) -> None:
     v.add_argument("--exit-velocity", type=float, metavar="M_S",
                    help="use the release's exit velocity [m/s] (lab checks)")
     q.add_argument("--source", metavar="X,Y", help="source pixel: orient surfaces away from it")
-    q.add_argument("--background", default="beside-surface",
+    q.add_argument("--background", default=None,
                    help="beside-surface (default), percentile, or a gas-free region x0,y0,x1,y1")
-    q.add_argument("--averaging", default="per-frame", choices=["per-frame", "time-averaged"],
+    q.add_argument("--averaging", default=None, choices=["per-frame", "time-averaged"],
                    help="invert every frame then average rates (default), or invert the "
                         "time-averaged frames")
     q.add_argument("--distance", type=float, metavar="M", help="override the camera distance [m]")
     q.add_argument("--sigma", type=float, metavar="M",
                    help="plume depth sigma [m] (default: from the plume width across each surface)")
     q.add_argument("--frames", metavar="START:STOP", help="frame range")
-    q.add_argument("--threads", type=int, default=0, help="worker threads (0 = all cores)")
-    q.add_argument("--json", metavar="OUT.json", help="write the result as JSON")
-    q.add_argument("--csv", metavar="OUT.csv", help="write the rate time series as CSV")
+    q.add_argument("--threads", type=int, default=None, help="worker threads (0 = all cores, the default)")
+    q.add_argument("--config", metavar="SETTINGS.toml|RESULT.json",
+                   help="take the settings (and surfaces, units) from a settings file or a "
+                        "result JSON; flags given explicitly override them")
+    q.add_argument("--save-config", metavar="OUT.toml",
+                   help="write the settings of this run (with the surfaces) as TOML")
+    q.add_argument("--units", metavar="UNIT",
+                   help="reporting unit: kg/h (default), g/h, kg/day, t/year, SLPM, scfh, "
+                        "mcf/day (volumes at 20 C, 1 atm)")
+    q.add_argument("--json", metavar="OUT.json",
+                   help="write the result as JSON ('-': to standard output, the summary to stderr)")
+    q.add_argument("--csv", metavar="OUT.csv",
+                   help="write the rate time series as CSV, and the summary as OUT.summary.csv")
+    q.add_argument("--report", metavar="OUT.pdf",
+                   help="write a one-recording PDF report (scene, rates, budget, settings)")
     q.add_argument("--plot", metavar="OUT.png",
                    help="write the rate plot (and OUT_maps.png with column and velocity maps)")
     q.add_argument("-q", "--quiet", action="store_true", help="no progress bar")

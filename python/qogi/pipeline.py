@@ -175,6 +175,25 @@ class QuantifyConfig:
             d["background"] = dataclasses.asdict(self.background)
         return d
 
+    @classmethod
+    def from_dict(cls, d: dict) -> "QuantifyConfig":
+        """The config :meth:`to_dict` wrote (JSON-friendly lists accepted);
+        unknown keys raise ``qogi.UsageError`` (qogi.config_io)."""
+        from .config_io import config_from_dict
+        return config_from_dict(d)
+
+    @classmethod
+    def from_toml(cls, path) -> "QuantifyConfig":
+        """The config of a settings file (TOML, or a result JSON); see qogi.config_io."""
+        from .config_io import load_settings
+        return load_settings(path).config
+
+    def to_toml(self, path, surfaces=(), units=None) -> None:
+        """Write this config (and optionally surfaces and the reporting unit)
+        as a settings file that :meth:`from_toml` and ``--config`` read back."""
+        from .config_io import write_toml
+        write_toml(path, self, surfaces, units)
+
 
 # ---------------------------------------------------------------------------
 # Helpers
@@ -659,6 +678,19 @@ class _InvertedColumns:
             return np.asarray(self.table.contrast(np.ascontiguousarray(x), tp, sg, tbg)[0])
         l = self.model.band_radiance(fractions, tp, sg, self.scene.ambient_K, self._bg_t)
         return l - np.array([ch.band_radiance(self._bg_t) for ch in self.rec.channels])
+
+    def mean_contrast_snr(self, j: int) -> Optional[np.ndarray]:
+        """The time-averaged proxy-channel contrast along surface ``j`` in
+        units of its noise (per-frame NETD noise / sqrt(frames)); None
+        without stored profiles."""
+        prof = getattr(self, "_prof", None)
+        if not prof:
+            return None
+        ch = self.rec.channels[self.proxy_channel]
+        netd = np.broadcast_to(np.asarray(self._inv_kw["netd_K"], float),
+                               (len(self.rec.channels),))[self.proxy_channel]
+        noise = netd * float(ch.band_radiance_derivative(self._bg_t)) / math.sqrt(len(prof))
+        return np.mean([p[j] for p in prof], axis=0) / noise
 
     def _lookup(self, contrast, nodes=None) -> np.ndarray:
         c = np.asarray(contrast)
@@ -1430,6 +1462,12 @@ def _finish(rec, surfaces, cfg, scene, samples, frames, done, col_fields, surf_c
             mean_h = mean * 3600
             ci = (mean_h - 1.645 * sigma, mean_h + 1.645 * sigma)
             dominant = max(terms, key=terms.get)
+            limit, det = None, None
+            if hasattr(columns, "model"):  # the inversion's forward model (not truth columns)
+                from .detection import surface_detection_limit
+                limit, det = surface_detection_limit(
+                    columns.model, sp, rec.camera.netd_K or 0.02, columns._bg_t, scene.gas_K,
+                    scene.ambient_K, c, vn, dl, mean_snr=columns.mean_contrast_snr(j))
             truth = None
             if rec.truth is not None and sp in rec.truth.emission_rate_kg_s:
                 truth = rec.truth.emission_rate_kg_s[sp] * 3600
@@ -1437,7 +1475,7 @@ def _finish(rec, surfaces, cfg, scene, samples, frames, done, col_fields, surf_c
                 species=sp, time_s=times, rate_kg_s=rate, mean_kg_h=mean_h, ci90_kg_h=ci,
                 n_frames=int(finite.size), molar_mass_kg_mol=_engine.molar_mass(sp),
                 uncertainty_terms_kg_h=terms, dominant_uncertainty=dominant, pixels_used=pixels,
-                truth_kg_h=truth)
+                truth_kg_h=truth, detection_limit_kg_h=limit, detection=det)
         results.append(SurfaceResult(s, per_species))
     info = {"seconds": time.perf_counter() - t_start, "frames": int(done),
             "frame_rate_hz": float(scene.frame_rate), "pixel_m": float(scene.pixel_m),

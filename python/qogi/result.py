@@ -14,22 +14,12 @@ import numpy as np
 from .diagnostics import Diagnostic, Diagnostics
 from .files import atomic_open
 from .surfaces import Surface
+# Standard conditions and conversions live in qogi.units (one implementation);
+# re-exported here for code that imported them from qogi.result.
+from .units import R_GAS, STANDARD_CONDITIONS, convert, kg_s_to_slpm, parse_unit  # noqa: F401
 
 __all__ = ["SpeciesRate", "SurfaceResult", "Result", "STANDARD_CONDITIONS",
            "kg_s_to_slpm"]
-
-#: Standard conditions used for SLPM: 20 C and 1 atm (as many mass-flow
-#: controllers use; the simulator's presets use the same).
-STANDARD_CONDITIONS = {"temperature_K": 293.15, "pressure_Pa": 101325.0}
-R_GAS = 8.314462618
-
-
-def kg_s_to_slpm(rate_kg_s: float, molar_mass_kg_mol: float,
-                 standard=STANDARD_CONDITIONS) -> float:
-    """Mass rate [kg/s] to standard litres per minute at ``standard`` conditions."""
-    volume_m3_s = rate_kg_s / molar_mass_kg_mol * R_GAS * standard["temperature_K"] / \
-        standard["pressure_Pa"]
-    return volume_m3_s * 1000.0 * 60.0
 
 
 def _f(x):
@@ -61,10 +51,36 @@ class SpeciesRate:
     dominant_uncertainty: str
     pixels_used: np.ndarray
     truth_kg_h: Optional[float] = None
+    #: The smallest rate this surface could detect [kg/h] (qogi.detection;
+    #: None when not computed), and what it came from (``detection``: noise-
+    #: equivalent column, velocity, pixels, confidence).
+    detection_limit_kg_h: Optional[float] = None
+    detection: Optional[dict] = None
 
     @property
     def rate_kg_h(self) -> np.ndarray:
         return self.rate_kg_s * 3600.0
+
+    @property
+    def detected(self) -> Optional[bool]:
+        """False when the mean rate is below the detection limit (the result
+        is then "not detected, < limit"); None when no limit is known."""
+        if self.detection_limit_kg_h is None or not math.isfinite(self.detection_limit_kg_h):
+            return None
+        return bool(math.isfinite(self.mean_kg_h) and self.mean_kg_h >= self.detection_limit_kg_h)
+
+    def in_units(self, value_kg_h, unit: str):
+        """A rate [kg/h] (scalar or array) in ``unit`` (qogi.units) for this species."""
+        return convert(value_kg_h, unit, self.molar_mass_kg_mol)
+
+    def text(self, unit: str = "kg/h") -> str:
+        """The rate as people should read it: ``"1.23 kg/h [90% 1.1 .. 1.4]"``,
+        or ``"not detected, < 0.05 kg/h"`` below the detection limit."""
+        u = parse_unit(unit)
+        if self.detected is False:
+            return f"not detected, < {self.in_units(self.detection_limit_kg_h, u):.3g} {u}"
+        lo, hi = (self.in_units(v, u) for v in self.ci90_kg_h)
+        return f"{self.in_units(self.mean_kg_h, u):.4g} {u} [90% {lo:.4g} .. {hi:.4g}]"
 
     @property
     def mean_g_h(self) -> float:
@@ -97,6 +113,9 @@ class SpeciesRate:
             "time_s": [_f(t) for t in self.time_s],
             "rate_kg_h": [_f(r) for r in self.rate_kg_h],
             "pixels_used": [int(p) for p in self.pixels_used],
+            "detection_limit_kg_h": _f(self.detection_limit_kg_h),
+            "detected": self.detected,
+            "detection": self.detection,
         }
         if self.truth_kg_h is not None:
             d["truth_kg_h"] = _f(self.truth_kg_h)
@@ -133,6 +152,27 @@ class Result:
         self.info = dict(info or {})
         self.complete = complete
         self.standard_conditions = dict(STANDARD_CONDITIONS)
+        self._units = "kg/h"
+
+    @property
+    def units(self) -> str:
+        """The reporting unit of :meth:`summary`, the CSV's ``rate`` column and
+        the JSON's ``mean``/``ci90``/``detection_limit`` (qogi.units; kg/h by
+        default; volumetric units at :attr:`standard_conditions`)."""
+        return self._units
+
+    @units.setter
+    def units(self, unit: str) -> None:
+        self._units = parse_unit(unit)
+
+    def __repr__(self) -> str:
+        rates = "; ".join(f"{s.surface.name or k} {sp} {r.text(self.units)}"
+                          for k, s in enumerate(self.surfaces) for sp, r in s.species.items())
+        n = max((r.n_frames for s in self.surfaces for r in s.species.values()), default=0)
+        return (f"<qogi.Result {os.path.basename(str(self.recording_path))}: "
+                f"{len(self.surfaces)} surface(s), {n} frames"
+                f"{'' if self.complete else ', PARTIAL'}"
+                f"{f', {len(self.warnings)} warning(s)' if self.warnings else ''}: {rates}>")
 
     # -- access --------------------------------------------------------------
     def maps(self, frame: int) -> dict:
@@ -164,11 +204,24 @@ class Result:
             "complete": bool(self.complete),
             "warnings": [w.to_dict() for w in self.warnings],
             "standard_conditions": self.standard_conditions,
+            "units": self.units,
             "config": cfg,
             "pixel_status": self.pixel_status,
             "info": {k: (_f(v) if isinstance(v, float) else v) for k, v in self.info.items()},
-            "surfaces": [s.to_dict() for s in self.surfaces],
+            "surfaces": [self._surface_dict(s) for s in self.surfaces],
         }
+
+    def _surface_dict(self, s: "SurfaceResult") -> dict:
+        d = s.to_dict()
+        for sp, r in s.species.items():
+            # The summary numbers again in the reporting unit.
+            d["species"][sp].update({
+                "mean": _f(r.in_units(r.mean_kg_h, self.units)),
+                "ci90": [_f(r.in_units(v, self.units)) for v in r.ci90_kg_h],
+                "detection_limit": (None if r.detection_limit_kg_h is None else
+                                    _f(r.in_units(r.detection_limit_kg_h, self.units))),
+                "text": r.text(self.units)})
+        return d
 
     def to_json(self, path: Optional[os.PathLike] = None, indent: int = 2) -> str:
         """The result as JSON (schema: docs/pipeline_api.md); written to
@@ -179,17 +232,76 @@ class Result:
                 fh.write(text + "\n")
         return text
 
-    def to_csv(self, path: os.PathLike) -> None:
-        """One row per frame, surface and species: time, rate (kg/h), pixels."""
+    def to_csv(self, path: os.PathLike, summary: bool = True) -> None:
+        """One row per frame, surface and species: time, rate (kg/h), pixels,
+        and (units other than kg/h) ``rate_<unit>`` in :attr:`units`. With ``summary`` (default)
+        also ``<name>.summary.csv`` beside it: one row per surface and species
+        with the mean, the 90 % interval, the detection limit, whether it was
+        detected, the unit and the standard conditions (see
+        :meth:`summary_csv_path`)."""
         import csv
+
+        from .units import unit_slug
+        extra = self.units != "kg/h"
         with atomic_open(path, "w", newline="") as fh:
             w = csv.writer(fh)
-            w.writerow(["surface", "species", "time_s", "rate_kg_h", "pixels_used"])
+            w.writerow(["surface", "species", "time_s", "rate_kg_h", "pixels_used"]
+                       + ([f"rate_{unit_slug(self.units)}"] if extra else []))
             for s in self.surfaces:
                 for sp, r in s.species.items():
-                    for t, v, n in zip(r.time_s, r.rate_kg_h, r.pixels_used):
-                        w.writerow([s.surface.name, sp, f"{t:.6f}",
-                                    "" if not np.isfinite(v) else f"{v:.6g}", int(n)])
+                    conv = r.in_units(r.rate_kg_h, self.units)
+                    for t, v, n, c in zip(r.time_s, r.rate_kg_h, r.pixels_used, conv):
+                        row = [s.surface.name, sp, f"{t:.6f}",
+                               "" if not np.isfinite(v) else f"{v:.6g}", int(n)]
+                        if extra:
+                            row.append("" if not np.isfinite(c) else f"{c:.6g}")
+                        w.writerow(row)
+        if summary:
+            self.to_summary_csv(self.summary_csv_path(path))
+
+    @staticmethod
+    def summary_csv_path(path: os.PathLike) -> str:
+        """``out.csv`` -> ``out.summary.csv`` (where :meth:`to_csv` writes the summary)."""
+        root, ext = os.path.splitext(os.fspath(path))
+        return f"{root}.summary{ext or '.csv'}"
+
+    def to_summary_csv(self, path: os.PathLike) -> None:
+        """One row per surface and species: mean, 90 % interval and detection
+        limit in :attr:`units` and in kg/h, detected, frames, dominant
+        uncertainty, truth (synthetic recordings), unit and standard conditions."""
+        import csv
+
+        from .units import standard_conditions_text
+        from .tables import summary_rows
+        rows = summary_rows(self)
+        with atomic_open(path, "w", newline="") as fh:
+            w = csv.writer(fh)
+            cols = list(rows[0]) if rows else []
+            w.writerow(cols + ["standard_conditions"])
+            std = standard_conditions_text(self.standard_conditions)
+            for row in rows:
+                w.writerow(["" if v is None else (f"{v:.6g}" if isinstance(v, float) else v)
+                            for v in row.values()] + [std])
+
+    def to_dataframe(self, summary: bool = False):
+        """pandas DataFrame (needs pandas, ``pip install qogi[data]``): long
+        format, one row per surface, species and frame (``surface``,
+        ``species``, ``time_s``, ``rate_kg_h``, ``rate`` in :attr:`units`,
+        ``pixels_used``); with ``summary=True`` one row per surface and species
+        (mean, ci90_low, ci90_high, detection_limit in :attr:`units`, the same
+        in kg/h, detected, n_frames, dominant_uncertainty, truth_kg_h).
+        ``df.attrs`` holds the unit, standard conditions and recording."""
+        from .tables import to_dataframe
+        return to_dataframe(self, summary=summary)
+
+    def to_xarray(self):
+        """xarray Dataset (needs xarray, ``pip install qogi[data]``) with
+        dimensions surface, species, time: ``rate_kg_h`` and ``pixels_used``
+        (surface, species, time), ``mean_kg_h``, ``ci90_low_kg_h``,
+        ``ci90_high_kg_h``, ``detection_limit_kg_h`` (surface, species);
+        attributes: units, standard conditions, recording, qogi version."""
+        from .tables import to_xarray
+        return to_xarray(self)
 
     def summary(self) -> str:
         """A few lines for people."""
@@ -198,9 +310,16 @@ class Result:
         for s in self.surfaces:
             for sp, r in s.species.items():
                 lo, hi = r.ci90_kg_h
-                line = (f"  {s.surface.name:>12s} {sp:4s} {r.mean_kg_h:9.4g} kg/h "
-                        f"[90% {lo:.4g} .. {hi:.4g}]  ({r.mean_g_h:.4g} g/h, {r.mean_slpm:.4g} SLPM)"
-                        f"  {r.n_frames} frames, dominant: {r.dominant_uncertainty}")
+                if self.units != "kg/h" or r.detected is False:
+                    line = f"  {s.surface.name:>12s} {sp:4s} {r.text(self.units)}"
+                else:
+                    line = (f"  {s.surface.name:>12s} {sp:4s} {r.mean_kg_h:9.4g} kg/h "
+                            f"[90% {lo:.4g} .. {hi:.4g}]  ({r.mean_g_h:.4g} g/h, "
+                            f"{r.mean_slpm:.4g} SLPM)")
+                line += f"  {r.n_frames} frames, dominant: {r.dominant_uncertainty}"
+                if r.detection_limit_kg_h is not None and r.detected is not False:
+                    line += (f", detection limit "
+                             f"{r.in_units(r.detection_limit_kg_h, self.units):.3g} {self.units}")
                 if r.truth_kg_h is not None:
                     inside = lo <= r.truth_kg_h <= hi
                     line += (f"\n  {'':>12s}      truth {r.truth_kg_h:.4g} kg/h, error "
@@ -209,6 +328,10 @@ class Result:
                 lines.append(line)
         st = ", ".join(f"{k} {v}" for k, v in self.pixel_status.items())
         lines.append(f"  pixels: {st}")
+        from .units import is_volumetric, standard_conditions_text
+        if self.units == "kg/h" or is_volumetric(self.units):
+            lines.append(f"  volumes (SLPM, scfh, mcf/day) of the species at "
+                         f"{standard_conditions_text(self.standard_conditions)}")
         for w in self.warnings:
             lines.append(f"  warning {w}")
         return "\n".join(lines)

@@ -577,8 +577,9 @@ def test_export_everything(with_result, tmp_path):
     out.mkdir()
     assert vm.export_all(out, stem="run")
     names = sorted(p.name for p in out.iterdir())
-    assert names == ["run.csv", "run.json", "run_frame.png", "run_rates.png",
-                     "run_rates_maps.png", "run_report.md"]
+    assert names == ["run.csv", "run.json", "run.summary.csv", "run_frame.png", "run_rates.png",
+                     "run_rates_maps.png", "run_report.md", "run_report.pdf"]
+    assert (out / "run_report.pdf").read_bytes()[:5] == b"%PDF-"
     d = json.loads((out / "run.json").read_text())
     assert d["surfaces"][0]["species"]["CH4"]["mean_kg_h"] == pytest.approx(
         vm.result.surfaces[0].species["CH4"].mean_kg_h)
@@ -588,6 +589,7 @@ def test_export_everything(with_result, tmp_path):
     assert img.shape == (3 * H, 3 * W, 3)
     report = (out / "run_report.md").read_text()
     assert "| A | CH4 |" in report and "test camera" in report and "run.csv" in report
+    assert "detection limit [kg/h]" in report
     assert vm.store.last_dir == str(out)
 
 

@@ -1,0 +1,190 @@
+"""Settings that can be saved and replayed: a :class:`qogi.QuantifyConfig`
+(plus the control surfaces and the reporting unit) to and from a dict, a
+TOML file, or a result JSON (which embeds them).
+
+A settings file (TOML)::
+
+    # qogi quantify settings
+    units = "kg/h"                      # reporting unit (qogi.units)
+    species = ["CH4"]
+    gas_temperature = "ambient"
+    velocity = "fluid"
+    source = [159.5, 227.0]
+    background = {x0 = 10, y0 = 10, x1 = 40, y1 = 40}   # or "beside-surface"
+
+    [[surfaces]]
+    name = "S1"
+    points = [[100.0, 207.0], [220.0, 207.0]]
+
+Top-level keys are :class:`~qogi.QuantifyConfig` fields (docs/pipeline_api.md),
+``units`` and ``surfaces``; a key the config does not know is an error (a
+typo must not silently fall back to a default). Keys left out take their
+defaults; TOML has no null, so a field whose value is None is left out.
+A result JSON (``"format": "qogi-result"``) holds the same under ``config``,
+``surfaces`` and ``units``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+from typing import Any, Dict, List, Optional
+
+from .errors import UsageError
+from .files import atomic_open
+from .surfaces import Region, Surface
+
+__all__ = ["Settings", "config_from_dict", "load_settings", "write_toml", "dumps_toml"]
+
+SETTINGS_KEYS = ("units", "surfaces")
+
+
+@dataclasses.dataclass
+class Settings:
+    """What a settings file or result JSON holds: the config, the control
+    surfaces (possibly empty) and the reporting unit (None: not given)."""
+
+    config: Any
+    surfaces: List[Surface]
+    units: Optional[str] = None
+
+
+def _fields():
+    from .pipeline import QuantifyConfig
+    return {f.name: f for f in dataclasses.fields(QuantifyConfig)}
+
+
+def config_from_dict(d: dict):
+    """A QuantifyConfig from :meth:`QuantifyConfig.to_dict`'s dict (lists for
+    tuples, a dict for a background region). Unknown keys raise UsageError
+    naming them and the known ones; values are validated by the config."""
+    from .pipeline import QuantifyConfig
+
+    if not isinstance(d, dict):
+        raise UsageError(f"a config must be a table of settings; got {type(d).__name__}")
+    fields = _fields()
+    unknown = sorted(set(d) - set(fields))
+    if unknown:
+        raise UsageError(f"unknown setting(s) {', '.join(unknown)}; known: {', '.join(fields)}")
+    kw = dict(d)
+    bg = kw.get("background")
+    if isinstance(bg, dict):
+        try:
+            kw["background"] = Region(**{k: int(bg[k]) for k in ("x0", "y0", "x1", "y1")})
+        except (KeyError, TypeError) as e:
+            raise UsageError(f"background region needs x0, y0, x1, y1; got {bg}") from e
+    for name in ("source", "frames"):
+        if kw.get(name) is not None:
+            v = kw[name]
+            if not isinstance(v, (list, tuple)) or len(v) != 2:
+                raise UsageError(f"{name} must be a pair; got {v!r}")
+            kw[name] = tuple(v)
+    try:
+        return QuantifyConfig(**kw)
+    except TypeError as e:
+        raise UsageError(f"invalid settings: {e}") from e
+
+
+def _settings_from_mapping(d: dict, where: str) -> Settings:
+    from .units import parse_unit
+
+    if d.get("format") == "qogi-result":
+        cfg = config_from_dict(d.get("config") or {})
+        surfaces = [Surface.from_dict(s) for s in d.get("surfaces", [])]
+        units = d.get("units")
+        return Settings(cfg, surfaces, parse_unit(units) if units else None)
+    rest = {k: v for k, v in d.items() if k not in SETTINGS_KEYS}
+    cfg = config_from_dict(rest)
+    surfaces = []
+    for k, s in enumerate(d.get("surfaces") or []):
+        if not isinstance(s, dict) or "points" not in s:
+            raise UsageError(f"{where}: surfaces[{k}] needs points = [[x, y], ...]; got {s!r}")
+        surfaces.append(Surface([tuple(p) for p in s["points"]], name=s.get("name") or f"S{k + 1}"))
+    units = d.get("units")
+    return Settings(cfg, surfaces, parse_unit(units) if units else None)
+
+
+def load_settings(path: os.PathLike) -> Settings:
+    """Settings from a ``.toml`` file or a ``.json`` (a result or a plain
+    config dict). Raises UsageError for a missing file, bad syntax or a bad
+    value, naming the file."""
+    p = os.fspath(path)
+    try:
+        with open(p, "rb") as fh:
+            raw = fh.read()
+    except OSError as e:
+        raise UsageError(f"cannot read settings {p}: {e.strerror or e}") from e
+    try:
+        if p.lower().endswith(".json") or raw.lstrip()[:1] == b"{":
+            d = json.loads(raw.decode("utf-8"))
+        else:
+            d = _loads_toml(raw.decode("utf-8"))
+    except (ValueError, UnicodeDecodeError) as e:
+        raise UsageError(f"cannot parse settings {p}: {e}") from e
+    try:
+        return _settings_from_mapping(d, p)
+    except ValueError as e:  # UsageError or a config check
+        raise UsageError(f"{p}: {e}") from e
+
+
+def _loads_toml(text: str) -> dict:
+    try:
+        import tomllib
+    except ImportError:  # Python < 3.11
+        try:
+            import tomli as tomllib  # type: ignore[no-redef]
+        except ImportError as e:
+            raise UsageError("reading TOML on Python < 3.11 needs the package tomli "
+                             "(pip install tomli), or give the settings as JSON") from e
+    return tomllib.loads(text)
+
+
+# -- writing TOML (the small subset settings need) ----------------------------
+
+def _toml_value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        if not math.isfinite(v):
+            raise UsageError(f"TOML settings cannot hold {v}")
+        return repr(v)  # shortest string that reads back to the same double
+    if isinstance(v, str):
+        return json.dumps(v)  # a JSON string is a valid TOML basic string
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{" + ", ".join(f"{_toml_key(k)} = {_toml_value(x)}" for k, x in v.items()
+                               if x is not None) + "}"
+    raise UsageError(f"cannot write {type(v).__name__} {v!r} to TOML")
+
+
+def _toml_key(k: str) -> str:
+    k = str(k)
+    return k if k.replace("_", "").replace("-", "").isalnum() and k.isascii() else json.dumps(k)
+
+
+def dumps_toml(config, surfaces=(), units: Optional[str] = None) -> str:
+    """The settings as TOML text (reads back with :func:`load_settings` to an
+    equal config; floats are written in their shortest exact form)."""
+    lines = ["# qogi quantify settings (docs/pipeline_api.md); replay with",
+             "# qogi quantify REC --config THIS.toml"]
+    if units:
+        lines.append(f"units = {_toml_value(units)}")
+    for k, v in config.to_dict().items():
+        if v is not None:
+            lines.append(f"{_toml_key(k)} = {_toml_value(v)}")
+    for s in surfaces:
+        lines += ["", "[[surfaces]]", f"name = {_toml_value(s.name)}",
+                  f"points = {_toml_value([[float(x), float(y)] for x, y in s.points])}"]
+    return "\n".join(lines) + "\n"
+
+
+def write_toml(path: os.PathLike, config, surfaces=(), units: Optional[str] = None) -> None:
+    """Write the settings as TOML (atomically)."""
+    text = dumps_toml(config, surfaces, units)
+    with atomic_open(path, "w") as fh:
+        fh.write(text)
