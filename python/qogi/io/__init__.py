@@ -4,7 +4,10 @@
   :func:`read_flir` / :func:`open_flir` give raw counts bit-exactly with each
   frame's calibration; :func:`read_flir_recording` converts to a recording.
 - numpy .npy/.npz: :func:`read_numpy`; multi-page TIFF: :func:`read_tiff`.
-- :func:`read_recording` picks the reader from the file name.
+- Telops .hcc (FAST series, filter wheel): :func:`open_hcc`, :func:`write_hcc`.
+- :func:`qogi.open_recording` (:mod:`qogi.io.open`) opens any of these
+  camera files lazily as a recording; :func:`read_recording` picks the
+  reader from the file name.
 
 Camera files do not carry everything a recording needs (the spectral
 response, the pressure ...): the readers ask for it by name.
@@ -20,14 +23,18 @@ from .arrays import read_numpy, read_tiff
 from .flir import (FlirFile, FlirFrame, FlirMetadata, flir_apparent_temperature,
                    flir_raw_from_temperature, flir_temperature, open_flir, read_flir,
                    read_flir_recording)
+from .flir_writer import write_flir_seq
+from .telops import HccFile, open_hcc, write_hcc
 
 __all__ = [
     "read_recording", "read_numpy", "read_tiff", "read_flir", "open_flir",
     "read_flir_recording", "flir_temperature", "flir_apparent_temperature",
-    "flir_raw_from_temperature", "FlirFile", "FlirFrame", "FlirMetadata",
+    "flir_raw_from_temperature", "FlirFile", "FlirFrame", "FlirMetadata", "open_hcc", "write_hcc",
+    "HccFile", "write_flir_seq",
 ]
 
 FLIR_EXTENSIONS = (".seq", ".csq", ".fff", ".jpg", ".jpeg")
+TELOPS_EXTENSIONS = (".hcc",)
 
 
 def read_recording(path: Union[str, os.PathLike], **kwargs) -> Recording:
