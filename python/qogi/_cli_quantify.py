@@ -39,12 +39,14 @@ def _config_from_args(args):
 def cmd_quantify(args: argparse.Namespace) -> int:
     from ._progress import ProgressBar
     from .pipeline import Cancelled, quantify
-    from .recording import open_recording
     from .surfaces import Surface
 
     try:
         cfg = _config_from_args(args)
-        rec = open_recording(args.recording)
+        from ._cli_camera import open_input, origin_lines
+        rec = open_input(args)
+        if not args.quiet and getattr(rec, "scene_origin", None):
+            print("qogi quantify: scene: " + "; ".join(origin_lines(rec)), file=sys.stderr)
         surfaces = [Surface.parse(s, name=f"S{k + 1}") for k, s in enumerate(args.surface or [])]
         if args.auto_surfaces:
             auto, source = _auto(rec, args, cfg)
@@ -109,7 +111,8 @@ def add_commands(sub) -> None:
                     "surface away from the source instead.",
         epilog="example: qogi quantify lab.h5 --surface 100,207,220,207 --species CH4 "
                "--source 159.5,227 --json out.json --csv out.csv --plot out.png")
-    q.add_argument("recording", help="recording file (.h5, DESIGN.md contract)")
+    q.add_argument("recording", help="recording (.h5) or camera file (FLIR .seq/.csq/.jpg/.fff, "
+                                     "Telops .hcc: give --camera and the scene facts it lacks)")
     q.add_argument("--surface", action="append", metavar="X0,Y0,X1,Y1[,X2,Y2...]",
                    help="a control surface (line or polyline) in pixels; repeatable")
     q.add_argument("--auto-surfaces", metavar="D1,D2,...",
@@ -134,7 +137,6 @@ def add_commands(sub) -> None:
     q.add_argument("--averaging", default="per-frame", choices=["per-frame", "time-averaged"],
                    help="invert every frame then average rates (default), or invert the "
                         "time-averaged frames")
-    q.add_argument("--distance", type=float, metavar="M", help="override the camera distance [m]")
     q.add_argument("--sigma", type=float, metavar="M",
                    help="plume depth sigma [m] (default: from the plume width across each surface)")
     q.add_argument("--frames", metavar="START:STOP", help="frame range")
@@ -144,6 +146,8 @@ def add_commands(sub) -> None:
     q.add_argument("--plot", metavar="OUT.png",
                    help="write the rate plot (and OUT_maps.png with column and velocity maps)")
     q.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    from ._cli_camera import add_scene_options
+    add_scene_options(q)
     q.set_defaults(func=cmd_quantify)
 
 
