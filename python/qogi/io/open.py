@@ -161,6 +161,12 @@ class _FlirFrames:
     def close(self) -> None:
         self.flir.close()
 
+    def __del__(self) -> None:  # a recording dropped without close() releases its file
+        try:
+            self.close()
+        except Exception:
+            pass
+
 
 class _HccFrames:
     """Calibrated values of a Telops file's frames grouped per wheel turn,
@@ -179,6 +185,12 @@ class _HccFrames:
 
     def close(self) -> None:
         self.hcc.close()
+
+    def __del__(self) -> None:  # a recording dropped without close() releases its file
+        try:
+            self.close()
+        except Exception:
+            pass
 
 
 # --------------------------------------------------------------------------- the opener
