@@ -511,9 +511,9 @@ def _open_hcc(p, camera, distance_m, ambient_K, pressure_Pa, ifov_rad, nonfinite
             factor, quantity = 1.0 / ifov ** 2, "radiance"
         ftimes = fields["time_s"]
         ch_times = ftimes[turns]                        # (T, C) POSIX s
-        t0 = float(ch_times.min())
-        turn_t = ch_times.mean(axis=1) - t0
-        times, rate = _times(p, turn_t + t0, fields["AcquisitionFrameRate"][0] / 1000.0
+        turn_t = ch_times.mean(axis=1)
+        t0 = float(turn_t[0])                           # time zero: the first turn's mean
+        times, rate = _times(p, turn_t, fields["AcquisitionFrameRate"][0] / 1000.0
                              / max(1, len(positions)), warns)
         camera_out = Camera(cam.name, float(ifov), list(cam.channels), float(rate), cam.netd_K)
         scene = _scene(p, facts, species)
