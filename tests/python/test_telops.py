@@ -267,3 +267,36 @@ def test_m150_release_from_hcc_reads_the_same_rate_as_from_hdf5(tmp_path):
     b = json.loads((tmp_path / "b.json").read_text())["surfaces"][0]["species"]["CH4"]
     assert a["mean_kg_h"] > 0
     assert b["mean_kg_h"] == pytest.approx(a["mean_kg_h"], rel=0.005)
+
+
+def test_a_moving_plume_is_displaced_in_each_channel_by_its_time_offset(tmp_path):
+    """The misregistration the pipeline sees (it treats a turn's channels as
+    simultaneous at the turn's mean time): a Gaussian plume moving at v px/s,
+    each filter frame taken at its own time, appears in channel k shifted by
+    v x offset_k from where it is at the turn time."""
+    v = 400.0                                         # px/s: 1 px per 2.5 ms filter step
+    hh, ww = 8, 64
+    x = np.arange(ww)[None, :]
+
+    def plume(t):
+        return 290.0 + 20.0 * np.exp(-((x - 20.0 - v * t) ** 2) / 18.0) * np.ones((hh, 1))
+
+    frames, times, pos = [], [], []
+    for i in range(3):
+        for k in range(4):
+            t = 0.01 * i + 0.0025 * k
+            frames.append(plume(t))
+            times.append(1.7e9 + t)
+            pos.append(k)
+    p = tmp_path / "moving.hcc"
+    write_hcc(p, frames, times, fw_positions=pos, frame_rate_hz=400.0)
+    with qogi.open_recording(p, camera="fast-m150", distance_m=3.0,
+                             ambient_temperature_K=290.0) as rec:
+        a = rec.to_array()[:, :, 0, :] - 290.0        # (turn, channel, x)
+        centroid = (a * x[0]).sum(axis=-1) / a.sum(axis=-1)
+        for i in range(3):
+            at_turn_time = 20.0 + v * (1.7e9 + 0.01 * i + 0.00375 - 1.7e9)
+            np.testing.assert_allclose(centroid[i] - at_turn_time,
+                                       v * rec.attrs["channel_time_offset_s"], atol=0.01)
+        # First to last filter: 3 px of misregistration at this speed.
+        assert centroid[0, 3] - centroid[0, 0] == pytest.approx(3.0, abs=0.01)
