@@ -8,7 +8,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import qogi
 from qogi.io.flir_writer import write_recording_as_seq
 from qogi.io.telops import write_hcc
 from qogi_gui.store import UserStore

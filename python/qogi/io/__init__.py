@@ -41,7 +41,8 @@ def read_recording(path: Union[str, os.PathLike], **kwargs) -> Recording:
     """Open any supported file as a recording, by its extension.
 
     .h5/.hdf5 -> :func:`qogi.open_recording`; .seq/.csq/.fff/.jpg ->
-    :func:`read_flir_recording`; .npy/.npz -> :func:`read_numpy`;
+    :func:`read_flir_recording`; .hcc -> :func:`qogi.open_recording`
+    (camera=..., distance_m=..., ambient_temperature_K=...); .npy/.npz -> :func:`read_numpy`;
     .tif/.tiff -> :func:`read_tiff`. Keyword arguments go to that reader.
     """
     ext = os.path.splitext(os.fspath(path))[1].lower()
@@ -49,6 +50,9 @@ def read_recording(path: Union[str, os.PathLike], **kwargs) -> Recording:
         return open_recording(path, **kwargs)
     if ext in FLIR_EXTENSIONS:
         return read_flir_recording(path, **kwargs)
+    if ext in TELOPS_EXTENSIONS:
+        from .open import open_recording as open_camera_file
+        return open_camera_file(path, **kwargs)
     if ext in (".npy", ".npz"):
         return read_numpy(path, **kwargs)
     if ext in (".tif", ".tiff"):

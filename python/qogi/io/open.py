@@ -351,7 +351,7 @@ def _times(p, stamps: np.ndarray, nominal_hz: float, warns: Diagnostics):
 
 def _open_flir(p, camera, distance_m, ambient_K, pressure_Pa, ifov_rad, nonfinite,
                object_parameters, species) -> Recording:
-    from .flir import C2_CM_K, FlirFile
+    from .flir import FlirFile
 
     if camera is None:
         raise _no_camera(p, "FLIR")
