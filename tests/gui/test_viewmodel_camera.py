@@ -109,4 +109,5 @@ def test_quantifying_the_seq_in_the_viewer_reads_the_hdf5_rate(tmp_path, seq_and
         if facts is not None:
             assert "scene-pressure-assumed" in vm.result.warnings.codes()
         vm.close()
+    print(f"viewer: HDF5 {rates[0]:.5g} kg/h, FLIR .seq {rates[1]:.5g} kg/h")
     assert rates[0] != 0 and rates[1] == pytest.approx(rates[0], rel=0.01)
