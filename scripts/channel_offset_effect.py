@@ -57,13 +57,18 @@ def main() -> None:
                                 ambient_temperature_K=scene.ambient_temperature_K)
     cfg = QuantifyConfig(species=["CH4"], gas_temperature="infer", velocity="exit",
                          exit_velocity_m_s=1.0, source=source)
-    out = {}
+    out, infos = {}, {}
     for name, r in (("simultaneous", sim), ("wheel", wheel)):
         res = quantify(r, surfs, cfg)
         out[name] = np.array([s.species["CH4"].mean_kg_h for s in res.surfaces])
+        infos[name] = {k: v for k, v in res.info.items()
+                       if "temperature" in k or "mixing" in k}
+        infos[name]["pixels"] = res.pixel_status
     print("turns:", n, "channel offsets [ms]:", np.round(wheel.attrs["channel_time_offset_s"] * 1e3, 3))
     for name, v in out.items():
         print(f"{name:>12}: " + "  ".join(f"{x:.5g}" for x in v) + " kg/h (4, 8, 12 cm)")
+    for name, v in infos.items():
+        print(f"{name:>12}: {v}")
     print("wheel / simultaneous - 1: " + "  ".join(f"{x:+.2%}" for x in out["wheel"] / out["simultaneous"] - 1))
 
 
