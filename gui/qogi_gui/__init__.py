@@ -23,9 +23,10 @@ from __future__ import annotations
 __all__ = ["main"]
 
 
-def main(path=None) -> int:
-    """Open the viewer window (optionally on the recording ``path``); returns
-    when the window is closed. Needs Dear PyGui and a display."""
+def main(path=None, scene=None) -> int:
+    """Open the viewer window (optionally on the recording or camera file
+    ``path``, with the scene facts ``scene`` for a camera file); returns when
+    the window is closed. Needs Dear PyGui and a display."""
     from .app import run
 
-    return run(path)
+    return run(path, scene=scene)

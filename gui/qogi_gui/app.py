@@ -444,8 +444,14 @@ class App:
         with dpg.file_dialog(tag="open_dialog", show=False, width=760, height=460, modal=True,
                              callback=s(self._on_open_chosen),
                              default_path=self.vm.store.last_dir or os.getcwd()):
+            dpg.add_file_extension("Recordings and camera files{.h5,.hdf5,.seq,.csq,.jpg,.fff,.hcc}",
+                                   color=(150, 255, 150, 255))
             dpg.add_file_extension("Recordings (*.h5 *.hdf5){.h5,.hdf5}", color=(150, 255, 150, 255))
+            dpg.add_file_extension("FLIR (*.seq *.csq *.jpg *.fff){.seq,.csq,.jpg,.fff}",
+                                   color=(150, 200, 255, 255))
+            dpg.add_file_extension("Telops (*.hcc){.hcc}", color=(150, 200, 255, 255))
             dpg.add_file_extension(".*")
+        self._build_scene_form()
         dpg.add_file_dialog(tag="export_dialog", show=False, width=760, height=460, modal=True,
                             directory_selector=True,
                             callback=s(lambda sd, a, u: dpg.set_value(
@@ -454,6 +460,49 @@ class App:
                         label="qogi", pos=(300, 200)):
             dpg.add_text("", tag="popup_text", wrap=530)
             dpg.add_button(label="OK", width=80, callback=lambda: dpg.hide_item("popup"))
+
+    def _build_scene_form(self) -> None:
+        """The small form that asks for a camera file's missing scene facts."""
+        from qogi.presets import camera_preset_names
+
+        from .scene_form import FIELDS
+        s = self._safe
+        with dpg.window(tag="scene_form", show=False, modal=True, no_collapse=True, width=620,
+                        label="Scene facts", pos=(260, 180),
+                        on_close=s(lambda *a: self.vm.cancel_scene())):
+            dpg.add_text("", tag="scene_title", wrap=590)
+            for key, (label, unit) in FIELDS.items():
+                with dpg.group(horizontal=True):
+                    dpg.add_text(f"{label} [{unit}]" if key != "camera" else label)
+                    if key == "camera":
+                        dpg.add_combo(list(camera_preset_names()), tag="scene_camera_preset",
+                                      width=120, callback=lambda sd, a, u: dpg.set_value(
+                                          "scene_f_camera", a))
+                    dpg.add_input_text(tag=f"scene_f_{key}", width=220)
+                dpg.add_text("", tag=f"scene_hint_{key}", color=(170, 170, 170, 255), wrap=590)
+            dpg.add_text("", tag="scene_error", color=(255, 120, 120, 255), wrap=590)
+            with dpg.group(horizontal=True):
+                dpg.add_button(label="Open", width=90, callback=s(self.on_scene_submit))
+                dpg.add_button(label="Cancel", width=90,
+                               callback=s(lambda *a: self.vm.cancel_scene()))
+
+    def on_scene_submit(self, *args) -> bool:
+        from .scene_form import FIELDS
+        return self.vm.submit_scene({k: dpg.get_value(f"scene_f_{k}") for k in FIELDS})
+
+    def _refresh_scene_form(self) -> None:
+        from .scene_form import FIELDS
+        req = self.vm.scene_request
+        if req is None:
+            dpg.hide_item("scene_form")
+            return
+        dpg.set_value("scene_title", req.title)
+        for key in FIELDS:
+            dpg.set_value(f"scene_f_{key}", req.values.get(key, ""))
+            err = req.errors.get(key, "")
+            dpg.set_value(f"scene_hint_{key}", err or req.hint(key))
+        dpg.set_value("scene_error", req.error)
+        dpg.show_item("scene_form")
 
     def _build_handlers(self) -> None:
         s = self._safe
@@ -507,6 +556,8 @@ class App:
             self._refresh_recording()
         if self._changed("settings"):
             self._refresh_settings()
+        if self._changed("scene_request"):
+            self._refresh_scene_form()
         result_changed = self._changed("result")
         if result_changed:
             self._refresh_results()
@@ -1070,12 +1121,15 @@ def check_display() -> None:
     x11.XCloseDisplay(d)
 
 
-def run(path=None, width: int = 1440, height: int = 900) -> int:
-    """Open the window (and ``path`` if given); returns 0 when it is closed.
-    Raises :class:`NoDisplayError` when there is no screen."""
+def run(path=None, width: int = 1440, height: int = 900, scene: Optional[dict] = None) -> int:
+    """Open the window (and ``path`` if given, with the camera file's
+    ``scene`` facts if given: remembered for it); returns 0 when it is
+    closed. Raises :class:`NoDisplayError` when there is no screen."""
     check_display()
     app = App(ViewModel(), width, height)
     app.build()
+    if path and scene:
+        app.vm.store.set_scene(path, scene)
     if path:
         app.vm.open(path, background=True)
     try:

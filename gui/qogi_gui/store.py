@@ -1,4 +1,6 @@
-"""Per-user state of the viewer: recent files and the last folder used.
+"""Per-user state of the viewer: recent files, the last folder used, and the
+scene facts given for each camera file (camera, distance, ...), remembered so
+that a file opens directly the next time.
 
 Stored as JSON in the user's configuration folder (the demo recording goes
 to qogi's cache folder instead, see :func:`cache_dir`):
@@ -14,7 +16,10 @@ import os
 from pathlib import Path
 from typing import List, Optional
 
-__all__ = ["config_dir", "cache_dir", "UserStore", "MAX_RECENT"]
+__all__ = ["config_dir", "cache_dir", "UserStore", "MAX_RECENT", "SCENE_FACT_KEYS"]
+
+#: The scene facts remembered per camera file.
+SCENE_FACT_KEYS = ("camera", "distance_m", "ambient_temperature_K", "pressure_Pa")
 
 #: How many recent recordings are remembered.
 MAX_RECENT = 10
@@ -52,6 +57,10 @@ class UserStore:
         Absolute paths, most recent first, at most :data:`MAX_RECENT`.
     last_dir : str
         Folder of the last file opened or exported ("" if none).
+    scene_facts : dict of str -> dict
+        Per camera file (absolute path): the facts given in the viewer's
+        form (``camera``, ``distance_m``, ``ambient_temperature_K``,
+        ``pressure_Pa``; keyword arguments of ``qogi.open_recording``).
     warning : str
         Why the stored file could not be read or written ("" if it could).
     """
@@ -60,6 +69,7 @@ class UserStore:
         self.folder = Path(folder) if folder is not None else config_dir()
         self.recent: List[str] = []
         self.last_dir = ""
+        self.scene_facts: dict = {}
         self.warning = ""
         self._load()
 
@@ -83,13 +93,19 @@ class UserStore:
             self.recent = [str(p) for p in recent if isinstance(p, str)][:MAX_RECENT]
         last = data.get("last_dir", "")
         self.last_dir = last if isinstance(last, str) else ""
+        facts = data.get("scene_facts", {})
+        if isinstance(facts, dict):
+            self.scene_facts = {str(k): {fk: fv for fk, fv in v.items()
+                                         if fk in SCENE_FACT_KEYS and isinstance(fv, (str, int, float))}
+                                for k, v in facts.items() if isinstance(v, dict)}
 
     def save(self) -> bool:
         """Write the file; on failure set :attr:`warning` and return False."""
         try:
             self.folder.mkdir(parents=True, exist_ok=True)
             tmp = self.path.with_suffix(".tmp")
-            tmp.write_text(json.dumps({"recent": self.recent, "last_dir": self.last_dir},
+            tmp.write_text(json.dumps({"recent": self.recent, "last_dir": self.last_dir,
+                                       "scene_facts": self.scene_facts},
                                       indent=1), encoding="utf-8")
             os.replace(tmp, self.path)
         except OSError as e:
@@ -115,4 +131,14 @@ class UserStore:
 
     def set_last_dir(self, folder: os.PathLike) -> None:
         self.last_dir = os.path.abspath(os.fspath(folder))
+        self.save()
+
+    def scene_for(self, path: os.PathLike) -> Optional[dict]:
+        """The scene facts remembered for ``path`` (None if none)."""
+        return self.scene_facts.get(os.path.abspath(os.fspath(path)))
+
+    def set_scene(self, path: os.PathLike, facts: dict) -> None:
+        """Remember the scene facts given for ``path``, then save."""
+        self.scene_facts[os.path.abspath(os.fspath(path))] = {
+            k: v for k, v in facts.items() if k in SCENE_FACT_KEYS and v not in (None, "")}
         self.save()

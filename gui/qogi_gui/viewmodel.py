@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
+from qogi.errors import UsageError
 
 from . import display, results
 from .export import (ExportError, check_writable, render_frame_rgb, report_text,
@@ -109,6 +110,8 @@ class ViewModel:
 
         self.recording = None
         self.recording_path: Optional[str] = None
+        #: A camera file waiting for its scene facts (the form), or None.
+        self.scene_request = None
         self.summary: Optional[dict] = None
         self.display = DisplayState()
         self.frame = 0
@@ -139,7 +142,8 @@ class ViewModel:
         self.result_has_maps = False
         self.result_stale = False
         #: Bumped when the corresponding state changes, so the window redraws only then.
-        self.rev = {"recording": 0, "surfaces": 0, "result": 0, "settings": 0, "display": 0}
+        self.rev = {"recording": 0, "surfaces": 0, "result": 0, "settings": 0, "display": 0,
+                    "scene_request": 0}
 
         self._frame_cache: Tuple[Optional[int], Optional[np.ndarray]] = (None, None)
         self._range_cache: Dict[tuple, Tuple[float, float]] = {}
@@ -187,20 +191,92 @@ class ViewModel:
                                "opening another recording")
         p = os.path.abspath(os.path.expanduser(os.fspath(path))) if str(path).strip() else ""
         if not p:
-            return self._error("no file chosen: pick a recording (.h5) to open")
+            return self._error("no file chosen: pick a recording (.h5) or a camera file to open")
+        facts = self._scene_facts(p)
+        if facts is None:
+            return False
         if background:
             self._opening = p
-            self._start_job(Job("opening the recording", lambda progress: self._open_file(p)),
-                            "open")
+            self._start_job(Job("opening the recording",
+                                lambda progress: self._open_file(p, facts)), "open")
             return True
         try:
-            rec, warning = self._open_file(p)
+            rec, warning = self._open_file(p, facts)
         except (ValueError, OSError) as e:
             return self._open_failed(p, e)
         return self._opened(rec, p, warning)
 
-    def _open_file(self, p: str):
+    # ----------------------------------------------------------------- camera files
+    def _scene_facts(self, p: str):
+        """Keyword arguments for opening ``p``: {} for a recording, the facts
+        remembered for a camera file, or None when the form must ask for them
+        (:attr:`scene_request` is then set)."""
+        from qogi.io.open import file_kind, scene_needs
+
+        if not os.path.isfile(p) or file_kind(p) not in ("flir", "telops"):
+            return {}
+        stored = self.store.scene_for(p)
+        try:
+            needs = scene_needs(p)
+        except (ValueError, OSError) as e:
+            self._open_failed(p, e)
+            return None
+        if stored and all(k in stored for k in needs["needs"]):
+            return dict(stored)
+        self._ask_scene(p, needs, stored or {})
+        return None
+
+    def _ask_scene(self, p: str, needs: dict, values: dict, error: str = "") -> None:
+        from .scene_form import FIELDS, SceneRequest
+
+        self.scene_request = SceneRequest(
+            path=p, kind=needs["kind"], needs=list(needs["needs"]), holds=dict(needs["holds"]),
+            defaults=list(needs["defaults"]),
+            values={k: "" if values.get(k) is None else str(values.get(k)) for k in FIELDS},
+            error=error)
+        self.rev["scene_request"] += 1
+        missing = ", ".join(FIELDS[k][0] for k in needs["needs"])
+        if error:
+            self._error(error)
+        else:
+            self._info(f"{os.path.basename(p)} is a camera file: give the scene facts it does not "
+                       f"hold ({missing}) in the form")
+
+    def submit_scene(self, values: dict) -> bool:
+        """Open the pending camera file with the form's ``values`` (text per
+        field); remember them for the file when it opens."""
+        from .scene_form import parse_facts
+
+        req = self.scene_request
+        if req is None:
+            return self._error("no camera file is waiting for scene facts")
+        req.values.update({k: str(v) for k, v in values.items()})
+        facts, errors = parse_facts(req.values, req.needs)
+        req.errors = errors
+        if errors:
+            req.error = "; ".join(errors.values())
+            self.rev["scene_request"] += 1
+            return self._error(f"fix the scene facts first: {req.error}")
+        try:
+            rec, warning = self._open_file(req.path, facts)
+        except (ValueError, OSError) as e:
+            req.error = str(e)
+            self.rev["scene_request"] += 1
+            return self._error(f"could not open {os.path.basename(req.path)}: {e}")
+        self.scene_request = None
+        self.rev["scene_request"] += 1
+        self.store.set_scene(req.path, facts)
+        return self._opened(rec, req.path, warning)
+
+    def cancel_scene(self) -> None:
+        """Close the scene form without opening the file."""
+        self.scene_request = None
+        self.rev["scene_request"] += 1
+
+    def _open_file(self, p: str, facts: Optional[dict] = None):
         """(recording, warning) of the file ``p``; NaN pixels become invalid pixels."""
+        if facts:
+            return self.api.open_recording(p, **facts), ""
         try:
             return self.api.open_recording(p), ""
         except self.api.RecordingError as e:
@@ -214,6 +290,8 @@ class ViewModel:
         self._set_recording(rec, p)
         if warning:
             self._warn(warning)
+        for d in getattr(rec, "warnings", None) or ():
+            self._warn(str(d))
         self.store.add_recent(p)
         if self.store.warning:
             self._warn(self.store.warning)
@@ -224,6 +302,16 @@ class ViewModel:
     def _open_failed(self, path: str, e: Exception) -> bool:
         if not os.path.exists(path):
             self.store.remove_recent(path)
+        elif isinstance(e, UsageError) and self.scene_request is None:
+            # A camera file whose remembered facts no longer fit (e.g. a camera
+            # whose band is not the file's): ask again, saying why.
+            from qogi.io.open import scene_needs
+            try:
+                self._ask_scene(path, scene_needs(path), self.store.scene_for(path) or {},
+                                error=f"could not open {os.path.basename(path)}: {e}")
+                return False
+            except (ValueError, OSError):
+                pass
         return self._error(f"could not open the recording: {e}")
 
     def set_recording(self, recording, path: str = "") -> None:

@@ -15,7 +15,8 @@ from .presets import camera_preset, camera_preset_names
 from .forward import ForwardModel, band_radiance, column_density, forward_model
 from . import io, radiometry  # noqa: F401  (qogi.io.read_flir etc. after `import qogi`)
 from .recording import (Camera, Recording, RecordingError, RecordingWriter, Scene, Truth,
-                        open_recording, write_recording)
+                        write_recording)
+from .io.open import open_recording  # HDF5 recordings and camera files (FLIR, Telops)
 from .spectra import (
     CrossSectionTable,
     LineList,

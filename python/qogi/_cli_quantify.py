@@ -46,7 +46,6 @@ def _config_from_args(args):
 def cmd_quantify(args: argparse.Namespace) -> int:
     from ._progress import ProgressBar
     from .pipeline import Cancelled, quantify
-    from .recording import open_recording
     from .surfaces import Surface
 
     try:
@@ -56,7 +55,10 @@ def cmd_quantify(args: argparse.Namespace) -> int:
         units = parse_unit(args.units) if args.units else \
             ((args.settings.units if args.settings else None) or "kg/h")
         cfg = _config_from_args(args)
-        rec = open_recording(args.recording)
+        from ._cli_camera import open_input, origin_lines
+        rec = open_input(args)
+        if not args.quiet and getattr(rec, "scene_origin", None):
+            print("qogi quantify: scene: " + "; ".join(origin_lines(rec)), file=sys.stderr)
         surfaces = [Surface.parse(s, name=f"S{k + 1}") for k, s in enumerate(args.surface or [])]
         if not surfaces and not args.auto_surfaces and args.settings is not None:
             surfaces = list(args.settings.surfaces)
@@ -132,7 +134,8 @@ def add_commands(sub) -> None:
                     "surface away from the source instead.",
         epilog="example: qogi quantify lab.h5 --surface 100,207,220,207 --species CH4 "
                "--source 159.5,227 --json out.json --csv out.csv --plot out.png")
-    q.add_argument("recording", help="recording file (.h5, docs/recording.md contract)")
+    q.add_argument("recording", help="recording (.h5) or camera file (FLIR .seq/.csq/.jpg/.fff, "
+                                     "Telops .hcc: give --camera and the scene facts it lacks; docs/recording.md)")
     q.add_argument("--surface", action="append", metavar="X0,Y0,X1,Y1[,X2,Y2...]",
                    help="a control surface (line or polyline) in pixels; repeatable")
     q.add_argument("--auto-surfaces", metavar="D1,D2,...",
@@ -157,7 +160,6 @@ def add_commands(sub) -> None:
     q.add_argument("--averaging", default=None, choices=["per-frame", "time-averaged"],
                    help="invert every frame then average rates (default), or invert the "
                         "time-averaged frames")
-    q.add_argument("--distance", type=float, metavar="M", help="override the camera distance [m]")
     q.add_argument("--sigma", type=float, metavar="M",
                    help="plume depth sigma [m] (default: from the plume width across each surface)")
     q.add_argument("--frames", metavar="START:STOP", help="frame range")
@@ -179,6 +181,8 @@ def add_commands(sub) -> None:
     q.add_argument("--plot", metavar="OUT.png",
                    help="write the rate plot (and OUT_maps.png with column and velocity maps)")
     q.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    from ._cli_camera import add_scene_options
+    add_scene_options(q)
     q.set_defaults(func=cmd_quantify)
 
 

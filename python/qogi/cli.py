@@ -16,7 +16,11 @@ def cmd_info(args: argparse.Namespace) -> int:
     from .io import FLIR_EXTENSIONS
     from .recording import open_recording
 
+    from .io.open import file_kind
     try:
+        if os.path.isfile(args.path) and file_kind(args.path) in ("flir", "telops"):
+            from ._cli_camera import cmd_info_camera
+            return cmd_info_camera(args)
         if os.path.splitext(args.path)[1].lower() in FLIR_EXTENSIONS:
             info = flir_info(args.path)
             text = format_flir_info
@@ -45,8 +49,11 @@ def cmd_gui(args: argparse.Namespace) -> int:
         print(f"qogi gui: error: the viewer needs Dear PyGui and matplotlib ({e}); install them "
               "with: pip install 'qogi[gui]'", file=sys.stderr)
         return 2
+    scene = {k: v for k, v in (("camera", args.camera), ("distance_m", args.distance),
+                               ("ambient_temperature_K", args.ambient_temperature),
+                               ("pressure_Pa", args.pressure)) if v is not None}
     try:
-        return gui_main(args.path)
+        return gui_main(args.path, scene=scene or None)
     except NoDisplayError as e:
         print(f"qogi gui: error: {e}", file=sys.stderr)
         return 2
@@ -68,10 +75,13 @@ def build_parser() -> argparse.ArgumentParser:
                     "first; a bad file gives an error naming the problem and the fix. For "
                     "a FLIR file: frames, camera, Planck calibration, object parameters "
                     "and first-frame counts and temperatures.")
-    i.add_argument("path", help="recording (.h5) or FLIR file (.seq, .csq, .fff, .jpg)")
+    i.add_argument("path", help="recording (.h5), FLIR file (.seq, .csq, .fff, .jpg) or Telops "
+                                ".hcc; for a camera file it also says what a conversion needs")
     i.add_argument("--json", action="store_true", help="print JSON instead of text")
     i.add_argument("--allow-invalid", action="store_true",
                    help="treat NaN/inf pixels as invalid instead of an error")
+    from ._cli_camera import add_scene_options
+    add_scene_options(i)
     i.set_defaults(func=cmd_info)
     g = sub.add_parser(
         "gui", help="open the desktop viewer",
@@ -79,7 +89,9 @@ def build_parser() -> argparse.ArgumentParser:
                     "mouse, set the analysis, run the quantification in the background and "
                     "read, compare and export the emission rates. 'Load demo scene' in the "
                     "window synthesises a known release to try it on.")
-    g.add_argument("path", nargs="?", help="recording (.h5) to open")
+    g.add_argument("path", nargs="?", help="recording (.h5) or camera file (.seq, .csq, .jpg, "
+                                           ".fff, .hcc) to open")
+    add_scene_options(g)
     g.set_defaults(func=cmd_gui)
     from ._cli_spectra import add_commands as add_spectra_commands
     add_spectra_commands(sub)
@@ -91,6 +103,8 @@ def build_parser() -> argparse.ArgumentParser:
     add_demo_command(sub)
     from ._cli_batch import add_commands as add_batch_commands
     add_batch_commands(sub)
+    from ._cli_convert import add_commands as add_convert_commands
+    add_convert_commands(sub)
     return p
 
 

@@ -148,8 +148,8 @@ def format_flir_info(info: dict) -> str:
                             ("object_temperature_K", "object T [K]", "{:10.3f}")):
         s = ff[key]
         lines.append(f"  {label:<16} {_g(s['min'], fmt)} {_g(s['mean'], fmt)} {_g(s['max'], fmt)}")
-    lines.append("To make a recording: qogi.io.read_flir_recording(path, channel=<response>, "
-                 "pressure_Pa=<Pa>)")
+    lines.append(f"To make a recording: qogi convert {info['path']} -o OUT.h5 --camera "
+                 "<preset|response.csv> [--distance M] (or qogi.open_recording(path, camera=...))")
     return "\n".join(lines)
 
 

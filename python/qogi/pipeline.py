@@ -434,7 +434,13 @@ def quantify(recording: Union[Recording, str], surfaces: Sequence[Surface],
     if cfg.source is not None:
         surfaces = [s.oriented_away_from(cfg.source) for s in surfaces]
     _check_inputs(rec, surfaces, cfg)
-    return _run(rec, surfaces, cfg, progress, keep_maps)
+    result = _run(rec, surfaces, cfg, progress, keep_maps)
+    # What opening a camera file noticed (scene facts at factory defaults,
+    # assumed pressure, dropped frames) and where each scene fact came from.
+    result.warnings.extend_unique(getattr(rec, "warnings", None) or ())
+    if getattr(rec, "scene_origin", None):
+        result.info["scene_origin"] = dict(rec.scene_origin)
+    return result
 
 
 class _TruthColumns:

@@ -15,8 +15,9 @@ def qogi(*args, env=None):
 def test_help_lists_the_viewer():
     out = qogi("--help").stdout
     assert "gui" in out and "desktop viewer" in out
-    out = qogi("gui", "--help").stdout
-    assert "recording (.h5) to open" in out
+    out = " ".join(qogi("gui", "--help").stdout.split())
+    assert "recording (.h5) or camera file (.seq, .csq, .jpg, .fff, .hcc) to open" in out
+    assert "--camera" in out and "--distance" in out
 
 
 def test_missing_file_is_an_error_not_a_window(tmp_path):
