@@ -1106,22 +1106,42 @@ class _RunState:
 
 @dataclasses.dataclass
 class _BlockOut:
-    """The kept frames of one block: per surface the columns and their
-    sigmas {species: (n, N)} and the normal velocity (n, N) [m/s] (None: not
-    measured, a cancelled block), the pixel status counts, kept maps and the
-    velocimetry's notes."""
+    """The kept frames of one block: per surface {species:
+    :class:`_SurfaceFlux`}, the pixel status counts, kept maps and the
+    velocimetry's notes (per-frame sums only: a run's memory does not grow
+    with the pixels of its surfaces times its frames)."""
 
-    surf_cols: list
-    surf_sig: list
-    vn: Optional[list]
+    flux: list
+    n: int
     counts: Dict[str, int]
     maps: Dict[int, dict]
     velocity_info: Dict[str, object]
     cancelled: bool = False
 
-    @property
-    def n(self) -> int:
-        return len(next(iter(self.surf_cols[0].values())))
+
+@dataclasses.dataclass
+class _SurfaceFlux:
+    """One surface's and species' flux over some frames: ``rate`` [kg/s] per
+    frame (NaN without a valid column), ``pixels`` used per frame, and the
+    sum over frames and pixels of (v_n sigma_c dl)^2 [(kg/s)^2] (the
+    columns' random term)."""
+
+    rate: np.ndarray
+    pixels: np.ndarray
+    column_variance: float
+
+
+def _surface_flux(c: np.ndarray, sig: np.ndarray, vn: np.ndarray, dl: np.ndarray
+                  ) -> _SurfaceFlux:
+    """Thesis eq. 12 per frame: sum over the samples of column c [kg/m2] x
+    normal velocity vn [m/s] x length dl [m], (frames, samples) arrays."""
+    good = np.isfinite(c)
+    with np.errstate(invalid="ignore"):
+        flux = np.where(good, c, 0.0) * vn * dl[None, :]
+    rate = flux.sum(axis=1)
+    rate[~good.any(axis=1)] = np.nan
+    vsig = np.where(np.isfinite(vn), vn, 0.0) * sig * dl[None, :]
+    return _SurfaceFlux(rate, good.sum(axis=1), float(np.sum(vsig ** 2)))
 
 
 #: Frames per block (the pipeline's memory bound) when not configured: the
@@ -1278,13 +1298,16 @@ def _analyse_block(st: _RunState, blk, say) -> _BlockOut:
             counts[key] = counts.get(key, 0) + int(v)
 
     def kept(vn, cancelled=False, n_done=nb) -> _BlockOut:
+        # A cancelled block has no velocity: zero there (its rates are the
+        # columns' only; the partial result says so with complete=False).
         k0 = blk.offset
-        k1 = min(k0 + blk.n_keep, n_done)
-        k1 = max(k0, k1)
-        cut = [{sp: v[k0:k1] for sp, v in c.items()} for c in surf_cols]
-        sig = [{sp: v[k0:k1] for sp, v in c.items()} for c in surf_sig]
-        return _BlockOut(cut, sig, None if vn is None else [x[k0:k1] for x in vn], counts,
-                         {}, velocity_info, cancelled)
+        k1 = max(k0, min(k0 + blk.n_keep, n_done))
+        flux = []
+        for j, (xy, n, dl, t) in enumerate(samples):
+            v = np.zeros((k1 - k0, len(xy))) if vn is None else vn[j][k0:k1]
+            flux.append({sp: _surface_flux(surf_cols[j][sp][k0:k1], surf_sig[j][sp][k0:k1], v,
+                                           dl) for sp in cfg.species})
+        return _BlockOut(flux, k1 - k0, counts, {}, velocity_info, cancelled)
 
     time_averaged = cfg.averaging == "time-averaged"
     try:
@@ -1597,28 +1620,16 @@ def _finish(st: _RunState, outs: List["_BlockOut"], velocity_info, t_start, warn
     results = []
     for j, (s, (xy, n, dl, t)) in enumerate(zip(surfaces, st.samples)):
         per_species = {}
-        # A cancelled block has no velocity: zero there (its rates are the
-        # columns' only, the partial result says so with complete=False).
-        vn = np.concatenate([o.vn[j] if o.vn is not None else np.zeros((o.n, len(xy)))
-                             for o in outs]) if outs else np.zeros((0, len(xy)))
         for sp in cfg.species:
-            c = np.concatenate([o.surf_cols[j][sp] for o in outs]) if outs else \
-                np.zeros((0, len(xy)))
-            sig = np.concatenate([o.surf_sig[j][sp] for o in outs]) if outs else \
-                np.zeros((0, len(xy)))
-            good = np.isfinite(c)
-            with np.errstate(invalid="ignore"):
-                flux = np.where(good, c, 0.0) * vn * dl[None, :]
-            rate = flux.sum(axis=1)
-            rate[~good.any(axis=1)] = np.nan
-            pixels = good.sum(axis=1)
+            parts = [o.flux[j][sp] for o in outs]
+            rate = np.concatenate([p.rate for p in parts]) if parts else np.zeros(0)
+            pixels = np.concatenate([p.pixels for p in parts]) if parts else np.zeros(0, int)
             mean = float(np.nanmean(rate)) if np.isfinite(rate).any() else float("nan")
             finite = rate[np.isfinite(rate)]
             n_eff = _effective_samples(finite) if finite.size else 0.0
             sd = float(np.std(finite, ddof=1)) if finite.size > 1 else 0.0
             temporal = sd / math.sqrt(n_eff) if n_eff > 0 else 0.0
-            vsig = np.where(np.isfinite(vn), vn, 0.0) * sig * dl[None, :]
-            col_rand = math.sqrt(float(np.sum(vsig ** 2))) / max(1, finite.size)
+            col_rand = math.sqrt(sum(p.column_variance for p in parts)) / max(1, finite.size)
             terms = {
                 "temporal": temporal * 3600,
                 "velocity": abs(mean) * vsys * 3600,
