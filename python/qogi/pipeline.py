@@ -19,6 +19,11 @@ Stages (DESIGN.md), for each frame:
    interval combining the temporal standard error (with autocorrelation), the
    column-density uncertainty and the velocimetry's systematic uncertainty.
 
+Stages 2-4 run block by block (:mod:`qogi.timebase`: blocks of bounded
+length with a few frames of overlap, cut where ``time_s`` has a gap), each
+pair's velocity over its real interval; :mod:`qogi.checks` refuses inputs
+that cannot give a rate and lists the doubts in ``Result.warnings``.
+
 See docs/pipeline_api.md for the public contract and docs/validation.md for
 the measured accuracy.
 """
