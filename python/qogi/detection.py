@@ -125,29 +125,53 @@ def detection_limit_kg_s(nec_kg_m2: float, velocity_m_s: float, width_m: float,
     return (detection_sigma + z) * nec_kg_m2 * abs(velocity_m_s) * width_m
 
 
+def frame_widths(columns: np.ndarray, dl_m: np.ndarray) -> np.ndarray:
+    """Per frame, the plume's effective width ``sum c dl / max c`` [m] along a
+    surface (frames x samples); NaN for frames without gas."""
+    c = np.where(np.isfinite(columns), np.clip(columns, 0, None), 0.0)
+    peak = c.max(axis=1) if c.size else np.zeros(len(c))
+    out = np.full(len(c), np.nan)
+    seen = peak > 0
+    out[seen] = (c[seen] * np.asarray(dl_m)[None, :]).sum(axis=1) / peak[seen]
+    return out
+
+
 def effective_width(columns: np.ndarray, dl_m: np.ndarray) -> Optional[float]:
     """Median over frames of the plume's effective width ``sum c dl / max c``
     [m] along a surface (frames x samples; frames without gas skipped); None
     when no frame has gas."""
+    return _median_width(frame_widths(columns, dl_m))
+
+
+def _median_width(widths: np.ndarray) -> Optional[float]:
+    w = np.asarray(widths, float)
+    w = w[np.isfinite(w)]
+    return float(np.median(w)) if w.size else None
+
+
+def velocity_sums(columns: np.ndarray, vn_m_s: np.ndarray) -> tuple:
+    """What :func:`normal_velocity` needs, summable over blocks of frames:
+    ``(sum c |v_n|, sum c, per-frame median |v_n|)`` (frames x samples
+    inputs; NaN columns count as no gas)."""
     c = np.where(np.isfinite(columns), np.clip(columns, 0, None), 0.0)
-    peak = c.max(axis=1) if c.size else np.zeros(0)
-    seen = peak > 0
-    if not seen.any():
-        return None
-    w = (c[seen] * np.asarray(dl_m)[None, :]).sum(axis=1) / peak[seen]
-    return float(np.median(w))
+    v = np.abs(np.asarray(vn_m_s, float))
+    v = np.where(np.isfinite(v), v, 0.0)
+    med = np.median(v, axis=1) if v.size else np.zeros(len(v))
+    return float((c * v).sum()), float(c.sum()), med
 
 
 def normal_velocity(columns: np.ndarray, vn_m_s: np.ndarray) -> float:
     """The measured gas speed normal to a surface [m/s]: the mean of ``|v_n|``
-    weighted by the column (frames x samples; NaN columns ignored); the plain
-    median of ``|v_n|`` where no gas was seen."""
-    c = np.where(np.isfinite(columns), np.clip(columns, 0, None), 0.0)
-    v = np.abs(np.asarray(vn_m_s, float))
-    w = float(c.sum())
-    if w > 0:
-        return float((c * v).sum() / w)
-    return float(np.median(v)) if v.size else 0.0
+    weighted by the column (frames x samples; NaN columns ignored); the
+    median over frames of each frame's median ``|v_n|`` where no gas was seen."""
+    return velocity_from_sums(*velocity_sums(columns, vn_m_s))
+
+
+def velocity_from_sums(cv: float, c: float, frame_medians: np.ndarray) -> float:
+    if c > 0:
+        return float(cv / c)
+    m = np.asarray(frame_medians, float)
+    return float(np.median(m)) if m.size else 0.0
 
 
 def zeng_morris_g_h(delta_T_K, distance_m):
@@ -174,9 +198,23 @@ def surface_detection_limit(model, species: str, netd_K, background_K: float, ga
     lengths [m]; ``mean_snr`` (optional) the time-averaged contrast along the
     surface in units of its own noise (the per-frame noise / sqrt(frames)):
     where no single frame saw gas, the average over frames may still show
-    the plume, and its width then replaces the surface length."""
+    the plume, and its width then replaces the surface length. The pipeline,
+    which streams frames in blocks, passes the same quantities summed over
+    blocks to :func:`detection_limit_from_sums`."""
+    return detection_limit_from_sums(model, species, netd_K, background_K, gas_K, ambient_K,
+                                     normal_velocity(columns, vn_m_s),
+                                     frame_widths(columns, dl_m), dl_m, mean_snr, confidence)
+
+
+def detection_limit_from_sums(model, species: str, netd_K, background_K: float, gas_K: float,
+                              ambient_K: float, velocity_m_s: float, widths_m: np.ndarray,
+                              dl_m: np.ndarray, mean_snr: Optional[np.ndarray] = None,
+                              confidence: float = CONFIDENCE):
+    """:func:`surface_detection_limit` from the measured normal speed [m/s]
+    (:func:`normal_velocity`) and the per-frame effective widths [m]
+    (:func:`frame_widths`, NaN without gas)."""
     nec = noise_equivalent_column(model, species, netd_K, background_K, gas_K, ambient_K)
-    v = normal_velocity(columns, vn_m_s)
+    v = float(velocity_m_s)
     # The time-averaged contrast shows the plume's whole width (its noise is
     # sqrt(frames) lower); a frame's columns only the part above the per-pixel
     # threshold, too narrow near the limit.
@@ -185,7 +223,7 @@ def surface_detection_limit(model, species: str, netd_K, background_K: float, ga
         w = _mean_profile_width(mean_snr, dl_m, detection_sigma=DETECTION_SIGMA)
         width_from = "time-averaged contrast"
     if w is None:
-        w = effective_width(columns, dl_m)
+        w = _median_width(widths_m)
         width_from = "columns of the frames"
     if w is None:
         w, width_from = float(np.sum(dl_m)), "surface length (no gas seen: an upper bound)"

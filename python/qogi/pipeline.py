@@ -19,6 +19,11 @@ Stages (docs/pipeline_api.md), for each frame:
    interval combining the temporal standard error (with autocorrelation), the
    column-density uncertainty and the velocimetry's systematic uncertainty.
 
+Stages 2-4 run block by block (:mod:`qogi.timebase`: blocks of bounded
+length with a few frames of overlap, cut where ``time_s`` has a gap), each
+pair's velocity over its real interval; :mod:`qogi.checks` refuses inputs
+that cannot give a rate and lists the doubts in ``Result.warnings``.
+
 See docs/pipeline_api.md for the public contract and docs/validation.md for
 the measured accuracy.
 """
@@ -99,6 +104,7 @@ class QuantifyConfig:
     column_systematic: Optional[float] = None
     flux_level: bool = True
     pair_stride: Optional[int] = None
+    block_frames: Optional[int] = None
 
     def __post_init__(self):
         if isinstance(self.species, str):
@@ -159,8 +165,22 @@ class QuantifyConfig:
             raise ValueError(f"pair_stride must be an integer within [1, 100] (frames between "
                              f"the velocimetry's pairs) or None (automatic); got "
                              f"{self.pair_stride!r}")
+        if self.block_frames is not None and (isinstance(self.block_frames, bool) or
+                                              not isinstance(self.block_frames, int) or
+                                              self.block_frames < 8):
+            raise ValueError(f"block_frames must be an integer >= 8 (frames streamed per block) "
+                             f"or None (automatic); got {self.block_frames!r}")
         if self.source is not None:
-            self.source = (float(self.source[0]), float(self.source[1]))
+            from .errors import UsageError
+            try:
+                x, y = (float(v) for v in self.source)
+            except (TypeError, ValueError):
+                raise UsageError(f"source must be a pixel position (x, y); got "
+                                 f"{self.source!r}") from None
+            if not (math.isfinite(x) and math.isfinite(y)):
+                raise UsageError(f"source must be a finite pixel position (x, y); got "
+                                 f"({x}, {y})")
+            self.source = (x, y)
         if self.composition is not None:
             comp = {str(k): float(v) for k, v in dict(self.composition).items()}
             missing = [sp for sp in self.species if sp not in comp]
@@ -434,6 +454,8 @@ def quantify(recording: Union[Recording, str], surfaces: Sequence[Surface],
     if cfg.source is not None:
         surfaces = [s.oriented_away_from(cfg.source) for s in surfaces]
     _check_inputs(rec, surfaces, cfg)
+    from .checks import check_surfaces
+    check_surfaces(surfaces)
     result = _run(rec, surfaces, cfg, progress, keep_maps)
     # What opening a camera file noticed (scene facts at factory defaults,
     # assumed pressure, dropped frames) and where each scene fact came from.
@@ -617,6 +639,16 @@ class _InvertedColumns:
         self.proxy_channel = int(np.argmax(sens))
         self._set_proxy_lookup(0.0 if cfg.gas_temperature == "infer" else None)
         self.sigma_m: Dict[int, float] = {}
+
+    def start_block(self) -> None:
+        """Forgets the samples collected for the previous block (the pipeline
+        streams a run in blocks); with the temperature inferred, the proxy's
+        mixing line is measured again on the block."""
+        for name in ("_rad", "_bg", "_prof"):
+            if hasattr(self, name):
+                delattr(self, name)
+        if self.cfg.gas_temperature == "infer" and self._k_proxy != 0.0:
+            self._set_proxy_lookup(0.0)
 
     def _set_proxy_lookup(self, k_K_per_fraction: Optional[float]) -> None:
         """The contrast -> column lookups of the velocity proxy: at the assumed
@@ -1093,8 +1125,98 @@ class _InvertedColumns:
                                 progress=progress)
 
 
+@dataclasses.dataclass
+class _RunState:
+    """What every block of a run shares (set up once by :func:`_run`)."""
+
+    rec: Recording
+    cfg: QuantifyConfig
+    scene: _Scene
+    surfaces: List[Surface]
+    samples: list
+    roi: Region
+    horizontal: bool
+    source: Optional[Tuple[float, float]]
+    transport: Optional[tuple]
+    crop: Tuple[slice, slice]
+    columns: object
+    timebase: object
+    start: int
+    keep_maps: bool
+    map_every: int
+    radiance_check: object
+
+
+@dataclasses.dataclass
+class _BlockOut:
+    """The kept frames of one block: per surface {species:
+    :class:`_SurfaceFlux`}, the pixel status counts, kept maps and the
+    velocimetry's notes (per-frame sums only: a run's memory does not grow
+    with the pixels of its surfaces times its frames)."""
+
+    flux: list
+    n: int
+    counts: Dict[str, int]
+    maps: Dict[int, dict]
+    velocity_info: Dict[str, object]
+    cancelled: bool = False
+
+
+@dataclasses.dataclass
+class _SurfaceFlux:
+    """One surface's and species' flux over some frames: ``rate`` [kg/s] per
+    frame (NaN without a valid column), ``pixels`` used per frame, and the
+    sum over frames and pixels of (v_n sigma_c dl)^2 [(kg/s)^2] (the
+    columns' random term)."""
+
+    rate: np.ndarray
+    pixels: np.ndarray
+    column_variance: float
+    #: For the detection limit (qogi.detection), summable over blocks: the
+    #: column-weighted |v_n| sums, each frame's median |v_n| and effective
+    #: plume width [m] (NaN without gas).
+    cv_sum: float = 0.0
+    c_sum: float = 0.0
+    vabs_median: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
+    width_m: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
+
+
+def _surface_flux(c: np.ndarray, sig: np.ndarray, vn: np.ndarray, dl: np.ndarray
+                  ) -> _SurfaceFlux:
+    """Thesis eq. 12 per frame: sum over the samples of column c [kg/m2] x
+    normal velocity vn [m/s] x length dl [m], (frames, samples) arrays."""
+    from .detection import frame_widths, velocity_sums
+    good = np.isfinite(c)
+    with np.errstate(invalid="ignore"):
+        flux = np.where(good, c, 0.0) * vn * dl[None, :]
+    rate = flux.sum(axis=1)
+    rate[~good.any(axis=1)] = np.nan
+    vsig = np.where(np.isfinite(vn), vn, 0.0) * sig * dl[None, :]
+    cv, cs, vmed = velocity_sums(c, np.broadcast_to(vn, c.shape))
+    return _SurfaceFlux(rate, good.sum(axis=1), float(np.sum(vsig ** 2)), cv, cs, vmed,
+                        frame_widths(c, dl))
+
+
+#: Frames per block (the pipeline's memory bound) when not configured: the
+#: block's float32 fields (column field, flow, frame velocities, their
+#: normalised copy, ~8 per frame) within this many bytes.
+BLOCK_BYTES = 1 << 30
+#: Frames per block at least (the transport's flux level is a time average
+#: over the block: at 15 Hz, 30 s).
+MIN_BLOCK_FRAMES = 450
+
+
+def _block_frames(cfg: QuantifyConfig, rec: Recording) -> int:
+    if cfg.block_frames is not None:
+        return cfg.block_frames
+    per_frame = 8 * 4 * rec.height * rec.width
+    return int(max(MIN_BLOCK_FRAMES, BLOCK_BYTES // per_frame))
+
+
 def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress, keep_maps):
-    from . import velocimetry as vel
+    from . import checks
+    from .diagnostics import Diagnostics
+    from .timebase import frame_timebase, stream_blocks
 
     t_start = time.perf_counter()
 
@@ -1106,9 +1228,12 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
     start, stop = cfg.frames or (0, rec.n_frames)
     frames = range(start, stop)
     nf = len(frames)
-    if nf < 2 and cfg.velocity not in ("wind", "exit"):
-        raise ValueError("velocimetry needs at least 2 frames; give more frames or a wind speed")
+    warnings = Diagnostics()
+    checks.check_frame_count(nf, cfg.velocity, warnings)
+    tb = frame_timebase(np.asarray(rec.time_s)[start:stop], scene.frame_rate)
+    checks.report_timebase(tb, start, warnings)
     h, w = rec.height, rec.width
+    checks.check_source(cfg.source, w, h, surfaces, warnings)
     # The velocity field is computed over the whole frame: the flow solvers
     # need room around the surfaces (a crop through the plume is an open
     # boundary they cannot see across).
@@ -1121,10 +1246,11 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
         t = np.concatenate([[0.0], np.cumsum(dl)])[:-1] + 0.5 * dl
         samples.append((xy, n, dl * scene.pixel_m, t / s.length_px))
 
+    radiance_check = checks.RadianceCheck(rec.channels)
     t_bg_guess = rec.scene.background_temperature_K
     if t_bg_guess is None:
         first = rec.frame(start, quantity="radiometric_temperature")
-        t_bg_guess = float(np.median(first))
+        t_bg_guess = float(np.nanmedian(first))
     channel_sign = np.full(rec.n_channels, 1.0 if scene.gas_K >= t_bg_guess else -1.0)
     background = _Background(rec, cfg, roi, frames, channel_sign, say, t_bg_guess)
     # Up to 50 frames spread over the run: the background's static shape and,
@@ -1140,6 +1266,8 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
         sample = list(frames)[::max(1, len(frames) // 50)][:50]
         sample_frames = np.asarray([rec.frame(f, quantity="radiance") for f in sample],
                                    dtype=np.float64)
+        for f, fr in zip(sample, sample_frames):
+            radiance_check(fr[None].astype(np.float32), f)
     if not isinstance(cfg.background, Region) and cfg.background != "percentile":
         sl = roi.slices()
         background.set_static_shape(sample_frames[:, :, sl[0], sl[1]].mean(axis=0))
@@ -1152,6 +1280,8 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
         except ValueError as e:
             velocity_info["source"] = f"not detected: {e}"
     del sample_frames
+    radiance_check.bad_pixels = radiance_check.total_pixels = 0  # counted again per block
+    radiance_check.first_frame = None
 
     if cfg.column_density == "truth":
         columns = _TruthColumns(rec, cfg)
@@ -1159,24 +1289,57 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
         say(0.01, "cross-section tables and the scene's inversion table")
         columns = _InvertedColumns(rec, cfg, scene, roi, horizontal, background)
 
-    # -- per frame: column densities over the region and on the surfaces -----
-    col_fields = np.zeros((nf, roi.y1 - roi.y0, roi.x1 - roi.x0), dtype=np.float32)
     # The flow's part of the region (all of it without a source).
     transport = None
-    crop = (slice(0, col_fields.shape[1]), slice(0, col_fields.shape[2]))
+    crop = (slice(0, h), slice(0, w))
     if source is not None and cfg.velocity not in ("wind", "exit"):
-        transport = _transport_crop(surfaces, source, roi, col_fields.shape[1:])
+        transport = _transport_crop(surfaces, source, roi, (h, w))
         crop = transport[2]
-    surf_cols = [{sp: np.full((nf, len(x[0])), np.nan) for sp in cfg.species} for x in samples]
-    surf_sig = [{sp: np.zeros((nf, len(x[0]))) for sp in cfg.species} for x in samples]
-    status_counts: Dict[str, int] = {}
-    kept_maps: Dict[int, dict] = {}
+    state = _RunState(rec, cfg, scene, surfaces, samples, roi, horizontal, source, transport,
+                      crop, columns, tb, start, keep_maps, max(1, nf // 10), radiance_check)
+    # Stream the run in blocks (bounded memory), cut at gaps in time_s.
+    blocks = stream_blocks(tb.segments, _block_frames(cfg, rec), overlap=4)
+    outs: List[_BlockOut] = []
+    for i, blk in enumerate(blocks):
+        label = f" (block {i + 1}/{len(blocks)})" if len(blocks) > 1 else ""
+
+        def say_block(fraction: float, message: str, i=i, label=label) -> None:
+            say((i + fraction) / len(blocks), message + label)
+
+        try:
+            out = _analyse_block(state, blk, say_block)
+        except Cancelled:
+            out = None
+        if out is not None:
+            outs.append(out)
+        if out is None or out.cancelled:
+            radiance_check.report(warnings)
+            raise Cancelled("quantification cancelled", partial=_finish(
+                state, outs, velocity_info, t_start, warnings, complete=False)) from None
+    radiance_check.report(warnings)
+    return _finish(state, outs, velocity_info, t_start, warnings, complete=True)
+
+
+def _analyse_block(st: _RunState, blk, say) -> _BlockOut:
+    """Columns, velocity and the normal velocity on the surfaces of the
+    frames of one block (``blk``, a :class:`qogi.timebase.Block`)."""
+    rec, cfg, roi, samples, columns = st.rec, st.cfg, st.roi, st.samples, st.columns
+    a, b = blk.read
+    nb = b - a
+    first = st.start + a
+    col_fields = np.zeros((nb, roi.y1 - roi.y0, roi.x1 - roi.x0), dtype=np.float32)
+    surf_cols = [{sp: np.full((nb, len(x[0])), np.nan) for sp in cfg.species} for x in samples]
+    surf_sig = [{sp: np.zeros((nb, len(x[0]))) for sp in cfg.species} for x in samples]
+    counts: Dict[str, int] = {}
+    velocity_info: Dict[str, object] = {}
     done = 0
+    if hasattr(columns, "start_block"):
+        columns.start_block()
 
     def invert_collected(n_done: int, time_averaged: bool, alongside=None) -> None:
         if cfg.column_density == "truth" or n_done == 0:
             return
-        per_surface, counts = columns.finish(
+        per_surface, cnt = columns.finish(
             samples, time_averaged=time_averaged,
             progress=lambda fr_: say(0.35 + 0.25 * fr_, "inverting the surfaces' pixels"),
             alongside=alongside)
@@ -1184,38 +1347,51 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
             for sp in cfg.species:
                 surf_cols[j][sp][:n_done] = per_surface[j][0][sp]
                 surf_sig[j][sp][:n_done] = per_surface[j][1][sp]
-        for key, v in counts.items():
-            status_counts[key] = status_counts.get(key, 0) + int(v)
+        for key, v in cnt.items():
+            counts[key] = counts.get(key, 0) + int(v)
+
+    def kept(vn, cancelled=False, n_done=nb) -> _BlockOut:
+        # A cancelled block has no velocity: zero there (its rates are the
+        # columns' only; the partial result says so with complete=False).
+        k0 = blk.offset
+        k1 = max(k0, min(k0 + blk.n_keep, n_done))
+        flux = []
+        for j, (xy, n, dl, t) in enumerate(samples):
+            v = np.zeros((k1 - k0, len(xy))) if vn is None else vn[j][k0:k1]
+            flux.append({sp: _surface_flux(surf_cols[j][sp][k0:k1], surf_sig[j][sp][k0:k1], v,
+                                           dl) for sp in cfg.species})
+        return _BlockOut(flux, k1 - k0, counts, {}, velocity_info, cancelled)
 
     time_averaged = cfg.averaging == "time-averaged"
     try:
         if cfg.column_density == "truth":
-            for k, f in enumerate(frames):
-                fields = columns.frame(f, roi)
+            for k in range(nb):
+                fields = columns.frame(first + k, roi)
                 if time_averaged:
                     acc = fields if k == 0 else {sp: acc[sp] + fields[sp] for sp in fields}
                 col_fields[k] = sum(fields.values())
                 for j, (xy, n, dl, t) in enumerate(samples):
                     for sp in cfg.species:
                         surf_cols[j][sp][k] = _bilinear(fields[sp], xy - [roi.x0, roi.y0])
-                status_counts["converged"] = status_counts.get("converged", 0) + \
+                counts["converged"] = counts.get("converged", 0) + \
                     sum(len(x[0]) for x in samples)
                 done = k + 1
-                say(0.05 + 0.3 * done / nf, f"column field, frame {done}/{nf}")
+                say(0.05 + 0.3 * done / nb, f"column field, frame {done}/{nb}")
         else:
-            # Blocks of frames: one read and one vectorised pass per block (at
-            # least ten blocks, for the progress and a cancel's partial result).
-            block = int(np.clip(nf // 10, 1, 25))
-            for k in range(0, nf, block):
-                b = min(block, nf - k)
-                fr = rec.frames(start + k, start + k + b, quantity="radiance")
-                columns.collect(fr, surfaces, samples, out=col_fields[k:k + b])
-                done = k + b
-                say(0.05 + 0.3 * done / nf, f"background and column field, frame {done}/{nf}")
+            # Sub-blocks of frames: one read and one vectorised pass each (at
+            # least ten, for the progress and a cancel's partial result).
+            sub = int(np.clip(nb // 10, 1, 25))
+            for k in range(0, nb, sub):
+                m = min(sub, nb - k)
+                fr = rec.frames(first + k, first + k + m, quantity="radiance")
+                st.radiance_check(fr, first + k)
+                columns.collect(fr, st.surfaces, samples, out=col_fields[k:k + m])
+                done = k + m
+                say(0.05 + 0.3 * done / nb, f"background and column field, frame {done}/{nb}")
         if time_averaged and cfg.column_density == "truth":
             for j, (xy, n, dl, t) in enumerate(samples):
                 for sp in cfg.species:
-                    surf_cols[j][sp][:] = _bilinear(acc[sp] / nf, xy - [roi.x0, roi.y0])
+                    surf_cols[j][sp][:] = _bilinear(acc[sp] / nb, xy - [roi.x0, roi.y0])
         # The proxy field over the whole region (the flow runs on its part,
         # crop; the flux level's transport balance on all of it) is turned
         # into a column alongside the surfaces' final solve.
@@ -1223,115 +1399,170 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
         invert_collected(done, time_averaged, alongside=lambda: columns.contrast_to_column(part))
         if cfg.column_density != "truth":
             velocity_info["proxy_anchor"] = _anchor_proxy(
-                part, samples, surf_cols, cfg.species[0], horizontal, roi)
+                part, samples, surf_cols, cfg.species[0], st.horizontal, roi)
     except Cancelled:
         try:
             invert_collected(done, time_averaged)
         except Cancelled:
             pass
-        raise Cancelled("quantification cancelled", partial=_finish(
-            rec, surfaces, cfg, scene, samples, frames, done, col_fields, surf_cols, surf_sig,
-            None, status_counts, kept_maps, t_start, complete=False)) from None
+        return kept(None, cancelled=True, n_done=done)
 
-    # -- velocity --------------------------------------------------------------
-    flows = None
-    if cfg.velocity not in ("wind", "exit"):
-        # Every frame's field (also for the time-averaged order: the gas
-        # moves, the averaged field does not).
-        velocity_frames = col_fields[:done]
-        source_mask = None
-        if source is not None:
-            sx, sy = source[0] - roi.x0, source[1] - roi.y0
-            yy, xx = np.mgrid[0:velocity_frames.shape[1], 0:velocity_frames.shape[2]]
-            rad = max(3.0, 0.5 * (rec.scene.distance_m and 0) + 6.0)
-            source_mask = ((xx - sx) ** 2 + (yy - sy) ** 2) <= rad ** 2
-            if not source_mask.any():
-                source_mask = None
-        # With the fluid method and a known source, the flux level comes from
-        # the transport of the line-integrated column (time of flight of the
-        # plume's structures: mass conservation alone cannot fix it in a
-        # steady plume; docs/velocimetry.md).
-        flux_note = "off: " + ("a method other than fluid" if cfg.velocity != "fluid" else
-                               "flux_level=False" if not cfg.flux_level else
-                               "no source given or detected" if source is None else
-                               "fewer than 3 frames" if done < 3 else "")
-        if flux_note == "off: ":
-            axis, index, _, region_index = transport
-        field = velocity_frames[:, crop[0], crop[1]]
-        mask = source_mask[crop[0], crop[1]] if source_mask is not None else None
-        # The flows' scale: the 99.5th percentile of (up to) 100 frames spread
-        # over the run.
-        scale = np.percentile(field[::max(1, field.shape[0] // 100)], 99.5)
-        norm = np.ascontiguousarray(field / scale if scale > 0 else field, dtype=np.float32)
-        # The flux level's transport along the whole region (the plume's
-        # structures beyond the flow's part constrain it too;
-        # docs/velocimetry.md), on a worker thread while the flow runs.
-        transport_result: list = []
-        job = None
-        if flux_note == "off: ":
-            def measure() -> None:
-                try:
-                    transport_result.append(vel.transport_flux(velocity_frames, axis,
-                                                               region_index))
-                except BaseException as e:  # reported as the level's note below
-                    transport_result.append(e)
+    intervals = st.timebase.pair_intervals[a:b - 1]
+    flows = _block_velocity(st, col_fields, intervals, velocity_info, say)
+    vn = [_normal_velocity(st, flows, xy, n, nb) for (xy, n, dl, t) in samples]
+    out = kept(vn)
+    if st.keep_maps and flows is not None:
+        # Maps (every tenth of the run) keyed by the recording's frame index,
+        # the velocity back in the whole region.
+        fu, fv, (cx, cy) = flows
+        for k in range(blk.offset, blk.offset + blk.n_keep):
+            if (a + k) % st.map_every:
+                continue
+            uv = tuple(np.zeros(col_fields.shape[1:], np.float32) for _ in range(2))
+            for full, p in zip(uv, (fu[k], fv[k])):
+                full[cy:cy + p.shape[0], cx:cx + p.shape[1]] = p
+            out.maps[first + k] = {"column_density_kg_m2": {cfg.species[0]: col_fields[k].copy()},
+                                   "velocity_px_per_frame": uv, "origin": (roi.x0, roi.y0)}
+    return out
 
-            job = threading.Thread(target=measure, name="qogi-transport", daemon=True)
-            job.start()
-        # Pairs `stride` frames apart where the plume moves little per frame
-        # (at 100 Hz a lab plume crosses ~1 px per frame): ~3 px per pair, at
-        # most every 4th frame, with the transport's flux level (which sets
-        # the level; the flow gives the pattern: the same rates to 0.1 % on
-        # the lab releases at strides 1-4, docs/velocimetry.md).
-        stride = cfg.pair_stride
-        if stride is None:
-            stride = 1
-            if flux_note == "off: ":
-                d = vel.typical_displacement(field, axis)
-                if np.isfinite(d) and d > 0:
-                    stride = int(np.clip(round(3.0 / d), 1, 4))
-        stride = max(1, min(int(stride), (norm.shape[0] - 1) // 2))
-        velocity_info["pair_stride"] = stride
-        fvel = None
-        try:
-            seq = vel.optical_flow_sequence(
-                norm[::stride], method=cfg.velocity, source_mask=mask, warm_start=True,
-                workers=0, progress=lambda fr_: say(0.6 + 0.3 * fr_, "velocimetry"))
-            if stride > 1:
-                fvel = vel.interpolate_frame_velocity(*vel.frame_velocity(seq), stride,
-                                                      norm.shape[0])
-        except KeyboardInterrupt:
-            raise Cancelled("quantification cancelled", partial=None) from None
-        finally:
-            if job is not None:
-                job.join()
-        uv = None
-        if flux_note == "off: ":
+
+def _normal_velocity(st: _RunState, flows, xy: np.ndarray, n: np.ndarray, nb: int) -> np.ndarray:
+    """The velocity along each sample's normal [m/s], (frames, samples):
+    the given speed, or the flow's (px per nominal frame interval) sampled
+    at the surface (zero outside the flow's part; NaN without a flow)."""
+    cfg, roi = st.cfg, st.roi
+    if cfg.velocity == "wind":
+        return np.full((nb, len(xy)), float(cfg.wind_speed_m_s))
+    if cfg.velocity == "exit":
+        return np.full((nb, len(xy)), float(cfg.exit_velocity_m_s))
+    if flows is None:
+        return np.full((nb, len(xy)), np.nan)
+    fu, fv, (cx, cy) = flows
+    p = xy - [roi.x0 + cx, roi.y0 + cy]
+    h, w = fu.shape[1:]
+    inside = (p[:, 0] >= 0) & (p[:, 0] <= w - 1) & (p[:, 1] >= 0) & (p[:, 1] <= h - 1)
+    u = _bilinear(fu, p)
+    v = _bilinear(fv, p)
+    return np.where(inside, (u * n[:, 0] + v * n[:, 1]) * st.scene.m_s_per_px_frame, 0.0)
+
+
+def _pair_durations(intervals: np.ndarray, stride: int, n_frames: int) -> np.ndarray:
+    """Duration [nominal frame intervals] of the pairs of frames 0, stride,
+    2 stride, ... of a block whose consecutive frames are ``intervals`` apart."""
+    t = np.concatenate([[0.0], np.cumsum(intervals)])[:n_frames]
+    return np.diff(t[::stride])
+
+
+def _block_velocity(st: _RunState, col_fields: np.ndarray, intervals: np.ndarray,
+                    velocity_info: Dict[str, object], say):
+    """The velocity at every frame of a block [px per nominal frame
+    interval] over the flow's part of the region: (u, v, (x0, y0)), or None
+    (given speeds; fewer than 2 frames)."""
+    from . import velocimetry as vel
+
+    cfg, roi, crop, source = st.cfg, st.roi, st.crop, st.source
+    done = col_fields.shape[0]
+    if cfg.velocity in ("wind", "exit") or done < 2:
+        return None
+    # Every frame's field (also for the time-averaged order: the gas
+    # moves, the averaged field does not).
+    velocity_frames = col_fields
+    source_mask = None
+    if source is not None:
+        sx, sy = source[0] - roi.x0, source[1] - roi.y0
+        yy, xx = np.mgrid[0:velocity_frames.shape[1], 0:velocity_frames.shape[2]]
+        rad = 6.0
+        source_mask = ((xx - sx) ** 2 + (yy - sy) ** 2) <= rad ** 2
+        if not source_mask.any():
+            source_mask = None
+    # With the fluid method and a known source, the flux level comes from
+    # the transport of the line-integrated column (time of flight of the
+    # plume's structures: mass conservation alone cannot fix it in a
+    # steady plume; docs/velocimetry.md).
+    flux_note = "off: " + ("a method other than fluid" if cfg.velocity != "fluid" else
+                           "flux_level=False" if not cfg.flux_level else
+                           "no source given or detected" if source is None else
+                           "fewer than 3 frames" if done < 3 else "")
+    if flux_note == "off: ":
+        axis, index, _, region_index = st.transport
+    field = velocity_frames[:, crop[0], crop[1]]
+    mask = source_mask[crop[0], crop[1]] if source_mask is not None else None
+    # The flows' scale: the 99.5th percentile of (up to) 100 frames spread
+    # over the block.
+    scale = np.percentile(field[::max(1, field.shape[0] // 100)], 99.5)
+    norm = np.ascontiguousarray(field / scale if scale > 0 else field, dtype=np.float32)
+    # The flux level's transport along the whole region (the plume's
+    # structures beyond the flow's part constrain it too;
+    # docs/velocimetry.md), on a worker thread while the flow runs.
+    transport_result: list = []
+    job = None
+    if flux_note == "off: ":
+        def measure() -> None:
             try:
-                tf = transport_result[0]
-                if isinstance(tf, BaseException):
-                    raise tf
-                # In the flow field's units and lines.
-                lines = crop[0] if axis in ("up", "down") else crop[1]
-                tf = tf.lines(lines, scale=1.0 / scale if scale > 0 else 1.0)
-                u, v, level = vel.calibrate_flux_level(seq, norm, axis, index, transport=tf,
-                                                       frame_velocities=fvel)
-                uv = (u, v)
-                flux_note = (f"on: transport of the line-integrated column, axis {axis}"
-                             if np.isfinite(level).any() else
-                             f"on: transport velocity of each line along axis {axis} (the "
-                             f"flow did not follow the transport, e.g. wind faster than it "
-                             f"can track)")
-            except ValueError as e:
-                flux_note = f"off: {e}"
-        if uv is None:
-            uv = fvel if fvel is not None else vel.frame_velocity(seq)
-        # The analysed part and its origin in the region (no velocity outside it).
-        flows = (uv[0], uv[1], (crop[1].start, crop[0].start))
-        velocity_info["flux_level"] = flux_note
-    return _finish(rec, surfaces, cfg, scene, samples, frames, done, col_fields, surf_cols,
-                   surf_sig, flows, status_counts, kept_maps, t_start, complete=True,
-                   keep_maps=keep_maps, roi=roi, columns=columns, velocity_info=velocity_info)
+                transport_result.append(vel.transport_flux(velocity_frames, axis, region_index,
+                                                           intervals=intervals))
+            except BaseException as e:  # reported as the level's note below
+                transport_result.append(e)
+
+        job = threading.Thread(target=measure, name="qogi-transport", daemon=True)
+        job.start()
+    # Pairs `stride` frames apart where the plume moves little per frame
+    # (at 100 Hz a lab plume crosses ~1 px per frame): ~3 px per pair, at
+    # most every 4th frame, with the transport's flux level (which sets
+    # the level; the flow gives the pattern: the same rates to 0.1 % on
+    # the lab releases at strides 1-4, docs/velocimetry.md).
+    stride = cfg.pair_stride
+    if stride is None:
+        stride = 1
+        if flux_note == "off: ":
+            d = vel.typical_displacement(field, axis)
+            if np.isfinite(d) and d > 0:
+                stride = int(np.clip(round(3.0 / d), 1, 4))
+    stride = max(1, min(int(stride), (norm.shape[0] - 1) // 2))
+    velocity_info["pair_stride"] = stride
+    fvel = None
+    try:
+        seq = vel.optical_flow_sequence(
+            norm[::stride], method=cfg.velocity, source_mask=mask, warm_start=True,
+            workers=0, progress=lambda fr_: say(0.6 + 0.3 * fr_, "velocimetry"))
+        # Each pair's displacement over its real duration (time_s), in px per
+        # `stride` nominal frame intervals.
+        per = (stride / _pair_durations(intervals, stride, done)).astype(np.float32)
+        if not np.all(per == 1.0):
+            seq.u *= per[:, None, None]
+            seq.v *= per[:, None, None]
+        if stride > 1:
+            fvel = vel.interpolate_frame_velocity(*vel.frame_velocity(seq), stride,
+                                                  norm.shape[0])
+    except KeyboardInterrupt:
+        raise Cancelled("quantification cancelled", partial=None) from None
+    finally:
+        if job is not None:
+            job.join()
+    uv = None
+    if flux_note == "off: ":
+        try:
+            tf = transport_result[0]
+            if isinstance(tf, BaseException):
+                raise tf
+            # In the flow field's units and lines.
+            lines = crop[0] if axis in ("up", "down") else crop[1]
+            tf = tf.lines(lines, scale=1.0 / scale if scale > 0 else 1.0)
+            u, v, level = vel.calibrate_flux_level(seq, norm, axis, index, transport=tf,
+                                                   frame_velocities=fvel)
+            uv = (u, v)
+            flux_note = (f"on: transport of the line-integrated column, axis {axis}"
+                         if np.isfinite(level).any() else
+                         f"on: transport velocity of each line along axis {axis} (the "
+                         f"flow did not follow the transport, e.g. wind faster than it "
+                         f"can track)")
+        except ValueError as e:
+            flux_note = f"off: {e}"
+    if uv is None:
+        uv = fvel if fvel is not None else vel.frame_velocity(seq)
+    velocity_info["flux_level"] = flux_note
+    # The analysed part and its origin in the region (no velocity outside it).
+    return (uv[0], uv[1], (crop[1].start, crop[0].start))
 
 
 def _transport_crop(surfaces, source, roi: Region, shape: Tuple[int, int]):
@@ -1395,14 +1626,38 @@ def _anchor_proxy(fields: np.ndarray, samples, surf_cols, species: str, horizont
     return {f"{p:.0f}": float(r) for p, r in zip(pos, ratio)}
 
 
-def _finish(rec, surfaces, cfg, scene, samples, frames, done, col_fields, surf_cols, surf_sig,
-            flows, status_counts, kept_maps, t_start, complete, keep_maps=False, roi=None,
-            columns=None, velocity_info=None):
+def _finish(st: _RunState, outs: List["_BlockOut"], velocity_info, t_start, warnings,
+            complete: bool) -> Result:
+    """The Result of the blocks analysed (in order): each surface's and
+    species' per-frame rates, their mean and 90 % interval."""
     from . import _engine
+    from . import checks
 
-    times = np.asarray(rec.time_s)[frames.start:frames.start + done]
+    rec, cfg, scene, surfaces, columns = st.rec, st.cfg, st.scene, st.surfaces, st.columns
+    done = sum(o.n for o in outs)
+    times = st.timebase.time_s[:done]
+    status_counts: Dict[str, int] = {}
+    kept_maps: Dict[int, dict] = {}
+    for o in outs:
+        for key, v in o.counts.items():
+            status_counts[key] = status_counts.get(key, 0) + int(v)
+        kept_maps.update(o.maps)
+    if outs:
+        # The notes of the longest block (the first of equals).
+        longest = outs[int(np.argmax([o.n for o in outs]))]
+        velocity_info = {**velocity_info, **longest.velocity_info}
+        if len(outs) > 1:
+            velocity_info["blocks"] = len(outs)
+            notes = sorted({str(o.velocity_info.get("flux_level")) for o in outs
+                            if "flux_level" in o.velocity_info})
+            if len(notes) > 1:
+                velocity_info["flux_level"] = "; ".join(notes)
     vsys = cfg.velocity_systematic if cfg.velocity_systematic is not None else \
         VELOCITY_SYSTEMATIC[cfg.velocity]
+    # Too short a run for the velocimetry: its level is not measured.
+    few = cfg.velocity not in ("wind", "exit") and done < checks.MIN_FRAMES_RATE
+    if few:
+        vsys = max(vsys, 1.0)
     # The inferred temperature's mixing-line slope and its effect on the columns.
     mixing = {}
     col_sys = cfg.column_systematic
@@ -1415,49 +1670,19 @@ def _finish(rec, surfaces, cfg, scene, samples, frames, done, col_fields, surf_c
                   "mixing_line_pixels": columns.mixing_pixels,
                   "mixing_line_column_effect": columns.k_relative_effect}
         col_sys = math.hypot(col_sys, columns.k_relative_effect)
-    if flows is not None and keep_maps and roi is not None:
-        # Maps (every tenth of the run) are keyed by the recording's frame
-        # index, the velocity back in the whole region.
-        fu, fv, (cx, cy) = flows
-        for k in range(0, done, max(1, done // 10)):
-            if frames.start + k in kept_maps:
-                continue
-            uv = tuple(np.zeros(col_fields.shape[1:], np.float32) for _ in range(2))
-            for full, part in zip(uv, (fu[k], fv[k])):
-                full[cy:cy + part.shape[0], cx:cx + part.shape[1]] = part
-            kept_maps[frames.start + k] = {
-                "column_density_kg_m2": {cfg.species[0]: col_fields[k]},
-                "velocity_px_per_frame": uv, "origin": (roi.x0, roi.y0)}
     results = []
-    for j, (s, (xy, n, dl, t)) in enumerate(zip(surfaces, samples)):
+    for j, (s, (xy, n, dl, t)) in enumerate(zip(surfaces, st.samples)):
         per_species = {}
-        vn = np.zeros((done, len(xy)))
-        if cfg.velocity == "wind":
-            vn[:] = cfg.wind_speed_m_s
-        elif cfg.velocity == "exit":
-            vn[:] = cfg.exit_velocity_m_s
-        elif flows is not None:
-            fu, fv, (cx, cy) = flows
-            p = xy - [roi.x0 + cx, roi.y0 + cy]
-            h, w = fu.shape[1:]
-            inside = (p[:, 0] >= 0) & (p[:, 0] <= w - 1) & (p[:, 1] >= 0) & (p[:, 1] <= h - 1)
-            u = _bilinear(fu[:done], p)
-            v = _bilinear(fv[:done], p)
-            vn = np.where(inside, (u * n[:, 0] + v * n[:, 1]) * scene.m_s_per_px_frame, 0.0)
         for sp in cfg.species:
-            c = surf_cols[j][sp][:done]
-            sig = surf_sig[j][sp][:done]
-            good = np.isfinite(c)
-            flux = np.where(good, c, 0.0) * vn * dl[None, :]
-            rate = flux.sum(axis=1)
-            rate[~good.any(axis=1)] = np.nan
-            pixels = good.sum(axis=1)
+            parts = [o.flux[j][sp] for o in outs]
+            rate = np.concatenate([p.rate for p in parts]) if parts else np.zeros(0)
+            pixels = np.concatenate([p.pixels for p in parts]) if parts else np.zeros(0, int)
             mean = float(np.nanmean(rate)) if np.isfinite(rate).any() else float("nan")
             finite = rate[np.isfinite(rate)]
             n_eff = _effective_samples(finite) if finite.size else 0.0
             sd = float(np.std(finite, ddof=1)) if finite.size > 1 else 0.0
             temporal = sd / math.sqrt(n_eff) if n_eff > 0 else 0.0
-            col_rand = math.sqrt(float(np.sum((vn * sig * dl[None, :]) ** 2))) / max(1, finite.size)
+            col_rand = math.sqrt(sum(p.column_variance for p in parts)) / max(1, finite.size)
             terms = {
                 "temporal": temporal * 3600,
                 "velocity": abs(mean) * vsys * 3600,
@@ -1470,10 +1695,14 @@ def _finish(rec, surfaces, cfg, scene, samples, frames, done, col_fields, surf_c
             dominant = max(terms, key=terms.get)
             limit, det = None, None
             if hasattr(columns, "model"):  # the inversion's forward model (not truth columns)
-                from .detection import surface_detection_limit
-                limit, det = surface_detection_limit(
+                from .detection import velocity_from_sums, detection_limit_from_sums
+                v_n = velocity_from_sums(sum(p.cv_sum for p in parts),
+                                          sum(p.c_sum for p in parts),
+                                          np.concatenate([p.vabs_median for p in parts]))
+                limit, det = detection_limit_from_sums(
                     columns.model, sp, rec.camera.netd_K or 0.02, columns._bg_t, scene.gas_K,
-                    scene.ambient_K, c, vn, dl, mean_snr=columns.mean_contrast_snr(j))
+                    scene.ambient_K, v_n, np.concatenate([p.width_m for p in parts]), dl,
+                    mean_snr=columns.mean_contrast_snr(j))
             truth = None
             if rec.truth is not None and sp in rec.truth.emission_rate_kg_s:
                 truth = rec.truth.emission_rate_kg_s[sp] * 3600
@@ -1487,5 +1716,7 @@ def _finish(rec, surfaces, cfg, scene, samples, frames, done, col_fields, surf_c
             "frame_rate_hz": float(scene.frame_rate), "pixel_m": float(scene.pixel_m),
             "gas_temperature_K": float(scene.gas_K), "velocity_systematic": float(vsys),
             "column_systematic": float(col_sys), **mixing, **(velocity_info or {})}
+    if not checks.check_result(results, warnings):
+        complete = False
     return Result(results, config=cfg, recording_path=str(rec.path), pixel_status=status_counts,
-                  maps=kept_maps, info=info, complete=complete)
+                  maps=kept_maps, info=info, complete=complete, warnings=warnings)

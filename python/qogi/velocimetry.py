@@ -762,42 +762,56 @@ def _coarse_displacements(I: np.ndarray, K: np.ndarray, k_end: int,
     return np.maximum(d0, 0.5)
 
 
+def _shifted(A: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """A_t(y_t,k) for the first T - 1 rows t of A (T, H + 1), linear between
+    lines; y (T - 1, n)."""
+    k0 = np.floor(y).astype(int)
+    f = y - k0
+    a = A[:-1]
+    return (np.take_along_axis(a, k0, axis=1) * (1.0 - f)
+            + np.take_along_axis(a, k0 + 1, axis=1) * f)
+
+
 def _solve_levels(C: np.ndarray, I: np.ndarray, K: np.ndarray, k_end: int,
-                  iterations: int = 100):
-    """Gauss-Newton for the steady level displacements d_k and the outflows
-    O_t in ``C_t(k + d_k) = C_{t+1}(k) + O_t``, each O_t fitted to the
-    current levels (variable projection: the reduced system is the Schur
-    complement of the O block), from the correlation of the line sums
-    (:func:`_coarse_displacements`)."""
+                  iterations: int = 100, r: Optional[np.ndarray] = None):
+    """Gauss-Newton for the steady level displacements d_k (per nominal frame
+    interval) and the outflows O_t in ``C_t(k + r_t d_k) = C_{t+1}(k) + O_t``
+    (``r_t``: pair t's duration in nominal intervals, default 1), each O_t
+    fitted to the current levels (variable projection: the reduced system is
+    the Schur complement of the O block), from the correlation of the line
+    sums (:func:`_coarse_displacements`)."""
     H = I.shape[1]
     n = len(K)
+    r = np.ones(I.shape[0] - 1) if r is None else np.asarray(r, float)
+    rc = r[:, None]
     scale = max(float(np.abs(I).max()), 1e-300)
     Cs, Is = C / scale, I / scale
     target = Cs[1:, K]
-    d = _coarse_displacements(I, K, k_end)
+    Ip = np.pad(Is, ((0, 0), (0, 1)), mode="edge")
+    d = _coarse_displacements(I, K, k_end) / float(np.median(r))
     ok = np.ones(n, bool)
     for _ in range(iterations):
-        ok = (K + d) <= k_end
-        y = np.clip(K + d, 0.0, H - 1e-9)
-        k0 = np.floor(y).astype(int)
-        f = y - k0
-        cb = Cs[:-1, k0] * (1.0 - f) + Cs[:-1, k0 + 1] * f
-        g = Is[:-1, k0] * ok                      # d C_t(y) / dy, (T - 1, n)
+        ok = (K + d * r.max()) <= k_end
+        y = np.clip(K + d * rc, 0.0, H - 1e-9)
+        cb = _shifted(Cs, y)
+        g = _shifted(Ip, np.floor(y)) * rc * ok
+        # d C_t(y) / dd = I_t(floor y) r_t, (T - 1, n)
         e = (cb - target) * ok
         cnt = max(int(ok.sum()), 1)
-        r = e - (e.sum(1) / cnt)[:, None] * ok    # after the best outflows O_t
+        res = e - (e.sum(1) / cnt)[:, None] * ok  # after the best outflows O_t
         A = np.diag((g * g).sum(0)) - (g.T @ g) / cnt
         A[np.diag_indices(n)] += 1e-9 * max(float(np.diag(A).max()), 1e-300) + 1e-12
-        step = np.clip(np.linalg.solve(A, -(g * r).sum(0)), -4.0, 4.0)
+        step = np.clip(np.linalg.solve(A, -(g * res).sum(0)), -4.0, 4.0)
         d = np.maximum(d + step, 0.0)
         if np.abs(step).max() < 1e-4:
             break
-    ok = (K + d) <= k_end
+    ok = (K + d * r.max()) <= k_end
     return d, ok
 
 
 def transport_flux(frames: ArrayLike, axis: str = "up",
-                   source_index: Optional[float] = None) -> TransportFlux:
+                   source_index: Optional[float] = None,
+                   intervals: Optional[ArrayLike] = None) -> TransportFlux:
     """Time-averaged flux of a plume along an image axis, from the transport
     of its line-integrated column (time of flight of its structures).
 
@@ -834,6 +848,12 @@ def transport_flux(frames: ArrayLike, axis: str = "up",
         Row ("up", "down") or column of the source's exit: lines beyond it
         (inside the stack) are the source. None: the gas enters across the
         near edge of the frame.
+    intervals : array (T - 1,), optional
+        The interval between consecutive frames in units of the nominal frame
+        interval (from their time stamps: 2 where a frame was dropped);
+        default all 1. Displacements, velocities and fluxes are then per
+        nominal interval, and the level's displacement in pair t is
+        ``intervals[t] x d_k``.
 
     Returns
     -------
@@ -847,6 +867,10 @@ def transport_flux(frames: ArrayLike, axis: str = "up",
         raise ValueError("frames must be finite (replace NaN pixels by 0 or an estimate)")
     turned = _along_axis(stack, axis)
     T, H, _ = turned.shape
+    r = np.ones(T - 1) if intervals is None else np.asarray(intervals, dtype=float)
+    if r.shape != (T - 1,) or not np.all(np.isfinite(r) & (r > 0)):
+        raise ValueError(f"intervals must be {T - 1} positive frame intervals; got shape "
+                         f"{r.shape}")
     k_end = _axis_index(source_index, axis, H)
     I = turned.sum(axis=2, dtype=np.float64)                  # (T, H)
     lines = I[:, :k_end]
@@ -862,12 +886,10 @@ def transport_flux(frames: ArrayLike, axis: str = "up",
     disp_b = np.full(H + 1, np.nan)
     if len(gas):
         K = np.arange(gas[0], k_end + 1)
-        d, ok = _solve_levels(C, I, K, k_end)
-        y = np.clip(K + d, 0.0, H - 1e-9)
-        k0 = np.floor(y).astype(int)
-        f = y - k0
-        cb = C[:-1, k0] * (1.0 - f) + C[:-1, k0 + 1] * f
-        fl = (cb - C[:-1, K]).mean(axis=0)
+        d, ok = _solve_levels(C, I, K, k_end, r=r)
+        y = np.clip(K + d * r[:, None], 0.0, H - 1e-9)
+        cb = _shifted(C, y)
+        fl = (cb - C[:-1, K]).mean(axis=0) / r.mean()
         flux_b[K[ok]] = fl[ok]
         disp_b[K[ok]] = d[ok]
         if ok.any() and not ok.all():
@@ -876,7 +898,7 @@ def transport_flux(frames: ArrayLike, axis: str = "up",
             jr = np.nonzero(ok)[0].max()
             for j in np.nonzero(~ok)[0]:
                 m = C[:, K[j]] - C[:, K[jr]]
-                flux_b[K[j]] = fl[jr] + (m[-1] - m[0]) / (T - 1)
+                flux_b[K[j]] = fl[jr] + (m[-1] - m[0]) / r.sum()
     flux = 0.5 * (flux_b[:-1] + flux_b[1:])
     flux[k_end:] = np.nan
     disp = 0.5 * (disp_b[:-1] + disp_b[1:])

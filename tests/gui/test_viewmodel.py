@@ -742,16 +742,17 @@ def test_open_in_the_background(vm, rec_path, tmp_path):
 
 def test_step_between_frames_with_maps(opened, api):
     opened.add_surface([(4, 12), (28, 12)])
-    opened.update_settings(frame_start="2", frame_stop="6")
+    # Five frames: the fewest the velocimetry gives a rate from (qogi.checks).
+    opened.update_settings(frame_start="2", frame_stop="7")
     opened.start_run()
     run_to_end(opened)
-    assert opened.map_frames() == [2, 3, 4, 5]
+    assert opened.map_frames() == [2, 3, 4, 5, 6]
     opened.seek(0)
     assert opened.render_overlay() is None  # frame 0 was not analysed
     assert opened.seek_map_frame(1) and opened.frame == 2
-    opened.seek(5)
+    opened.seek(6)
     assert opened.seek_map_frame(1) and opened.frame == 2  # wraps around
-    assert opened.seek_map_frame(-1) and opened.frame == 5
+    assert opened.seek_map_frame(-1) and opened.frame == 6
     assert opened.render_overlay() is not None
 
 

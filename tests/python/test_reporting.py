@@ -202,6 +202,7 @@ def test_pdf_report_pages_render_and_say_what_matters(lab, tmp_path):
 
     path, res = lab
     res.warnings.add("test-warning", "a warning the report must show", surface="S1")
+    n_warnings = len(res.warnings)  # the pipeline's own (a short record) and this one
     try:
         pdf = tmp_path / "leak.pdf"
         write_report(res, pdf)
@@ -214,7 +215,7 @@ def test_pdf_report_pages_render_and_say_what_matters(lab, tmp_path):
     r = res.total("CH4")
     for needle in ("qogi emission-rate report", "lab.h5", sha, f"qogi {qogi.__version__}",
                    "Scene", "Emission rate", "Surfaces and species", "Uncertainty budget",
-                   "velocity", "column density", "temporal", "Warnings (1)", "test-warning",
+                   "velocity", "column density", "temporal", f"Warnings ({n_warnings})", "test-warning",
                    "Settings", "gas_temperature = ambient", "source = (159.5, 227.0)",
                    f"{r.mean_kg_h:.4g}", "Detection limit", "noise-equivalent", "20 C (68 F)"):
         assert needle in text, needle
