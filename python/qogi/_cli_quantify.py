@@ -6,6 +6,8 @@ import argparse
 import os
 import sys
 
+from ._cli_args import frame_range, nonnegative_int, pixel_xy, positive_float, seed
+
 
 def _config_from_args(args):
     from .pipeline import QuantifyConfig
@@ -24,11 +26,8 @@ def _config_from_args(args):
     background = args.background
     if background not in ("beside-surface", "percentile"):
         background = Region.parse(background)
-    frames = None
-    if args.frames:
-        a, b = args.frames.split(":")
-        frames = (int(a), int(b))
-    source = tuple(float(v) for v in args.source.split(",")) if args.source else None
+    frames = args.frames
+    source = args.source
     return QuantifyConfig(species=args.species or ["CH4"], gas_temperature=gas, velocity=velocity,
                           wind_speed_m_s=args.wind_speed, exit_velocity_m_s=args.exit_velocity,
                           averaging=args.averaging, background=background, source=source,
@@ -36,12 +35,33 @@ def _config_from_args(args):
                           num_threads=args.threads)
 
 
+def _outputs(args: argparse.Namespace) -> dict:
+    """The files ``qogi quantify`` writes, by option (the maps plot beside --plot)."""
+    outs = {"--json": args.json, "--csv": args.csv, "--plot": args.plot}
+    if args.plot:
+        root, ext = os.path.splitext(args.plot)
+        outs["--plot (maps)"] = f"{root}_maps{ext or '.png'}"
+    return outs
+
+
+def _untrustworthy(result) -> list:
+    """``surface/species`` of every rate whose mean is not a finite number."""
+    import math
+    return [f"{s.surface.name}/{sp}" for s in result.surfaces for sp, r in s.species.items()
+            if not math.isfinite(r.mean_kg_h)]
+
+
 def cmd_quantify(args: argparse.Namespace) -> int:
     from ._progress import ProgressBar
+    from .errors import EXIT_DATA, EXIT_INTERRUPTED, DataError, UsageError
+    from .files import check_outputs
     from .pipeline import Cancelled, quantify
     from .recording import open_recording
     from .surfaces import Surface
 
+    if not os.path.isfile(args.recording):
+        raise UsageError(f"{args.recording}: no such file; check the recording's path")
+    check_outputs(_outputs(args), inputs=[args.recording])
     try:
         cfg = _config_from_args(args)
         rec = open_recording(args.recording)
@@ -57,26 +77,30 @@ def cmd_quantify(args: argparse.Namespace) -> int:
                     print(f"qogi quantify: source detected at x={source[0]:.1f}, "
                           f"y={source[1]:.1f} (give --source X,Y to set it)", file=sys.stderr)
         if not surfaces:
-            print("qogi quantify: give at least one --surface x0,y0,x1,y1 (or --auto-surfaces)",
-                  file=sys.stderr)
-            return 2
-    except (ValueError, OSError) as e:
-        print(f"qogi quantify: error: {e}", file=sys.stderr)
-        return 2
+            raise UsageError("give at least one --surface x0,y0,x1,y1 (or --auto-surfaces)")
+    except (UsageError, DataError):
+        raise
+    except OSError as e:
+        raise UsageError(str(e)) from None
+    except ValueError as e:  # the recording's own checks (RecordingError) and the surfaces'
+        raise UsageError(str(e)) from None
     bar = ProgressBar("quantify ", enabled=not args.quiet)
     try:
         result = quantify(rec, surfaces, cfg, progress=bar, keep_maps=bool(args.plot))
-    except Cancelled as e:
+    except (Cancelled, KeyboardInterrupt) as e:
+        # Ctrl-C: what was finished is shown, marked partial; the output files
+        # are left as they were (a partial result never replaces them).
         bar.close()
-        print("qogi quantify: cancelled", file=sys.stderr)
-        result = e.partial
-        if result is None:
-            return 130
-    except ValueError as e:
+        partial = getattr(e, "partial", None)
+        if partial is not None:
+            print(partial.summary())
+        print("qogi quantify: interrupted; no output file written", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    finally:
         bar.close()
-        print(f"qogi quantify: error: {e}", file=sys.stderr)
-        return 2
-    bar.close()
+    bad = _untrustworthy(result)
+    if bad:
+        result.complete = False
     print(result.summary())
     if args.json:
         result.to_json(args.json)
@@ -84,16 +108,24 @@ def cmd_quantify(args: argparse.Namespace) -> int:
         result.to_csv(args.csv)
     if args.plot:
         result.plot(args.plot, kind="rates")
-        root, ext = os.path.splitext(args.plot)
         if result.map_frames:
-            result.plot(f"{root}_maps{ext or '.png'}", kind="maps")
-    return 0 if result.complete else 130
+            result.plot(_outputs(args)["--plot (maps)"], kind="maps")
+    if bad or not result.complete:
+        why = (f"no finite rate for {', '.join(bad)}" if bad else "the result is incomplete")
+        print(f"qogi quantify: error: {why}; the result cannot be trusted (see its warnings; "
+              "written files say \"complete\": false)", file=sys.stderr)
+        return EXIT_DATA
+    return 0
 
 
 def _auto(rec, args, cfg):
     from .surfaces import auto_surfaces, plume_image
 
-    dists = [float(v) for v in args.auto_surfaces.split(",")]
+    try:
+        dists = [float(v) for v in args.auto_surfaces.split(",")]
+    except ValueError:
+        raise ValueError(f"--auto-surfaces {args.auto_surfaces!r}: expected distances in "
+                         "pixels separated by commas, e.g. 40,80") from None
     return auto_surfaces(plume_image(rec), dists, source=cfg.source, return_source=True)
 
 
@@ -116,7 +148,7 @@ def add_commands(sub) -> None:
                    help="detect the plume and place surfaces at these distances (px) from the source")
     q.add_argument("--species", action="append", help="species to quantify (repeatable; default CH4)")
     t = q.add_mutually_exclusive_group()
-    t.add_argument("--gas-temperature", type=float, metavar="K",
+    t.add_argument("--gas-temperature", type=positive_float, metavar="K",
                    help="gas temperature at the plume centre [K] (default: ambient)")
     t.add_argument("--infer-temperature", action="store_true",
                    help="infer the gas temperature (needs >= 2 channels)")
@@ -124,21 +156,22 @@ def add_commands(sub) -> None:
     v.add_argument("--velocity", default="fluid", type=lambda m: m.replace("-", "_"),
                    choices=["fluid", "horn_schunck", "lucas_kanade", "farneback", "dis", "piv"],
                    help="velocimetry method (default: fluid, the continuity-equation flow)")
-    v.add_argument("--wind-speed", type=float, metavar="M_S",
+    v.add_argument("--wind-speed", type=positive_float, metavar="M_S",
                    help="use this speed [m/s] normal to every surface instead of velocimetry")
-    v.add_argument("--exit-velocity", type=float, metavar="M_S",
+    v.add_argument("--exit-velocity", type=positive_float, metavar="M_S",
                    help="use the release's exit velocity [m/s] (lab checks)")
-    q.add_argument("--source", metavar="X,Y", help="source pixel: orient surfaces away from it")
+    q.add_argument("--source", type=pixel_xy, metavar="X,Y", help="source pixel: orient surfaces away from it")
     q.add_argument("--background", default="beside-surface",
                    help="beside-surface (default), percentile, or a gas-free region x0,y0,x1,y1")
     q.add_argument("--averaging", default="per-frame", choices=["per-frame", "time-averaged"],
                    help="invert every frame then average rates (default), or invert the "
                         "time-averaged frames")
-    q.add_argument("--distance", type=float, metavar="M", help="override the camera distance [m]")
-    q.add_argument("--sigma", type=float, metavar="M",
+    q.add_argument("--distance", type=positive_float, metavar="M", help="override the camera distance [m]")
+    q.add_argument("--sigma", type=positive_float, metavar="M",
                    help="plume depth sigma [m] (default: from the plume width across each surface)")
-    q.add_argument("--frames", metavar="START:STOP", help="frame range")
-    q.add_argument("--threads", type=int, default=0, help="worker threads (0 = all cores)")
+    q.add_argument("--frames", type=frame_range, metavar="START:STOP",
+                   help="frame range: START (inclusive) to STOP (exclusive), from 0")
+    q.add_argument("--threads", type=nonnegative_int, default=0, help="worker threads (0 = all cores)")
     q.add_argument("--json", metavar="OUT.json", help="write the result as JSON")
     q.add_argument("--csv", metavar="OUT.csv", help="write the rate time series as CSV")
     q.add_argument("--plot", metavar="OUT.png",
@@ -158,11 +191,24 @@ def cmd_demo(args: argparse.Namespace) -> int:
     from .render import synthesize
     from .surfaces import Surface
 
+    from .errors import UsageError
+    from .files import check_outputs
+
     out = os.path.abspath(args.output)
-    os.makedirs(out, exist_ok=True)
     preset = args.preset
+    if preset not in synth.presets():
+        raise UsageError(f"--preset {preset!r}: unknown; known: {', '.join(synth.presets())}")
     p = synth.preset(preset)
+    try:
+        os.makedirs(out, exist_ok=True)
+    except OSError as e:
+        raise UsageError(f"-o {args.output}: cannot create the output folder ({e.strerror})") \
+            from None
     rec_path = os.path.join(out, f"{preset}.h5")
+    check_outputs({"recording": rec_path, "result.json": os.path.join(out, "result.json"),
+                   "result.csv": os.path.join(out, "result.csv"),
+                   "rates.png": os.path.join(out, "rates.png"),
+                   "maps.png": os.path.join(out, "maps.png")})
     print(f"qogi demo: {p['description']}")
     print(f"1. simulating and rendering {args.duration:g} s of {preset} "
           f"(seed {args.seed}) -> {rec_path}")
@@ -204,8 +250,8 @@ def add_demo_command(sub) -> None:
                     "through three control surfaces (qogi quantify), print the estimate against "
                     "the truth with its 90%% interval, and write plots.")
     d.add_argument("--preset", default="lab-ch4-5slpm-gf320", help="synthetic preset (qogi synth --list)")
-    d.add_argument("--duration", type=float, default=10.0, help="seconds to simulate (default 10)")
-    d.add_argument("--seed", type=int, default=1)
+    d.add_argument("--duration", type=positive_float, default=10.0, help="seconds to simulate (default 10)")
+    d.add_argument("--seed", type=seed, default=1, help="random seed (default 1)")
     d.add_argument("-o", "--output", default="qogi-demo", help="output folder (default ./qogi-demo)")
     d.add_argument("-q", "--quiet", action="store_true")
     d.set_defaults(func=cmd_demo)

@@ -42,6 +42,7 @@ from typing import Dict, Iterator, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
+from .errors import DataError
 from .optics import SpectralResponse
 from .radiometry import band_table
 
@@ -80,8 +81,9 @@ _SPECIES_RE = re.compile(r"^[A-Za-z][A-Za-z0-9]*$")
 _MEMORY = "<in memory>"
 
 
-class RecordingError(ValueError):
-    """A recording that does not follow the contract.
+class RecordingError(DataError):
+    """A recording that does not follow the contract (a
+    :class:`qogi.errors.DataError`, hence a ValueError; exit 3 on the command line).
 
     The message names the file, the dataset or attribute, the offending value,
     the expected form and how to fix it. The parts are also attributes:
@@ -1003,10 +1005,17 @@ class RecordingWriter:
         Pre-sizes /frames (it still grows if more are appended).
     allow_nonfinite : bool, default False
         Accept NaN/inf pixels (invalid pixels); otherwise they are an error.
+    keep_partial : bool, default False
+        What an error or interruption before :meth:`close` leaves behind. By
+        default nothing: the file is written under a temporary name beside
+        ``path`` and renamed onto it only when :meth:`close` succeeds, so an
+        existing file at ``path`` stays untouched (qogi.files). With True the
+        frames written so far replace ``path`` as a valid recording whose root
+        attribute ``complete`` is False.
 
     Every call validates its input and the metadata is validated up front,
-    so an error comes before work is lost; frames appended before an error
-    stay in a valid file (times and frames are appended together).
+    so an error comes before work is lost (times and frames are appended
+    together, so a kept partial file is valid).
 
     Examples
     --------
@@ -1020,7 +1029,7 @@ class RecordingWriter:
                  scene: Scene, frame_shape: Sequence[int], truth: Optional[Truth] = None,
                  compression: Optional[str] = None, compression_level: Optional[int] = None,
                  overwrite: bool = True, expected_frames: Optional[int] = None,
-                 allow_nonfinite: bool = False):
+                 allow_nonfinite: bool = False, keep_partial: bool = False):
         h5py = _h5py()
         self.path = os.fspath(path)
         if quantity not in QUANTITIES:
@@ -1047,9 +1056,18 @@ class RecordingWriter:
         self.allow_nonfinite = allow_nonfinite
         self._n = 0
         self._last_t = -math.inf
-        self._f = h5py.File(self.path, "w")
+        self.keep_partial = bool(keep_partial)
+        from .files import atomic_path
+        self._atomic = atomic_path(self.path)
+        tmp = self._atomic.__enter__()
+        try:
+            self._f = h5py.File(tmp, "w")
+        except BaseException as e:
+            self._atomic.__exit__(type(e), e, e.__traceback__)
+            raise
         try:
             _write_metadata(self._f, quantity, camera, scene, truth)
+            self._f.attrs["complete"] = False  # set True by close()
             n0 = int(expected_frames or 0)
             self._frames = self._f.create_dataset(
                 "frames", shape=(n0,) + shape, maxshape=(None,) + shape, dtype=np.float32,
@@ -1059,13 +1077,23 @@ class RecordingWriter:
             self._time = self._f.create_dataset("time_s", shape=(n0,), maxshape=(None,),
                                                 dtype=np.float64, chunks=(4096,))
             self._time.attrs["unit"] = "s"
-        except BaseException:
+        except BaseException as e:
             self._f.close()
+            self._f = None
+            self._atomic.__exit__(type(e), e, e.__traceback__)
             raise
 
     @property
     def n_frames(self) -> int:
         return self._n
+
+    @property
+    def truth_group(self):
+        """The open file's /truth group (h5py), for large truth datasets
+        written frame by frame before :meth:`close`."""
+        if self._f is None:
+            raise ValueError(f"{self.path}: the writer is closed")
+        return self._f.require_group("truth")
 
     def append(self, frames, time_s) -> None:
         """Append one frame (C, H, W) with its time [s], or a block (n, C, H, W)
@@ -1113,8 +1141,9 @@ class RecordingWriter:
 
     def close(self) -> None:
         """Finish the file: trim to the frames written, set the frame rate,
-        check it against the times. Raises RecordingError (the file is kept)
-        if no frame was written or the rate disagrees with the times."""
+        check it against the times, and rename it onto ``path``. Raises
+        RecordingError if no frame was written or the rate disagrees with the
+        times (then ``path`` is left as it was, unless ``keep_partial``)."""
         if self._f is None:
             return
         try:
@@ -1133,9 +1162,37 @@ class RecordingWriter:
                 rate = 1.0 / typical_interval(t)
                 self._f["camera"].attrs["frame_rate_hz"] = rate
             _check_frame_rate(self.path, t, rate)
+            self._f.attrs["complete"] = True
+        except BaseException as e:
+            self._abandon(e)
+            raise
+        self._f.close()
+        self._f = None
+        self._atomic.__exit__(None, None, None)
+
+    def _abandon(self, exc: BaseException) -> None:
+        """After an error: drop the temporary file, or (keep_partial) rename
+        the frames written so far, marked incomplete, onto ``path``."""
+        if self._f is None:
+            return
+        keep = False
+        try:
+            if self.keep_partial and self._n > 0:
+                if self._frames.shape[0] != self._n:
+                    self._frames.resize(self._n, axis=0)
+                    self._time.resize(self._n, axis=0)
+                if self.camera.frame_rate_hz is None and self._n >= 2:
+                    t = self._time[()]
+                    self._f["camera"].attrs["frame_rate_hz"] = 1.0 / typical_interval(t)
+                self._f.attrs["complete"] = False
+                keep = True
         finally:
             self._f.close()
             self._f = None
+            if keep:
+                self._atomic.__exit__(None, None, None)
+            else:
+                self._atomic.__exit__(type(exc), exc, exc.__traceback__)
 
     def __enter__(self) -> "RecordingWriter":
         return self
@@ -1143,14 +1200,12 @@ class RecordingWriter:
     def __exit__(self, exc_type, exc, tb) -> None:
         if exc_type is None:
             self.close()
-        elif self._f is not None:  # keep what was written, valid so far
+        else:
+            self._abandon(exc)
+
+    def __del__(self) -> None:  # never finished: no temporary left behind
+        if getattr(self, "_f", None) is not None:
             try:
-                if self._frames.shape[0] != self._n:
-                    self._frames.resize(self._n, axis=0)
-                    self._time.resize(self._n, axis=0)
-                if self.camera.frame_rate_hz is None and self._n >= 2:
-                    t = self._time[()]
-                    self._f["camera"].attrs["frame_rate_hz"] = 1.0 / typical_interval(t)
-            finally:
-                self._f.close()
-                self._f = None
+                self._abandon(RuntimeError("RecordingWriter dropped without close()"))
+            except Exception:
+                pass

@@ -61,6 +61,7 @@ from typing import Iterator, List, Optional, Sequence, Tuple, Union
 import numpy as np
 
 from .. import _engine
+from ..errors import DataError
 from ..optics import SpectralResponse
 from ..recording import (FRAME_RATE_TOLERANCE, Camera, Recording, RecordingError, Scene,
                          typical_interval)
@@ -76,7 +77,7 @@ _FFF_MAGIC = (b"FFF\x00",)
 _REC_RAW, _REC_CAMERA = 0x01, 0x20
 
 
-class FlirFormatError(ValueError):
+class FlirFormatError(DataError):
     """A FLIR file that cannot be read (names the file, offset and problem)."""
 
 
