@@ -756,6 +756,43 @@ def open_recording(path: Union[str, os.PathLike], *, nonfinite: str = "error",
     return rec
 
 
+#: Largest frame (C x H x W values of float32) a recording may declare [bytes]:
+#: frames are read whole, so a forged shape must not reach an allocation.
+MAX_FRAME_BYTES = 1 << 31
+#: The most a stored /frames can be compressed (deflate's limit is ~1032:1,
+#: lzf's far lower); a file declaring more data than this times what it stores
+#: is truncated, sparse or forged.
+_MAX_COMPRESSION = 2000
+
+
+def _check_declared_size(p: str, ds) -> None:
+    """Refuses /frames whose declared shape cannot be real before anything is
+    read: one frame larger than :data:`MAX_FRAME_BYTES`, or far more data
+    declared than the file stores."""
+    t, c, h, w = (int(v) for v in ds.shape)
+    frame_bytes = c * h * w * 4
+    if min(t, c, h, w) < 1:
+        raise RecordingError(p, "/frames", f"shape {ds.shape} has an empty axis",
+                             "write at least one frame of at least one pixel")
+    if frame_bytes > MAX_FRAME_BYTES:
+        raise RecordingError(p, "/frames",
+                             f"shape {ds.shape} declares {frame_bytes / 2 ** 30:.3g} GiB per frame "
+                             f"(at most {MAX_FRAME_BYTES / 2 ** 30:g} GiB)",
+                             "the file is damaged or forged; frames must be (T, C, H, W) with "
+                             "the camera's real size")
+    declared = t * frame_bytes
+    try:
+        stored = int(ds.id.get_storage_size())
+    except Exception:  # external or virtual storage: cannot tell
+        return
+    if declared > (64 << 20) and declared > _MAX_COMPRESSION * max(stored, 1):
+        raise RecordingError(p, "/frames",
+                             f"shape {ds.shape} declares {declared / 2 ** 30:.3g} GiB but the file "
+                             f"stores {stored / 2 ** 20:.3g} MiB of frames",
+                             "the file is truncated or its frames were never written; "
+                             "re-export the recording")
+
+
 def _read(f, p: str, nonfinite: str) -> Recording:
     h5py = _h5py()
     fmt = _attr(f, "format", p, "/", fix=f'set the root attribute format="{FORMAT}"')
@@ -790,11 +827,21 @@ def _read(f, p: str, nonfinite: str) -> Recording:
                              f"use one of {sorted(QUANTITIES)} (band radiance in W/(m2 sr) "
                              "or radiometric temperature in K)")
     t_frames = ds.shape[0]
+    _check_declared_size(p, ds)
 
     if "time_s" not in f:
         raise RecordingError(p, "/time_s", "missing",
                              "write a float64 dataset /time_s with one time [s] per frame")
-    time_s = np.asarray(f["time_s"][()], dtype=np.float64)
+    tds = f["time_s"]
+    if not isinstance(tds, h5py.Dataset) or tds.shape != (t_frames,):
+        raise RecordingError(p, "/time_s",
+                             f"expected shape ({t_frames},) to match the {t_frames} frames; "
+                             f"got {getattr(tds, 'shape', None)}", "write one time [s] per frame")
+    try:
+        time_s = np.asarray(tds[()], dtype=np.float64)
+    except (TypeError, ValueError):
+        raise RecordingError(p, "/time_s", f"dtype {tds.dtype} is not numeric",
+                             "store the times as float64 seconds") from None
     _validate_time(p, time_s, t_frames)
 
     if "camera" not in f:
