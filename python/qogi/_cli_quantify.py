@@ -55,7 +55,7 @@ def cmd_quantify(args: argparse.Namespace) -> int:
     from ._progress import ProgressBar
     from .errors import EXIT_DATA, EXIT_INTERRUPTED, DataError, UsageError
     from .files import check_outputs
-    from .pipeline import Cancelled, quantify
+    from .pipeline import Cancelled, _check_inputs, quantify
     from .recording import open_recording
     from .surfaces import Surface
 
@@ -78,6 +78,7 @@ def cmd_quantify(args: argparse.Namespace) -> int:
                           f"y={source[1]:.1f} (give --source X,Y to set it)", file=sys.stderr)
         if not surfaces:
             raise UsageError("give at least one --surface x0,y0,x1,y1 (or --auto-surfaces)")
+        _check_inputs(rec, surfaces, cfg)  # the call's own mistakes, before any work
     except (UsageError, DataError):
         raise
     except OSError as e:
@@ -87,6 +88,12 @@ def cmd_quantify(args: argparse.Namespace) -> int:
     bar = ProgressBar("quantify ", enabled=not args.quiet)
     try:
         result = quantify(rec, surfaces, cfg, progress=bar, keep_maps=bool(args.plot))
+    except (UsageError, DataError):
+        raise
+    except ValueError as e:
+        # The arguments passed their checks: what fails now is the data
+        # (e.g. radiance no blackbody can give).
+        raise DataError(str(e)) from None
     except (Cancelled, KeyboardInterrupt) as e:
         # Ctrl-C: what was finished is shown, marked partial; the output files
         # are left as they were (a partial result never replaces them).

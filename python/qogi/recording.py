@@ -410,7 +410,12 @@ class Recording:
         stop = n if stop is None else stop
         if not (0 <= start <= stop <= n):
             raise IndexError(f"frame range {start}:{stop} is outside 0:{n}")
-        block = np.asarray(self._source[start:stop], dtype=np.float32)
+        try:
+            block = np.asarray(self._source[start:stop], dtype=np.float32)
+        except (OSError, KeyError, RuntimeError, TypeError) as e:  # a damaged HDF5 chunk
+            if self.path == _MEMORY:
+                raise
+            raise _damaged(self.path, e) from e
         block = self._apply_nonfinite(block, start)
         return self._convert(block, quantity)
 
@@ -745,15 +750,29 @@ def open_recording(path: Union[str, os.PathLike], *, nonfinite: str = "error",
         raise RecordingError(p, "file", "is not an HDF5 file",
                              "a qogi recording is HDF5 (see docs/recording.md); convert camera "
                              "files with qogi.io (read_flir, read_numpy, read_tiff)")
-    f = h5py.File(p, "r")
+    try:
+        f = h5py.File(p, "r")
+    except OSError as e:
+        raise RecordingError(p, "file", f"is not a readable HDF5 file ({e})",
+                             "the file is damaged or truncated; copy or export it again") from e
     try:
         rec = _read(f, p, nonfinite)
         if check_frames:
             rec._scan_frames()
-    except BaseException:
+    except BaseException as e:
         f.close()
+        if isinstance(e, Exception) and not isinstance(e, RecordingError):
+            raise _damaged(p, e) from e
         raise
     return rec
+
+
+def _damaged(p: str, e: Exception) -> RecordingError:
+    """What a failure of HDF5 or numpy while reading an untrusted file becomes
+    (h5py raises OSError, KeyError, TypeError, ... on damaged structures)."""
+    return RecordingError(p, "file", f"cannot be read ({type(e).__name__}: {e})",
+                          "the file is damaged or not written by a recording writer; "
+                          "export it again")
 
 
 #: Largest frame (C x H x W values of float32) a recording may declare [bytes]:
