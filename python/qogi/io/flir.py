@@ -265,13 +265,19 @@ def _raw_image(buf, off: int, length: int, path: str) -> Tuple[np.ndarray, str, 
     head = bytes(data[:8])
     if head.startswith(b"\x89PNG\r\n\x1a\n"):
         import cv2
-        img = cv2.imdecode(np.frombuffer(bytes(data), np.uint8), cv2.IMREAD_UNCHANGED)
+        try:
+            img = cv2.imdecode(np.frombuffer(bytes(data), np.uint8), cv2.IMREAD_UNCHANGED)
+        except cv2.error:
+            img = None
         if img is None or img.dtype != np.uint16:
             raise FlirFormatError(f"{path}: RawData PNG at byte {off + 32} is not a 16-bit image")
         # FLIR writes these PNGs with the 16-bit words byte-swapped (ExifTool's note).
         return img.byteswap(), "png", None
     if head.startswith(b"\xff\xd8"):
-        samples, info = _engine.decode_jpegls(data)
+        try:
+            samples, info = _engine.decode_jpegls(data)
+        except ValueError as e:  # the decoder's own check of the stream
+            raise FlirFormatError(f"{path}: RawData JPEG-LS at byte {off + 32}: {e}") from None
         if samples.shape[0] != 1:
             raise FlirFormatError(f"{path}: RawData JPEG-LS at byte {off + 32} has "
                                   f"{samples.shape[0]} components, expected 1")
@@ -407,6 +413,9 @@ class FlirFile:
         info = _camera_info(self._buf, off, length, self.path)
         roff, rlen, _ = block.records[_REC_RAW]
         hdr = bytes(self._buf[roff:roff + 32])
+        if len(hdr) < 32:
+            raise FlirFormatError(f"{self.path}: frame {i}: RawData record at byte {roff} is "
+                                  "shorter than its header (the file is truncated)")
         order = "<" if struct.unpack("<H", hdr[0:2])[0] < 0x100 else ">"
         w, h = struct.unpack(order + "HH", hdr[2:6])
         raw, fmt, near = None, None, None
