@@ -466,10 +466,17 @@ class Recording:
         out = np.empty_like(block)
         for k, ch in enumerate(self.channels):
             table = band_table(ch)
-            if quantity == "radiance":
-                out[:, k] = table.radiance(block[:, k])
-            else:
-                out[:, k] = table.temperature(block[:, k])
+            try:
+                if quantity == "radiance":
+                    out[:, k] = table.radiance(block[:, k])
+                else:
+                    out[:, k] = table.temperature(block[:, k])
+            except ValueError as e:  # values no blackbody gives (zero, negative radiance)
+                if isinstance(e, DataError):
+                    raise
+                raise RecordingError(self.path, f"/frames channel {k}",
+                                     f"cannot be converted to {quantity}: {e}",
+                                     "check the frames' quantity and values") from None
         return out
 
     def _apply_nonfinite(self, block: np.ndarray, start: int) -> np.ndarray:

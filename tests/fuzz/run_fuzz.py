@@ -12,6 +12,7 @@ hang (-timeout, seconds per input) or a crash of the process.
 
 from __future__ import annotations
 
+import os
 import pathlib
 import shutil
 import sys
@@ -19,6 +20,7 @@ import tempfile
 
 HERE = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "python"))
+os.environ["QOGI_FUZZ_KEEP"] = "1"  # findings go to tests/data/fuzz/crashes
 
 import atheris  # noqa: E402
 

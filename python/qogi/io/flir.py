@@ -362,7 +362,9 @@ class FlirFile:
             block = _Block(self._buf, pos, self.path)
             if _REC_RAW in block.records:
                 self._blocks.append(block)
-            pos = block.end
+            # At least past this block's header: a forged directory (offset 0,
+            # no entries) must not hold the scan in place.
+            pos = max(block.end, pos + 0x40)
         if not self._blocks:
             raise FlirFormatError(f"{self.path}: no frame (no FFF block with a RawData record)")
 
