@@ -305,6 +305,9 @@ def _jpeg_fff(buf, path: str) -> bytes:
         seg_len = struct.unpack(">H", bytes(buf[pos + 2:pos + 4]))[0]
         payload = buf[pos + 4:pos + 2 + seg_len]
         if marker == 0xE1 and bytes(payload[:5]) == b"FLIR\x00":
+            if len(payload) < 8:
+                raise FlirFormatError(f"{path}: corrupt JPEG (a FLIR APP1 segment at byte {pos} "
+                                      "is shorter than its header)")
             parts[payload[6]] = bytes(payload[8:])
         pos += 2 + seg_len
     if not parts:
