@@ -3,6 +3,7 @@ import sys
 try:
     from .cli import main
 except KeyboardInterrupt:  # Ctrl-C while the modules load
+    print("qogi: interrupted", file=sys.stderr)
     sys.exit(130)
 
 sys.exit(main())

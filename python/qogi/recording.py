@@ -690,12 +690,33 @@ def _h5py():
     return h5py
 
 
+#: Largest attribute or metadata dataset (channel responses, truth) read whole [bytes].
+_MAX_METADATA_BYTES = 64 << 20
+
+
+def _small(ds, path: str, location: str) -> np.ndarray:
+    """A metadata dataset read whole, after checking its declared size."""
+    size = int(ds.size) * int(ds.dtype.itemsize)
+    if size > _MAX_METADATA_BYTES:
+        raise RecordingError(path, location, f"shape {ds.shape} declares {size / 2 ** 20:.3g} "
+                             "MiB of metadata", "the file is damaged or forged")
+    return ds[()]
+
+
 def _attr(obj, name: str, path: str, location: str, required: bool = True, fix: str = ""):
     if name not in obj.attrs:
         if required:
             raise RecordingError(path, f"{location} attr {name}", "missing",
                                  fix or f"add the attribute {name} to {location}")
         return None
+    try:
+        size = int(obj.attrs.get_id(name).get_storage_size())
+    except Exception:  # noqa: BLE001 - unreadable: reported by the read below
+        size = 0
+    if size > _MAX_METADATA_BYTES:
+        raise RecordingError(path, f"{location} attr {name}",
+                             f"declares {size / 2 ** 20:.3g} MiB (an attribute holds a few "
+                             "numbers or a name)", "the file is damaged or forged")
     v = obj.attrs[name]
     if isinstance(v, bytes):
         v = v.decode("utf-8", "replace")
@@ -913,6 +934,9 @@ def _read(f, p: str, nonfinite: str) -> Recording:
             else:
                 extra[k] = v
         datasets = {k: g[k] for k in g if isinstance(g[k], h5py.Dataset)}
+        for k, d in datasets.items():  # read lazily; only small ones are read whole
+            if k.startswith("plane_"):
+                datasets[k] = _small(d, p, f"/truth/{k}")
         truth = Truth(rates, datasets, extra)
 
     rec = Recording(source=ds, time_s=time_s, quantity=quantity, camera=camera, scene=scene,
@@ -946,8 +970,9 @@ def _read_channels(cam, p: str, n_channels: int) -> List[SpectralResponse]:
                 raise RecordingError(p, f"{loc}/{d}", "missing",
                                      "write the channel response as datasets wavenumber_cm1 "
                                      "[cm-1] and response [dimensionless]")
-        nu = np.asarray(ch["wavenumber_cm1"][()], dtype=np.float64)
-        r = np.asarray(ch["response"][()], dtype=np.float64)
+        nu = np.asarray(_small(ch["wavenumber_cm1"], p, f"{ch.name}/wavenumber_cm1"),
+                        dtype=np.float64)
+        r = np.asarray(_small(ch["response"], p, f"{ch.name}/response"), dtype=np.float64)
         name = _attr(ch, "name", p, loc, required=False)
         try:
             out.append(SpectralResponse(np.ravel(nu), np.ravel(r),

@@ -85,7 +85,8 @@ def check_outcome(code, err, out_dir, label):
     # handler for it (start-up, or the interpreter's exit after the run):
     # harmless if the files are either untouched or the whole new result.
     # -SIGABRT / -SIGSEGV (the bug) or anything else fails.
-    startup = code == 1 and err.rstrip().endswith("KeyboardInterrupt") and "qogi/cli.py" not in err
+    startup = (code in (1, -signal.SIGINT) and err.rstrip().endswith("KeyboardInterrupt")
+               and "qogi/cli.py" not in err)
     assert code in (0, 130, -signal.SIGINT) or startup, \
         f"{label}: exit {code} (negative: killed by a signal)\n{err}"
     if startup:  # Ctrl-C while Python imported qogi, before any of its code ran
