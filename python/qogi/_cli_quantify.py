@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
 
@@ -42,6 +43,30 @@ def _outputs(args: argparse.Namespace) -> dict:
         root, ext = os.path.splitext(args.plot)
         outs["--plot (maps)"] = f"{root}_maps{ext or '.png'}"
     return outs
+
+
+@contextlib.contextmanager
+def _signals_deferred():
+    """Ctrl-C or SIGTERM inside the block takes effect when it ends: the
+    outputs are written all together or not at all (each file is atomic; this
+    keeps them from being a mix of this run's and an earlier one's)."""
+    import signal
+
+    got: list = []
+    old = {}
+    for s in (signal.SIGINT, signal.SIGTERM):
+        try:
+            old[s] = signal.signal(s, lambda signum, frame: got.append(signum))
+        except ValueError:  # not the main thread: nothing to defer
+            pass
+    try:
+        yield
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+    if got:
+        from .cli import _Terminated
+        raise _Terminated() if got[0] == signal.SIGTERM else KeyboardInterrupt()
 
 
 def _untrustworthy(result) -> list:
@@ -109,14 +134,15 @@ def cmd_quantify(args: argparse.Namespace) -> int:
     if bad:
         result.complete = False
     print(result.summary())
-    if args.json:
-        result.to_json(args.json)
-    if args.csv:
-        result.to_csv(args.csv)
-    if args.plot:
-        result.plot(args.plot, kind="rates")
-        if result.map_frames:
-            result.plot(_outputs(args)["--plot (maps)"], kind="maps")
+    with _signals_deferred():
+        if args.json:
+            result.to_json(args.json)
+        if args.csv:
+            result.to_csv(args.csv)
+        if args.plot:
+            result.plot(args.plot, kind="rates")
+            if result.map_frames:
+                result.plot(_outputs(args)["--plot (maps)"], kind="maps")
     if bad or not result.complete:
         why = (f"no finite rate for {', '.join(bad)}" if bad else "the result is incomplete")
         print(f"qogi quantify: error: {why}; the result cannot be trusted (see its warnings; "
