@@ -24,7 +24,7 @@ endif
 ENGINE_SOURCES := $(shell find cpp cmake -type f 2>/dev/null) CMakeLists.txt pyproject.toml
 CONSUMER_SOURCES := $(shell find examples/cpp_consumer -type f 2>/dev/null)
 
-.PHONY: all setup build demo test test-cpp test-python consumer bench gui wheel check-clang clean distclean
+.PHONY: all setup build demo test test-cpp test-python consumer bench gui wheel check-clang fuzz clean distclean
 
 all: build
 
@@ -81,6 +81,13 @@ consumer: $(STAMPS)/consumer
 
 test-python: $(STAMPS)/built
 	$(VPY) -m pytest -q
+
+# Coverage-guided fuzzing of the FLIR and recording readers (atheris), FUZZ_S
+# seconds each; `make test` runs a bounded hypothesis fuzz (tests/python/test_fuzz.py).
+FUZZ_S ?= 600
+fuzz: $(STAMPS)/built
+	cd tests/fuzz && ../../$(VPY) run_fuzz.py flir -max_total_time=$(FUZZ_S)
+	cd tests/fuzz && ../../$(VPY) run_fuzz.py recording -max_total_time=$(FUZZ_S)
 
 bench: $(STAMPS)/built
 	$(VPY) -m pip install -q -r requirements/bench.txt -c requirements/constraints.txt

@@ -119,8 +119,11 @@ def write_frame_png(path: os.PathLike, rgb: np.ndarray) -> Path:
     p = check_writable(path)
     if p.suffix.lower() != ".png":
         raise ExportError(f"{p}: the frame is written as PNG; use a .png file name")
-    if not cv2.imwrite(str(p), np.ascontiguousarray(rgb[..., ::-1])):
-        raise ExportError(f"could not write the image {p}")
+    from qogi.files import atomic_path
+
+    with atomic_path(p) as tmp:
+        if not cv2.imwrite(str(tmp), np.ascontiguousarray(rgb[..., ::-1])):
+            raise ExportError(f"could not write the image {p}")
     return p
 
 
@@ -203,6 +206,9 @@ def write_pdf_report(result, path: os.PathLike, recording=None) -> Path:
 
 
 def write_report(path: os.PathLike, text: str) -> Path:
+    from qogi.files import atomic_open
+
     p = check_writable(path)
-    p.write_text(text, encoding="utf-8")
+    with atomic_open(p, "w", encoding="utf-8") as fh:
+        fh.write(text)
     return p

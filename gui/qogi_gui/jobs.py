@@ -58,6 +58,7 @@ class Job:
         self._cancelled_types = (Stopped,) + tuple(cancelled_types)
         self._lock = threading.Lock()
         self._cancel = threading.Event()
+        self._ended = threading.Event()
         self.state = RUNNING
         self.fraction = 0.0
         self.message = "starting"
@@ -108,6 +109,7 @@ class Job:
             if state == DONE:
                 self.fraction = 1.0
             self.finished_s = time.monotonic()
+        self._ended.set()
 
     # ----------------------------------------------------------------- window side
     def cancel(self) -> None:
@@ -134,6 +136,7 @@ class Job:
                     "elapsed_s": end - self.started_s}
 
     def wait(self, timeout: Optional[float] = None) -> bool:
-        """Block until the work ends (for scripts and tests); True if it did."""
-        self._thread.join(timeout)
-        return not self._thread.is_alive()
+        """Block until the work ends (for scripts, tests and closing); True if
+        it did. An own event, not Thread.join: on Python 3.11 a join
+        interrupted by Ctrl-C can mark a running thread as stopped."""
+        return self._ended.wait(timeout)

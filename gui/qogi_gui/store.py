@@ -103,11 +103,11 @@ class UserStore:
         """Write the file; on failure set :attr:`warning` and return False."""
         try:
             self.folder.mkdir(parents=True, exist_ok=True)
-            tmp = self.path.with_suffix(".tmp")
-            tmp.write_text(json.dumps({"recent": self.recent, "last_dir": self.last_dir,
-                                       "scene_facts": self.scene_facts},
-                                      indent=1), encoding="utf-8")
-            os.replace(tmp, self.path)
+            from qogi.files import atomic_open
+
+            with atomic_open(self.path, "w", encoding="utf-8") as fh:
+                fh.write(json.dumps({"recent": self.recent, "last_dir": self.last_dir,
+                                     "scene_facts": self.scene_facts}, indent=1))
         except OSError as e:
             self.warning = f"could not save the viewer settings to {self.path} ({e})"
             return False

@@ -1197,10 +1197,21 @@ class ViewModel:
 
     # ================================================================= lifetime
     def close(self) -> None:
-        """Stop any job and close the recording (window closing)."""
-        if self.busy:
+        """Stop any job, wait until it has stopped, and close the recording
+        (window closing). The wait is not cut short: a job thread left inside
+        the engine when the interpreter exits aborts the process; a cancelled
+        job stops at its next progress report (a fraction of a second)."""
+        if self.job is not None:
             self.job.cancel()
-            self.job.wait(5.0)
+            interrupted = None
+            while True:
+                try:
+                    if self.job.wait(0.1):
+                        break
+                except KeyboardInterrupt as e:  # finish waiting first
+                    interrupted = e
+            if interrupted is not None:
+                raise interrupted
         if self.recording is not None:
             try:
                 self.recording.close()

@@ -1,3 +1,9 @@
-from .cli import main
+import sys
 
-raise SystemExit(main())
+try:
+    from .cli import main
+except KeyboardInterrupt:  # Ctrl-C while the modules load
+    print("qogi: interrupted", file=sys.stderr)
+    sys.exit(130)
+
+sys.exit(main())

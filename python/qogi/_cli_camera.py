@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import argparse
 
+from ._cli_args import positive_float
+
 
 def add_scene_options(p: argparse.ArgumentParser, distance: bool = True) -> None:
     """--camera, --distance, --ambient-temperature, --pressure."""
@@ -18,12 +20,12 @@ def add_scene_options(p: argparse.ArgumentParser, distance: bool = True) -> None
                    help="the camera's spectral response: a preset or a CSV (wavenumber_cm1 or "
                         "wavelength_um, response); required for camera files")
     if distance:
-        g.add_argument("--distance", type=float, metavar="M",
+        g.add_argument("--distance", type=positive_float, metavar="M",
                        help="camera-to-plume distance [m] (required for .hcc; FLIR files hold "
                             "an object distance, flagged when it is FLIR's default 1 m)")
-    g.add_argument("--ambient-temperature", type=float, metavar="K",
+    g.add_argument("--ambient-temperature", type=positive_float, metavar="K",
                    help="ambient air temperature [K] (required for .hcc; FLIR files hold one)")
-    g.add_argument("--pressure", type=float, metavar="PA",
+    g.add_argument("--pressure", type=positive_float, metavar="PA",
                    help="ambient pressure [Pa] (default 101325, flagged)")
 
 

@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
+
+from ._cli_args import frame_range, nonnegative_int, pixel_xy, positive_float, seed
 
 
 def _config_from_args(args):
@@ -27,14 +30,11 @@ def _config_from_args(args):
     if args.background is not None:
         over["background"] = (args.background if args.background in ("beside-surface", "percentile")
                               else Region.parse(args.background))
-    if args.frames:
-        a, b = args.frames.split(":")
-        over["frames"] = (int(a), int(b))
-    if args.source:
-        over["source"] = tuple(float(v) for v in args.source.split(","))
+    # --frames and --source arrive parsed and checked (qogi._cli_args).
     for key, value in (("species", args.species), ("averaging", args.averaging),
                        ("distance_m", args.distance), ("sigma_m", args.sigma),
-                       ("num_threads", args.threads)):
+                       ("num_threads", args.threads), ("frames", args.frames),
+                       ("source", args.source)):
         if value is not None:
             over[key] = value
     base = {}
@@ -43,11 +43,62 @@ def _config_from_args(args):
     return config_from_dict({**base, **over})
 
 
+def _outputs(args: argparse.Namespace) -> dict:
+    """The files ``qogi quantify`` writes, by option (the maps plot beside
+    --plot, the summary CSV beside --csv)."""
+    outs = {"--json": None if args.json == "-" else args.json, "--csv": args.csv,
+            "--plot": args.plot, "--report": args.report, "--save-config": args.save_config}
+    if args.plot:
+        root, ext = os.path.splitext(args.plot)
+        outs["--plot (maps)"] = f"{root}_maps{ext or '.png'}"
+    if args.csv:
+        root, _ = os.path.splitext(args.csv)
+        outs["--csv (summary)"] = f"{root}.summary.csv"
+    return outs
+
+
+@contextlib.contextmanager
+def _signals_deferred():
+    """Ctrl-C or SIGTERM inside the block takes effect when it ends: the
+    outputs are written all together or not at all (each file is atomic; this
+    keeps them from being a mix of this run's and an earlier one's)."""
+    import signal
+
+    got: list = []
+    old = {}
+    for s in (signal.SIGINT, signal.SIGTERM):
+        try:
+            old[s] = signal.signal(s, lambda signum, frame: got.append(signum))
+        except ValueError:  # not the main thread: nothing to defer
+            pass
+    try:
+        yield
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+    if got:
+        from .cli import _Terminated
+        raise _Terminated() if got[0] == signal.SIGTERM else KeyboardInterrupt()
+
+
+def _untrustworthy(result) -> list:
+    """``surface/species`` of every rate whose mean is not a finite number."""
+    import math
+    return [f"{s.surface.name}/{sp}" for s in result.surfaces for sp, r in s.species.items()
+            if not math.isfinite(r.mean_kg_h)]
+
+
 def cmd_quantify(args: argparse.Namespace) -> int:
+    from ._cli_camera import open_input, origin_lines
     from ._progress import ProgressBar
-    from .pipeline import Cancelled, quantify
+    from .errors import EXIT_DATA, EXIT_INTERRUPTED, DataError, UsageError
+    from .files import check_outputs
+    from .pipeline import Cancelled, _check_inputs, quantify
     from .surfaces import Surface
 
+    if not os.path.isfile(args.recording):
+        raise UsageError(f"{args.recording}: no such file; check the recording's path")
+    check_outputs(_outputs(args), inputs=[args.recording])
     try:
         from .config_io import load_settings
         from .units import parse_unit
@@ -55,7 +106,6 @@ def cmd_quantify(args: argparse.Namespace) -> int:
         units = parse_unit(args.units) if args.units else \
             ((args.settings.units if args.settings else None) or "kg/h")
         cfg = _config_from_args(args)
-        from ._cli_camera import open_input, origin_lines
         rec = open_input(args)
         if not args.quiet and getattr(rec, "scene_origin", None):
             print("qogi quantify: scene: " + "; ".join(origin_lines(rec)), file=sys.stderr)
@@ -73,52 +123,73 @@ def cmd_quantify(args: argparse.Namespace) -> int:
                     print(f"qogi quantify: source detected at x={source[0]:.1f}, "
                           f"y={source[1]:.1f} (give --source X,Y to set it)", file=sys.stderr)
         if not surfaces:
-            print("qogi quantify: give at least one --surface x0,y0,x1,y1 (or --auto-surfaces)",
-                  file=sys.stderr)
-            return 2
-    except (ValueError, OSError) as e:
-        print(f"qogi quantify: error: {e}", file=sys.stderr)
-        return 2
+            raise UsageError("give at least one --surface x0,y0,x1,y1 (or --auto-surfaces)")
+        _check_inputs(rec, surfaces, cfg)  # the call's own mistakes, before any work
+    except (UsageError, DataError):
+        raise
+    except OSError as e:
+        raise UsageError(str(e)) from None
+    except ValueError as e:  # the recording's own checks (RecordingError) and the surfaces'
+        raise UsageError(str(e)) from None
     bar = ProgressBar("quantify ", enabled=not args.quiet)
     try:
-        result = quantify(rec, surfaces, cfg, progress=bar, keep_maps=bool(args.plot or args.report))
-    except Cancelled as e:
-        bar.close()
-        print("qogi quantify: cancelled", file=sys.stderr)
-        result = e.partial
-        if result is None:
-            return 130
+        result = quantify(rec, surfaces, cfg, progress=bar,
+                          keep_maps=bool(args.plot or args.report))
+    except (UsageError, DataError):
+        raise
     except ValueError as e:
+        # The arguments passed their checks: what fails now is the data
+        # (e.g. radiance no blackbody can give).
+        raise DataError(str(e)) from None
+    except (Cancelled, KeyboardInterrupt) as e:
+        # Ctrl-C: what was finished is shown, marked partial; the output files
+        # are left as they were (a partial result never replaces them).
         bar.close()
-        print(f"qogi quantify: error: {e}", file=sys.stderr)
-        return 2
-    bar.close()
+        partial = getattr(e, "partial", None)
+        if partial is not None:
+            print(partial.summary(), file=sys.stderr if args.json == "-" else sys.stdout)
+        print("qogi quantify: interrupted; no output file written", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    finally:
+        bar.close()
+    bad = _untrustworthy(result)
+    if bad:
+        result.complete = False
     result.units = units
     # With --json - the JSON is the standard output; the summary goes to stderr.
     print(result.summary(), file=sys.stderr if args.json == "-" else sys.stdout)
-    if args.json == "-":
-        sys.stdout.write(result.to_json() + "\n")
-    elif args.json:
-        result.to_json(args.json)
-    if args.csv:
-        result.to_csv(args.csv)
-    if args.save_config:
-        cfg.to_toml(args.save_config, surfaces, units)
-    if args.report:
-        from .report import write_report
-        write_report(result, args.report, recording=rec)
-    if args.plot:
-        result.plot(args.plot, kind="rates")
-        root, ext = os.path.splitext(args.plot)
-        if result.map_frames:
-            result.plot(f"{root}_maps{ext or '.png'}", kind="maps")
-    return 0 if result.complete else 130
+    with _signals_deferred():
+        if args.json == "-":
+            sys.stdout.write(result.to_json() + "\n")
+        elif args.json:
+            result.to_json(args.json)
+        if args.csv:
+            result.to_csv(args.csv)
+        if args.save_config:
+            cfg.to_toml(args.save_config, surfaces, units)
+        if args.report:
+            from .report import write_report
+            write_report(result, args.report, recording=rec)
+        if args.plot:
+            result.plot(args.plot, kind="rates")
+            if result.map_frames:
+                result.plot(_outputs(args)["--plot (maps)"], kind="maps")
+    if bad or not result.complete:
+        why = (f"no finite rate for {', '.join(bad)}" if bad else "the result is incomplete")
+        print(f"qogi quantify: error: {why}; the result cannot be trusted (see its warnings; "
+              "written files say \"complete\": false)", file=sys.stderr)
+        return EXIT_DATA
+    return 0
 
 
 def _auto(rec, args, cfg):
     from .surfaces import auto_surfaces, plume_image
 
-    dists = [float(v) for v in args.auto_surfaces.split(",")]
+    try:
+        dists = [float(v) for v in args.auto_surfaces.split(",")]
+    except ValueError:
+        raise ValueError(f"--auto-surfaces {args.auto_surfaces!r}: expected distances in "
+                         "pixels separated by commas, e.g. 40,80") from None
     return auto_surfaces(plume_image(rec), dists, source=cfg.source, return_source=True)
 
 
@@ -142,7 +213,7 @@ def add_commands(sub) -> None:
                    help="detect the plume and place surfaces at these distances (px) from the source")
     q.add_argument("--species", action="append", help="species to quantify (repeatable; default CH4)")
     t = q.add_mutually_exclusive_group()
-    t.add_argument("--gas-temperature", type=float, metavar="K",
+    t.add_argument("--gas-temperature", type=positive_float, metavar="K",
                    help="gas temperature at the plume centre [K] (default: ambient)")
     t.add_argument("--infer-temperature", action="store_true",
                    help="infer the gas temperature (needs >= 2 channels)")
@@ -150,20 +221,22 @@ def add_commands(sub) -> None:
     v.add_argument("--velocity", default=None, type=lambda m: m.replace("-", "_"),
                    choices=["fluid", "horn_schunck", "lucas_kanade", "farneback", "dis", "piv"],
                    help="velocimetry method (default: fluid, the continuity-equation flow)")
-    v.add_argument("--wind-speed", type=float, metavar="M_S",
+    v.add_argument("--wind-speed", type=positive_float, metavar="M_S",
                    help="use this speed [m/s] normal to every surface instead of velocimetry")
-    v.add_argument("--exit-velocity", type=float, metavar="M_S",
+    v.add_argument("--exit-velocity", type=positive_float, metavar="M_S",
                    help="use the release's exit velocity [m/s] (lab checks)")
-    q.add_argument("--source", metavar="X,Y", help="source pixel: orient surfaces away from it")
+    q.add_argument("--source", type=pixel_xy, metavar="X,Y", help="source pixel: orient surfaces away from it")
     q.add_argument("--background", default=None,
                    help="beside-surface (default), percentile, or a gas-free region x0,y0,x1,y1")
     q.add_argument("--averaging", default=None, choices=["per-frame", "time-averaged"],
                    help="invert every frame then average rates (default), or invert the "
                         "time-averaged frames")
-    q.add_argument("--sigma", type=float, metavar="M",
+    q.add_argument("--sigma", type=positive_float, metavar="M",
                    help="plume depth sigma [m] (default: from the plume width across each surface)")
-    q.add_argument("--frames", metavar="START:STOP", help="frame range")
-    q.add_argument("--threads", type=int, default=None, help="worker threads (0 = all cores, the default)")
+    q.add_argument("--frames", type=frame_range, metavar="START:STOP",
+                   help="frame range: START (inclusive) to STOP (exclusive), from 0")
+    q.add_argument("--threads", type=nonnegative_int, default=None,
+                   help="worker threads (0 = all cores, the default)")
     q.add_argument("--config", metavar="SETTINGS.toml|RESULT.json",
                    help="take the settings (and surfaces, units) from a settings file or a "
                         "result JSON; flags given explicitly override them")
@@ -197,13 +270,26 @@ def cmd_demo(args: argparse.Namespace) -> int:
     from .render import synthesize
     from .surfaces import Surface
 
+    from .errors import UsageError
+    from .files import check_outputs
+
     out = os.path.abspath(args.output)
-    os.makedirs(out, exist_ok=True)
     if args.quick:
         args.duration = min(args.duration, 3.0)
     preset = args.preset
+    if preset not in synth.presets():
+        raise UsageError(f"--preset {preset!r}: unknown; known: {', '.join(synth.presets())}")
     p = synth.preset(preset)
+    try:
+        os.makedirs(out, exist_ok=True)
+    except OSError as e:
+        raise UsageError(f"-o {args.output}: cannot create the output folder ({e.strerror})") \
+            from None
     rec_path = os.path.join(out, f"{preset}.h5")
+    check_outputs({"recording": rec_path, "result.json": os.path.join(out, "result.json"),
+                   "result.csv": os.path.join(out, "result.csv"),
+                   "rates.png": os.path.join(out, "rates.png"),
+                   "maps.png": os.path.join(out, "maps.png")})
     print(f"qogi demo: {p['description']}")
     print(f"1. simulating and rendering {args.duration:g} s of {preset} "
           f"(seed {args.seed}) -> {rec_path}")
@@ -251,10 +337,10 @@ def add_demo_command(sub) -> None:
                     "through three control surfaces (qogi quantify), print the estimate against "
                     "the truth with its 90%% interval, and write plots.")
     d.add_argument("--preset", default="lab-ch4-5slpm-gf320", help="synthetic preset (qogi synth --list)")
-    d.add_argument("--duration", type=float, default=10.0, help="seconds to simulate (default 10)")
+    d.add_argument("--duration", type=positive_float, default=10.0, help="seconds to simulate (default 10)")
     d.add_argument("--quick", action="store_true",
                    help="a short run (3 s of video) to check an installation")
-    d.add_argument("--seed", type=int, default=1)
+    d.add_argument("--seed", type=seed, default=1, help="random seed (default 1)")
     d.add_argument("-o", "--output", default="qogi-demo", help="output folder (default ./qogi-demo)")
     d.add_argument("-q", "--quiet", action="store_true")
     d.set_defaults(func=cmd_demo)

@@ -10,6 +10,8 @@ import time
 
 import numpy as np
 
+from ._cli_args import fraction, nonnegative_float, positive_float
+
 
 def _cutoff(text: str):
     if text.lower() == "hapi":
@@ -26,12 +28,31 @@ def _cutoff(text: str):
 
 def cmd_xsec(args: argparse.Namespace) -> int:
     from . import _engine
+    from .errors import UsageError
+    from .files import atomic_path, check_outputs
     from .spectra import cross_section, load_line_list
 
+    if args.out:
+        check_outputs({"--out": args.out}, inputs=args.line_list or ())
+        if pathlib.Path(args.out).suffix.lower() not in (".npz", ".csv"):
+            raise UsageError(f"--out {args.out}: give a .npz or .csv file name")
     lo, hi = args.range
+    if not hi > lo:
+        raise UsageError(f"--range {lo:g} {hi:g}: MAX must be greater than MIN")
+    n_points = (hi - lo) / args.step + 1
+    if n_points > 5e7:
+        raise UsageError(f"--range {lo:g} {hi:g} with --step {args.step:g} is {n_points:.3g} "
+                         "points (at most 5e7); use a coarser --step or a narrower range")
+    try:
+        _engine.molecule_id(args.species)
+    except ValueError as e:
+        raise UsageError(str(e)) from None
     nu0, step, n = _engine.grid_from_range(lo, hi, args.step)
     nu = nu0 + step * np.arange(n)
-    lines = load_line_list(args.species, args.line_list or None)
+    try:
+        lines = load_line_list(args.species, args.line_list or None)
+    except FileNotFoundError as e:
+        raise UsageError(str(e).strip("'\"")) from None
     sigmas = []
     t0 = time.perf_counter()
     for t in args.temperature:
@@ -49,15 +70,16 @@ def cmd_xsec(args: argparse.Namespace) -> int:
           f"({dt * 1e3:.0f} ms)")
     if args.out:
         out = pathlib.Path(args.out)
-        if out.suffix.lower() == ".csv":
-            cols = np.column_stack([nu] + [s for s in np.atleast_2d(sigma)])
-            header = "nu_cm1," + ",".join(f"sigma_{t:g}K_cm2_per_molecule"
-                                          for t in args.temperature)
-            np.savetxt(out, cols, delimiter=",", header=header, comments="", fmt="%.10g")
-        else:
-            np.savez_compressed(out, nu_cm1=nu, sigma_cm2_per_molecule=sigma,
-                                temperature_K=np.asarray(args.temperature),
-                                meta=np.array(json.dumps(meta)))
+        with atomic_path(out) as tmp:
+            if out.suffix.lower() == ".csv":
+                cols = np.column_stack([nu] + [s for s in np.atleast_2d(sigma)])
+                header = "nu_cm1," + ",".join(f"sigma_{t:g}K_cm2_per_molecule"
+                                              for t in args.temperature)
+                np.savetxt(tmp, cols, delimiter=",", header=header, comments="", fmt="%.10g")
+            else:
+                np.savez_compressed(tmp, nu_cm1=nu, sigma_cm2_per_molecule=sigma,
+                                    temperature_K=np.asarray(args.temperature),
+                                    meta=np.array(json.dumps(meta)))
         print(f"wrote {out}")
     return 0
 
@@ -125,14 +147,14 @@ def add_commands(sub) -> None:
         description="Voigt absorption cross-section sigma(nu) [cm2/molecule] of a gas from "
                     "its HITRAN line list (see qogi.cross_section).")
     x.add_argument("species", help="gas formula, e.g. CH4, CO2, H2O")
-    x.add_argument("--range", nargs=2, type=float, required=True, metavar=("MIN", "MAX"),
+    x.add_argument("--range", nargs=2, type=nonnegative_float, required=True, metavar=("MIN", "MAX"),
                    help="wavenumber range [cm-1]")
-    x.add_argument("--step", type=float, default=0.01, help="grid step [cm-1] (default 0.01)")
-    x.add_argument("--temperature", type=float, nargs="+", default=[296.0],
+    x.add_argument("--step", type=positive_float, default=0.01, help="grid step [cm-1] (default 0.01)")
+    x.add_argument("--temperature", type=positive_float, nargs="+", default=[296.0],
                    help="gas temperature(s) [K] (default 296)")
-    x.add_argument("--pressure", type=float, default=101325.0,
+    x.add_argument("--pressure", type=positive_float, default=101325.0,
                    help="total pressure [Pa] (default 101325)")
-    x.add_argument("--self-fraction", type=float, default=0.0,
+    x.add_argument("--self-fraction", type=fraction, default=0.0,
                    help="absorber mole fraction for self-broadening (default 0)")
     x.add_argument("--cutoff", type=_cutoff, default="hapi",
                    help="line wings: 'hapi' (50 half-widths, default) or a half-width in cm-1")
@@ -149,7 +171,7 @@ def add_commands(sub) -> None:
     ls.set_defaults(func=cmd_hitran_list)
     f = hs.add_parser("fetch", help="download lines from HITRANonline (needs the internet)")
     f.add_argument("species")
-    f.add_argument("--range", nargs=2, type=float, required=True, metavar=("MIN", "MAX"),
+    f.add_argument("--range", nargs=2, type=nonnegative_float, required=True, metavar=("MIN", "MAX"),
                    help="wavenumber range [cm-1]")
     f.add_argument("--isotopologues", help="comma-separated local isotopologue numbers "
                                            "(default: all qogi knows)")

@@ -5,10 +5,14 @@ from __future__ import annotations
 import argparse
 import sys
 
+from ._cli_args import nonnegative_int, positive_float, seed
+
 
 def cmd_synth(args: argparse.Namespace) -> int:
     from . import synth
     from ._progress import ProgressBar
+    from .errors import UsageError
+    from .files import check_outputs
     from .render import synthesize
 
     if args.list or not args.preset:
@@ -20,23 +24,26 @@ def cmd_synth(args: argparse.Namespace) -> int:
                   f"{p['description']}")
         return 0 if args.list else 2
     if not args.output:
-        print("qogi synth: give the output file with -o REC.h5", file=sys.stderr)
-        return 2
+        raise UsageError("give the output file with -o REC.h5")
     if args.preset not in synth.presets():
-        print(f"qogi synth: unknown preset {args.preset!r}; known: {', '.join(synth.presets())}",
-              file=sys.stderr)
-        return 2
+        raise UsageError(f"unknown preset {args.preset!r}; known: {', '.join(synth.presets())}")
+    if args.camera is not None:
+        from .presets import camera_preset_names
+        known = camera_preset_names()
+        if args.camera not in known:
+            raise UsageError(f"--camera {args.camera!r}: unknown camera preset; known: "
+                             f"{', '.join(known)}")
+    check_outputs({"-o": args.output})
     bar = ProgressBar(f"{args.preset} ", enabled=not args.quiet)
     try:
+        # The recording is written beside the target and renamed onto it at
+        # the end (RecordingWriter): interrupted, the old file stays as it was.
         path = synthesize(args.preset, args.output, duration_s=args.duration,
                           frame_rate_hz=args.frame_rate, seed=args.seed, noise=not args.no_noise,
                           truth_maps=args.truth_maps, camera_name=args.camera, progress=bar,
                           num_threads=args.threads)
-    except ValueError as e:
+    finally:
         bar.close()
-        print(f"qogi synth: error: {e}", file=sys.stderr)
-        return 2
-    bar.close()
     if not args.quiet:
         from .recording import open_recording
         with open_recording(path) as rec:
@@ -59,14 +66,14 @@ def add_commands(sub) -> None:
     s.add_argument("preset", nargs="?", help="preset name (see --list)")
     s.add_argument("-o", "--output", help="recording to write (.h5)")
     s.add_argument("--list", action="store_true", help="list the presets and exit")
-    s.add_argument("--duration", type=float, help="seconds to render (default: the preset's)")
-    s.add_argument("--frame-rate", type=float, help="frames per second (default: the camera's)")
-    s.add_argument("--seed", type=int, default=0, help="random seed (turbulence and noise)")
+    s.add_argument("--duration", type=positive_float, help="seconds to render (default: the preset's)")
+    s.add_argument("--frame-rate", type=positive_float, help="frames per second (default: the camera's)")
+    s.add_argument("--seed", type=seed, default=0, help="random seed (turbulence and noise)")
     s.add_argument("--no-noise", action="store_true", help="leave out the camera's NETD noise")
     s.add_argument("--truth-maps", action="store_true",
                    help="also store per-frame truth column-density and velocity maps (large)")
     s.add_argument("--camera", help="render through another camera preset (e.g. fast-m150), "
                                      "same pixel footprint at the plume")
-    s.add_argument("--threads", type=int, default=0, help="worker threads (0 = all cores)")
+    s.add_argument("--threads", type=nonnegative_int, default=0, help="worker threads (0 = all cores)")
     s.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     s.set_defaults(func=cmd_synth)

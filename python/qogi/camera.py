@@ -481,13 +481,21 @@ class Calibration:
         ``group``, replacing it) or an open ``h5py.Group`` (into ``group``
         below it)."""
         arrays = self._arrays()
+        from .files import atomic_path
+
         if isinstance(target, (str, os.PathLike)) and str(target).endswith(".npz"):
-            np.savez(target, **arrays)
+            with atomic_path(target) as tmp:
+                np.savez(tmp, **arrays)
             return
         import h5py
         if isinstance(target, (str, os.PathLike)):
-            with h5py.File(target, "a") as f:
-                self._save_h5(f, group, arrays)
+            # Into a copy of the file, renamed over it when complete.
+            with atomic_path(target) as tmp:
+                if os.path.exists(target):
+                    import shutil
+                    shutil.copyfile(target, tmp)
+                with h5py.File(tmp, "a") as f:
+                    self._save_h5(f, group, arrays)
         elif isinstance(target, h5py.Group):
             self._save_h5(target, group, arrays)
         else:

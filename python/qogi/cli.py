@@ -11,6 +11,8 @@ from . import __version__
 def cmd_info(args: argparse.Namespace) -> int:
     import os
 
+    from .errors import UsageError
+
     from .info import (flir_info, format_flir_info, format_recording_info, info_json,
                        recording_info)
     from .io import FLIR_EXTENSIONS
@@ -29,9 +31,15 @@ def cmd_info(args: argparse.Namespace) -> int:
                                 else "error") as rec:
                 info = recording_info(rec)
             text = format_recording_info
+    except MemoryError:
+        raise
     except (ValueError, OSError) as e:
-        print(f"qogi info: error: {e}", file=sys.stderr)
-        return 2
+        from .errors import DataError
+        if not os.path.isfile(args.path):
+            raise UsageError(str(e)) from None
+        if isinstance(e, DataError):
+            raise
+        raise DataError(str(e)) from None
     print(info_json(info) if args.json else text(info))
     return 0
 
@@ -105,24 +113,96 @@ def build_parser() -> argparse.ArgumentParser:
     add_batch_commands(sub)
     from ._cli_convert import add_commands as add_convert_commands
     add_convert_commands(sub)
+    _add_exit_codes(p)
     return p
 
 
+def _add_exit_codes(parser: argparse.ArgumentParser) -> None:
+    """Every command's --help ends with the exit codes (qogi.errors)."""
+    from .errors import EXIT_CODES_HELP
+
+    parser.epilog = f"{parser.epilog}\n\n{EXIT_CODES_HELP}" if parser.epilog else EXIT_CODES_HELP
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for child in set(action.choices.values()):
+                _add_exit_codes(child)
+
+
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM (kill), handled like Ctrl-C so that temporary files go."""
+
+
+def _on_sigterm(signum, frame):
+    raise _Terminated()
+
+
+def _report_bug(command: str) -> None:
+    import traceback
+
+    traceback.print_exc()
+    print(f"qogi {command}: internal error: this is a bug in qogi, not in your input. Please "
+          "report it with the command line and the traceback above "
+          f"(qogi {__version__}, Python {sys.version.split()[0]}).", file=sys.stderr)
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    """Runs one command; returns the exit status (qogi.errors.EXIT_CODES_HELP).
+
+    A user's mistake or an environment problem (bad argument, missing file or
+    line list, unwritable folder, unreadable data) is one line on stderr, exit
+    2 or 3; Ctrl-C or SIGTERM exit 130 / 143 after the command's temporary files
+    are gone; anything else is a bug: the traceback and a request to report it
+    (exit 1).
+    """
+    import signal
+
+    from .errors import EXIT_DATA, EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_USAGE, QogiError
+
+    try:
+        parser = build_parser()
+        args = parser.parse_args(argv)
+    except KeyboardInterrupt:
+        print("qogi: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
     if not getattr(args, "func", None):
         parser.print_help()
-        return 2
-    from .errors import QogiError
+        return EXIT_USAGE
+    name = args.command + (f" {args.hitran_command}" if getattr(args, "hitran_command", None)
+                           else "")
+    previous = None
+    try:
+        previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    except ValueError:  # not the main thread (embedded use): leave SIGTERM alone
+        pass
     try:
         return int(args.func(args) or 0)
     except QogiError as e:
-        print(f"qogi {args.command}: error: {e}", file=sys.stderr)
+        print(f"qogi {name}: error: {e}", file=sys.stderr)
         return e.exit_code
+    except _Terminated:
+        print(f"qogi {name}: terminated", file=sys.stderr)
+        return 128 + signal.SIGTERM
     except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        return 130
+        print(f"qogi {name}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except MemoryError:
+        print(f"qogi {name}: error: out of memory; use fewer frames (--frames) or a smaller "
+              "input", file=sys.stderr)
+        return EXIT_DATA
+    except (ValueError, OSError) as e:
+        # Checks in the engine (std::invalid_argument) and the file system:
+        # what the value or path is and what is accepted.
+        text = str(e) or type(e).__name__
+        if isinstance(e, OSError) and e.filename is not None and e.strerror:
+            text = f"{e.filename}: {e.strerror}"
+        print(f"qogi {name}: error: {text}", file=sys.stderr)
+        return EXIT_USAGE
+    except Exception:
+        _report_bug(name)
+        return EXIT_INTERNAL
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":

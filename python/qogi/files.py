@@ -106,6 +106,19 @@ def _same_file(a: pathlib.Path, b: pathlib.Path) -> bool:
     return os.path.abspath(a) == os.path.abspath(b)
 
 
+def _can_create_in(folder: pathlib.Path) -> bool:
+    """Whether a file can really be created in ``folder`` (os.access says yes
+    to root on read-only mounts and pseudo file systems such as /proc)."""
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=_TMP_PREFIX + "probe.", dir=folder)
+    except OSError:
+        return False
+    os.close(fd)
+    with contextlib.suppress(OSError):
+        os.unlink(tmp)
+    return True
+
+
 def check_outputs(outputs: dict, inputs: Iterable[PathLike] = ()) -> None:
     """Refuse output paths that would fail or destroy something, before any work.
 
@@ -134,7 +147,7 @@ def check_outputs(outputs: dict, inputs: Iterable[PathLike] = ()) -> None:
         if not folder.is_dir():
             raise UsageError(f"{name} {path}: folder {folder} does not exist; create it first "
                              f"(mkdir -p {folder}).")
-        if not os.access(folder, os.W_OK | os.X_OK):
+        if not os.access(folder, os.W_OK | os.X_OK) or not _can_create_in(folder):
             raise UsageError(f"{name} {path}: folder {folder} is not writable; choose another "
                              "folder or fix its permissions.")
         if path.exists() and not os.access(path, os.W_OK) and not os.access(folder, os.W_OK):

@@ -152,7 +152,9 @@ class SpectralResponse(_engine.SpectralResponse):
 
     def to_csv(self, path: str | os.PathLike) -> None:
         """Write ``wavenumber_cm1,response`` rows with a header."""
-        with open(path, "w", newline="") as fh:
+        from .files import atomic_open
+
+        with atomic_open(path, "w", newline="") as fh:
             w = csv.writer(fh)
             w.writerow(["wavenumber_cm1", "response"])
             for x, y in zip(self.nu_cm1, self.response):

@@ -30,6 +30,7 @@ the measured accuracy.
 
 from __future__ import annotations
 
+import contextvars
 import dataclasses
 import math
 import threading
@@ -72,6 +73,69 @@ class Cancelled(Exception):
     def __init__(self, message: str, partial: Optional[Result] = None):
         super().__init__(message)
         self.partial = partial
+
+
+class _Workers:
+    """The worker threads of one :func:`quantify` run.
+
+    Every thread a run starts is stopped and joined before the run returns or
+    raises (also on Ctrl-C): a thread left inside the engine when the
+    interpreter exits is torn down by Python while it holds C++ frames, which
+    aborts the process ("FATAL: exception not rethrown"). Long engine calls on
+    a worker take :meth:`still_wanted` as their progress callback: the engine
+    calls it between chunks and throws when it returns False (Ctrl-C itself
+    reaches only the main thread).
+    """
+
+    def __init__(self) -> None:
+        self.cancel = threading.Event()
+        self._done: List[threading.Event] = []
+
+    def still_wanted(self, fraction: float = 0.0) -> bool:
+        return not self.cancel.is_set()
+
+    def start(self, target: Callable[[], None], name: str) -> threading.Thread:
+        done = threading.Event()
+
+        def run() -> None:
+            try:
+                target()
+            finally:
+                done.set()
+
+        job = threading.Thread(target=run, name=name, daemon=True)
+        self._done.append(done)
+        job.start()
+        return job
+
+    def close(self) -> None:
+        """Cancel every thread and wait until each has left its target (a
+        Ctrl-C while waiting is deferred until they have). Own events, not
+        Thread.join: on Python 3.11 a join interrupted by Ctrl-C can mark a
+        running thread as stopped."""
+        self.cancel.set()
+        interrupted = None
+        for done in self._done:
+            while not done.is_set():
+                try:
+                    done.wait(0.05)
+                except KeyboardInterrupt as e:
+                    interrupted = e
+        self._done.clear()
+        if interrupted is not None:
+            raise interrupted
+
+
+_run_workers: "contextvars.ContextVar[_Workers]" = contextvars.ContextVar("qogi_run_workers")
+
+
+def _workers() -> _Workers:
+    """The current run's :class:`_Workers` (a fresh set outside a run)."""
+    w = _run_workers.get(None)
+    if w is None:
+        w = _Workers()
+        _run_workers.set(w)
+    return w
 
 
 _VELOCITY_SOURCES = ("fluid", "horn_schunck", "lucas_kanade", "farneback", "dis", "piv",
@@ -456,7 +520,13 @@ def quantify(recording: Union[Recording, str], surfaces: Sequence[Surface],
     _check_inputs(rec, surfaces, cfg)
     from .checks import check_surfaces
     check_surfaces(surfaces)
-    result = _run(rec, surfaces, cfg, progress, keep_maps)
+    workers = _Workers()
+    token = _run_workers.set(workers)
+    try:
+        result = _run(rec, surfaces, cfg, progress, keep_maps)
+    finally:
+        _run_workers.reset(token)
+        workers.close()
     # What opening a camera file noticed (scene facts at factory defaults,
     # assumed pressure, dropped frames) and where each scene fact came from.
     result.warnings.extend_unique(getattr(rec, "warnings", None) or ())
@@ -603,16 +673,18 @@ class _InvertedColumns:
 
         line_solver = infer and (cfg.composition is not None or len(cfg.species) == 1)
 
+        workers = _workers()
+
         def build() -> None:
             try:
-                self._table = inv.scene_table(self.model, scene.ambient_K, **table_kw)
-                if line_solver and self._table is not None:
+                self._table = inv.scene_table(self.model, scene.ambient_K,
+                                              progress=workers.still_wanted, **table_kw)
+                if line_solver and self._table is not None and workers.still_wanted():
                     inv._line_inverter(self._table)  # its band tables, cached
             except BaseException as e:  # re-raised on the caller's thread
                 self._table_error = e
 
-        self._table_job = threading.Thread(target=build, name="qogi-scene-table", daemon=True)
-        self._table_job.start()
+        self._table_job = workers.start(build, "qogi-scene-table")
         self.k_K_per_fraction, self.k_sigma, self.k_relative_effect = None, 0.0, 0.0
         self.mixing_pixels = 0
         # A known composition ties the species' fractions (then the ratios of
@@ -1063,8 +1135,7 @@ class _InvertedColumns:
                 except BaseException as e:  # re-raised below
                     failure.append(e)
 
-            job = threading.Thread(target=work, name="qogi-proxy", daemon=True)
-            job.start()
+            job = _workers().start(work, "qogi-proxy")
         try:
             everything = np.arange(nt * n)
             flat = solve(k, everything, 0.3, 0.9)
@@ -1504,8 +1575,7 @@ def _block_velocity(st: _RunState, col_fields: np.ndarray, intervals: np.ndarray
             except BaseException as e:  # reported as the level's note below
                 transport_result.append(e)
 
-        job = threading.Thread(target=measure, name="qogi-transport", daemon=True)
-        job.start()
+        job = _workers().start(measure, "qogi-transport")
     # Pairs `stride` frames apart where the plume moves little per frame
     # (at 100 Hz a lab plume crosses ~1 px per frame): ~3 px per pair, at
     # most every 4th frame, with the transport's flux level (which sets

@@ -42,6 +42,7 @@ from typing import Dict, Iterator, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
+from .errors import DataError
 from .optics import SpectralResponse
 from .radiometry import band_table
 
@@ -80,8 +81,9 @@ _SPECIES_RE = re.compile(r"^[A-Za-z][A-Za-z0-9]*$")
 _MEMORY = "<in memory>"
 
 
-class RecordingError(ValueError):
-    """A recording that does not follow the contract.
+class RecordingError(DataError):
+    """A recording that does not follow the contract (a
+    :class:`qogi.errors.DataError`, hence a ValueError; exit 3 on the command line).
 
     The message names the file, the dataset or attribute, the offending value,
     the expected form and how to fix it. The parts are also attributes:
@@ -408,7 +410,12 @@ class Recording:
         stop = n if stop is None else stop
         if not (0 <= start <= stop <= n):
             raise IndexError(f"frame range {start}:{stop} is outside 0:{n}")
-        block = np.asarray(self._source[start:stop], dtype=np.float32)
+        try:
+            block = np.asarray(self._source[start:stop], dtype=np.float32)
+        except (OSError, KeyError, RuntimeError, TypeError) as e:  # a damaged HDF5 chunk
+            if self.path == _MEMORY:
+                raise
+            raise _damaged(self.path, e) from e
         block = self._apply_nonfinite(block, start)
         return self._convert(block, quantity)
 
@@ -459,10 +466,17 @@ class Recording:
         out = np.empty_like(block)
         for k, ch in enumerate(self.channels):
             table = band_table(ch)
-            if quantity == "radiance":
-                out[:, k] = table.radiance(block[:, k])
-            else:
-                out[:, k] = table.temperature(block[:, k])
+            try:
+                if quantity == "radiance":
+                    out[:, k] = table.radiance(block[:, k])
+                else:
+                    out[:, k] = table.temperature(block[:, k])
+            except ValueError as e:  # values no blackbody gives (zero, negative radiance)
+                if isinstance(e, DataError):
+                    raise
+                raise RecordingError(self.path, f"/frames channel {k}",
+                                     f"cannot be converted to {quantity}: {e}",
+                                     "check the frames' quantity and values") from None
         return out
 
     def _apply_nonfinite(self, block: np.ndarray, start: int) -> np.ndarray:
@@ -676,12 +690,33 @@ def _h5py():
     return h5py
 
 
+#: Largest attribute or metadata dataset (channel responses, truth) read whole [bytes].
+_MAX_METADATA_BYTES = 64 << 20
+
+
+def _small(ds, path: str, location: str) -> np.ndarray:
+    """A metadata dataset read whole, after checking its declared size."""
+    size = int(ds.size) * int(ds.dtype.itemsize)
+    if size > _MAX_METADATA_BYTES:
+        raise RecordingError(path, location, f"shape {ds.shape} declares {size / 2 ** 20:.3g} "
+                             "MiB of metadata", "the file is damaged or forged")
+    return ds[()]
+
+
 def _attr(obj, name: str, path: str, location: str, required: bool = True, fix: str = ""):
     if name not in obj.attrs:
         if required:
             raise RecordingError(path, f"{location} attr {name}", "missing",
                                  fix or f"add the attribute {name} to {location}")
         return None
+    try:
+        size = int(obj.attrs.get_id(name).get_storage_size())
+    except Exception:  # noqa: BLE001 - unreadable: reported by the read below
+        size = 0
+    if size > _MAX_METADATA_BYTES:
+        raise RecordingError(path, f"{location} attr {name}",
+                             f"declares {size / 2 ** 20:.3g} MiB (an attribute holds a few "
+                             "numbers or a name)", "the file is damaged or forged")
     v = obj.attrs[name]
     if isinstance(v, bytes):
         v = v.decode("utf-8", "replace")
@@ -743,15 +778,66 @@ def open_recording(path: Union[str, os.PathLike], *, nonfinite: str = "error",
         raise RecordingError(p, "file", "is not an HDF5 file",
                              "a qogi recording is HDF5 (see docs/recording.md); convert camera "
                              "files with qogi.io (read_flir, read_numpy, read_tiff)")
-    f = h5py.File(p, "r")
+    try:
+        f = h5py.File(p, "r")
+    except OSError as e:
+        raise RecordingError(p, "file", f"is not a readable HDF5 file ({e})",
+                             "the file is damaged or truncated; copy or export it again") from e
     try:
         rec = _read(f, p, nonfinite)
         if check_frames:
             rec._scan_frames()
-    except BaseException:
+    except BaseException as e:
         f.close()
+        if isinstance(e, Exception) and not isinstance(e, RecordingError):
+            raise _damaged(p, e) from e
         raise
     return rec
+
+
+def _damaged(p: str, e: Exception) -> RecordingError:
+    """What a failure of HDF5 or numpy while reading an untrusted file becomes
+    (h5py raises OSError, KeyError, TypeError, ... on damaged structures)."""
+    return RecordingError(p, "file", f"cannot be read ({type(e).__name__}: {e})",
+                          "the file is damaged or not written by a recording writer; "
+                          "export it again")
+
+
+#: Largest frame (C x H x W values of float32) a recording may declare [bytes]:
+#: frames are read whole, so a forged shape must not reach an allocation.
+MAX_FRAME_BYTES = 1 << 31
+#: The most a stored /frames can be compressed (deflate's limit is ~1032:1,
+#: lzf's far lower); a file declaring more data than this times what it stores
+#: is truncated, sparse or forged.
+_MAX_COMPRESSION = 2000
+
+
+def _check_declared_size(p: str, ds) -> None:
+    """Refuses /frames whose declared shape cannot be real before anything is
+    read: one frame larger than :data:`MAX_FRAME_BYTES`, or far more data
+    declared than the file stores."""
+    t, c, h, w = (int(v) for v in ds.shape)
+    frame_bytes = c * h * w * 4
+    if min(t, c, h, w) < 1:
+        raise RecordingError(p, "/frames", f"shape {ds.shape} has an empty axis",
+                             "write at least one frame of at least one pixel")
+    if frame_bytes > MAX_FRAME_BYTES:
+        raise RecordingError(p, "/frames",
+                             f"shape {ds.shape} declares {frame_bytes / 2 ** 30:.3g} GiB per frame "
+                             f"(at most {MAX_FRAME_BYTES / 2 ** 30:g} GiB)",
+                             "the file is damaged or forged; frames must be (T, C, H, W) with "
+                             "the camera's real size")
+    declared = t * frame_bytes
+    try:
+        stored = int(ds.id.get_storage_size())
+    except Exception:  # external or virtual storage: cannot tell
+        return
+    if declared > (64 << 20) and declared > _MAX_COMPRESSION * max(stored, 1):
+        raise RecordingError(p, "/frames",
+                             f"shape {ds.shape} declares {declared / 2 ** 30:.3g} GiB but the file "
+                             f"stores {stored / 2 ** 20:.3g} MiB of frames",
+                             "the file is truncated or its frames were never written; "
+                             "re-export the recording")
 
 
 def _read(f, p: str, nonfinite: str) -> Recording:
@@ -788,11 +874,21 @@ def _read(f, p: str, nonfinite: str) -> Recording:
                              f"use one of {sorted(QUANTITIES)} (band radiance in W/(m2 sr) "
                              "or radiometric temperature in K)")
     t_frames = ds.shape[0]
+    _check_declared_size(p, ds)
 
     if "time_s" not in f:
         raise RecordingError(p, "/time_s", "missing",
                              "write a float64 dataset /time_s with one time [s] per frame")
-    time_s = np.asarray(f["time_s"][()], dtype=np.float64)
+    tds = f["time_s"]
+    if not isinstance(tds, h5py.Dataset) or tds.shape != (t_frames,):
+        raise RecordingError(p, "/time_s",
+                             f"expected shape ({t_frames},) to match the {t_frames} frames; "
+                             f"got {getattr(tds, 'shape', None)}", "write one time [s] per frame")
+    try:
+        time_s = np.asarray(tds[()], dtype=np.float64)
+    except (TypeError, ValueError):
+        raise RecordingError(p, "/time_s", f"dtype {tds.dtype} is not numeric",
+                             "store the times as float64 seconds") from None
     _validate_time(p, time_s, t_frames)
 
     if "camera" not in f:
@@ -838,6 +934,9 @@ def _read(f, p: str, nonfinite: str) -> Recording:
             else:
                 extra[k] = v
         datasets = {k: g[k] for k in g if isinstance(g[k], h5py.Dataset)}
+        for k, d in datasets.items():  # read lazily; only small ones are read whole
+            if k.startswith("plane_"):
+                datasets[k] = _small(d, p, f"/truth/{k}")
         truth = Truth(rates, datasets, extra)
 
     rec = Recording(source=ds, time_s=time_s, quantity=quantity, camera=camera, scene=scene,
@@ -871,8 +970,9 @@ def _read_channels(cam, p: str, n_channels: int) -> List[SpectralResponse]:
                 raise RecordingError(p, f"{loc}/{d}", "missing",
                                      "write the channel response as datasets wavenumber_cm1 "
                                      "[cm-1] and response [dimensionless]")
-        nu = np.asarray(ch["wavenumber_cm1"][()], dtype=np.float64)
-        r = np.asarray(ch["response"][()], dtype=np.float64)
+        nu = np.asarray(_small(ch["wavenumber_cm1"], p, f"{ch.name}/wavenumber_cm1"),
+                        dtype=np.float64)
+        r = np.asarray(_small(ch["response"], p, f"{ch.name}/response"), dtype=np.float64)
         name = _attr(ch, "name", p, loc, required=False)
         try:
             out.append(SpectralResponse(np.ravel(nu), np.ravel(r),
@@ -1003,10 +1103,17 @@ class RecordingWriter:
         Pre-sizes /frames (it still grows if more are appended).
     allow_nonfinite : bool, default False
         Accept NaN/inf pixels (invalid pixels); otherwise they are an error.
+    keep_partial : bool, default False
+        What an error or interruption before :meth:`close` leaves behind. By
+        default nothing: the file is written under a temporary name beside
+        ``path`` and renamed onto it only when :meth:`close` succeeds, so an
+        existing file at ``path`` stays untouched (qogi.files). With True the
+        frames written so far replace ``path`` as a valid recording whose root
+        attribute ``complete`` is False.
 
     Every call validates its input and the metadata is validated up front,
-    so an error comes before work is lost; frames appended before an error
-    stay in a valid file (times and frames are appended together).
+    so an error comes before work is lost (times and frames are appended
+    together, so a kept partial file is valid).
 
     Examples
     --------
@@ -1020,7 +1127,7 @@ class RecordingWriter:
                  scene: Scene, frame_shape: Sequence[int], truth: Optional[Truth] = None,
                  compression: Optional[str] = None, compression_level: Optional[int] = None,
                  overwrite: bool = True, expected_frames: Optional[int] = None,
-                 allow_nonfinite: bool = False):
+                 allow_nonfinite: bool = False, keep_partial: bool = False):
         h5py = _h5py()
         self.path = os.fspath(path)
         if quantity not in QUANTITIES:
@@ -1047,9 +1154,18 @@ class RecordingWriter:
         self.allow_nonfinite = allow_nonfinite
         self._n = 0
         self._last_t = -math.inf
-        self._f = h5py.File(self.path, "w")
+        self.keep_partial = bool(keep_partial)
+        from .files import atomic_path
+        self._atomic = atomic_path(self.path)
+        tmp = self._atomic.__enter__()
+        try:
+            self._f = h5py.File(tmp, "w")
+        except BaseException as e:
+            self._atomic.__exit__(type(e), e, e.__traceback__)
+            raise
         try:
             _write_metadata(self._f, quantity, camera, scene, truth)
+            self._f.attrs["complete"] = False  # set True by close()
             n0 = int(expected_frames or 0)
             self._frames = self._f.create_dataset(
                 "frames", shape=(n0,) + shape, maxshape=(None,) + shape, dtype=np.float32,
@@ -1059,13 +1175,23 @@ class RecordingWriter:
             self._time = self._f.create_dataset("time_s", shape=(n0,), maxshape=(None,),
                                                 dtype=np.float64, chunks=(4096,))
             self._time.attrs["unit"] = "s"
-        except BaseException:
+        except BaseException as e:
             self._f.close()
+            self._f = None
+            self._atomic.__exit__(type(e), e, e.__traceback__)
             raise
 
     @property
     def n_frames(self) -> int:
         return self._n
+
+    @property
+    def truth_group(self):
+        """The open file's /truth group (h5py), for large truth datasets
+        written frame by frame before :meth:`close`."""
+        if self._f is None:
+            raise ValueError(f"{self.path}: the writer is closed")
+        return self._f.require_group("truth")
 
     def append(self, frames, time_s) -> None:
         """Append one frame (C, H, W) with its time [s], or a block (n, C, H, W)
@@ -1113,8 +1239,9 @@ class RecordingWriter:
 
     def close(self) -> None:
         """Finish the file: trim to the frames written, set the frame rate,
-        check it against the times. Raises RecordingError (the file is kept)
-        if no frame was written or the rate disagrees with the times."""
+        check it against the times, and rename it onto ``path``. Raises
+        RecordingError if no frame was written or the rate disagrees with the
+        times (then ``path`` is left as it was, unless ``keep_partial``)."""
         if self._f is None:
             return
         try:
@@ -1133,9 +1260,37 @@ class RecordingWriter:
                 rate = 1.0 / typical_interval(t)
                 self._f["camera"].attrs["frame_rate_hz"] = rate
             _check_frame_rate(self.path, t, rate)
+            self._f.attrs["complete"] = True
+        except BaseException as e:
+            self._abandon(e)
+            raise
+        self._f.close()
+        self._f = None
+        self._atomic.__exit__(None, None, None)
+
+    def _abandon(self, exc: BaseException) -> None:
+        """After an error: drop the temporary file, or (keep_partial) rename
+        the frames written so far, marked incomplete, onto ``path``."""
+        if self._f is None:
+            return
+        keep = False
+        try:
+            if self.keep_partial and self._n > 0:
+                if self._frames.shape[0] != self._n:
+                    self._frames.resize(self._n, axis=0)
+                    self._time.resize(self._n, axis=0)
+                if self.camera.frame_rate_hz is None and self._n >= 2:
+                    t = self._time[()]
+                    self._f["camera"].attrs["frame_rate_hz"] = 1.0 / typical_interval(t)
+                self._f.attrs["complete"] = False
+                keep = True
         finally:
             self._f.close()
             self._f = None
+            if keep:
+                self._atomic.__exit__(None, None, None)
+            else:
+                self._atomic.__exit__(type(exc), exc, exc.__traceback__)
 
     def __enter__(self) -> "RecordingWriter":
         return self
@@ -1143,14 +1298,12 @@ class RecordingWriter:
     def __exit__(self, exc_type, exc, tb) -> None:
         if exc_type is None:
             self.close()
-        elif self._f is not None:  # keep what was written, valid so far
+        else:
+            self._abandon(exc)
+
+    def __del__(self) -> None:  # never finished: no temporary left behind
+        if getattr(self, "_f", None) is not None:
             try:
-                if self._frames.shape[0] != self._n:
-                    self._frames.resize(self._n, axis=0)
-                    self._time.resize(self._n, axis=0)
-                if self.camera.frame_rate_hz is None and self._n >= 2:
-                    t = self._time[()]
-                    self._f["camera"].attrs["frame_rate_hz"] = 1.0 / typical_interval(t)
-            finally:
-                self._f.close()
-                self._f = None
+                self._abandon(RuntimeError("RecordingWriter dropped without close()"))
+            except Exception:
+                pass

@@ -441,10 +441,8 @@ def render_recording(sim, camera, background: Background, path, *, seed: int = 0
                                                   tbg_per_channel, seed=seed, offset=f * frame.size)
             writer.append(frame[None].astype(np.float32), times[f:f + 1])
             say(0.1 + 0.85 * (f + 1) / nf, f"frame {f + 1}/{nf}")
-    if truth_maps:
-        import h5py
-        with h5py.File(path, "r+") as fh:
-            g = fh["truth"]
+        if truth_maps:
+            g = writer.truth_group
             cols = {sp: g.create_dataset(f"column_density_kg_m2_{sp}", (nf, h, w), np.float32,
                                          chunks=(1, h, w), compression="lzf")
                     for sp in renderer.species}

@@ -42,7 +42,6 @@ import json
 import logging
 import os
 import pathlib
-import tempfile
 import threading
 import time
 import urllib.error
@@ -702,16 +701,12 @@ def cross_section_table(species: Union[str, int, None], nu_min_cm1: float, nu_ma
 
 
 def _atomic_save(table, path: pathlib.Path) -> None:
+    from .files import atomic_path
+
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=path.name, suffix=".tmp", dir=path.parent)
-        os.close(fd)
-        try:
+        with atomic_path(path) as tmp:
             table.save(tmp)
-            os.replace(tmp, path)
-        finally:
-            if os.path.exists(tmp):
-                os.remove(tmp)
     except OSError as e:  # a read-only cache must not stop the computation
         log.warning("could not write the table cache %s: %s", path, e)
 
@@ -775,16 +770,13 @@ def fetch_hitran(species: Union[str, int], nu_min_cm1: float, nu_max_cm1: float,
     folder = pathlib.Path(folder) if folder is not None else cache_dir() / "hitran"
     folder.mkdir(parents=True, exist_ok=True)
     target = folder / f"{formula}_{nu_min_cm1:g}-{nu_max_cm1:g}.par"
-    fd, tmp = tempfile.mkstemp(prefix=target.name, suffix=".tmp", dir=folder)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        lines = _engine.read_line_files([tmp])
+    from .files import atomic_open
+
+    with atomic_open(target, "wb") as fh:
+        fh.write(data)
+        fh.flush()
+        lines = _engine.read_line_files([fh.name])
         if len(lines) == 0:
-            raise RuntimeError(f"HITRANonline returned no {formula} lines for "
-                               f"{nu_min_cm1:g}-{nu_max_cm1:g} cm-1 ({url})")
-        os.replace(tmp, target)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+            raise ConnectionError(f"HITRANonline returned no {formula} lines for "
+                                  f"{nu_min_cm1:g}-{nu_max_cm1:g} cm-1 ({url})")
     return target

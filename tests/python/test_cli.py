@@ -38,4 +38,4 @@ def test_quantify_reports_bad_input_clearly(tmp_path):
     bad = tmp_path / "bad.h5"
     bad.write_bytes(b"not hdf5")
     r = run("quantify", str(bad), "--surface", "1,2,3,4")
-    assert r.returncode == 2 and "HDF5" in r.stderr
+    assert r.returncode == 3 and "HDF5" in r.stderr  # bad data

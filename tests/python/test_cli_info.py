@@ -66,8 +66,10 @@ def test_bad_file_gives_a_clear_error_and_exit_code(tmp_path):
     p = tmp_path / "broken.h5"
     p.write_text("not hdf5")
     r = run(p, check=False)
-    assert r.returncode == 2
+    assert r.returncode == 3  # bad data (a missing file is a usage error, 2)
     assert "broken.h5" in r.stderr and "not an HDF5 file" in r.stderr
+    r = run(tmp_path / "missing.h5", check=False)
+    assert r.returncode == 2 and "missing.h5" in r.stderr
 
 
 def test_flir_file_info(shared_dir):

@@ -114,16 +114,39 @@ def test_incremental_writer_infers_the_frame_rate(tmp_path):
     assert rec.truth.emission_rate_kg_s["CH4"] == 1e-3
 
 
-def test_writer_keeps_the_frames_written_before_a_failure(tmp_path):
+def test_writer_keeps_the_frames_written_before_a_failure_only_on_request(tmp_path):
     p = tmp_path / "partial.h5"
     with pytest.raises(RuntimeError):
         with qogi.RecordingWriter(p, quantity="radiance", camera=camera(), scene=scene(),
-                                  frame_shape=(2, 3, 3), expected_frames=100) as w:
+                                  frame_shape=(2, 3, 3), expected_frames=100,
+                                  keep_partial=True) as w:
             for i in range(4):
                 w.append(np.ones((2, 3, 3)), i / 15.0)
             raise RuntimeError("generator crashed")
     rec = qogi.open_recording(p)
     assert rec.n_frames == 4
+    with h5py.File(p) as f:
+        assert not f.attrs["complete"]  # a kept partial file says so
+    assert [q.name for q in tmp_path.iterdir()] == ["partial.h5"]
+
+
+def test_writer_failure_leaves_the_previous_file_untouched(tmp_path):
+    p = tmp_path / "old.h5"
+    with qogi.RecordingWriter(p, quantity="radiance", camera=camera(), scene=scene(),
+                              frame_shape=(2, 3, 3)) as w:
+        for i in range(6):
+            w.append(np.full((2, 3, 3), 2.0), i / 15.0)
+    before = p.read_bytes()
+    with pytest.raises(KeyboardInterrupt):
+        with qogi.RecordingWriter(p, quantity="radiance", camera=camera(), scene=scene(),
+                                  frame_shape=(2, 3, 3), expected_frames=100) as w:
+            for i in range(3):
+                w.append(np.ones((2, 3, 3)), i / 15.0)
+            raise KeyboardInterrupt
+    assert p.read_bytes() == before
+    assert [q.name for q in tmp_path.iterdir()] == ["old.h5"]  # no temporary left
+    with h5py.File(p) as f:
+        assert f.attrs["complete"]
 
 
 def test_writer_rejects_time_going_backwards(tmp_path):
@@ -356,10 +379,17 @@ def test_saving_over_the_file_being_read_is_refused(good_file):
     assert qogi.open_recording(good_file).n_frames == 12
 
 
-def test_writer_close_checks_the_frame_rate_and_keeps_the_file(tmp_path):
+def test_writer_close_checks_the_frame_rate_and_keeps_the_file_on_request(tmp_path):
     p = tmp_path / "rate.h5"
     w = qogi.RecordingWriter(p, quantity="radiance", camera=camera(rate=30.0), scene=scene(),
                              frame_shape=(2, 2, 2))
+    for i in range(5):
+        w.append(np.ones((2, 2, 2)), i / 15.0)
+    with pytest.raises(qogi.RecordingError, match="frame_rate_hz = 30 Hz disagrees"):
+        w.close()
+    assert not p.exists() and not list(tmp_path.iterdir())
+    w = qogi.RecordingWriter(p, quantity="radiance", camera=camera(rate=30.0), scene=scene(),
+                             frame_shape=(2, 2, 2), keep_partial=True)
     for i in range(5):
         w.append(np.ones((2, 2, 2)), i / 15.0)
     with pytest.raises(qogi.RecordingError, match="rate.h5: /camera attr frame_rate_hz: "

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cxxabi.h>
 #include <exception>
 #include <mutex>
 #include <thread>
@@ -49,6 +50,13 @@ void ParallelFor(std::size_t n, std::size_t chunk,
       const std::size_t b = c * chunk, e = std::min(n, b + chunk);
       try {
         body(b, e);
+      } catch (abi::__forced_unwind&) {
+        // The thread is being torn down (pthread_exit / pthread_cancel, e.g.
+        // a Python thread that takes the GIL while the interpreter exits):
+        // stop the others and let the unwind continue; swallowing it aborts
+        // the process ("FATAL: exception not rethrown").
+        stop = true;
+        throw;
       } catch (...) {
         record_error(std::current_exception());
         break;
@@ -64,6 +72,9 @@ void ParallelFor(std::size_t n, std::size_t chunk,
           if (control->cancelled && control->cancelled()) throw Cancelled();
           if (control->progress)
             control->progress(static_cast<double>(finished) / num_chunks);
+        } catch (abi::__forced_unwind&) {
+          stop = true;
+          throw;
         } catch (...) {
           record_error(std::current_exception());
           break;
@@ -74,9 +85,20 @@ void ParallelFor(std::size_t n, std::size_t chunk,
 
   std::vector<std::thread> pool;
   pool.reserve(threads > 0 ? threads - 1 : 0);
+  auto join_all = [&pool] {
+    for (auto& t : pool)
+      if (t.joinable()) t.join();
+  };
   for (int t = 1; t < threads; ++t) pool.emplace_back(worker, false);
-  worker(true);
-  for (auto& t : pool) t.join();
+  try {
+    worker(true);
+  } catch (...) {
+    // Only a forced unwind gets here: the workers see `stop` and finish
+    // their chunk; destroying joinable threads would std::terminate.
+    join_all();
+    throw;
+  }
+  join_all();
   if (error) std::rethrow_exception(error);
   if (control && control->progress) control->progress(1.0);
 }

@@ -2,7 +2,11 @@
 
 #include <gtest/gtest.h>
 
+#include <pthread.h>
+
 #include <atomic>
+#include <chrono>
+#include <thread>
 #include <numeric>
 #include <stdexcept>
 #include <vector>
@@ -51,3 +55,41 @@ TEST(ResolveThreads, RejectsNegative) {
 
 }  // namespace
 }  // namespace qogi
+
+// A thread torn down inside a hook (pthread_exit: what Python does to a
+// thread that takes the GIL while the interpreter exits) unwinds through
+// ParallelFor: the workers are joined and the unwind continues. Swallowing it
+// aborted the process ("FATAL: exception not rethrown").
+namespace {
+struct ExitInHook {
+  std::atomic<int> chunks{0};
+  bool returned = false;
+};
+
+void* RunExitingInHook(void* arg) {
+  auto* s = static_cast<ExitInHook*>(arg);
+  qogi::RunControl control;
+  control.cancelled = [] {
+    pthread_exit(nullptr);
+    return false;
+  };
+  qogi::ParallelFor(
+      1000, 1,
+      [s](std::size_t, std::size_t) {
+        s->chunks.fetch_add(1);
+        std::this_thread::sleep_for(std::chrono::microseconds(200));
+      },
+      4, &control);
+  s->returned = true;
+  return nullptr;
+}
+}  // namespace
+
+TEST(ParallelFor, LetsAThreadExitFromAHookAfterJoiningItsWorkers) {
+  ExitInHook state;
+  pthread_t t;
+  ASSERT_EQ(pthread_create(&t, nullptr, RunExitingInHook, &state), 0);
+  ASSERT_EQ(pthread_join(t, nullptr), 0);
+  EXPECT_FALSE(state.returned);         // the thread exited inside ParallelFor
+  EXPECT_LT(state.chunks.load(), 1000);  // and the workers stopped early
+}

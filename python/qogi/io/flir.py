@@ -61,6 +61,7 @@ from typing import Iterator, List, Optional, Sequence, Tuple, Union
 import numpy as np
 
 from .. import _engine
+from ..errors import DataError
 from ..optics import SpectralResponse
 from ..recording import (FRAME_RATE_TOLERANCE, Camera, Recording, RecordingError, Scene,
                          typical_interval)
@@ -76,7 +77,7 @@ _FFF_MAGIC = (b"FFF\x00",)
 _REC_RAW, _REC_CAMERA = 0x01, 0x20
 
 
-class FlirFormatError(ValueError):
+class FlirFormatError(DataError):
     """A FLIR file that cannot be read (names the file, offset and problem)."""
 
 
@@ -264,13 +265,19 @@ def _raw_image(buf, off: int, length: int, path: str) -> Tuple[np.ndarray, str, 
     head = bytes(data[:8])
     if head.startswith(b"\x89PNG\r\n\x1a\n"):
         import cv2
-        img = cv2.imdecode(np.frombuffer(bytes(data), np.uint8), cv2.IMREAD_UNCHANGED)
+        try:
+            img = cv2.imdecode(np.frombuffer(bytes(data), np.uint8), cv2.IMREAD_UNCHANGED)
+        except cv2.error:
+            img = None
         if img is None or img.dtype != np.uint16:
             raise FlirFormatError(f"{path}: RawData PNG at byte {off + 32} is not a 16-bit image")
         # FLIR writes these PNGs with the 16-bit words byte-swapped (ExifTool's note).
         return img.byteswap(), "png", None
     if head.startswith(b"\xff\xd8"):
-        samples, info = _engine.decode_jpegls(data)
+        try:
+            samples, info = _engine.decode_jpegls(data)
+        except ValueError as e:  # the decoder's own check of the stream
+            raise FlirFormatError(f"{path}: RawData JPEG-LS at byte {off + 32}: {e}") from None
         if samples.shape[0] != 1:
             raise FlirFormatError(f"{path}: RawData JPEG-LS at byte {off + 32} has "
                                   f"{samples.shape[0]} components, expected 1")
@@ -298,6 +305,9 @@ def _jpeg_fff(buf, path: str) -> bytes:
         seg_len = struct.unpack(">H", bytes(buf[pos + 2:pos + 4]))[0]
         payload = buf[pos + 4:pos + 2 + seg_len]
         if marker == 0xE1 and bytes(payload[:5]) == b"FLIR\x00":
+            if len(payload) < 8:
+                raise FlirFormatError(f"{path}: corrupt JPEG (a FLIR APP1 segment at byte {pos} "
+                                      "is shorter than its header)")
             parts[payload[6]] = bytes(payload[8:])
         pos += 2 + seg_len
     if not parts:
@@ -355,7 +365,9 @@ class FlirFile:
             block = _Block(self._buf, pos, self.path)
             if _REC_RAW in block.records:
                 self._blocks.append(block)
-            pos = block.end
+            # At least past this block's header: a forged directory (offset 0,
+            # no entries) must not hold the scan in place.
+            pos = max(block.end, pos + 0x40)
         if not self._blocks:
             raise FlirFormatError(f"{self.path}: no frame (no FFF block with a RawData record)")
 
@@ -406,6 +418,9 @@ class FlirFile:
         info = _camera_info(self._buf, off, length, self.path)
         roff, rlen, _ = block.records[_REC_RAW]
         hdr = bytes(self._buf[roff:roff + 32])
+        if len(hdr) < 32:
+            raise FlirFormatError(f"{self.path}: frame {i}: RawData record at byte {roff} is "
+                                  "shorter than its header (the file is truncated)")
         order = "<" if struct.unpack("<H", hdr[0:2])[0] < 0x100 else ">"
         w, h = struct.unpack(order + "HH", hdr[2:6])
         raw, fmt, near = None, None, None

@@ -1,0 +1,249 @@
+"""Every way of calling qogi wrongly gets one line naming the problem and the
+fix, with exit 2 (usage) or 3 (bad data), before any work; never a traceback
+and never a damaged input. Each case is an example from issue 16."""
+
+from __future__ import annotations
+
+import json
+import os
+
+import h5py
+import numpy as np
+import pytest
+
+from qogi import cli, errors
+from qogi.errors import EXIT_DATA, EXIT_INTERNAL, EXIT_USAGE
+
+from test_interrupt import SURFACE, small_recording
+
+
+def run(capsys, *argv):
+    """qogi ARGV in this process: (exit status, stdout, stderr)."""
+    try:
+        code = cli.main([str(a) for a in argv])
+    except SystemExit as e:  # argparse's own usage errors
+        code = e.code
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def one_line_error(err, command):
+    lines = [ln for ln in err.strip().splitlines() if ln.startswith(f"qogi {command}: error:")]
+    assert lines and "Traceback" not in err, err
+    return lines[-1]
+
+
+@pytest.fixture
+def rec(tmp_path):
+    return small_recording(tmp_path / "rec.h5", n_frames=8)
+
+
+@pytest.fixture
+def no_work(monkeypatch):
+    """Fails the test if a command starts computing."""
+    import qogi.pipeline
+    import qogi.render
+    import qogi.spectra
+
+    def boom(*a, **k):
+        raise AssertionError("the command computed before checking its arguments")
+
+    monkeypatch.setattr(qogi.pipeline, "quantify", boom)
+    monkeypatch.setattr(qogi.render, "synthesize", boom)
+    monkeypatch.setattr(qogi.spectra, "cross_section", boom)
+    monkeypatch.setattr(qogi.spectra, "load_line_list", boom)
+
+
+# ----------------------------------------------------------------- xsec
+
+@pytest.mark.parametrize("args, needle", [
+    (["--range", "3000", "2900"], "MAX must be greater than MIN"),
+    (["--range", "2900"], "--range: expected 2 arguments"),
+    (["--range", "a", "b"], "not a number"),
+    (["--range", "2900", "3000", "--step", "-1"], "--step: must be > 0"),
+    (["--range", "2900", "3000", "--step", "nan"], "--step: must be a finite number"),
+    (["--range", "2900", "3000", "--temperature", "-5"], "--temperature: must be > 0"),
+    (["--range", "2900", "3000", "--pressure", "0"], "--pressure: must be > 0"),
+    (["--range", "2900", "3000", "--self-fraction", "2"], "within [0, 1]"),
+    (["--range", "2900", "3000", "--cutoff", "-3"], "--cutoff"),
+    (["--range", "0", "1e9", "--step", "1e-3"], "at most 5e7"),
+    (["--range", "2900", "3000", "--out", "x.txt"], "give a .npz or .csv"),
+])
+def test_xsec_argument_errors_are_usage_errors_before_any_work(capsys, no_work, tmp_path,
+                                                               monkeypatch, args, needle):
+    monkeypatch.chdir(tmp_path)
+    code, _, err = run(capsys, "xsec", "CH4", *args)
+    assert code == EXIT_USAGE and needle in err and "Traceback" not in err, err
+
+
+def test_xsec_unknown_species_and_missing_line_lists(capsys, tmp_path, monkeypatch):
+    code, _, err = run(capsys, "xsec", "XYZ", "--range", "2900", "3000")
+    assert code == EXIT_USAGE and "HITRAN molecule formula" in one_line_error(err, "xsec")
+    # N2O is a species qogi knows (partition sums) but has no line list here.
+    monkeypatch.setenv("QOGI_HITRAN_PATH", str(tmp_path))
+    monkeypatch.setenv("QOGI_CACHE_DIR", str(tmp_path / "cache"))
+    code, _, err = run(capsys, "xsec", "N2O", "--range", "2200", "2210")
+    line = one_line_error(err, "xsec")
+    assert code == EXIT_USAGE and "no HITRAN line list for 'N2O'" in line
+    assert "qogi hitran fetch N2O" in line  # how to fix it
+    code, _, err = run(capsys, "xsec", "CH4", "--range", "2900", "3000", "--line-list",
+                       tmp_path / "nope.par")
+    assert code == EXIT_USAGE and "nope.par" in one_line_error(err, "xsec")
+
+
+def test_xsec_unwritable_output_fails_before_computing(capsys, no_work, tmp_path):
+    code, _, err = run(capsys, "xsec", "CH4", "--range", "2900", "3000", "--out",
+                       tmp_path / "missing" / "x.npz")
+    assert code == EXIT_USAGE and "does not exist" in one_line_error(err, "xsec")
+
+
+# ----------------------------------------------------------------- synth
+
+def test_synth_into_a_missing_folder_fails_before_computing(capsys, no_work, tmp_path):
+    code, _, err = run(capsys, "synth", "lab-ch4-5slpm-gf320", "-o", tmp_path / "missing_dir" / "x.h5")
+    line = one_line_error(err, "synth")
+    assert code == EXIT_USAGE and "missing_dir does not exist" in line and "mkdir" in line
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["--seed=-1"], "--seed: must be >= 0"),
+    (["--seed", "1.5"], "--seed: not a whole number"),
+    (["--duration", "0"], "--duration: must be > 0"),
+    (["--frame-rate", "inf"], "--frame-rate: must be a finite number"),
+    (["--threads", "-2"], "--threads: must be >= 0"),
+    (["--camera", "no-such-camera"], "unknown camera preset"),
+])
+def test_synth_argument_errors(capsys, no_work, tmp_path, args, needle):
+    code, _, err = run(capsys, "synth", "lab-ch4-5slpm-gf320", "-o", tmp_path / "x.h5", *args)
+    assert code == EXIT_USAGE and needle in err and "Traceback" not in err, err
+    code, _, err = run(capsys, "synth", "no-such-preset", "-o", tmp_path / "x.h5")
+    assert code == EXIT_USAGE and "unknown preset" in one_line_error(err, "synth")
+
+
+# ----------------------------------------------------------------- quantify
+
+@pytest.mark.parametrize("args, needle", [
+    (["--source", "5"], "--source: expected X,Y"),
+    (["--source", "nan,nan"], "--source: X,Y must be finite"),
+    (["--source", "1,inf"], "--source: X,Y must be finite"),
+    (["--frames", "5"], "--frames: expected START:STOP"),
+    (["--frames", "5:2"], "need 0 <= START < STOP"),
+    (["--threads", "-3"], "--threads: must be >= 0"),
+    (["--wind-speed", "-1"], "--wind-speed: must be > 0"),
+    (["--distance", "nan"], "--distance: must be a finite number"),
+    (["--surface", "1,2"], "expected an even number"),
+    (["--auto-surfaces", "a,b"], "--auto-surfaces"),
+])
+def test_quantify_argument_errors(capsys, rec, args, needle):
+    surface = [] if "--surface" in args or "--auto-surfaces" in args else ["--surface", SURFACE]
+    code, _, err = run(capsys, "quantify", rec, *surface, *args, "-q")
+    assert code == EXIT_USAGE and needle in err and "Traceback" not in err, err
+
+
+def test_quantify_never_writes_over_its_input(capsys, no_work, rec):
+    before = rec.read_bytes()
+    for opt in ("--json", "--csv", "--plot"):
+        code, _, err = run(capsys, "quantify", rec, "--surface", SURFACE, opt, rec, "-q")
+        assert code == EXIT_USAGE and "that is the input file" in one_line_error(err, "quantify")
+    # The same file by another name is still the input.
+    link = rec.with_name("alias.h5")
+    os.link(rec, link)
+    code, _, err = run(capsys, "quantify", rec, "--surface", SURFACE, "--json", link, "-q")
+    assert code == EXIT_USAGE and "input file" in err
+    assert rec.read_bytes() == before
+
+
+def test_quantify_refuses_two_outputs_on_one_file(capsys, no_work, rec, tmp_path):
+    x = tmp_path / "x.out"
+    code, _, err = run(capsys, "quantify", rec, "--surface", SURFACE, "--json", x, "--csv", x, "-q")
+    assert code == EXIT_USAGE and "both name" in one_line_error(err, "quantify")
+    assert not x.exists()
+
+
+@pytest.mark.parametrize("where", ["missing-folder", "proc"])
+def test_quantify_unwritable_output_fails_before_computing(capsys, no_work, rec, tmp_path, where):
+    if where == "proc" and not os.path.isdir("/proc/self"):
+        pytest.skip("no /proc here")
+    target = tmp_path / "no" / "out.json" if where == "missing-folder" else "/proc/out.json"
+    code, _, err = run(capsys, "quantify", rec, "--surface", SURFACE, "--json", target, "-q")
+    assert code == EXIT_USAGE and "--json" in one_line_error(err, "quantify")
+
+
+def test_missing_and_broken_recordings(capsys, tmp_path):
+    code, _, err = run(capsys, "quantify", tmp_path / "missing.h5", "--surface", SURFACE)
+    assert code == EXIT_USAGE and "missing.h5" in one_line_error(err, "quantify")
+    bad = tmp_path / "bad.h5"
+    bad.write_bytes(b"\x89HDF\r\n\x1a\n" + bytes(200))  # an HDF5 signature, then nothing
+    code, _, err = run(capsys, "quantify", bad, "--surface", SURFACE)
+    assert code == EXIT_DATA and "bad.h5" in one_line_error(err, "quantify")
+
+
+@pytest.mark.parametrize("shape, needle", [
+    ((8, 1, 200000, 200000), "GiB per frame"),        # 149 GiB per frame
+    ((10_000_000, 2, 24, 32), "the file stores"),     # 57 GiB of frames never written
+])
+def test_a_file_declaring_a_huge_shape_is_refused_before_reading(capsys, rec, shape, needle):
+    with h5py.File(rec, "r+") as f:
+        attrs = dict(f["frames"].attrs)
+        del f["frames"]
+        d = f.create_dataset("frames", shape=shape, dtype=np.float32,
+                             chunks=(1, 1, 24, 32))
+        d.attrs.update(attrs)
+        if shape[0] != 8:
+            del f["time_s"]
+            f.create_dataset("time_s", shape=(shape[0],), dtype=np.float64, chunks=(4096,))
+    for cmd in (["info", rec], ["quantify", rec, "--surface", SURFACE, "-q"]):
+        code, _, err = run(capsys, *cmd)
+        assert code == EXIT_DATA and needle in one_line_error(err, cmd[0]), err
+
+
+def test_a_nan_result_exits_3_and_says_incomplete_in_its_files(capsys, rec, tmp_path):
+    """All-zero radiance: no rate can come out. Without a known background it
+    is refused at once (exit 3); with one (as synthetic recordings have) the
+    pipeline runs to a NaN rate, which used to print "nan kg/h" with exit 0
+    and "complete": true: the files are written but say "complete": false,
+    and the exit status is 3."""
+    with h5py.File(rec, "r+") as f:
+        f["frames"][...] = 0.0
+    code, _, err = run(capsys, "quantify", rec, "--surface", SURFACE, "-q")
+    assert code == EXIT_DATA and "band_radiance" in one_line_error(err, "quantify")
+    with h5py.File(rec, "r+") as f:
+        f["scene"].attrs["background_temperature_K"] = 285.0
+    out = tmp_path / "out.json"
+    code, stdout, err = run(capsys, "quantify", rec, "--surface", SURFACE, "--source", "16,22",
+                            "--json", out, "--csv", tmp_path / "out.csv", "-q")
+    assert code == EXIT_DATA, err
+    assert "cannot be trusted" in one_line_error(err, "quantify")
+    d = json.loads(out.read_text())
+    assert d["complete"] is False
+    assert (tmp_path / "out.csv").exists()
+
+
+# ----------------------------------------------------------------- everything
+
+def test_every_command_documents_its_exit_codes(capsys):
+    for cmd in (["--help"], ["info", "--help"], ["quantify", "--help"], ["synth", "--help"],
+                ["xsec", "--help"], ["demo", "--help"], ["gui", "--help"],
+                ["hitran", "list", "--help"], ["hitran", "fetch", "--help"]):
+        code, out, _ = run(capsys, *cmd)
+        text = " ".join(out.split())
+        assert code == 0 and "exit status:" in text and "2 usage error" in text \
+            and "3 bad data" in text, cmd
+
+
+def test_an_internal_error_shows_the_traceback_and_asks_for_a_report(capsys, monkeypatch):
+    import qogi.info
+
+    def broken(*a, **k):
+        raise RuntimeError("an invariant broke")
+
+    monkeypatch.setattr(qogi.info, "flir_info", broken)
+    code, _, err = run(capsys, "info", "x.seq")
+    assert code == EXIT_INTERNAL
+    assert "Traceback" in err and "RuntimeError: an invariant broke" in err
+    assert "this is a bug in qogi" in err and "report it" in err
+
+
+def test_exit_codes_are_distinct():
+    assert len({errors.EXIT_OK, EXIT_INTERNAL, EXIT_USAGE, EXIT_DATA,
+                errors.EXIT_INTERRUPTED}) == 5
