@@ -412,8 +412,8 @@ class Recording:
             raise IndexError(f"frame range {start}:{stop} is outside 0:{n}")
         try:
             block = np.asarray(self._source[start:stop], dtype=np.float32)
-        except (OSError, KeyError, RuntimeError, TypeError) as e:  # a damaged HDF5 chunk
-            if self.path == _MEMORY:
+        except Exception as e:  # noqa: BLE001 - h5py's errors on a damaged chunk or type
+            if self.path == _MEMORY or isinstance(e, DataError):
                 raise
             raise _damaged(self.path, e) from e
         block = self._apply_nonfinite(block, start)

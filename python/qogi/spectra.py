@@ -706,7 +706,7 @@ def _atomic_save(table, path: pathlib.Path) -> None:
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         with atomic_path(path) as tmp:
-            table.save(tmp)
+            table.save(str(tmp))
     except OSError as e:  # a read-only cache must not stop the computation
         log.warning("could not write the table cache %s: %s", path, e)
 

@@ -59,14 +59,14 @@ def mutated(draw, corpus):
     return name, bytes(b)
 
 
-@settings(FUZZ, max_examples=200)
+@settings(FUZZ, max_examples=1500)
 @given(mutated(FLIR_SEEDS))
 def test_flir_reader_on_mutated_files_raises_only_data_errors(tmp_path_factory, case):
     name, data = case
     read_flir_bytes(data, suffix=name[name.rfind("."):])
 
 
-@settings(FUZZ, max_examples=40)
+@settings(FUZZ, max_examples=200)
 @given(st.sampled_from(FLIR_SEEDS), st.data())
 def test_flir_reader_on_every_truncation(tmp_path_factory, seed, data):
     name, raw = seed
@@ -74,7 +74,7 @@ def test_flir_reader_on_every_truncation(tmp_path_factory, seed, data):
     read_flir_bytes(raw[:cut], suffix=name[name.rfind("."):])
 
 
-@settings(FUZZ, max_examples=60)
+@settings(FUZZ, max_examples=300)
 @given(mutated(REC_SEEDS))
 def test_recording_reader_on_mutated_bytes_raises_only_data_errors(case):
     read_recording_bytes(case[1])
@@ -134,12 +134,12 @@ def _apply(f, kind, path, value, k):
             d.attrs[n] = v
 
 
-@settings(FUZZ, max_examples=40)
-@given(st.sampled_from(REC_SEEDS), st.lists(h5_edit(), min_size=1, max_size=3))
+@settings(FUZZ, max_examples=150)
+@given(st.sampled_from(range(len(REC_SEEDS))), st.lists(h5_edit(), min_size=1, max_size=3))
 def test_recording_reader_on_edited_structure_raises_only_data_errors(tmp_path_factory, seed,
                                                                       edits):
     p = tmp_path_factory.mktemp("edit") / "r.h5"
-    p.write_bytes(seed[1])
+    p.write_bytes(REC_SEEDS[seed][1])
     with h5py.File(p, "r+") as f:
         for e in edits:
             _apply(f, *e)
@@ -194,7 +194,7 @@ def _parser():
     return build_parser()
 
 
-@settings(FUZZ, max_examples=300)
+@settings(FUZZ, max_examples=1000)
 @given(_ARGV)
 def test_the_argument_parser_accepts_or_refuses_with_a_usage_error(capsys, argv):
     try:
