@@ -1,6 +1,7 @@
 #include "engine/velocimetry/fluid_flow.h"
 
-#include <opencv2/imgproc.hpp>
+#include <algorithm>
+#include <cmath>
 
 #include "engine/util/check.h"
 
