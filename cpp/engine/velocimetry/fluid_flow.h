@@ -110,9 +110,10 @@ struct FluidFlowOptions {
   // (the default), a warm-started call refines the warm start on its
   // warm_levels finest levels: the search, blind to mass conservation, reads
   // a steady featureless plume base as at rest and would undo the flux the
-  // continuity solve carried into it over the previous pairs (the fluid
-  // flow alone then read the lab plume 40-66 % low near the exit instead of
-  // 21-24 %). Default false.
+  // continuity solve carried into it over the previous pairs (on the 100 Hz
+  // CH4 lab plume of tests/python/test_velocimetry_plume.py the fluid flow
+  // alone then read -86, -80, -50 and -23 % at 2, 4, 8 and 12 cm instead of
+  // -25, -25, -24 and -22 %). Default false.
   bool patch_search_warm = false;
   // Maximum number of pyramid levels (1 = no pyramid); each level halves the
   // size, so ~2^(levels-1) px/frame of motion can be recovered. [1, 12].
