@@ -210,16 +210,27 @@ void BindVelocimetry(py::module_& m) {
       .field("smoothness_scale", &FluidFlowOptions::smoothness_scale,
              "scale [px] above which the flow is not smoothed, >= 0, 0 = classic "
              "smoothness (default 8)")
+      .field("patch_search_scale", &FluidFlowOptions::patch_search_scale,
+             "finest scale of the patch-search initialisation, 0 = full resolution, "
+             "-1 = none (default 0)")
+      .field("patch_size", &FluidFlowOptions::patch_size,
+             "patch side of the search [px], 4-64 (default 8)")
+      .field("patch_stride", &FluidFlowOptions::patch_stride,
+             "patch spacing of the search [px], < patch_size (default 4)")
+      .field("patch_iterations", &FluidFlowOptions::patch_iterations,
+             "gradient-descent iterations per patch (default 16)")
+      .field("patch_search_warm", &FluidFlowOptions::patch_search_warm,
+             "run the search also when warm-started (default False)")
       .field("levels", &FluidFlowOptions::levels, "pyramid levels, 1-12 (default 5)")
       .field("min_level_size", &FluidFlowOptions::min_level_size,
              "smallest side of the coarsest level [px] (default 16)")
       .field("finest_level", &FluidFlowOptions::finest_level,
              "finest level solved, 0 = full resolution (default 1)")
       .field("warm_levels", &FluidFlowOptions::warm_levels,
-             "levels solved after a warm start, 0 = all (default 3)")
+             "levels solved after the search or a warm start, 0 = all (default 3)")
       .field("warps", &FluidFlowOptions::warps, "warps per level (default 2)")
       .field("iterations", &FluidFlowOptions::iterations,
-             "conjugate-gradient iterations per warp (default 20)")
+             "conjugate-gradient iterations per warp (default 10)")
       .field("tolerance", &FluidFlowOptions::tolerance,
              "relative CG tolerance (default 1e-3)")
       .finish();

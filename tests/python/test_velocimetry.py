@@ -62,7 +62,8 @@ def epe(f, tu, tv, margin=16):
 # The C++ field names, as documented in the engine headers.
 FIELDS = {
     "fluid": ("alpha", "alpha_div", "alpha_curl", "div_curl_scale", "smoothness_scale",
-              "levels", "min_level_size", "finest_level", "warm_levels", "warps",
+              "patch_search_scale", "patch_size", "patch_stride", "patch_iterations",
+              "patch_search_warm", "levels", "min_level_size", "finest_level", "warm_levels", "warps",
               "iterations", "tolerance"),
     "horn_schunck": ("alpha", "levels", "min_level_size", "finest_level", "warm_levels",
                      "warps", "iterations", "tolerance"),

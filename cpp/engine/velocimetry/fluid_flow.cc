@@ -1,5 +1,8 @@
 #include "engine/velocimetry/fluid_flow.h"
 
+#include <algorithm>
+#include <cmath>
+
 #include "engine/util/check.h"
 
 namespace qogi {
@@ -10,6 +13,13 @@ void FluidFlowOptions::Check() const {
   CheckNonNegative(alpha_curl, "FluidFlowOptions.alpha_curl");
   CheckPositive(div_curl_scale, "FluidFlowOptions.div_curl_scale", "px");
   CheckNonNegative(smoothness_scale, "FluidFlowOptions.smoothness_scale", "px");
+  CheckInRange(patch_search_scale, -1, 10, "FluidFlowOptions.patch_search_scale");
+  CheckInRange(patch_size, 4, 64, "FluidFlowOptions.patch_size", "px");
+  CheckInRange(patch_stride, 1, 63, "FluidFlowOptions.patch_stride", "px");
+  Require(patch_stride < patch_size,
+          "FluidFlowOptions.patch_stride must be < patch_size; got " +
+              std::to_string(patch_stride) + " >= " + std::to_string(patch_size));
+  CheckInRange(patch_iterations, 1, 1000, "FluidFlowOptions.patch_iterations");
   CheckInRange(levels, 1, 12, "FluidFlowOptions.levels");
   CheckInRange(min_level_size, 4, 4096, "FluidFlowOptions.min_level_size", "px");
   CheckInRange(finest_level, 0, 10, "FluidFlowOptions.finest_level");
@@ -21,6 +31,16 @@ void FluidFlowOptions::Check() const {
 
 FluidFlow::FluidFlow(const FluidFlowOptions& options) : options_(options) {
   options_.Check();
+  if (options_.patch_search_scale >= 0) {
+    search_ = cv::DISOpticalFlow::create(cv::DISOpticalFlow::PRESET_ULTRAFAST);
+    search_->setFinestScale(options_.patch_search_scale);
+    search_->setPatchSize(options_.patch_size);
+    search_->setPatchStride(options_.patch_stride);
+    search_->setGradientDescentIterations(options_.patch_iterations);
+    search_->setVariationalRefinementIterations(0);  // the continuity solve refines
+    search_->setUseMeanNormalization(true);
+    search_->setUseSpatialPropagation(true);
+  }
 }
 
 void FluidFlow::set_source_mask(const cv::Mat& source_mask) {
@@ -52,7 +72,47 @@ void FluidFlow::CalcChecked(const cv::Mat& prev, const cv::Mat& next,
   // The mask only marks valid output here: the scaling (hence the balance of
   // data and regularisation) must not depend on it either.
   s.scale_over_mask = false;
+  if (search_ && (!warm || options_.patch_search_warm)) {
+    if (!warm) {
+      // From rest: the continuity solve's coarser levels find the large
+      // motion, from which the search starts. They cost a sixteenth of the
+      // finest level and up: four times the iterations, which a 24 px/frame
+      // motion needs from rest on 320 x 256 (flow_test.cc).
+      flow_ops::VariationalSettings coarse = s;
+      coarse.finest_level = s.finest_level + 1;
+      coarse.iterations = 4 * s.iterations;
+      solver_.Solve(prev, next, mask, source_mask_, false, coarse, flow);
+    }
+    if (PatchSearch(prev, next, flow)) {
+      // The search holds the motion down to its patches' scale: the
+      // continuity solve refines it on the finest level only (its coarser
+      // levels would replace the search's detail with their own, coarser
+      // solution).
+      s.warm_levels = 1;
+      warm = true;
+    }
+  }
   solver_.Solve(prev, next, mask, source_mask_, warm, s, flow);
+}
+
+bool FluidFlow::PatchSearch(const cv::Mat& prev, const cv::Mat& next, FlowField& flow) {
+  // 8-bit frames spanning the pair's range (the search's patches are mean-
+  // normalised, so only the contrast matters; a column field's plume must
+  // not saturate).
+  double lo0, hi0, lo1, hi1;
+  cv::minMaxLoc(prev, &lo0, &hi0);
+  cv::minMaxLoc(next, &lo1, &hi1);
+  const double lo = std::min(lo0, lo1), hi = std::max(hi0, hi1);
+  if (!(hi > lo) || !std::isfinite(hi - lo)) return false;
+  const double scale = 255.0 / (hi - lo);
+  prev.convertTo(i08_, CV_8U, scale, -lo * scale);
+  next.convertTo(i18_, CV_8U, scale, -lo * scale);
+  cv::Mat start[] = {flow.u, flow.v};
+  cv::merge(start, 2, flow2_);
+  search_->calc(i08_, i18_, flow2_);
+  cv::Mat parts[] = {flow.u, flow.v};
+  cv::split(flow2_, parts);
+  return true;
 }
 
 }  // namespace qogi

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <vector>
 
 namespace qogi {
 namespace flow_ops {
@@ -144,11 +145,12 @@ void Warp(const cv::Mat& src, const cv::Mat& u, const cv::Mat& v, cv::Mat& dst,
         if (!(py > -2.f)) py = -2.f;
         px = std::min(px, wmax + 2.f);
         py = std::min(py, hmax + 2.f);
-        const float fx = std::floor(px), fy = std::floor(py);
-        const int ix = static_cast<int>(fx), iy = static_cast<int>(fy);
+        // floor by truncation of a positive number (px, py >= -2): without
+        // SSE4.1 std::floor is a library call, the largest part of a warp.
+        const int ix = static_cast<int>(px + 2.f) - 2, iy = static_cast<int>(py + 2.f) - 2;
         float wx[4], wy[4];
-        CubicWeights(px - fx, wx);
-        CubicWeights(py - fy, wy);
+        CubicWeights(px - static_cast<float>(ix), wx);
+        CubicWeights(py - static_cast<float>(iy), wy);
         float acc = 0.f;
         if (ix >= 1 && ix + 2 < W && iy >= 1 && iy + 2 < H) {
           for (int j = 0; j < 4; ++j) {
@@ -224,22 +226,25 @@ void ResampleFlow(const cv::Mat& u, const cv::Mat& v, cv::Size size, double scal
   if (scale == 2.0 && (size.width + 1) / 2 == Ws && (size.height + 1) / 2 == Hs) {
     // One pyramid level up: even pixels copy a source sample, odd ones
     // average two (or four); the last odd row/column repeats the border.
+    // Rows first (one source row, or the mean of two, times 2), then
+    // columns: the same bilinear weights as sampling each pixel directly.
     ParallelRows(size.height, size.width, [&](int y0, int y1) {
+      std::vector<float> col(Ws);
       for (int y = y0; y < y1; ++y) {
         const int iy = y / 2, iy1 = std::min(iy + (y & 1), Hs - 1);
-        const float wy = (y & 1) && iy1 != iy ? 0.5f : 0.f;
+        const float wy = (y & 1) && iy1 != iy ? 1.f : 2.f;  // 2 x weight of row iy
         for (int c = 0; c < 2; ++c) {
           const cv::Mat& src = c == 0 ? u : v;
           float* out = (c == 0 ? u_out : v_out).ptr<float>(y);
           const float* r0 = src.ptr<float>(iy);
           const float* r1 = src.ptr<float>(iy1);
-          for (int x = 0; x < size.width; ++x) {
-            const int ix = x / 2, ix1 = std::min(ix + (x & 1), Ws - 1);
-            const float wx = (x & 1) && ix1 != ix ? 0.5f : 0.f;
-            const float a = r0[ix] + wx * (r0[ix1] - r0[ix]);
-            const float b = r1[ix] + wx * (r1[ix1] - r1[ix]);
-            out[x] = 2.f * (a + wy * (b - a));
+          for (int i = 0; i < Ws; ++i) col[i] = wy * r0[i] + (2.f - wy) * r1[i];
+          const int pairs = size.width / 2;  // full (even, odd) output pairs
+          for (int i = 0; i < pairs; ++i) {
+            out[2 * i] = col[i];
+            out[2 * i + 1] = 0.5f * (col[i] + col[std::min(i + 1, Ws - 1)]);
           }
+          if (size.width & 1) out[size.width - 1] = col[Ws - 1];
         }
       }
     });
