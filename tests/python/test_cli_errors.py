@@ -197,18 +197,35 @@ def test_a_file_declaring_a_huge_shape_is_refused_before_reading(capsys, rec, sh
         assert code == EXIT_DATA and needle in one_line_error(err, cmd[0]), err
 
 
-def test_a_nan_result_exits_3_and_says_incomplete_in_its_files(capsys, rec, tmp_path):
-    """All-zero radiance: no rate can come out. Without a known background it
-    is refused at once (exit 3); with one (as synthetic recordings have) the
-    pipeline runs to a NaN rate, which used to print "nan kg/h" with exit 0
-    and "complete": true: the files are written but say "complete": false,
-    and the exit status is 3."""
+def test_blank_frames_are_refused_with_exit_3(capsys, rec):
+    """All-zero radiance: no rate can come out; refused before any work, with
+    or without a known background (it used to print "nan kg/h" with exit 0)."""
     with h5py.File(rec, "r+") as f:
         f["frames"][...] = 0.0
     code, _, err = run(capsys, "quantify", rec, "--surface", SURFACE, "-q")
     assert code == EXIT_DATA and "band_radiance" in one_line_error(err, "quantify")
     with h5py.File(rec, "r+") as f:
         f["scene"].attrs["background_temperature_K"] = 285.0
+    code, _, err = run(capsys, "quantify", rec, "--surface", SURFACE, "--source", "16,22", "-q")
+    assert code == EXIT_DATA and "physical band radiance" in one_line_error(err, "quantify")
+
+
+def test_a_nan_result_exits_3_and_says_incomplete_in_its_files(capsys, rec, tmp_path,
+                                                               monkeypatch):
+    """Whatever makes a rate NaN (the pipeline flags it: test_pipeline_trust),
+    the command line never prints it with exit 0: the files are written and
+    say "complete": false, and the exit status is 3."""
+    import qogi.pipeline
+
+    real = qogi.pipeline.quantify
+
+    def nan_rate(*a, **k):
+        res = real(*a, **k)
+        r = res.surfaces[0].species["CH4"]
+        r.mean_kg_h = float("nan")
+        return res
+
+    monkeypatch.setattr(qogi.pipeline, "quantify", nan_rate)
     out = tmp_path / "out.json"
     code, stdout, err = run(capsys, "quantify", rec, "--surface", SURFACE, "--source", "16,22",
                             "--json", out, "--csv", tmp_path / "out.csv", "-q")
