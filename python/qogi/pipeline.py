@@ -529,7 +529,10 @@ def quantify(recording: Union[Recording, str], surfaces: Sequence[Surface],
         workers.close()
     # What opening a camera file noticed (scene facts at factory defaults,
     # assumed pressure, dropped frames) and where each scene fact came from.
-    result.warnings.extend_unique(getattr(rec, "warnings", None) or ())
+    # (Dropped frames are the pipeline's own finding too: reported once.)
+    result.warnings.extend_unique(
+        w for w in (getattr(rec, "warnings", None) or ())
+        if not (w.code == "frames-dropped" and result.warnings.has("frames-dropped")))
     if getattr(rec, "scene_origin", None):
         result.info["scene_origin"] = dict(rec.scene_origin)
     return result
