@@ -22,7 +22,7 @@ def _config_from_args(args):
     if args.exit_velocity is not None:
         velocity = "exit"
     background = args.background
-    if background not in ("beside-surface", "percentile"):
+    if background not in ("auto", "beside-surface", "percentile"):
         background = Region.parse(background)
     frames = None
     if args.frames:
@@ -33,7 +33,8 @@ def _config_from_args(args):
                           wind_speed_m_s=args.wind_speed, exit_velocity_m_s=args.exit_velocity,
                           averaging=args.averaging, background=background, source=source,
                           distance_m=args.distance, sigma_m=args.sigma, frames=frames,
-                          num_threads=args.threads)
+                          num_threads=args.threads, line_shape=args.line_shape,
+                          exit_temperature_K=args.exit_temperature)
 
 
 def cmd_quantify(args: argparse.Namespace) -> int:
@@ -129,11 +130,20 @@ def add_commands(sub) -> None:
     v.add_argument("--exit-velocity", type=float, metavar="M_S",
                    help="use the release's exit velocity [m/s] (lab checks)")
     q.add_argument("--source", metavar="X,Y", help="source pixel: orient surfaces away from it")
-    q.add_argument("--background", default="beside-surface",
-                   help="beside-surface (default), percentile, or a gas-free region x0,y0,x1,y1")
+    q.add_argument("--background", default="auto",
+                   help="auto (default: beside the surfaces where the strips there are "
+                        "gas-free, else the temporal percentile), beside-surface, percentile, "
+                        "or a gas-free region x0,y0,x1,y1")
     q.add_argument("--averaging", default="per-frame", choices=["per-frame", "time-averaged"],
                    help="invert every frame then average rates (default), or invert the "
                         "time-averaged frames")
+    q.add_argument("--line-shape", default="fixed:25+self", metavar="RULE",
+                   help="line shape of the cross-sections: the wing rule fixed[:CM1] or hapi "
+                        "(50 half-widths), then +self or +air broadening (default "
+                        "fixed:25+self; docs/forward_model.md)")
+    q.add_argument("--exit-temperature", type=float, metavar="K",
+                   help="the gas's temperature at the exit [K], when known: checked against "
+                        "the assumed gas temperature (warning gas-temperature-suspect)")
     q.add_argument("--distance", type=float, metavar="M", help="override the camera distance [m]")
     q.add_argument("--sigma", type=float, metavar="M",
                    help="plume depth sigma [m] (default: from the plume width across each surface)")

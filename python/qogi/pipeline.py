@@ -84,7 +84,7 @@ class QuantifyConfig:
     wind_speed_m_s: Optional[float] = None
     exit_velocity_m_s: Optional[float] = None
     averaging: str = "per-frame"
-    background: Union[str, Region] = "beside-surface"
+    background: Union[str, Region] = "auto"
     background_percentile: float = 5.0
     source: Optional[Tuple[float, float]] = None
     distance_m: Optional[float] = None
@@ -99,6 +99,8 @@ class QuantifyConfig:
     column_systematic: Optional[float] = None
     flux_level: bool = True
     pair_stride: Optional[int] = None
+    line_shape: str = "fixed:25+self"
+    exit_temperature_K: Optional[float] = None
 
     def __post_init__(self):
         if isinstance(self.species, str):
@@ -130,8 +132,9 @@ class QuantifyConfig:
         if self.averaging not in ("per-frame", "time-averaged"):
             raise ValueError(f"averaging must be 'per-frame' or 'time-averaged'; got {self.averaging!r}")
         if isinstance(self.background, str):
-            if self.background not in ("beside-surface", "percentile"):
-                raise ValueError("background must be 'beside-surface', 'percentile' or a qogi.Region; "
+            if self.background not in ("auto", "beside-surface", "percentile"):
+                raise ValueError("background must be 'auto', 'beside-surface', 'percentile' or a "
+                                 "qogi.Region; "
                                  f"got {self.background!r}")
         elif not isinstance(self.background, Region):
             raise ValueError(f"background must be a string or a qogi.Region; got {self.background!r}")
@@ -159,6 +162,12 @@ class QuantifyConfig:
             raise ValueError(f"pair_stride must be an integer within [1, 100] (frames between "
                              f"the velocimetry's pairs) or None (automatic); got "
                              f"{self.pair_stride!r}")
+        from .forward import LineShape
+        self.line_shape = str(LineShape.parse(self.line_shape))
+        if self.exit_temperature_K is not None and not (
+                np.isfinite(self.exit_temperature_K) and 150.0 <= self.exit_temperature_K <= 900.0):
+            raise ValueError(f"exit_temperature_K must be within [150, 900] K; got "
+                             f"{self.exit_temperature_K}")
         if self.source is not None:
             self.source = (float(self.source[0]), float(self.source[1]))
         if self.composition is not None:
@@ -528,7 +537,8 @@ class _InvertedColumns:
         self.horizontal = horizontal
         self.background = background
         channels = rec.channels
-        self.model = forward_model(channels, cfg.species, scene.pressure_Pa)
+        self.model = forward_model(channels, cfg.species, scene.pressure_Pa,
+                                   line_shape=cfg.line_shape)
         netd = rec.camera.netd_K or 0.02
         if cfg.gas_temperature == "infer":
             self.temperature_range_K = (scene.ambient_K - 10.0, scene.ambient_K + 150.0)
@@ -566,6 +576,10 @@ class _InvertedColumns:
 
         self._table_job = threading.Thread(target=build, name="qogi-scene-table", daemon=True)
         self._table_job.start()
+        # The other line-shape rules, for the budget's line-shape term.
+        from .budget import AlternativeModels
+        self.alternatives = AlternativeModels(channels, cfg.species, scene.pressure_Pa,
+                                              cfg.line_shape)
         self.k_K_per_fraction, self.k_sigma, self.k_relative_effect = None, 0.0, 0.0
         self.mixing_pixels = 0
         # A known composition ties the species' fractions (then the ratios of
@@ -644,6 +658,31 @@ class _InvertedColumns:
             out.append((np.concatenate([[0.0], contrast[i][keep]]),
                         np.concatenate([[0.0], cols[i][keep]])))
         return out
+
+    def line_shape_curves(self, j: int, species: str):
+        """(columns, ratios) of :func:`qogi.budget.line_shape_ratios` for
+        surface ``j``: the proxy channel, the surface's depth, the assumed
+        gas temperature or the fitted mixing line."""
+        from .budget import line_shape_ratios
+
+        cfg, scene = self.cfg, self.scene
+        total = sum(cfg.composition[sp] for sp in cfg.species) if cfg.composition else None
+
+        def fractions(x):
+            if total is None:
+                return {sp: (x if sp == species else np.zeros_like(x)) for sp in cfg.species}
+            return {sp: x * cfg.composition[sp] / total for sp in cfg.species}
+
+        def temperature(x):
+            if self.k_K_per_fraction is None:
+                return np.full_like(x, scene.gas_K)
+            lo, hi = self.temperature_range_K
+            return np.clip(scene.ambient_K + self.k_K_per_fraction * x, lo, hi)
+
+        models = [m for _, m in self.alternatives.get()]
+        return line_shape_ratios(self.model, models, self.proxy_channel, fractions, temperature,
+                                 self.sigma_m.get(j, cfg.sigma_m or 0.02), scene.ambient_K,
+                                 self._bg_t, species)
 
     def _contrast(self, fractions: Dict[str, np.ndarray], peak_temperature_K: np.ndarray,
                   sigma_m: np.ndarray, use_table: bool = True) -> np.ndarray:
@@ -1088,12 +1127,14 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
         first = rec.frame(start, quantity="radiometric_temperature")
         t_bg_guess = float(np.median(first))
     channel_sign = np.full(rec.n_channels, 1.0 if scene.gas_K >= t_bg_guess else -1.0)
-    background = _Background(rec, cfg, roi, frames, channel_sign, say, t_bg_guess)
-    # Up to 50 frames spread over the run: the background's static shape and,
-    # without a given source, the plume's source for the flux level of the
-    # default velocimetry (the surfaces keep their own orientation).
+    # Up to 50 frames spread over the run: the background's choice and static
+    # shape and, without a given source, the plume's source for the flux
+    # level of the default velocimetry (the surfaces keep their own
+    # orientation).
     velocity_info: Dict[str, object] = {}
     source = cfg.source
+    if source is not None:
+        velocity_info["source_xy"] = [float(source[0]), float(source[1])]
     want_source = (source is None and cfg.velocity == "fluid" and cfg.flux_level and
                    cfg.column_density != "truth")
     sample_frames = None
@@ -1102,13 +1143,17 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
         sample = list(frames)[::max(1, len(frames) // 50)][:50]
         sample_frames = np.asarray([rec.frame(f, quantity="radiance") for f in sample],
                                    dtype=np.float64)
-    if not isinstance(cfg.background, Region) and cfg.background != "percentile":
+    bg_cfg, velocity_info["background_choice"] = _choose_background(cfg, sample_frames, surfaces,
+                                                                    samples, channel_sign)
+    background = _Background(rec, bg_cfg, roi, frames, channel_sign, say, t_bg_guess)
+    if not isinstance(bg_cfg.background, Region) and bg_cfg.background != "percentile":
         sl = roi.slices()
         background.set_static_shape(sample_frames[:, :, sl[0], sl[1]].mean(axis=0))
     if want_source and len(sample_frames) >= 2:
         from .surfaces import _plume_image, detect_source
         try:
             source = detect_source(_plume_image(sample_frames))
+            velocity_info["source_xy"] = [float(source[0]), float(source[1])]
             velocity_info["source"] = (f"detected at x={source[0]:.1f}, y={source[1]:.1f} "
                                        f"(for the flux level; give source= to set it)")
         except ValueError as e:
@@ -1296,6 +1341,19 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
                    keep_maps=keep_maps, roi=roi, columns=columns, velocity_info=velocity_info)
 
 
+def _choose_background(cfg: QuantifyConfig, sample_frames, surfaces, samples, channel_sign):
+    """The background method of the run: ``"auto"`` chooses between beside
+    the surfaces and the temporal percentile from the scene
+    (:func:`qogi.background.choose`). Returns (the config the background
+    stage uses, the choice's record for ``info``, or None)."""
+    if cfg.background != "auto":
+        return cfg, None
+    from .background import choose
+
+    choice = choose(sample_frames, surfaces, samples, channel_sign, cfg.background_percentile)
+    return dataclasses.replace(cfg, background=choice["method"]), choice
+
+
 def _transport_crop(surfaces, source, roi: Region, shape: Tuple[int, int]):
     """The plume's axis in the image (``up``, ``down``, ``left``, ``right``:
     from the source towards the surfaces), the source's line along it in the
@@ -1391,6 +1449,12 @@ def _finish(rec, surfaces, cfg, scene, samples, frames, done, col_fields, surf_c
                 "column_density_kg_m2": {cfg.species[0]: col_fields[k]},
                 "velocity_px_per_frame": uv, "origin": (roi.x0, roi.y0)}
     results = []
+    from .diagnostics import Diagnostics
+    warnings = Diagnostics()
+    advice: Dict[str, list] = {sp: [] for sp in cfg.species}
+    flux_inputs: Dict[tuple, tuple] = {}
+    bg_choice = (velocity_info or {}).get("background_choice")
+    rise_speeds: Dict[int, float] = {}
     for j, (s, (xy, n, dl, t)) in enumerate(zip(surfaces, samples)):
         per_species = {}
         vn = np.zeros((done, len(xy)))
@@ -1425,10 +1489,22 @@ def _finish(rec, surfaces, cfg, scene, samples, frames, done, col_fields, surf_c
                 "velocity": abs(mean) * vsys * 3600,
                 "column density": math.sqrt(col_rand ** 2 + (abs(mean) * col_sys) ** 2)
                 * 3600,
+                "line shape": abs(mean) * _line_shape_term(columns, j, sp, c, vn * dl[None, :],
+                                                           warnings, s.name) * 3600,
             }
+            if bg_choice is not None and cfg.column_density != "truth":
+                terms["background"] = abs(mean) * bg_choice["relative"].get(j, 0.0) * 3600
             sigma = math.sqrt(sum(v * v for v in terms.values()))
             mean_h = mean * 3600
             ci = (mean_h - 1.645 * sigma, mean_h + 1.645 * sigma)
+            ci = _check_direction(rate, c, sig, vn, dl, flows, scene, ci, warnings, s.name, sp)
+            if finite.size:
+                advice[sp].append(_record_advice(finite, n_eff, vn, c, dl, columns, j, scene))
+            flux_inputs[(j, sp)] = (c, vn * dl[None, :])
+            if sp == cfg.species[0]:
+                mass_line = float(np.sum(np.where(good, c, 0.0) * dl[None, :]))
+                if mass_line > 0 and finite.size:
+                    rise_speeds[j] = float(np.sum(finite)) / mass_line * (done / finite.size)
             dominant = max(terms, key=terms.get)
             truth = None
             if rec.truth is not None and sp in rec.truth.emission_rate_kg_s:
@@ -1443,5 +1519,96 @@ def _finish(rec, surfaces, cfg, scene, samples, frames, done, col_fields, surf_c
             "frame_rate_hz": float(scene.frame_rate), "pixel_m": float(scene.pixel_m),
             "gas_temperature_K": float(scene.gas_K), "velocity_systematic": float(vsys),
             "column_systematic": float(col_sys), **mixing, **(velocity_info or {})}
+    _record_warnings(advice, info, warnings)
+    if complete and columns is not None and cfg.column_density != "truth":
+        from .hotgas import check_gas_temperature
+        check_gas_temperature(cfg, scene, results, columns, samples, flux_inputs, rise_speeds,
+                              (velocity_info or {}).get("source_xy"), warnings, info)
     return Result(results, config=cfg, recording_path=str(rec.path), pixel_status=status_counts,
-                  maps=kept_maps, info=info, complete=complete)
+                  maps=kept_maps, info=info, complete=complete, warnings=warnings)
+
+
+def _line_shape_term(columns, j: int, species: str, c: np.ndarray, weights: np.ndarray,
+                     warnings, surface: str) -> float:
+    """Relative ``line shape`` term of surface j (qogi.budget); 0 without an
+    inversion (truth columns) or a finished run."""
+    from .budget import line_shape_systematic
+
+    if columns is None or not hasattr(columns, "line_shape_curves"):
+        return 0.0
+    try:
+        grid, ratios = columns.line_shape_curves(j, species)
+    except (ValueError, RuntimeError, OSError) as e:
+        warnings.add("line-shape-term-missing", f"the line-shape term could not be sized: {e}",
+                     surface=surface, species=species)
+        return 0.0
+    return line_shape_systematic(c, weights, grid, ratios)
+
+
+def _check_direction(rate, c, sig, vn, dl, flows, scene, ci, warnings, surface: str,
+                     species: str) -> tuple:
+    """The interval of a rate that runs against the surface's orientation or
+    is zero while gas crosses it, widened to +-the flux the columns carry at
+    the measured (or, with none, the flow's typical) speed; with a warning
+    ``flux-against-surface`` or ``zero-rate-with-gas``."""
+    from .budget import direction_check
+
+    speed = np.abs(vn)
+    if flows is not None and not np.any(speed > 0):
+        fu, fv, _ = flows
+        typical = float(np.nanpercentile(np.hypot(fu[::max(1, len(fu) // 20)],
+                                                  fv[::max(1, len(fv) // 20)]), 90))
+        speed = np.full_like(speed, typical * scene.m_s_per_px_frame)
+    flag = direction_check(rate, c, sig, speed * dl[None, :])
+    if flag is None:
+        return ci
+    bound = flag["bound_kg_s"] * 3600
+    lo, hi = min(ci[0], -bound), max(ci[1], bound)
+    if flag["reason"] == "zero":
+        warnings.add("zero-rate-with-gas",
+                     f"the rate is zero while gas crosses the surface (no velocity there: e.g. "
+                     f"a wrong source or flow direction); interval widened to "
+                     f"[{lo:.4g}, {hi:.4g}] kg/h, the flux its columns carry at the flow's "
+                     f"speed in either direction", surface=surface, species=species,
+                     bound_kg_h=bound)
+    else:
+        warnings.add("flux-against-surface",
+                     f"the rate runs against the surface's orientation (away from the source): "
+                     f"the flux level or the source may be reversed; interval widened to "
+                     f"[{lo:.4g}, {hi:.4g}] kg/h", surface=surface, species=species,
+                     bound_kg_h=bound)
+    return (lo, hi)
+
+
+def _record_advice(finite, n_eff, vn, c, dl, columns, j, scene) -> dict:
+    """qogi.budget.record_length_advice for one surface: the mean normal
+    speed where gas is, and the plume's width (2.35 sigma of its depth)."""
+    from .budget import record_length_advice
+
+    w = np.where(np.isfinite(c), c, 0.0)
+    speed = float(np.sum(np.abs(vn) * w) / np.sum(w)) if np.sum(w) > 0 else 0.0
+    sigma = (columns.sigma_m.get(j) if columns is not None and hasattr(columns, "sigma_m")
+             else None) or float(np.sum(dl)) / 4.0
+    return record_length_advice(finite, scene.frame_rate, n_eff, speed, 2.3548 * sigma)
+
+
+def _record_warnings(advice: Dict[str, list], info: dict, warnings) -> None:
+    """The record length a 10 % mean needs (the longest over the surfaces):
+    into ``info["record_length"]`` and, when the record is shorter, the
+    warning ``record-too-short``."""
+    out = {}
+    for sp, items in advice.items():
+        items = [a for a in items if np.isfinite(a["needed_s"])]
+        if not items:
+            continue
+        worst = max(items, key=lambda a: a["needed_s"])
+        out[sp] = {k: float(v) for k, v in worst.items()}
+        if worst["needed_s"] > worst["record_s"]:
+            warnings.add("record-too-short",
+                         f"a 10 % (1 sigma) mean needs about {worst['needed_s']:.0f} s of record; "
+                         f"this one is {worst['record_s']:.1f} s (temporal "
+                         f"{100 * worst['temporal']:.0f} %, flux level "
+                         f"{100 * worst['level']:.0f} % now)", species=sp,
+                         needed_s=worst["needed_s"], record_s=worst["record_s"])
+    if out:
+        info["record_length"] = out
