@@ -135,6 +135,8 @@ def run_case(cache: Path, case: str, seed: int) -> dict:
     for k in ("record_length", "gas_temperature_check"):
         if k in res.info:
             info[k] = res.info[k]
+    if res.info.get("background_choice"):
+        info["background"] = res.info["background_choice"]["method"]
     d = dict(case=case, seed=seed, seconds=seconds, frames=rec.n_frames, surfaces=rows, info=info,
              warnings=[w.to_dict() for w in res.warnings])
     out_json.write_text(json.dumps(d, indent=1))

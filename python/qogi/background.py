@@ -16,9 +16,11 @@ mean - p5 = 1.645 sigma; the threshold is 2.5 sigma, sigma from the strips'
 own frame-to-frame noise floor) and fluctuations beyond the noise. When
 every strip is gas-free the beside-surface background is used, else the
 percentile; the choice and the evidence go into the result's ``info`` and
-the budget gets a ``background`` term: half the difference between the two
-estimates' mean contrast along the surface when both are usable, else the
-chosen estimate's standard error.
+the budget gets a ``background`` term: the chosen estimate's uncertainty
+(for the strips: the gas they may still hold beyond pure noise, and their
+statistical error; for the percentile: its standard error) relative to the
+surface's mean contrast (a column changes in proportion to the contrast
+where the plume is thin; more where it is thick).
 """
 
 from __future__ import annotations
@@ -101,29 +103,30 @@ def choose(frames: np.ndarray, surfaces: Sequence, samples: Sequence, channel_si
         excess.append(worst)
     beside_ok = t >= 5 and all(e <= GAS_EXCESS_SIGMA for e in excess)
     method = "beside-surface" if beside_ok or t < 5 else "percentile"
-    # The two estimates at the surfaces' samples, and the mean contrast.
+    # The chosen estimate's uncertainty at each surface, relative to the
+    # surface's mean contrast (signal-weighted). Beside the surfaces: gas
+    # the strips may still hold (their excess over pure noise's 1.645) and
+    # their statistical error (6 pixels x T frames). The percentile: its
+    # standard error (~1.3 sigma / sqrt(T) per pixel, along the surface).
     rel = {}
     for j, (s, (xy, n, dl, tt)) in enumerate(zip(surfaces, samples)):
         at = _sample(f, xy)                                             # (T, C, N)
-        pct = np.stack([np.percentile(at[:, c], lo_pct[c, 0], axis=0) for c in range(nc)])
-        ends = [_sample(f, pts).mean(axis=-1) for pts in strip_points(np.asarray(s.points), w, h)]
-        beside = (ends[0][..., None] * (1 - tt) + ends[1][..., None] * tt).mean(axis=0)  # (C, N)
-        contrast = sign * (at.mean(axis=0) - (beside if method == "beside-surface" else pct))
+        if method == "beside-surface":
+            ends = [_sample(f, pts).mean(axis=-1) for pts in strip_points(np.asarray(s.points), w, h)]
+            bg = (ends[0][..., None] * (1 - tt) + ends[1][..., None] * tt).mean(axis=0)
+            delta = (max(0.0, excess[j] - 1.645) + 1.0 / np.sqrt(6.0 * t)) * noise[:, 0]
+        else:
+            bg = np.stack([np.percentile(at[:, c], lo_pct[c, 0], axis=0) for c in range(nc)])
+            delta = 1.3 * noise[:, 0] / np.sqrt(t)
+        contrast = sign * (at.mean(axis=0) - bg)                        # (C, N)
         weight = np.clip(contrast, 0, None)
-        denom = float(weight.sum())
-        if not denom > 0:
+        total = weight.sum(axis=1)                                      # (C,)
+        if not total.max() > 0:
             rel[j] = 0.0
             continue
-        if beside_ok:
-            diff = np.abs(beside - pct)
-            rel[j] = float(0.5 * (diff * weight).sum() / denom / max(
-                float((contrast * weight).sum() / denom), 1e-30))
-        else:
-            # The percentile's standard error: ~1.3 sigma / sqrt(T) per
-            # pixel, averaged along the surface.
-            se = 1.3 * noise / np.sqrt(t) / np.sqrt(max(1, xy.shape[0]))
-            rel[j] = float((se[:, 0] * weight.sum(axis=1)).sum() / denom / max(
-                float((contrast * weight).sum() / denom), 1e-30))
+        c_best = int(np.argmax(total))
+        mean_contrast = float((contrast[c_best] * weight[c_best]).sum() / total[c_best])
+        rel[j] = float(delta[c_best] / max(mean_contrast, 1e-30))
     reason = ("the strips beside every surface are gas-free (time-mean within "
               f"{GAS_EXCESS_SIGMA} noise of their low percentile)" if beside_ok else
               "the strips beside surface(s) " + ", ".join(

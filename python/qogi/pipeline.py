@@ -1497,7 +1497,8 @@ def _finish(rec, surfaces, cfg, scene, samples, frames, done, col_fields, surf_c
             sigma = math.sqrt(sum(v * v for v in terms.values()))
             mean_h = mean * 3600
             ci = (mean_h - 1.645 * sigma, mean_h + 1.645 * sigma)
-            ci = _check_direction(rate, c, sig, vn, dl, flows, scene, ci, warnings, s.name, sp)
+            ci = _check_direction(rate, c, sig, vn, dl, flows, scene, ci, warnings, s.name, sp,
+                                  getattr(columns, "sigma_m", {}).get(j))
             if finite.size:
                 advice[sp].append(_record_advice(finite, n_eff, vn, c, dl, columns, j, scene))
             flux_inputs[(j, sp)] = (c, vn * dl[None, :])
@@ -1546,19 +1547,31 @@ def _line_shape_term(columns, j: int, species: str, c: np.ndarray, weights: np.n
 
 
 def _check_direction(rate, c, sig, vn, dl, flows, scene, ci, warnings, surface: str,
-                     species: str) -> tuple:
+                     species: str, sigma_m: Optional[float]) -> tuple:
     """The interval of a rate that runs against the surface's orientation or
     is zero while gas crosses it, widened to +-the flux the columns carry at
-    the measured (or, with none, the flow's typical) speed; with a warning
-    ``flux-against-surface`` or ``zero-rate-with-gas``."""
+    a speed scale (docs/pipeline_api.md); with a warning
+    ``flux-against-surface`` or ``zero-rate-with-gas``. The bound's
+    speed is at least the scale of the plume's buoyancy, so a dead flow
+    cannot make it vanish."""
     from .budget import direction_check
 
+    # The speed scale of the widened interval: the largest of the measured
+    # speeds on the surface, the flow's 90th-percentile speed and the
+    # buoyancy scale sqrt(g' width) (a plume moves at least about that fast
+    # where its own buoyancy drives it).
     speed = np.abs(vn)
-    if flows is not None and not np.any(speed > 0):
+    typical = 0.0
+    if flows is not None:
         fu, fv, _ = flows
         typical = float(np.nanpercentile(np.hypot(fu[::max(1, len(fu) // 20)],
-                                                  fv[::max(1, len(fv) // 20)]), 90))
-        speed = np.full_like(speed, typical * scene.m_s_per_px_frame)
+                                                  fv[::max(1, len(fv) // 20)]), 90)) \
+            * scene.m_s_per_px_frame
+    from . import _engine
+    g_reduced = 9.81 * abs(1.0 - _engine.molar_mass(species) * scene.ambient_K /
+                           (0.028965 * scene.gas_K))
+    buoyant = math.sqrt(g_reduced * 2.3548 * (sigma_m or 0.02))
+    speed = np.maximum(speed, max(typical, buoyant))
     flag = direction_check(rate, c, sig, speed * dl[None, :])
     if flag is None:
         return ci

@@ -226,11 +226,26 @@ def detect_source(image: np.ndarray, threshold: float = 0.1) -> Point:
     ValueError when no plume stands out."""
     img = np.abs(np.asarray(image, dtype=float))
     pts, w, c, axis = _plume_axis(img, threshold)
-    along = (pts - c) @ axis
-    across = (pts - c) @ np.array([axis[1], -axis[0]])
-    lo, hi = np.percentile(along, [2.0, 98.0])
-    span = max(hi - lo, 1.0)
-    ends = (along <= lo + 0.15 * span, along >= hi - 0.15 * span)
+
+    def ends_of(a):
+        along = (pts - c) @ a
+        lo, hi = np.percentile(along, [2.0, 98.0])
+        span = max(hi - lo, 1.0)
+        ends = (along <= lo + 0.15 * span, along >= hi - 0.15 * span)
+        sig = [float(np.median(w[e])) if e.any() else 0.0 for e in ends]
+        return along, lo, hi, span, ends, max(sig) / max(min(sig), 1e-300)
+
+    # The plume's axis: the mask's principal axis, unless the signal falls
+    # more clearly across it (a plume that fills a small view's width is as
+    # wide as it is long; along its flow the column falls, across it it is
+    # symmetric).
+    perp = np.array([axis[1], -axis[0]])
+    first_try, second_try = ends_of(axis), ends_of(perp)
+    if second_try[5] > 1.2 and second_try[5] > 1.5 * first_try[5]:
+        axis, perp = perp, -axis
+        first_try = second_try
+    along, lo, hi, span, ends, _ = first_try
+    across = (pts - c) @ perp
     h, wd = img.shape
     border = [bool(np.any((pts[e, 0] <= 1) | (pts[e, 0] >= wd - 2) | (pts[e, 1] <= 1) |
                           (pts[e, 1] >= h - 2))) for e in ends]
@@ -243,7 +258,9 @@ def detect_source(image: np.ndarray, threshold: float = 0.1) -> Point:
     else:
         first = width[0] <= width[1]
     tip = along <= lo + 0.05 * span if first else along >= hi - 0.05 * span
-    x, y = pts[tip].mean(axis=0)
+    # The signal-weighted position there (the plume's axis, not the mask's
+    # mean, where the mask fills a small view's width).
+    x, y = np.average(pts[tip], axis=0, weights=w[tip] ** 2)
     return float(x), float(y)
 
 
