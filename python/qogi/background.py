@@ -18,7 +18,9 @@ every strip is gas-free the beside-surface background is used, else the
 percentile; the choice and the evidence go into the result's ``info`` and
 the budget gets a ``background`` term: the chosen estimate's uncertainty
 (for the strips: the gas they may still hold beyond pure noise, and their
-statistical error; for the percentile: its standard error) relative to the
+statistical error; for the percentile: its standard error and the gas it
+still holds, its excess over the straight line between the surface's ends,
+which also raises the warning ``background-not-gas-free``) relative to the
 surface's mean contrast (a column changes in proportion to the contrast
 where the plume is thin; more where it is thick).
 """
@@ -34,6 +36,9 @@ __all__ = ["choose", "strip_points", "GAS_EXCESS_SIGMA"]
 #: (time mean - 5th percentile) / noise above which a strip carries gas
 #: (pure Gaussian noise: 1.645).
 GAS_EXCESS_SIGMA = 2.5
+#: Excess of the percentile background over the straight line between the
+#: surface's ends [noise] above which the percentile holds gas.
+PERCENTILE_GAS_SIGMA = 5.0
 
 
 def strip_points(points: np.ndarray, width: int, height: int) -> List[np.ndarray]:
@@ -84,7 +89,8 @@ def choose(frames: np.ndarray, surfaces: Sequence, samples: Sequence, channel_si
     dict with ``method`` ("beside-surface" or "percentile"), ``strips``
     (per surface: the worst strip's excess in noise units), ``reason`` and
     ``relative`` {surface index: the background term relative to the
-    surface's mean contrast}.
+    surface's mean contrast} and ``not_gas_free`` [(surface, excess in noise
+    units)] where the percentile too holds gas.
     """
     f = np.asarray(frames, float)
     t, nc, h, w = f.shape
@@ -109,6 +115,7 @@ def choose(frames: np.ndarray, surfaces: Sequence, samples: Sequence, channel_si
     # their statistical error (6 pixels x T frames). The percentile: its
     # standard error (~1.3 sigma / sqrt(T) per pixel, along the surface).
     rel = {}
+    not_free = []
     for j, (s, (xy, n, dl, tt)) in enumerate(zip(surfaces, samples)):
         at = _sample(f, xy)                                             # (T, C, N)
         if method == "beside-surface":
@@ -117,7 +124,15 @@ def choose(frames: np.ndarray, surfaces: Sequence, samples: Sequence, channel_si
             delta = (max(0.0, excess[j] - 1.645) + 1.0 / np.sqrt(6.0 * t)) * noise[:, 0]
         else:
             bg = np.stack([np.percentile(at[:, c], lo_pct[c, 0], axis=0) for c in range(nc)])
-            delta = 1.3 * noise[:, 0] / np.sqrt(t)
+            # Gas the percentile still holds (a plume that never leaves the
+            # pixels): its excess over the straight line between the
+            # surface's ends, averaged along the surface.
+            line = bg[:, :1] * (1 - tt) + bg[:, -1:] * tt
+            held = np.clip(sign * (bg - line), 0, None)                 # (C, N)
+            held_max = float((held / noise).max())
+            if held_max > PERCENTILE_GAS_SIGMA:
+                not_free.append((s.name or str(j), held_max))
+            delta = 1.3 * noise[:, 0] / np.sqrt(t) + held.mean(axis=1)
         contrast = sign * (at.mean(axis=0) - bg)                        # (C, N)
         weight = np.clip(contrast, 0, None)
         total = weight.sum(axis=1)                                      # (C,)
@@ -134,4 +149,4 @@ def choose(frames: np.ndarray, surfaces: Sequence, samples: Sequence, channel_si
                   if e > GAS_EXCESS_SIGMA) + " carry gas (time-mean above their low percentile "
               f"by up to {max(excess):.1f} noise): temporal percentile instead")
     return {"method": method, "strips": [float(e) for e in excess], "reason": reason,
-            "relative": rel}
+            "relative": rel, "not_gas_free": not_free}

@@ -1521,6 +1521,15 @@ def _finish(rec, surfaces, cfg, scene, samples, frames, done, col_fields, surf_c
             "gas_temperature_K": float(scene.gas_K), "velocity_systematic": float(vsys),
             "column_systematic": float(col_sys), **mixing, **(velocity_info or {})}
     _record_warnings(advice, info, warnings)
+    if bg_choice is not None and cfg.column_density != "truth":
+        for name, excess in bg_choice.get("not_gas_free", []):
+            warnings.add("background-not-gas-free",
+                         f"neither background is gas-free here: the strips beside the surface "
+                         f"carry gas and the temporal percentile along it stands {excess:.0f} "
+                         f"noise above the line between its ends (gas that never leaves); the "
+                         f"columns are low by about that, carried in the budget's background "
+                         f"term; draw longer surfaces or give a gas-free background region",
+                         surface=name, excess_noise=excess)
     if complete and columns is not None and cfg.column_density != "truth":
         from .hotgas import check_gas_temperature
         check_gas_temperature(cfg, scene, results, columns, samples, flux_inputs, rise_speeds,
