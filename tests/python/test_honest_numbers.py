@@ -214,6 +214,23 @@ def test_hot_gas_warning_fires_on_the_heated_single_channel_preset(heated):
     assert 1.3 < w[0].data["bias_factor"] < 4.0
 
 
+@pytest.mark.slow
+def test_hot_gas_warning_from_the_plume_rise_alone(tmp_path):
+    # No exit temperature: the quantified rate (x2.2 too much gas) would
+    # drive a faster rise than the velocimetry measures. The rise needs a
+    # few seconds of record (on 1.3 s the ratio reads 0.92, on 10 s
+    # 0.79-0.85; the ambient release 0.96-1.06).
+    p = tmp_path / "heated-6s.h5"
+    render.synthesize("lab-heated-ch4-55c-gf320", p, duration_s=6.0, seed=7)
+    heated = qogi.open_recording(p)
+    surf, source = _lab_surfaces(heated)
+    res = quantify(heated, surf, QuantifyConfig(source=source))
+    print(res.warnings, res.info.get("gas_temperature_check"))
+    w = [d for d in res.warnings if d.code == "gas-temperature-suspect"]
+    assert w and w[0].data["evidence"] == "plume rise" and w[0].data["direction"] == "high"
+    assert w[0].data["bias_factor"] > 1.3
+
+
 @pytest.mark.parametrize("with_exit", [False, True])
 def test_hot_gas_warning_is_silent_on_the_ambient_preset(ambient, with_exit):
     surf, source = _lab_surfaces(ambient)
