@@ -3,7 +3,8 @@
 Stages (DESIGN.md), for each frame:
 
 1. **Background**: the gas-free band radiance of each channel, beside each
-   control surface (default), from a user region, or a temporal percentile.
+   control surface or a temporal percentile (chosen from the scene by
+   default), or from a user region.
 2. **Column density**: the contrast ``L - L_bg`` is inverted per pixel for the
    Gaussian-plume parameters (:mod:`qogi.inversion`): single channel with the
    gas temperature given or ambient, or several channels with it inferred;
@@ -17,7 +18,13 @@ Stages (DESIGN.md), for each frame:
    per frame and species.
 5. **Rate and uncertainty**: the mean of the per-frame rates with a 90 %
    interval combining the temporal standard error (with autocorrelation), the
-   column-density uncertainty and the velocimetry's systematic uncertainty.
+   column-density uncertainty, the velocimetry's systematic uncertainty, the
+   line shape's (:mod:`qogi.budget`) and the background's
+   (:mod:`qogi.background`).
+6. **Checks** (``Result.warnings``): a rate against the surface's
+   orientation or zero while gas crosses it (interval widened), the record
+   length a 10 % mean needs, evidence that an assumed gas temperature is
+   wrong (:mod:`qogi.hotgas`).
 
 See docs/pipeline_api.md for the public contract and docs/validation.md for
 the measured accuracy.
