@@ -20,7 +20,7 @@ commercial tools' known failure. Two kinds of evidence are weighed:
    each surface. The measured one is the rate over the surface's column
    integral. The exit diameter is not known, so the prediction's lower bound
    over exit diameters 5 mm - 10 cm is used: a plume rising slower
-   than 0.9 x what any exit could make the quantified amount of gas rise
+   than 0.87 x what any exit could make the quantified amount of gas rise
    means the
    amount is overstated, i.e. the gas is warmer than assumed (its excess
    emission read as column).
@@ -38,11 +38,13 @@ import numpy as np
 __all__ = ["check_gas_temperature", "RISE_RATIO_THRESHOLD", "BIAS_THRESHOLD"]
 
 #: The measured / lowest predicted rise speed below which the rise is
-#: evidence of an overstated rate. Chosen on the validation's seeds 0-2
-#: (docs/validation.md): the ambient lab release reads 0.96-0.99 (1.02-1.06
-#: rendered with another line shape), the 55 C release assumed ambient
-#: 0.79-0.85; the rate's velocity scatter (+-10 %) moves the ratio by ~+-7 %.
-RISE_RATIO_THRESHOLD = 0.90
+#: evidence of an overstated rate. Chosen on the validation's 10 s records,
+#: seeds 0-4 (docs/validation.md): the ambient lab release reads 0.89-0.99
+#: (0.94-1.06 rendered with another line shape), the 55 C release assumed
+#: ambient 0.77-0.85. The margin is small (the rate's velocity scatter, +-10 %,
+#: moves the ratio by ~+-7 %): weak evidence; a given exit temperature is
+#: the strong one.
+RISE_RATIO_THRESHOLD = 0.87
 #: Relative bias of a given exit temperature above which it is reported.
 BIAS_THRESHOLD = 0.10
 #: Exit diameters [m] over which the rise prediction's lower bound is taken.
