@@ -14,7 +14,15 @@ Cases (each over seeds 0..N-1; recordings are cached under --cache):
   fast-m150 camera (same pixel footprint), gas temperature inferred;
 * ``wind``: stack-20kgh-wind6-gf320 (20 kg/h CH4 from a 3.18 m stack in a
   6 m/s crosswind, GF320 at 10 m against the sky, 15 Hz: the gas crosses
-  ~28 px per frame), vertical surfaces 50, 100, 150 px downwind.
+  ~28 px per frame), vertical surfaces 50, 100, 150 px downwind;
+* ``sky``: stack-10kgh-wind4-sky-gf320 (10 kg/h CH4, 4 m/s crosswind with
+  20 % turbulence, a clear sky from 250 K at the top to 265 K at the bottom,
+  gas 288 K), vertical surfaces 0.5, 1.0, 1.5 m downwind, defaults;
+* ``cross-rule``: lab-ch4-5slpm-gf320 rendered with the line shape
+  ``hapi+air`` (HAPI's wings, air broadening) and quantified with qogi's
+  default ``fixed:25+self``: the line-shape term must cover the difference;
+* ``heated-1ch-exit``: the heated-1ch recording with the exit temperature
+  (328.15 K) given: the gas-temperature-suspect warning's evidence.
 
 Control surfaces (lab cases): horizontal lines 100 px wide (m150) or 80 px
 (GF320) centred on the exit at the truth's control-plane rows up to 12 cm
@@ -53,15 +61,24 @@ CASES = {
                        gas_temperature="infer", composition=None),
     "wind": dict(preset="stack-20kgh-wind6-gf320", camera=None, duration_s=10.0,
                  gas_temperature="ambient", composition=None),
+    "sky": dict(preset="stack-10kgh-wind4-sky-gf320", camera=None, duration_s=10.0,
+                gas_temperature="ambient", composition=None),
+    "cross-rule": dict(preset="lab-ch4-5slpm-gf320", camera=None, duration_s=10.0,
+                       gas_temperature="ambient", composition=None, render_line_shape="hapi+air"),
+    "heated-1ch-exit": dict(preset="lab-heated-ch4-55c-gf320", camera=None, duration_s=10.0,
+                            gas_temperature="ambient", composition=None, recording="heated-1ch",
+                            exit_temperature_K=328.15),
 }
-#: Downwind distances [px] of the vertical surfaces of the crosswind case.
-WIND_DISTANCES_PX = (50, 100, 150)
+#: Downwind distances [px] of the vertical surfaces of the crosswind cases.
+WIND_DISTANCES_PX = {"wind": (50, 100, 150),
+                     # 0.5, 1.0, 1.5 m at 1.309 cm per pixel
+                     "sky": (38, 76, 115)}
 MAX_HEIGHT_M = 0.125
 
 
 def recording_path(cache: Path, case: str, seed: int) -> Path:
     c = CASES[case]
-    return cache / f"{case}-{c['duration_s']:g}s-seed{seed}.h5"
+    return cache / f"{c.get('recording', case)}-{c['duration_s']:g}s-seed{seed}.h5"
 
 
 def ensure_recording(cache: Path, case: str, seed: int) -> Path:
@@ -71,7 +88,7 @@ def ensure_recording(cache: Path, case: str, seed: int) -> Path:
         tmp = path.with_suffix(".part.h5")
         t = time.perf_counter()
         render.synthesize(c["preset"], tmp, duration_s=c["duration_s"], seed=seed,
-                          camera_name=c["camera"])
+                          camera_name=c["camera"], line_shape=c.get("render_line_shape"))
         os.replace(tmp, path)
         print(f"  rendered {path.name} in {time.perf_counter() - t:.0f} s", flush=True)
     return path
@@ -81,7 +98,7 @@ def surfaces_for(rec, case: str):
     """Surfaces on the truth planes up to 12 cm, and the exit pixel; for the
     crosswind stack, vertical lines 50-150 px downwind of the exit (from the
     preset's geometry), 90 px tall."""
-    if case == "wind":
+    if case in WIND_DISTANCES_PX:
         from qogi import synth
         name = CASES[case]["preset"]
         view, rel = synth.preset_view(name), synth.preset_release(name)
@@ -89,7 +106,7 @@ def surfaces_for(rec, case: str):
         ex = 0.5 * (view.width_px - 1) + (rel.exit_x_m - view.center_x_m) / fp
         ey = 0.5 * (view.height_px - 1) - (rel.stack_height_m - view.center_z_m) / fp
         return [Surface([(ex + d, ey - 45), (ex + d, ey + 45)], name=f"{d} px")
-                for d in WIND_DISTANCES_PX], (ex, ey)
+                for d in WIND_DISTANCES_PX[case]], (ex, ey)
     return truth_surfaces(rec, max_height_m=MAX_HEIGHT_M,
                           half_width_px=50 if rec.height == 256 else 40)
 
@@ -102,7 +119,8 @@ def run_case(cache: Path, case: str, seed: int) -> dict:
     rec = qogi.open_recording(ensure_recording(cache, case, seed))
     surfaces, source = surfaces_for(rec, case)
     cfg = QuantifyConfig(species=list(rec.scene.species), gas_temperature=c["gas_temperature"],
-                         composition=c["composition"], source=source)
+                         composition=c["composition"], source=source,
+                         exit_temperature_K=c.get("exit_temperature_K"))
     t = time.perf_counter()
     res = quantify(rec, surfaces, cfg)
     seconds = time.perf_counter() - t
@@ -114,7 +132,13 @@ def run_case(cache: Path, case: str, seed: int) -> dict:
                          covered=bool(r.ci90_kg_h[0] <= r.truth_kg_h <= r.ci90_kg_h[1]),
                          dominant=r.dominant_uncertainty, terms=r.uncertainty_terms_kg_h))
     info = {k: v for k, v in res.info.items() if isinstance(v, (int, float))}
-    d = dict(case=case, seed=seed, seconds=seconds, frames=rec.n_frames, surfaces=rows, info=info)
+    for k in ("record_length", "gas_temperature_check"):
+        if k in res.info:
+            info[k] = res.info[k]
+    if res.info.get("background_choice"):
+        info["background"] = res.info["background_choice"]["method"]
+    d = dict(case=case, seed=seed, seconds=seconds, frames=rec.n_frames, surfaces=rows, info=info,
+             warnings=[w.to_dict() for w in res.warnings])
     out_json.write_text(json.dumps(d, indent=1))
     return d
 
@@ -144,6 +168,17 @@ def report(cache: Path, cases, seeds: int, img_dir: Path | None) -> None:
             errs_all.append(e)
             print(f"| {name} | {100 * e.mean():+.1f} % | {100 * e.min():+.1f} .. {100 * e.max():+.1f} % "
                   f"| {cov}/{len(e)} | {dom} |")
+        codes: dict = {}
+        for r in runs:
+            for code in sorted({w["code"] for w in r.get("warnings", [])}):
+                codes[code] = codes.get(code, 0) + 1
+        if codes:
+            print("warnings (seeds): " + ", ".join(f"{k} {v}/{len(runs)}" for k, v in codes.items()))
+        ls = [s["terms"].get("line shape", 0.0) / s["mean_kg_h"] for r in runs for s in r["surfaces"]
+              if s["mean_kg_h"]]
+        if ls:
+            print(f"line-shape term: {100 * np.median(ls):.1f} % of the rate (median; "
+                  f"{100 * min(ls):.1f} .. {100 * max(ls):.1f} %)")
         secs = np.mean([r["seconds"] for r in runs])
         print(f"quantify: {secs:.0f} s per run of {runs[0]['frames']} frames (mean)")
         if img_dir is not None:

@@ -28,13 +28,15 @@ def _config_from_args(args):
     if args.exit_velocity is not None:
         over.update(velocity="exit", exit_velocity_m_s=args.exit_velocity)
     if args.background is not None:
-        over["background"] = (args.background if args.background in ("beside-surface", "percentile")
+        over["background"] = (args.background if args.background in ("auto", "beside-surface",
+                                                                     "percentile")
                               else Region.parse(args.background))
     # --frames and --source arrive parsed and checked (qogi._cli_args).
     for key, value in (("species", args.species), ("averaging", args.averaging),
                        ("distance_m", args.distance), ("sigma_m", args.sigma),
                        ("num_threads", args.threads), ("frames", args.frames),
-                       ("source", args.source)):
+                       ("source", args.source), ("line_shape", args.line_shape),
+                       ("exit_temperature_K", args.exit_temperature)):
         if value is not None:
             over[key] = value
     base = {}
@@ -227,10 +229,19 @@ def add_commands(sub) -> None:
                    help="use the release's exit velocity [m/s] (lab checks)")
     q.add_argument("--source", type=pixel_xy, metavar="X,Y", help="source pixel: orient surfaces away from it")
     q.add_argument("--background", default=None,
-                   help="beside-surface (default), percentile, or a gas-free region x0,y0,x1,y1")
+                   help="auto (default: beside the surfaces where the strips there are "
+                        "gas-free, else the temporal percentile), beside-surface, percentile, "
+                        "or a gas-free region x0,y0,x1,y1")
     q.add_argument("--averaging", default=None, choices=["per-frame", "time-averaged"],
                    help="invert every frame then average rates (default), or invert the "
                         "time-averaged frames")
+    q.add_argument("--line-shape", default=None, metavar="RULE",
+                   help="line shape of the cross-sections: the wing rule fixed[:CM1] or hapi "
+                        "(50 half-widths), then +self or +air broadening (default "
+                        "fixed:25+self; docs/forward_model.md)")
+    q.add_argument("--exit-temperature", type=positive_float, metavar="K",
+                   help="the gas's temperature at the exit [K], when known: checked against "
+                        "the assumed gas temperature (warning gas-temperature-suspect)")
     q.add_argument("--sigma", type=positive_float, metavar="M",
                    help="plume depth sigma [m] (default: from the plume width across each surface)")
     q.add_argument("--frames", type=frame_range, metavar="START:STOP",

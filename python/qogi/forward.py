@@ -17,12 +17,20 @@ Two models share the physics and the HITRAN cross-section tables:
   bin: hundreds of times faster, within 1 % of the exact contrast (see
   ``docs/forward_model.md`` for the measured agreement).
 
-Self-broadening is included: at a local volume fraction x the cross-section is
-``(1 - x) sigma_air + x sigma_self``.
+Self-broadening is included by default: at a local volume fraction x the
+cross-section is ``(1 - x) sigma_air + x sigma_self``.
+
+The line shape is a model choice (:class:`LineShape`): the Voigt wing rule of
+the cross-section tables (a fixed window in cm-1, the default 25, or HAPI's
+50 half-widths) and self-broadening on or off. Neither rule is "the truth"
+(real CH4 and CO2 far wings are sub-Lorentzian, between the two); the
+pipeline carries the spread between the rules in its uncertainty budget
+(docs/forward_model.md, "Line shape").
 """
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import threading
 from typing import Dict, Iterable, Mapping, Optional, Sequence, Union
@@ -34,6 +42,7 @@ from .optics import SpectralResponse
 
 __all__ = [
     "ForwardModel",
+    "LineShape",
     "band_radiance",
     "column_density",
     "forward_model",
@@ -50,6 +59,81 @@ FWHM_PER_SIGMA = 2.0 * np.sqrt(2.0 * np.log(2.0))
 TABLE_WING_CM1 = 25.0
 
 ChannelsArg = Union["SpectralResponse", Sequence["SpectralResponse"], object]
+
+
+@dataclasses.dataclass(frozen=True)
+class LineShape:
+    """The line shape of the forward model's cross-section tables.
+
+    Parameters
+    ----------
+    wing : {"fixed", "hapi"}, default "fixed"
+        ``"fixed"``: each Voigt line within ``wing_cm1`` of its centre (a
+        window that does not move with temperature, so sigma(T) stays smooth
+        for the tables' interpolation); ``"hapi"``: HAPI 1.3's default, 50
+        half-widths around each line (the window follows the line width).
+    wing_cm1 : float, cm-1, default 25
+        The fixed window's half-width (``wing="fixed"`` only).
+    self_broadening : bool, default True
+        Lines broadened by the gas itself in proportion to its local volume
+        fraction (``(1 - x) sigma_air + x sigma_self``), else by air alone.
+
+    Text form (CLI ``--line-shape``, :meth:`parse`): the wing, ``fixed``,
+    ``fixed:30`` or ``hapi``, then ``+self`` or ``+air``: the default is
+    ``fixed:25+self``.
+    """
+
+    wing: str = "fixed"
+    wing_cm1: float = TABLE_WING_CM1
+    self_broadening: bool = True
+
+    def __post_init__(self):
+        if self.wing not in ("fixed", "hapi"):
+            raise ValueError(f"line shape wing must be 'fixed' or 'hapi'; got {self.wing!r}")
+        if self.wing == "fixed" and not (np.isfinite(self.wing_cm1) and 1.0 <= self.wing_cm1 <= 100.0):
+            raise ValueError(f"line shape wing_cm1 must be within [1, 100] cm-1; got {self.wing_cm1}")
+        object.__setattr__(self, "wing_cm1", float(self.wing_cm1) if self.wing == "fixed"
+                           else TABLE_WING_CM1)
+        object.__setattr__(self, "self_broadening", bool(self.self_broadening))
+
+    @classmethod
+    def parse(cls, text: Union[str, "LineShape", None]) -> "LineShape":
+        """``"fixed:25+self"``, ``"hapi+air"``, ``"fixed"`` ... (see the class)."""
+        if text is None:
+            return cls()
+        if isinstance(text, LineShape):
+            return text
+        t = str(text).strip().lower()
+        wing, _, broad = t.partition("+")
+        if broad not in ("", "self", "air"):
+            raise ValueError(f"line shape {text!r}: after '+' give 'self' or 'air' "
+                             f"(e.g. 'hapi+air', 'fixed:25+self')")
+        name, _, width = wing.partition(":")
+        if name not in ("fixed", "hapi") or (width and name != "fixed"):
+            raise ValueError(f"line shape {text!r}: the wing must be 'fixed', 'fixed:<cm-1>' or "
+                             f"'hapi' (e.g. 'fixed:25+self', 'hapi+air')")
+        try:
+            w = float(width) if width else TABLE_WING_CM1
+        except ValueError:
+            raise ValueError(f"line shape {text!r}: the fixed wing's width must be a number "
+                             f"of cm-1 (e.g. 'fixed:25')") from None
+        return cls(name, w, broad != "air")
+
+    @property
+    def cutoff(self):
+        """The ``cutoff`` argument of :func:`qogi.spectra.cross_section_table`."""
+        return self.wing_cm1 if self.wing == "fixed" else "hapi"
+
+    def __str__(self) -> str:
+        w = f"fixed:{self.wing_cm1:g}" if self.wing == "fixed" else "hapi"
+        return w + ("+self" if self.self_broadening else "+air")
+
+    def alternatives(self) -> list:
+        """The other rules the uncertainty budget compares this one with: the
+        other wing rule, and the other broadening (docs/forward_model.md)."""
+        other_wing = LineShape("hapi", TABLE_WING_CM1, self.self_broadening) \
+            if self.wing == "fixed" else LineShape("fixed", TABLE_WING_CM1, self.self_broadening)
+        return [other_wing, LineShape(self.wing, self.wing_cm1, not self.self_broadening)]
 
 
 def _as_channels(channels: ChannelsArg) -> list:
@@ -97,10 +181,12 @@ def _table_range(channels: list, lines_nu: np.ndarray) -> tuple:
 def build_absorber_tables(species: Sequence[str], channels: list, *, pressure_Pa: float = ATM_PA,
                           temperatures_K=None, step_cm1: float = 0.01,
                           self_broadening: bool = True, line_lists: Optional[Mapping] = None,
-                          progress=None) -> list:
+                          cutoff=TABLE_WING_CM1, progress=None) -> list:
     """Cross-section tables (HITRAN line-by-line, cached on disk) for the
     forward models, one per species, over the part of the channels' band where
-    the species has lines. Returns ``qogi._engine.AbsorberTable`` objects."""
+    the species has lines (``cutoff``: the wing rule, as for
+    :func:`qogi.spectra.cross_section_table`). Returns
+    ``qogi._engine.AbsorberTable`` objects."""
     from . import spectra
 
     temps = DEFAULT_TABLE_TEMPERATURES_K if temperatures_K is None else np.asarray(
@@ -118,7 +204,7 @@ def build_absorber_tables(species: Sequence[str], channels: list, *, pressure_Pa
         # Align the grid start to a multiple of the step so that all species share one grid.
         lo = np.floor(lo / step_cm1) * step_cm1
         kw = dict(step_cm1=step_cm1, temperatures_K=temps, pressure_Pa=pressure_Pa,
-                  line_list=lines, progress=progress)
+                  line_list=lines, progress=progress, cutoff=cutoff)
         air = spectra.cross_section_table(name, lo, hi, self_fraction=0.0, **kw)
         self_tab = (spectra.cross_section_table(name, lo, hi, self_fraction=1.0, **kw)
                     if self_broadening else None)
@@ -149,7 +235,11 @@ class ForwardModel:
         Temperature grid of the tables; plume and ambient temperatures must lie
         inside it.
     self_broadening : bool, default True
-        Include self-broadening (tables at self fraction 0 and 1).
+        Include self-broadening (tables at self fraction 0 and 1); see
+        ``line_shape``.
+    line_shape : LineShape or str, optional
+        The wing rule and self-broadening (:class:`LineShape`, default
+        ``fixed:25+self``); when given it sets ``self_broadening``.
     line_lists : dict, optional
         ``{species: path or LineList}`` overriding the line-list finder.
     fast_options, exact_options : qogi._engine.BinnedModelOptions / ExactModelOptions
@@ -162,8 +252,11 @@ class ForwardModel:
                  pressure_Pa: float = ATM_PA, tables: Optional[list] = None,
                  temperatures_K=None, self_broadening: bool = True,
                  line_lists: Optional[Mapping] = None, fast_options=None, exact_options=None,
-                 progress=None):
+                 progress=None, line_shape: Union[LineShape, str, None] = None):
         self.channels = _as_channels(channels)
+        if line_shape is None:
+            line_shape = LineShape(self_broadening=self_broadening)
+        self.line_shape = LineShape.parse(line_shape)
         self.species = _species_names(species)
         if not (np.isfinite(pressure_Pa) and 1e3 <= pressure_Pa <= 2e5):
             raise ValueError(f"pressure_Pa must be within [1000, 200000] Pa; got {pressure_Pa}")
@@ -171,7 +264,8 @@ class ForwardModel:
         if tables is None:
             tables = build_absorber_tables(self.species, self.channels, pressure_Pa=self.pressure_Pa,
                                            temperatures_K=temperatures_K,
-                                           self_broadening=self_broadening,
+                                           self_broadening=self.line_shape.self_broadening,
+                                           cutoff=self.line_shape.cutoff,
                                            line_lists=line_lists, progress=progress)
         if [t.species for t in tables] != self.species:
             raise ValueError(f"tables are for {[t.species for t in tables]}; "
@@ -303,7 +397,7 @@ class ForwardModel:
 
     def __repr__(self) -> str:
         return (f"ForwardModel(channels={[c.name for c in self.channels]}, species={self.species}, "
-                f"pressure_Pa={self.pressure_Pa:g})")
+                f"pressure_Pa={self.pressure_Pa:g}, line_shape='{self.line_shape}')")
 
 
 _models: Dict[tuple, ForwardModel] = {}
@@ -316,6 +410,10 @@ def forward_model(channels: ChannelsArg, species: Sequence[str], pressure_Pa: fl
     species and pressure (building one reads HITRAN tables)."""
     chans = _as_channels(channels)
     names = _species_names(species)
+    if kwargs.get("line_shape") is not None:
+        kwargs["line_shape"] = LineShape.parse(kwargs["line_shape"])
+        if kwargs["line_shape"] == LineShape():
+            kwargs.pop("line_shape")  # the default: one cache entry
     key = (tuple(_channel_key(c) for c in chans), tuple(names), float(pressure_Pa),
            tuple(sorted((k, repr(v)) for k, v in kwargs.items())))
     with _models_lock:

@@ -3,7 +3,8 @@
 Stages (docs/pipeline_api.md), for each frame:
 
 1. **Background**: the gas-free band radiance of each channel, beside each
-   control surface (default), from a user region, or a temporal percentile.
+   control surface or a temporal percentile (chosen from the scene by
+   default), or from a user region.
 2. **Column density**: the contrast ``L - L_bg`` is inverted per pixel for the
    Gaussian-plume parameters (:mod:`qogi.inversion`): single channel with the
    gas temperature given or ambient, or several channels with it inferred;
@@ -17,7 +18,13 @@ Stages (docs/pipeline_api.md), for each frame:
    per frame and species.
 5. **Rate and uncertainty**: the mean of the per-frame rates with a 90 %
    interval combining the temporal standard error (with autocorrelation), the
-   column-density uncertainty and the velocimetry's systematic uncertainty.
+   column-density uncertainty, the velocimetry's systematic uncertainty, the
+   line shape's (:mod:`qogi.budget`) and the background's
+   (:mod:`qogi.background`).
+6. **Checks** (``Result.warnings``): a rate against the surface's
+   orientation or zero while gas crosses it (interval widened), the record
+   length a 10 % mean needs, evidence that an assumed gas temperature is
+   wrong (:mod:`qogi.hotgas`).
 
 Stages 2-4 run block by block (:mod:`qogi.timebase`: blocks of bounded
 length with a few frames of overlap, cut where ``time_s`` has a gap), each
@@ -153,7 +160,7 @@ class QuantifyConfig:
     wind_speed_m_s: Optional[float] = None
     exit_velocity_m_s: Optional[float] = None
     averaging: str = "per-frame"
-    background: Union[str, Region] = "beside-surface"
+    background: Union[str, Region] = "auto"
     background_percentile: float = 5.0
     source: Optional[Tuple[float, float]] = None
     distance_m: Optional[float] = None
@@ -169,6 +176,8 @@ class QuantifyConfig:
     flux_level: bool = True
     pair_stride: Optional[int] = None
     block_frames: Optional[int] = None
+    line_shape: str = "fixed:25+self"
+    exit_temperature_K: Optional[float] = None
 
     def __post_init__(self):
         if isinstance(self.species, str):
@@ -200,8 +209,9 @@ class QuantifyConfig:
         if self.averaging not in ("per-frame", "time-averaged"):
             raise ValueError(f"averaging must be 'per-frame' or 'time-averaged'; got {self.averaging!r}")
         if isinstance(self.background, str):
-            if self.background not in ("beside-surface", "percentile"):
-                raise ValueError("background must be 'beside-surface', 'percentile' or a qogi.Region; "
+            if self.background not in ("auto", "beside-surface", "percentile"):
+                raise ValueError("background must be 'auto', 'beside-surface', 'percentile' or a "
+                                 "qogi.Region; "
                                  f"got {self.background!r}")
         elif not isinstance(self.background, Region):
             raise ValueError(f"background must be a string or a qogi.Region; got {self.background!r}")
@@ -234,6 +244,12 @@ class QuantifyConfig:
                                               self.block_frames < 8):
             raise ValueError(f"block_frames must be an integer >= 8 (frames streamed per block) "
                              f"or None (automatic); got {self.block_frames!r}")
+        from .forward import LineShape
+        self.line_shape = str(LineShape.parse(self.line_shape))
+        if self.exit_temperature_K is not None and not (
+                np.isfinite(self.exit_temperature_K) and 150.0 <= self.exit_temperature_K <= 900.0):
+            raise ValueError(f"exit_temperature_K must be within [150, 900] K; got "
+                             f"{self.exit_temperature_K}")
         if self.source is not None:
             from .errors import UsageError
             try:
@@ -648,7 +664,8 @@ class _InvertedColumns:
         self.horizontal = horizontal
         self.background = background
         channels = rec.channels
-        self.model = forward_model(channels, cfg.species, scene.pressure_Pa)
+        self.model = forward_model(channels, cfg.species, scene.pressure_Pa,
+                                   line_shape=cfg.line_shape)
         netd = rec.camera.netd_K or 0.02
         if cfg.gas_temperature == "infer":
             self.temperature_range_K = (scene.ambient_K - 10.0, scene.ambient_K + 150.0)
@@ -688,6 +705,10 @@ class _InvertedColumns:
                 self._table_error = e
 
         self._table_job = workers.start(build, "qogi-scene-table")
+        # The other line-shape rules, for the budget's line-shape term.
+        from .budget import AlternativeModels
+        self.alternatives = AlternativeModels(channels, cfg.species, scene.pressure_Pa,
+                                              cfg.line_shape)
         self.k_K_per_fraction, self.k_sigma, self.k_relative_effect = None, 0.0, 0.0
         self.mixing_pixels = 0
         # A known composition ties the species' fractions (then the ratios of
@@ -776,6 +797,31 @@ class _InvertedColumns:
             out.append((np.concatenate([[0.0], contrast[i][keep]]),
                         np.concatenate([[0.0], cols[i][keep]])))
         return out
+
+    def line_shape_curves(self, j: int, species: str):
+        """(columns, ratios) of :func:`qogi.budget.line_shape_ratios` for
+        surface ``j``: the proxy channel, the surface's depth, the assumed
+        gas temperature or the fitted mixing line."""
+        from .budget import line_shape_ratios
+
+        cfg, scene = self.cfg, self.scene
+        total = sum(cfg.composition[sp] for sp in cfg.species) if cfg.composition else None
+
+        def fractions(x):
+            if total is None:
+                return {sp: (x if sp == species else np.zeros_like(x)) for sp in cfg.species}
+            return {sp: x * cfg.composition[sp] / total for sp in cfg.species}
+
+        def temperature(x):
+            if self.k_K_per_fraction is None:
+                return np.full_like(x, scene.gas_K)
+            lo, hi = self.temperature_range_K
+            return np.clip(scene.ambient_K + self.k_K_per_fraction * x, lo, hi)
+
+        models = [m for _, m in self.alternatives.get()]
+        return line_shape_ratios(self.model, models, self.proxy_channel, fractions, temperature,
+                                 self.sigma_m.get(j, cfg.sigma_m or 0.02), scene.ambient_K,
+                                 self._bg_t, species)
 
     def _contrast(self, fractions: Dict[str, np.ndarray], peak_temperature_K: np.ndarray,
                   sigma_m: np.ndarray, use_table: bool = True) -> np.ndarray:
@@ -1253,13 +1299,17 @@ class _SurfaceFlux:
     c_sum: float = 0.0
     vabs_median: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
     width_m: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
+    #: The budget checks' sums (:class:`qogi.flux_summary.FluxSummary`).
+    summary: object = None
 
 
-def _surface_flux(c: np.ndarray, sig: np.ndarray, vn: np.ndarray, dl: np.ndarray
-                  ) -> _SurfaceFlux:
+def _surface_flux(c: np.ndarray, sig: np.ndarray, vn: np.ndarray, dl: np.ndarray,
+                  speed_floor: float = 0.0) -> _SurfaceFlux:
     """Thesis eq. 12 per frame: sum over the samples of column c [kg/m2] x
-    normal velocity vn [m/s] x length dl [m], (frames, samples) arrays."""
+    normal velocity vn [m/s] x length dl [m], (frames, samples) arrays;
+    ``speed_floor`` [m/s] the direction check's least speed."""
     from .detection import frame_widths, velocity_sums
+    from .flux_summary import FluxSummary
     good = np.isfinite(c)
     with np.errstate(invalid="ignore"):
         flux = np.where(good, c, 0.0) * vn * dl[None, :]
@@ -1268,7 +1318,7 @@ def _surface_flux(c: np.ndarray, sig: np.ndarray, vn: np.ndarray, dl: np.ndarray
     vsig = np.where(np.isfinite(vn), vn, 0.0) * sig * dl[None, :]
     cv, cs, vmed = velocity_sums(c, np.broadcast_to(vn, c.shape))
     return _SurfaceFlux(rate, good.sum(axis=1), float(np.sum(vsig ** 2)), cv, cs, vmed,
-                        frame_widths(c, dl))
+                        frame_widths(c, dl), FluxSummary.of(c, sig, vn, dl, speed_floor))
 
 
 #: Frames per block (the pipeline's memory bound) when not configured: the
@@ -1326,12 +1376,14 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
         first = rec.frame(start, quantity="radiometric_temperature")
         t_bg_guess = float(np.nanmedian(first))
     channel_sign = np.full(rec.n_channels, 1.0 if scene.gas_K >= t_bg_guess else -1.0)
-    background = _Background(rec, cfg, roi, frames, channel_sign, say, t_bg_guess)
-    # Up to 50 frames spread over the run: the background's static shape and,
-    # without a given source, the plume's source for the flux level of the
-    # default velocimetry (the surfaces keep their own orientation).
+    # Up to 50 frames spread over the run: the background's choice and static
+    # shape and, without a given source, the plume's source for the flux
+    # level of the default velocimetry (the surfaces keep their own
+    # orientation).
     velocity_info: Dict[str, object] = {}
     source = cfg.source
+    if source is not None:
+        velocity_info["source_xy"] = [float(source[0]), float(source[1])]
     want_source = (source is None and cfg.velocity == "fluid" and cfg.flux_level and
                    cfg.column_density != "truth")
     sample_frames = None
@@ -1342,13 +1394,17 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
                                    dtype=np.float64)
         for f, fr in zip(sample, sample_frames):
             radiance_check(fr[None].astype(np.float32), f)
-    if not isinstance(cfg.background, Region) and cfg.background != "percentile":
+    bg_cfg, velocity_info["background_choice"] = _choose_background(cfg, sample_frames, surfaces,
+                                                                    samples, channel_sign)
+    background = _Background(rec, bg_cfg, roi, frames, channel_sign, say, t_bg_guess)
+    if not isinstance(bg_cfg.background, Region) and bg_cfg.background != "percentile":
         sl = roi.slices()
         background.set_static_shape(sample_frames[:, :, sl[0], sl[1]].mean(axis=0))
     if want_source and len(sample_frames) >= 2:
         from .surfaces import _plume_image, detect_source
         try:
             source = detect_source(_plume_image(sample_frames))
+            velocity_info["source_xy"] = [float(source[0]), float(source[1])]
             velocity_info["source"] = (f"detected at x={source[0]:.1f}, y={source[1]:.1f} "
                                        f"(for the flux level; give source= to set it)")
         except ValueError as e:
@@ -1424,7 +1480,7 @@ def _analyse_block(st: _RunState, blk, say) -> _BlockOut:
         for key, v in cnt.items():
             counts[key] = counts.get(key, 0) + int(v)
 
-    def kept(vn, cancelled=False, n_done=nb) -> _BlockOut:
+    def kept(vn, cancelled=False, n_done=nb, flows=None) -> _BlockOut:
         # A cancelled block has no velocity: zero there (its rates are the
         # columns' only; the partial result says so with complete=False).
         k0 = blk.offset
@@ -1433,7 +1489,8 @@ def _analyse_block(st: _RunState, blk, say) -> _BlockOut:
         for j, (xy, n, dl, t) in enumerate(samples):
             v = np.zeros((k1 - k0, len(xy))) if vn is None else vn[j][k0:k1]
             flux.append({sp: _surface_flux(surf_cols[j][sp][k0:k1], surf_sig[j][sp][k0:k1], v,
-                                           dl) for sp in cfg.species})
+                                           dl, _speed_floor(st, flows, j, sp))
+                         for sp in cfg.species})
         return _BlockOut(flux, k1 - k0, counts, {}, velocity_info, cancelled)
 
     time_averaged = cfg.averaging == "time-averaged"
@@ -1484,7 +1541,7 @@ def _analyse_block(st: _RunState, blk, say) -> _BlockOut:
     intervals = st.timebase.pair_intervals[a:b - 1]
     flows = _block_velocity(st, col_fields, intervals, velocity_info, say)
     vn = [_normal_velocity(st, flows, xy, n, nb) for (xy, n, dl, t) in samples]
-    out = kept(vn)
+    out = kept(vn, flows=flows)
     if st.keep_maps and flows is not None:
         # Maps (every tenth of the run) keyed by the recording's frame index,
         # the velocity back in the whole region.
@@ -1638,6 +1695,25 @@ def _block_velocity(st: _RunState, col_fields: np.ndarray, intervals: np.ndarray
     return (uv[0], uv[1], (crop[1].start, crop[0].start))
 
 
+def _choose_background(cfg: QuantifyConfig, sample_frames, surfaces, samples, channel_sign):
+    """The background method of the run: ``"auto"`` chooses between beside
+    the surfaces and the temporal percentile from the scene
+    (:func:`qogi.background.choose`). Returns (the config the background
+    stage uses, the choice's record for ``info``, or None)."""
+    if cfg.background != "auto":
+        return cfg, None
+    from .background import choose
+
+    if sample_frames is None or len(sample_frames) < 2:
+        # No frame-to-frame noise to test the strips with: the strips beside
+        # the surfaces (the estimate that needs no time series).
+        return dataclasses.replace(cfg, background="beside-surface"), {
+            "method": "beside-surface", "reason": "fewer than 2 frames: the strips not tested",
+            "strips": [], "relative": {}, "not_gas_free": []}
+    choice = choose(sample_frames, surfaces, samples, channel_sign, cfg.background_percentile)
+    return dataclasses.replace(cfg, background=choice["method"]), choice
+
+
 def _transport_crop(surfaces, source, roi: Region, shape: Tuple[int, int]):
     """The plume's axis in the image (``up``, ``down``, ``left``, ``right``:
     from the source towards the surfaces), the source's line along it in the
@@ -1744,6 +1820,11 @@ def _finish(st: _RunState, outs: List["_BlockOut"], velocity_info, t_start, warn
                   "mixing_line_column_effect": columns.k_relative_effect}
         col_sys = math.hypot(col_sys, columns.k_relative_effect)
     results = []
+    from .flux_summary import FluxSummary
+    advice: Dict[str, list] = {sp: [] for sp in cfg.species}
+    flux_inputs: Dict[tuple, FluxSummary] = {}
+    bg_choice = (velocity_info or {}).get("background_choice")
+    rise_speeds: Dict[int, float] = {}
     for j, (s, (xy, n, dl, t)) in enumerate(zip(surfaces, st.samples)):
         per_species = {}
         for sp in cfg.species:
@@ -1756,15 +1837,30 @@ def _finish(st: _RunState, outs: List["_BlockOut"], velocity_info, t_start, warn
             sd = float(np.std(finite, ddof=1)) if finite.size > 1 else 0.0
             temporal = sd / math.sqrt(n_eff) if n_eff > 0 else 0.0
             col_rand = math.sqrt(sum(p.column_variance for p in parts)) / max(1, finite.size)
+            summary = FluxSummary.empty(len(xy))
+            for p in parts:
+                summary += p.summary
             terms = {
                 "temporal": temporal * 3600,
                 "velocity": abs(mean) * vsys * 3600,
                 "column density": math.sqrt(col_rand ** 2 + (abs(mean) * col_sys) ** 2)
                 * 3600,
+                "line shape": abs(mean) * _line_shape_term(columns, j, sp, summary,
+                                                           warnings, s.name) * 3600,
             }
+            if bg_choice is not None and cfg.column_density != "truth":
+                terms["background"] = abs(mean) * bg_choice["relative"].get(j, 0.0) * 3600
             sigma = math.sqrt(sum(v * v for v in terms.values()))
             mean_h = mean * 3600
             ci = (mean_h - 1.645 * sigma, mean_h + 1.645 * sigma)
+            ci = _check_direction(summary, mean, ci, warnings, s.name, sp)
+            if finite.size:
+                advice[sp].append(_record_advice(finite, n_eff, summary, dl, columns, j, scene))
+            flux_inputs[(j, sp)] = summary
+            if sp == cfg.species[0]:
+                if summary.mass_line > 0 and finite.size:
+                    rise_speeds[j] = float(np.sum(finite)) / summary.mass_line * \
+                        (done / finite.size)
             dominant = max(terms, key=terms.get)
             limit, det = None, None
             if hasattr(columns, "model"):  # the inversion's forward model (not truth columns)
@@ -1789,7 +1885,117 @@ def _finish(st: _RunState, outs: List["_BlockOut"], velocity_info, t_start, warn
             "frame_rate_hz": float(scene.frame_rate), "pixel_m": float(scene.pixel_m),
             "gas_temperature_K": float(scene.gas_K), "velocity_systematic": float(vsys),
             "column_systematic": float(col_sys), **mixing, **(velocity_info or {})}
+    _record_warnings(advice, info, warnings)
+    if bg_choice is not None and cfg.column_density != "truth":
+        for name, excess in bg_choice.get("not_gas_free", []):
+            warnings.add("background-not-gas-free",
+                         f"neither background is gas-free here: the strips beside the surface "
+                         f"carry gas and the temporal percentile along it stands {excess:.0f} "
+                         f"noise above the line between its ends (gas that never leaves); the "
+                         f"columns are low by about that, carried in the budget's background "
+                         f"term; draw longer surfaces or give a gas-free background region",
+                         surface=name, excess_noise=excess)
+    if complete and columns is not None and cfg.column_density != "truth":
+        from .hotgas import check_gas_temperature
+        check_gas_temperature(cfg, scene, results, columns, st.samples, flux_inputs, rise_speeds,
+                              (velocity_info or {}).get("source_xy"), warnings, info)
     if not checks.check_result(results, warnings):
         complete = False
     return Result(results, config=cfg, recording_path=str(rec.path), pixel_status=status_counts,
                   maps=kept_maps, info=info, complete=complete, warnings=warnings)
+
+
+def _line_shape_term(columns, j: int, species: str, summary, warnings, surface: str) -> float:
+    """Relative ``line shape`` term of surface j (qogi.budget): the largest
+    change of the flux when its columns are re-read through the other
+    rules; 0 without an inversion (truth columns)."""
+    if columns is None or not hasattr(columns, "line_shape_curves"):
+        return 0.0
+    try:
+        grid, ratios = columns.line_shape_curves(j, species)
+    except (ValueError, RuntimeError, OSError) as e:
+        warnings.add("line-shape-term-missing", f"the line-shape term could not be sized: {e}",
+                     surface=surface, species=species)
+        return 0.0
+    return max([abs(f - 1.0) for f in summary.flux_ratios(grid, ratios)], default=0.0)
+
+
+def _speed_floor(st: "_RunState", flows, j: int, species: str) -> float:
+    """The least speed [m/s] the direction check's flux bound assumes on
+    surface j in a block: the flow's 90th-percentile speed and the buoyancy
+    scale sqrt(g' width) (a plume moves at least about that fast where its own
+    buoyancy drives it), so a dead flow cannot make the bound vanish."""
+    from . import _engine
+
+    scene = st.scene
+    typical = 0.0
+    if flows is not None:
+        fu, fv, _ = flows
+        if len(fu):
+            step = max(1, len(fu) // 20)
+            typical = float(np.nanpercentile(np.hypot(fu[::step], fv[::step]), 90)) \
+                * scene.m_s_per_px_frame
+    g_reduced = 9.81 * abs(1.0 - _engine.molar_mass(species) * scene.ambient_K /
+                           (0.028965 * scene.gas_K))
+    sigma_m = getattr(st.columns, "sigma_m", {}).get(j) or 0.02
+    return max(typical, math.sqrt(g_reduced * 2.3548 * sigma_m))
+
+
+def _check_direction(summary, mean_kg_s: float, ci, warnings, surface: str,
+                     species: str) -> tuple:
+    """The interval of a rate that runs against the surface's orientation or
+    is zero while gas crosses it, widened to +-the flux the columns carry at
+    the floored speed (:func:`_speed_floor`; docs/pipeline_api.md); with a
+    warning ``flux-against-surface`` or ``zero-rate-with-gas``."""
+    flag = summary.direction(mean_kg_s)
+    if flag is None:
+        return ci
+    bound = flag["bound_kg_s"] * 3600
+    lo, hi = min(ci[0], -bound), max(ci[1], bound)
+    if flag["reason"] == "zero":
+        warnings.add("zero-rate-with-gas",
+                     f"the rate is zero while gas crosses the surface (no velocity there: e.g. "
+                     f"a wrong source or flow direction); interval widened to "
+                     f"[{lo:.4g}, {hi:.4g}] kg/h, the flux its columns carry at the flow's "
+                     f"speed in either direction", surface=surface, species=species,
+                     bound_kg_h=bound)
+    else:
+        warnings.add("flux-against-surface",
+                     f"the rate runs against the surface's orientation (away from the source): "
+                     f"the flux level or the source may be reversed; interval widened to "
+                     f"[{lo:.4g}, {hi:.4g}] kg/h", surface=surface, species=species,
+                     bound_kg_h=bound)
+    return (lo, hi)
+
+
+def _record_advice(finite, n_eff, summary, dl, columns, j, scene) -> dict:
+    """qogi.budget.record_length_advice for one surface: the mean normal
+    speed where gas is, and the plume's width (2.35 sigma of its depth)."""
+    from .budget import record_length_advice
+
+    sigma = (columns.sigma_m.get(j) if columns is not None and hasattr(columns, "sigma_m")
+             else None) or float(np.sum(dl)) / 4.0
+    return record_length_advice(finite, scene.frame_rate, n_eff, summary.mean_speed(),
+                                2.3548 * sigma)
+
+
+def _record_warnings(advice: Dict[str, list], info: dict, warnings) -> None:
+    """The record length a 10 % mean needs (the longest over the surfaces):
+    into ``info["record_length"]`` and, when the record is shorter, the
+    warning ``record-too-short``."""
+    out = {}
+    for sp, items in advice.items():
+        items = [a for a in items if np.isfinite(a["needed_s"])]
+        if not items:
+            continue
+        worst = max(items, key=lambda a: a["needed_s"])
+        out[sp] = {k: float(v) for k, v in worst.items()}
+        if worst["needed_s"] > worst["record_s"]:
+            warnings.add("record-too-short",
+                         f"a 10 % (1 sigma) mean needs about {worst['needed_s']:.0f} s of record; "
+                         f"this one is {worst['record_s']:.1f} s (temporal "
+                         f"{100 * worst['temporal']:.0f} %, flux level "
+                         f"{100 * worst['level']:.0f} % now)", species=sp,
+                         needed_s=worst["needed_s"], record_s=worst["record_s"])
+    if out:
+        info["record_length"] = out

@@ -164,6 +164,8 @@ class SceneRenderer:
         temperature (thesis section 4.3.3). Needs a preset with known optics.
     camera_preset_name : str, optional
         The preset whose optics to use for warm filters.
+    line_shape : LineShape or str, optional
+        The cross-sections' line shape (default ``fixed:25+self``).
     progress : callable(fraction, message), optional
     """
 
@@ -172,7 +174,7 @@ class SceneRenderer:
                  warm_filter_temperature_K: Optional[float] = None,
                  camera_preset_name: Optional[str] = None,
                  progress: Optional[Callable[[float, str], Optional[bool]]] = None,
-                 num_threads: int = 0):
+                 num_threads: int = 0, line_shape=None):
         self.sim = simulation
         self.camera = camera
         self.background = background
@@ -195,7 +197,8 @@ class SceneRenderer:
         self.t_range = (max(200.0, min(t_all) - 2.0), min(600.0, max(t_all) + 2.0))
         keys = sorted({round(t, 1) for t in t_gas})
         self._say(0.0, "cross-section tables")
-        self.forward = ForwardModel(camera.channels, self.species, pressure_Pa=self.pressure)
+        self.forward = ForwardModel(camera.channels, self.species, pressure_Pa=self.pressure,
+                                    line_shape=line_shape)
         opts = _engine.BinnedModelOptions(key_temperatures_K=keys)
         self.full = _engine.BinnedModel(self.forward.channels, self.forward.tables, opts)
         self.optics = None
@@ -362,7 +365,7 @@ def render_recording(sim, camera, background: Background, path, *, seed: int = 0
                      camera_preset_name: Optional[str] = None, truth_maps: bool = False,
                      truth_plane_heights_m: Optional[Sequence[float]] = None,
                      compression: Optional[str] = "lzf", progress=None, num_threads: int = 0,
-                     max_bins: int = 48):
+                     max_bins: int = 48, line_shape=None):
     """Render a simulation into a recording file (docs/recording.md contract) with ``/truth``.
 
     ``/truth`` holds ``emission_rate_kg_s_<SPECIES>`` and datasets
@@ -385,7 +388,7 @@ def render_recording(sim, camera, background: Background, path, *, seed: int = 0
     renderer = SceneRenderer(sim, camera, background, progress=lambda f, m: say(0.1 * f, m),
                              warm_filter_temperature_K=warm_filter_temperature_K,
                              camera_preset_name=camera_preset_name, num_threads=num_threads,
-                             max_bins=max_bins)
+                             max_bins=max_bins, line_shape=line_shape)
     rel, view = sim.release, sim.view
     nc = len(renderer.forward.channels)
     scene = Scene(distance_m=float(view.distance_m), ambient_temperature_K=float(rel.ambient_temperature_K),
@@ -415,6 +418,7 @@ def render_recording(sim, camera, background: Background, path, *, seed: int = 0
                             **{f"plane_flux_kg_s_{sp}": np.asarray(flux[sp], dtype=np.float64)
                                for sp in renderer.species}},
                   attrs={"generator": "qogi.render", "seed": int(seed),
+                         "line_shape": str(renderer.forward.line_shape),
                          "render_bins_per_channel": list(renderer.bins_per_channel),
                          **{f"render_contrast_error_max_{k}": v[0] for k, v in renderer.render_error.items()},
                          **{f"render_contrast_error_rms_{k}": v[1] for k, v in renderer.render_error.items()},
@@ -463,14 +467,16 @@ def render_recording(sim, camera, background: Background, path, *, seed: int = 0
 def synthesize(preset_name: str, path, *, duration_s: Optional[float] = None,
                frame_rate_hz: Optional[float] = None, seed: int = 0, noise: bool = True,
                truth_maps: bool = False, camera_name: Optional[str] = None, progress=None,
-               num_threads: int = 0):
+               num_threads: int = 0, line_shape=None):
     """Simulate and render a preset (``qogi synth``). Returns the path written.
 
     ``camera_name`` renders the release through another camera preset (e.g.
     the four-channel ``fast-m150`` for a GF320 lab release), placed so that its
     pixels have the preset's footprint at the plume and the exit sits at the
     same place relative to the image's bottom edge; the frame rate defaults to
-    that camera's."""
+    that camera's. ``line_shape`` (:class:`qogi.forward.LineShape` or its
+    text, default ``fixed:25+self``) is the renderer's line shape (recorded
+    in the truth's ``line_shape`` attribute)."""
     from . import synth
 
     p = synth.preset(preset_name)
@@ -491,7 +497,8 @@ def synthesize(preset_name: str, path, *, duration_s: Optional[float] = None,
                                   projection=base.projection)
     bgd = p["scene"]["background"]
     background = (Background("plate", bgd["temperature_K"]) if bgd["kind"] == "plate"
-                  else Background("sky", None))
+                  else Background("sky", None, **{k: float(bgd[k]) for k in
+                                                  ("sky_top_K", "sky_bottom_K") if k in bgd}))
 
     def say(f, msg):
         if progress is not None and progress(f, msg) is False:
@@ -511,6 +518,6 @@ def synthesize(preset_name: str, path, *, duration_s: Optional[float] = None,
     out = render_recording(sim, camera, background, path, seed=seed, noise=noise,
                            warm_filter_temperature_K=warm, camera_preset_name=cam_key,
                            truth_maps=truth_maps, progress=lambda f, m: say(0.05 + 0.95 * f, m),
-                           num_threads=num_threads)
+                           num_threads=num_threads, line_shape=line_shape)
     say(1.0, "done")
     return out

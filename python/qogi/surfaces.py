@@ -207,20 +207,60 @@ def _plume_axis(image: np.ndarray, threshold: float):
 
 
 def detect_source(image: np.ndarray, threshold: float = 0.1) -> Point:
-    """The source of the plume in a detection image (:func:`plume_image`):
-    the end of the plume mask's principal axis where the plume is narrower
-    (plumes widen downstream: the stack of a rising plume, the upwind end of
-    one bent by wind), at the mask's mean position there. Raises ValueError
-    when no plume stands out."""
-    pts, w, c, axis = _plume_axis(image, threshold)
-    along = (pts - c) @ axis
-    across = (pts - c) @ np.array([axis[1], -axis[0]])
-    lo, hi = np.percentile(along, [2.0, 98.0])
-    span = max(hi - lo, 1.0)
-    w_lo = float(np.std(across[along <= lo + 0.15 * span]))
-    w_hi = float(np.std(across[along >= hi - 0.15 * span]))
-    tip = along <= lo + 0.05 * span if w_lo <= w_hi else along >= hi - 0.05 * span
-    x, y = pts[tip].mean(axis=0)
+    """The source of the plume in a detection image (:func:`plume_image`),
+    at the mask's mean position at one end of its principal axis.
+
+    Three cues vote for the end (docs/pipeline_api.md, "Source detection"):
+
+    * **where the gas leaves the frame**: an end whose mask runs into the
+      image border while the other does not is where the plume leaves
+      (a source outside the view is not detected: give it);
+    * **the column's gradient along the plume**: the time-averaged signal
+      falls downstream (a rising plume's centreline column ~ z^(-2/3), a
+      wind-bent plume's ~ 1 / width), so the source end is the stronger;
+    * **the width**: plumes widen downstream (the stack of a rising plume,
+      the upwind end of one bent by wind), so the source end is narrower.
+
+    The border cue decides when it is one-sided; otherwise the signal
+    (when the ends differ by more than 20 %) and then the width. Raises
+    ValueError when no plume stands out."""
+    img = np.abs(np.asarray(image, dtype=float))
+    pts, w, c, axis = _plume_axis(img, threshold)
+
+    def ends_of(a):
+        along = (pts - c) @ a
+        lo, hi = np.percentile(along, [2.0, 98.0])
+        span = max(hi - lo, 1.0)
+        ends = (along <= lo + 0.15 * span, along >= hi - 0.15 * span)
+        sig = [float(np.median(w[e])) if e.any() else 0.0 for e in ends]
+        return along, lo, hi, span, ends, max(sig) / max(min(sig), 1e-300)
+
+    # The plume's axis: the mask's principal axis, unless the signal falls
+    # more clearly across it (a plume that fills a small view's width is as
+    # wide as it is long; along its flow the column falls, across it it is
+    # symmetric).
+    perp = np.array([axis[1], -axis[0]])
+    first_try, second_try = ends_of(axis), ends_of(perp)
+    if second_try[5] > 1.2 and second_try[5] > 1.5 * first_try[5]:
+        axis, perp = perp, -axis
+        first_try = second_try
+    along, lo, hi, span, ends, _ = first_try
+    across = (pts - c) @ perp
+    h, wd = img.shape
+    border = [bool(np.any((pts[e, 0] <= 1) | (pts[e, 0] >= wd - 2) | (pts[e, 1] <= 1) |
+                          (pts[e, 1] >= h - 2))) for e in ends]
+    signal = [float(np.median(w[e])) for e in ends]
+    width = [float(np.std(across[e])) for e in ends]
+    if border[0] != border[1]:
+        first = border[1]            # the end that does not leave the frame
+    elif max(signal) > 1.2 * min(signal):
+        first = signal[0] > signal[1]
+    else:
+        first = width[0] <= width[1]
+    tip = along <= lo + 0.05 * span if first else along >= hi - 0.05 * span
+    # The signal-weighted position there (the plume's axis, not the mask's
+    # mean, where the mask fills a small view's width).
+    x, y = np.average(pts[tip], axis=0, weights=w[tip] ** 2)
     return float(x), float(y)
 
 

@@ -59,7 +59,8 @@ def test_options_round_trip():
 # -- presets ------------------------------------------------------------------------
 
 PRESETS = ["lab-ch4-5slpm-gf320", "lab-ch4-10slpm-gf320", "lab-heated-ch4-55c-gf320",
-           "lab-ch4co2-90c-m150", "lab-ch4co2-90c-m150-warm-filters", "stack-20kgh-wind6-gf320"]
+           "lab-ch4co2-90c-m150", "lab-ch4co2-90c-m150-warm-filters", "stack-20kgh-wind6-gf320",
+           "stack-10kgh-wind4-sky-gf320"]
 
 
 def test_presets_record_the_thesis_scenes():
