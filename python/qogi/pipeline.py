@@ -1839,7 +1839,8 @@ def _finish(st: _RunState, outs: List["_BlockOut"], velocity_info, t_start, warn
             col_rand = math.sqrt(sum(p.column_variance for p in parts)) / max(1, finite.size)
             summary = FluxSummary.empty(len(xy))
             for p in parts:
-                summary += p.summary
+                if p.summary is not None:
+                    summary += p.summary
             terms = {
                 "temporal": temporal * 3600,
                 "velocity": abs(mean) * vsys * 3600,
@@ -1867,10 +1868,12 @@ def _finish(st: _RunState, outs: List["_BlockOut"], velocity_info, t_start, warn
                 from .detection import velocity_from_sums, detection_limit_from_sums
                 v_n = velocity_from_sums(sum(p.cv_sum for p in parts),
                                           sum(p.c_sum for p in parts),
-                                          np.concatenate([p.vabs_median for p in parts]))
+                                          np.concatenate([np.zeros(0)] +
+                                                         [p.vabs_median for p in parts]))
                 limit, det = detection_limit_from_sums(
                     columns.model, sp, rec.camera.netd_K or 0.02, columns._bg_t, scene.gas_K,
-                    scene.ambient_K, v_n, np.concatenate([p.width_m for p in parts]), dl,
+                    scene.ambient_K, v_n,
+                    np.concatenate([np.zeros(0)] + [p.width_m for p in parts]), dl,
                     mean_snr=columns.mean_contrast_snr(j))
             truth = None
             if rec.truth is not None and sp in rec.truth.emission_rate_kg_s:

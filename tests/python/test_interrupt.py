@@ -145,16 +145,20 @@ def test_ctrl_c_at_many_moments_of_the_first_seconds(rec, tmp_path):
 def test_quantify_in_process_leaves_no_engine_thread_behind(rec):
     """Cancelled through its progress callback at each of its first reports,
     quantify returns only when its worker threads have stopped."""
-    for stop_at in (1, 2, 4):
+    for stop_at in (1, 2, 4, 8, 14, 15):  # table, columns, inversion
         seen = [0]
 
         def progress(fraction, message):
             seen[0] += 1
             return seen[0] < stop_at
 
-        with pytest.raises(qogi.Cancelled):
+        # Also inside the first block, before any block is finished: the
+        # partial result is empty and says so (it used to fail to assemble).
+        with pytest.raises(qogi.Cancelled) as e:
             qogi.quantify(qogi.open_recording(rec), [qogi.Surface.parse(SURFACE)],
                           qogi.QuantifyConfig(source=(16.0, 22.0)), progress=progress)
+        if e.value.partial is not None:
+            assert e.value.partial.complete is False
         left = [t.name for t in threading.enumerate() if t.name.startswith("qogi-")]
         assert left == [], f"stopped at report {stop_at}: threads still running: {left}"
 
