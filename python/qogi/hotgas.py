@@ -98,12 +98,22 @@ def _rise_ratio(cfg, scene, results, source, samples, rise_speeds: dict) -> Opti
         # The whole released gas's rate from the first species' (composition).
         rate_kg_h = r.mean_kg_h * sum(mass.values()) / mass[sp]
         pred = []
+        rho_exit = float(scene.pressure_Pa) * sum(mass.values()) / (8.314462618 * float(scene.gas_K))
         for d in _DIAMETERS_M:
+            # Exit speeds below 1 mm/s (a rate far below any plume the camera
+            # resolves, e.g. a few frames' estimate) are outside the integral
+            # model's range: its march then takes unbounded time.
+            v0 = rate_kg_h / 3600.0 / (rho_exit * np.pi * (float(d) / 2) ** 2)
+            if not v0 >= 1e-3:
+                continue
             rel = synth.Release(rate=rate_kg_h, rate_unit="kg/h", composition=comp,
                                 exit_diameter_m=float(d), exit_temperature_K=float(scene.gas_K),
                                 ambient_temperature_K=float(scene.ambient_K),
                                 pressure_Pa=float(scene.pressure_Pa))
-            mf = synth.mean_flow(rel, extent_m=max(0.05, 1.5 * z))
+            try:
+                mf = synth.mean_flow(rel, extent_m=max(0.05, 1.5 * z))
+            except (ValueError, RuntimeError):
+                continue  # no integral-model plume for this diameter (e.g. it stalls)
             zz, w = np.asarray(mf["z_m"]), np.asarray(mf["mass_weighted_speed_m_s"])
             if zz.size > 1 and zz[-1] >= z:
                 pred.append(float(np.interp(z, zz, w)))

@@ -158,7 +158,13 @@ MeanFlow::MeanFlow(const Release& release, const PlumeModelOptions& opt,
   double s = 0;
   double s_view_end = -1;  // where the axis first leaves the box
   const double s_cap = 100.0 * std::max(box_size, 10 * d_);
-  for (;;) {
+  for (std::size_t steps = 0;; ++steps) {
+    // A state gone non-finite (a release no plume model can carry) would
+    // never reach the box's edge or the cap: stop with an error instead.
+    if (!std::isfinite(s) || !std::isfinite(st.z) || !std::isfinite(st.h) || steps > 2000000)
+      throw std::invalid_argument("the plume model did not converge for this release (exit "
+                                  "diameter " + FormatNumber(d_) + " m): its state became "
+                                  "non-finite or it took more than 2e6 steps");
     Fine f;
     f.s = s;
     f.top = top(st);
@@ -342,6 +348,13 @@ MeanFlow::MeanFlow(const Release& release, const PlumeModelOptions& opt,
       stations_.push_back(a);
       if (s_here >= s_end) break;
       double h2 = pair_step(a);
+      // A zero or non-finite step (a width or axis-speed scale of zero)
+      // would never reach the end.
+      if (!(h2 > 1e-9 * std::max(1.0, s_end)) || !std::isfinite(h2) ||
+          stations_.size() > 4000000)
+        throw std::invalid_argument("the plume model cannot place its puff stations for this "
+                                    "release (a zero-width or stalled plume at s = " +
+                                    FormatNumber(s_here) + " m)");
       if (s_here + h2 > s_end - 0.25 * h2) h2 = s_end - s_here;
       stations_.push_back(at_s_fine(s_here + 0.5 * h2));
       s_here = s_here + h2 >= s_end ? s_end : s_here + h2;
