@@ -23,7 +23,7 @@ __all__ = ["AnalysisSettings", "FIELDS", "GAS_TEMPERATURE_MODES", "AVERAGING", "
 GAS_TEMPERATURE_MODES = ("ambient", "given", "infer")
 AVERAGING = ("per-frame", "time-averaged")
 #: The first is the default, as in ``qogi.QuantifyConfig``.
-BACKGROUNDS = ("beside-surface", "percentile", "region")
+BACKGROUNDS = ("auto", "beside-surface", "percentile", "region")
 #: Species offered in addition to those the recording's scene names.
 COMMON_SPECIES = ("CH4", "CO2")
 

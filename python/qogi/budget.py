@@ -34,7 +34,8 @@ class AlternativeModels:
     thread (their cross-section tables are cached on disk; the fast models
     take ~0.3 s each) while the run reads its frames."""
 
-    def __init__(self, channels, species: Sequence[str], pressure_Pa: float, line_shape):
+    def __init__(self, channels, species: Sequence[str], pressure_Pa: float, line_shape,
+                 start=None):
         from .forward import LineShape, forward_model
 
         used = LineShape.parse(line_shape)
@@ -53,8 +54,15 @@ class AlternativeModels:
             except BaseException as e:  # reported with the term
                 self.error = e
 
-        self._job = threading.Thread(target=build, name="qogi-line-shapes", daemon=True)
-        self._job.start()
+        # ``start(target, name) -> Thread``: the caller's owner of worker
+        # threads (the pipeline's, which stops and awaits them on every exit,
+        # Ctrl-C included: a thread left inside the engine at interpreter exit
+        # aborts the process).
+        if start is not None:
+            self._job = start(build, "qogi-line-shapes")
+        else:
+            self._job = threading.Thread(target=build, name="qogi-line-shapes", daemon=True)
+            self._job.start()
 
     def get(self) -> list:
         """[(LineShape, ForwardModel)] (waits for the worker); raises its error."""

@@ -708,7 +708,7 @@ class _InvertedColumns:
         # The other line-shape rules, for the budget's line-shape term.
         from .budget import AlternativeModels
         self.alternatives = AlternativeModels(channels, cfg.species, scene.pressure_Pa,
-                                              cfg.line_shape)
+                                              cfg.line_shape, start=workers.start)
         self.k_K_per_fraction, self.k_sigma, self.k_relative_effect = None, 0.0, 0.0
         self.mixing_pixels = 0
         # A known composition ties the species' fractions (then the ratios of
