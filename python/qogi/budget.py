@@ -72,6 +72,19 @@ class AlternativeModels:
         return list(zip(self.rules, self.models))
 
 
+def fractions_of(cfg, species: str):
+    """The peak fractions {species: x_s} a total fraction x means for a run:
+    split by the known composition, else all of it in ``species``."""
+    total = sum(cfg.composition[sp] for sp in cfg.species) if cfg.composition else None
+
+    def fractions(x):
+        if total is None:
+            return {sp: (x if sp == species else np.zeros_like(x)) for sp in cfg.species}
+        return {sp: x * cfg.composition[sp] / total for sp in cfg.species}
+
+    return fractions
+
+
 def line_shape_ratios(model, alternatives, channel: int,
                       fractions_of_x: Callable[[np.ndarray], Dict[str, np.ndarray]],
                       temperature_of_x: Callable[[np.ndarray], np.ndarray], sigma_m: float,

@@ -54,15 +54,10 @@ _DIAMETERS_M = np.geomspace(0.005, 0.1, 7)
 def _bias_factor(columns, j: int, species: str, summary, exit_K: float) -> float:
     """Flux at the assumed temperature / flux with the gas on the mixing line
     from ``exit_K`` (> 1: the assumed temperature overstates the rate)."""
-    from .budget import line_shape_ratios
+    from .budget import fractions_of, line_shape_ratios
 
     cfg, scene = columns.cfg, columns.scene
-    total = sum(cfg.composition[sp] for sp in cfg.species) if cfg.composition else None
-
-    def fractions(x):
-        if total is None:
-            return {sp: (x if sp == species else np.zeros_like(x)) for sp in cfg.species}
-        return {sp: x * cfg.composition[sp] / total for sp in cfg.species}
+    fractions = fractions_of(cfg, species)
 
     lo, hi = columns.model.temperature_range_K
     grid, ratios = line_shape_ratios(

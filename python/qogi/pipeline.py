@@ -802,15 +802,10 @@ class _InvertedColumns:
         """(columns, ratios) of :func:`qogi.budget.line_shape_ratios` for
         surface ``j``: the proxy channel, the surface's depth, the assumed
         gas temperature or the fitted mixing line."""
-        from .budget import line_shape_ratios
+        from .budget import fractions_of, line_shape_ratios
 
         cfg, scene = self.cfg, self.scene
-        total = sum(cfg.composition[sp] for sp in cfg.species) if cfg.composition else None
-
-        def fractions(x):
-            if total is None:
-                return {sp: (x if sp == species else np.zeros_like(x)) for sp in cfg.species}
-            return {sp: x * cfg.composition[sp] / total for sp in cfg.species}
+        fractions = fractions_of(cfg, species)
 
         def temperature(x):
             if self.k_K_per_fraction is None:
