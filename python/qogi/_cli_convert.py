@@ -24,7 +24,7 @@ def convert(rec, out, *, compression: Optional[str] = None, progress=None,
     import numpy as np
 
     from .files import atomic_path
-    from .recording import RecordingWriter
+    from .recording import RecordingWriter, set_attr
 
     t, c, h, w = rec.shape
     step = max(1, batch_bytes // max(1, c * h * w * 4))
@@ -39,12 +39,12 @@ def convert(rec, out, *, compression: Optional[str] = None, progress=None,
                     progress(e / t, f"frame {e}/{t}")
             for k, v in rec.attrs.items():
                 if k not in ("format", "version"):
-                    wr._f.attrs[k] = v
+                    set_attr(wr._f, k, v)
             for k, v in (getattr(rec, "scene_origin", None) or {}).items():
-                wr._f.attrs[f"origin_{k}"] = str(v)
+                set_attr(wr._f, f"origin_{k}", str(v))
             warns = getattr(rec, "warnings", None) or []
             if warns:
-                wr._f.attrs["source_warnings"] = json.dumps([d.to_dict() for d in warns])
+                set_attr(wr._f, "source_warnings", json.dumps([d.to_dict() for d in warns]))
             ct = getattr(rec, "channel_time_s", None)
             if ct is not None:
                 wr._f.attrs["channel_time_offset_s"] = np.asarray(

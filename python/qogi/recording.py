@@ -694,6 +694,120 @@ def _h5py():
 _MAX_METADATA_BYTES = 64 << 20
 
 
+def set_attr(obj, name: str, value) -> None:
+    """Writes an HDF5 attribute the way recordings store them: text as
+    fixed-length UTF-8 (a string or a sequence of strings), anything else as
+    given. Variable-length strings, h5py's default for ``str``, keep their
+    bytes on a global heap whose forged lengths can send libhdf5 into an
+    unbounded read; fixed-length ones are read whole after their declared
+    size is checked (see :func:`_check_variable_length`)."""
+    h5py = _h5py()
+    if isinstance(value, str):
+        b = value.encode("utf-8")
+        obj.attrs.create(name, np.array(b, dtype=h5py.string_dtype("utf-8", max(1, len(b)))))
+        return
+    if isinstance(value, (list, tuple, np.ndarray)) and len(value) and all(
+            isinstance(v, (str, np.str_)) for v in np.ravel(np.asarray(value, dtype=object))):
+        enc = [str(v).encode("utf-8") for v in np.ravel(np.asarray(value, dtype=object))]
+        n = max(1, max(len(b) for b in enc))
+        arr = np.array(enc, dtype=h5py.string_dtype("utf-8", n)).reshape(np.shape(value))
+        obj.attrs.create(name, arr)
+        return
+    obj.attrs[name] = value
+
+
+#: Bounds for reading a file's variable-length attributes in a child process:
+#: address space [bytes], CPU time [s] and wall time [s]. A real attribute
+#: of a few names reads in microseconds; a forged heap length makes libhdf5
+#: allocate gigabytes or loop without end (tests/data/fuzz/crashes).
+_PROBE_MEMORY_BYTES = 2 << 30
+_PROBE_CPU_S = 5
+_PROBE_WALL_S = 120.0
+_probed_ok: set = set()
+
+# Run by a fresh interpreter (numpy + h5py only): reads each variable-length
+# attribute named on the command line, printing which one before reading it.
+_PROBE_CODE = """
+import json, resource, sys
+mem, cpu = int(sys.argv[2]), int(sys.argv[3])
+resource.setrlimit(resource.RLIMIT_AS, (mem, mem))
+resource.setrlimit(resource.RLIMIT_CPU, (cpu, cpu + 1))
+import h5py
+with h5py.File(sys.argv[1], "r") as f:
+    for obj, name in json.loads(sys.argv[4]):
+        print(obj, name, flush=True)
+        f[obj].attrs[name]
+print("ok", flush=True)
+"""
+
+
+def _is_variable_length(type_id) -> bool:
+    h5t = _h5py().h5t
+    if isinstance(type_id, h5t.TypeStringID):
+        return bool(type_id.is_variable_str())
+    try:
+        return bool(type_id.detect_class(h5t.VLEN))
+    except Exception:  # noqa: BLE001 - a type libhdf5 cannot classify: treat as unsafe
+        return True
+
+
+def _check_variable_length(f, p: str) -> None:
+    """Reads the variable-length attributes of a recording's metadata objects
+    (older qogi files and other writers store text that way) in a child
+    process bounded in memory and CPU time, before this process touches
+    them; a forged one raises RecordingError naming it instead of hanging or
+    exhausting memory. Passed files are remembered (path, size, mtime)."""
+    import json
+    import subprocess
+    import sys
+
+    h5py = _h5py()
+    items = []
+    objects = ["/", "/frames", "/time_s", "/camera", "/scene", "/truth"]
+    ch = f.get("/camera/channels")
+    if isinstance(ch, h5py.Group):
+        objects += [f"/camera/channels/{k}" for k in list(ch.keys())[:64]]
+    for o in objects:
+        obj = f.get(o)
+        if obj is None:
+            continue
+        for k in obj.attrs:
+            try:
+                tid = obj.attrs.get_id(k).get_type()
+            except Exception:  # noqa: BLE001 - unreadable type: the normal read reports it
+                continue
+            if _is_variable_length(tid):
+                items.append((o, k))
+    if not items:
+        return
+    st = os.stat(p)
+    key = (os.path.realpath(p), st.st_size, st.st_mtime_ns, tuple(items))
+    if key in _probed_ok:
+        return
+    env = {k: v for k, v in os.environ.items() if not k.startswith("PYTHON")}
+    env["OPENBLAS_NUM_THREADS"] = env["OMP_NUM_THREADS"] = "1"
+    try:
+        r = subprocess.run([sys.executable, "-I", "-c", _PROBE_CODE, p, str(_PROBE_MEMORY_BYTES),
+                            str(_PROBE_CPU_S), json.dumps(items)], capture_output=True, text=True,
+                           timeout=_PROBE_WALL_S, env=env, stdin=subprocess.DEVNULL)
+        out, ok = r.stdout.split(), r.returncode == 0 and r.stdout.rstrip().endswith("ok")
+        why = (r.stderr.strip().splitlines() or [f"exit status {r.returncode}"])[-1]
+        if r.returncode < 0:
+            why = {9: "killed at the CPU-time limit", 24: "stopped at the CPU-time limit"}.get(
+                -r.returncode, f"killed by signal {-r.returncode}")
+    except subprocess.TimeoutExpired as e:
+        out, ok, why = (e.stdout or b"").decode(errors="replace").split(), False, "timed out"
+    if ok:
+        _probed_ok.add(key)
+        return
+    where = f"{out[-2]} attr {out[-1]}" if len(out) >= 2 else "variable-length attributes"
+    raise RecordingError(p, where,
+                         f"cannot be read within {_PROBE_MEMORY_BYTES >> 30} GiB and "
+                         f"{_PROBE_CPU_S} s of CPU ({why})",
+                         "the file is damaged or forged; write it again (qogi writes text "
+                         "attributes as fixed-length strings)")
+
+
 def _small(ds, path: str, location: str) -> np.ndarray:
     """A metadata dataset read whole, after checking its declared size."""
     size = int(ds.size) * int(ds.dtype.itemsize)
@@ -720,6 +834,8 @@ def _attr(obj, name: str, path: str, location: str, required: bool = True, fix: 
     v = obj.attrs[name]
     if isinstance(v, bytes):
         v = v.decode("utf-8", "replace")
+    if isinstance(v, np.ndarray) and v.dtype.kind == "S":  # fixed-length text
+        v = np.char.decode(v, "utf-8", "replace")
     if isinstance(v, np.ndarray) and v.shape == ():
         v = v[()]
     if isinstance(v, np.generic):
@@ -842,6 +958,7 @@ def _check_declared_size(p: str, ds) -> None:
 
 def _read(f, p: str, nonfinite: str) -> Recording:
     h5py = _h5py()
+    _check_variable_length(f, p)
     fmt = _attr(f, "format", p, "/", fix=f'set the root attribute format="{FORMAT}"')
     if fmt != FORMAT:
         raise RecordingError(p, "/ attr format", f"is {fmt!r}, not {FORMAT!r}",
@@ -987,11 +1104,10 @@ def _read_channels(cam, p: str, n_channels: int) -> List[SpectralResponse]:
 
 def _write_metadata(f, quantity: str, camera: Camera, scene: Scene,
                     truth: Optional[Truth]) -> None:
-    h5py = _h5py()
-    f.attrs["format"] = FORMAT
+    set_attr(f, "format", FORMAT)
     f.attrs["version"] = np.int64(VERSION)
     cam = f.require_group("camera")
-    cam.attrs["name"] = camera.name
+    set_attr(cam, "name", camera.name)
     cam.attrs["ifov_rad"] = float(camera.ifov_rad)
     if camera.frame_rate_hz is not None:
         cam.attrs["frame_rate_hz"] = float(camera.frame_rate_hz)
@@ -1002,7 +1118,7 @@ def _write_metadata(f, quantity: str, camera: Camera, scene: Scene,
         g = chg.require_group(str(k))
         g.create_dataset("wavenumber_cm1", data=np.asarray(ch.nu_cm1, dtype=np.float64))
         g.create_dataset("response", data=np.asarray(ch.response, dtype=np.float64))
-        g.attrs["name"] = ch.name
+        set_attr(g, "name", ch.name)
     sc = f.require_group("scene")
     for k in ("distance_m", "ambient_temperature_K", "pressure_Pa", "wind_speed_m_s",
               "gas_temperature_K", "background_temperature_K"):
@@ -1010,7 +1126,7 @@ def _write_metadata(f, quantity: str, camera: Camera, scene: Scene,
         if v is not None:
             sc.attrs[k] = float(v)
     if scene.species:
-        sc.attrs["species"] = np.array(list(scene.species), dtype=h5py.string_dtype())
+        set_attr(sc, "species", list(scene.species))
     if truth is not None:
         _write_truth(f, truth)
 
@@ -1020,7 +1136,7 @@ def _write_truth(f, truth: Truth) -> None:
     for sp, rate in truth.emission_rate_kg_s.items():
         g.attrs[f"emission_rate_kg_s_{sp}"] = float(rate)
     for k, v in truth.attrs.items():
-        g.attrs[k] = v
+        set_attr(g, k, v)
     for k, v in truth.datasets.items():
         if k in g:
             del g[k]
@@ -1078,7 +1194,7 @@ def write_recording(path: Union[str, os.PathLike], recording: Recording, *,
             wr.append(recording.frames(s, e), recording.time_s[s:e])
         for k, v in recording.attrs.items():
             if k not in ("format", "version"):
-                wr._f.attrs[k] = v
+                set_attr(wr._f, k, v)
 
 
 class RecordingWriter:
@@ -1170,11 +1286,11 @@ class RecordingWriter:
             self._frames = self._f.create_dataset(
                 "frames", shape=(n0,) + shape, maxshape=(None,) + shape, dtype=np.float32,
                 chunks=(1,) + shape, **_compression_args(compression, compression_level))
-            self._frames.attrs["quantity"] = quantity
-            self._frames.attrs["unit"] = QUANTITIES[quantity]
+            set_attr(self._frames, "quantity", quantity)
+            set_attr(self._frames, "unit", QUANTITIES[quantity])
             self._time = self._f.create_dataset("time_s", shape=(n0,), maxshape=(None,),
                                                 dtype=np.float64, chunks=(4096,))
-            self._time.attrs["unit"] = "s"
+            set_attr(self._time, "unit", "s")
         except BaseException as e:
             self._f.close()
             self._f = None

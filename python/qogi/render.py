@@ -376,7 +376,7 @@ def render_recording(sim, camera, background: Background, path, *, seed: int = 0
     (mass-weighted x right and z up components). Attrs record the renderer's
     measured error against the full fast model.
     """
-    from .recording import Camera, RecordingWriter, Scene, Truth
+    from .recording import Camera, RecordingWriter, Scene, Truth, set_attr
     from . import synth
 
     t0 = time.perf_counter()
@@ -452,7 +452,7 @@ def render_recording(sim, camera, background: Background, path, *, seed: int = 0
                     for sp in renderer.species}
             vel = g.create_dataset("velocity_m_s", (nf, 2, h, w), np.float32, chunks=(1, 2, h, w),
                                    compression="lzf")
-            vel.attrs["components"] = "x right, z up (mass-weighted along each line of sight)"
+            set_attr(vel, "components", "x right, z up (mass-weighted along each line of sight)")
             for f in range(nf):
                 m = sim.truth_maps(f)
                 for sp in renderer.species:

@@ -150,21 +150,12 @@ def test_recording_reader_on_edited_structure_raises_only_data_errors(tmp_path_f
                          ids=lambda p: p.name)
 def test_inputs_that_once_crashed_a_reader(path):
     data = path.read_bytes()
-    if path.name.endswith("-oom"):
-        # A forged length in HDF5's global heap: libhdf5 allocates what it
-        # declares (GBs) before failing. Under a memory limit that is a clean
-        # RecordingError, not a crash.
-        import subprocess
-        import sys
-        code = ("import resource, sys; resource.setrlimit(resource.RLIMIT_AS, (2 << 30, 2 << 30)); "
-                "sys.path.insert(0, sys.argv[2]); from fuzz_targets import read_recording_file; "
-                "print(read_recording_file(sys.argv[1]))")
-        r = subprocess.run([sys.executable, "-c", code, str(path), str(CRASHES.parents[2] / "python")],
-                           capture_output=True, text=True, timeout=120)
-        assert r.returncode == 0 and r.stdout.strip() == "-1", r.stderr
-        return
     if path.name.startswith("recording"):
-        read_recording_bytes(data)
+        # -vlen-heap-oom (libhdf5 allocates the GBs a forged heap length
+        # declares) and -vlen-attribute-hang (libhdf5 loops on a forged
+        # string) are read in the reader's bounded child process: refused
+        # with a RecordingError, in this process and without a memory limit.
+        assert read_recording_bytes(data) == -1 or "vlen" not in path.name
     else:  # flir.<suffix>-<hash>
         read_flir_bytes(data, suffix=path.name.split("-")[0][len("flir"):])
 

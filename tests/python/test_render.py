@@ -82,12 +82,12 @@ def test_cli_recording_follows_the_contract_read_with_plain_h5py(tmp_path):
     subprocess.run([sys.executable, "-m", "qogi", "synth", "lab-ch4-5slpm-gf320", "-o", str(out),
                     "--duration", "0.4", "--seed", "1", "-q"], check=True)
     with h5py.File(out, "r") as f:
-        assert f.attrs["format"] == "qogi-recording" and int(f.attrs["version"]) == 1
+        assert f.attrs["format"] == b"qogi-recording" and int(f.attrs["version"]) == 1
         frames = f["frames"]
         assert frames.dtype == np.float32 and frames.ndim == 4
         t, c, h, w = frames.shape
         assert (c, h, w) == (1, 240, 320) and t == 6
-        assert frames.attrs["quantity"] == "radiance"
+        assert frames.attrs["quantity"] == b"radiance"
         assert f["time_s"].shape == (t,) and f["time_s"].dtype == np.float64
         cam = f["camera"]
         for key in ("name", "ifov_rad", "frame_rate_hz"):
