@@ -46,6 +46,7 @@ from typing import Dict, Iterable, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
+from ..errors import DataError
 from ..files import atomic_open
 
 __all__ = ["HccFile", "open_hcc", "write_hcc", "hcc_header", "HEADER_FIELDS",
@@ -74,7 +75,7 @@ TICKS_PER_S = 10_000_000
 _MIN_HEADER = 160  # bytes: every field above fits
 
 
-class HccFormatError(ValueError):
+class HccFormatError(DataError):
     """An .hcc file that cannot be read (names the file, frame and problem)."""
 
 
