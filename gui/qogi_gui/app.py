@@ -97,7 +97,7 @@ class App:
                 return fn(sender, app_data, user_data)
             except Exception as e:  # the window must survive anything a handler does
                 traceback.print_exc()
-                self.vm._error(f"internal error in the viewer ({type(e).__name__}: {e}); "
+                self.vm.log.error(f"internal error in the viewer ({type(e).__name__}: {e}); "
                                "details were printed to the terminal")
         return cb
 
@@ -307,7 +307,7 @@ class App:
         try:
             dists = [float(v) for v in text.replace(";", ",").split(",") if v.strip()]
         except ValueError:
-            self.vm._error(f"distances: give numbers of pixels separated by commas; got {text!r}")
+            self.vm.log.error(f"distances: give numbers of pixels separated by commas; got {text!r}")
             return
         self.vm.auto_surfaces(dists)
 
@@ -529,7 +529,7 @@ class App:
             self.update()
         except Exception as e:  # keep the window alive whatever a redraw hits
             traceback.print_exc()
-            self.vm._error(f"internal error while drawing ({type(e).__name__}: {e})")
+            self.vm.log.error(f"internal error while drawing ({type(e).__name__}: {e})")
         dpg.render_dearpygui_frame()
         self._frames_drawn += 1
 
@@ -685,7 +685,7 @@ class App:
         dpg.set_value("vectors", [list(xs), list(ys)])
         note = ""
         if vm.result is not None and over is not None:
-            sp = vm._overlay_species()
+            sp = vm.overlay.species()
             note = (f"overlay: {sp} column density 0 .. {vm.overlay_vmax() * 1e3:.3g} g/m2")
             if scale > 0:
                 note += (f"; vectors: 1 px/frame = {vm.px_per_frame_to_m_s():.3g} m/s, "
@@ -841,7 +841,7 @@ class App:
         species = self.vm.result_species()
         dpg.configure_item("d_overlay_species", items=species)
         if species:
-            dpg.set_value("d_overlay_species", self.vm._overlay_species())
+            dpg.set_value("d_overlay_species", self.vm.overlay.species())
 
     def _refresh_playback(self) -> None:
         vm = self.vm
@@ -952,7 +952,7 @@ class App:
         vm = self.vm
         if kind == "window":
             if not folder.is_dir():
-                return vm._error(f"could not save the screenshot: the folder {folder} does not "
+                return vm.log.error(f"could not save the screenshot: the folder {folder} does not "
                                  "exist")
             return self.screenshot(folder / f"{stem}_window.png")
         target = {"csv": f"{stem}.csv", "json": f"{stem}.json", "plots": f"{stem}_rates.png",
@@ -978,7 +978,7 @@ class App:
     def screenshot(self, path) -> bool:
         """Save the whole window as PNG (written while the next frame renders)."""
         dpg.output_frame_buffer(file=str(path))
-        self.vm._info(f"window screenshot written to {path}")
+        self.vm.log.info(f"window screenshot written to {path}")
         return True
 
     def image_click(self, x: float, y: float, button: str = "left") -> bool:
