@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import dearpygui.dearpygui as dpg
 
-from ..settings import AVERAGING, BACKGROUNDS, FIELDS, GAS_TEMPERATURE_MODES, velocity_choices
+from ..settings import (AVERAGING, BACKGROUNDS, FIELDS, GAS_TEMPERATURE_MODES,
+                        LINE_SHAPE_BROADENINGS, LINE_SHAPE_WINGS, velocity_choices)
 from .theme import GREY, LEFT_WIDTH, RED
 
 __all__ = ["AnalysisTab"]
@@ -12,12 +13,15 @@ __all__ = ["AnalysisTab"]
 #: Text fields pushed from the form into their widgets ``f_<key>``.
 TEXT_FIELDS = ("gas_temperature_K", "wind_speed_m_s", "exit_velocity_m_s",
                "background_percentile", "distance_m", "ambient_temperature_K", "pressure_Pa",
-               "sigma_m", "frame_start", "frame_stop", "num_threads")
+               "sigma_m", "exit_temperature_K", "line_shape_wing_cm1", "frame_start", "frame_stop",
+               "num_threads")
 #: Choice fields: form field -> widget tag.
 CHOICE_FIELDS = {"gas_temperature_mode": "f_gas_mode", "velocity": "f_velocity",
                  "averaging": "f_averaging", "background": "f_background",
                  "use_source": "f_use_source", "source_x": "f_source_x",
-                 "source_y": "f_source_y", "keep_maps": "f_keep_maps"}
+                 "source_y": "f_source_y", "keep_maps": "f_keep_maps",
+                 "line_shape_wing": "f_line_shape_wing",
+                 "line_shape_broadening": "f_line_shape_broadening"}
 
 
 class AnalysisTab:
@@ -50,6 +54,7 @@ class AnalysisTab:
         hint("species")
         choice("gas_temperature_mode", "f_gas_mode", "gas temperature", GAS_TEMPERATURE_MODES)
         text_field("gas_temperature_K", "given gas temperature", "K")
+        text_field("exit_temperature_K", "exit temperature", "K")
         choice("velocity", "f_velocity", "velocity source", velocity_choices())
         hint("velocity")
         text_field("wind_speed_m_s", "wind speed", "m/s")
@@ -59,6 +64,13 @@ class AnalysisTab:
         choice("background", "f_background", "background", BACKGROUNDS)
         hint("background")
         text_field("background_percentile", "background percentile", "%")
+        dpg.add_separator()
+        dpg.add_text("Line shape of the cross-sections")
+        choice("line_shape_wing", "f_line_shape_wing", "wing rule", LINE_SHAPE_WINGS)
+        text_field("line_shape_wing_cm1", "wing half-width", "cm-1")
+        choice("line_shape_broadening", "f_line_shape_broadening", "broadening",
+               LINE_SHAPE_BROADENINGS)
+        hint("line_shape")
         dpg.add_separator()
         dpg.add_text("Scene (empty: the recording's value)")
         text_field("distance_m", "distance", "m")
@@ -119,7 +131,8 @@ class AnalysisTab:
         show = {"gas_temperature_K": st.gas_temperature_mode == "given",
                 "wind_speed_m_s": st.velocity == "wind",
                 "exit_velocity_m_s": st.velocity == "exit",
-                "background_percentile": st.background == "percentile"}
+                "background_percentile": st.background == "percentile",
+                "line_shape_wing_cm1": st.line_shape_wing == "fixed"}
         for key, on in show.items():
             dpg.configure_item(f"row_{key}", show=on)
             dpg.configure_item(f"msg_{key}", show=on)

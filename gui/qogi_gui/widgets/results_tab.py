@@ -68,6 +68,12 @@ def build_results_panel(app, parent) -> None:
                 ("frames (valid)", lambda r: f"{r.n_frames} ({r.n_frames_valid})"),
                 ("pixels (median)", lambda r: _fmt(r.pixels_median, 4)),
                 ("dominant uncertainty", lambda r: r.dominant_uncertainty or "-"),
+                ("1-sigma terms [kg/h]", lambda r: ""),
+            ] + [
+                (f"  {term}", lambda r, term=term: _fmt(r.uncertainty_terms_kg_h[term], 3)
+                 if term in r.uncertainty_terms_kg_h else "-")
+                for term in results.uncertainty_terms(rows)
+            ] + [
                 ("detection limit [kg/h]", lambda r: r.detection_text),
             ]
             for label, fn in lines:
@@ -81,6 +87,11 @@ def build_results_panel(app, parent) -> None:
     if run.result_stale:
         dpg.add_text("Surfaces or settings changed since this run: run again to update.",
                      parent=parent, color=YELLOW, wrap=420)
+    warnings = results.warning_lines(res)
+    if warnings:
+        dpg.add_text(f"Warnings ({len(warnings)})", parent=parent, color=YELLOW)
+        for line in warnings:
+            dpg.add_text(line, parent=parent, color=YELLOW, wrap=420, bullet=True)
     std = results.standard_conditions_text(res)
     if std:
         dpg.add_text(f"SLPM at {std}", parent=parent, color=GREY, wrap=420)
