@@ -117,7 +117,7 @@ def test_window_end_to_end(xvfb, tmp_path):
     # The Results tab shows each term of the budget, the line shape among them,
     # and every warning of the exported result.
     texts = state["results_texts"]
-    i = texts.index("1-sigma terms [kg/h]")
+    i = texts.index("1 sigma [kg/h]")
     assert "  line shape" in texts[i:], texts
     for w in exported["warnings"]:
         where = "/".join(x for x in (w.get("surface"), w.get("species")) if x)

@@ -68,7 +68,7 @@ def build_results_panel(app, parent) -> None:
                 ("frames (valid)", lambda r: f"{r.n_frames} ({r.n_frames_valid})"),
                 ("pixels (median)", lambda r: _fmt(r.pixels_median, 4)),
                 ("dominant uncertainty", lambda r: r.dominant_uncertainty or "-"),
-                ("1-sigma terms [kg/h]", lambda r: ""),
+                ("1 sigma [kg/h]", lambda r: ""),
             ] + [
                 (f"  {term}", lambda r, term=term: _fmt(r.uncertainty_terms_kg_h[term], 3)
                  if term in r.uncertainty_terms_kg_h else "-")
