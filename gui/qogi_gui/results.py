@@ -8,12 +8,12 @@ technician reads, unless a name says otherwise.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-__all__ = ["RateRow", "rate_rows", "rate_series", "finite_segments", "pixel_status_rows",
+__all__ = ["RateRow", "rate_rows", "uncertainty_terms", "warning_lines", "rate_series", "finite_segments", "pixel_status_rows",
            "standard_conditions_text", "frame_maps", "map_frame_keys", "full_frame_maps",
            "vector_field", "overlay_scale", "arrow_segments"]
 
@@ -40,6 +40,9 @@ class RateRow:
     #: is above it (None: no limit).
     detection_limit_kg_h: Optional[float] = None
     detected: Optional[bool] = None
+    #: The uncertainty budget: 1-sigma contribution [kg/h] per term
+    #: (temporal, velocity, column density, line shape, background ...).
+    uncertainty_terms_kg_h: Dict[str, float] = field(default_factory=dict)
 
     @property
     def detection_text(self) -> str:
@@ -91,8 +94,21 @@ def rate_rows(result) -> List[RateRow]:
                 pixels_median=float(np.median(pix)) if pix.size else math.nan,
                 dominant_uncertainty=str(getattr(r, "dominant_uncertainty", "")),
                 detection_limit_kg_h=getattr(r, "detection_limit_kg_h", None),
-                detected=getattr(r, "detected", None)))
+                detected=getattr(r, "detected", None),
+                uncertainty_terms_kg_h={str(k): _f(v) for k, v in
+                                        (getattr(r, "uncertainty_terms_kg_h", None) or {}).items()}))
     return rows
+
+
+def uncertainty_terms(rows: Sequence[RateRow]) -> List[str]:
+    """The budget's term names over ``rows``, in the order they first appear."""
+    return list(dict.fromkeys(k for r in rows for k in r.uncertainty_terms_kg_h))
+
+
+def warning_lines(result) -> List[str]:
+    """The result's warnings (``Result.warnings``), one line each:
+    ``[code surface/species] message``."""
+    return [str(w) for w in getattr(result, "warnings", None) or ()]
 
 
 def rate_series(result) -> List[dict]:

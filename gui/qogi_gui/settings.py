@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from typing import Dict, List, Optional, Tuple
 
 __all__ = ["AnalysisSettings", "FIELDS", "GAS_TEMPERATURE_MODES", "AVERAGING", "BACKGROUNDS",
-           "velocity_choices", "SettingsError"]
+           "LINE_SHAPE_WINGS", "LINE_SHAPE_BROADENINGS", "velocity_choices", "SettingsError"]
 
 GAS_TEMPERATURE_MODES = ("ambient", "given", "infer")
 AVERAGING = ("per-frame", "time-averaged")
@@ -26,6 +26,18 @@ AVERAGING = ("per-frame", "time-averaged")
 BACKGROUNDS = ("auto", "beside-surface", "percentile", "region")
 #: Species offered in addition to those the recording's scene names.
 COMMON_SPECIES = ("CH4", "CO2")
+#: Line-shape rules of the cross-sections (``qogi.forward.LineShape``): the
+#: wing rule (a fixed window in cm-1, or HAPI's 50 half-widths) and the
+#: broadening (by the gas itself and air, or by air alone). First: the default.
+LINE_SHAPE_WINGS = ("fixed", "hapi")
+LINE_SHAPE_BROADENINGS = ("self", "air")
+#: The fixed wing's half-width [cm-1]: default and accepted range, as
+#: ``qogi.forward.LineShape`` checks them.
+LINE_WING_CM1_DEFAULT = 25.0
+LINE_WING_CM1_RANGE = (1.0, 100.0)
+#: A given exit temperature [K], as ``qogi.QuantifyConfig.exit_temperature_K``
+#: accepts it.
+EXIT_TEMPERATURE_RANGE_K = (150.0, 900.0)
 
 #: Field key -> (label, unit). The keys are the form's, not always the config's.
 FIELDS: Dict[str, Tuple[str, str]] = {
@@ -41,6 +53,9 @@ FIELDS: Dict[str, Tuple[str, str]] = {
     "ambient_temperature_K": ("ambient temperature", "K"),
     "pressure_Pa": ("pressure", "Pa"),
     "sigma_m": ("plume depth sigma", "m"),
+    "exit_temperature_K": ("exit temperature", "K"),
+    "line_shape": ("line shape", ""),
+    "line_shape_wing_cm1": ("line wing half-width", "cm-1"),
     "frame_start": ("first frame", ""),
     "frame_stop": ("stop frame", ""),
     "num_threads": ("threads", ""),
@@ -55,6 +70,8 @@ _CONFIG_TO_FORM = {
     "background": "background", "source": "source", "distance_m": "distance_m",
     "ambient_temperature_K": "ambient_temperature_K", "pressure_Pa": "pressure_Pa",
     "sigma_m": "sigma_m", "frames": "frame_start", "num_threads": "num_threads",
+    "exit_temperature_K": "exit_temperature_K", "line_shape": "line_shape",
+    "line shape": "line_shape",  # qogi.forward.LineShape's own messages
 }
 
 
@@ -110,6 +127,16 @@ def _integer(text: str) -> int:
         raise ValueError(f"{s!r} is not a whole number") from None
 
 
+def _check_range(text: str, bounds: Tuple[float, float], unit: str) -> str:
+    """"" if ``text`` is a number within the closed ``bounds``, else the message."""
+    try:
+        v = _number(text)
+    except ValueError as e:
+        return str(e)
+    lo, hi = bounds
+    return "" if lo <= v <= hi else f"{v:g} {unit} is outside [{lo:g}, {hi:g}] {unit}"
+
+
 def _check_contract_range(key: str, text: str) -> str:
     """"" if ``text`` is a number inside RANGES[key], else the message."""
     try:
@@ -140,6 +167,11 @@ class AnalysisSettings:
     ambient_temperature_K: str = ""
     pressure_Pa: str = ""
     sigma_m: str = ""
+    #: The gas's temperature at the exit [K], when known (empty: not known).
+    exit_temperature_K: str = ""
+    line_shape_wing: str = LINE_SHAPE_WINGS[0]
+    line_shape_wing_cm1: str = f"{LINE_WING_CM1_DEFAULT:g}"
+    line_shape_broadening: str = LINE_SHAPE_BROADENINGS[0]
     frame_start: str = "0"
     frame_stop: str = ""
     num_threads: str = "0"
@@ -184,6 +216,17 @@ class AnalysisSettings:
             + "; empty = recording's",
             "pressure_Pa": _range_text("scene.pressure_Pa") + "; empty = recording's",
             "sigma_m": "> 0 m; empty = from the plume width",
+            "exit_temperature_K": (f"[{EXIT_TEMPERATURE_RANGE_K[0]:g}, "
+                                   f"{EXIT_TEMPERATURE_RANGE_K[1]:g}] K; the gas's temperature "
+                                   "at the exit, when known: checks an assumed (ambient or "
+                                   "given) gas temperature, warning gas-temperature-suspect; "
+                                   "empty = not known"),
+            "line_shape": ("wing rule (fixed window or HAPI's 50 half-widths) and broadening "
+                           "(self + air, or air only) of the cross-sections; default fixed "
+                           f"{LINE_WING_CM1_DEFAULT:g} cm-1 + self (docs/forward_model.md); the "
+                           "budget's 'line shape' term is the spread between the rules"),
+            "line_shape_wing_cm1": (f"[{LINE_WING_CM1_RANGE[0]:g}, {LINE_WING_CM1_RANGE[1]:g}] "
+                                    "cm-1, the fixed window around each line"),
             "frame_start": "0 ..",
             "frame_stop": "empty = to the end",
             "num_threads": "0 = all cores",
@@ -253,6 +296,10 @@ class AnalysisSettings:
                     err["sigma_m"] = "must be > 0 m (or empty: from the plume width)"
             except ValueError as e:
                 err["sigma_m"] = str(e)
+        if str(self.exit_temperature_K).strip():
+            err["exit_temperature_K"] = _check_range(self.exit_temperature_K,
+                                                     EXIT_TEMPERATURE_RANGE_K, "K")
+        err["line_shape"], err["line_shape_wing_cm1"] = self._check_line_shape()
         err["frame_start"], err["frame_stop"] = self._check_frames(recording)
         try:
             if _integer(self.num_threads) < 0:
@@ -262,6 +309,23 @@ class AnalysisSettings:
         if self.use_source:
             err["source"] = self._check_source(recording)
         return err
+
+    def _check_line_shape(self) -> Tuple[str, str]:
+        """Messages of the line-shape rule and of the fixed wing's width."""
+        if self.line_shape_wing not in LINE_SHAPE_WINGS:
+            return f"choose the wing rule: {', '.join(LINE_SHAPE_WINGS)}", ""
+        if self.line_shape_broadening not in LINE_SHAPE_BROADENINGS:
+            return f"choose the broadening: {', '.join(LINE_SHAPE_BROADENINGS)}", ""
+        if self.line_shape_wing != "fixed":
+            return "", ""
+        return "", _check_range(self.line_shape_wing_cm1, LINE_WING_CM1_RANGE, "cm-1")
+
+    def line_shape(self) -> str:
+        """The rule in ``qogi.QuantifyConfig.line_shape``'s text form
+        (``"fixed:25+self"``, ``"hapi+air"``) of a valid form."""
+        wing = (f"fixed:{_number(self.line_shape_wing_cm1):g}" if self.line_shape_wing == "fixed"
+                else self.line_shape_wing)
+        return f"{wing}+{self.line_shape_broadening}"
 
     def _frame_range(self, recording) -> Tuple[int, int]:
         start = _integer(self.frame_start) if str(self.frame_start).strip() else 0
@@ -328,9 +392,11 @@ class AnalysisSettings:
             kw["background_percentile"] = _number(self.background_percentile)
         if self.use_source:
             kw["source"] = (_number(self.source_x), _number(self.source_y))
-        for name in ("distance_m", "ambient_temperature_K", "pressure_Pa", "sigma_m"):
+        for name in ("distance_m", "ambient_temperature_K", "pressure_Pa", "sigma_m",
+                     "exit_temperature_K"):
             text = str(getattr(self, name)).strip()
             kw[name] = _number(text) if text else None
+        kw["line_shape"] = self.line_shape()
         start, stop = self._frame_range(recording)
         if recording is not None and (start, stop) != (0, recording.n_frames):
             kw["frames"] = (start, stop)

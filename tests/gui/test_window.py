@@ -109,3 +109,16 @@ def test_window_end_to_end(xvfb, tmp_path):
     assert state["overlay_shown"] and state["vectors"] > 0
     for name in ("qogi.csv", "qogi_rates.png", "qogi_frame.png", "qogi_report.md"):
         assert (tmp_path / "export" / name).stat().st_size > 0
+
+    # The analysis form's line-shape and exit-temperature fields (issue 18): a
+    # bad value is a message beside its field; the run used the default rule.
+    assert state["field_message"] == "900.5 K is outside [150, 900] K"
+    assert state["line_shape"] == "fixed:25+self"
+    # The Results tab shows each term of the budget, the line shape among them,
+    # and every warning of the exported result.
+    texts = state["results_texts"]
+    i = texts.index("1 sigma [kg/h]")
+    assert "  line shape" in texts[i:], texts
+    for w in exported["warnings"]:
+        where = "/".join(x for x in (w.get("surface"), w.get("species")) if x)
+        assert f"[{w['code']}{' ' + where if where else ''}] {w['message']}" in texts, texts

@@ -219,6 +219,12 @@ def run(out: Path, vm: ViewModel = None) -> dict:
     app.press("f_velocity", "wind")        # shows the wind-speed field
     app.press("f_gas_mode", "given")       # shows the gas-temperature field
     d.frames(2)
+    app.press("f_line_shape_wing", "hapi")  # hides the wing-width field
+    app.press("f_exit_temperature_K", "900.5")  # outside [150, 900] K: a message beside it
+    d.frames(2)
+    field_message = dpg.get_value("msg_exit_temperature_K")
+    app.press("f_exit_temperature_K", "")
+    app.press("f_line_shape_wing", "fixed")
     app.press("f_velocity", "fluid")
     app.press("f_gas_mode", "ambient")
     d.frames(3)
@@ -262,6 +268,8 @@ def run(out: Path, vm: ViewModel = None) -> dict:
              "n_frames": r.n_frames, "n_frames_valid": r.n_frames_valid}
             for r in results.rate_rows(vm.result)]
     state = {
+        "results_texts": _texts("results_group"), "field_message": field_message,
+        "line_shape": vm.result_settings.get("line_shape"),
         "shots": d.shots, "drawn": drawn, "aimed": aimed,
         "drag": dragged, "rows": rows, "exported": exported,
         "running_frames": running_frames, "distinct_progress": len(fractions),
@@ -274,6 +282,17 @@ def run(out: Path, vm: ViewModel = None) -> dict:
     (out / "state.json").write_text(json.dumps(state, indent=1, default=_json_default))
     app.close()
     return state
+
+
+def _texts(item) -> list:
+    """The text of every text widget under ``item``, in order."""
+    out = []
+    for slot in dpg.get_item_children(item).values():
+        for child in slot:
+            if dpg.get_item_type(child) == "mvAppItemType::mvText":
+                out.append(dpg.get_value(child))
+            out += _texts(child)
+    return out
 
 
 def _json_default(o):

@@ -1,5 +1,6 @@
-"""Dear PyGui widgets of the results: the side-by-side table, the comparison
-chart, the pixel-status summary and the emission-rate time series.
+"""The Results tab (the side-by-side table, the comparison chart, the
+pixel-status summary, the warnings, the exports) and the emission-rate time
+series under the image.
 
 Everything shown comes from :mod:`qogi_gui.results` (plain functions over a
 ``qogi.Result``); this module only lays it out.
@@ -8,18 +9,16 @@ Everything shown comes from :mod:`qogi_gui.results` (plain functions over a
 from __future__ import annotations
 
 import math
-
-import numpy as np
+import os
+from pathlib import Path
 
 import dearpygui.dearpygui as dpg
 
-from . import results
-from .surfaces import SURFACE_COLOURS
+from .. import results
+from ..surfaces import SURFACE_COLOURS
+from .theme import GREY, YELLOW
 
-__all__ = ["build_results_panel", "build_rates_plot"]
-
-GREY = (150, 150, 150)
-YELLOW = (255, 210, 90)
+__all__ = ["ResultsTab", "build_results_panel", "build_rates_plot"]
 
 
 def _fmt(x, nd=4):
@@ -27,21 +26,21 @@ def _fmt(x, nd=4):
 
 
 def _colour_of(app, name):
-    for s in app.vm.result_surfaces:
+    for s in app.vm.run.result_surfaces:
         if s.name == name:
             return s.colour
     return SURFACE_COLOURS[0]
 
 
 def build_results_panel(app, parent) -> None:
-    vm = app.vm
+    run = app.vm.run
     dpg.delete_item(parent, children_only=True)
-    res = vm.result
+    res = run.result
     if res is None:
         dpg.add_text("No result yet: draw a surface, check the Analysis tab and run.",
                      parent=parent, color=GREY, wrap=420)
         return
-    if vm.result_partial:
+    if run.result_partial:
         dpg.add_text("Partial result: the run was cancelled; these numbers rest on the frames "
                      "finished before that.", parent=parent, color=YELLOW, wrap=420)
     rows = results.rate_rows(res)
@@ -69,6 +68,12 @@ def build_results_panel(app, parent) -> None:
                 ("frames (valid)", lambda r: f"{r.n_frames} ({r.n_frames_valid})"),
                 ("pixels (median)", lambda r: _fmt(r.pixels_median, 4)),
                 ("dominant uncertainty", lambda r: r.dominant_uncertainty or "-"),
+                ("1 sigma [kg/h]", lambda r: ""),
+            ] + [
+                (f"  {term}", lambda r, term=term: _fmt(r.uncertainty_terms_kg_h[term], 3)
+                 if term in r.uncertainty_terms_kg_h else "-")
+                for term in results.uncertainty_terms(rows)
+            ] + [
                 ("detection limit [kg/h]", lambda r: r.detection_text),
             ]
             for label, fn in lines:
@@ -79,9 +84,14 @@ def build_results_panel(app, parent) -> None:
                         dpg.add_text(fn(r) if r is not None else "-",
                                      color=(255, 255, 255) if label.endswith("[kg/h]") and
                                      "mean" in label else (220, 220, 220))
-    if vm.result_stale:
+    if run.result_stale:
         dpg.add_text("Surfaces or settings changed since this run: run again to update.",
                      parent=parent, color=YELLOW, wrap=420)
+    warnings = results.warning_lines(res)
+    if warnings:
+        dpg.add_text(f"Warnings ({len(warnings)})", parent=parent, color=YELLOW)
+        for line in warnings:
+            dpg.add_text(line, parent=parent, color=YELLOW, wrap=420, bullet=True)
     std = results.standard_conditions_text(res)
     if std:
         dpg.add_text(f"SLPM at {std}", parent=parent, color=GREY, wrap=420)
@@ -113,7 +123,7 @@ def build_results_panel(app, parent) -> None:
             if truth is not None:  # a line across the bars (fitting the axis takes it in)
                 t = dpg.add_line_series([-0.6, len(surfaces) - 0.4], [truth, truth],
                                         label=f"truth {sp}", parent=ya)
-                dpg.bind_item_theme(t, app._themes["truth"])
+                dpg.bind_item_theme(t, app.themes["truth"])
         dpg.set_axis_limits(xa, -0.6, len(surfaces) - 0.4)
         dpg.fit_axis_data(ya)
 
@@ -138,9 +148,8 @@ def build_results_panel(app, parent) -> None:
 def build_rates_plot(app, axis) -> None:
     """Emission rate per surface and species over time, with each mean and its
     90% interval as a band, and the truth when the recording has it."""
-    vm = app.vm
     dpg.delete_item(axis, children_only=True)
-    res = vm.result
+    res = app.vm.run.result
     if res is None:
         return
     truths = {}
@@ -153,22 +162,87 @@ def build_rates_plot(app, axis) -> None:
         colour = _colour_of(app, ser["surface"])
         label = f"{ser['surface']} {ser['species']}"
         line = dpg.add_line_series(list(t), list(y), label=label, parent=axis)
-        dpg.bind_item_theme(line, app._themes[("thin", colour)])
+        dpg.bind_item_theme(line, app.themes[("thin", colour)])
         lo, hi = ser["ci90_kg_h"]
         t0, t1 = float(t[0]), float(t[-1])
         if math.isfinite(lo) and math.isfinite(hi):
             band = dpg.add_shade_series([t0, t1], [lo, lo], y2=[hi, hi],
                                         label=f"{label} 90% band", parent=axis)
-            dpg.bind_item_theme(band, app._themes[("line", colour)])
+            dpg.bind_item_theme(band, app.themes[("line", colour)])
         m = ser["mean_kg_h"]
         if math.isfinite(m):
             mean = dpg.add_line_series([t0, t1], [m, m], label=f"{label} mean {m:.3g} kg/h",
                                        parent=axis)
-            dpg.bind_item_theme(mean, app._themes[("selected", colour)])
+            dpg.bind_item_theme(mean, app.themes[("selected", colour)])
         if ser["truth_kg_h"] is not None:
             truths[ser["species"]] = ser["truth_kg_h"]
     for sp, v in truths.items():  # a line over the run (fitting the axis takes it in)
         t = dpg.add_line_series(span, [v, v], label=f"truth {sp} {v:.3g} kg/h", parent=axis)
-        dpg.bind_item_theme(t, app._themes["truth"])
+        dpg.bind_item_theme(t, app.themes["truth"])
     dpg.fit_axis_data("rates_x")
     dpg.fit_axis_data(axis)
+
+
+class ResultsTab:
+    """The Results tab and the rate time series under the image."""
+
+    def __init__(self, app):
+        self.app = app
+        self.vm = app.vm
+
+    def build(self) -> None:
+        dpg.add_group(tag="results_group")
+        dpg.add_separator()
+        self._build_exports()
+
+    def build_rates_plot(self) -> None:
+        """The emission-rate plot (under the image)."""
+        with dpg.plot(tag="rates_plot", height=-1, width=-1, no_title=True):
+            dpg.add_plot_legend(location=dpg.mvPlot_Location_NorthEast)
+            dpg.add_plot_axis(dpg.mvXAxis, label="time [s]", tag="rates_x")
+            dpg.add_plot_axis(dpg.mvYAxis, label="emission rate [kg/h]", tag="rates_y")
+
+    def refresh(self) -> None:
+        build_results_panel(self.app, "results_group")
+        build_rates_plot(self.app, "rates_y")
+
+    def _build_exports(self) -> None:
+        s = self.app.safe
+        dpg.add_text("Export")
+        with dpg.group(horizontal=True):
+            dpg.add_input_text(label="folder", tag="export_dir", width=270,
+                               default_value=self.vm.store.last_dir or os.getcwd())
+            dpg.add_button(label="...", callback=s(lambda *a: dpg.show_item("export_dialog")))
+        dpg.add_input_text(label="file name start", tag="export_stem", width=160,
+                           default_value="qogi")
+        with dpg.group(horizontal=True):
+            for label, kind in (("CSV", "csv"), ("JSON", "json"), ("Plots PNG", "plots"),
+                                ("Frame PNG", "frame"), ("Report", "report"),
+                                ("Report PDF", "report_pdf")):
+                dpg.add_button(label=label, callback=s(lambda sd, a, u: self.on_export(u)),
+                               user_data=kind)
+        with dpg.group(horizontal=True):
+            dpg.add_button(label="Export all", callback=s(lambda *a: self.on_export("all")))
+            dpg.add_button(label="Window screenshot",
+                           callback=s(lambda *a: self.on_export("window")))
+
+    def on_export(self, kind: str) -> bool:
+        """Export ``kind`` (csv, json, plots, frame, report, report_pdf, all,
+        window) into the folder and with the file name start of the form."""
+        folder = Path(dpg.get_value("export_dir") or ".").expanduser()
+        stem = (dpg.get_value("export_stem") or "qogi").strip()
+        ex = self.vm.exporter
+        if kind == "window":
+            if not folder.is_dir():
+                return self.vm.log.error(f"could not save the screenshot: the folder {folder} "
+                                         "does not exist")
+            return self.app.screenshot(folder / f"{stem}_window.png")
+        target = {"csv": f"{stem}.csv", "json": f"{stem}.json", "plots": f"{stem}_rates.png",
+                  "frame": f"{stem}_frame.png", "report": f"{stem}_report.md",
+                  "report_pdf": f"{stem}_report.pdf"}
+        fn = {"csv": ex.export_csv, "json": ex.export_json, "plots": ex.export_plots,
+              "frame": ex.export_frame, "report": ex.export_report,
+              "report_pdf": ex.export_report}
+        if kind == "all":
+            return ex.export_all(folder, stem)
+        return fn[kind](folder / target[kind])
