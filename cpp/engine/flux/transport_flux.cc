@@ -69,16 +69,14 @@ void ShiftProducts(const Matrix& A, std::size_t d, Eigen::VectorXd& ab, Eigen::V
 Eigen::VectorXd BoxSum(const Eigen::VectorXd& v, std::size_t L) {
   const std::ptrdiff_t N = v.size(), M = std::ptrdiff_t(L);
   const std::ptrdiff_t out_n = std::max(N, M), off = (std::min(N, M) - 1) / 2;
-  Eigen::VectorXd csum(N + 1);
-  csum[0] = 0.0;
-  for (std::ptrdiff_t i = 0; i < N; ++i) csum[i + 1] = csum[i] + v[i];
   Eigen::VectorXd out(out_n);
   for (std::ptrdiff_t j = 0; j < out_n; ++j) {
     // full[j + off] = sum of v[i] with 0 <= j + off - i <= M - 1
-    const std::ptrdiff_t hi = std::min(N - 1, j + off), lo = std::max<std::ptrdiff_t>(0, j + off - M + 1);
-    double s = 0.0;
-    for (std::ptrdiff_t i = lo; i <= hi; ++i) s += v[i];
-    out[j] = s;
+    const std::ptrdiff_t hi = std::min(N - 1, j + off);
+    const std::ptrdiff_t lo = std::max<std::ptrdiff_t>(0, j + off - M + 1);
+    double sum = 0.0;
+    for (std::ptrdiff_t i = lo; i <= hi; ++i) sum += v[i];
+    out[j] = sum;
   }
   return out;
 }
@@ -273,9 +271,9 @@ TransportFluxResult TransportFlux(const float* frames, std::size_t T, std::size_
   const FluxAxis axis = options.axis;
   const std::size_t n = Lines(axis, H, W);
   const std::size_t k_end = SourceLine(options.source_index, axis, n);
-  for (std::size_t i = 0; i < T * H * W; ++i)
-    Require(std::isfinite(frames[i]),
-            "frames must be finite (replace NaN pixels by 0 or an estimate)");
+  bool finite = true;
+  for (std::size_t i = 0; i < T * H * W; ++i) finite &= std::isfinite(frames[i]);
+  Require(finite, "frames must be finite (replace NaN pixels by 0 or an estimate)");
   std::vector<double> r = options.intervals;
   if (r.empty()) r.assign(T - 1, 1.0);
   const std::vector<double> sums = LineSums(frames, T, H, W, axis, options.num_threads, control);
