@@ -2,6 +2,7 @@
 // transport flux level (glue only; python/qogi/flux.py and
 // python/qogi/velocimetry.py hold the public API).
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <vector>
 
@@ -45,7 +46,7 @@ void BindFlux(py::module_& m) {
           r = SurfaceFluxRate(column.data(), column_sigma.data(), normal_velocity.data(),
                               length_m.data(), std::size_t(T), std::size_t(S), options);
         }
-        py::array_t<int> samples(static_cast<py::ssize_t>(r.samples.size()));
+        py::array_t<std::int64_t> samples(static_cast<py::ssize_t>(r.samples.size()));
         std::copy(r.samples.begin(), r.samples.end(), samples.mutable_data());
         return py::make_tuple(DoubleVector(r.rate), samples, DoubleVector(r.rate_variance));
       },

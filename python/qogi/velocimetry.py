@@ -729,7 +729,8 @@ def transport_flux(frames: ArrayLike, axis: str = "up",
 
     Requires that the gas leaves only through the far edge (not the sides)
     and the whole plume width is in the frame. The frames must be
-    proportional to column density (zero without gas).
+    proportional to column density (zero without gas). Computed by the
+    engine (``engine/flux/transport_flux.h``; released GIL, Ctrl-C stops it).
 
     Parameters
     ----------
@@ -838,7 +839,8 @@ def calibrate_flux_level(seq: FlowSequence, frames: ArrayLike, axis: str = "up",
     (:func:`frame_velocity`), smoothed along the axis over ``smooth_px``
     (Gaussian sigma) on the lines carrying at least ``min_fraction`` of the
     largest flux, and extended to the others from the nearest such line.
-    Both components of the frame velocity are multiplied by it. (Scaling the
+    Both components of the frame velocity are multiplied by it (the factors
+    from the engine, ``engine/flux/flux_level.h``). (Scaling the
     pairs' displacements instead would not do: at 15 Hz the gas crosses
     ~20 lines per frame, and the inversion in :func:`frame_velocity` mixes
     the factors of lines far apart.)
