@@ -13,6 +13,7 @@ void BindCamera(py::module_& m);
 void BindVelocimetry(py::module_& m);
 void BindSynth(py::module_& m);
 void BindInversion(py::module_& m);
+void BindFlux(py::module_& m);
 }  // namespace qogi
 
 PYBIND11_MODULE(_engine, m) {
@@ -27,4 +28,5 @@ PYBIND11_MODULE(_engine, m) {
   qogi::BindVelocimetry(m);
   qogi::BindSynth(m);
   qogi::BindInversion(m);
+  qogi::BindFlux(m);
 }

@@ -2,6 +2,9 @@
 // `find_package(qogi)` and linking `qogi::engine`.
 #pragma once
 
+#include "engine/flux/flux_level.h"
+#include "engine/flux/surface_flux.h"
+#include "engine/flux/transport_flux.h"
 #include "engine/io/jpegls.h"
 #include "engine/optics/planck.h"
 #include "engine/camera/camera.h"

@@ -1,5 +1,6 @@
 // Computes the band radiance of a blackbody through a 3.2-3.4 um channel with
-// the installed qogi engine, and back to temperature.
+// the installed qogi engine, and back to temperature; a CH4 line's
+// cross-section; and an emission rate from column and velocity arrays.
 #include <engine/qogi.h>
 
 #include <cmath>
@@ -28,6 +29,37 @@ static bool SpectraWorks() {
   return std::abs(area / expect - 1) < 1e-5;
 }
 
+// A Gaussian CH4 plume released at Q = 36 kg/h and carried at u = 3 m/s
+// across a straight 4 m surface (161 samples, 25 ms of frames): its molar
+// column c(y) = Q / (M u sqrt(2 pi) s) exp(-y^2 / 2 s^2) [mol/m2] with
+// s = 0.4 m, through the flux module: the rate must be Q.
+static bool FluxWorks() {
+  const double q_kg_s = 36.0 / 3600.0, u = 3.0, s = 0.4, length = 4.0;
+  const double pi = 3.14159265358979323846;
+  const double molar_mass = qogi::MolarMass("CH4");  // [kg/mol]
+  const std::size_t frames = 3, samples = 161;
+  const double dl = length / samples;
+  std::vector<double> column, sigma, velocity, lengths(samples, dl);
+  for (std::size_t t = 0; t < frames; ++t)
+    for (std::size_t i = 0; i < samples; ++i) {
+      const double y = -0.5 * length + (i + 0.5) * dl;
+      column.push_back(q_kg_s / (molar_mass * u * std::sqrt(2 * pi) * s) *
+                       std::exp(-0.5 * y * y / (s * s)));
+      sigma.push_back(1e-4);  // [mol/m2]
+      velocity.push_back(u);
+    }
+  qogi::SurfaceFluxOptions options;
+  options.molar_mass_kg_mol = molar_mass;
+  const qogi::SurfaceRate rate = qogi::SurfaceFluxRate(
+      column.data(), sigma.data(), velocity.data(), lengths.data(), frames, samples, options);
+  const double kg_h = rate.rate[0] * 3600.0;
+  std::printf("qogi consumer: Gaussian CH4 plume at 3 m/s through a 4 m surface, rate = "
+              "%.6f kg/h +- %.2e (column term; expected %.6f)\n",
+              kg_h, std::sqrt(rate.rate_variance[0]) * 3600.0, q_kg_s * 3600.0);
+  // The midpoint rule over +-5 sigma of the Gaussian: its tails (6e-7) only.
+  return std::abs(kg_h / (q_kg_s * 3600.0) - 1) < 1e-5;
+}
+
 int main() {
   const qogi::SpectralResponse channel({2941.18, 3125.0}, {1.0, 1.0},
                                        "3.2-3.4 um bandpass");
@@ -37,5 +69,6 @@ int main() {
   std::printf("qogi consumer: %s, T = %.2f K -> L = %.6f W/(m2 sr) -> T = %.6f K\n",
               channel.name().c_str(), t, l, back);
   if (!SpectraWorks()) return 1;
+  if (!FluxWorks()) return 1;
   return std::abs(back - t) < 1e-6 ? 0 : 1;
 }

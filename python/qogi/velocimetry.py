@@ -656,33 +656,10 @@ def frame_velocity(u, v=None) -> tuple[np.ndarray, np.ndarray]:
 AXES = ("up", "down", "left", "right")
 
 
-def _along_axis(stack: np.ndarray, axis: str) -> np.ndarray:
-    """View of a (T, H, W) stack turned so that ``axis`` points to row 0."""
-    if axis == "up":
-        return stack
-    if axis == "down":
-        return stack[:, ::-1, :]
-    if axis == "left":
-        return stack.transpose(0, 2, 1)
-    return stack.transpose(0, 2, 1)[:, ::-1, :]
-
-
 def _check_axis(axis: str) -> None:
     if axis not in AXES:
         raise ValueError(f"axis must be one of {AXES} (the direction the plume leaves the "
                          f"source in the image); got {axis!r}")
-
-
-def _axis_index(index: Optional[float], axis: str, n: int) -> int:
-    """The source's line in the turned stack (n: lines along the axis)."""
-    if index is None:
-        return n
-    i = int(round(float(index)))
-    if not 0 <= i < n:
-        what = "row" if axis in ("up", "down") else "column"
-        raise ValueError(f"source_index must be a {what} inside the frame, 0 ... {n - 1}; "
-                         f"got {index}")
-    return i if axis in ("up", "left") else n - 1 - i
 
 
 @dataclass
@@ -725,94 +702,6 @@ class TransportFlux:
                              self.velocity[sl], self.displacement[sl], self.axis)
 
 
-def _shift_products(A: np.ndarray, d: int):
-    """Per line j, over time: sums of a b, a a and b b with a = A_t(j + d)
-    and b = A_{t+1}(j) (the line-sum anomalies A (T, H) of frame t shifted
-    by d lines against frame t + 1's), each (H - d,)."""
-    H = A.shape[1]
-    a, b = A[:-1, d:], A[1:, :H - d]
-    return (a * b).sum(axis=0), (a * a).sum(axis=0), (b * b).sum(axis=0)
-
-
-def _coarse_displacements(I: np.ndarray, K: np.ndarray, k_end: int,
-                          half_window: int = 8) -> np.ndarray:
-    """Whole-pixel start values of the level displacements: per level k, the
-    shift d (0 <= d, k + d <= k_end) that maximises the correlation over time
-    and the lines k - half_window ... k + half_window of the line sums
-    ``I_{t+1}(j)`` and ``I_t(j + d)`` (their temporal anomalies). A plume
-    carried by wind at 15 Hz moves tens of lines per frame: Gauss-Newton from
-    d = 1 stops in the first local minimum of the aliased misfit."""
-    T, H = I.shape
-    A = I - I.mean(axis=0)
-    d_max = int(min(max(k_end - int(K[0]), 1), H - 1))
-    best = np.full(len(K), -np.inf)
-    d0 = np.ones(len(K))
-    box = np.ones(2 * half_window + 1)
-
-    def window(v):  # sum over lines j in [k - hw, k + hw], per line k
-        return np.convolve(v, box, mode="same")
-
-    for d in range(0, d_max + 1):
-        ab, aa, bb = (window(v) for v in _shift_products(A, d))
-        idx = K[K < H - d]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            r = ab[idx] / np.sqrt(aa[idx] * bb[idx])
-        r = np.where(np.isfinite(r) & (idx + d <= k_end), r, -np.inf)
-        rr = np.full(len(K), -np.inf)
-        rr[K < H - d] = r
-        sel = rr > best
-        best[sel] = rr[sel]
-        d0[sel] = d
-    return np.maximum(d0, 0.5)
-
-
-def _shifted(A: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """A_t(y_t,k) for the first T - 1 rows t of A (T, H + 1), linear between
-    lines; y (T - 1, n)."""
-    k0 = np.floor(y).astype(int)
-    f = y - k0
-    a = A[:-1]
-    return (np.take_along_axis(a, k0, axis=1) * (1.0 - f)
-            + np.take_along_axis(a, k0 + 1, axis=1) * f)
-
-
-def _solve_levels(C: np.ndarray, I: np.ndarray, K: np.ndarray, k_end: int,
-                  iterations: int = 100, r: Optional[np.ndarray] = None):
-    """Gauss-Newton for the steady level displacements d_k (per nominal frame
-    interval) and the outflows O_t in ``C_t(k + r_t d_k) = C_{t+1}(k) + O_t``
-    (``r_t``: pair t's duration in nominal intervals, default 1), each O_t
-    fitted to the current levels (variable projection: the reduced system is
-    the Schur complement of the O block), from the correlation of the line
-    sums (:func:`_coarse_displacements`)."""
-    H = I.shape[1]
-    n = len(K)
-    r = np.ones(I.shape[0] - 1) if r is None else np.asarray(r, float)
-    rc = r[:, None]
-    scale = max(float(np.abs(I).max()), 1e-300)
-    Cs, Is = C / scale, I / scale
-    target = Cs[1:, K]
-    Ip = np.pad(Is, ((0, 0), (0, 1)), mode="edge")
-    d = _coarse_displacements(I, K, k_end) / float(np.median(r))
-    ok = np.ones(n, bool)
-    for _ in range(iterations):
-        ok = (K + d * r.max()) <= k_end
-        y = np.clip(K + d * rc, 0.0, H - 1e-9)
-        cb = _shifted(Cs, y)
-        g = _shifted(Ip, np.floor(y)) * rc * ok
-        # d C_t(y) / dd = I_t(floor y) r_t, (T - 1, n)
-        e = (cb - target) * ok
-        cnt = max(int(ok.sum()), 1)
-        res = e - (e.sum(1) / cnt)[:, None] * ok  # after the best outflows O_t
-        A = np.diag((g * g).sum(0)) - (g.T @ g) / cnt
-        A[np.diag_indices(n)] += 1e-9 * max(float(np.diag(A).max()), 1e-300) + 1e-12
-        step = np.clip(np.linalg.solve(A, -(g * res).sum(0)), -4.0, 4.0)
-        d = np.maximum(d + step, 0.0)
-        if np.abs(step).max() < 1e-4:
-            break
-    ok = (K + d * r.max()) <= k_end
-    return d, ok
-
-
 def transport_flux(frames: ArrayLike, axis: str = "up",
                    source_index: Optional[float] = None,
                    intervals: Optional[ArrayLike] = None) -> TransportFlux:
@@ -840,7 +729,8 @@ def transport_flux(frames: ArrayLike, axis: str = "up",
 
     Requires that the gas leaves only through the far edge (not the sides)
     and the whole plume width is in the frame. The frames must be
-    proportional to column density (zero without gas).
+    proportional to column density (zero without gas). Computed by the
+    engine (``engine/flux/transport_flux.h``; released GIL, Ctrl-C stops it).
 
     Parameters
     ----------
@@ -864,54 +754,20 @@ def transport_flux(frames: ArrayLike, axis: str = "up",
     TransportFlux
     """
     _check_axis(axis)
-    stack = np.asarray(frames, dtype=np.float32)
+    stack = np.ascontiguousarray(frames, dtype=np.float32)
     if stack.ndim != 3 or stack.shape[0] < 3:
         raise ValueError(f"frames must be a (T, H, W) stack with T >= 3; got shape {stack.shape}")
     if not np.all(np.isfinite(stack)):
         raise ValueError("frames must be finite (replace NaN pixels by 0 or an estimate)")
-    turned = _along_axis(stack, axis)
-    T, H, _ = turned.shape
-    r = np.ones(T - 1) if intervals is None else np.asarray(intervals, dtype=float)
-    if r.shape != (T - 1,) or not np.all(np.isfinite(r) & (r > 0)):
+    T = stack.shape[0]
+    r = None if intervals is None else np.asarray(intervals, dtype=float)
+    if r is not None and (r.shape != (T - 1,) or not np.all(np.isfinite(r) & (r > 0))):
         raise ValueError(f"intervals must be {T - 1} positive frame intervals; got shape "
                          f"{r.shape}")
-    k_end = _axis_index(source_index, axis, H)
-    I = turned.sum(axis=2, dtype=np.float64)                  # (T, H)
-    lines = I[:, :k_end]
-    if not np.any(lines.std(axis=0) > 1e-4 * np.abs(lines).mean(axis=0)):
-        raise ValueError("the frames do not change over time (a steady plume): its flux level "
-                         "cannot be measured from the transport of its structures; give "
-                         "frames in which the plume fluctuates")
-    C = np.concatenate([np.zeros((T, 1)), np.cumsum(I, axis=1)], axis=1)
-    mean_line = I.mean(axis=0)
-    gas = np.nonzero(mean_line[:k_end] > 1e-3 * max(float(np.abs(mean_line[:k_end]).max()),
-                                                    1e-300))[0]
-    flux_b = np.full(H + 1, np.nan)                          # at boundaries k (top of line k)
-    disp_b = np.full(H + 1, np.nan)
-    if len(gas):
-        K = np.arange(gas[0], k_end + 1)
-        d, ok = _solve_levels(C, I, K, k_end, r=r)
-        y = np.clip(K + d * r[:, None], 0.0, H - 1e-9)
-        cb = _shifted(C, y)
-        fl = (cb - C[:-1, K]).mean(axis=0) / r.mean()
-        flux_b[K[ok]] = fl[ok]
-        disp_b[K[ok]] = d[ok]
-        if ok.any() and not ok.all():
-            # Levels fed from the source: the flux of the nearest solved level
-            # plus the mean change of the mass between them.
-            jr = np.nonzero(ok)[0].max()
-            for j in np.nonzero(~ok)[0]:
-                m = C[:, K[j]] - C[:, K[jr]]
-                flux_b[K[j]] = fl[jr] + (m[-1] - m[0]) / r.sum()
-    flux = 0.5 * (flux_b[:-1] + flux_b[1:])
-    flux[k_end:] = np.nan
-    disp = 0.5 * (disp_b[:-1] + disp_b[1:])
-    with np.errstate(invalid="ignore", divide="ignore"):
-        velocity = np.where(mean_line > 0, flux / mean_line, np.nan)
-    if axis in ("down", "right"):
-        flux, mean_line, velocity, disp = (a[::-1].copy() for a in (flux, mean_line, velocity,
-                                                                     disp))
-    return TransportFlux(flux, mean_line, velocity, disp, axis)
+    # The engine checks source_index (a row or column inside the frame).
+    flux, line_column, velocity, displacement = _engine.transport_flux(
+        stack, axis, None if source_index is None else float(source_index), r)
+    return TransportFlux(flux, line_column, velocity, displacement, axis)
 
 
 def typical_displacement(frames: ArrayLike, axis: str = "up", max_px: int = 16) -> float:
@@ -930,23 +786,7 @@ def typical_displacement(frames: ArrayLike, axis: str = "up", max_px: int = 16) 
         raise ValueError(f"frames must be a (T, H, W) stack with T >= 3; got shape {stack.shape}")
     if max_px < 2:
         raise ValueError(f"max_px must be >= 2; got {max_px}")
-    turned = _along_axis(stack, axis)
-    I = turned.sum(axis=2, dtype=np.float64)
-    A = I - I.mean(axis=0)
-    top = min(max_px, A.shape[1] - 2)
-    r = np.full(top + 1, -np.inf)
-    for d in range(top + 1):
-        ab, aa, bb = (float(v.sum()) for v in _shift_products(A, d))
-        if aa * bb > 0:
-            r[d] = ab / np.sqrt(aa * bb)
-    k = int(np.argmax(r))
-    if not np.isfinite(r[k]) or k >= top:
-        return float("nan")
-    if k == 0:
-        return 0.0
-    y0, y1, y2 = r[k - 1], r[k], r[k + 1]
-    curv = y0 - 2 * y1 + y2
-    return float(k + (0.5 * (y0 - y2) / curv if curv < 0 else 0.0))
+    return float(_engine.typical_displacement(np.ascontiguousarray(stack), axis, int(max_px)))
 
 
 def interpolate_frame_velocity(u: np.ndarray, v: np.ndarray, stride: int,
@@ -999,7 +839,8 @@ def calibrate_flux_level(seq: FlowSequence, frames: ArrayLike, axis: str = "up",
     (:func:`frame_velocity`), smoothed along the axis over ``smooth_px``
     (Gaussian sigma) on the lines carrying at least ``min_fraction`` of the
     largest flux, and extended to the others from the nearest such line.
-    Both components of the frame velocity are multiplied by it. (Scaling the
+    Both components of the frame velocity are multiplied by it (the factors
+    from the engine, ``engine/flux/flux_level.h``). (Scaling the
     pairs' displacements instead would not do: at 15 Hz the gas crosses
     ~20 lines per frame, and the inversion in :func:`frame_velocity` mixes
     the factors of lines far apart.)
@@ -1072,66 +913,29 @@ def calibrate_flux_level(seq: FlowSequence, frames: ArrayLike, axis: str = "up",
                              f"frames ({n_lines}); got {transport.axis!r} with "
                              f"{len(transport.flux)}")
         tf = transport
-    if frame_velocities is None:
-        fu, fv = frame_velocity(seq)
-    # Flux along the axis per line and frame (no whole-stack temporaries).
-    comp = fv if axis in ("up", "down") else fu
-    sign = -1.0 if axis in ("up", "left") else 1.0
-    sum_axis = 2 if axis in ("up", "down") else 1
-    flow_flux = np.zeros(stack.shape[3 - sum_axis])
-    for t0 in range(0, T, 64):
-        part = stack[t0:t0 + 64] * comp[t0:t0 + 64]
-        flow_flux += part.sum(axis=sum_axis, dtype=np.float64).sum(axis=0)
-    flow_flux *= sign / T
     if not max_factor > 1:
         raise ValueError(f"max_factor must be > 1; got {max_factor}")
-    carries = np.isfinite(tf.flux) & (tf.flux > min_fraction * max(float(np.nanmax(
-        np.where(np.isfinite(tf.flux), tf.flux, 0.0))), 1e-300))
-    if not carries.any():
-        raise ValueError("no line carries a flux along the axis in the transport of the "
-                         "frames; check axis and source_index")
-    good = carries & (flow_flux > min_fraction * max(float(np.nanmax(np.abs(flow_flux))),
-                                                     1e-300))
-    ratio = np.where(good, tf.flux / np.where(good, flow_flux, 1.0), 0.0)
-    good &= (ratio >= 1.0 / max_factor) & (ratio <= max_factor)
-    n = len(flow_flux)
-    if good.sum() < 0.5 * carries.sum():
-        return _transport_velocity(tf, stack.shape) + (np.full(n, np.nan, np.float32),)
-    ratio = np.where(good, ratio, 0.0)
-    if smooth_px > 0:
-        x = np.arange(n)
-        kern = np.exp(-0.5 * ((x[:, None] - x[None, :]) / smooth_px) ** 2) * good[None, :]
-        w = kern.sum(axis=1)
-        smooth = np.where(w > 1e-6, (kern * ratio[None, :]).sum(axis=1) / np.maximum(w, 1e-300),
-                          np.nan)
-    else:
-        smooth = np.where(good, ratio, np.nan)
-    idx = np.nonzero(np.isfinite(smooth))[0]
-    nearest = idx[np.abs(np.arange(n)[:, None] - idx[None, :]).argmin(axis=1)]
-    scale = smooth[nearest].astype(np.float32)
-    shape = (1, n, 1) if axis in ("up", "down") else (1, 1, n)
-    s = scale.reshape(shape)
+    if frame_velocities is None:
+        fu, fv = frame_velocity(seq)
+    scale, flow_used = _engine.flux_level_scale(
+        np.ascontiguousarray(stack), np.ascontiguousarray(fu, dtype=np.float32),
+        np.ascontiguousarray(fv, dtype=np.float32), np.asarray(tf.flux, dtype=float), axis,
+        float(smooth_px), float(min_fraction), float(max_factor))
+    if not flow_used:
+        return _transport_velocity(tf, stack.shape) + (scale,)
+    s = scale.reshape((1, -1, 1) if axis in ("up", "down") else (1, 1, -1))
     fu *= s
     fv *= s
     return fu, fv, scale
-
 
 
 def _transport_velocity(tf: TransportFlux, shape: tuple) -> tuple[np.ndarray, np.ndarray]:
     """(u, v) [px/frame], (T, H, W) float32: each line's time-averaged
     transport velocity along the axis (extended to lines without one from the
     nearest line that has one), the same at every pixel of the line and frame."""
-    vel = np.asarray(tf.velocity, float)
-    ok = np.isfinite(vel) & (np.asarray(tf.line_column) > 0)
-    idx = np.flatnonzero(ok)
-    n = vel.size
-    line = vel[idx[np.abs(np.arange(n)[:, None] - idx[None, :]).argmin(axis=1)]]
-    sign = -1.0 if tf.axis in ("up", "left") else 1.0
-    along = (sign * line).astype(np.float32)
-    zero = np.zeros(shape, np.float32)
-    if tf.axis in ("up", "down"):
-        return zero, np.broadcast_to(along[None, :, None], shape).copy()
-    return np.broadcast_to(along[None, None, :], shape).copy(), zero
+    T, H, W = shape
+    return _engine.transport_velocity(np.asarray(tf.velocity, dtype=float),
+                                      np.asarray(tf.line_column, dtype=float), tf.axis, T, H, W)
 
 
 def plume_frame_velocity(frames: ArrayLike, axis: str = "up",

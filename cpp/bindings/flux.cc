@@ -1,0 +1,156 @@
+// Bindings of engine/flux: the flux integral across a surface and the
+// transport flux level (glue only; python/qogi/flux.py and
+// python/qogi/velocimetry.py hold the public API).
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+#include "common.h"
+#include "engine/flux/flux_level.h"
+#include "engine/flux/surface_flux.h"
+#include "engine/flux/transport_flux.h"
+
+namespace qogi {
+namespace {
+
+py::array_t<double> DoubleVector(const std::vector<double>& v) {
+  py::array_t<double> out(static_cast<py::ssize_t>(v.size()));
+  std::copy(v.begin(), v.end(), out.mutable_data());
+  return out;
+}
+
+}  // namespace
+
+void BindFlux(py::module_& m) {
+  m.def(
+      "surface_flux_rate",
+      [](const DoubleArray& column, const DoubleArray& column_sigma,
+         const DoubleArray& normal_velocity, const DoubleArray& length_m,
+         double molar_mass_kg_mol) {
+        CheckNdim(column, 2, "column");
+        const py::ssize_t T = column.shape(0), S = column.shape(1);
+        for (const auto* a : {&column_sigma, &normal_velocity}) {
+          CheckNdim(*a, 2, "column_sigma and normal_velocity");
+          Require(a->shape(0) == T && a->shape(1) == S,
+                  "column_sigma and normal_velocity must have the column's (frames, samples) "
+                  "shape");
+        }
+        Require(length_m.ndim() == 1 && length_m.shape(0) == S,
+                "length_m must hold one length per sample (" + std::to_string(S) + ")");
+        SurfaceFluxOptions options;
+        options.molar_mass_kg_mol = molar_mass_kg_mol;
+        SurfaceRate r;
+        {
+          py::gil_scoped_release release;
+          r = SurfaceFluxRate(column.data(), column_sigma.data(), normal_velocity.data(),
+                              length_m.data(), std::size_t(T), std::size_t(S), options);
+        }
+        py::array_t<std::int64_t> samples(static_cast<py::ssize_t>(r.samples.size()));
+        std::copy(r.samples.begin(), r.samples.end(), samples.mutable_data());
+        return py::make_tuple(DoubleVector(r.rate), samples, DoubleVector(r.rate_variance));
+      },
+      py::arg("column"), py::arg("column_sigma"), py::arg("normal_velocity"),
+      py::arg("length_m"), py::arg("molar_mass_kg_mol") = 0.0,
+      "(rate [kg/s], samples, rate_variance [(kg/s)^2]) per frame (engine/flux/surface_flux.h).");
+
+  m.def(
+      "transport_flux",
+      [](const FloatArray& frames, const std::string& axis, py::object source_index,
+         py::object intervals, int num_threads) {
+        CheckNdim(frames, 3, "frames");
+        TransportFluxOptions options;
+        options.axis = ParseFluxAxis(axis);
+        if (!source_index.is_none()) options.source_index = source_index.cast<double>();
+        if (!intervals.is_none()) {
+          const DoubleArray r = intervals.cast<DoubleArray>();
+          options.intervals.assign(r.data(), r.data() + r.size());
+        }
+        options.num_threads = num_threads;
+        RunControl control = MakeRunControl();
+        TransportFluxResult tf;
+        {
+          py::gil_scoped_release release;
+          tf = TransportFlux(frames.data(), frames.shape(0), frames.shape(1), frames.shape(2),
+                             options, &control);
+        }
+        return py::make_tuple(DoubleVector(tf.flux), DoubleVector(tf.line_column),
+                              DoubleVector(tf.velocity), DoubleVector(tf.displacement));
+      },
+      py::arg("frames"), py::arg("axis") = "up", py::arg("source_index") = py::none(),
+      py::arg("intervals") = py::none(), py::arg("num_threads") = 0,
+      "(flux, line_column, velocity, displacement) per line of a float32 (T, H, W) stack "
+      "(engine/flux/transport_flux.h).");
+
+  m.def(
+      "typical_displacement",
+      [](const FloatArray& frames, const std::string& axis, int max_px, int num_threads) {
+        CheckNdim(frames, 3, "frames");
+        const FluxAxis a = ParseFluxAxis(axis);
+        py::gil_scoped_release release;
+        return TypicalDisplacement(frames.data(), frames.shape(0), frames.shape(1),
+                                   frames.shape(2), a, max_px, num_threads);
+      },
+      py::arg("frames"), py::arg("axis") = "up", py::arg("max_px") = 16,
+      py::arg("num_threads") = 0);
+
+  m.def(
+      "flux_level_scale",
+      [](const FloatArray& frames, const FloatArray& u, const FloatArray& v,
+         const DoubleArray& transport_flux, const std::string& axis, double smooth_px,
+         double min_fraction, double max_factor, int num_threads) {
+        CheckNdim(frames, 3, "frames");
+        for (const auto* a : {&u, &v})
+          Require(a->ndim() == 3 && a->shape(0) == frames.shape(0) &&
+                      a->shape(1) == frames.shape(1) && a->shape(2) == frames.shape(2),
+                  "u and v must have the frames' (T, H, W) shape");
+        FluxLevelOptions options;
+        options.axis = ParseFluxAxis(axis);
+        options.smooth_px = smooth_px;
+        options.min_fraction = min_fraction;
+        options.max_factor = max_factor;
+        options.num_threads = num_threads;
+        TransportFluxResult tf;
+        tf.axis = options.axis;
+        tf.flux.assign(transport_flux.data(), transport_flux.data() + transport_flux.size());
+        RunControl control = MakeRunControl();
+        FluxLevel level;
+        {
+          py::gil_scoped_release release;
+          level = FlowFluxLevel(frames.data(), u.data(), v.data(), frames.shape(0),
+                                frames.shape(1), frames.shape(2), tf, options, &control);
+        }
+        py::array_t<float> scale(static_cast<py::ssize_t>(level.scale.size()));
+        std::copy(level.scale.begin(), level.scale.end(), scale.mutable_data());
+        return py::make_tuple(scale, level.flow_used);
+      },
+      py::arg("frames"), py::arg("u"), py::arg("v"), py::arg("transport_flux"),
+      py::arg("axis") = "up", py::arg("smooth_px") = 2.0, py::arg("min_fraction") = 0.05,
+      py::arg("max_factor") = 2.5, py::arg("num_threads") = 0,
+      "(scale per line float32, flow_used) (engine/flux/flux_level.h); does not modify u, v.");
+
+  m.def(
+      "transport_velocity",
+      [](const DoubleArray& velocity, const DoubleArray& line_column, const std::string& axis,
+         py::ssize_t T, py::ssize_t H, py::ssize_t W) {
+        TransportFluxResult tf;
+        tf.axis = ParseFluxAxis(axis);
+        tf.velocity.assign(velocity.data(), velocity.data() + velocity.size());
+        tf.line_column.assign(line_column.data(), line_column.data() + line_column.size());
+        Require(T >= 0 && H >= 0 && W >= 0, "shape must be non-negative");
+        py::array_t<float> u({T, H, W}), v({T, H, W});
+        float* pu = u.mutable_data();
+        float* pv = v.mutable_data();
+        {
+          py::gil_scoped_release release;
+          TransportVelocity(tf, T, H, W, pu, pv);
+        }
+        return py::make_tuple(u, v);
+      },
+      py::arg("velocity"), py::arg("line_column"), py::arg("axis"), py::arg("T"),
+      py::arg("H"), py::arg("W"),
+      "(u, v) float32 (T, H, W): each line's transport velocity along the axis "
+      "(engine/flux/flux_level.h).");
+}
+
+}  // namespace qogi

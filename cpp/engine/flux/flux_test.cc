@@ -1,0 +1,262 @@
+// The flux module against analytic truth: a Gaussian plume advected across a
+// straight surface (its rate is the release rate), and a column field carried
+// at a known speed (its transport flux level and displacement).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <vector>
+
+#include "engine/flux/flux_level.h"
+#include "engine/flux/surface_flux.h"
+#include "engine/flux/transport_flux.h"
+#include "engine/util/check.h"
+
+namespace qogi {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// A Gaussian plume released at Q [kg/s] carried at u [m/s]: its column across
+// the wind at y [m] is c(y) = Q / (u sqrt(2 pi) s) exp(-y^2 / 2 s^2) [kg/m2].
+// The surface is a straight line across the plume, sampled every dl over
+// +-6 s; `frames` identical frames.
+struct GaussianSurface {
+  double Q = 0.01, u = 2.0, s = 0.5;
+  std::size_t frames = 3, samples = 121;
+  std::vector<double> c, sigma, vn, dl;
+
+  explicit GaussianSurface(double sign = 1.0) {
+    const double step = 12.0 * s / double(samples);
+    dl.assign(samples, step);
+    for (std::size_t t = 0; t < frames; ++t)
+      for (std::size_t i = 0; i < samples; ++i) {
+        const double y = -6.0 * s + (double(i) + 0.5) * step;
+        c.push_back(Q / (u * std::sqrt(2 * kPi) * s) * std::exp(-0.5 * y * y / (s * s)));
+        sigma.push_back(1e-4);
+        vn.push_back(sign * u);
+      }
+  }
+  SurfaceRate Rate(const SurfaceFluxOptions& options = {}) const {
+    return SurfaceFluxRate(c.data(), sigma.data(), vn.data(), dl.data(), frames, samples,
+                           options);
+  }
+};
+
+TEST(SurfaceFlux, GaussianPlumeAdvectedAcrossTheSurfaceGivesItsReleaseRate) {
+  const GaussianSurface g;
+  const SurfaceRate r = g.Rate();
+  ASSERT_EQ(r.rate.size(), g.frames);
+  for (std::size_t t = 0; t < g.frames; ++t) {
+    // The midpoint rule on a Gaussian over +-6 sigma: relative error < 1e-8.
+    EXPECT_NEAR(r.rate[t], g.Q, 1e-8 * g.Q);
+    EXPECT_EQ(r.samples[t], int(g.samples));
+    // sum (u sigma dl)^2 over the samples.
+    const double each = g.u * 1e-4 * g.dl[0];
+    EXPECT_NEAR(r.rate_variance[t], double(g.samples) * each * each, 1e-12 * each * each);
+  }
+  EXPECT_NEAR(r.column_variance(), r.rate_variance[0] * double(g.frames), 1e-20);
+}
+
+TEST(SurfaceFlux, MolarColumnsAreConvertedWithTheMolarMass) {
+  GaussianSurface g;
+  const double M = 0.01604;  // CH4 [kg/mol]
+  for (double& x : g.c) x /= M;
+  for (double& x : g.sigma) x /= M;
+  const SurfaceRate r = g.Rate({M});
+  EXPECT_NEAR(r.rate[0], g.Q, 1e-8 * g.Q);
+  EXPECT_THROW(g.Rate({-1.0}), std::invalid_argument);
+}
+
+TEST(SurfaceFlux, NoVelocityNoRateAndAReversedNormalANegativeOne) {
+  GaussianSurface still;
+  for (double& v : still.vn) v = 0.0;
+  const SurfaceRate r0 = still.Rate();
+  EXPECT_EQ(r0.rate[0], 0.0);
+  EXPECT_EQ(r0.column_variance(), 0.0);
+  const GaussianSurface reversed(-1.0);
+  EXPECT_NEAR(reversed.Rate().rate[1], -reversed.Q, 1e-8 * reversed.Q);
+}
+
+TEST(SurfaceFlux, MissingColumnsCountAsNoGasAndAFrameWithoutAnyIsNaN) {
+  GaussianSurface g;
+  const std::size_t S = g.samples;
+  // Frame 0: the plume's far tail not measured (its share of Q is missing,
+  // the rest counts); frame 1: nothing measured; frame 2: a velocity missing
+  // where a column was measured (not a rate).
+  for (std::size_t i = 0; i < 20; ++i) g.c[i] = kNaN;
+  for (std::size_t i = 0; i < S; ++i) g.c[S + i] = kNaN;
+  g.vn[2 * S + 60] = kNaN;
+  const SurfaceRate r = g.Rate();
+  double tail = 0.0;
+  for (std::size_t i = 20; i < S; ++i) tail += GaussianSurface().c[i] * g.u * g.dl[i];
+  EXPECT_NEAR(r.rate[0], tail, 1e-15);
+  EXPECT_LT(r.rate[0], g.Q);
+  EXPECT_EQ(r.samples[0], int(S - 20));
+  EXPECT_TRUE(std::isnan(r.rate[1]));
+  EXPECT_EQ(r.samples[1], 0);
+  EXPECT_TRUE(std::isnan(r.rate[2]));
+  // The missing velocity adds no column variance; the others do.
+  const double each = g.u * 1e-4 * g.dl[0];
+  EXPECT_NEAR(r.rate_variance[2], double(S - 1) * each * each, 1e-12 * each * each);
+}
+
+// -- transport flux ---------------------------------------------------------
+
+// Exact 1-D transport at a uniform speed v [px/frame] upwards: gas enters
+// across the bottom edge at a fluctuating rate q(t) and each line holds the
+// exact cell integral of q(t - tau(y)) / v, tau(y) = (H - y) / v, spread
+// over x by a Gaussian. The flux through every line is mean q (~1 per
+// frame), its mass-weighted velocity and displacement v.
+std::vector<float> TranslatingColumn(double v, std::size_t T, std::size_t H, std::size_t W) {
+  const double w1 = 2 * kPi / 23.0, w2 = 2 * kPi / 9.0;
+  auto Qint = [&](double s) {  // antiderivative of q(s) = 1 + 0.5 sin(w1 s) + 0.3 sin(w2 s + 1)
+    return s - 0.5 / w1 * std::cos(w1 * s) - 0.3 / w2 * std::cos(w2 * s + 1.0);
+  };
+  auto tau = [&](double y) { return (double(H) - y) / v; };
+  std::vector<double> g(W);
+  double gs = 0.0;
+  for (std::size_t x = 0; x < W; ++x) {
+    const double z = (double(x) - 0.5 * double(W)) / 6.0;
+    g[x] = std::exp(-0.5 * z * z);
+    gs += g[x];
+  }
+  std::vector<float> out(T * H * W);
+  for (std::size_t t = 0; t < T; ++t)
+    for (std::size_t y = 0; y < H; ++y) {
+      const double line = Qint(double(t) - tau(double(y) + 0.5)) - Qint(double(t) - tau(double(y) - 0.5));
+      for (std::size_t x = 0; x < W; ++x) out[(t * H + y) * W + x] = float(line * g[x] / gs);
+    }
+  return out;
+}
+
+// The (T, H, W) stack turned by a quarter turn so that upward becomes
+// rightward: out[t, x', y'] with y' = x, x' = H - 1 - y (a W x H frame).
+std::vector<float> TurnedRight(const std::vector<float>& a, std::size_t T, std::size_t H,
+                               std::size_t W) {
+  std::vector<float> out(a.size());
+  for (std::size_t t = 0; t < T; ++t)
+    for (std::size_t y = 0; y < H; ++y)
+      for (std::size_t x = 0; x < W; ++x)
+        out[(t * W + x) * H + (H - 1 - y)] = a[(t * H + y) * W + x];
+  return out;
+}
+
+TEST(TransportFlux, ATranslatingColumnHasItsSpeedAndUnitFlux) {
+  const std::size_t T = 120, H = 80, W = 32;
+  for (double v : {1.5, 6.0}) {
+    const std::vector<float> f = TranslatingColumn(v, T, H, W);
+    const TransportFluxResult r = TransportFlux(f.data(), T, H, W);
+    // Lines whose gas of one frame ago is still in the frame.
+    for (std::size_t y = 3; y + std::size_t(std::ceil(v)) + 2 < H; ++y) {
+      EXPECT_NEAR(r.velocity[y], v, 0.01 * v) << "v " << v << " line " << y;
+      EXPECT_NEAR(r.displacement[y], v, 0.01 * v) << "v " << v << " line " << y;
+      // The mean of q over the record (1 within its few incomplete periods).
+      EXPECT_NEAR(r.flux[y], 1.0, 0.05) << "v " << v << " line " << y;
+    }
+    EXPECT_NEAR(TypicalDisplacement(f.data(), T, H, W, FluxAxis::kUp), v, 0.1);
+  }
+}
+
+TEST(TransportFlux, TheSamePlumeMovingRightGivesTheSameProfile) {
+  const std::size_t T = 80, H = 60, W = 24;
+  const std::vector<float> up = TranslatingColumn(2.5, T, H, W);
+  const std::vector<float> right = TurnedRight(up, T, H, W);
+  const TransportFluxResult a = TransportFlux(up.data(), T, H, W);
+  TransportFluxOptions opt;
+  opt.axis = FluxAxis::kRight;
+  const TransportFluxResult b = TransportFlux(right.data(), T, W, H, opt);
+  ASSERT_EQ(b.flux.size(), H);
+  for (std::size_t y = 3; y < H - 6; ++y)
+    EXPECT_NEAR(b.velocity[H - 1 - y], a.velocity[y], 1e-6 * a.velocity[y]);
+}
+
+TEST(TransportFlux, LinesInsideTheSourceHaveNoFlux) {
+  const std::size_t T = 80, H = 60, W = 24;
+  const std::vector<float> f = TranslatingColumn(2.0, T, H, W);
+  TransportFluxOptions opt;
+  opt.source_index = 50.0;
+  const TransportFluxResult r = TransportFlux(f.data(), T, H, W, opt);
+  for (std::size_t y = 50; y < H; ++y) EXPECT_TRUE(std::isnan(r.flux[y]));
+  for (std::size_t y = 3; y < 45; ++y) EXPECT_NEAR(r.velocity[y], 2.0, 0.02);
+}
+
+TEST(TransportFlux, BadInputIsRefusedNamingTheArgument) {
+  const std::size_t T = 10, H = 20, W = 8;
+  const std::vector<float> f = TranslatingColumn(2.0, T, H, W);
+  std::vector<float> steady(f.size());
+  for (std::size_t t = 0; t < T; ++t)
+    std::copy(f.begin(), f.begin() + H * W, steady.begin() + t * H * W);
+  auto message = [&](const std::vector<float>& a, const TransportFluxOptions& o,
+                     std::size_t frames) -> std::string {
+    try {
+      TransportFlux(a.data(), frames, H, W, o);
+    } catch (const std::invalid_argument& e) {
+      return e.what();
+    }
+    return "";
+  };
+  EXPECT_NE(message(steady, {}, T).find("steady"), std::string::npos);
+  EXPECT_NE(message(f, {}, 2).find("T >= 3"), std::string::npos);
+  TransportFluxOptions bad;
+  bad.source_index = 20.0;
+  EXPECT_NE(message(f, bad, T).find("source_index"), std::string::npos);
+  bad = {};
+  bad.intervals = {1.0, 2.0};
+  EXPECT_NE(message(f, bad, T).find("intervals"), std::string::npos);
+  std::vector<float> nan = f;
+  nan[5] = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_NE(message(nan, {}, T).find("finite"), std::string::npos);
+  EXPECT_THROW(ParseFluxAxis("north"), std::invalid_argument);
+}
+
+TEST(TransportFlux, StopsWhenTheRunIsCancelled) {
+  const std::size_t T = 40, H = 40, W = 16;
+  const std::vector<float> f = TranslatingColumn(2.0, T, H, W);
+  RunControl control;
+  control.cancelled = [] { return true; };
+  EXPECT_THROW(TransportFlux(f.data(), T, H, W, {}, &control), Cancelled);
+}
+
+// -- flux level --------------------------------------------------------------
+
+TEST(FluxLevel, RestoresAFlowThatReadsThirtyPercentLow) {
+  const std::size_t T = 120, H = 80, W = 32;
+  const double v_true = 3.0;
+  const std::vector<float> f = TranslatingColumn(v_true, T, H, W);
+  std::vector<float> u(f.size(), 0.0f), v(f.size(), float(-0.7 * v_true));
+  const TransportFluxResult tf = TransportFlux(f.data(), T, H, W);
+  const FluxLevel level = CalibrateFluxLevel(f.data(), u.data(), v.data(), T, H, W, tf);
+  ASSERT_TRUE(level.flow_used);
+  for (std::size_t y = 3; y < H - 6; ++y) {
+    EXPECT_NEAR(level.scale[y], 1 / 0.7, 0.02 / 0.7) << y;
+    EXPECT_NEAR(-v[(T / 2 * H + y) * W + 5], v_true, 0.02 * v_true) << y;
+  }
+  for (float x : u) ASSERT_EQ(x, 0.0f);
+}
+
+TEST(FluxLevel, AFlowRunningAgainstTheTransportIsReplacedByIt) {
+  const std::size_t T = 60, H = 50, W = 20;
+  const std::vector<float> f = TranslatingColumn(2.0, T, H, W);
+  std::vector<float> u(f.size(), 0.3f), v(f.size(), 1.5f);  // downwards: wrong way
+  const TransportFluxResult tf = TransportFlux(f.data(), T, H, W);
+  const FluxLevel level = CalibrateFluxLevel(f.data(), u.data(), v.data(), T, H, W, tf);
+  EXPECT_FALSE(level.flow_used);
+  for (float s : level.scale) EXPECT_TRUE(std::isnan(s));
+  for (std::size_t y = 3; y < H - 6; ++y) {
+    EXPECT_NEAR(v[(7 * H + y) * W + 3], -tf.velocity[y], 1e-6);
+    EXPECT_EQ(u[(7 * H + y) * W + 3], 0.0f);
+  }
+  FluxLevelOptions wrong;
+  wrong.axis = FluxAxis::kLeft;
+  EXPECT_THROW(FlowFluxLevel(f.data(), u.data(), v.data(), T, H, W, tf, wrong),
+               std::invalid_argument);
+  FluxLevelOptions bad;
+  bad.max_factor = 1.0;
+  EXPECT_THROW(bad.Check(), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace qogi
