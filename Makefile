@@ -24,7 +24,7 @@ endif
 ENGINE_SOURCES := $(shell find cpp cmake -type f 2>/dev/null) CMakeLists.txt pyproject.toml
 CONSUMER_SOURCES := $(shell find examples/cpp_consumer -type f 2>/dev/null)
 
-.PHONY: all setup build demo test test-cpp test-python consumer bench gui wheel check-clang fuzz clean distclean
+.PHONY: all setup build demo test test-cpp test-python consumer bench gui wheel check-clang fuzz lint clean distclean
 
 all: build
 
@@ -81,6 +81,20 @@ consumer: $(STAMPS)/consumer
 
 test-python: $(STAMPS)/built
 	$(VPY) -m pytest -q
+
+# Linters and the type checker (settings: pyproject.toml [tool.ruff]/[tool.mypy],
+# .clang-format). Every check runs and reports; the target fails if any failed.
+# mypy reads the extension's stubs written by the build. scripts/format.sh applies
+# every mechanical fix (formatting, import order, ...).
+CXX_SOURCES = $(shell find cpp examples/cpp_consumer -name '*.cc' -o -name '*.h' | sort)
+lint: $(STAMPS)/built
+	@status=0; \
+	echo "lint: ruff check"; $(VENV)/bin/ruff check . || status=1; \
+	echo "lint: ruff format --check"; $(VENV)/bin/ruff format --check . || status=1; \
+	echo "lint: mypy"; $(VENV)/bin/mypy || status=1; \
+	echo "lint: clang-format --dry-run"; \
+	  $(VENV)/bin/clang-format --dry-run --Werror $(CXX_SOURCES) || status=1; \
+	exit $$status
 
 # Coverage-guided fuzzing of the FLIR and recording readers (atheris), FUZZ_S
 # seconds each; `make test` runs a bounded hypothesis fuzz (tests/python/test_fuzz.py).
