@@ -223,9 +223,9 @@ def _parsers() -> Dict[str, Any]:
 
 
 def _read_toml(path: pathlib.Path) -> Tuple[dict, List[Tuple[str, dict]]]:
-    try:
+    if sys.version_info >= (3, 11):
         import tomllib
-    except ImportError:  # Python < 3.11: the same parser as a package
+    else:  # the same parser as a package (extra "batch")
         import tomli as tomllib
     try:
         doc = tomllib.loads(path.read_text())
@@ -480,7 +480,8 @@ def run_row(job: dict) -> dict:
         with open_recording(row.path) as rec:
             if row.camera is not None or row.ifov_rad is not None:
                 _override_camera(rec, row)
-            if row.surfaces == "auto":
+            if isinstance(row.surfaces, str):  # "auto": load_manifest gave the distances
+                assert row.surfaces == "auto" and row.auto_distances_px is not None
                 stage["message"] = "placing surfaces"
                 surfaces, source = auto_surfaces(plume_image(rec), row.auto_distances_px,
                                                  source=cfg.source, return_source=True)

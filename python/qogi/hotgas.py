@@ -31,7 +31,7 @@ A warning ``gas-temperature-suspect`` carries the bias direction and size.
 from __future__ import annotations
 
 import math
-from typing import Optional
+from typing import Any, Dict, Optional
 
 import numpy as np
 
@@ -136,7 +136,7 @@ def check_gas_temperature(cfg, scene, results, columns, samples, flux_inputs: di
     if cfg.gas_temperature == "infer" or not results:
         return
     sp = cfg.species[0]
-    out = {}
+    out: Dict[str, Any] = {}
     if cfg.exit_temperature_K is not None and hasattr(columns, "proxy_channel"):
         exit_K = float(cfg.exit_temperature_K)
         factors = [_bias_factor(columns, j, sp, flux_inputs[(j, sp)], exit_K)

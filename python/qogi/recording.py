@@ -38,7 +38,7 @@ import math
 import os
 import re
 from dataclasses import dataclass, field
-from typing import Dict, Iterator, List, Optional, Sequence, Tuple, Union
+from typing import Any, Dict, Iterator, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -237,7 +237,7 @@ class Truth:
     """
 
     emission_rate_kg_s: Dict[str, float] = field(default_factory=dict)
-    datasets: Dict[str, object] = field(default_factory=dict)
+    datasets: Dict[str, Any] = field(default_factory=dict)
     attrs: Dict[str, object] = field(default_factory=dict)
 
     def validate(self, path: str = _MEMORY) -> None:
@@ -351,7 +351,8 @@ class Recording:
     @property
     def shape(self) -> Tuple[int, int, int, int]:
         """(T, C, H, W)."""
-        return tuple(int(s) for s in self._source.shape)
+        t, c, h, w = (int(s) for s in self._source.shape)
+        return t, c, h, w
 
     @property
     def n_frames(self) -> int:
@@ -384,7 +385,9 @@ class Recording:
         """Time from the first to the last frame plus one frame interval [s]."""
         if self.n_frames == 0:
             return 0.0
-        return float(self.time_s[-1] - self.time_s[0]) + 1.0 / float(self.camera.frame_rate_hz)
+        rate = self.camera.frame_rate_hz
+        assert rate is not None  # filled from time_s when a recording is opened or made
+        return float(self.time_s[-1] - self.time_s[0]) + 1.0 / float(rate)
 
     @property
     def in_memory(self) -> bool:
@@ -537,6 +540,7 @@ class Recording:
                 total += nbad
         self.n_invalid = total
         if total and self.nonfinite == "error":
+            assert first is not None  # set with the first non-finite block
             (ti, ci, yi, xi), val = first
             raise RecordingError(
                 self.path, "/frames",
@@ -567,7 +571,7 @@ class Recording:
     def summary(self) -> dict:
         """A JSON-ready description: camera, channels, frames, scene, truth."""
         t, c, h, w = self.shape
-        out = {
+        out: Dict[str, Any] = {
             "path": self.path,
             "format": FORMAT, "version": VERSION,
             "camera": {"name": self.camera.name, "ifov_rad": self.camera.ifov_rad,
@@ -1004,11 +1008,11 @@ def _write_metadata(f, quantity: str, camera: Camera, scene: Scene,
         g.create_dataset("response", data=np.asarray(ch.response, dtype=np.float64))
         g.attrs["name"] = ch.name
     sc = f.require_group("scene")
-    for k in ("distance_m", "ambient_temperature_K", "pressure_Pa", "wind_speed_m_s",
-              "gas_temperature_K", "background_temperature_K"):
-        v = getattr(scene, k)
+    for name in ("distance_m", "ambient_temperature_K", "pressure_Pa", "wind_speed_m_s",
+                 "gas_temperature_K", "background_temperature_K"):
+        v = getattr(scene, name)
         if v is not None:
-            sc.attrs[k] = float(v)
+            sc.attrs[name] = float(v)
     if scene.species:
         sc.attrs["species"] = np.array(list(scene.species), dtype=h5py.string_dtype())
     if truth is not None:

@@ -73,14 +73,19 @@ class Background:
             if not (150.0 <= v <= 600.0):
                 raise ValueError(f"{name} must be within [150, 600] K; got {v}")
 
+    def _plate_K(self) -> float:
+        if self.temperature_K is None:  # __post_init__ refuses a plate without one
+            raise ValueError("a plate background needs temperature_K")
+        return float(self.temperature_K)
+
     def row_temperatures(self, height: int) -> np.ndarray:
         """Radiometric temperature of each image row [K]."""
         if self.kind == "plate":
-            return np.full(height, float(self.temperature_K))
+            return np.full(height, self._plate_K())
         return np.linspace(self.sky_top_K, self.sky_bottom_K, height)
 
     def representative_K(self) -> float:
-        return float(self.temperature_K) if self.kind == "plate" else 0.5 * (
+        return self._plate_K() if self.kind == "plate" else 0.5 * (
             self.sky_top_K + self.sky_bottom_K)
 
 
@@ -201,7 +206,7 @@ class SceneRenderer:
                                     line_shape=line_shape)
         opts = _engine.BinnedModelOptions(key_temperatures_K=keys)
         self.full = _engine.BinnedModel(self.forward.channels, self.forward.tables, opts)
-        self.optics = None
+        self.optics: Optional[list] = None
         self.warm_filter_temperature_K = warm_filter_temperature_K
         if warm_filter_temperature_K is not None:
             from . import camera as camera_mod
@@ -435,7 +440,7 @@ def render_recording(sim, camera, background: Background, path, *, seed: int = 0
                          expected_frames=nf) as writer:
         for f in range(nf):
             frame = renderer.render_frame(f)
-            if renderer.optics is not None:
+            if renderer.optics is not None and warm_filter_temperature_K is not None:
                 from . import camera as camera_mod
                 t_f = float(warm_filter_temperature_K)
                 frame = camera_mod.add_warm_optics(frame, renderer.optics, t_f, t_f)

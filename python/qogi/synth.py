@@ -61,6 +61,7 @@ class _Options:
     """Keyword constructor, repr and dict conversion over the engine's fields."""
 
     _fields: tuple = ()
+    check: Callable[[], None]  # the engine base class's range check (annotation only)
 
     def __init__(self, **kwargs):
         super().__init__()

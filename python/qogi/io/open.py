@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
-from typing import Dict, List, Optional, Union
+from typing import Any, Dict, List, Optional, Union
 
 import numpy as np
 
@@ -282,7 +282,8 @@ def _open_h5(p, camera, distance_m, ambient_K, pressure_Pa, nonfinite, check_fra
                                ("pressure_Pa", pressure_Pa)) if v is not None}
     if given:
         try:
-            scene = dataclasses.replace(rec.scene, **{k: float(v) for k, v in given.items()})
+            changes: Dict[str, Any] = {k: float(v) for k, v in given.items()}
+            scene = dataclasses.replace(rec.scene, **changes)
             scene.validate(p)
         except BaseException:
             rec.close()
@@ -554,12 +555,15 @@ def scene_needs(path: Union[str, os.PathLike]) -> Dict[str, object]:
         from .flir import FlirFile
         with FlirFile(p) as f:
             m = f.metadata(0)
-        holds = {"distance_m": m.object_distance_m,
-                 "ambient_temperature_K": m.atmospheric_temperature_K,
-                 "band_um": 1e4 / m.effective_wavenumber_cm1 if m.planck_b > 0 else None,
-                 "ifov_rad": np.deg2rad(m.field_of_view_deg) / m.width if m.width else None}
+        flir: Dict[str, Optional[float]] = {
+            "distance_m": m.object_distance_m,
+            "ambient_temperature_K": m.atmospheric_temperature_K,
+            "band_um": 1e4 / m.effective_wavenumber_cm1 if m.planck_b > 0 else None,
+            "ifov_rad": np.deg2rad(m.field_of_view_deg) / m.width if m.width else None}
         needs = ["camera"]
-        defaults = [k for k, v in FLIR_DEFAULTS.items() if abs(holds[k] - v) < 1e-4]
+        holds = dict(flir)
+        defaults = [k for k, v in FLIR_DEFAULTS.items()
+                    if (held := flir[k]) is not None and abs(held - v) < 1e-4]
     elif kind == "telops":
         from .telops import CALIBRATION_MODES, HccFile
         with HccFile(p) as h:
