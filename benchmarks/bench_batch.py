@@ -50,8 +50,8 @@ def load():
 def main():
     duration = 4.0 * float(os.environ.get("QOGI_BENCH_SCALE", "1"))
     repeats = int(os.environ.get("QOGI_BENCH_RUNS", "1"))
-    with tempfile.TemporaryDirectory() as d:
-        d = pathlib.Path(d)
+    with tempfile.TemporaryDirectory() as tmp:
+        d = pathlib.Path(tmp)
         t = time.perf_counter()
         for s in range(SOURCES):
             render.synthesize(PRESET, d / f"src{s}.h5", duration_s=3.0, seed=s)

@@ -72,7 +72,7 @@ def cmd_xsec(args: argparse.Namespace) -> int:
         out = pathlib.Path(args.out)
         with atomic_path(out) as tmp:
             if out.suffix.lower() == ".csv":
-                cols = np.column_stack([nu] + [s for s in np.atleast_2d(sigma)])
+                cols = np.column_stack([nu, *np.atleast_2d(sigma)])
                 header = "nu_cm1," + ",".join(f"sigma_{t:g}K_cm2_per_molecule"
                                               for t in args.temperature)
                 np.savetxt(tmp, cols, delimiter=",", header=header, comments="", fmt="%.10g")

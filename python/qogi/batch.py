@@ -258,7 +258,7 @@ def _read_csv(path: pathlib.Path) -> List[Tuple[str, dict]]:
             text = fh.read()
     except (OSError, UnicodeDecodeError) as e:
         raise UsageError(f"manifest {path}: cannot read it ({e})") from e
-    lines = [ln for ln in text.splitlines(keepends=True)]
+    lines = text.splitlines(keepends=True)
     # Comment lines (#) are skipped but counted, so messages give file lines.
     numbered = [(k + 1, ln) for k, ln in enumerate(lines)
                 if ln.strip() and not ln.lstrip().startswith("#")]
@@ -839,9 +839,8 @@ def _table(rows: Sequence[Row], results: Sequence[Optional[dict]], out: pathlib.
     wrote but did not collect yet (interrupted), else "not done"."""
     table = []
     for row, r, h in zip(rows, results, hashes):
-        if r is None:
-            r = _reusable(row, out, h, reused=False) or pending_row(row)
-        table.append(r)
+        table.append(r if r is not None else
+                     _reusable(row, out, h, reused=False) or pending_row(row))
     return summary_frame(table)
 
 

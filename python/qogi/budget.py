@@ -51,7 +51,7 @@ class AlternativeModels:
                     m = forward_model(channels, list(species), pressure_Pa, line_shape=r)
                     m.fast  # noqa: B018 (built here, on the worker)
                     self.models.append(m)
-            except BaseException as e:  # reported with the term
+            except BaseException as e:  # reported with the term  # noqa: BLE001
                 self.error = e
 
         # ``start(target, name) -> Thread``: the caller's owner of worker

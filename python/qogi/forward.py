@@ -138,7 +138,7 @@ class LineShape:
 
 def _as_channels(channels: ChannelsArg) -> list:
     if hasattr(channels, "channels") and not isinstance(channels, _engine.SpectralResponse):
-        channels = getattr(channels, "channels")  # a Camera: its channels
+        channels = channels.channels  # a Camera: its channels
     if isinstance(channels, _engine.SpectralResponse):
         return [channels]
     out = list(channels)  # type: ignore[call-overload]  # ChannelsArg admits any iterable

@@ -82,7 +82,7 @@ def _rise_ratio(cfg, scene, results, source, samples, rise_speeds: dict) -> Opti
     comp = {k: v / total for k, v in comp.items()}
     mass = {k: v * _molar(k) for k, v in comp.items()}
     ratios = []
-    for j, (res, (xy, n, dl, t)) in enumerate(zip(results, samples)):
+    for j, (res, (xy, n, _dl, _t)) in enumerate(zip(results, samples)):
         r = res.species[sp]
         z = (source[1] - float(np.mean(xy[:, 1]))) * scene.pixel_m
         speed = rise_speeds.get(j)

@@ -415,7 +415,7 @@ class Recording:
             raise IndexError(f"frame range {start}:{stop} is outside 0:{n}")
         try:
             block = np.asarray(self._source[start:stop], dtype=np.float32)
-        except Exception as e:  # noqa: BLE001 - h5py's errors on a damaged chunk or type
+        except Exception as e:  # h5py's errors on a damaged chunk or type
             if self.path == _MEMORY or isinstance(e, DataError):
                 raise
             raise _damaged(self.path, e) from e
@@ -834,7 +834,7 @@ def _check_declared_size(p: str, ds) -> None:
     declared = t * frame_bytes
     try:
         stored = int(ds.id.get_storage_size())
-    except Exception:  # external or virtual storage: cannot tell
+    except Exception:  # external or virtual storage: cannot tell  # noqa: BLE001
         return
     if declared > (64 << 20) and declared > _MAX_COMPRESSION * max(stored, 1):
         raise RecordingError(p, "/frames",
@@ -1309,5 +1309,5 @@ class RecordingWriter:
         if getattr(self, "_f", None) is not None:
             try:
                 self._abandon(RuntimeError("RecordingWriter dropped without close()"))
-            except Exception:
+            except Exception:  # noqa: BLE001 (never raise from __del__)
                 pass

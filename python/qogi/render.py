@@ -64,10 +64,10 @@ class Background:
     def __post_init__(self):
         if self.kind not in ("plate", "sky"):
             raise ValueError(f"Background kind must be 'plate' or 'sky'; got {self.kind!r}")
-        if self.kind == "plate":
-            if self.temperature_K is None or not (150.0 <= self.temperature_K <= 600.0):
-                raise ValueError("a plate background needs temperature_K within [150, 600] K; "
-                                 f"got {self.temperature_K}")
+        if self.kind == "plate" and (self.temperature_K is None
+                                     or not 150.0 <= self.temperature_K <= 600.0):
+            raise ValueError("a plate background needs temperature_K within [150, 600] K; "
+                             f"got {self.temperature_K}")
         for name in ("sky_top_K", "sky_bottom_K"):
             v = getattr(self, name)
             if not (150.0 <= v <= 600.0):
@@ -262,7 +262,7 @@ class SceneRenderer:
     def _bin_matrix(self, sets: List[tuple], channel: int) -> tuple:
         rows, y = [], []
         w = self.full.weights(channel)
-        for f, s, pix in sets:
+        for _f, s, pix in sets:
             r = s["row0"] + pix // (s["path_m"].shape[1])
             for (pos, t, x), row in zip(_paths_from_samples(s, self.species, self.t_amb, pix), r):
                 a = self.full.bin_contrasts(pos, t, x, self.pressure, channel,

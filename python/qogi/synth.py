@@ -89,6 +89,9 @@ class _Options:
     def __eq__(self, other) -> bool:
         return type(self) is type(other) and self.to_dict() == other.to_dict()
 
+    # Options are mutable: equal by value, not hashable (as __eq__ alone implies).
+    __hash__ = None  # type: ignore[assignment]
+
     def __reduce__(self):
         return (_rebuild, (type(self), self.to_dict()))
 

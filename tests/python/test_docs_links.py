@@ -74,9 +74,10 @@ def test_every_relative_link_resolves(page: Path):
         path_part, _, fragment = target.partition("#")
         dest = (page.parent / path_part).resolve() if path_part else page
         if not dest.exists():
-            broken.append(f"{target} (no such file: {dest.relative_to(REPO)})")
+            broken.append(f"line {line}: {target} (no such file: {dest.relative_to(REPO)})")
         elif fragment and dest.suffix == ".md" and fragment not in _anchors(dest):
-            broken.append(f"{target} (no heading #{fragment} in {dest.relative_to(REPO)})")
+            broken.append(f"line {line}: {target} (no heading #{fragment} in "
+                          f"{dest.relative_to(REPO)})")
     assert not broken, f"{page.relative_to(REPO)}: broken links: " + "; ".join(broken)
 
 

@@ -224,7 +224,7 @@ def test_ray_samples_integrate_to_the_truth_columns(lab_sim):
     assert rs["over_pure"] == 0
     t_amb = lab_sim.release.ambient_temperature_K
     temp = synth.densify(rs, rs["temperature_K"], fill=t_amb)
-    for s, w in lab_sim.mass_fractions.items():
+    for s in lab_sim.mass_fractions:
         truth = m["column_kg_m2"][s][100:164].astype(np.float64)
         # Column of species s from what a renderer sees: X_s p M_s / (R T) dl.
         molar = {"CH4": 16.0425e-3, "CO2": 44.0095e-3}[s]

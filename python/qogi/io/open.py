@@ -164,7 +164,7 @@ class _FlirFrames:
     def __del__(self) -> None:  # a recording dropped without close() releases its file
         try:
             self.close()
-        except Exception:
+        except Exception:  # noqa: BLE001 (never raise from __del__)
             pass
 
 
@@ -189,7 +189,7 @@ class _HccFrames:
     def __del__(self) -> None:  # a recording dropped without close() releases its file
         try:
             self.close()
-        except Exception:
+        except Exception:  # noqa: BLE001 (never raise from __del__)
             pass
 
 
@@ -455,7 +455,7 @@ def _open_hcc(p, camera, distance_m, ambient_K, pressure_Pa, ifov_rad, nonfinite
             raise DataError(f"{p}: the calibration mode changes within the file ({modes}); "
                             "export it with one mode")
         mode = modes[0]
-        mname, quantity, unit = CALIBRATION_MODES.get(mode, (f"mode {mode}", None, "?"))
+        mname, quantity, _unit = CALIBRATION_MODES.get(mode, (f"mode {mode}", None, "?"))
         if quantity is None:
             raise UsageError(
                 f"{p}: calibration mode {mname} ({mode}) holds uncalibrated detector counts; "
