@@ -41,9 +41,10 @@ frame): what a perfect pair tracker would return.
 
 Everything is seeded; results are cached under --cache (delete it to redo).
 
-Usage (the table of docs/velocimetry.md: seeds 0 and 1, truth input, about
-2.6 min of CPU per preset, rate and seed, i.e. ~21 min in all, plus ~1 min per
-case to simulate it the first time)::
+Usage (the table of docs/velocimetry.md: seeds 0 and 1, truth input; every
+preset, rate and seed runs every method on a full plume simulation, which is
+why results are cached and the first run, which simulates each case, is the
+slow one)::
 
     .venv/bin/python scripts/velocimetry_plume_study.py
 

@@ -31,8 +31,10 @@ __all__ = ["AlternativeModels", "line_shape_ratios", "line_shape_systematic",
 
 class AlternativeModels:
     """The forward models of the other line-shape rules, built on a worker
-    thread (their cross-section tables are cached on disk; the fast models
-    take ~0.3 s each) while the run reads its frames."""
+    thread while the run reads its frames: building a fast model (binning its
+    cross-sections) is CPU work the run does not need until its budget, so it
+    overlaps the reading instead of delaying the first block. Their
+    cross-section tables are cached on disk."""
 
     def __init__(self, channels, species: Sequence[str], pressure_Pa: float, line_shape,
                  start=None):

@@ -752,7 +752,8 @@ def open_recording(path: Union[str, os.PathLike], *, nonfinite: str = "error",
         many and where the first is) or treat them as invalid pixels
         (returned as NaN, counted in ``Recording.n_invalid``).
     check_frames : bool, default True
-        Scan every frame for NaN/inf now (streaming, ~1 s per GB). With False
+        Scan every frame for NaN/inf now (streaming: one read of the whole file,
+        in blocks, so memory stays bounded). With False
         the check happens on each read instead (``nonfinite="error"`` then
         raises when a bad frame is read).
 

@@ -162,7 +162,7 @@ def test_repr_says_what_it_is(lab):
 
 # -- command line and report --------------------------------------------------
 
-@pytest.mark.slow  # five runs of the command line (~30 s on 2 cores)
+@pytest.mark.slow  # five runs of the command line, each a new process and a quantify
 def test_cli_units_json_to_stdout_summary_csv_report_and_replay(lab, tmp_path):
     path, _ = lab
     out = tmp_path / "out"
