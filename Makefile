@@ -90,10 +90,17 @@ CXX_SOURCES = $(shell find cpp examples/cpp_consumer -name '*.cc' -o -name '*.h'
 lint: $(STAMPS)/built
 	@status=0; \
 	echo "lint: ruff check"; $(VENV)/bin/ruff check . || status=1; \
-	echo "lint: ruff format --check"; $(VENV)/bin/ruff format --check . || status=1; \
+	echo "lint: ruff format --check"; \
+	  $(VENV)/bin/ruff format --check --output-format concise . || status=1; \
 	echo "lint: mypy"; $(VENV)/bin/mypy || status=1; \
-	echo "lint: clang-format --dry-run"; \
-	  $(VENV)/bin/clang-format --dry-run --Werror $(CXX_SOURCES) || status=1; \
+	echo "lint: clang-format"; bad=0; \
+	for f in $(CXX_SOURCES); do \
+	  $(VENV)/bin/clang-format --dry-run --Werror "$$f" >/dev/null 2>&1 \
+	    || { echo "$$f: would be reformatted"; bad=$$((bad + 1)); }; \
+	done; \
+	if [ $$bad -gt 0 ]; then echo "$$bad C++ files would be reformatted"; status=1; fi; \
+	[ $$status -eq 0 ] && echo "lint: all checks passed" \
+	  || echo "lint: failed (scripts/format.sh fixes formatting and import order)"; \
 	exit $$status
 
 # Coverage-guided fuzzing of the FLIR and recording readers (atheris), FUZZ_S

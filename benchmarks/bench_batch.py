@@ -15,7 +15,8 @@ obtained (the tasks' CPU seconds over the wall time): on a machine shared with
 other work the ratio says how much a second worker gains under that load, not
 on an idle machine. With 1 worker the engine runs 2 threads, with 2 workers 1
 each, so both hold two runnable threads; a second worker gains by running the
-serial (Python) parts of two recordings at once. QOGI_BENCH_RUNS=2 repeats the pair (1, 2, 1, 2) to show the spread.
+serial (Python) parts of two recordings at once. QOGI_BENCH_RUNS=2 repeats the
+pair (1, 2, 1, 2) to show the spread.
 """
 
 import os

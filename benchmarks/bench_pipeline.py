@@ -73,7 +73,8 @@ def main():
                 print(f"  {run}: {wall:.1f} s wall ({cpu:.1f} s CPU) = {wall / duration:.2f}x real "
                       f"time ({'faster' if wall < duration else 'SLOWER'} than the camera)")
             r = res.surfaces[len(res.surfaces) // 2].species["CH4"]
-            print(f"  (source rendered in {t_render:.0f} s; {res.surfaces[len(res.surfaces) // 2].surface.name}: "
+            middle = res.surfaces[len(res.surfaces) // 2].surface.name
+            print(f"  (source rendered in {t_render:.0f} s; {middle}: "
                   f"{r.mean_kg_h * 1000:.1f} g/h CH4, truth {r.truth_kg_h * 1000:.1f} g/h)")
             rec.close()
 

@@ -84,8 +84,8 @@ def main():
         print(f"  table error vs exact engine, {c.name:>11}, 150-1500 K: max |dL/L| "
               f"{np.max(np.abs(tb.radiance(t_test) / exact - 1)):.1e}, max |dT| "
               f"{np.max(np.abs(tb.temperature(exact) - t_test)):.1e} K")
-    print(f"T -> L, 4x256x320 frame: tables {t_tab * 1e3:.1f} ms; exact engine {t_exact * 1e3:.0f} ms; "
-          f"speed-up {t_exact / t_tab:.0f}x")
+    print(f"T -> L, 4x256x320 frame: tables {t_tab * 1e3:.1f} ms; "
+          f"exact engine {t_exact * 1e3:.0f} ms; speed-up {t_exact / t_tab:.0f}x")
     print(f"L -> T, 4x256x320 frame: tables {t_inv * 1e3:.1f} ms; exact engine "
           f"{t_exact_inv * 1e3:.0f} ms; speed-up {t_exact_inv / t_inv:.0f}x")
 

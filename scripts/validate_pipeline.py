@@ -166,8 +166,8 @@ def report(cache: Path, cases, seeds: int, img_dir: Path | None) -> None:
             dom = max({r["surfaces"][i]["dominant"] for r in runs},
                       key=[r["surfaces"][i]["dominant"] for r in runs].count)
             errs_all.append(e)
-            print(f"| {name} | {100 * e.mean():+.1f} % | {100 * e.min():+.1f} .. {100 * e.max():+.1f} % "
-                  f"| {cov}/{len(e)} | {dom} |")
+            print(f"| {name} | {100 * e.mean():+.1f} % | "
+                  f"{100 * e.min():+.1f} .. {100 * e.max():+.1f} % | {cov}/{len(e)} | {dom} |")
         codes: dict = {}
         for r in runs:
             for code in sorted({w["code"] for w in r.get("warnings", [])}):

@@ -405,8 +405,10 @@ def main(argv=None):
                 t0 = time.perf_counter()
                 case = load_case(name, rate, seed, args.cache, oracle=not args.no_oracle,
                                  heights_m=heights)
+                v_true = surface_velocity(case["column"], case["vz"], case["rows"],
+                                          np.arange(SKIP_PAIRS, case["column"].shape[0] - 1))
                 print(f"# {name} {rate:g} Hz seed {seed}: {case['column'].shape[0]} frames, "
-                      f"truth V = {', '.join(f'{x:.3f}' for x in surface_velocity(case['column'], case['vz'], case['rows'], np.arange(SKIP_PAIRS, case['column'].shape[0] - 1)))} m/s "
+                      f"truth V = {', '.join(f'{x:.3f}' for x in v_true)} m/s "
                       f"({time.perf_counter() - t0:.0f} s)", flush=True)
                 runs = []
                 if not args.no_oracle and "oracle" in case:

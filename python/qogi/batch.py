@@ -828,7 +828,8 @@ def run(manifest: Union[str, os.PathLike], outdir: Union[str, os.PathLike], *,
     df = _table(rows, results, out, hashes)
     write_summary(df, out)
     n_ok = int((df["status"] == "ok").sum())
-    say(f"qogi batch: {n_ok} ok, {int((df['status'] == 'failed').sum())} failed; summary in {out / SUMMARY_CSV} "
+    n_failed = int((df["status"] == "failed").sum())
+    say(f"qogi batch: {n_ok} ok, {n_failed} failed; summary in {out / SUMMARY_CSV} "
         f"and {SUMMARY_PARQUET}")
     return df
 

@@ -1,7 +1,7 @@
-"""FLIR readers on the shared sample files (third-party, found beside the checkout or in $QOGI_SHARED_DIR; from the
-Thermimage R package), checked against values published in Thermimage's
-README for these very files, against CharLS's decoding of the .csq frames
-(tests/data/flir/csq_reference.json), and against physics."""
+"""FLIR readers on the shared sample files (third-party, found beside the checkout
+or in $QOGI_SHARED_DIR; from the Thermimage R package), checked against values
+published in Thermimage's README for these very files, against CharLS's decoding
+of the .csq frames (tests/data/flir/csq_reference.json), and against physics."""
 
 from __future__ import annotations
 

@@ -62,7 +62,7 @@ def interrupt_quantify(rec, out_dir, delay_s, after_table_starts):
     (out_dir / "out.json").write_text(PREVIOUS)
     (out_dir / "out.csv").write_text("previous\n")
     p = subprocess.Popen(quantify_cmd(rec, out_dir), stdout=subprocess.PIPE,
-                         stderr=subprocess.PIPE, text=True, preexec_fn=_ctrl_c_on)  # noqa: PLW1509 (single-threaded here)
+                         stderr=subprocess.PIPE, text=True, preexec_fn=_ctrl_c_on)
     err_lines = []
     if after_table_starts:
         for line in p.stderr:  # the progress bar's first report names the table
@@ -180,7 +180,7 @@ def test_interrupted_synth_leaves_the_existing_recording_untouched(tmp_path, sig
     p = subprocess.Popen([sys.executable, "-u", "-m", "qogi", "synth", "lab-ch4-5slpm-gf320",
                           "-o", str(target), "--duration", "4"],
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                         preexec_fn=_ctrl_c_on)  # noqa: PLW1509 (single-threaded here)
+                         preexec_fn=_ctrl_c_on)
     end = time.monotonic() + 60
     while not any(q.name.startswith(".qogi-tmp-existing.h5") for q in tmp_path.iterdir()):
         assert p.poll() is None and time.monotonic() < end, "synth never started writing"
