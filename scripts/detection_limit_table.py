@@ -1,4 +1,4 @@
-"""The detection-limit comparison of docs/detection_limit.md.
+"""The detection-limit comparison of docs/validation/detection_limit.md.
 
 1. The plume's speed and effective width at a control surface, measured by
    the pipeline on two synthetic presets (the 5 SLPM lab release 4 cm above

@@ -15,7 +15,7 @@ Two models share the physics and the HITRAN cross-section tables:
 * the **fast** model (default) groups spectral points whose cross-sections agree
   at several temperatures into bins (spectral binning), solving the same RTE per
   bin: hundreds of times faster, within 1 % of the exact contrast (see
-  ``docs/forward_model.md`` for the measured agreement).
+  ``docs/validation/forward_model.md`` for the measured agreement).
 
 Self-broadening is included by default: at a local volume fraction x the
 cross-section is ``(1 - x) sigma_air + x sigma_self``.

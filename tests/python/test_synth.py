@@ -99,7 +99,7 @@ def _control_planes(rel):
 # The lab plumes are slow (gas takes ~2 s to reach 40 cm) and the mass stored
 # below a plane fluctuates, so the average needs ~20 s (over the m150
 # preset's own 7 s the 40 cm plane scatters by 2.8 % RMS between seeds; see
-# docs/synthetic.md); their flux changes slowly and 15-30 Hz samples it well.
+# docs/validation/synthetic.md); their flux changes slowly and 15-30 Hz samples it well.
 # The stack plume's flux fluctuates within tens of ms (blobs passing at
 # 6 m/s): it is averaged over 8 s sampled at 100 Hz.
 @pytest.mark.parametrize("name,duration,rate", [
