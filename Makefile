@@ -24,7 +24,7 @@ endif
 ENGINE_SOURCES := $(shell find cpp cmake -type f 2>/dev/null) CMakeLists.txt pyproject.toml
 CONSUMER_SOURCES := $(shell find examples/cpp_consumer -type f 2>/dev/null)
 
-.PHONY: all setup build demo test test-cpp test-python consumer bench gui wheel check-clang fuzz clean distclean
+.PHONY: all setup build demo test test-cpp test-python consumer bench gui wheel check-clang fuzz lint clean distclean
 
 all: build
 
@@ -81,6 +81,27 @@ consumer: $(STAMPS)/consumer
 
 test-python: $(STAMPS)/built
 	$(VPY) -m pytest -q
+
+# Linters and the type checker (settings: pyproject.toml [tool.ruff]/[tool.mypy],
+# .clang-format). Every check runs and reports; the target fails if any failed.
+# mypy reads the extension's stubs written by the build. scripts/format.sh applies
+# every mechanical fix (formatting, import order, ...).
+CXX_SOURCES = $(shell find cpp examples/cpp_consumer -name '*.cc' -o -name '*.h' | sort)
+lint: $(STAMPS)/built
+	@status=0; \
+	echo "lint: ruff check"; $(VENV)/bin/ruff check . || status=1; \
+	echo "lint: ruff format --check"; \
+	  $(VENV)/bin/ruff format --check --output-format concise . || status=1; \
+	echo "lint: mypy"; $(VENV)/bin/mypy || status=1; \
+	echo "lint: clang-format"; bad=0; \
+	for f in $(CXX_SOURCES); do \
+	  $(VENV)/bin/clang-format --dry-run --Werror "$$f" >/dev/null 2>&1 \
+	    || { echo "$$f: would be reformatted"; bad=$$((bad + 1)); }; \
+	done; \
+	if [ $$bad -gt 0 ]; then echo "$$bad C++ files would be reformatted"; status=1; fi; \
+	[ $$status -eq 0 ] && echo "lint: all checks passed" \
+	  || echo "lint: failed (scripts/format.sh fixes formatting and import order)"; \
+	exit $$status
 
 # Coverage-guided fuzzing of the FLIR and recording readers (atheris), FUZZ_S
 # seconds each; `make test` runs a bounded hypothesis fuzz (tests/python/test_fuzz.py).

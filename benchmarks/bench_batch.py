@@ -15,7 +15,8 @@ obtained (the tasks' CPU seconds over the wall time): on a machine shared with
 other work the ratio says how much a second worker gains under that load, not
 on an idle machine. With 1 worker the engine runs 2 threads, with 2 workers 1
 each, so both hold two runnable threads; a second worker gains by running the
-serial (Python) parts of two recordings at once. QOGI_BENCH_RUNS=2 repeats the pair (1, 2, 1, 2) to show the spread.
+serial (Python) parts of two recordings at once. QOGI_BENCH_RUNS=2 repeats the
+pair (1, 2, 1, 2) to show the spread.
 """
 
 import os
@@ -50,8 +51,8 @@ def load():
 def main():
     duration = 4.0 * float(os.environ.get("QOGI_BENCH_SCALE", "1"))
     repeats = int(os.environ.get("QOGI_BENCH_RUNS", "1"))
-    with tempfile.TemporaryDirectory() as d:
-        d = pathlib.Path(d)
+    with tempfile.TemporaryDirectory() as tmp:
+        d = pathlib.Path(tmp)
         t = time.perf_counter()
         for s in range(SOURCES):
             render.synthesize(PRESET, d / f"src{s}.h5", duration_s=3.0, seed=s)

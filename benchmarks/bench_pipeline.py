@@ -48,8 +48,8 @@ def looped(src_path, dst_path, duration_s):
 def main():
     scale = float(os.environ.get("QOGI_BENCH_SCALE", "1"))
     with tempfile.TemporaryDirectory() as d:
-        for preset, duration, source_s, gas, comp in CASES:
-            duration *= scale
+        for preset, base_duration, source_s, gas, comp in CASES:
+            duration = base_duration * scale
             t = time.perf_counter()
             src = render.synthesize(preset, os.path.join(d, "src.h5"), duration_s=source_s, seed=0)
             t_render = time.perf_counter() - t
@@ -61,7 +61,7 @@ def main():
                                  composition=comp, source=source)
             times = []
             runs = ("cold", "warm")[:int(os.environ.get("QOGI_BENCH_RUNS", "1"))]
-            for run in runs:
+            for _run in runs:
                 t = time.perf_counter()
                 c = time.process_time()
                 res = quantify(rec, surf, cfg)
@@ -73,7 +73,8 @@ def main():
                 print(f"  {run}: {wall:.1f} s wall ({cpu:.1f} s CPU) = {wall / duration:.2f}x real "
                       f"time ({'faster' if wall < duration else 'SLOWER'} than the camera)")
             r = res.surfaces[len(res.surfaces) // 2].species["CH4"]
-            print(f"  (source rendered in {t_render:.0f} s; {res.surfaces[len(res.surfaces) // 2].surface.name}: "
+            middle = res.surfaces[len(res.surfaces) // 2].surface.name
+            print(f"  (source rendered in {t_render:.0f} s; {middle}: "
                   f"{r.mean_kg_h * 1000:.1f} g/h CH4, truth {r.truth_kg_h * 1000:.1f} g/h)")
             rec.close()
 

@@ -84,8 +84,8 @@ def main():
         print(f"  table error vs exact engine, {c.name:>11}, 150-1500 K: max |dL/L| "
               f"{np.max(np.abs(tb.radiance(t_test) / exact - 1)):.1e}, max |dT| "
               f"{np.max(np.abs(tb.temperature(exact) - t_test)):.1e} K")
-    print(f"T -> L, 4x256x320 frame: tables {t_tab * 1e3:.1f} ms; exact engine {t_exact * 1e3:.0f} ms; "
-          f"speed-up {t_exact / t_tab:.0f}x")
+    print(f"T -> L, 4x256x320 frame: tables {t_tab * 1e3:.1f} ms; "
+          f"exact engine {t_exact * 1e3:.0f} ms; speed-up {t_exact / t_tab:.0f}x")
     print(f"L -> T, 4x256x320 frame: tables {t_inv * 1e3:.1f} ms; exact engine "
           f"{t_exact_inv * 1e3:.0f} ms; speed-up {t_exact_inv / t_inv:.0f}x")
 
@@ -101,12 +101,12 @@ def main():
                 for i in range(n):
                     w.append(frame + np.float32(0.01 * i), i / 100.0)
             size_mb = p.stat().st_size / 1e6
-            t_open = best(lambda: qogi.open_recording(p).close(), 2)
-            t_bytes = best(lambda: p.read_bytes(), 2)
+            t_open = best(lambda p=p: qogi.open_recording(p).close(), 2)
+            t_bytes = best(p.read_bytes, 2)
             rec = qogi.open_recording(p, check_frames=False)
             idx = iter(np.random.default_rng(1).integers(0, n, 1000))
-            t_read = best(lambda: rec.frame(int(next(idx))), 20)
-            t_copy = best(lambda: frame.copy(), 20)
+            t_read = best(lambda rec=rec, idx=idx: rec.frame(int(next(idx))), 20)
+            t_copy = best(frame.copy, 20)
             rec.close()
             print(f"recording {n} frames 4x256x320 ({comp or 'uncompressed'}, {size_mb:.0f} MB): "
                   f"open with NaN scan {t_open:.2f} s vs reading its bytes {t_bytes:.2f} s "

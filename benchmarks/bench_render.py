@@ -30,7 +30,8 @@ def main():
     print(f"{PRESET}: {frames} frames of 320x256 x 4 channels simulated and rendered in "
           f"{total:.0f} s ({total / 60:.1f} min; target < 10 min: {total / 600:.2f} of it), "
           f"file {size:.0f} MB")
-    print(f"  vs real time ({duration:.1f} s of video): {total / duration:.1f}x slower than the camera")
+    print(f"  vs real time ({duration:.1f} s of video): "
+          f"{total / duration:.1f}x slower than the camera")
     print(f"  vs the thesis's 28 h (CFD-LES + rendering): {28 * 3600 / total:.0f}x faster")
 
     # Baseline: every bin of the full fast model, one band of 16 rows of one frame.
@@ -53,9 +54,10 @@ def main():
     _engine.render_contrast(r.model, s["offset"], s["path_m"].ravel(), s["temperature_K"], fr,
                             r.t_amb, tb)
     t_red = time.perf_counter() - t
-    print(f"  rendering kernel on {len(rays)} gas rays: full fast model {t_full:.2f} s, scene-reduced "
-          f"({r.bins_per_channel} bins) {t_red:.3f} s: {t_full / max(t_red, 1e-9):.0f}x; held-out "
-          f"error of the reduction {max(v[0] for v in r.render_error.values()):.2e} of the contrast")
+    print(f"  rendering kernel on {len(rays)} gas rays: full fast model {t_full:.2f} s, "
+          f"scene-reduced ({r.bins_per_channel} bins) {t_red:.3f} s: "
+          f"{t_full / max(t_red, 1e-9):.0f}x; held-out error of the reduction "
+          f"{max(v[0] for v in r.render_error.values()):.2e} of the contrast")
 
 
 if __name__ == "__main__":

@@ -70,7 +70,7 @@ def sequence(n_frames):
     c, s = np.cos(th), np.sin(th)
     frames = []
     px, py = x.copy(), y.copy()  # phi^-k(x), built up one inverse step at a time
-    for k in range(n_frames):
+    for _ in range(n_frames):
         frames.append(np.exp(0.4 * t(px, py)))
         ux, uy = px - cx - dx, py - cy - dy  # phi^-1(p) = c + R^-1 (p - c - d)
         px, py = cx + c * ux + s * uy, cy - s * ux + c * uy

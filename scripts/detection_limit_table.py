@@ -1,4 +1,4 @@
-"""The detection-limit comparison of docs/detection_limit.md.
+"""The detection-limit comparison of docs/validation/detection_limit.md.
 
 1. The plume's speed and effective width at a control surface, measured by
    the pipeline on two synthetic presets (the 5 SLPM lab release 4 cm above
@@ -12,7 +12,8 @@
    contrasts; the lowest rate seen in >= 95 % of frames beside the limit the
    pipeline states.
 
-Run: QOGI_HITRAN_PATH=... python scripts/detection_limit_table.py  (~3 min on 2 cores)
+Run: QOGI_HITRAN_PATH=... python scripts/detection_limit_table.py  (a study, not a
+test: it runs the pipeline on every scene of the sweep)
 """
 
 from __future__ import annotations

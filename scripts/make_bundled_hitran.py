@@ -36,7 +36,8 @@ FILES = [
     ("CH4.par.gz", "CH4.par", "CH4", (0.0, 1e9), "HITRAN2020 (inferred from the fetch date)",
      HITRAN2020,
      "HAPI fetch of 12CH4 over 3080-3530 nm, published in the GitHub repository "
-     "dermahax/spectracalc_hapi (data/CH4.data, commit 8597bf110c77428e97f19ac8f6c3096347ad10cd)"),
+     "dermahax/spectracalc_hapi (data/CH4.data, commit "
+     "8597bf110c77428e97f19ac8f6c3096347ad10cd)"),
     ("CO2.par.gz", "CO2.par", "CO2", (0.0, 1e9), "HITRAN2012 (inferred from the fetch date)",
      HITRAN2012,
      "HAPI fetch of 12C16O2 over 2100-2300 cm-1, published in the GitHub repository "

@@ -163,11 +163,11 @@ def report(cache: Path, cases, seeds: int, img_dir: Path | None) -> None:
         for i, name in enumerate(names):
             e = np.array([r["surfaces"][i]["error"] for r in runs if len(r["surfaces"]) > i])
             cov = sum(r["surfaces"][i]["covered"] for r in runs if len(r["surfaces"]) > i)
-            dom = max(set(r["surfaces"][i]["dominant"] for r in runs),
+            dom = max({r["surfaces"][i]["dominant"] for r in runs},
                       key=[r["surfaces"][i]["dominant"] for r in runs].count)
             errs_all.append(e)
-            print(f"| {name} | {100 * e.mean():+.1f} % | {100 * e.min():+.1f} .. {100 * e.max():+.1f} % "
-                  f"| {cov}/{len(e)} | {dom} |")
+            print(f"| {name} | {100 * e.mean():+.1f} % | "
+                  f"{100 * e.min():+.1f} .. {100 * e.max():+.1f} % | {cov}/{len(e)} | {dom} |")
         codes: dict = {}
         for r in runs:
             for code in sorted({w["code"] for w in r.get("warnings", [])}):
@@ -183,7 +183,7 @@ def report(cache: Path, cases, seeds: int, img_dir: Path | None) -> None:
         print(f"quantify: {secs:.0f} s per run of {runs[0]['frames']} frames (mean)")
         if img_dir is not None:
             fig, ax = plt.subplots(figsize=(6, 3.2))
-            for i, name in enumerate(names):
+            for i in range(len(names)):
                 for r in runs:
                     s = r["surfaces"][i]
                     lo, hi = s["ci90_kg_h"]

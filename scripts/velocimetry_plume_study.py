@@ -41,9 +41,10 @@ frame): what a perfect pair tracker would return.
 
 Everything is seeded; results are cached under --cache (delete it to redo).
 
-Usage (the table of docs/velocimetry.md: seeds 0 and 1, truth input, about
-2.6 min of CPU per preset, rate and seed, i.e. ~21 min in all, plus ~1 min per
-case to simulate it the first time)::
+Usage (the table of docs/velocimetry.md: seeds 0 and 1, truth input; every
+preset, rate and seed runs every method on a full plume simulation, which is
+why results are cached and the first run, which simulates each case, is the
+slow one)::
 
     .venv/bin/python scripts/velocimetry_plume_study.py
 
@@ -404,8 +405,10 @@ def main(argv=None):
                 t0 = time.perf_counter()
                 case = load_case(name, rate, seed, args.cache, oracle=not args.no_oracle,
                                  heights_m=heights)
+                v_true = surface_velocity(case["column"], case["vz"], case["rows"],
+                                          np.arange(SKIP_PAIRS, case["column"].shape[0] - 1))
                 print(f"# {name} {rate:g} Hz seed {seed}: {case['column'].shape[0]} frames, "
-                      f"truth V = {', '.join(f'{x:.3f}' for x in surface_velocity(case['column'], case['vz'], case['rows'], np.arange(SKIP_PAIRS, case['column'].shape[0] - 1)))} m/s "
+                      f"truth V = {', '.join(f'{x:.3f}' for x in v_true)} m/s "
                       f"({time.perf_counter() - t0:.0f} s)", flush=True)
                 runs = []
                 if not args.no_oracle and "oracle" in case:

@@ -95,7 +95,8 @@ def format_hcc_info(info: dict) -> str:
     return "\n".join([
         f"Telops file {info['path']}  (hcc v{info['version']}, {info['n_frames']} frames, "
         f"{info['width']}x{info['height']}, {', '.join(info['calibration_modes'])})",
-        f"time       span {info['time_span_s']:.6g} s from POSIX {info['time_first_posix_s']:.7f} s; "
+        f"time       span {info['time_span_s']:.6g} s "
+        f"from POSIX {info['time_first_posix_s']:.7f} s; "
         f"acquisition {info['acquisition_frame_rate_hz']:g} Hz, exposure "
         f"{', '.join(f'{e:g}' for e in info['exposure_time_us'])} us",
         f"filter     {wheel}",

@@ -6,6 +6,7 @@ import argparse
 import contextlib
 import os
 import sys
+from typing import Any, Dict
 
 from ._cli_args import frame_range, nonnegative_int, pixel_xy, positive_float, seed
 
@@ -16,7 +17,7 @@ def _config_from_args(args):
     from .config_io import config_from_dict
     from .surfaces import Region
 
-    over = {}
+    over: Dict[str, Any] = {}
     if args.infer_temperature:
         over["gas_temperature"] = "infer"
     elif args.gas_temperature is not None:

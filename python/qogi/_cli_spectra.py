@@ -72,7 +72,7 @@ def cmd_xsec(args: argparse.Namespace) -> int:
         out = pathlib.Path(args.out)
         with atomic_path(out) as tmp:
             if out.suffix.lower() == ".csv":
-                cols = np.column_stack([nu] + [s for s in np.atleast_2d(sigma)])
+                cols = np.column_stack([nu, *np.atleast_2d(sigma)])
                 header = "nu_cm1," + ",".join(f"sigma_{t:g}K_cm2_per_molecule"
                                               for t in args.temperature)
                 np.savetxt(tmp, cols, delimiter=",", header=header, comments="", fmt="%.10g")
@@ -119,9 +119,9 @@ def cmd_hitran_list(args: argparse.Namespace) -> int:
             for mol, iso, a, b, src in lines.coverage:
                 if src == k and _engine.molecule_formula(mol).upper() == sp.upper():
                     print(f"      isotopologue {iso}: {a:.4f}-{b:.4f} cm-1")
-        isos, counts = np.unique(lines.isotopologue, return_counts=True)
+        iso_ids, counts = np.unique(lines.isotopologue, return_counts=True)
         print("  lines in use per isotopologue: " +
-              ", ".join(f"{i}: {c}" for i, c in zip(isos, counts)))
+              ", ".join(f"{i}: {c}" for i, c in zip(iso_ids, counts)))
     if not found_any:
         print("no line lists found; see `qogi hitran fetch --help`")
     return 0

@@ -47,6 +47,8 @@ def cmd_synth(args: argparse.Namespace) -> int:
     if not args.quiet:
         from .recording import open_recording
         with open_recording(path) as rec:
+            if rec.truth is None:  # render() always writes the truth
+                raise RuntimeError(f"{path}: the rendered recording has no truth group")
             rates = ", ".join(f"{sp} {v * 3600:.4g} kg/h" for sp, v in
                               rec.truth.emission_rate_kg_s.items())
             print(f"wrote {path}: {rec.n_frames} frames x {rec.n_channels} channels x "

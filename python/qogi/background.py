@@ -116,7 +116,7 @@ def choose(frames: np.ndarray, surfaces: Sequence, samples: Sequence, channel_si
     # standard error (~1.3 sigma / sqrt(T) per pixel, along the surface).
     rel = {}
     not_free = []
-    for j, (s, (xy, n, dl, tt)) in enumerate(zip(surfaces, samples)):
+    for j, (s, (xy, _n, _dl, tt)) in enumerate(zip(surfaces, samples)):
         at = _sample(f, xy)                                             # (T, C, N)
         if method == "beside-surface":
             ends = [_sample(f, pts).mean(axis=-1) for pts in strip_points(np.asarray(s.points), w, h)]

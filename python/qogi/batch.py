@@ -223,9 +223,9 @@ def _parsers() -> Dict[str, Any]:
 
 
 def _read_toml(path: pathlib.Path) -> Tuple[dict, List[Tuple[str, dict]]]:
-    try:
+    if sys.version_info >= (3, 11):
         import tomllib
-    except ImportError:  # Python < 3.11: the same parser as a package
+    else:  # the same parser as a package (extra "batch")
         import tomli as tomllib
     try:
         doc = tomllib.loads(path.read_text())
@@ -258,7 +258,7 @@ def _read_csv(path: pathlib.Path) -> List[Tuple[str, dict]]:
             text = fh.read()
     except (OSError, UnicodeDecodeError) as e:
         raise UsageError(f"manifest {path}: cannot read it ({e})") from e
-    lines = [ln for ln in text.splitlines(keepends=True)]
+    lines = text.splitlines(keepends=True)
     # Comment lines (#) are skipped but counted, so messages give file lines.
     numbered = [(k + 1, ln) for k, ln in enumerate(lines)
                 if ln.strip() and not ln.lstrip().startswith("#")]
@@ -480,7 +480,8 @@ def run_row(job: dict) -> dict:
         with open_recording(row.path) as rec:
             if row.camera is not None or row.ifov_rad is not None:
                 _override_camera(rec, row)
-            if row.surfaces == "auto":
+            if isinstance(row.surfaces, str):  # "auto": load_manifest gave the distances
+                assert row.surfaces == "auto" and row.auto_distances_px is not None
                 stage["message"] = "placing surfaces"
                 surfaces, source = auto_surfaces(plume_image(rec), row.auto_distances_px,
                                                  source=cfg.source, return_source=True)
@@ -827,7 +828,8 @@ def run(manifest: Union[str, os.PathLike], outdir: Union[str, os.PathLike], *,
     df = _table(rows, results, out, hashes)
     write_summary(df, out)
     n_ok = int((df["status"] == "ok").sum())
-    say(f"qogi batch: {n_ok} ok, {int((df['status'] == 'failed').sum())} failed; summary in {out / SUMMARY_CSV} "
+    n_failed = int((df["status"] == "failed").sum())
+    say(f"qogi batch: {n_ok} ok, {n_failed} failed; summary in {out / SUMMARY_CSV} "
         f"and {SUMMARY_PARQUET}")
     return df
 
@@ -838,9 +840,8 @@ def _table(rows: Sequence[Row], results: Sequence[Optional[dict]], out: pathlib.
     wrote but did not collect yet (interrupted), else "not done"."""
     table = []
     for row, r, h in zip(rows, results, hashes):
-        if r is None:
-            r = _reusable(row, out, h, reused=False) or pending_row(row)
-        table.append(r)
+        table.append(r if r is not None else
+                     _reusable(row, out, h, reused=False) or pending_row(row))
     return summary_frame(table)
 
 

@@ -31,8 +31,10 @@ __all__ = ["AlternativeModels", "line_shape_ratios", "line_shape_systematic",
 
 class AlternativeModels:
     """The forward models of the other line-shape rules, built on a worker
-    thread (their cross-section tables are cached on disk; the fast models
-    take ~0.3 s each) while the run reads its frames."""
+    thread while the run reads its frames: building a fast model (binning its
+    cross-sections) is CPU work the run does not need until its budget, so it
+    overlaps the reading instead of delaying the first block. Their
+    cross-section tables are cached on disk."""
 
     def __init__(self, channels, species: Sequence[str], pressure_Pa: float, line_shape,
                  start=None):
@@ -51,7 +53,7 @@ class AlternativeModels:
                     m = forward_model(channels, list(species), pressure_Pa, line_shape=r)
                     m.fast  # noqa: B018 (built here, on the worker)
                     self.models.append(m)
-            except BaseException as e:  # reported with the term
+            except BaseException as e:  # reported with the term  # noqa: BLE001
                 self.error = e
 
         # ``start(target, name) -> Thread``: the caller's owner of worker

@@ -339,16 +339,17 @@ class Calibration:
         t = np.asarray(integration_time_s, dtype=np.float64)
         if nc == 1 and lead and t.shape == tuple(lead):
             t = t[..., None]  # one time per frame of a single-channel stack
+        tb: Optional[np.ndarray]
         try:
-            t = np.broadcast_to(t, tuple(lead) + (nc,)) if t.ndim <= len(lead) + 1 else None
+            tb = np.broadcast_to(t, tuple(lead) + (nc,)) if t.ndim <= len(lead) + 1 else None
         except ValueError:
-            t = None
-        if t is None:
+            tb = None
+        if tb is None:
             raise ValueError("integration_time_s must broadcast to (..., C) = "
                              f"{tuple(lead) + (nc,)}: one value, one per channel or one per "
                              f"frame and channel; got shape "
                              f"{np.shape(integration_time_s)}")
-        t = np.ascontiguousarray(t).reshape(n, nc)
+        t = np.ascontiguousarray(tb).reshape(n, nc)
         if not np.all(np.isfinite(t) & (t > 0)):
             raise ValueError("integration_time_s must be finite and > 0 s")
         return t

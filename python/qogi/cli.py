@@ -197,7 +197,7 @@ def main(argv: list[str] | None = None) -> int:
             text = f"{e.filename}: {e.strerror}"
         print(f"qogi {name}: error: {text}", file=sys.stderr)
         return EXIT_USAGE
-    except Exception:
+    except Exception:  # any other failure is a bug, reported as one  # noqa: BLE001
         _report_bug(name)
         return EXIT_INTERNAL
     finally:

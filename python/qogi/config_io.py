@@ -30,10 +30,11 @@ import dataclasses
 import json
 import math
 import os
+import sys
 from typing import Any, Dict, List, Optional
 
 from .errors import UsageError
-from .files import atomic_open
+from .files import PathLike, atomic_open
 from .surfaces import Region, Surface
 
 __all__ = ["Settings", "config_from_dict", "load_settings", "write_toml", "dumps_toml"]
@@ -106,7 +107,7 @@ def _settings_from_mapping(d: dict, where: str) -> Settings:
     return Settings(cfg, surfaces, parse_unit(units) if units else None)
 
 
-def load_settings(path: os.PathLike) -> Settings:
+def load_settings(path: PathLike) -> Settings:
     """Settings from a ``.toml`` file or a ``.json`` (a result or a plain
     config dict). Raises UsageError for a missing file, bad syntax or a bad
     value, naming the file."""
@@ -130,11 +131,11 @@ def load_settings(path: os.PathLike) -> Settings:
 
 
 def _loads_toml(text: str) -> dict:
-    try:
+    if sys.version_info >= (3, 11):
         import tomllib
-    except ImportError:  # Python < 3.11
+    else:
         try:
-            import tomli as tomllib  # type: ignore[no-redef]
+            import tomli as tomllib
         except ImportError as e:
             raise UsageError("reading TOML on Python < 3.11 needs the package tomli "
                              "(pip install tomli), or give the settings as JSON") from e
@@ -183,7 +184,7 @@ def dumps_toml(config, surfaces=(), units: Optional[str] = None) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_toml(path: os.PathLike, config, surfaces=(), units: Optional[str] = None) -> None:
+def write_toml(path: PathLike, config, surfaces=(), units: Optional[str] = None) -> None:
     """Write the settings as TOML (atomically)."""
     text = dumps_toml(config, surfaces, units)
     with atomic_open(path, "w") as fh:

@@ -30,7 +30,7 @@ lower than a frame's, and it shows the plume's wings that a frame's
 thresholded columns cut off), else the median over the frames that saw gas.
 Where neither saw gas, ``w`` is the surface's length (the widest plume the
 surface can hold: the limit is then an upper bound) and ``v`` the median
-normal speed the run used. ``docs/detection_limit.md`` compares it with the
+normal speed the run used. ``docs/validation/detection_limit.md`` compares it with the
 pipeline's detections on a synthetic sweep and with Zeng and Morris's GF320
 fit.
 """

@@ -15,7 +15,7 @@ Two models share the physics and the HITRAN cross-section tables:
 * the **fast** model (default) groups spectral points whose cross-sections agree
   at several temperatures into bins (spectral binning), solving the same RTE per
   bin: hundreds of times faster, within 1 % of the exact contrast (see
-  ``docs/forward_model.md`` for the measured agreement).
+  ``docs/validation/forward_model.md`` for the measured agreement).
 
 Self-broadening is included by default: at a local volume fraction x the
 cross-section is ``(1 - x) sigma_air + x sigma_self``.
@@ -138,10 +138,10 @@ class LineShape:
 
 def _as_channels(channels: ChannelsArg) -> list:
     if hasattr(channels, "channels") and not isinstance(channels, _engine.SpectralResponse):
-        channels = channels.channels
+        channels = channels.channels  # a Camera: its channels
     if isinstance(channels, _engine.SpectralResponse):
         return [channels]
-    out = list(channels)
+    out = list(channels)  # type: ignore[call-overload]  # ChannelsArg admits any iterable
     if not out:
         raise ValueError("channels is empty; give a camera, a SpectralResponse or a list of them")
     for k, ch in enumerate(out):
@@ -273,8 +273,8 @@ class ForwardModel:
         self.tables = list(tables)
         self._fast_options = fast_options or _engine.BinnedModelOptions()
         self._exact_options = exact_options or _engine.ExactModelOptions()
-        self._fast = None
-        self._exact = None
+        self._fast: Optional[_engine.BinnedModel] = None
+        self._exact: Optional[_engine.ExactModel] = None
         self._lock = threading.Lock()
         self.molar_masses_kg_mol = [t.molar_mass_kg_mol for t in self.tables]
 
@@ -307,8 +307,7 @@ class ForwardModel:
                 raise ValueError(f"peak_fractions has species {sorted(unknown)} the model does not "
                                  f"have; the model's species are {self.species}")
             cols = [np.asarray(peak_fractions.get(s, 0.0), dtype=float) for s in self.species]
-            cols = np.broadcast_arrays(*cols)
-            return np.stack(cols, axis=-1)
+            return np.stack(np.broadcast_arrays(*cols), axis=-1)
         x = np.asarray(peak_fractions, dtype=float)
         if x.ndim == 0 and len(self.species) == 1:
             x = x[..., None]
@@ -357,15 +356,17 @@ class ForwardModel:
         sg = np.broadcast_to(np.asarray(sigma_m, float), plume).ravel()
         tb = (np.broadcast_to(tbg, plume + (nc,)).reshape(-1) if per_channel
               else np.broadcast_to(tbg, plume).ravel())
-        args = [np.ascontiguousarray(a) for a in (x, tp, ta, sg, tb)]
+        a = [np.ascontiguousarray(v) for v in (x, tp, ta, sg, tb)]
         if exact:
-            out = self.exact.band_radiance(*args, self.pressure_Pa, progress=progress)
+            out = self.exact.band_radiance(a[0], a[1], a[2], a[3], a[4], self.pressure_Pa,
+                                           progress=progress)
         else:
-            out = self.fast.band_radiance(*args, num_threads=num_threads, progress=progress)
+            out = self.fast.band_radiance(a[0], a[1], a[2], a[3], a[4], num_threads=num_threads,
+                                          progress=progress)
         return np.asarray(out).reshape(plume + (nc,))
 
     def column_density(self, peak_fractions, peak_temperature_K, sigma_m,
-                       ambient_temperature_K) -> Dict[str, float]:
+                       ambient_temperature_K) -> Dict[str, object]:
         """Column density [kg/m2] of each species (thesis eq. 6); see
         :func:`column_density`."""
         x = self._fractions(peak_fractions)

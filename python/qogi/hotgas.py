@@ -31,7 +31,7 @@ A warning ``gas-temperature-suspect`` carries the bias direction and size.
 from __future__ import annotations
 
 import math
-from typing import Optional
+from typing import Any, Dict, Optional
 
 import numpy as np
 
@@ -82,7 +82,7 @@ def _rise_ratio(cfg, scene, results, source, samples, rise_speeds: dict) -> Opti
     comp = {k: v / total for k, v in comp.items()}
     mass = {k: v * _molar(k) for k, v in comp.items()}
     ratios = []
-    for j, (res, (xy, n, dl, t)) in enumerate(zip(results, samples)):
+    for j, (res, (xy, n, _dl, _t)) in enumerate(zip(results, samples)):
         r = res.species[sp]
         z = (source[1] - float(np.mean(xy[:, 1]))) * scene.pixel_m
         speed = rise_speeds.get(j)
@@ -136,7 +136,7 @@ def check_gas_temperature(cfg, scene, results, columns, samples, flux_inputs: di
     if cfg.gas_temperature == "infer" or not results:
         return
     sp = cfg.species[0]
-    out = {}
+    out: Dict[str, Any] = {}
     if cfg.exit_temperature_K is not None and hasattr(columns, "proxy_channel"):
         exit_K = float(cfg.exit_temperature_K)
         factors = [_bias_factor(columns, j, sp, flux_inputs[(j, sp)], exit_K)

@@ -131,7 +131,8 @@ def format_flir_info(info: dict) -> str:
     lines = [
         f"FLIR file  {info['path']}  ({info['kind']}, {info['n_frames']} frames, "
         f"{m['width']}x{m['height']}, {coding})",
-        f"camera     {m['camera_model']} (s/n {m['camera_serial_number']}), lens {m['lens_model']}, "
+        f"camera     {m['camera_model']} (s/n "
+        f"{m['camera_serial_number']}), lens {m['lens_model']}, "
         f"FOV {m['field_of_view_deg']:.4g} deg, {m['frame_rate_hz']} Hz nominal",
         f"time       {m['datetime']}, span {info['time_span_s']:.4g} s",
         f"Planck     R1={m['planck_r1']:.8g} R2={m['planck_r2']:.8g} B={m['planck_b']:.8g} "

@@ -9,7 +9,7 @@ from __future__ import annotations
 import csv
 import os
 import re
-from typing import Union
+from typing import List, Union
 
 import numpy as np
 
@@ -124,7 +124,9 @@ class SpectralResponse(_engine.SpectralResponse):
             Naming the file and line of a malformed row.
         """
         path = os.fspath(path)
-        xs, ys, wavelength = [], [], False
+        xs: List[float] = []
+        ys: List[float] = []
+        wavelength = False
         with open(path, newline="") as fh:
             for lineno, row in enumerate(csv.reader(fh), start=1):
                 if not row or row[0].lstrip().startswith("#"):

@@ -38,7 +38,7 @@ import math
 import os
 import re
 from dataclasses import dataclass, field
-from typing import Dict, Iterator, List, Optional, Sequence, Tuple, Union
+from typing import Any, Dict, Iterator, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -237,7 +237,7 @@ class Truth:
     """
 
     emission_rate_kg_s: Dict[str, float] = field(default_factory=dict)
-    datasets: Dict[str, object] = field(default_factory=dict)
+    datasets: Dict[str, Any] = field(default_factory=dict)
     attrs: Dict[str, object] = field(default_factory=dict)
 
     def validate(self, path: str = _MEMORY) -> None:
@@ -351,7 +351,8 @@ class Recording:
     @property
     def shape(self) -> Tuple[int, int, int, int]:
         """(T, C, H, W)."""
-        return tuple(int(s) for s in self._source.shape)
+        t, c, h, w = (int(s) for s in self._source.shape)
+        return t, c, h, w
 
     @property
     def n_frames(self) -> int:
@@ -384,7 +385,9 @@ class Recording:
         """Time from the first to the last frame plus one frame interval [s]."""
         if self.n_frames == 0:
             return 0.0
-        return float(self.time_s[-1] - self.time_s[0]) + 1.0 / float(self.camera.frame_rate_hz)
+        rate = self.camera.frame_rate_hz
+        assert rate is not None  # filled from time_s when a recording is opened or made
+        return float(self.time_s[-1] - self.time_s[0]) + 1.0 / float(rate)
 
     @property
     def in_memory(self) -> bool:
@@ -412,7 +415,7 @@ class Recording:
             raise IndexError(f"frame range {start}:{stop} is outside 0:{n}")
         try:
             block = np.asarray(self._source[start:stop], dtype=np.float32)
-        except Exception as e:  # noqa: BLE001 - h5py's errors on a damaged chunk or type
+        except Exception as e:  # h5py's errors on a damaged chunk or type
             if self.path == _MEMORY or isinstance(e, DataError):
                 raise
             raise _damaged(self.path, e) from e
@@ -537,6 +540,7 @@ class Recording:
                 total += nbad
         self.n_invalid = total
         if total and self.nonfinite == "error":
+            assert first is not None  # set with the first non-finite block
             (ti, ci, yi, xi), val = first
             raise RecordingError(
                 self.path, "/frames",
@@ -567,7 +571,7 @@ class Recording:
     def summary(self) -> dict:
         """A JSON-ready description: camera, channels, frames, scene, truth."""
         t, c, h, w = self.shape
-        out = {
+        out: Dict[str, Any] = {
             "path": self.path,
             "format": FORMAT, "version": VERSION,
             "camera": {"name": self.camera.name, "ifov_rad": self.camera.ifov_rad,
@@ -864,7 +868,8 @@ def open_recording(path: Union[str, os.PathLike], *, nonfinite: str = "error",
         many and where the first is) or treat them as invalid pixels
         (returned as NaN, counted in ``Recording.n_invalid``).
     check_frames : bool, default True
-        Scan every frame for NaN/inf now (streaming, ~1 s per GB). With False
+        Scan every frame for NaN/inf now (streaming: one read of the whole file,
+        in blocks, so memory stays bounded). With False
         the check happens on each read instead (``nonfinite="error"`` then
         raises when a bad frame is read).
 
@@ -946,7 +951,7 @@ def _check_declared_size(p: str, ds) -> None:
     declared = t * frame_bytes
     try:
         stored = int(ds.id.get_storage_size())
-    except Exception:  # external or virtual storage: cannot tell
+    except Exception:  # external or virtual storage: cannot tell  # noqa: BLE001
         return
     if declared > (64 << 20) and declared > _MAX_COMPRESSION * max(stored, 1):
         raise RecordingError(p, "/frames",
@@ -1120,11 +1125,11 @@ def _write_metadata(f, quantity: str, camera: Camera, scene: Scene,
         g.create_dataset("response", data=np.asarray(ch.response, dtype=np.float64))
         set_attr(g, "name", ch.name)
     sc = f.require_group("scene")
-    for k in ("distance_m", "ambient_temperature_K", "pressure_Pa", "wind_speed_m_s",
-              "gas_temperature_K", "background_temperature_K"):
-        v = getattr(scene, k)
+    for name in ("distance_m", "ambient_temperature_K", "pressure_Pa", "wind_speed_m_s",
+                 "gas_temperature_K", "background_temperature_K"):
+        v = getattr(scene, name)
         if v is not None:
-            sc.attrs[k] = float(v)
+            sc.attrs[name] = float(v)
     if scene.species:
         set_attr(sc, "species", list(scene.species))
     if truth is not None:
@@ -1421,5 +1426,5 @@ class RecordingWriter:
         if getattr(self, "_f", None) is not None:
             try:
                 self._abandon(RuntimeError("RecordingWriter dropped without close()"))
-            except Exception:
+            except Exception:  # noqa: BLE001 (never raise from __del__)
                 pass

@@ -64,23 +64,28 @@ class Background:
     def __post_init__(self):
         if self.kind not in ("plate", "sky"):
             raise ValueError(f"Background kind must be 'plate' or 'sky'; got {self.kind!r}")
-        if self.kind == "plate":
-            if self.temperature_K is None or not (150.0 <= self.temperature_K <= 600.0):
-                raise ValueError("a plate background needs temperature_K within [150, 600] K; "
-                                 f"got {self.temperature_K}")
+        if self.kind == "plate" and (self.temperature_K is None
+                                     or not 150.0 <= self.temperature_K <= 600.0):
+            raise ValueError("a plate background needs temperature_K within [150, 600] K; "
+                             f"got {self.temperature_K}")
         for name in ("sky_top_K", "sky_bottom_K"):
             v = getattr(self, name)
             if not (150.0 <= v <= 600.0):
                 raise ValueError(f"{name} must be within [150, 600] K; got {v}")
 
+    def _plate_K(self) -> float:
+        if self.temperature_K is None:  # __post_init__ refuses a plate without one
+            raise ValueError("a plate background needs temperature_K")
+        return float(self.temperature_K)
+
     def row_temperatures(self, height: int) -> np.ndarray:
         """Radiometric temperature of each image row [K]."""
         if self.kind == "plate":
-            return np.full(height, float(self.temperature_K))
+            return np.full(height, self._plate_K())
         return np.linspace(self.sky_top_K, self.sky_bottom_K, height)
 
     def representative_K(self) -> float:
-        return float(self.temperature_K) if self.kind == "plate" else 0.5 * (
+        return self._plate_K() if self.kind == "plate" else 0.5 * (
             self.sky_top_K + self.sky_bottom_K)
 
 
@@ -201,7 +206,7 @@ class SceneRenderer:
                                     line_shape=line_shape)
         opts = _engine.BinnedModelOptions(key_temperatures_K=keys)
         self.full = _engine.BinnedModel(self.forward.channels, self.forward.tables, opts)
-        self.optics = None
+        self.optics: Optional[list] = None
         self.warm_filter_temperature_K = warm_filter_temperature_K
         if warm_filter_temperature_K is not None:
             from . import camera as camera_mod
@@ -257,7 +262,7 @@ class SceneRenderer:
     def _bin_matrix(self, sets: List[tuple], channel: int) -> tuple:
         rows, y = [], []
         w = self.full.weights(channel)
-        for f, s, pix in sets:
+        for _f, s, pix in sets:
             r = s["row0"] + pix // (s["path_m"].shape[1])
             for (pos, t, x), row in zip(_paths_from_samples(s, self.species, self.t_amb, pix), r):
                 a = self.full.bin_contrasts(pos, t, x, self.pressure, channel,
@@ -435,7 +440,7 @@ def render_recording(sim, camera, background: Background, path, *, seed: int = 0
                          expected_frames=nf) as writer:
         for f in range(nf):
             frame = renderer.render_frame(f)
-            if renderer.optics is not None:
+            if renderer.optics is not None and warm_filter_temperature_K is not None:
                 from . import camera as camera_mod
                 t_f = float(warm_filter_temperature_K)
                 frame = camera_mod.add_warm_optics(frame, renderer.optics, t_f, t_f)

@@ -21,7 +21,7 @@ from typing import Optional
 import numpy as np
 
 from .detection import DETECTION_SIGMA
-from .files import atomic_path
+from .files import PathLike, atomic_path
 
 __all__ = ["write_report", "file_sha256"]
 
@@ -29,7 +29,7 @@ _A4 = (8.27, 11.69)
 _INK, _MUTED, _ACCENT = "#1b1f24", "#5b6470", "#0b5394"
 
 
-def file_sha256(path: os.PathLike, block: int = 1 << 20) -> Optional[str]:
+def file_sha256(path: PathLike, block: int = 1 << 20) -> Optional[str]:
     """SHA-256 of a file (hex), or None when it cannot be read."""
     h = hashlib.sha256()
     try:
@@ -208,7 +208,7 @@ def _page_two(fig, result, sha):
     from .units import standard_conditions_text
     _header(fig, result, sha, " (continued)")
     u = result.units
-    ax = fig.add_axes([0.06, 0.60, 0.88, 0.275])
+    ax = fig.add_axes((0.06, 0.60, 0.88, 0.275))
     fig.text(0.06, 0.895, "Uncertainty budget (1 sigma, combined in quadrature; "
              "90 % interval = mean +- 1.645 sigma)", fontsize=9, fontweight="bold", color=_INK)
     terms = sorted({t for s in result.surfaces for r in s.species.values()
@@ -239,7 +239,7 @@ def _page_two(fig, result, sha):
                  f"{DETECTION_SIGMA:g}; z: seen in 95 % of frames)", fontsize=9,
                  fontweight="bold", color=_INK)
         h = 0.024 * (len(drows) + 1) + 0.005
-        ax = fig.add_axes([0.06, y - 0.012 - h, 0.88, h])
+        ax = fig.add_axes((0.06, y - 0.012 - h, 0.88, h))
         _table(ax, ["surface", "species", f"limit\n[{u}]", "noise-equivalent\ncolumn [g/m2]",
                     "velocity\n[m/s]", "width\n[cm]", "width from", "detected"], drows,
                col_widths=[0.17, 0.08, 0.1, 0.14, 0.1, 0.09, 0.22, 0.1])
@@ -265,7 +265,7 @@ def _page_two(fig, result, sha):
              fontsize=6.5, color=_MUTED)
 
 
-def write_report(result, path: os.PathLike, recording=None) -> str:
+def write_report(result, path: PathLike, recording=None) -> str:
     """Write the PDF report of ``result`` to ``path`` (atomically); returns the path.
 
     ``recording`` (a qogi.Recording) gives the scene's frame; None opens
@@ -290,14 +290,14 @@ def write_report(result, path: os.PathLike, recording=None) -> str:
         page1 = plt.figure(figsize=_A4)
         _header(page1, result, sha)
         page1.text(0.06, 0.905, "Scene", fontsize=9, fontweight="bold", color=_INK)
-        ax = page1.add_axes([0.06, 0.57, 0.88, 0.32])
+        ax = page1.add_axes((0.06, 0.57, 0.88, 0.32))
         _draw_scene(ax, result, recording)
         page1.text(0.06, 0.545, "Emission rate", fontsize=9, fontweight="bold", color=_INK)
-        ax = page1.add_axes([0.10, 0.32, 0.84, 0.21])
+        ax = page1.add_axes((0.10, 0.32, 0.84, 0.21))
         _draw_rates(ax, result)
         page1.text(0.06, 0.265, f"Surfaces and species [{u}]", fontsize=9, fontweight="bold",
                    color=_INK)
-        ax = page1.add_axes([0.06, 0.08, 0.88, 0.175])
+        ax = page1.add_axes((0.06, 0.08, 0.88, 0.175))
         _table(ax, ["surface", "species", "mean", "90 % interval", "detection\nlimit",
                     "frames", "dominant\nuncertainty", "truth (error)"], _rate_rows(result),
                col_widths=[0.19, 0.08, 0.09, 0.16, 0.1, 0.07, 0.14, 0.17])

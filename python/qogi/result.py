@@ -12,7 +12,7 @@ from typing import Dict, List, Optional
 import numpy as np
 
 from .diagnostics import Diagnostic, Diagnostics
-from .files import atomic_open
+from .files import PathLike, atomic_open
 from .surfaces import Surface
 # Standard conditions and conversions live in qogi.units (one implementation);
 # re-exported here for code that imported them from qogi.result.
@@ -223,7 +223,7 @@ class Result:
                 "text": r.text(self.units)})
         return d
 
-    def to_json(self, path: Optional[os.PathLike] = None, indent: int = 2) -> str:
+    def to_json(self, path: Optional[PathLike] = None, indent: int = 2) -> str:
         """The result as JSON (schema: docs/pipeline_api.md); written to
         ``path`` when given. Returns the text."""
         text = json.dumps(self.to_dict(), indent=indent)
@@ -232,7 +232,7 @@ class Result:
                 fh.write(text + "\n")
         return text
 
-    def to_csv(self, path: os.PathLike, summary: bool = True) -> None:
+    def to_csv(self, path: PathLike, summary: bool = True) -> None:
         """One row per frame, surface and species: time, rate (kg/h), pixels,
         and (units other than kg/h) ``rate_<unit>`` in :attr:`units`. With ``summary`` (default)
         also ``<name>.summary.csv`` beside it: one row per surface and species
@@ -260,12 +260,12 @@ class Result:
             self.to_summary_csv(self.summary_csv_path(path))
 
     @staticmethod
-    def summary_csv_path(path: os.PathLike) -> str:
+    def summary_csv_path(path: PathLike) -> str:
         """``out.csv`` -> ``out.summary.csv`` (where :meth:`to_csv` writes the summary)."""
         root, ext = os.path.splitext(os.fspath(path))
         return f"{root}.summary{ext or '.csv'}"
 
-    def to_summary_csv(self, path: os.PathLike) -> None:
+    def to_summary_csv(self, path: PathLike) -> None:
         """One row per surface and species: mean, 90 % interval and detection
         limit in :attr:`units` and in kg/h, detected, frames, dominant
         uncertainty, truth (synthetic recordings), unit and standard conditions."""
@@ -322,8 +322,9 @@ class Result:
                              f"{r.in_units(r.detection_limit_kg_h, self.units):.3g} {self.units}")
                 if r.truth_kg_h is not None:
                     inside = lo <= r.truth_kg_h <= hi
+                    err = r.error_vs_truth  # None for a zero truth (no relative error)
                     line += (f"\n  {'':>12s}      truth {r.truth_kg_h:.4g} kg/h, error "
-                             f"{100 * r.error_vs_truth:+.1f} %, truth "
+                             + ("n/a" if err is None else f"{100 * err:+.1f} %") + ", truth "
                              f"{'inside' if inside else 'OUTSIDE'} the 90 % interval")
                 lines.append(line)
         st = ", ".join(f"{k} {v}" for k, v in self.pixel_status.items())
@@ -336,7 +337,7 @@ class Result:
             lines.append(f"  warning {w}")
         return "\n".join(lines)
 
-    def plot(self, path: Optional[os.PathLike] = None, kind: str = "rates"):
+    def plot(self, path: Optional[PathLike] = None, kind: str = "rates"):
         """A matplotlib figure: ``kind="rates"`` the emission-rate time series per
         surface and species with the mean and its 90 % band (and the truth);
         ``kind="maps"`` the column density and velocity of a kept frame."""

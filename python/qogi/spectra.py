@@ -47,7 +47,7 @@ import time
 import urllib.error
 import urllib.parse
 import urllib.request
-from typing import Callable, Iterable, Optional, Sequence, Union
+from typing import Callable, Dict, Iterable, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -213,7 +213,7 @@ def find_line_lists(species: str, paths: Optional[Iterable[PathLike]] = None) ->
 # Line lists
 
 _cache_lock = threading.Lock()
-_loaded: dict[tuple, tuple] = {}  # file signature -> (LineList, digest)
+_loaded: Dict[tuple, "_Loaded"] = {}  # (file signature, molecule) -> lines read
 
 
 def _file_signature(files: Sequence[pathlib.Path]) -> tuple:
@@ -417,7 +417,7 @@ def line_parameters(species: Union[str, int, None], temperature_K: float,
 # ---------------------------------------------------------------------------
 # Cross-sections
 
-def _uniform(nu: np.ndarray) -> Optional[tuple]:
+def _uniform(nu: np.ndarray) -> Optional[Tuple[float, float, int]]:
     """(nu0, step, n) when nu is a uniform grid to 1e-9 of its step."""
     if nu.size < 2:
         return None
@@ -487,7 +487,9 @@ def cross_section(species: Union[str, int, None], nu_cm1, temperature_K: float,
     opt = _options(cutoff, line_shift, float(min_intensity))
     uniform = _uniform(flat)
     if uniform is not None:
-        out = _engine.cross_section_uniform(lines, cond, *uniform, opt, num_threads, progress)
+        nu0, step, size = uniform
+        out = _engine.cross_section_uniform(lines, cond, nu0, step, size, opt, num_threads,
+                                            progress)
     else:
         out = _engine.cross_section_grid(lines, cond, flat, opt, num_threads, progress)
     out = out.reshape(nu.shape)

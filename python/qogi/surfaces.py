@@ -202,7 +202,7 @@ def _plume_axis(image: np.ndarray, threshold: float):
     pts = np.stack([xs, ys], axis=1).astype(float)
     c = np.average(pts, axis=0, weights=w)
     cov = np.cov((pts - c).T, aweights=w)
-    evals, evecs = np.linalg.eigh(cov)
+    _evals, evecs = np.linalg.eigh(cov)
     return pts, w, c, evecs[:, -1]
 
 
@@ -287,7 +287,7 @@ def auto_surfaces(column_or_contrast: np.ndarray, distances_px: Sequence[float],
     turns on the transport flux level of the default velocimetry).
     """
     img = np.abs(np.asarray(column_or_contrast, dtype=float))
-    pts, w, c, axis = _plume_axis(img, threshold)
+    pts, _w, c, axis = _plume_axis(img, threshold)
     if source is None:
         source = detect_source(img, threshold)
     src = np.asarray(source, dtype=float)

@@ -61,6 +61,7 @@ class _Options:
     """Keyword constructor, repr and dict conversion over the engine's fields."""
 
     _fields: tuple = ()
+    check: Callable[[], None]  # the engine base class's range check (annotation only)
 
     def __init__(self, **kwargs):
         super().__init__()
@@ -87,6 +88,9 @@ class _Options:
 
     def __eq__(self, other) -> bool:
         return type(self) is type(other) and self.to_dict() == other.to_dict()
+
+    # Options are mutable: equal by value, not hashable (as __eq__ alone implies).
+    __hash__ = None  # type: ignore[assignment]
 
     def __reduce__(self):
         return (_rebuild, (type(self), self.to_dict()))

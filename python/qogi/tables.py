@@ -7,7 +7,7 @@ that need them say so when they are missing.
 from __future__ import annotations
 
 import math
-from typing import List
+from typing import Dict, List
 
 import numpy as np
 
@@ -105,8 +105,9 @@ def to_xarray(result):
             if r.truth_kg_h is not None:
                 per["truth_kg_h"][i, j] = r.truth_kg_h
     dims3, dims2 = ("surface", "species", "time"), ("surface", "species")
-    data = {"rate_kg_h": (dims3, rate, {"units": "kg/h", "long_name": "emission rate per frame"}),
-            "pixels_used": (dims3, pixels, {"long_name": "surface samples with a column"})}
+    data: Dict[str, tuple] = {
+        "rate_kg_h": (dims3, rate, {"units": "kg/h", "long_name": "emission rate per frame"}),
+        "pixels_used": (dims3, pixels, {"long_name": "surface samples with a column"})}
     for k, v in per.items():
         data[k] = (dims2, v, {"units": "kg/h"})
     ds = xr.Dataset(data, coords={"surface": names, "species": species,

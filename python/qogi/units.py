@@ -94,7 +94,7 @@ def convert(rate_kg_h, unit: str, molar_mass_kg_mol: Optional[float] = None,
 def kg_s_to_slpm(rate_kg_s: float, molar_mass_kg_mol: float,
                  standard: Optional[Dict[str, float]] = None) -> float:
     """Mass rate [kg/s] to standard litres per minute at ``standard`` conditions."""
-    return convert(rate_kg_s * 3600.0, "SLPM", molar_mass_kg_mol, standard)
+    return float(convert(rate_kg_s * 3600.0, "SLPM", molar_mass_kg_mol, standard))
 
 
 def standard_conditions_text(standard: Optional[Dict[str, float]] = None) -> str:

@@ -8,7 +8,7 @@ import sys
 
 
 def qogi(*args, env=None):
-    return subprocess.run([sys.executable, "-m", "qogi", *args], capture_output=True,
+    return subprocess.run([sys.executable, "-m", "qogi", *args], capture_output=True, check=False,
                           text=True, env=env)
 
 

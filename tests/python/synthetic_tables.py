@@ -7,7 +7,9 @@ from qogi import _engine
 
 
 def lorentz_table(species="CH4", nu0=2940.0, nu1=3110.0, dnu=0.02, seed=1, with_self=True,
-                  temperatures=np.arange(200.0, 600.0 + 1e-9, 25.0), n_lines=200):
+                  temperatures=None, n_lines=200):
+    if temperatures is None:
+        temperatures = np.arange(200.0, 600.0 + 1e-9, 25.0)
     rng = np.random.default_rng(seed)
     nu = nu0 + dnu * np.arange(int(round((nu1 - nu0) / dnu)) + 1)
     centres = rng.uniform(nu0 + 5, nu1 - 5, n_lines)

@@ -217,7 +217,7 @@ def test_bad_calibration_input_is_refused_clearly():
         fit_calibration(good[:4] + [CalibrationScene(363.0, good[4].frames, 0.0)], cam.chans)
     with pytest.raises(ValueError, match="blackbody_emissivity"):
         fit_calibration(good, cam.chans, blackbody_emissivity=1.5)
-    with pytest.raises(ValueError, match="no calibration scenes|needs calibration scenes"):
+    with pytest.raises(ValueError, match=r"no calibration scenes|needs calibration scenes"):
         fit_calibration([], cam.chans)
     with pytest.raises(TypeError, match="CalibrationScene"):
         fit_calibration([(300.0, good[0].frames, 1e-3)], cam.chans)
@@ -269,7 +269,7 @@ def test_progress_reports_the_overall_fraction_and_can_cancel(fitted):
     cam, cal = fitted
     raw = cam.frames(cam.radiance(320.0), 1e-3, 64)
     seen = []
-    cal.counts_to_radiance(raw, 1e-3, progress=lambda f: seen.append(f))
+    cal.counts_to_radiance(raw, 1e-3, progress=seen.append)
     assert seen and seen[-1] == pytest.approx(1.0) and max(seen) <= 1.0 + 1e-12
     assert all(b >= a for a, b in zip(seen, seen[1:]))
     with pytest.raises(KeyboardInterrupt):

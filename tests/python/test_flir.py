@@ -1,7 +1,7 @@
-"""FLIR readers on the shared sample files (third-party, found beside the checkout or in $QOGI_SHARED_DIR; from the
-Thermimage R package), checked against values published in Thermimage's
-README for these very files, against CharLS's decoding of the .csq frames
-(tests/data/flir/csq_reference.json), and against physics."""
+"""FLIR readers on the shared sample files (third-party, found beside the checkout
+or in $QOGI_SHARED_DIR; from the Thermimage R package), checked against values
+published in Thermimage's README for these very files, against CharLS's decoding
+of the .csq frames (tests/data/flir/csq_reference.json), and against physics."""
 
 from __future__ import annotations
 
@@ -181,13 +181,13 @@ def test_radiometric_jpeg(flir_dir):
 def test_not_a_flir_file(tmp_path):
     p = tmp_path / "x.seq"
     p.write_bytes(b"hello world, not FLIR")
-    with pytest.raises(ValueError, match="x.seq: not a FLIR radiometric file"):
+    with pytest.raises(ValueError, match=r"x.seq: not a FLIR radiometric file"):
         qio.read_flir(p)
     import cv2
     ok, jpg = cv2.imencode(".jpg", np.zeros((8, 8), np.uint8))
     q = tmp_path / "plain.jpg"
     q.write_bytes(jpg.tobytes())
-    with pytest.raises(ValueError, match="plain.jpg: a JPEG without FLIR radiometric data"):
+    with pytest.raises(ValueError, match=r"plain.jpg: a JPEG without FLIR radiometric data"):
         qio.read_flir(q)
 
 

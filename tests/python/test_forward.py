@@ -22,8 +22,8 @@ def model():
 @pytest.mark.parametrize("exact", [False, True])
 def test_zero_contrast_when_the_whole_path_is_at_the_background_temperature(model, exact):
     for t in (260.0, 300.0, 340.0):
-        l = model.band_radiance({"CH4": 0.4, "CO2": 0.3}, t, 0.05, t, t, exact=exact)
-        np.testing.assert_allclose(l, model.background_radiance(t), rtol=1e-9)
+        rad = model.band_radiance({"CH4": 0.4, "CO2": 0.3}, t, 0.05, t, t, exact=exact)
+        np.testing.assert_allclose(rad, model.background_radiance(t), rtol=1e-9)
 
 
 def test_white_plume_when_warmer_black_plume_when_colder(model):

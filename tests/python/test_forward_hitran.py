@@ -33,8 +33,8 @@ def test_zero_contrast_when_the_gas_is_at_the_background_temperature(model, exac
     opts = qogi._engine.ExactModelOptions(num_nodes=41)
     m = qogi.ForwardModel(model.channels, model.species, tables=model.tables, exact_options=opts)
     for t in (270.0, 310.0):
-        l = m.band_radiance({"CH4": 0.5, "CO2": 0.5}, t, 0.1, t, t, exact=exact)
-        np.testing.assert_allclose(l, m.background_radiance(t), rtol=1e-9, atol=0)
+        rad = m.band_radiance({"CH4": 0.5, "CO2": 0.5}, t, 0.1, t, t, exact=exact)
+        np.testing.assert_allclose(rad, m.background_radiance(t), rtol=1e-9, atol=0)
 
 
 def test_white_plume_black_plume_every_gas_channel(model):
@@ -47,8 +47,8 @@ def test_white_plume_black_plume_every_gas_channel(model):
 
 def test_thin_limit_is_linear_in_column(model):
     x = np.array([1e-7, 2e-7])
-    l = model.band_radiance({"CH4": x, "CO2": x}, 320.0, 0.05, 300.0, 290.0)
-    c = l - model.background_radiance(290.0)
+    rad = model.band_radiance({"CH4": x, "CO2": x}, 320.0, 0.05, 300.0, 290.0)
+    c = rad - model.background_radiance(290.0)
     np.testing.assert_allclose(c[1] / c[0], 2.0, rtol=1e-4)
 
 

@@ -191,7 +191,7 @@ def test_the_argument_parser_accepts_or_refuses_with_a_usage_error(capsys, argv)
     try:
         args = _parser().parse_args(argv)
     except SystemExit as e:
-        assert e.code in (0, 2)  # --help / --version, or a usage error
+        assert e.code in (0, 2)  # --help / --version, or a usage error  # noqa: PT017
         capsys.readouterr()
         return
     # What parses is within range: the commands can rely on it.

@@ -157,7 +157,7 @@ def test_quantify_in_process_leaves_no_engine_thread_behind(rec):
     for stop_at in sorted({stages[0], stages[1], stages[len(stages) // 2], stages[-1]}):
         seen = [0]
 
-        def progress(fraction, message):
+        def progress(fraction, message, seen=seen, stop_at=stop_at):
             seen[0] += 1
             return seen[0] < stop_at
 

@@ -230,7 +230,7 @@ def test_progress_and_cancel(model, inversion):
     x, tp, sg, tb, rad = plumes(model, 600, 5)
     seen = []
     inversion.invert(rad, background_temperature_K=np.repeat(tb[None], 4, 0), sigma_m=sg,
-                     peak_temperature_K=tp, progress=lambda f: seen.append(f))
+                     peak_temperature_K=tp, progress=seen.append)
     assert seen and seen[-1] == 1.0
     with pytest.raises(KeyboardInterrupt):
         inversion.invert(rad, background_temperature_K=np.repeat(tb[None], 4, 0), sigma_m=sg,

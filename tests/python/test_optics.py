@@ -87,7 +87,7 @@ def test_csv_round_trip_and_wavelength_header(tmp_path):
     assert wl.nu_cm1[0] == pytest.approx(1e4 / 3.4)
     bad = tmp_path / "bad.csv"
     bad.write_text("nu,r\n3000,1\n3100,abc\n")
-    with pytest.raises(ValueError, match="bad.csv:3"):
+    with pytest.raises(ValueError, match=r"bad.csv:3"):
         qogi.SpectralResponse.from_csv(bad)
 
 

@@ -70,7 +70,7 @@ def test_a_one_hour_gap_is_reported_and_not_paired_across(lab):
     t[30:] += 3600.0
     res = quantify(subset(lab, np.arange(lab.n_frames), t), SURFACE, cfg())
     full = quantify(lab, SURFACE, cfg()).surfaces[0].species["CH4"]
-    d = [w for w in res.warnings if w.code == "frames-dropped"][0]
+    d = next(w for w in res.warnings if w.code == "frames-dropped")
     assert d.data["gaps_s"][0][0] == 29 and d.data["gaps_s"][0][1] == pytest.approx(3600.0, abs=0.1)
     assert "3.6e+03 s" in d.message
     assert res.info["blocks"] == 2

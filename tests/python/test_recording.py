@@ -116,7 +116,7 @@ def test_incremental_writer_infers_the_frame_rate(tmp_path):
 
 def test_writer_keeps_the_frames_written_before_a_failure_only_on_request(tmp_path):
     p = tmp_path / "partial.h5"
-    with pytest.raises(RuntimeError):
+    with pytest.raises(RuntimeError):  # noqa: PT012 (the writer's exit is under test)
         with qogi.RecordingWriter(p, quantity="radiance", camera=camera(), scene=scene(),
                                   frame_shape=(2, 3, 3), expected_frames=100,
                                   keep_partial=True) as w:
@@ -137,7 +137,7 @@ def test_writer_failure_leaves_the_previous_file_untouched(tmp_path):
         for i in range(6):
             w.append(np.full((2, 3, 3), 2.0), i / 15.0)
     before = p.read_bytes()
-    with pytest.raises(KeyboardInterrupt):
+    with pytest.raises(KeyboardInterrupt):  # noqa: PT012 (the writer's exit is under test)
         with qogi.RecordingWriter(p, quantity="radiance", camera=camera(), scene=scene(),
                                   frame_shape=(2, 3, 3), expected_frames=100) as w:
             for i in range(3):
@@ -162,14 +162,14 @@ def test_writer_rejects_time_going_backwards(tmp_path):
 
 def test_missing_file(tmp_path):
     p = tmp_path / "nope.h5"
-    with pytest.raises(qogi.RecordingError, match="nope.h5.*does not exist"):
+    with pytest.raises(qogi.RecordingError, match=r"nope.h5.*does not exist"):
         qogi.open_recording(p)
 
 
 def test_not_hdf5(tmp_path):
     p = tmp_path / "text.h5"
     p.write_text("hello")
-    with pytest.raises(qogi.RecordingError, match="text.h5.*not an HDF5 file"):
+    with pytest.raises(qogi.RecordingError, match=r"text.h5.*not an HDF5 file"):
         qogi.open_recording(p)
 
 
@@ -358,7 +358,7 @@ def test_from_arrays_checks_like_the_reader():
     with pytest.raises(qogi.RecordingError, match=r"1 non-finite.*\(t=1, c=0, y=0, x=0\)"):
         qogi.Recording.from_arrays(bad, quantity="radiometric_temperature", camera=camera(),
                                    scene=scene())
-    with pytest.raises(qogi.RecordingError, match="ifov_rad = 0.5 rad is outside"):
+    with pytest.raises(qogi.RecordingError, match=r"ifov_rad = 0.5 rad is outside"):
         qogi.Recording.from_arrays(frames(), quantity="radiometric_temperature",
                                    camera=qogi.Camera("x", 0.5, channels(), 15.0), scene=scene())
 
@@ -392,7 +392,7 @@ def test_writer_close_checks_the_frame_rate_and_keeps_the_file_on_request(tmp_pa
                              frame_shape=(2, 2, 2), keep_partial=True)
     for i in range(5):
         w.append(np.ones((2, 2, 2)), i / 15.0)
-    with pytest.raises(qogi.RecordingError, match="rate.h5: /camera attr frame_rate_hz: "
+    with pytest.raises(qogi.RecordingError, match=r"rate.h5: /camera attr frame_rate_hz: "
                                                   "frame_rate_hz = 30 Hz disagrees"):
         w.close()
     with h5py.File(p) as f:

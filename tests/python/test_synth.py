@@ -99,7 +99,7 @@ def _control_planes(rel):
 # The lab plumes are slow (gas takes ~2 s to reach 40 cm) and the mass stored
 # below a plane fluctuates, so the average needs ~20 s (over the m150
 # preset's own 7 s the 40 cm plane scatters by 2.8 % RMS between seeds; see
-# docs/synthetic.md); their flux changes slowly and 15-30 Hz samples it well.
+# docs/validation/synthetic.md); their flux changes slowly and 15-30 Hz samples it well.
 # The stack plume's flux fluctuates within tens of ms (blobs passing at
 # 6 m/s): it is averaged over 8 s sampled at 100 Hz.
 @pytest.mark.parametrize("name,duration,rate", [
@@ -224,7 +224,7 @@ def test_ray_samples_integrate_to_the_truth_columns(lab_sim):
     assert rs["over_pure"] == 0
     t_amb = lab_sim.release.ambient_temperature_K
     temp = synth.densify(rs, rs["temperature_K"], fill=t_amb)
-    for s, w in lab_sim.mass_fractions.items():
+    for s in lab_sim.mass_fractions:
         truth = m["column_kg_m2"][s][100:164].astype(np.float64)
         # Column of species s from what a renderer sees: X_s p M_s / (R T) dl.
         molar = {"CH4": 16.0425e-3, "CO2": 44.0095e-3}[s]

@@ -107,7 +107,7 @@ def test_writer_puts_each_field_at_its_documented_offset(tmp_path):
 def test_garbage_and_short_files_are_refused_clearly(tmp_path):
     p = tmp_path / "x.hcc"
     p.write_bytes(b"GIF89a" + bytes(300))
-    with pytest.raises(HccFormatError, match="not a Telops .hcc file"):
+    with pytest.raises(HccFormatError, match=r"not a Telops .hcc file"):
         HccFile(p)
     p.write_bytes(hand_frame(offset=0, exp=0, words=words(3))[:200])
     with pytest.raises(HccFormatError, match="less than one frame"):
@@ -195,7 +195,7 @@ def test_raw_and_nuc_modes_are_refused_naming_the_mode(tmp_path, mode, name):
 
 def test_missing_distance_ambient_or_camera_are_refused_naming_which_and_why(tmp_path):
     p = _wheel_file(tmp_path)
-    with pytest.raises(UsageError, match="the camera .* is needed.*--camera"):
+    with pytest.raises(UsageError, match=r"the camera .* is needed.*--camera"):
         qogi.open_recording(p, distance_m=5.0, ambient_temperature_K=290.0)
     with pytest.raises(UsageError, match=r"distance is needed and the file does not hold it: a "
                                          r"Telops .hcc file does not record it.*--distance"):

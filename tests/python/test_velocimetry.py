@@ -97,13 +97,13 @@ def test_options_keywords_are_checked():
         vel.FluidFlowOptions(alpha=-1)
     with pytest.raises(TypeError, match="has no field 'alfa'"):
         vel.FluidFlowOptions(alfa=1)
-    with pytest.raises(ValueError, match="PivOptions.window_size must be even"):
+    with pytest.raises(ValueError, match=r"PivOptions.window_size must be even"):
         vel.PivOptions(window_size=15)
     o = vel.PivOptions()
     o.overlap = 0.99  # attributes are writable; check() and use validate them
-    with pytest.raises(ValueError, match="PivOptions.overlap"):
+    with pytest.raises(ValueError, match=r"PivOptions.overlap"):
         o.check()
-    with pytest.raises(ValueError, match="PivOptions.overlap"):
+    with pytest.raises(ValueError, match=r"PivOptions.overlap"):
         vel.FlowEstimator("piv", o)
 
 
@@ -284,7 +284,7 @@ def test_frame_velocity_is_exact_for_accelerating_gas_where_pairs_lag():
     assert fv.shape == (T, 40, 48)
     assert fv[1:-1, 20, 24] == pytest.approx([-(a + g * t) for t in range(1, T - 1)], abs=1e-4)
     assert np.abs(fu).max() < 1e-6
-    with pytest.raises(ValueError, match="same shape|one shape"):
+    with pytest.raises(ValueError, match=r"same shape|one shape"):
         vel.frame_velocity(v, v[:, :10])
 
 

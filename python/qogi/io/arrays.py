@@ -7,7 +7,7 @@ channel), the scene and the quantity must come from the caller.
 from __future__ import annotations
 
 import os
-from typing import Optional, Union
+from typing import Optional, Tuple, Union
 
 import numpy as np
 
@@ -16,7 +16,9 @@ from ..recording import QUANTITIES, Camera, Recording, RecordingError, Scene, Tr
 __all__ = ["read_numpy", "read_tiff"]
 
 
-def _require(path: str, quantity, camera, scene, what: str) -> None:
+def _require(path: str, quantity: Optional[str], camera: Optional[Camera],
+             scene: Optional[Scene], what: str) -> Tuple[str, Camera, Scene]:
+    """The quantity, camera and scene a file of bare pixels needs, all given."""
     missing = [n for n, v in (("quantity", quantity), ("camera", camera), ("scene", scene))
                if v is None]
     if missing:
@@ -29,6 +31,8 @@ def _require(path: str, quantity, camera, scene, what: str) -> None:
     if quantity not in QUANTITIES:
         raise RecordingError(path, "quantity", f"unknown quantity {quantity!r}",
                              f"use one of {sorted(QUANTITIES)}")
+    assert quantity is not None and camera is not None and scene is not None  # checked above
+    return quantity, camera, scene
 
 
 def _finish(path: str, data: np.ndarray, time_s, quantity, camera, scene, truth, nonfinite,
@@ -71,7 +75,7 @@ def read_numpy(path: Union[str, os.PathLike], *, quantity: Optional[str] = None,
     p = os.fspath(path)
     if not os.path.isfile(p):
         raise RecordingError(p, "file", "does not exist", "check the path")
-    _require(p, quantity, camera, scene, "a numpy file")
+    quantity, camera, scene = _require(p, quantity, camera, scene, "a numpy file")
     try:
         loaded = np.load(p, mmap_mode="r", allow_pickle=False)
     except ValueError as e:
@@ -118,7 +122,7 @@ def read_tiff(path: Union[str, os.PathLike], *, quantity: Optional[str] = None,
     p = os.fspath(path)
     if not os.path.isfile(p):
         raise RecordingError(p, "file", "does not exist", "check the path")
-    _require(p, quantity, camera, scene, "a TIFF stack")
+    quantity, camera, scene = _require(p, quantity, camera, scene, "a TIFF stack")
     ok, pages = cv2.imreadmulti(p, flags=cv2.IMREAD_UNCHANGED)
     if not ok or not pages:
         raise RecordingError(p, "file", "is not a TIFF that OpenCV can read")
@@ -131,7 +135,7 @@ def read_tiff(path: Union[str, os.PathLike], *, quantity: Optional[str] = None,
                              f"pages are integers ({stack.dtype}): camera counts, not "
                              f"{quantity} [{QUANTITIES[quantity]}]",
                              "pass scale= and offset= (value = scale * count + offset)")
-    data = stack.astype(np.float64 if scale is not None else np.float32)
+    data: np.ndarray = stack.astype(np.float64 if scale is not None else np.float32)
     if scale is not None:
         data = data * float(scale) + float(offset)
     n_ch = len(camera.channels)

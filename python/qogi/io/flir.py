@@ -56,7 +56,7 @@ import os
 import struct
 import warnings
 from dataclasses import asdict, dataclass
-from typing import Iterator, List, Optional, Sequence, Tuple, Union
+from typing import BinaryIO, Dict, Iterator, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -195,7 +195,7 @@ class _Block:
             raise FlirFormatError(f"{path}: FFF block at byte {start}: record directory "
                                   f"({n} entries at +{dir_off}) is beyond the end of the file")
         self.start = start
-        self.records = {}
+        self.records: Dict[int, Tuple[int, int, int]] = {}  # type -> (offset, length, subtype)
         end = start + dir_off + 32 * n
         for i in range(n):
             e = start + dir_off + 32 * i
@@ -366,8 +366,9 @@ class FlirFile:
             raise FileNotFoundError(f"{self.path}: no such file")
         if os.path.getsize(self.path) < 4:
             raise FlirFormatError(f"{self.path}: file too small to be a FLIR file")
-        self._fh = open(self.path, "rb")
-        self._map = mmap.mmap(self._fh.fileno(), 0, access=mmap.ACCESS_READ)
+        fh = open(self.path, "rb")  # kept open for the map; close() closes it  # noqa: SIM115
+        self._fh: Optional[BinaryIO] = fh
+        self._map: Optional[mmap.mmap] = mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ)
         try:
             self._index()
         except BaseException:
@@ -375,7 +376,8 @@ class FlirFile:
             raise
 
     def _index(self) -> None:
-        self._buf = self._map
+        assert self._map is not None  # called by __init__ on the fresh map
+        self._buf: Union[mmap.mmap, bytes] = self._map
         magic = bytes(self._map[:4])
         if magic[:2] == b"\xff\xd8":
             self.kind = "jpeg"
@@ -428,11 +430,13 @@ class FlirFile:
 
     def metadata(self, index: int) -> FlirMetadata:
         """Metadata of frame ``index`` (reads only its headers)."""
-        return self._read(index, with_raw=False).metadata
+        return self._read(index, with_raw=False)[1]
 
     def frame(self, index: int) -> FlirFrame:
         """Frame ``index``: raw counts (H, W) uint16, bit-exact, and metadata."""
-        return self._read(index, with_raw=True)
+        raw, meta = self._read(index, with_raw=True)
+        assert raw is not None  # with_raw=True decodes the image
+        return FlirFrame(raw, meta)
 
     def __getitem__(self, index: int) -> FlirFrame:
         return self.frame(index)
@@ -441,7 +445,8 @@ class FlirFile:
         for i in range(len(self)):
             yield self.frame(i)
 
-    def _read(self, index: int, with_raw: bool) -> FlirFrame:
+    def _read(self, index: int, with_raw: bool) -> Tuple[Optional[np.ndarray], FlirMetadata]:
+        """Frame ``index``'s raw counts (None without ``with_raw``) and metadata."""
         n = len(self._blocks)
         i = index + n if index < 0 else index
         if not 0 <= i < n:
@@ -469,16 +474,16 @@ class FlirFile:
                    if head.startswith(b"\xff\xd8") else "raw-le" if order == "<" else "raw-be")
         meta = FlirMetadata(width=int(w), height=int(h), raw_format=fmt, jpegls_near=near,
                             **info)
-        return FlirFrame(raw, meta)
+        return raw, meta
 
     def close(self) -> None:
         self._buf = b""
-        if getattr(self, "_map", None) is not None:
-            self._map.close()
-            self._map = None
-        if getattr(self, "_fh", None) is not None:
-            self._fh.close()
-            self._fh = None
+        m, self._map = getattr(self, "_map", None), None
+        if m is not None:
+            m.close()
+        fh, self._fh = getattr(self, "_fh", None), None
+        if fh is not None:
+            fh.close()
 
     def __enter__(self) -> "FlirFile":
         return self

@@ -28,7 +28,7 @@ import math
 import os
 import struct
 from dataclasses import replace
-from typing import Iterable, Optional, Sequence, Union
+from typing import Any, Dict, Iterable, Optional, Sequence, Union
 
 import numpy as np
 
@@ -149,11 +149,10 @@ def write_flir_seq(path: Union[str, os.PathLike], frames: Iterable[np.ndarray],
 
     Returns the number of frames written.
     """
-    metas = metadata if not isinstance(metadata, FlirMetadata) else None
     n = 0
     with atomic_open(path, "wb") as fh:
         for i, raw in enumerate(frames):
-            m = metadata if metas is None else metas[i]
+            m = metadata if isinstance(metadata, FlirMetadata) else metadata[i]
             fh.write(fff_block(raw, m, byte_order=byte_order, header_order=header_order))
             n += 1
     if n == 0:
@@ -182,6 +181,7 @@ def flir_metadata(*, width: int, height: int, timestamp_s: float, planck: dict,
     """A :class:`FlirMetadata` with FLIR's defaults for the object parameters
     (emissivity 1, distance 1 m, 20 C, RH 50 %, FLIR's atmospheric constants)
     unless given."""
+    d: Dict[str, Any]
     d = dict(width=width, height=height, emissivity=1.0, object_distance_m=object_distance_m,
              reflected_temperature_K=293.15, atmospheric_temperature_K=atmospheric_temperature_K,
              ir_window_temperature_K=293.15, ir_window_transmission=1.0, relative_humidity=0.5,

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
-from typing import Dict, List, Optional, Union
+from typing import Any, Dict, List, Optional, Union
 
 import numpy as np
 
@@ -164,7 +164,7 @@ class _FlirFrames:
     def __del__(self) -> None:  # a recording dropped without close() releases its file
         try:
             self.close()
-        except Exception:
+        except Exception:  # noqa: BLE001 (never raise from __del__)
             pass
 
 
@@ -189,7 +189,7 @@ class _HccFrames:
     def __del__(self) -> None:  # a recording dropped without close() releases its file
         try:
             self.close()
-        except Exception:
+        except Exception:  # noqa: BLE001 (never raise from __del__)
             pass
 
 
@@ -282,7 +282,8 @@ def _open_h5(p, camera, distance_m, ambient_K, pressure_Pa, nonfinite, check_fra
                                ("pressure_Pa", pressure_Pa)) if v is not None}
     if given:
         try:
-            scene = dataclasses.replace(rec.scene, **{k: float(v) for k, v in given.items()})
+            changes: Dict[str, Any] = {k: float(v) for k, v in given.items()}
+            scene = dataclasses.replace(rec.scene, **changes)
             scene.validate(p)
         except BaseException:
             rec.close()
@@ -454,7 +455,7 @@ def _open_hcc(p, camera, distance_m, ambient_K, pressure_Pa, ifov_rad, nonfinite
             raise DataError(f"{p}: the calibration mode changes within the file ({modes}); "
                             "export it with one mode")
         mode = modes[0]
-        mname, quantity, unit = CALIBRATION_MODES.get(mode, (f"mode {mode}", None, "?"))
+        mname, quantity, _unit = CALIBRATION_MODES.get(mode, (f"mode {mode}", None, "?"))
         if quantity is None:
             raise UsageError(
                 f"{p}: calibration mode {mname} ({mode}) holds uncalibrated detector counts; "
@@ -554,12 +555,15 @@ def scene_needs(path: Union[str, os.PathLike]) -> Dict[str, object]:
         from .flir import FlirFile
         with FlirFile(p) as f:
             m = f.metadata(0)
-        holds = {"distance_m": m.object_distance_m,
-                 "ambient_temperature_K": m.atmospheric_temperature_K,
-                 "band_um": 1e4 / m.effective_wavenumber_cm1 if m.planck_b > 0 else None,
-                 "ifov_rad": np.deg2rad(m.field_of_view_deg) / m.width if m.width else None}
+        flir: Dict[str, Optional[float]] = {
+            "distance_m": m.object_distance_m,
+            "ambient_temperature_K": m.atmospheric_temperature_K,
+            "band_um": 1e4 / m.effective_wavenumber_cm1 if m.planck_b > 0 else None,
+            "ifov_rad": np.deg2rad(m.field_of_view_deg) / m.width if m.width else None}
         needs = ["camera"]
-        defaults = [k for k, v in FLIR_DEFAULTS.items() if abs(holds[k] - v) < 1e-4]
+        holds = dict(flir)
+        defaults = [k for k, v in FLIR_DEFAULTS.items()
+                    if (held := flir[k]) is not None and abs(held - v) < 1e-4]
     elif kind == "telops":
         from .telops import CALIBRATION_MODES, HccFile
         with HccFile(p) as h:

@@ -42,7 +42,7 @@ from __future__ import annotations
 import math
 import os
 import struct
-from typing import Dict, Iterable, List, Optional, Sequence, Tuple, Union
+from typing import Any, Dict, Iterable, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -122,7 +122,8 @@ class HccFile:
         offsets = [f[1] for f in HEADER_FIELDS] + [self.header_length]
         self._dtype = np.dtype({"names": names, "formats": formats, "offsets": offsets,
                                 "itemsize": self.stride})
-        self._map = np.memmap(self.path, dtype=self._dtype, mode="r", shape=(self.n_frames,))
+        self._map: Optional[np.memmap] = np.memmap(self.path, dtype=self._dtype, mode="r",
+                                                   shape=(self.n_frames,))
         f = self.fields()
         bad = np.flatnonzero((f["Width"] != self.width) | (f["Height"] != self.height)
                              | (f["ImageHeaderLength"] != self.header_length))
@@ -137,7 +138,7 @@ class HccFile:
         """Header fields of frames ``start:stop``: name -> array, as stored
         (ExposureTime in 10 ns, AcquisitionFrameRate in mHz, SubSecondTime in
         100 ns ticks). Also ``time_s`` (POSIX seconds, float64)."""
-        m = self._map[start:stop]
+        m = self._frames()[start:stop]
         out = {name: np.array(m[name]) for name, _, _ in HEADER_FIELDS}
         out["time_s"] = out["POSIXTime"].astype(np.float64) + \
             out["SubSecondTime"].astype(np.float64) / TICKS_PER_S
@@ -145,19 +146,24 @@ class HccFile:
 
     def counts(self, start: int, stop: int) -> np.ndarray:
         """Pixel words of frames ``start:stop`` (n, H, W) uint16, as stored."""
-        return np.array(self._map[start:stop]["pixels"])
+        return np.array(self._frames()[start:stop]["pixels"])
 
     def values(self, index: Union[int, Sequence[int]]) -> np.ndarray:
         """Calibrated values of the given frame(s), float64 (n, H, W): pixel *
         2**DataExp + DataOffset with each frame's own scaling; bad pixels NaN."""
         idx = np.atleast_1d(np.asarray(index, dtype=np.int64))
-        rows = self._map[idx]
+        rows = self._frames()[idx]
         px = np.array(rows["pixels"])
         scale = np.ldexp(1.0, rows["DataExp"].astype(np.int64))[:, None, None]
         off = rows["DataOffset"].astype(np.float64)[:, None, None]
         out = px.astype(np.float64) * scale + off
         out[px >= BAD_PIXEL] = np.nan
         return out
+
+    def _frames(self) -> np.memmap:
+        if self._map is None:
+            raise ValueError(f"{self.path}: the file is closed")
+        return self._map
 
     def close(self) -> None:
         m = getattr(self, "_map", None)
@@ -274,7 +280,7 @@ def write_hcc(path: Union[str, os.PathLike], frames: Iterable[np.ndarray],
             ticks = int(round((t - sec) * TICKS_PER_S))
             if ticks >= TICKS_PER_S:
                 sec, ticks = sec + 1, ticks - TICKS_PER_S
-            fields = dict(FrameID=i, DataOffset=off, DataExp=exp,
+            fields: Dict[str, Any] = dict(FrameID=i, DataOffset=off, DataExp=exp,
                           ExposureTime=int(round(exposure_time_us * 100)),
                           CalibrationMode=calibration_mode,
                           AcquisitionFrameRate=int(round(frame_rate_hz * 1000)),
