@@ -355,6 +355,11 @@ def _open_flir(p, camera, distance_m, ambient_K, pressure_Pa, ifov_rad, nonfinit
     from .flir import FlirFile
 
     if camera is None:
+        # A file that is not FLIR data says so before the camera is asked for
+        # (a damaged file is a DataError whatever the arguments).
+        with FlirFile(p) as probe:
+            for i in range(len(probe)):
+                probe.metadata(i)
         raise _no_camera(p, "FLIR")
     cam = resolve_camera(camera, ifov_rad=ifov_rad)
     if len(cam.channels) != 1:
