@@ -6,11 +6,12 @@ up to 50 frames spread over the run for the stages that choose from the scene
 from __future__ import annotations
 
 import time
-from typing import Callable, List, Optional, Sequence
+from typing import List, Optional
 
 import numpy as np
 
 from ..errors import Cancelled
+from ..progress import Progress, report
 from ..recording import Recording
 from ..surfaces import Region, Surface
 from .config import QuantifyConfig
@@ -45,12 +46,15 @@ def check_inputs(rec: Recording, surfaces: Sequence[Surface], cfg: QuantifyConfi
 
 
 
-def _reporter(progress: Optional[Callable[[float, str], Optional[bool]]]):
-    """``say(fraction, message)``: reports to ``progress`` (fraction clamped
-    to [0, 1]) and raises :class:`qogi.Cancelled` when it returns False."""
+def _reporter(progress: Optional[Progress]):
+    """``say(fraction, message)``: reports to ``progress`` (qogi's progress
+    protocol, :func:`qogi.progress.report`: fraction clamped to [0, 1]) and
+    raises :class:`qogi.Cancelled` when it returns False."""
     def say(fraction: float, message: str) -> None:
-        if progress is not None and progress(min(1.0, max(0.0, fraction)), message) is False:
-            raise Cancelled("quantification cancelled")
+        try:
+            report(progress, fraction, message)
+        except Cancelled:
+            raise Cancelled("quantification cancelled") from None
     return say
 
 

@@ -173,6 +173,8 @@ def _block_velocity(st: RunState, col_fields: np.ndarray, intervals: np.ndarray,
             fvel = vel.interpolate_frame_velocity(*vel.frame_velocity(seq), stride,
                                                   norm.shape[0])
     except KeyboardInterrupt:
+        # Ctrl-C inside the velocimetry (or its own loops' stop): the block
+        # is dropped and the run returns the blocks finished before it.
         raise Cancelled("quantification cancelled", partial=None) from None
     finally:
         if job is not None:
