@@ -70,10 +70,13 @@ class Job:
         self.traceback = ""
         self.started_s = time.monotonic()
         self.finished_s: Optional[float] = None
-        self._thread = threading.Thread(target=self._run, name=f"qogi-gui {name}", daemon=True)
+        # qogi's one helper for background work (owned daemon threads).
+        from qogi.workers import Workers
+
+        self._workers = Workers()
 
     def start(self) -> "Job":
-        self._thread.start()
+        self._workers.start(self._run, f"qogi-gui {self.name}")
         return self
 
     # ----------------------------------------------------------------- worker side

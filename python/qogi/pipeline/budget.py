@@ -13,6 +13,7 @@ pipeline's stage that assembles the Result with them.)
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from typing import Dict
@@ -23,7 +24,7 @@ from ..result import Result, SpeciesRate, SurfaceResult
 from .columns import InvertedColumns
 from .state import RunState
 
-__all__ = ["finish", "VELOCITY_SYSTEMATIC", "COLUMN_SYSTEMATIC", "COLUMN_SYSTEMATIC_INFERRED"]
+__all__ = ["finish", "Systematics", "VELOCITY_SYSTEMATIC", "COLUMN_SYSTEMATIC", "COLUMN_SYSTEMATIC_INFERRED"]
 
 #: Relative systematic uncertainty (1 sigma) of the mass-weighted normal
 #: velocity for each velocimetry source, used in the uncertainty budget.
@@ -69,25 +70,87 @@ def _effective_samples(x: np.ndarray) -> float:
 
 
 
+@dataclasses.dataclass(frozen=True)
+class Systematics:
+    """The run's relative 1-sigma systematics: ``velocity`` (the method's,
+    or the config's; at least 1 for a run too short for the velocimetry),
+    ``column`` (the column model's with the mixing line's effect added) and
+    the mixing line's record for ``info`` (``mixing``; empty without one)."""
+
+    velocity: float
+    column: float
+    mixing: Dict[str, float]
+
+
 def finish(st: RunState, complete: bool) -> Result:
     """The Result of the run's blocks analysed (``st.blocks``, in order):
     each surface's and species' per-frame rates, their mean and 90 %
     interval; ``complete`` False for a cancelled run's partial result."""
-    from .. import _engine
     from .. import checks
 
-    rec, cfg, scene, surfaces, columns = st.rec, st.cfg, st.scene, st.surfaces, st.columns
-    outs, velocity_info, warnings = st.blocks, st.info, st.warnings
+    rec, cfg, scene, columns, warnings = st.rec, st.cfg, st.scene, st.columns, st.warnings
+    outs = st.blocks
     done = sum(o.n for o in outs)
-    times = st.timebase.time_s[:done]
     status_counts: Dict[str, int] = {}
     kept_maps: Dict[int, dict] = {}
     for o in outs:
         for key, v in o.counts.items():
             status_counts[key] = status_counts.get(key, 0) + int(v)
         kept_maps.update(o.maps)
+    velocity_info = _block_notes(st)
+    systematics = _systematics(st, done)
+    results = []
+    advice: Dict[str, list] = {sp: [] for sp in cfg.species}
+    flux_inputs: Dict[tuple, object] = {}
+    bg_choice = velocity_info.get("background_choice")
+    rise_speeds: Dict[int, float] = {}
+    for j, (s, samples) in enumerate(zip(st.surfaces, st.samples)):
+        per_species = {}
+        for sp in cfg.species:
+            rate, summary, finite, n_eff = _species_rate(st, j, s, samples, sp, systematics,
+                                                         bg_choice, done)
+            if finite.size:
+                advice[sp].append(_record_advice(finite, n_eff, summary, samples.dl, columns,
+                                                 j, scene))
+            flux_inputs[(j, sp)] = summary
+            if sp == cfg.species[0]:
+                if summary.mass_line > 0 and finite.size:
+                    rise_speeds[j] = float(np.sum(finite)) / summary.mass_line * \
+                        (done / finite.size)
+            per_species[sp] = rate
+        results.append(SurfaceResult(s, per_species))
+    info = {"seconds": time.perf_counter() - st.t_start, "frames": int(done),
+            "frame_rate_hz": float(scene.frame_rate), "pixel_m": float(scene.pixel_m),
+            "gas_temperature_K": float(scene.gas_K),
+            "velocity_systematic": float(systematics.velocity),
+            "column_systematic": float(systematics.column), **systematics.mixing,
+            **velocity_info}
+    _record_warnings(advice, info, warnings)
+    if bg_choice is not None and cfg.column_density != "truth":
+        for name, excess in bg_choice.get("not_gas_free", []):
+            warnings.add("background-not-gas-free",
+                         f"neither background is gas-free here: the strips beside the surface "
+                         f"carry gas and the temporal percentile along it stands {excess:.0f} "
+                         f"noise above the line between its ends (gas that never leaves); the "
+                         f"columns are low by about that, carried in the budget's background "
+                         f"term; draw longer surfaces or give a gas-free background region",
+                         surface=name, excess_noise=excess)
+    if complete and columns is not None and cfg.column_density != "truth":
+        from ..hotgas import check_gas_temperature
+        check_gas_temperature(cfg, scene, results, columns, st.samples, flux_inputs, rise_speeds,
+                              velocity_info.get("source_xy"), warnings, info)
+    if not checks.check_result(results, warnings):
+        complete = False
+    return Result(results, config=cfg, recording_path=str(rec.path), pixel_status=status_counts,
+                  maps=kept_maps, info=info, complete=complete, warnings=warnings)
+
+
+def _block_notes(st: RunState) -> Dict[str, object]:
+    """The run's notes with those of its longest block (the first of
+    equals); with several blocks their count and every flux-level note."""
+    outs = st.blocks
+    velocity_info = st.info
     if outs:
-        # The notes of the longest block (the first of equals).
         longest = outs[int(np.argmax([o.n for o in outs]))]
         velocity_info = {**velocity_info, **longest.velocity_info}
         if len(outs) > 1:
@@ -96,6 +159,14 @@ def finish(st: RunState, complete: bool) -> Result:
                             if "flux_level" in o.velocity_info})
             if len(notes) > 1:
                 velocity_info["flux_level"] = "; ".join(notes)
+    return velocity_info or {}
+
+
+def _systematics(st: RunState, done: int) -> Systematics:
+    """The run's :class:`Systematics` (``done``: frames with rates)."""
+    from .. import checks
+
+    cfg, columns = st.cfg, st.columns
     vsys = cfg.velocity_systematic if cfg.velocity_systematic is not None else \
         VELOCITY_SYSTEMATIC[cfg.velocity]
     # Too short a run for the velocimetry: its level is not measured.
@@ -114,93 +185,70 @@ def finish(st: RunState, complete: bool) -> Result:
                   "mixing_line_pixels": columns.mixing_pixels,
                   "mixing_line_column_effect": columns.k_relative_effect}
         col_sys = math.hypot(col_sys, columns.k_relative_effect)
-    results = []
+    return Systematics(vsys, col_sys, mixing)
+
+
+def _species_rate(st: RunState, j: int, surface, samples, sp: str, systematics: Systematics,
+                  bg_choice, done: int):
+    """Surface ``j``'s rate of species ``sp`` over the run's blocks: its
+    :class:`qogi.result.SpeciesRate` (mean, 90 % interval, budget terms,
+    detection limit), the flux checks' sums, the finite per-frame rates
+    [kg/s] and their effective number."""
+    from .. import _engine
     from ..flux_summary import FluxSummary
-    advice: Dict[str, list] = {sp: [] for sp in cfg.species}
-    flux_inputs: Dict[tuple, FluxSummary] = {}
-    bg_choice = (velocity_info or {}).get("background_choice")
-    rise_speeds: Dict[int, float] = {}
-    for j, (s, (xy, n, dl, t)) in enumerate(zip(surfaces, st.samples)):
-        per_species = {}
-        for sp in cfg.species:
-            parts = [o.flux[j][sp] for o in outs]
-            rate = np.concatenate([p.rate for p in parts]) if parts else np.zeros(0)
-            pixels = np.concatenate([p.pixels for p in parts]) if parts else np.zeros(0, int)
-            mean = float(np.nanmean(rate)) if np.isfinite(rate).any() else float("nan")
-            finite = rate[np.isfinite(rate)]
-            n_eff = _effective_samples(finite) if finite.size else 0.0
-            sd = float(np.std(finite, ddof=1)) if finite.size > 1 else 0.0
-            temporal = sd / math.sqrt(n_eff) if n_eff > 0 else 0.0
-            col_rand = math.sqrt(sum(p.column_variance for p in parts)) / max(1, finite.size)
-            summary = FluxSummary.empty(len(xy))
-            for p in parts:
-                if p.summary is not None:
-                    summary += p.summary
-            terms = {
-                "temporal": temporal * 3600,
-                "velocity": abs(mean) * vsys * 3600,
-                "column density": math.sqrt(col_rand ** 2 + (abs(mean) * col_sys) ** 2)
-                * 3600,
-                "line shape": abs(mean) * _line_shape_term(columns, j, sp, summary,
-                                                           warnings, s.name) * 3600,
-            }
-            if bg_choice is not None and cfg.column_density != "truth":
-                terms["background"] = abs(mean) * bg_choice["relative"].get(j, 0.0) * 3600
-            sigma = math.sqrt(sum(v * v for v in terms.values()))
-            mean_h = mean * 3600
-            ci = (mean_h - 1.645 * sigma, mean_h + 1.645 * sigma)
-            ci = _check_direction(summary, mean, ci, warnings, s.name, sp)
-            if finite.size:
-                advice[sp].append(_record_advice(finite, n_eff, summary, dl, columns, j, scene))
-            flux_inputs[(j, sp)] = summary
-            if sp == cfg.species[0]:
-                if summary.mass_line > 0 and finite.size:
-                    rise_speeds[j] = float(np.sum(finite)) / summary.mass_line * \
-                        (done / finite.size)
-            dominant = max(terms, key=terms.get)
-            limit, det = None, None
-            if isinstance(columns, InvertedColumns):  # not truth columns
-                from ..detection import velocity_from_sums, detection_limit_from_sums
-                v_n = velocity_from_sums(sum(p.cv_sum for p in parts),
-                                          sum(p.c_sum for p in parts),
-                                          np.concatenate([np.zeros(0)] +
-                                                         [p.vabs_median for p in parts]))
-                limit, det = detection_limit_from_sums(
-                    columns.model, sp, rec.camera.netd_K or 0.02, columns._bg_t, scene.gas_K,
-                    scene.ambient_K, v_n,
-                    np.concatenate([np.zeros(0)] + [p.width_m for p in parts]), dl,
-                    mean_snr=columns.mean_contrast_snr(j))
-            truth = None
-            if rec.truth is not None and sp in rec.truth.emission_rate_kg_s:
-                truth = rec.truth.emission_rate_kg_s[sp] * 3600
-            per_species[sp] = SpeciesRate(
-                species=sp, time_s=times, rate_kg_s=rate, mean_kg_h=mean_h, ci90_kg_h=ci,
-                n_frames=int(finite.size), molar_mass_kg_mol=_engine.molar_mass(sp),
-                uncertainty_terms_kg_h=terms, dominant_uncertainty=dominant, pixels_used=pixels,
-                truth_kg_h=truth, detection_limit_kg_h=limit, detection=det)
-        results.append(SurfaceResult(s, per_species))
-    info = {"seconds": time.perf_counter() - st.t_start, "frames": int(done),
-            "frame_rate_hz": float(scene.frame_rate), "pixel_m": float(scene.pixel_m),
-            "gas_temperature_K": float(scene.gas_K), "velocity_systematic": float(vsys),
-            "column_systematic": float(col_sys), **mixing, **(velocity_info or {})}
-    _record_warnings(advice, info, warnings)
-    if bg_choice is not None and cfg.column_density != "truth":
-        for name, excess in bg_choice.get("not_gas_free", []):
-            warnings.add("background-not-gas-free",
-                         f"neither background is gas-free here: the strips beside the surface "
-                         f"carry gas and the temporal percentile along it stands {excess:.0f} "
-                         f"noise above the line between its ends (gas that never leaves); the "
-                         f"columns are low by about that, carried in the budget's background "
-                         f"term; draw longer surfaces or give a gas-free background region",
-                         surface=name, excess_noise=excess)
-    if complete and columns is not None and cfg.column_density != "truth":
-        from ..hotgas import check_gas_temperature
-        check_gas_temperature(cfg, scene, results, columns, st.samples, flux_inputs, rise_speeds,
-                              (velocity_info or {}).get("source_xy"), warnings, info)
-    if not checks.check_result(results, warnings):
-        complete = False
-    return Result(results, config=cfg, recording_path=str(rec.path), pixel_status=status_counts,
-                  maps=kept_maps, info=info, complete=complete, warnings=warnings)
+
+    rec, scene, columns, warnings = st.rec, st.scene, st.columns, st.warnings
+    dl = samples.dl
+    parts = [o.flux[j][sp] for o in st.blocks]
+    rate = np.concatenate([p.rate for p in parts]) if parts else np.zeros(0)
+    pixels = np.concatenate([p.pixels for p in parts]) if parts else np.zeros(0, int)
+    mean = float(np.nanmean(rate)) if np.isfinite(rate).any() else float("nan")
+    finite = rate[np.isfinite(rate)]
+    n_eff = _effective_samples(finite) if finite.size else 0.0
+    sd = float(np.std(finite, ddof=1)) if finite.size > 1 else 0.0
+    temporal = sd / math.sqrt(n_eff) if n_eff > 0 else 0.0
+    col_rand = math.sqrt(sum(p.column_variance for p in parts)) / max(1, finite.size)
+    summary = FluxSummary.empty(len(samples.xy))
+    for p in parts:
+        if p.summary is not None:
+            summary += p.summary
+    terms = {
+        "temporal": temporal * 3600,
+        "velocity": abs(mean) * systematics.velocity * 3600,
+        "column density": math.sqrt(col_rand ** 2 + (abs(mean) * systematics.column) ** 2)
+        * 3600,
+        "line shape": abs(mean) * _line_shape_term(columns, j, sp, summary,
+                                                   warnings, surface.name) * 3600,
+    }
+    if bg_choice is not None and st.cfg.column_density != "truth":
+        terms["background"] = abs(mean) * bg_choice["relative"].get(j, 0.0) * 3600
+    sigma = math.sqrt(sum(v * v for v in terms.values()))
+    mean_h = mean * 3600
+    ci = (mean_h - 1.645 * sigma, mean_h + 1.645 * sigma)
+    ci = _check_direction(summary, mean, ci, warnings, surface.name, sp)
+    dominant = max(terms, key=terms.get)
+    limit, det = None, None
+    if isinstance(columns, InvertedColumns):  # not truth columns
+        from ..detection import velocity_from_sums, detection_limit_from_sums
+        v_n = velocity_from_sums(sum(p.cv_sum for p in parts),
+                                 sum(p.c_sum for p in parts),
+                                 np.concatenate([np.zeros(0)] +
+                                                [p.vabs_median for p in parts]))
+        limit, det = detection_limit_from_sums(
+            columns.model, sp, rec.camera.netd_K or 0.02, columns._bg_t, scene.gas_K,
+            scene.ambient_K, v_n,
+            np.concatenate([np.zeros(0)] + [p.width_m for p in parts]), dl,
+            mean_snr=columns.mean_contrast_snr(j))
+    truth = None
+    if rec.truth is not None and sp in rec.truth.emission_rate_kg_s:
+        truth = rec.truth.emission_rate_kg_s[sp] * 3600
+    times = st.timebase.time_s[:done]
+    out = SpeciesRate(
+        species=sp, time_s=times, rate_kg_s=rate, mean_kg_h=mean_h, ci90_kg_h=ci,
+        n_frames=int(finite.size), molar_mass_kg_mol=_engine.molar_mass(sp),
+        uncertainty_terms_kg_h=terms, dominant_uncertainty=dominant, pixels_used=pixels,
+        truth_kg_h=truth, detection_limit_kg_h=limit, detection=det)
+    return out, summary, finite, n_eff
 
 
 def _line_shape_term(columns, j: int, species: str, summary, warnings, surface: str) -> float:
