@@ -13,6 +13,9 @@
   orientation, or that is zero while gas crosses the surface, is flagged and
   its interval widened to what is known.
 
+These are the terms' physics; the pipeline's stage that assembles a run's
+rates and intervals with them is :mod:`qogi.pipeline.budget`.
+
 See docs/pipeline_api.md ("Uncertainty budget") and docs/forward_model.md
 ("Line shape").
 """

@@ -126,7 +126,7 @@ def finish(st: RunState, complete: bool) -> Result:
             "column_systematic": float(systematics.column), **systematics.mixing,
             **velocity_info}
     _record_warnings(advice, info, warnings)
-    if bg_choice is not None and cfg.column_density != "truth":
+    if bg_choice is not None and not cfg.methods.truth_columns:
         for name, excess in bg_choice.get("not_gas_free", []):
             warnings.add("background-not-gas-free",
                          f"neither background is gas-free here: the strips beside the surface "
@@ -135,7 +135,7 @@ def finish(st: RunState, complete: bool) -> Result:
                          f"columns are low by about that, carried in the budget's background "
                          f"term; draw longer surfaces or give a gas-free background region",
                          surface=name, excess_noise=excess)
-    if complete and columns is not None and cfg.column_density != "truth":
+    if complete and columns is not None and not cfg.methods.truth_columns:
         from ..hotgas import check_gas_temperature
         check_gas_temperature(cfg, scene, results, columns, st.samples, flux_inputs, rise_speeds,
                               velocity_info.get("source_xy"), warnings, info)
@@ -170,14 +170,14 @@ def _systematics(st: RunState, done: int) -> Systematics:
     vsys = cfg.velocity_systematic if cfg.velocity_systematic is not None else \
         VELOCITY_SYSTEMATIC[cfg.velocity]
     # Too short a run for the velocimetry: its level is not measured.
-    few = cfg.velocity not in ("wind", "exit") and done < checks.MIN_FRAMES_RATE
+    few = not cfg.methods.given_speed and done < checks.MIN_FRAMES_RATE
     if few:
         vsys = max(vsys, 1.0)
     # The inferred temperature's mixing-line slope and its effect on the columns.
     mixing = {}
     col_sys = cfg.column_systematic
     if col_sys is None:
-        col_sys = COLUMN_SYSTEMATIC_INFERRED if cfg.gas_temperature == "infer" else \
+        col_sys = COLUMN_SYSTEMATIC_INFERRED if cfg.conditions.infers_temperature else \
             COLUMN_SYSTEMATIC
     if isinstance(columns, InvertedColumns) and columns.k_K_per_fraction is not None:
         mixing = {"mixing_line_K_per_fraction": columns.k_K_per_fraction,
@@ -220,7 +220,7 @@ def _species_rate(st: RunState, j: int, surface, samples, sp: str, systematics: 
         "line shape": abs(mean) * _line_shape_term(columns, j, sp, summary,
                                                    warnings, surface.name) * 3600,
     }
-    if bg_choice is not None and st.cfg.column_density != "truth":
+    if bg_choice is not None and not st.cfg.methods.truth_columns:
         terms["background"] = abs(mean) * bg_choice["relative"].get(j, 0.0) * 3600
     sigma = math.sqrt(sum(v * v for v in terms.values()))
     mean_h = mean * 3600

@@ -34,7 +34,7 @@ __all__ = ["prepare", "block_columns", "TruthColumns", "InvertedColumns"]
 def prepare(run: RunState) -> None:
     """Sets :attr:`RunState.columns`: the truth maps' or the inversion's
     (whose scene table is built on a worker thread while frames are read)."""
-    if run.cfg.column_density == "truth":
+    if run.cfg.methods.truth_columns:
         run.columns = TruthColumns(run.rec, run.cfg)
     else:
         run.say(0.01, "cross-section tables and the scene's inversion table")
@@ -765,7 +765,7 @@ def block_columns(st: RunState, blk, say) -> BlockColumns:
         columns.start_block()
 
     def invert_collected(n_done: int, time_averaged: bool, alongside=None) -> None:
-        if cfg.column_density == "truth" or n_done == 0:
+        if cfg.methods.truth_columns or n_done == 0:
             return
         per_surface, cnt = columns.finish(
             samples, time_averaged=time_averaged,
@@ -781,9 +781,9 @@ def block_columns(st: RunState, blk, say) -> BlockColumns:
     def out(cancelled: bool = False) -> BlockColumns:
         return BlockColumns(col_fields, surf_cols, surf_sig, counts, done, info, cancelled)
 
-    time_averaged = cfg.averaging == "time-averaged"
+    time_averaged = cfg.methods.time_averaged
     try:
-        if cfg.column_density == "truth":
+        if cfg.methods.truth_columns:
             for k in range(nb):
                 fields = columns.frame(first + k, roi)
                 if time_averaged:
@@ -807,7 +807,7 @@ def block_columns(st: RunState, blk, say) -> BlockColumns:
                 columns.collect(fr, st.surfaces, samples, out=col_fields[k:k + m])
                 done = k + m
                 say(0.05 + 0.3 * done / nb, f"background and column field, frame {done}/{nb}")
-        if time_averaged and cfg.column_density == "truth":
+        if time_averaged and cfg.methods.truth_columns:
             for j, (xy, n, dl, t) in enumerate(samples):
                 for sp in cfg.species:
                     surf_cols[j][sp][:] = _bilinear(acc[sp] / nb, xy - [roi.x0, roi.y0])
@@ -816,7 +816,7 @@ def block_columns(st: RunState, blk, say) -> BlockColumns:
         # into a column alongside the surfaces' final solve.
         part = col_fields[:done]
         invert_collected(done, time_averaged, alongside=lambda: columns.contrast_to_column(part))
-        if cfg.column_density != "truth":
+        if not cfg.methods.truth_columns:
             info["proxy_anchor"] = _anchor_proxy(
                 part, samples, surf_cols, cfg.species[0], st.horizontal, roi)
     except Cancelled:

@@ -29,10 +29,10 @@ def check_inputs(rec: Recording, surfaces: Sequence[Surface], cfg: QuantifyConfi
         if np.any(p[:, 0] < 0) or np.any(p[:, 0] > w - 1) or np.any(p[:, 1] < 0) or \
                 np.any(p[:, 1] > h - 1):
             raise ValueError(f"surface {s.name or k} has points outside the {w}x{h} image: {s.points}")
-    if cfg.gas_temperature == "infer" and rec.n_channels < 2:
+    if cfg.conditions.infers_temperature and rec.n_channels < 2:
         raise ValueError("gas_temperature='infer' needs a camera with >= 2 channels; this recording "
                          f"has {rec.n_channels}: give the gas temperature or use 'ambient'")
-    if cfg.column_density == "truth":
+    if cfg.methods.truth_columns:
         if rec.truth is None or not all(f"column_density_kg_m2_{sp}" in rec.truth.datasets
                                         for sp in cfg.species):
             raise ValueError("column_density='truth' needs a synthetic recording with truth maps "
@@ -123,4 +123,4 @@ def wants_source(cfg: QuantifyConfig) -> bool:
     """True when the run detects the plume's source itself (for the flux
     level of the default velocimetry)."""
     return (cfg.source is None and cfg.velocity == "fluid" and cfg.flux_level and
-            cfg.column_density != "truth")
+            not cfg.methods.truth_columns)

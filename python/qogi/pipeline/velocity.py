@@ -47,7 +47,7 @@ def prepare(run: RunState) -> None:
     run.radiance_check.first_frame = None
     run.source = source
     # The flow's part of the region (all of it without a source).
-    if source is not None and cfg.velocity not in ("wind", "exit"):
+    if source is not None and not cfg.methods.given_speed:
         run.transport = _transport_crop(run.surfaces, source, run.roi,
                                         (run.rec.height, run.rec.width))
         run.crop = run.transport.crop
@@ -109,7 +109,7 @@ def _block_velocity(st: RunState, col_fields: np.ndarray, intervals: np.ndarray,
 
     cfg, roi, crop, source = st.cfg, st.roi, st.crop, st.source
     done = col_fields.shape[0]
-    if cfg.velocity in ("wind", "exit") or done < 2:
+    if cfg.methods.given_speed or done < 2:
         return None
     # Every frame's field (also for the time-averaged order: the gas
     # moves, the averaged field does not).
