@@ -37,7 +37,13 @@ void BindUtil(py::module_& m) {
     try {
       if (p) std::rethrow_exception(p);
     } catch (const Cancelled& e) {
-      if (!PyErr_Occurred()) PyErr_SetString(PyExc_KeyboardInterrupt, e.what());
+      // qogi's one cancellation type (qogi.errors.Cancelled): a progress
+      // callback returned False. Ctrl-C itself arrives as KeyboardInterrupt
+      // (PyErr_CheckSignals in the cancelled hook).
+      if (!PyErr_Occurred()) {
+        py::object type = py::module_::import("qogi.errors").attr("Cancelled");
+        PyErr_SetString(type.ptr(), e.what());
+      }
     }
   });
   m.def("resolve_threads", &ResolveThreads, py::arg("requested") = 0,

@@ -73,11 +73,12 @@ def ensure_demo(progress: Callable[[float, str], bool], folder: Optional[os.Path
 
 def _synthesise(path: Path, progress: Callable[[float, str], bool]) -> None:
     """Simulate and render the demo (what ``qogi synth`` does) into ``path``."""
+    from qogi.errors import Cancelled
     from qogi.render import synthesize
 
     try:
         synthesize(DEMO["preset"], str(path), duration_s=DEMO["duration_s"],
                    frame_rate_hz=DEMO["frame_rate_hz"], seed=DEMO["seed"],
                    progress=lambda f, m: progress(f, f"demo scene: {m}"))
-    except KeyboardInterrupt:  # how qogi.render reports a cancelled progress callback
+    except (Cancelled, KeyboardInterrupt):  # a cancelled progress callback, or Ctrl-C
         raise Stopped("the demo scene was cancelled") from None

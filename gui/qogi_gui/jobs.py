@@ -38,7 +38,7 @@ class Job:
         cancelled instead.
     cancelled_types : tuple of exception types
         Exceptions meaning "stopped on request" besides :class:`Stopped`
-        (e.g. ``qogi.Cancelled``);
+        and ``qogi.Cancelled`` (always);
         their ``.partial`` attribute, if any, is kept in :attr:`partial`.
 
     Attributes (read them through :meth:`snapshot` from another thread)
@@ -55,7 +55,9 @@ class Job:
                  cancelled_types: tuple = ()):
         self.name = name
         self._work = work
-        self._cancelled_types = (Stopped,) + tuple(cancelled_types)
+        from qogi.errors import Cancelled  # qogi's one cancellation type
+
+        self._cancelled_types = (Stopped, Cancelled) + tuple(cancelled_types)
         self._lock = threading.Lock()
         self._cancel = threading.Event()
         self._ended = threading.Event()
@@ -68,10 +70,13 @@ class Job:
         self.traceback = ""
         self.started_s = time.monotonic()
         self.finished_s: Optional[float] = None
-        self._thread = threading.Thread(target=self._run, name=f"qogi-gui {name}", daemon=True)
+        # qogi's one helper for background work (owned daemon threads).
+        from qogi.workers import Workers
+
+        self._workers = Workers()
 
     def start(self) -> "Job":
-        self._thread.start()
+        self._workers.start(self._run, f"qogi-gui {self.name}")
         return self
 
     # ----------------------------------------------------------------- worker side
@@ -92,7 +97,7 @@ class Job:
             value = self._work(self._progress)
         except self._cancelled_types as e:
             self._finish(CANCELLED, error=e, partial=getattr(e, "partial", None))
-        except KeyboardInterrupt as e:  # qogi's engine loops stop this way when told to
+        except KeyboardInterrupt as e:  # Ctrl-C, or a loop that still stops this way
             if self._cancel.is_set():
                 self._finish(CANCELLED, error=e)
             else:

@@ -96,7 +96,8 @@ def cmd_quantify(args: argparse.Namespace) -> int:
     from ._progress import ProgressBar
     from .errors import EXIT_DATA, EXIT_INTERRUPTED, DataError, UsageError
     from .files import check_outputs
-    from .pipeline import Cancelled, _check_inputs, quantify
+    from .errors import Cancelled
+    from .pipeline import _check_inputs, quantify
     from .surfaces import Surface
 
     if not os.path.isfile(args.recording):

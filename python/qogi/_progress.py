@@ -11,9 +11,9 @@ class ProgressBar:
     """``bar(fraction, message)`` draws ``[#####.....]  42%  message`` on stderr.
 
     On a terminal it redraws one line; otherwise it prints a line at most every
-    ``interval_s`` seconds (and at 100 %), so logs stay readable. Usable as the
-    ``progress`` callback of qogi's long-running functions (returns None: never
-    cancels).
+    ``interval_s`` seconds (and at 100 %), so logs stay readable. A callback of
+    qogi's progress protocol (:mod:`qogi.progress`), usable as the ``progress``
+    of its long-running functions; returns None: never cancels (Ctrl-C does).
     """
 
     def __init__(self, label: str = "", width: int = 30, stream: Optional[TextIO] = None,

@@ -57,9 +57,9 @@ _NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
 _SUMMARY_INTERVAL_S = 10.0
 
 
-def _config_fields() -> Dict[str, dataclasses.Field]:
+def _config_fields() -> List[str]:
     from .pipeline import QuantifyConfig
-    return {f.name: f for f in dataclasses.fields(QuantifyConfig) if f.name not in _RESERVED}
+    return [name for name in QuantifyConfig.field_names() if name not in _RESERVED]
 
 
 def manifest_keys() -> List[str]:
@@ -453,7 +453,8 @@ def run_row(job: dict) -> dict:
     else (a bug, memory exhaustion, an output that cannot be written) is
     raised so that Dask's ``retries`` run it again.
     """
-    from .pipeline import Cancelled, quantify
+    from .errors import Cancelled
+    from .pipeline import quantify
     from .recording import open_recording
     from .surfaces import Surface, auto_surfaces, plume_image
 
@@ -465,7 +466,7 @@ def run_row(job: dict) -> dict:
             "qogi_version": __version__, "worker": _worker_address(),
             "manifest_row": row.where}
     t0, c0 = time.perf_counter(), time.process_time()
-    cfg = dataclasses.replace(row.config, num_threads=_engine_threads(job))
+    cfg = row.config.replace(num_threads=_engine_threads(job))
     meta["engine_threads"] = cfg.num_threads
     deadline = None if row.timeout_s is None else t0 + row.timeout_s
     stage = {"message": "opening the recording"}

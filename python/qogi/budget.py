@@ -13,6 +13,9 @@
   orientation, or that is zero while gas crosses the surface, is flagged and
   its interval widened to what is known.
 
+These are the terms' physics; the pipeline's stage that assembles a run's
+rates and intervals with them is :mod:`qogi.pipeline.budget`.
+
 See docs/pipeline_api.md ("Uncertainty budget") and docs/forward_model.md
 ("Line shape").
 """
@@ -20,7 +23,6 @@ See docs/pipeline_api.md ("Uncertainty budget") and docs/forward_model.md
 from __future__ import annotations
 
 import math
-import threading
 from typing import Callable, Dict, List, Optional, Sequence
 
 import numpy as np
@@ -57,14 +59,13 @@ class AlternativeModels:
                 self.error = e
 
         # ``start(target, name) -> Thread``: the caller's owner of worker
-        # threads (the pipeline's, which stops and awaits them on every exit,
-        # Ctrl-C included: a thread left inside the engine at interpreter exit
-        # aborts the process).
-        if start is not None:
-            self._job = start(build, "qogi-line-shapes")
-        else:
-            self._job = threading.Thread(target=build, name="qogi-line-shapes", daemon=True)
-            self._job.start()
+        # threads, by default the current run's (qogi.workers: stopped and
+        # awaited on every exit, Ctrl-C included: a thread left inside the
+        # engine at interpreter exit aborts the process).
+        if start is None:
+            from .workers import current
+            start = current().start
+        self._job = start(build, "qogi-line-shapes")
 
     def get(self) -> list:
         """[(LineShape, ForwardModel)] (waits for the worker); raises its error."""

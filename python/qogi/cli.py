@@ -156,7 +156,8 @@ def main(argv: list[str] | None = None) -> int:
     """
     import signal
 
-    from .errors import EXIT_DATA, EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_USAGE, QogiError
+    from .errors import (EXIT_DATA, EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_USAGE, Cancelled,
+                         QogiError)
 
     try:
         parser = build_parser()
@@ -179,6 +180,9 @@ def main(argv: list[str] | None = None) -> int:
     except QogiError as e:
         print(f"qogi {name}: error: {e}", file=sys.stderr)
         return e.exit_code
+    except Cancelled:
+        print(f"qogi {name}: cancelled", file=sys.stderr)
+        return EXIT_INTERRUPTED
     except _Terminated:
         print(f"qogi {name}: terminated", file=sys.stderr)
         return 128 + signal.SIGTERM

@@ -54,7 +54,7 @@ class Settings:
 
 def _fields():
     from .pipeline import QuantifyConfig
-    return {f.name: f for f in dataclasses.fields(QuantifyConfig)}
+    return QuantifyConfig.field_names()
 
 
 def config_from_dict(d: dict):

@@ -10,13 +10,21 @@ exit codes.
   frames). Both derive from :class:`ValueError`, so code that caught
   ValueError keeps working.
 
+* :class:`Cancelled` (exit 130): the work stopped because its progress
+  callback returned False (qogi's one progress protocol, :mod:`qogi.progress`);
+  ``.partial`` holds what was finished (e.g. the Result of the frames done),
+  or None. The engine's cancellation arrives as this type too. Ctrl-C stays
+  Python's ``KeyboardInterrupt``.
+
 Anything else reaching the command line is a bug in qogi: it prints the
 traceback and asks for a report (exit 1).
 """
 
 from __future__ import annotations
 
-__all__ = ["QogiError", "UsageError", "DataError", "EXIT_OK", "EXIT_INTERNAL", "EXIT_USAGE",
+from typing import Any
+
+__all__ = ["QogiError", "UsageError", "DataError", "Cancelled", "EXIT_OK", "EXIT_INTERNAL", "EXIT_USAGE",
            "EXIT_DATA", "EXIT_INTERRUPTED", "EXIT_CODES_HELP"]
 
 EXIT_OK = 0
@@ -48,3 +56,21 @@ class DataError(QogiError):
     """The input data cannot give a trustworthy answer (exit 3)."""
 
     exit_code = EXIT_DATA
+
+
+class Cancelled(Exception):
+    """The work stopped because its progress callback returned False.
+
+    ``.partial`` holds what was finished so far (:func:`qogi.quantify`: the
+    Result of the frames finished, marked incomplete), or None. Derives from
+    Exception, not KeyboardInterrupt: code that catches Exception (a viewer's
+    job, a batch task) sees it as an ordinary outcome."""
+
+    exit_code = EXIT_INTERRUPTED
+
+    def __init__(self, message: str = "cancelled", partial: Any = None):
+        super().__init__(message)
+        self.partial = partial
+
+    def __reduce__(self):
+        return (type(self), (str(self), self.partial))

@@ -224,8 +224,8 @@ class SceneRenderer:
 
     # ------------------------------------------------------------------
     def _say(self, fraction: float, message: str) -> None:
-        if self._progress is not None and self._progress(fraction, message) is False:
-            raise KeyboardInterrupt("rendering cancelled")
+        from .progress import report
+        report(self._progress, fraction, message)  # qogi.Cancelled when told to stop
 
     def _training_pixels(self, frames: Sequence[int], n_rays: int, rng) -> List[tuple]:
         """(frame, samples, pixel indices) stratified by column over the frames."""
@@ -387,8 +387,8 @@ def render_recording(sim, camera, background: Background, path, *, seed: int = 0
     t0 = time.perf_counter()
 
     def say(f, msg):
-        if progress is not None and progress(f, msg) is False:
-            raise KeyboardInterrupt("rendering cancelled")
+        from .progress import report
+        report(progress, f, msg)  # qogi.Cancelled when told to stop
 
     renderer = SceneRenderer(sim, camera, background, progress=lambda f, m: say(0.1 * f, m),
                              warm_filter_temperature_K=warm_filter_temperature_K,
@@ -506,8 +506,8 @@ def synthesize(preset_name: str, path, *, duration_s: Optional[float] = None,
                                                   ("sky_top_K", "sky_bottom_K") if k in bgd}))
 
     def say(f, msg):
-        if progress is not None and progress(f, msg) is False:
-            raise KeyboardInterrupt("cancelled")
+        from .progress import report
+        report(progress, f, msg)  # qogi.Cancelled when told to stop
 
     say(0.0, "simulating the release")
     if view is None:

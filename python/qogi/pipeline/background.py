@@ -1,0 +1,175 @@
+"""Stage 1, the background: the gas-free band radiance of each channel,
+beside each control surface or a temporal percentile (chosen from the scene
+by default, :func:`qogi.background.choose`), or from a user region.
+
+(:mod:`qogi.background` holds the choice's physics; this module is the
+pipeline's stage that applies it to a run.)"""
+
+from __future__ import annotations
+
+from typing import Optional
+
+import numpy as np
+
+from ..recording import Recording
+from ..surfaces import Region, Surface
+from .config import QuantifyConfig
+from .sampling import _bilinear
+from .state import RunState
+
+__all__ = ["Background", "prepare"]
+
+
+def prepare(run: RunState) -> None:
+    """Chooses the run's background method and sets :attr:`RunState.background`
+    (its static shape from the sampled frames)."""
+    bg_cfg, run.info["background_choice"] = _choose_background(
+        run.cfg, run.sample_frames, run.surfaces, run.samples, run.channel_sign)
+    background = Background(run.rec, bg_cfg, run.roi, run.frames, run.channel_sign, run.say,
+                            run.background_temperature_K)
+    if not isinstance(bg_cfg.background, Region) and bg_cfg.background != "percentile":
+        sl = run.roi.slices()
+        background.set_static_shape(run.sample_frames[:, :, sl[0], sl[1]].mean(axis=0))
+    run.background = background
+
+
+def _choose_background(cfg: QuantifyConfig, sample_frames, surfaces, samples, channel_sign):
+    """The background method of the run: ``"auto"`` chooses between beside
+    the surfaces and the temporal percentile from the scene
+    (:func:`qogi.background.choose`). Returns (the config the background
+    stage uses, the choice's record for ``info``, or None)."""
+    if cfg.background != "auto":
+        return cfg, None
+    from ..background import choose
+
+    if sample_frames is None or len(sample_frames) < 2:
+        # No frame-to-frame noise to test the strips with: the strips beside
+        # the surfaces (the estimate that needs no time series).
+        return cfg.replace(background="beside-surface"), {
+            "method": "beside-surface", "reason": "fewer than 2 frames: the strips not tested",
+            "strips": [], "relative": {}, "not_gas_free": []}
+    choice = choose(sample_frames, surfaces, samples, channel_sign, cfg.background_percentile)
+    return cfg.replace(background=choice["method"]), choice
+
+
+
+
+class Background:
+    """Gas-free band radiance per channel: along each surface's samples and on
+    the analysis region (the latter for the velocity field)."""
+
+    def __init__(self, rec: Recording, cfg: QuantifyConfig, roi: Region, frames: range,
+                 channel_sign: np.ndarray, say, typical_temperature_K: float):
+        self.cfg = cfg
+        self.roi = roi
+        self.channel_sign = np.asarray(channel_sign, dtype=float)
+        self.typical_temperature_K = typical_temperature_K
+        self.percentile_img = None
+        # The background's static shape beyond a straight line across the
+        # region (set by the run from its time-averaged frames).
+        self.shape_correction = None
+        if cfg.background == "percentile":
+            # Sign-aware: a plume warmer than the background raises radiance,
+            # so its background is a low percentile; a colder one a high one.
+            sl = roi.slices()
+            stack = []
+            # At most 200 frames spread over the run bound the memory.
+            use = list(frames)[::max(1, len(frames) // 200)]
+            for k, f in enumerate(use):
+                stack.append(rec.frame(f, quantity="radiance")[:, sl[0], sl[1]])
+                if k % 50 == 0:
+                    say(0.02 * k / len(use), "background (temporal percentile)")
+            stack = np.asarray(stack)
+            lo = np.percentile(stack, cfg.background_percentile, axis=0)
+            hi = np.percentile(stack, 100 - cfg.background_percentile, axis=0)
+            self.percentile_img = np.where(channel_sign[:, None, None] >= 0, lo, hi)
+
+    def region_mean(self, frame: np.ndarray, region: Region) -> np.ndarray:
+        """Mean of frames (..., C, H, W) over the region -> (..., C)."""
+        r = region.clip(frame.shape[-1], frame.shape[-2])
+        return frame[..., r.y0:r.y1, r.x0:r.x1].mean(axis=(-2, -1))
+
+    def along(self, frame: np.ndarray, surface: Surface, xy: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """Background radiance (..., C, N) at the surface samples xy of frames
+        (..., C, H, W)."""
+        cfg = self.cfg
+        n = len(xy)
+        if isinstance(cfg.background, Region):
+            return np.repeat(self.region_mean(frame, cfg.background)[..., None], n, axis=-1)
+        if cfg.background == "percentile":
+            return np.broadcast_to(_bilinear(self.percentile_img, xy - [self.roi.x0, self.roi.y0]),
+                                   frame.shape[:-2] + (n,))
+        # Beside the surface: the mean radiance of short stretches just beyond
+        # both ends, interpolated linearly along the surface.
+        p = np.asarray(surface.points)
+        ends = []
+        for a, b in ((p[0], p[1]), (p[-1], p[-2])):
+            d = (a - b) / np.hypot(*(a - b))
+            pts = np.array([a + d * s for s in np.arange(2.0, 8.0, 1.0)])
+            h, w = frame.shape[-2:]
+            pts[:, 0] = np.clip(pts[:, 0], 0, w - 1)
+            pts[:, 1] = np.clip(pts[:, 1], 0, h - 1)
+            ends.append(_bilinear(frame, pts).mean(axis=-1))
+        return ends[0][..., None] * (1 - t) + ends[1][..., None] * t
+
+    def field(self, frame_roi: np.ndarray, horizontal: bool,
+              channel: Optional[int] = None) -> np.ndarray:
+        """Background over the analysis region: (C, h, w) for the frame's
+        channels (C, h, w), or (h, w) for ``channel`` given one channel's
+        (h, w); leading frame axes pass through."""
+        cfg = self.cfg
+        if isinstance(cfg.background, Region):
+            return None
+        if cfg.background == "percentile":
+            return self.percentile_img if channel is None else self.percentile_img[channel]
+        # Per line along the plume, linear between 4-px strips at the region's
+        # edges across it, plus the static shape of the background that a
+        # straight line misses (a sky's elevation gradient across a
+        # wind-blown plume, vignetting): the robust quadratic surface of the
+        # time-averaged frames minus its own edge-to-edge interpolation.
+        bg = self._edge_interpolation(frame_roi, horizontal)
+        if self.shape_correction is not None:
+            corr = self.shape_correction[horizontal]
+            bg += corr if channel is None else corr[channel]
+        return bg
+
+    @staticmethod
+    def _edge_interpolation(img: np.ndarray, horizontal: bool) -> np.ndarray:
+        k = 4
+        if horizontal:  # along x between the left and right strips
+            left = img[..., :, :k].mean(axis=-1)
+            right = img[..., :, -k:].mean(axis=-1)
+            t = np.linspace(0, 1, img.shape[-1]).astype(img.dtype, copy=False)
+            out = (right - left)[..., None] * t
+            out += left[..., None]
+            return out
+        top = img[..., :k, :].mean(axis=-2)
+        bottom = img[..., -k:, :].mean(axis=-2)
+        t = np.linspace(0, 1, img.shape[-2])[:, None].astype(img.dtype, copy=False)
+        out = (bottom - top)[..., None, :] * t
+        out += top[..., None, :]
+        return out
+
+    def set_static_shape(self, mean_roi: np.ndarray) -> None:
+        """From the time-averaged region (C, h, w): the background's static
+        shape beyond the edge-to-edge interpolation, per orientation, used
+        only where the smooth surface describes the gas-free pixels at least
+        twice as well as that interpolation does (a plate or a linear
+        gradient needs no correction, and gets none)."""
+        from ..surfaces import _smooth_background
+
+        def mad(r):
+            return float(np.median(np.abs(r - np.median(r))))
+
+        smooth = np.stack([_smooth_background(m) for m in mean_roi])
+        self.shape_correction = {}
+        for o in (True, False):
+            lin = self._edge_interpolation(mean_roi, o)
+            corr = smooth - self._edge_interpolation(smooth, o)
+            use = np.zeros(len(mean_roi), bool)
+            for c in range(len(mean_roi)):
+                r_smooth = mean_roi[c] - smooth[c]
+                free = np.abs(r_smooth - np.median(r_smooth)) <= 2.5 * 1.4826 * mad(r_smooth)
+                use[c] = mad((mean_roi[c] - lin[c])[free]) > 2.0 * mad(r_smooth[free])
+            self.shape_correction[o] = corr * use[:, None, None]
+

@@ -1,0 +1,828 @@
+"""Stage 2, the column density: the contrast ``L - L_bg`` is inverted per
+pixel for the Gaussian-plume parameters (:mod:`qogi.inversion`): single
+channel with the gas temperature given or ambient, or several channels with
+it inferred on the plume's mixing line; column density per species with its
+1-sigma uncertainty and a status. Pixels on the control surfaces get the full
+inversion; the velocity field around them uses a fast single-channel column
+proxy (the velocimetry needs the shape of the field, not its absolute
+scale), anchored to the surfaces' inverted columns. Or, for validation, the
+synthetic recording's truth maps.
+
+:func:`prepare` sets :attr:`RunState.columns`; :func:`block_columns` makes a
+block's :class:`~.state.BlockColumns`.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Dict, Optional, Sequence
+
+import numpy as np
+
+from .. import workers as _workers_mod
+from ..errors import Cancelled
+from ..recording import Recording
+from ..surfaces import Region, Surface
+from .background import Background
+from .config import QuantifyConfig
+from .sampling import _bilinear
+from .state import BlockColumns, RunState, Scene
+
+__all__ = ["prepare", "block_columns", "TruthColumns", "InvertedColumns"]
+
+
+def prepare(run: RunState) -> None:
+    """Sets :attr:`RunState.columns`: the truth maps' or the inversion's
+    (whose scene table is built on a worker thread while frames are read)."""
+    if run.cfg.methods.truth_columns:
+        run.columns = TruthColumns(run.rec, run.cfg)
+    else:
+        run.say(0.01, "cross-section tables and the scene's inversion table")
+        run.columns = InvertedColumns(run.rec, run.cfg, run.scene, run.roi, run.horizontal,
+                                      run.background)
+
+
+class TruthColumns:
+    """Column densities from a synthetic recording's truth maps (validation:
+    isolates the velocimetry and flux from the inversion)."""
+
+    def __init__(self, rec: Recording, cfg: QuantifyConfig):
+        self.ds = {sp: rec.truth.datasets[f"column_density_kg_m2_{sp}"] for sp in cfg.species}
+
+    def frame(self, f: int, roi: Region) -> Dict[str, np.ndarray]:
+        sl = roi.slices()
+        return {sp: np.asarray(d[f, sl[0], sl[1]], dtype=np.float64) for sp, d in self.ds.items()}
+
+
+#: InversionResult fields per pixel: arrays, and dicts of arrays per species.
+_RESULT_ARRAYS = ("status", "bound_mask", "flags", "parameters", "parameter_sigma", "covariance",
+                  "chi2", "condition_number", "iterations")
+_RESULT_DICTS = ("column_density", "column_density_sigma", "path_concentration_ppm_m",
+                 "path_concentration_sigma_ppm_m")
+
+
+def _merge_results(a, b, sel: np.ndarray):
+    """InversionResult ``a`` (pixels on the first axis) with the pixels
+    selected by ``sel`` taken from ``b``."""
+    import copy
+    out = copy.copy(a)
+    for name in _RESULT_ARRAYS:
+        x = np.array(getattr(a, name))
+        x[sel] = np.asarray(getattr(b, name))[sel]
+        setattr(out, name, x)
+    for name in _RESULT_DICTS:
+        d = {}
+        for sp, v in getattr(a, name).items():
+            x = np.array(v)
+            x[sel] = np.asarray(getattr(b, name)[sp])[sel]
+            d[sp] = x
+        setattr(out, name, d)
+    return out
+
+
+def _owned(result):
+    """A copy of an InversionResult whose arrays may be written."""
+    import copy
+    out = copy.copy(result)
+    for name in _RESULT_ARRAYS:
+        setattr(out, name, np.array(getattr(result, name)))
+    for name in _RESULT_DICTS:
+        setattr(out, name, {sp: np.array(v) for sp, v in getattr(result, name).items()})
+    return out
+
+
+def _scatter(full, part, idx: np.ndarray) -> None:
+    """Writes InversionResult ``part`` (pixels ``idx`` of ``full``) into ``full``."""
+    for name in _RESULT_ARRAYS:
+        getattr(full, name)[idx] = getattr(part, name)
+    for name in _RESULT_DICTS:
+        for sp, v in getattr(part, name).items():
+            getattr(full, name)[sp][idx] = v
+
+
+
+def _gaussian_width(profile: np.ndarray, cut: float = 0.2) -> float:
+    """Standard deviation [samples] of a Gaussian-like profile from the second
+    moment of its part above ``cut`` x its maximum (noise in the wings would
+    inflate a plain second moment), corrected for the truncation: for a
+    Gaussian cut at z_c = sqrt(2 ln(1/cut)) the moment is
+    sigma^2 (1 - 2 z_c phi(z_c) / (2 Phi(z_c) - 1))."""
+    p = np.asarray(profile, dtype=float)
+    p = np.where(np.isfinite(p), p, 0.0)
+    top = p.max() if p.size else 0.0
+    if not top > 0:
+        return float("nan")
+    w = np.where(p > cut * top, p, 0.0)
+    s = np.arange(p.size, dtype=float)
+    tot = w.sum()
+    mean = (w * s).sum() / tot
+    var = (w * (s - mean) ** 2).sum() / tot
+    zc = math.sqrt(2.0 * math.log(1.0 / cut))
+    phi = math.exp(-0.5 * zc * zc) / math.sqrt(2.0 * math.pi)
+    big_phi = 0.5 * (1.0 + math.erf(zc / math.sqrt(2.0)))
+    factor = 1.0 - 2.0 * zc * phi / (2.0 * big_phi - 1.0)
+    return math.sqrt(var / factor)
+
+
+class InvertedColumns:
+    """Column densities by the per-pixel inversion (qogi.inversion).
+
+    Surface samples get the configured inversion (single channel with the gas
+    temperature given or ambient, or every channel with the temperature
+    inferred), with the plume depth sigma from the plume's width across the
+    surface (axisymmetric plume) unless given. The velocity field around the
+    surfaces uses a single-channel column proxy at the assumed gas
+    temperature (Newton inversion, fast): velocimetry needs the field's shape,
+    not its absolute scale.
+    """
+
+    def __init__(self, rec: Recording, cfg: QuantifyConfig, scene: Scene, roi: Region,
+                 horizontal: bool, background: Background):
+        from .. import inversion as inv
+        from ..forward import forward_model
+
+        self.rec, self.cfg, self.scene, self.roi = rec, cfg, scene, roi
+        self.horizontal = horizontal
+        self.background = background
+        channels = rec.channels
+        self.model = forward_model(channels, cfg.species, scene.pressure_Pa,
+                                   line_shape=cfg.line_shape)
+        netd = rec.camera.netd_K or 0.02
+        if cfg.gas_temperature == "infer":
+            self.temperature_range_K = (scene.ambient_K - 10.0, scene.ambient_K + 150.0)
+            temperature = inv.free(*self.temperature_range_K)
+        else:
+            self.temperature_range_K = (scene.gas_K - 10.0, scene.gas_K + 10.0)
+            temperature = inv.fixed(scene.gas_K)
+        # One per-scene table serves every inversion of the run. Over the
+        # 160 K of an inferred temperature, 10 K nodes: the cubic spline in T
+        # then differs from the 5 K table by <= 2e-3 (median 3e-6) of the
+        # contrast, well inside the fast model's own 0.5 % (docs/pipeline_api.md),
+        # at half the build time; and 6 nodes per decade of u = x sigma
+        # instead of 8: within 0.34 NETD (99 %: 0.08) of the 8-node table on
+        # the lab domain (x 1e-4 to 1, sigma 1 mm to 30 cm, 12-147 C), 22 %
+        # less build time.
+        # It is built on a worker thread (the engine releases the GIL) while
+        # the frames are read; the first use of :attr:`table` waits for it.
+        infer = cfg.gas_temperature == "infer"
+        table_kw = dict(min_peak_temperature_K=self.temperature_range_K[0],
+                        max_peak_temperature_K=self.temperature_range_K[1],
+                        temperature_step_K=10.0 if infer else 5.0,
+                        nodes_per_decade=6 if infer else 8,
+                        num_threads=cfg.num_threads)
+        self._table = None
+
+        line_solver = infer and (cfg.composition is not None or len(cfg.species) == 1)
+
+        workers = _workers_mod.current()
+
+        def build():
+            table = inv.scene_table(self.model, scene.ambient_K,
+                                    progress=workers.still_wanted, **table_kw)
+            if line_solver and table is not None and workers.still_wanted():
+                inv._line_inverter(table)  # its band tables, cached
+            return table
+
+        self._table_job = workers.submit(build, "qogi-scene-table")
+        # The other line-shape rules, for the budget's line-shape term.
+        from ..budget import AlternativeModels
+        self.alternatives = AlternativeModels(channels, cfg.species, scene.pressure_Pa,
+                                              cfg.line_shape, start=workers.start)
+        self.k_K_per_fraction, self.k_sigma, self.k_relative_effect = None, 0.0, 0.0
+        self.mixing_pixels = 0
+        # A known composition ties the species' fractions (then the ratios of
+        # the bands' contrasts measure the temperature); otherwise each is free.
+        fractions = None
+        if cfg.composition is not None and len(cfg.species) > 1:
+            ref = cfg.species[0]
+            fractions = {ref: "free"}
+            for sp in cfg.species[1:]:
+                fractions[sp] = inv.tied(ref, cfg.composition[sp] / cfg.composition[ref])
+        self._inv_kw = dict(netd_K=netd, fractions=fractions, temperature=temperature,
+                            num_threads=cfg.num_threads)
+        self.inv_module = inv
+        # The velocity proxy: a monotone lookup from the contrast of the
+        # channel most sensitive to the first species to its column density,
+        # at the assumed gas temperature, a typical depth and the scene's
+        # background (velocimetry needs the field's shape, not its scale).
+        bg_t = background.typical_temperature_K
+        self._bg_t = bg_t
+        contrast = self._contrast({cfg.species[0]: np.array([1e-3])}, np.array([scene.gas_K]),
+                                  np.array([0.02]), use_table=False)[0]
+        sens = [abs(contrast[c]) / (netd * ch.band_radiance_derivative(bg_t))
+                for c, ch in enumerate(channels)]
+        self.proxy_channel = int(np.argmax(sens))
+        self._set_proxy_lookup(0.0 if cfg.gas_temperature == "infer" else None)
+        self.sigma_m: Dict[int, float] = {}
+
+    def start_block(self) -> None:
+        """Forgets the samples collected for the previous block (the pipeline
+        streams a run in blocks); with the temperature inferred, the proxy's
+        mixing line is measured again on the block."""
+        for name in ("_rad", "_bg", "_prof"):
+            if hasattr(self, name):
+                delattr(self, name)
+        if self.cfg.gas_temperature == "infer" and self._k_proxy != 0.0:
+            self._set_proxy_lookup(0.0)
+
+    def _set_proxy_lookup(self, k_K_per_fraction: Optional[float]) -> None:
+        """The contrast -> column lookups of the velocity proxy: at the assumed
+        gas temperature (None), or along the plume's mixing line
+        T_peak = T_amb + k x once the temperature has been inferred, for a
+        grid of plume depths (see :meth:`contrast_to_column`)."""
+        self._k_proxy = k_K_per_fraction
+        self._proxy_nodes = None  # made on first use (needs the table)
+        self._grid = None
+
+    @property
+    def table(self):
+        """The per-scene table (waits for the worker building it)."""
+        if self._table_job is not None:
+            self._table = self._table_job.result()  # re-raises the worker's error
+            self._table_job = None
+        return self._table
+
+    @property
+    def proxy_nodes(self):
+        if self._proxy_nodes is None:
+            self._proxy_nodes = self._lookup_nodes(np.array([self.cfg.sigma_m or 0.02]))[0]
+        return self._proxy_nodes
+
+    def _lookup_nodes(self, sigmas: np.ndarray) -> list:
+        """(contrast, column) nodes of the monotone lookup per depth."""
+        cfg, scene = self.cfg, self.scene
+        x = np.geomspace(1e-7, 1.0, 64)
+        if self._k_proxy is None:
+            t = np.full_like(x, scene.gas_K)
+        else:
+            lo, hi = self.temperature_range_K
+            t = np.clip(scene.ambient_K + self._k_proxy * x, lo, hi)
+        # x: the released gas's total peak fraction (the mixing line's x).
+        fr = {cfg.species[0]: x}
+        if cfg.composition is not None:
+            total = sum(cfg.composition[sp] for sp in cfg.species)
+            fr = {sp: x * cfg.composition[sp] / total for sp in cfg.species}
+        n, m = len(sigmas), len(x)
+        frs = {sp: np.tile(v, n) for sp, v in fr.items()}
+        ts = np.tile(t, n)
+        sg = np.repeat(np.asarray(sigmas, float), m)
+        contrast = np.abs(self._contrast(frs, ts, sg)[:, self.proxy_channel]).reshape(n, m)
+        cols = self.model.column_density(frs, ts, sg, scene.ambient_K)[cfg.species[0]].reshape(n, m)
+        out = []
+        for i in range(n):
+            keep = np.concatenate([[True], np.diff(contrast[i]) > 0])
+            out.append((np.concatenate([[0.0], contrast[i][keep]]),
+                        np.concatenate([[0.0], cols[i][keep]])))
+        return out
+
+    def line_shape_curves(self, j: int, species: str):
+        """(columns, ratios) of :func:`qogi.budget.line_shape_ratios` for
+        surface ``j``: the proxy channel, the surface's depth, the assumed
+        gas temperature or the fitted mixing line."""
+        from ..budget import fractions_of, line_shape_ratios
+
+        cfg, scene = self.cfg, self.scene
+        fractions = fractions_of(cfg, species)
+
+        def temperature(x):
+            if self.k_K_per_fraction is None:
+                return np.full_like(x, scene.gas_K)
+            lo, hi = self.temperature_range_K
+            return np.clip(scene.ambient_K + self.k_K_per_fraction * x, lo, hi)
+
+        models = [m for _, m in self.alternatives.get()]
+        return line_shape_ratios(self.model, models, self.proxy_channel, fractions, temperature,
+                                 self.sigma_m.get(j, cfg.sigma_m or 0.02), scene.ambient_K,
+                                 self._bg_t, species)
+
+    def _contrast(self, fractions: Dict[str, np.ndarray], peak_temperature_K: np.ndarray,
+                  sigma_m: np.ndarray, use_table: bool = True) -> np.ndarray:
+        """Contrast (N, C) [W/(m2 sr)] of Gaussian plumes in front of the
+        scene's typical background: from the per-scene table when there is
+        one (thousands of times faster), else from the fast model."""
+        tp = np.asarray(peak_temperature_K, float)
+        sg = np.asarray(sigma_m, float)
+        if use_table and self.table is not None:
+            x = np.stack([np.asarray(fractions.get(sp, np.zeros_like(tp)), float)
+                          for sp in self.cfg.species], axis=1)
+            tbg = np.full((tp.size, len(self.rec.channels)), float(self._bg_t))
+            return np.asarray(self.table.contrast(np.ascontiguousarray(x), tp, sg, tbg)[0])
+        l = self.model.band_radiance(fractions, tp, sg, self.scene.ambient_K, self._bg_t)
+        return l - np.array([ch.band_radiance(self._bg_t) for ch in self.rec.channels])
+
+    def mean_contrast_snr(self, j: int) -> Optional[np.ndarray]:
+        """The time-averaged proxy-channel contrast along surface ``j`` in
+        units of its noise (per-frame NETD noise / sqrt(frames)); None
+        without stored profiles."""
+        prof = getattr(self, "_prof", None)
+        if not prof:
+            return None
+        ch = self.rec.channels[self.proxy_channel]
+        netd = np.broadcast_to(np.asarray(self._inv_kw["netd_K"], float),
+                               (len(self.rec.channels),))[self.proxy_channel]
+        noise = netd * float(ch.band_radiance_derivative(self._bg_t)) / math.sqrt(len(prof))
+        return np.mean([p[j] for p in prof], axis=0) / noise
+
+    def _lookup(self, contrast, nodes=None) -> np.ndarray:
+        c = np.asarray(contrast)
+        nc, ncol = nodes if nodes is not None else self.proxy_nodes
+        return np.sign(c) * np.interp(np.abs(c), nc, ncol)
+
+    def contrast_to_column(self, contrast: np.ndarray) -> np.ndarray:
+        """Signed proxy contrast fields (T, H, W) -> column proxy, in place.
+
+        The velocimetry's mass balance needs a field proportional to the
+        column all along the plume, and a single-channel lookup depends on the
+        plume's depth (saturation): the depth grows downstream. Without a
+        given depth, each line across the plume (rows for horizontal
+        surfaces, columns otherwise) gets the lookup of its own depth, the
+        Gaussian width of the time-averaged plume across that line
+        (axisymmetric plume), interpolated between lookups on a grid of
+        depths; lines without a measurable plume take the nearest line's."""
+        if self.cfg.sigma_m is not None or contrast.shape[0] == 0:
+            for k in range(contrast.shape[0]):
+                contrast[k] = self._lookup(contrast[k])
+            return contrast
+        view = contrast if self.horizontal else contrast.transpose(0, 2, 1)
+        mean = self._lookup(view.mean(axis=0))              # (lines, across)
+        top = mean.max()
+        lines = np.arange(mean.shape[0])
+        widths = np.full(mean.shape[0], np.nan)
+        for r in lines:
+            if top > 0 and mean[r].max() > 0.05 * top:
+                widths[r] = _gaussian_width(mean[r]) * self.scene.pixel_m
+        ok = np.isfinite(widths) & (widths > 0)
+        if not ok.any():
+            for k in range(contrast.shape[0]):
+                contrast[k] = self._lookup(contrast[k])
+            return contrast
+        widths = np.interp(lines, lines[ok], widths[ok])
+        grid = np.geomspace(0.002, 0.5, 9)
+        nodes = self._lookup_nodes(grid)
+        u = np.interp(np.log(np.clip(widths, grid[0], grid[-1])), np.log(grid),
+                      np.arange(grid.size))
+        j0 = np.minimum(np.floor(u).astype(int), grid.size - 2)
+        self.line_depths_m = widths
+        from .. import _engine
+
+        # Every value through its line's two depth lookups (the engine's
+        # LookupLines: numpy.interp per node table, blended per line), on a
+        # contiguous copy when the field is a view.
+        m = max(len(c) for c, _ in nodes)
+        xs = np.array([np.pad(c, (0, m - len(c)), mode="edge") for c, _ in nodes])
+        ys = np.array([np.pad(k, (0, m - len(k)), mode="edge") for _, k in nodes])
+        work = contrast if (contrast.flags.c_contiguous and contrast.dtype == np.float32) \
+            else np.ascontiguousarray(contrast, dtype=np.float32)
+        _engine.lookup_lines(work, bool(self.horizontal), xs, ys, j0.astype(np.int32),
+                             np.clip(u - j0, 0.0, 1.0), num_threads=self.cfg.num_threads)
+        if work is not contrast:
+            contrast[...] = work
+        return contrast
+
+    def proxy_field(self, frame: np.ndarray, out: Optional[np.ndarray] = None) -> np.ndarray:
+        """The signed proxy-channel contrast of frames (..., C, H, W) over the
+        region -> (..., h, w) float32 (into ``out`` when given)."""
+        sl = self.roi.slices()
+        c = self.proxy_channel
+        # In float32 (the frames' own precision; its rounding, ~1e-7 of the
+        # radiance, is ~1e-4 of the NETD noise).
+        fr = frame[..., c, sl[0], sl[1]]
+        bg = self.background.field(fr, self.horizontal, channel=c)
+        if bg is None:  # a uniform region background
+            bg = self.background.region_mean(frame, self.cfg.background)[..., c, None, None]
+        # Signed (gas contrast positive): noise averages out of the sums the
+        # velocimetry's flux level takes along the plume.
+        dl = np.subtract(fr, bg, out=out, dtype=np.float32)
+        dl *= np.float32(self.background.channel_sign[c])
+        return dl
+
+    def collect(self, frames: np.ndarray, surfaces: Sequence[Surface], samples,
+                out: Optional[np.ndarray] = None) -> np.ndarray:
+        """The signed proxy-channel contrast fields (B, h, w) of a block of
+        frames (B, C, H, W) (into ``out`` when given), converted to a column
+        proxy by :meth:`contrast_to_column` once the lookup is final; stores
+        the radiance and the background at the surface samples for
+        :meth:`finish`."""
+        field = self.proxy_field(frames, out)
+        origin = [self.roi.x0, self.roi.y0]
+        rad, bg, prof = [], [], []
+        for s, (xy, n, dl, t) in zip(surfaces, samples):
+            rad.append(_bilinear(frames, xy))
+            bg.append(self.background.along(frames, s, xy, t))
+            prof.append(_bilinear(field, xy - origin))
+        if not hasattr(self, "_rad"):
+            self._rad, self._bg, self._prof = [], [], []
+        self._rad.extend(np.concatenate(rad, axis=-1))
+        self._bg.extend(np.concatenate(bg, axis=-1))
+        self._prof.extend([p[i] for p in prof] for i in range(len(frames)))
+        return field
+
+    def finish(self, samples, time_averaged: bool = False, progress=None, alongside=None):
+        """Inverts the stored samples of every frame in one call. Returns per
+        surface ``(columns {sp: (T, N)}, sigmas {sp: (T, N)})`` and the status
+        counts. ``alongside`` (optional callable) runs on a worker thread while
+        the per-pixel solve runs once the proxy lookup is final (with the
+        temperature inferred), else after it; its exception is re-raised.
+        The plume depth of each surface is the Gaussian width of its
+        time-averaged proxy column profile (axisymmetric plume), unless given."""
+        from .. import inversion as inv
+
+        nt = len(self._rad)
+        sizes = [len(x[0]) for x in samples]
+        edges = np.concatenate([[0], np.cumsum(sizes)])
+        sig = np.empty(edges[-1])
+        for j in range(len(samples)):
+            if self.cfg.sigma_m is not None:
+                sigma = self.cfg.sigma_m
+            else:
+                mean_prof = np.mean([self._lookup(p[j]) for p in self._prof], axis=0)
+                sigma = _gaussian_width(mean_prof) * self.scene.pixel_m
+                if not (np.isfinite(sigma) and sigma > 0):
+                    sigma = 0.02
+            self.sigma_m[j] = float(sigma)
+            sig[edges[j]:edges[j + 1]] = sigma
+        rad = np.asarray(self._rad)          # (T, C, N)
+        bg = np.asarray(self._bg)
+        # The plume depth: given, or the width of the time-averaged plume
+        # across each surface (axisymmetric plume), held fixed with one
+        # channel and as a Gaussian prior (50 %) when the temperature is
+        # inferred (a free depth is nearly degenerate with the fractions).
+        if self.cfg.sigma_m is not None or self.cfg.gas_temperature != "infer":
+            sigma_param = inv.fixed(float(np.median(sig)))
+            sigma_pixels = sig
+        else:
+            sigma_param = None
+            sigma_pixels = sig
+        if self.cfg.gas_temperature == "infer" and not time_averaged:
+            return self._finish_mixing(rad, bg, sig, edges, len(samples), progress, alongside)
+        if time_averaged:
+            res = self._invert(rad.mean(axis=0), bg.mean(axis=0), sigma_pixels, sigma_param,
+                               noise_scale=1.0 / math.sqrt(nt), progress=progress)
+            res_cols = {sp: np.repeat(res.column_density[sp][None], nt, axis=0)
+                        for sp in self.cfg.species}
+            res_sig = {sp: np.repeat(res.column_density_sigma[sp][None], nt, axis=0)
+                       for sp in self.cfg.species}
+            ok = np.repeat((res.valid | (res.status == inv.BELOW_DETECTION))[None], nt, axis=0)
+            counts = res.counts()
+        else:
+            # Every frame's pixels in one call, each from the coarse table
+            # guess: warm starts from the previous frame can follow the wrong
+            # branch of the temperature-column ambiguity of hot plumes.
+            c_, n_ = rad.shape[1], rad.shape[2]
+            flat = self._invert(rad.transpose(1, 0, 2).reshape(c_, nt * n_),
+                                bg.transpose(1, 0, 2).reshape(c_, nt * n_),
+                                np.tile(sigma_pixels, nt), sigma_param, 1.0, progress)
+            res_cols = {sp: flat.column_density[sp].reshape(nt, n_) for sp in self.cfg.species}
+            res_sig = {sp: flat.column_density_sigma[sp].reshape(nt, n_) for sp in self.cfg.species}
+            ok = (flat.valid | (flat.status == inv.BELOW_DETECTION)).reshape(nt, n_)
+            counts = flat.counts()
+        out = []
+        for j in range(len(samples)):
+            a, b = edges[j], edges[j + 1]
+            cols = {sp: np.where(ok[:, a:b], res_cols[sp][:, a:b], np.nan) for sp in self.cfg.species}
+            sigs = {sp: np.where(ok[:, a:b], res_sig[sp][:, a:b], 0.0) for sp in self.cfg.species}
+            out.append((cols, sigs))
+        if alongside is not None:
+            alongside()
+        return out, counts
+
+    # -- the inferred gas temperature, frame by frame -----------------------------
+    def _finish_mixing(self, rad, bg, sig, edges, n_surfaces, progress, alongside=None):
+        """Per-frame columns with the gas temperature inferred through the
+        plume's mixing line.
+
+        A released gas that mixes with the ambient air (adiabatically, as in
+        a plume) has, at every point, a temperature excess proportional to
+        its volume fraction: T - T_amb = k x (the Gaussian line-of-sight model
+        has this shape: both follow g(s)). One k holds for the whole scene,
+        so it is measured once: on a random sample (<= 3000) of the
+        pixel-frames with contrast >= 10x noise solved on the line for each k
+        of a 10 K grid, k minimises the summed chi2 (each pixel's capped at
+        50), refined by a parabola; its 1-sigma is where that profile rises
+        by the reduced chi2. Then each pixel-frame has one unknown, x,
+        with T_peak = T_amb + k x: with a known composition (or one species)
+        its least-squares value on the line (qogi.inversion.
+        invert_on_mixing_line: a coarse scan and Gauss-Newton in ln x on the
+        scene table, ~40,000 px/s per core); otherwise a root of x = g(x) (g:
+        the fixed-temperature inversion at T(x)) by bracketed regula falsi,
+        each step one fast fixed-temperature pass over the pixels not yet
+        converged. This avoids the two-branch
+        (thin-hot / thick-cool) ambiguity of free per-pixel temperatures in
+        noisy frames and costs one line solve instead of a multi-start
+        four-parameter solve per pixel. The uncertainty of k is
+        carried into the column-density term (:attr:`k_relative_effect`).
+        """
+        inv = self.inv_module
+        cfg, t_amb = self.cfg, self.scene.ambient_K
+        nt, nc, n = rad.shape
+        lo, hi = self.temperature_range_K
+        r2 = rad.transpose(1, 0, 2).reshape(nc, nt * n)
+        b2 = bg.transpose(1, 0, 2).reshape(nc, nt * n)
+        s2 = np.tile(sig, nt)
+        kw = dict(self._inv_kw)
+        kw.pop("temperature")
+        fixed = []  # the fixed-temperature inversion of the fixed-point passes, made on use
+
+        def fixed_t():
+            if not fixed:
+                fixed.append(inv.Inversion(self.model, t_amb, temperature=inv.fixed(t_amb),
+                                           sigma_m=0.05, temperature_range_K=(lo, hi),
+                                           table=self.table, **kw))
+            return fixed[0]
+
+        def stage(a, b, label):
+            return lambda f: progress(a + (b - a) * f) if progress else None
+
+        # 1. The mixing line's slope: the scene parameter k that minimises the
+        # total chi2 of a sample of the detected pixel-frames (<= 3000, contrast
+        # >= 10x noise) solved on the line (a profile likelihood over a grid of
+        # k, refined by a parabola). Pixel-by-pixel free temperatures are too
+        # weakly determined (and two-branched) to average into k.
+        t_bg = [float(ch.radiometric_temperature(float(np.median(b2[c]))))
+                for c, ch in enumerate(self.rec.channels)]
+        netd = np.broadcast_to(np.asarray(self._inv_kw["netd_K"], float), (nc,))
+        noise = np.array([netd[c] * ch.band_radiance_derivative(t_bg[c])
+                          for c, ch in enumerate(self.rec.channels)])[:, None]
+        snr = np.max(np.abs(r2 - b2) / noise, axis=0)
+        rng = np.random.default_rng(0)
+        cand = np.flatnonzero(snr >= 10.0)
+        if cand.size > 3000:
+            cand = np.sort(rng.choice(cand, 3000, replace=False))
+        self.k_K_per_fraction, self.k_sigma, self.mixing_pixels = 0.0, 0.0, int(cand.size)
+        # 2. Every pixel-frame: x = g(x) with T_peak = T_amb + k x. In u = ln x
+        # the root of phi(u) = ln g(e^u) - u is bracketed by x -> 0 (g(0) > 0:
+        # phi > 0) and x = g(0) (phi <= 0 when g decreases, as it does for gas
+        # warmer than its background); the Illinois variant of regula falsi
+        # closes the bracket, each step one fixed-temperature pass over the
+        # pixels not yet within 0.3 % of their root.
+        def g(xv, kk, idx, a, b):
+            t = np.clip(t_amb + kk * xv, lo, hi)
+            res = fixed_t().invert(r2[:, idx], background_radiance=b2[:, idx], sigma_m=s2[idx],
+                                 peak_temperature_K=t, progress=stage(a, b, "columns"))
+            return res, sum(res.peak_fraction[sp] for sp in cfg.species)
+
+        def solve_passes(kk, idx, a, b, passes=7):
+            span = (b - a) / passes
+            out, g0 = g(np.zeros(idx.size), kk, idx, a, a + span)
+            out = _owned(out)
+            live = np.flatnonzero((g0 > 0) & out.valid)
+            ua = np.full(live.size, math.log(1e-7))
+            fa = np.log(g0[live]) - ua                      # > 0
+            ub = np.log(np.minimum(g0[live], 1.0))
+            res, gb = g(np.exp(ub), kk, idx[live], a + span, a + 2 * span)
+            fb = np.log(np.maximum(gb, 1e-12)) - ub
+            _scatter(out, res, live)
+            # No bracket (g not decreasing there): keep the pass at x = g(0).
+            keep = (fb < 0) & (np.abs(fb) > 3e-3)
+            live, ua, fa, ub, fb = live[keep], ua[keep], fa[keep], ub[keep], fb[keep]
+            side = np.zeros(live.size, int)
+            for step in range(passes - 2):
+                if live.size == 0:
+                    break
+                uc = (ua * fb - ub * fa) / (fb - fa)
+                res, gc = g(np.exp(uc), kk, idx[live], a + (2 + step) * span,
+                            a + (3 + step) * span)
+                fc = np.log(np.maximum(gc, 1e-12)) - uc
+                _scatter(out, res, live)
+                pos = fc > 0  # the root lies above uc: uc replaces the lower end
+                # Illinois: an end kept twice in a row has its value halved.
+                fa = np.where(pos, fc, np.where(side == -1, 0.5 * fa, fa))
+                fb = np.where(~pos, fc, np.where(side == 1, 0.5 * fb, fb))
+                ua = np.where(pos, uc, ua)
+                ub = np.where(~pos, uc, ub)
+                side = np.where(pos, 1, -1)
+                keep = np.abs(fc) > 3e-3
+                live, ua, fa, ub, fb, side = (live[keep], ua[keep], fa[keep], ub[keep], fb[keep],
+                                              side[keep])
+            return out
+
+
+        # With a known composition (or one species) each pixel-frame is one
+        # least-squares problem on the line (the engine's mixing-line
+        # inverter: a coarse scan and Gauss-Newton in ln x); otherwise the
+        # fixed-point passes above.
+        comp = cfg.composition or ({cfg.species[0]: 1.0} if len(cfg.species) == 1 else None)
+
+        def solve_line(kk, idx, a, b):
+            return inv.invert_on_mixing_line(
+                self.model, self.table, kk, r2[:, idx], b2[:, idx], s2[idx],
+                netd_K=self._inv_kw["netd_K"], composition=comp,
+                num_threads=cfg.num_threads, progress=stage(a, b, "columns"))
+
+        solve = solve_line if comp is not None else solve_passes
+
+        if cand.size >= 5:
+            step = 10.0
+            grid = np.arange(lo - t_amb, hi - t_amb + 1e-9, step)
+            chi = []
+            for i, kk in enumerate(grid):
+                r = solve(float(kk), cand, 0.3 * i / grid.size, 0.3 * (i + 1) / grid.size)
+                chi.append(r.chi2)
+            chi = np.asarray(chi)                             # (k values, pixels)
+            good = np.all(np.isfinite(chi), axis=0)
+            # Per-pixel chi2 capped (robust: a few saturated pixels that no
+            # temperature fits must not decide the scene's k).
+            total = np.minimum(chi[:, good], 50.0).sum(axis=1)
+            i = int(np.argmin(total))
+            k = float(grid[i])
+            dof = max(1, int(good.sum()) - 1)
+            scale = max(1.0, total[i] / dof)  # model error widens Delta chi2 = 1
+            if 0 < i < grid.size - 1:
+                y0, y1, y2 = total[i - 1], total[i], total[i + 1]
+                curv = (y0 - 2 * y1 + y2) / step ** 2
+                if curv > 0:
+                    k = float(np.clip(grid[i] - 0.5 * (y2 - y0) / step / curv,
+                                      grid[i] - 0.5 * step, grid[i] + 0.5 * step))
+            # 1-sigma: where the (interpolated) total rises by `scale` from its
+            # minimum, on the flatter side.
+            fine = np.linspace(grid[0], grid[-1], 1 + 20 * (grid.size - 1))
+            curve = np.interp(fine, grid, total)
+            inside = fine[curve <= total[i] + scale]
+            self.k_sigma = float(max(k - inside.min(), inside.max() - k, 0.5 * step)) \
+                if inside.size else float(step)
+            self.k_K_per_fraction = k
+        k = self.k_K_per_fraction
+        self._set_proxy_lookup(k)
+
+        # What needs the final lookup (the proxy field's conversion) runs on a
+        # worker thread alongside the per-pixel solve.
+        job = None
+        if alongside is not None:
+            self.proxy_nodes  # made here, before the worker uses it
+            job = _workers_mod.current().submit(alongside, "qogi-proxy")
+        try:
+            everything = np.arange(nt * n)
+            flat = solve(k, everything, 0.3, 0.9)
+        finally:
+            if job is not None:
+                job.wait()
+        if job is not None:
+            job.result()  # re-raises the worker's error
+        # Sensitivity to k on every 5th frame: carried into the column term.
+        self.k_relative_effect = 0.0
+        if self.k_sigma > 0:
+            sub = (np.arange(0, nt, 5)[:, None] * n + np.arange(n)[None, :]).ravel()
+            base = sum(flat.column_density[sp][sub].sum() for sp in cfg.species)
+            alt = solve(k + self.k_sigma, sub, 0.9, 1.0)
+            other = sum(alt.column_density[sp].sum() for sp in cfg.species)
+            if base > 0:
+                self.k_relative_effect = float(abs(other - base) / base)
+        res_cols = {sp: flat.column_density[sp].reshape(nt, n) for sp in cfg.species}
+        res_sig = {sp: flat.column_density_sigma[sp].reshape(nt, n) for sp in cfg.species}
+        ok = (flat.valid | (flat.status == inv.BELOW_DETECTION)).reshape(nt, n)
+        out = []
+        for j in range(n_surfaces):
+            a, b = edges[j], edges[j + 1]
+            cols = {sp: np.where(ok[:, a:b], res_cols[sp][:, a:b], np.nan) for sp in cfg.species}
+            sigs = {sp: np.where(ok[:, a:b], res_sig[sp][:, a:b], 0.0) for sp in cfg.species}
+            out.append((cols, sigs))
+        return out, flat.counts()
+
+    def _invert(self, rad, bg, sigma_pixels, sigma_param, noise_scale, progress):
+        """One inversion call; with an inferred temperature and no given depth,
+        a Gaussian prior on sigma centred on each pixel's width estimate."""
+        inv = self.inv_module
+        if sigma_param is None:
+            # The prior's centre varies per surface: group the pixels by it.
+            out = None
+            res_all = {}
+            for val in np.unique(sigma_pixels):
+                sel = sigma_pixels == val
+                inversion = inv.Inversion(self.model, self.scene.ambient_K,
+                                          sigma_m=inv.prior(float(val), 0.5 * float(val),
+                                                            1e-3, 0.5), table=self.table,
+                                          **self._inv_kw)
+                res_all[float(val)] = (sel, inversion.invert(rad, background_radiance=bg,
+                                                             mask=sel, progress=progress))
+            # Merge: each pixel from the run that selected it.
+            sels = list(res_all.values())
+            out = sels[0][1]
+            for sel, r in sels[1:]:
+                out = _merge_results(out, r, sel)
+            return out
+        inversion = inv.Inversion(self.model, self.scene.ambient_K, sigma_m=sigma_param,
+                                  table=self.table, **self._inv_kw)
+        if noise_scale != 1.0:
+            return inversion.invert_mean(rad[None] if rad.ndim == 2 else rad,
+                                         background_radiance=bg, sigma_m=sigma_pixels,
+                                         progress=progress)
+        return inversion.invert(rad, background_radiance=bg, sigma_m=sigma_pixels,
+                                progress=progress)
+
+
+
+def _anchor_proxy(fields: np.ndarray, samples, surf_cols, species: str, horizontal: bool,
+                  roi: Region) -> Dict[str, float]:
+    """Scales the velocity proxy (T, H, W) line by line to the inverted
+    columns where both exist: along each surface, the ratio of the full
+    inversion's column sum to the proxy's (over every frame) is the proxy's
+    calibration there; lines between surfaces take it interpolated, lines
+    beyond the outermost surfaces the nearest one's. The velocimetry's mass
+    balance needs the proxy proportional to the column along the plume, which
+    a single-channel lookup cannot promise where the gas cools and thins.
+    Returns {line: ratio} of the anchors (for the record)."""
+    pos, ratio = [], []
+    for (xy, n, dl, t), cols in zip(samples, surf_cols):
+        inv = cols[species][:fields.shape[0]]
+        good = np.isfinite(inv)
+        if not good.any():
+            continue
+        prox = np.stack([_bilinear(fields[k], xy - [roi.x0, roi.y0])
+                         for k in range(fields.shape[0])])
+        a, b = float(np.sum(np.where(good, inv, 0.0))), float(np.sum(np.where(good, prox, 0.0)))
+        if a > 0 and b > 0:
+            pos.append(float(np.mean(xy[:, 1] - roi.y0 if horizontal else xy[:, 0] - roi.x0)))
+            ratio.append(a / b)
+    if not pos:
+        return {}
+    order = np.argsort(pos)
+    pos, ratio = np.asarray(pos)[order], np.asarray(ratio)[order]
+    view = fields if horizontal else fields.transpose(0, 2, 1)
+    lines = np.arange(view.shape[1])
+    scale = np.exp(np.interp(lines, pos, np.log(ratio))).astype(np.float32)
+    view *= scale[None, :, None]
+    return {f"{p:.0f}": float(r) for p, r in zip(pos, ratio)}
+
+
+
+def block_columns(st: RunState, blk, say) -> BlockColumns:
+    """The column field over the region and the columns along the surfaces
+    of the frames of one block (``blk``, a :class:`qogi.timebase.Block`).
+    A cancel (:class:`qogi.Cancelled` from ``say``) keeps what was read:
+    the frames collected so far are inverted (unless that is cancelled too)
+    and the block comes back with ``cancelled`` set."""
+    rec, cfg, roi, samples, columns = st.rec, st.cfg, st.roi, st.samples, st.columns
+    a, b = blk.read
+    nb = b - a
+    first = st.start + a
+    col_fields = np.zeros((nb, roi.y1 - roi.y0, roi.x1 - roi.x0), dtype=np.float32)
+    surf_cols = [{sp: np.full((nb, len(x[0])), np.nan) for sp in cfg.species} for x in samples]
+    surf_sig = [{sp: np.zeros((nb, len(x[0]))) for sp in cfg.species} for x in samples]
+    counts: Dict[str, int] = {}
+    info: Dict[str, object] = {}
+    done = 0
+    if isinstance(columns, InvertedColumns):
+        columns.start_block()
+
+    def invert_collected(n_done: int, time_averaged: bool, alongside=None) -> None:
+        if cfg.methods.truth_columns or n_done == 0:
+            return
+        per_surface, cnt = columns.finish(
+            samples, time_averaged=time_averaged,
+            progress=lambda fr_: say(0.35 + 0.25 * fr_, "inverting the surfaces' pixels"),
+            alongside=alongside)
+        for j in range(len(samples)):
+            for sp in cfg.species:
+                surf_cols[j][sp][:n_done] = per_surface[j][0][sp]
+                surf_sig[j][sp][:n_done] = per_surface[j][1][sp]
+        for key, v in cnt.items():
+            counts[key] = counts.get(key, 0) + int(v)
+
+    def out(cancelled: bool = False) -> BlockColumns:
+        return BlockColumns(col_fields, surf_cols, surf_sig, counts, done, info, cancelled)
+
+    time_averaged = cfg.methods.time_averaged
+    try:
+        if cfg.methods.truth_columns:
+            for k in range(nb):
+                fields = columns.frame(first + k, roi)
+                if time_averaged:
+                    acc = fields if k == 0 else {sp: acc[sp] + fields[sp] for sp in fields}
+                col_fields[k] = sum(fields.values())
+                for j, (xy, n, dl, t) in enumerate(samples):
+                    for sp in cfg.species:
+                        surf_cols[j][sp][k] = _bilinear(fields[sp], xy - [roi.x0, roi.y0])
+                counts["converged"] = counts.get("converged", 0) + \
+                    sum(len(x[0]) for x in samples)
+                done = k + 1
+                say(0.05 + 0.3 * done / nb, f"column field, frame {done}/{nb}")
+        else:
+            # Sub-blocks of frames: one read and one vectorised pass each (at
+            # least ten, for the progress and a cancel's partial result).
+            sub = int(np.clip(nb // 10, 1, 25))
+            for k in range(0, nb, sub):
+                m = min(sub, nb - k)
+                fr = rec.frames(first + k, first + k + m, quantity="radiance")
+                st.radiance_check(fr, first + k)
+                columns.collect(fr, st.surfaces, samples, out=col_fields[k:k + m])
+                done = k + m
+                say(0.05 + 0.3 * done / nb, f"background and column field, frame {done}/{nb}")
+        if time_averaged and cfg.methods.truth_columns:
+            for j, (xy, n, dl, t) in enumerate(samples):
+                for sp in cfg.species:
+                    surf_cols[j][sp][:] = _bilinear(acc[sp] / nb, xy - [roi.x0, roi.y0])
+        # The proxy field over the whole region (the flow runs on its part,
+        # crop; the flux level's transport balance on all of it) is turned
+        # into a column alongside the surfaces' final solve.
+        part = col_fields[:done]
+        invert_collected(done, time_averaged, alongside=lambda: columns.contrast_to_column(part))
+        if not cfg.methods.truth_columns:
+            info["proxy_anchor"] = _anchor_proxy(
+                part, samples, surf_cols, cfg.species[0], st.horizontal, roi)
+    except Cancelled:
+        try:
+            invert_collected(done, time_averaged)
+        except Cancelled:
+            pass
+        return out(cancelled=True)
+    return out()

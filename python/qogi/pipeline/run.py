@@ -1,0 +1,135 @@
+"""The run: :func:`quantify` checks its inputs and chains the stages.
+
+recording (:mod:`.setup`) -> background (:mod:`.background`) -> columns
+(:mod:`.columns`) -> velocity (:mod:`.velocity`) -> flux (:mod:`.flux`) ->
+rate and budget (:mod:`.budget`), the middle three block by block
+(:mod:`qogi.timebase`: blocks of bounded length with a few frames of overlap,
+cut where ``time_s`` has a gap). Every stage takes the
+:class:`~.state.RunState` and returns (or sets on it) what the next one needs.
+"""
+
+from __future__ import annotations
+
+from typing import Callable, List, Optional, Sequence, Union
+
+from .. import workers as _workers_mod
+from ..errors import Cancelled
+from ..recording import Recording
+from ..result import Result
+from ..surfaces import Surface
+from . import background, budget, columns, flux, setup, velocity
+from .config import QuantifyConfig
+from .setup import check_inputs
+from .state import BlockOut, RunState
+
+__all__ = ["quantify", "BLOCK_BYTES", "MIN_BLOCK_FRAMES"]
+
+#: Frames per block (the pipeline's memory bound) when not configured: the
+#: block's float32 fields (column field, flow, frame velocities, their
+#: normalised copy, ~8 per frame) within this many bytes.
+BLOCK_BYTES = 1 << 30
+#: Frames per block at least (the transport's flux level is a time average
+#: over the block: at 15 Hz, 30 s).
+MIN_BLOCK_FRAMES = 450
+
+
+def quantify(recording: Union[Recording, str], surfaces: Sequence[Surface],
+             config: Optional[QuantifyConfig] = None,
+             progress: Optional[Callable[[float, str], Optional[bool]]] = None,
+             keep_maps: bool = False) -> Result:
+    """Emission-rate time series of each species through each control surface.
+
+    Parameters
+    ----------
+    recording : qogi.Recording or path
+    surfaces : list of qogi.Surface
+        Lines or polylines in pixel coordinates; sign convention in
+        :mod:`qogi.surfaces` (left-hand normal positive), or oriented away from
+        ``config.source`` when given.
+    config : QuantifyConfig, optional
+    progress : callable(fraction, message) -> bool or None
+        qogi's progress protocol (:mod:`qogi.progress`): returning False
+        cancels: :class:`qogi.Cancelled` is raised with the partial result of
+        the frames finished so far (``.partial``).
+    keep_maps : bool
+        Keep per-frame column-density and velocity maps (``Result.maps``).
+
+    Returns
+    -------
+    qogi.Result
+    """
+    from ..recording import open_recording
+
+    cfg = config or QuantifyConfig()
+    rec = open_recording(recording) if not isinstance(recording, Recording) else recording
+    surfaces = [s if isinstance(s, Surface) else Surface(s) for s in surfaces]
+    surfaces = [Surface(s.points, s.name or f"S{k + 1}") for k, s in enumerate(surfaces)]
+    if cfg.source is not None:
+        surfaces = [s.oriented_away_from(cfg.source) for s in surfaces]
+    check_inputs(rec, surfaces, cfg)
+    from ..checks import check_surfaces
+    check_surfaces(surfaces)
+    with _workers_mod.owned_workers():
+        result = _run(rec, surfaces, cfg, progress, keep_maps)
+    # What opening a camera file noticed (scene facts at factory defaults,
+    # assumed pressure, dropped frames) and where each scene fact came from.
+    # (Dropped frames are the pipeline's own finding too: reported once.)
+    result.warnings.extend_unique(
+        w for w in (getattr(rec, "warnings", None) or ())
+        if not (w.code == "frames-dropped" and result.warnings.has("frames-dropped")))
+    if getattr(rec, "scene_origin", None):
+        result.info["scene_origin"] = dict(rec.scene_origin)
+    return result
+
+
+def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
+         keep_maps: bool) -> Result:
+    """The stages in order; a cancel raises :class:`qogi.Cancelled` with the
+    Result of the blocks finished (``complete=False``)."""
+    from ..timebase import stream_blocks
+
+    run = setup.prepare(rec, surfaces, cfg, progress, keep_maps)
+    background.prepare(run)
+    columns.prepare(run)
+    velocity.prepare(run)
+    # Stream the run in blocks (bounded memory), cut at gaps in time_s.
+    blocks = stream_blocks(run.timebase.segments, _block_frames(cfg, rec), overlap=4)
+    for i, blk in enumerate(blocks):
+        label = f" (block {i + 1}/{len(blocks)})" if len(blocks) > 1 else ""
+
+        def say_block(fraction: float, message: str, i=i, label=label) -> None:
+            run.say((i + fraction) / len(blocks), message + label)
+
+        try:
+            out = _block(run, blk, say_block)
+        except Cancelled:
+            out = None
+        if out is not None:
+            run.blocks.append(out)
+        if out is None or out.cancelled:
+            run.radiance_check.report(run.warnings)
+            raise Cancelled("quantification cancelled",
+                            partial=budget.finish(run, complete=False)) from None
+    run.radiance_check.report(run.warnings)
+    return budget.finish(run, complete=True)
+
+
+def _block(run: RunState, blk, say) -> BlockOut:
+    """One block through columns -> velocity -> flux."""
+    cols = columns.block_columns(run, blk, say)
+    if cols.cancelled:
+        return flux.block_flux(run, blk, cols, None, None)
+    flows = velocity.block_velocity(run, cols, blk, say)
+    vn = [velocity.normal_velocity(run, flows, s.xy, s.n, cols.fields.shape[0])
+          for s in run.samples]
+    out = flux.block_flux(run, blk, cols, vn, flows)
+    if run.keep_maps and flows is not None:
+        out.maps = flux.block_maps(run, blk, cols, flows)
+    return out
+
+
+def _block_frames(cfg: QuantifyConfig, rec: Recording) -> int:
+    if cfg.block_frames is not None:
+        return cfg.block_frames
+    per_frame = 8 * 4 * rec.height * rec.width
+    return int(max(MIN_BLOCK_FRAMES, BLOCK_BYTES // per_frame))

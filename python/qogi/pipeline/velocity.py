@@ -1,0 +1,233 @@
+"""Stage 3, the velocity: velocimetry on the column field (default: the
+continuity-equation "fluid" flow, its flux level from the transport of the
+line-integrated column when the source is known or detected), or a given
+wind / exit speed; then the velocity along each surface sample's normal.
+
+:func:`prepare` sets the run's source (given or detected) and the flow's
+part of the region (:class:`~.state.Transport`); :func:`block_velocity`
+makes a block's :class:`~.state.Flow` from its :class:`~.state.BlockColumns`;
+:func:`normal_velocity` samples it on a surface.
+"""
+
+from __future__ import annotations
+
+from typing import Dict, Optional, Tuple
+
+import numpy as np
+
+from .. import workers as _workers_mod
+from ..errors import Cancelled
+from ..surfaces import Region
+from .config import QuantifyConfig
+from .sampling import _bilinear
+from .setup import wants_source
+from .state import BlockColumns, Flow, FluxLevelPlan, RunState, Transport
+
+__all__ = ["prepare", "flux_level_plan", "block_velocity", "normal_velocity"]
+
+
+def prepare(run: RunState) -> None:
+    """The run's source (given, or detected on the sampled frames for the
+    flux level of the default velocimetry; the sampled frames are released
+    here) and, with a source and velocimetry, the flow's part of the region."""
+    cfg = run.cfg
+    source = cfg.source
+    sample_frames, run.sample_frames = run.sample_frames, None
+    if wants_source(cfg) and len(sample_frames) >= 2:
+        from ..surfaces import _plume_image, detect_source
+        try:
+            source = detect_source(_plume_image(sample_frames))
+            run.info["source_xy"] = [float(source[0]), float(source[1])]
+            run.info["source"] = (f"detected at x={source[0]:.1f}, y={source[1]:.1f} "
+                                  f"(for the flux level; give source= to set it)")
+        except ValueError as e:
+            run.info["source"] = f"not detected: {e}"
+    del sample_frames
+    run.radiance_check.bad_pixels = run.radiance_check.total_pixels = 0  # counted again per block
+    run.radiance_check.first_frame = None
+    run.source = source
+    # The flow's part of the region (all of it without a source).
+    if source is not None and not cfg.methods.given_speed:
+        run.transport = _transport_crop(run.surfaces, source, run.roi,
+                                        (run.rec.height, run.rec.width))
+        run.crop = run.transport.crop
+
+
+def flux_level_plan(cfg: QuantifyConfig, source: Optional[Tuple[float, float]],
+                    frames: int) -> FluxLevelPlan:
+    """Whether a block of ``frames`` frames takes its flux level from the
+    transport of the line-integrated column (time of flight of the plume's
+    structures: mass conservation alone cannot fix it in a steady plume;
+    docs/velocimetry.md): with the fluid method and a known source."""
+    return FluxLevelPlan("a method other than fluid" if cfg.velocity != "fluid" else
+                         "flux_level=False" if not cfg.flux_level else
+                         "no source given or detected" if source is None else
+                         "fewer than 3 frames" if frames < 3 else None)
+
+
+def normal_velocity(st: RunState, flows: Optional[Flow], xy: np.ndarray, n: np.ndarray,
+                    nb: int) -> np.ndarray:
+    """The velocity along each sample's normal [m/s], (frames, samples):
+    the given speed, or the flow's (px per nominal frame interval) sampled
+    at the surface (zero outside the flow's part; NaN without a flow)."""
+    cfg, roi = st.cfg, st.roi
+    if cfg.velocity == "wind":
+        return np.full((nb, len(xy)), float(cfg.wind_speed_m_s))
+    if cfg.velocity == "exit":
+        return np.full((nb, len(xy)), float(cfg.exit_velocity_m_s))
+    if flows is None:
+        return np.full((nb, len(xy)), np.nan)
+    fu, fv, (cx, cy) = flows
+    p = xy - [roi.x0 + cx, roi.y0 + cy]
+    h, w = fu.shape[1:]
+    inside = (p[:, 0] >= 0) & (p[:, 0] <= w - 1) & (p[:, 1] >= 0) & (p[:, 1] <= h - 1)
+    u = _bilinear(fu, p)
+    v = _bilinear(fv, p)
+    return np.where(inside, (u * n[:, 0] + v * n[:, 1]) * st.scene.m_s_per_px_frame, 0.0)
+
+
+def _pair_durations(intervals: np.ndarray, stride: int, n_frames: int) -> np.ndarray:
+    """Duration [nominal frame intervals] of the pairs of frames 0, stride,
+    2 stride, ... of a block whose consecutive frames are ``intervals`` apart."""
+    t = np.concatenate([[0.0], np.cumsum(intervals)])[:n_frames]
+    return np.diff(t[::stride])
+
+
+def block_velocity(st: RunState, cols: BlockColumns, blk, say) -> Optional[Flow]:
+    """The velocity at every frame of a block [px per nominal frame
+    interval] over the flow's part of the region, or None (given speeds;
+    fewer than 2 frames); its notes (pair stride, flux level) into the
+    block's ``info``."""
+    a, b = blk.read
+    return _block_velocity(st, cols.fields, st.timebase.pair_intervals[a:b - 1], cols.info,
+                           say)
+
+
+def _block_velocity(st: RunState, col_fields: np.ndarray, intervals: np.ndarray,
+                    velocity_info: Dict[str, object], say) -> Optional[Flow]:
+    from .. import velocimetry as vel
+
+    cfg, roi, crop, source = st.cfg, st.roi, st.crop, st.source
+    done = col_fields.shape[0]
+    if cfg.methods.given_speed or done < 2:
+        return None
+    # Every frame's field (also for the time-averaged order: the gas
+    # moves, the averaged field does not).
+    velocity_frames = col_fields
+    source_mask = None
+    if source is not None:
+        sx, sy = source[0] - roi.x0, source[1] - roi.y0
+        yy, xx = np.mgrid[0:velocity_frames.shape[1], 0:velocity_frames.shape[2]]
+        rad = 6.0
+        source_mask = ((xx - sx) ** 2 + (yy - sy) ** 2) <= rad ** 2
+        if not source_mask.any():
+            source_mask = None
+    # With the fluid method and a known source, the flux level comes from
+    # the transport of the line-integrated column (time of flight of the
+    # plume's structures: mass conservation alone cannot fix it in a
+    # steady plume; docs/velocimetry.md).
+    plan = flux_level_plan(cfg, source, done)
+    if plan.on:
+        axis, index, region_index = st.transport.axis, st.transport.index, \
+            st.transport.region_index
+    field = velocity_frames[:, crop[0], crop[1]]
+    mask = source_mask[crop[0], crop[1]] if source_mask is not None else None
+    # The flows' scale: the 99.5th percentile of (up to) 100 frames spread
+    # over the block.
+    scale = np.percentile(field[::max(1, field.shape[0] // 100)], 99.5)
+    norm = np.ascontiguousarray(field / scale if scale > 0 else field, dtype=np.float32)
+    # The flux level's transport along the whole region (the plume's
+    # structures beyond the flow's part constrain it too;
+    # docs/velocimetry.md), on a worker thread while the flow runs.
+    job = None
+    if plan.on:
+        job = _workers_mod.current().submit(
+            lambda: vel.transport_flux(velocity_frames, axis, region_index, intervals=intervals),
+            "qogi-transport")
+    # Pairs `stride` frames apart where the plume moves little per frame
+    # (at 100 Hz a lab plume crosses ~1 px per frame): ~3 px per pair, at
+    # most every 4th frame, with the transport's flux level (which sets
+    # the level; the flow gives the pattern: the same rates to 0.1 % on
+    # the lab releases at strides 1-4, docs/velocimetry.md).
+    stride = cfg.pair_stride
+    if stride is None:
+        stride = 1
+        if plan.on:
+            d = vel.typical_displacement(field, axis)
+            if np.isfinite(d) and d > 0:
+                stride = int(np.clip(round(3.0 / d), 1, 4))
+    stride = max(1, min(int(stride), (norm.shape[0] - 1) // 2))
+    velocity_info["pair_stride"] = stride
+    fvel = None
+    try:
+        seq = vel.optical_flow_sequence(
+            norm[::stride], method=cfg.velocity, source_mask=mask, warm_start=True,
+            workers=0, progress=lambda fr_: say(0.6 + 0.3 * fr_, "velocimetry"))
+        # Each pair's displacement over its real duration (time_s), in px per
+        # `stride` nominal frame intervals.
+        per = (stride / _pair_durations(intervals, stride, done)).astype(np.float32)
+        if not np.all(per == 1.0):
+            seq.u *= per[:, None, None]
+            seq.v *= per[:, None, None]
+        if stride > 1:
+            fvel = vel.interpolate_frame_velocity(*vel.frame_velocity(seq), stride,
+                                                  norm.shape[0])
+    except KeyboardInterrupt:
+        # Ctrl-C inside the velocimetry (or its own loops' stop): the block
+        # is dropped and the run returns the blocks finished before it.
+        raise Cancelled("quantification cancelled", partial=None) from None
+    finally:
+        if job is not None:
+            job.wait()
+    uv = None
+    flux_note = plan.off_note()
+    if plan.on:
+        try:
+            tf = job.result()  # its error is reported as the level's note
+            # In the flow field's units and lines.
+            lines = crop[0] if axis in ("up", "down") else crop[1]
+            tf = tf.lines(lines, scale=1.0 / scale if scale > 0 else 1.0)
+            u, v, level = vel.calibrate_flux_level(seq, norm, axis, index, transport=tf,
+                                                   frame_velocities=fvel)
+            uv = (u, v)
+            flux_note = (f"on: transport of the line-integrated column, axis {axis}"
+                         if np.isfinite(level).any() else
+                         f"on: transport velocity of each line along axis {axis} (the "
+                         f"flow did not follow the transport, e.g. wind faster than it "
+                         f"can track)")
+        except ValueError as e:
+            flux_note = f"off: {e}"
+    if uv is None:
+        uv = fvel if fvel is not None else vel.frame_velocity(seq)
+    velocity_info["flux_level"] = flux_note
+    # The analysed part and its origin in the region (no velocity outside it).
+    return Flow(uv[0], uv[1], (crop[1].start, crop[0].start))
+
+
+
+def _transport_crop(surfaces, source, roi: Region, shape: Tuple[int, int]) -> Transport:
+    """The plume's axis in the image (``up``, ``down``, ``left``, ``right``:
+    from the source towards the surfaces), the source's line along it in the
+    part of the region the flow uses (index), that part: up to a margin
+    beyond the farthest surface (the gas leaving through the cut is the flow
+    balance's outflow), and the source's line in the whole region (for the
+    transport flux level, measured along all of it)."""
+    pts = np.concatenate([np.asarray(s.points, float) for s in surfaces])
+    dx, dy = pts.mean(axis=0) - np.asarray(source)
+    if abs(dy) >= abs(dx):
+        axis, index = ("up" if dy < 0 else "down"), source[1] - roi.y0
+        coord, size = pts[:, 1] - roi.y0, shape[0]
+    else:
+        axis, index = ("right" if dx > 0 else "left"), source[0] - roi.x0
+        coord, size = pts[:, 0] - roi.x0, shape[1]
+    far = coord.min() if axis in ("up", "left") else coord.max()
+    region_index = index
+    margin = max(48.0, abs(index - far))
+    if axis in ("up", "left"):
+        cut = slice(int(min(size - 1, max(0, np.floor(far - margin)))), size)
+        index -= cut.start
+    else:
+        cut = slice(0, int(max(1, min(size, np.ceil(far + margin) + 1))))
+    crop = (cut, slice(0, shape[1])) if axis in ("up", "down") else (slice(0, shape[0]), cut)
+    return Transport(axis, index, crop, region_index)
+
