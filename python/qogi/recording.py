@@ -1068,6 +1068,11 @@ def _read(f, p: str, nonfinite: str) -> Recording:
     return rec
 
 
+#: Wavenumbers a channel's response may be given at [cm-1]: 0.5-100 um, far
+#: wider than any thermal camera (a forged 4.7e99 cm-1 broke the band tables).
+_WAVENUMBER_RANGE_CM1 = (100.0, 20000.0)
+
+
 def _read_channels(cam, p: str, n_channels: int) -> List[SpectralResponse]:
     h5py = _h5py()
     if "channels" not in cam or not isinstance(cam["channels"], h5py.Group):
@@ -1096,6 +1101,13 @@ def _read_channels(cam, p: str, n_channels: int) -> List[SpectralResponse]:
                         dtype=np.float64)
         r = np.asarray(_small(ch["response"], p, f"{ch.name}/response"), dtype=np.float64)
         name = _attr(ch, "name", p, loc, required=False)
+        lo_nu, hi_nu = _WAVENUMBER_RANGE_CM1
+        if nu.size and not np.all((nu >= lo_nu) & (nu <= hi_nu)):
+            bad = nu[~((nu >= lo_nu) & (nu <= hi_nu))][0]
+            raise RecordingError(p, f"{loc}/wavenumber_cm1",
+                                 f"{bad:g} cm-1 is outside the thermal infrared "
+                                 f"[{lo_nu:g}, {hi_nu:g}] cm-1",
+                                 "store the response over wavenumbers in cm-1 (1 um = 10000 cm-1)")
         try:
             out.append(SpectralResponse(np.ravel(nu), np.ravel(r),
                                         "" if name is None else str(name)))

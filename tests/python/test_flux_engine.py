@@ -16,7 +16,7 @@ import pytest
 from qogi import _engine
 from qogi import flux
 from qogi import velocimetry as vel
-from qogi.pipeline import _surface_flux
+from qogi.pipeline.flux import _surface_flux
 
 import flux_cases as fc
 

@@ -60,15 +60,11 @@ def _surface_flux(c: np.ndarray, sig: np.ndarray, vn: np.ndarray, dl: np.ndarray
     normal velocity vn [m/s] x length dl [m], (frames, samples) arrays;
     ``speed_floor`` [m/s] the direction check's least speed."""
     from ..detection import frame_widths, velocity_sums
+    from ..flux import surface_rate
     from ..flux_summary import FluxSummary
-    good = np.isfinite(c)
-    with np.errstate(invalid="ignore"):
-        flux = np.where(good, c, 0.0) * vn * dl[None, :]
-    rate = flux.sum(axis=1)
-    rate[~good.any(axis=1)] = np.nan
-    vsig = np.where(np.isfinite(vn), vn, 0.0) * sig * dl[None, :]
+    r = surface_rate(c, sig, vn, dl)  # the engine's flux module (cpp/engine/flux)
     cv, cs, vmed = velocity_sums(c, np.broadcast_to(vn, c.shape))
-    return SurfaceFlux(rate, good.sum(axis=1), float(np.sum(vsig ** 2)), cv, cs, vmed,
+    return SurfaceFlux(r.rate, r.samples, r.column_variance, cv, cs, vmed,
                        frame_widths(c, dl), FluxSummary.of(c, sig, vn, dl, speed_floor))
 
 
