@@ -368,7 +368,7 @@ def optical_flow_sequence(frames: ArrayLike, method: str = DEFAULT_METHOD, optio
         kept pair is warm-started too.
     progress : callable(fraction) -> bool or None, optional
         Called after each pair (from the calling thread); returning False
-        stops with KeyboardInterrupt.
+        stops with qogi.Cancelled (Ctrl-C: KeyboardInterrupt).
 
     Returns
     -------
@@ -443,7 +443,8 @@ def optical_flow_sequence(frames: ArrayLike, method: str = DEFAULT_METHOD, optio
         finally:
             set_num_threads(threads)
     if cancelled[0]:
-        raise KeyboardInterrupt("optical_flow_sequence cancelled by the progress callback")
+        from .errors import Cancelled
+        raise Cancelled("optical_flow_sequence cancelled by the progress callback")
     return FlowSequence(out_u, out_v, out_q, out_valid, ratio, method)
 
 
