@@ -188,7 +188,7 @@ def test_in_band_radiance_and_irradiance_become_band_radiance(tmp_path):
 def test_raw_and_nuc_modes_are_refused_naming_the_mode(tmp_path, mode, name):
     p = tmp_path / "raw.hcc"
     write_hcc(p, [words(4)], [1.7e9], calibration_mode=mode)
-    with pytest.raises(UsageError, match=rf"calibration mode {name} \({mode}\) holds "
+    with pytest.raises(DataError, match=rf"calibration mode {name} \({mode}\) holds "
                                          "uncalibrated detector counts.*RT.*IBR"):
         qogi.open_recording(p, camera="gf320", distance_m=5.0, ambient_temperature_K=290.0)
 

@@ -461,8 +461,8 @@ def _open_hcc(p, camera, distance_m, ambient_K, pressure_Pa, ifov_rad, nonfinite
                             "export it with one mode")
         mode = modes[0]
         mname, quantity, _unit = CALIBRATION_MODES.get(mode, (f"mode {mode}", None, "?"))
-        if quantity is None:
-            raise UsageError(
+        if quantity is None:  # the file's content, not an argument: bad data (exit 3)
+            raise DataError(
                 f"{p}: calibration mode {mname} ({mode}) holds uncalibrated detector counts; "
                 "qogi needs radiometric data: export the sequence as RT (radiometric "
                 "temperature) or IBR (in-band radiance) with Telops Reveal IR")
