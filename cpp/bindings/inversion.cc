@@ -540,8 +540,8 @@ void BindMixingLineSlope(py::module_& m) {
             const DoubleArray& background, const DoubleArray& sigma,
             std::vector<double> composition, std::vector<double> netd, double detection_sigma,
             int max_iterations, int num_threads, int line_nodes_per_unit, double min_snr,
-            std::size_t max_samples, std::size_t min_samples, double grid_step_K,
-            double chi2_cap, py::object progress) {
+            std::size_t max_samples, std::uint64_t seed, std::size_t min_samples,
+            double grid_step_K, double chi2_cap, py::object progress) {
            CheckRows(self, radiance, background, "find_slope");
            const std::size_t n = Dim(radiance, 0);
            if (static_cast<std::size_t>(sigma.size()) != n)
@@ -556,6 +556,7 @@ void BindMixingLineSlope(py::module_& m) {
            o.line.line_nodes_per_unit = line_nodes_per_unit;
            o.min_snr = min_snr;
            o.max_samples = max_samples;
+           o.seed = seed;
            o.min_samples = min_samples;
            o.grid_step_K = grid_step_K;
            o.chi2_cap = chi2_cap;
@@ -572,7 +573,7 @@ void BindMixingLineSlope(py::module_& m) {
          py::arg("composition"), py::arg("netd_K"), py::arg("detection_sigma") = 3.0,
          py::arg("max_iterations") = 50, py::arg("num_threads") = 0,
          py::arg("line_nodes_per_unit") = 16, py::arg("min_snr") = 10.0,
-         py::arg("max_samples") = 3000, py::arg("min_samples") = 5,
+         py::arg("max_samples") = 3000, py::arg("seed") = 0, py::arg("min_samples") = 5,
          py::arg("grid_step_K") = 10.0, py::arg("chi2_cap") = 50.0,
          py::arg("progress") = py::none(),
          "The scene's mixing-line slope k from pixel-frames (rows of radiance and "
@@ -583,12 +584,13 @@ void BindMixingLineSlope(py::module_& m) {
           "slope_sample",
           [](const MixingLineInverter& self, const DoubleArray& radiance,
              const DoubleArray& background, std::vector<double> netd, double min_snr,
-             std::size_t max_samples) {
+             std::size_t max_samples, std::uint64_t seed) {
             CheckRows(self, radiance, background, "slope_sample");
             MixingLineSlopeOptions o;
             o.line.netd_K = std::move(netd);
             o.min_snr = min_snr;
             o.max_samples = max_samples;
+            o.seed = seed;
             std::size_t candidates = 0;
             std::vector<std::size_t> idx;
             {
@@ -602,7 +604,7 @@ void BindMixingLineSlope(py::module_& m) {
             return py::make_tuple(out, candidates);
           },
           py::arg("radiance"), py::arg("background_radiance"), py::arg("netd_K"),
-          py::arg("min_snr") = 10.0, py::arg("max_samples") = 3000,
+          py::arg("min_snr") = 10.0, py::arg("max_samples") = 3000, py::arg("seed") = 0,
           "(indices, num_candidates): the pixel-frames the slope search solves "
           "(MixingLineSlopeSample).");
 

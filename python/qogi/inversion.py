@@ -951,7 +951,7 @@ def _slope(d: dict, num_candidates: Optional[int] = None) -> MixingLineSlope:
 def mixing_line_slope(model: ForwardModel, table, radiance, background_radiance, sigma_m, *,
                       netd_K, composition: Optional[Dict[str, float]] = None,
                       detection_sigma: float = 3.0, min_snr: float = 10.0,
-                      max_samples: int = 3000, min_samples: int = 5,
+                      max_samples: int = 3000, seed: int = 0, min_samples: int = 5,
                       grid_step_K: float = 10.0, chi2_cap: float = 50.0,
                       num_threads: int = 0, progress=None) -> MixingLineSlope:
     """The slope k of the scene's mixing line ``T_peak = T_amb + k X`` from
@@ -960,9 +960,9 @@ def mixing_line_slope(model: ForwardModel, table, radiance, background_radiance,
 
     A profile likelihood: the pixel-frames whose contrast reaches
     ``min_snr`` x noise in some channel (noise: NETD x dL/dT at the channel's
-    median background temperature; at most ``max_samples`` of them, evenly
-    spread) are solved on the line (:func:`invert_on_mixing_line`) for each
-    k of a ``grid_step_K`` grid over the table's peak-temperature range minus
+    median background temperature; at most ``max_samples`` of them, a random
+    subset seeded by ``seed``) are solved on the line
+    (:func:`invert_on_mixing_line`) for each k of a ``grid_step_K`` grid over the table's peak-temperature range minus
     T_amb; k minimises the summed chi2 (each pixel's capped at
     ``chi2_cap``), refined by a parabola through the best three nodes; its
     1-sigma is where the profile rises by the reduced chi2 (>= 1) from its
@@ -985,6 +985,9 @@ def mixing_line_slope(model: ForwardModel, table, radiance, background_radiance,
         As :func:`invert_on_mixing_line`.
     min_snr : float, default 10
     max_samples : int, default 3000
+    seed : int, default 0
+        Of the random subset when there are more candidates (the engine's
+        own generator: the same subset on every platform).
     min_samples : int, default 5
         Fewer candidates: no search (``found`` False, k = 0).
     grid_step_K : float, default 10, K per unit fraction
@@ -1003,14 +1006,14 @@ def mixing_line_slope(model: ForwardModel, table, radiance, background_radiance,
         np.ascontiguousarray(rad.T), np.ascontiguousarray(bg.T), np.ascontiguousarray(sg),
         list(w), [float(v) for v in np.atleast_1d(netd_K)], float(detection_sigma),
         num_threads=int(num_threads), min_snr=float(min_snr), max_samples=int(max_samples),
-        min_samples=int(min_samples), grid_step_K=float(grid_step_K), chi2_cap=float(chi2_cap),
-        progress=progress)
+        seed=int(seed), min_samples=int(min_samples), grid_step_K=float(grid_step_K),
+        chi2_cap=float(chi2_cap), progress=progress)
     return _slope(out)
 
 
 def mixing_line_slope_sample(model: ForwardModel, table, radiance, background_radiance, *,
-                             netd_K, min_snr: float = 10.0,
-                             max_samples: int = 3000) -> Tuple[np.ndarray, int]:
+                             netd_K, min_snr: float = 10.0, max_samples: int = 3000,
+                             seed: int = 0) -> Tuple[np.ndarray, int]:
     """The pixel-frames :func:`mixing_line_slope` solves, for a caller with
     its own solver on the line (e.g. an unknown composition).
 
@@ -1020,7 +1023,7 @@ def mixing_line_slope_sample(model: ForwardModel, table, radiance, background_ra
     rad, bg, _ = _line_pixels(model, radiance, background_radiance)
     idx, count = _line_inverter(table).slope_sample(
         np.ascontiguousarray(rad.T), np.ascontiguousarray(bg.T),
-        [float(v) for v in np.atleast_1d(netd_K)], float(min_snr), int(max_samples))
+        [float(v) for v in np.atleast_1d(netd_K)], float(min_snr), int(max_samples), int(seed))
     return np.asarray(idx, dtype=np.int64), int(count)
 
 

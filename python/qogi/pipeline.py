@@ -1018,7 +1018,7 @@ class _InvertedColumns:
         a plume) has, at every point, a temperature excess proportional to
         its volume fraction: T - T_amb = k x (the Gaussian line-of-sight model
         has this shape: both follow g(s)). One k holds for the whole scene,
-        so it is measured once: on a sample (<= 3000, evenly spread) of the
+        so it is measured once: on a random sample (<= 3000) of the
         pixel-frames with contrast >= 10x noise solved on the line for each k
         of a 10 K grid, k minimises the summed chi2 (each pixel's capped at
         50), refined by a parabola; its 1-sigma is where that profile rises

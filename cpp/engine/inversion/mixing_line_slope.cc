@@ -1,6 +1,7 @@
 #include "engine/inversion/mixing_line_slope.h"
 
 #include <algorithm>
+#include <cstdint>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -67,9 +68,27 @@ std::vector<std::size_t> MixingLineSlopeSample(const MixingLineInverter& inverte
   }
   if (num_candidates) *num_candidates = cand.size();
   if (cand.size() <= options.max_samples) return cand;
-  // Evenly spread over the candidates (frame-major: over time and space).
-  std::vector<std::size_t> out(options.max_samples);
-  for (std::size_t j = 0; j < out.size(); ++j) out[j] = cand[j * cand.size() / out.size()];
+  // A seeded random subset (Floyd's algorithm on a splitmix64 stream: the
+  // same on every platform), in index order. An evenly strided subset would
+  // alias with the candidates' layout (so many per frame, ordered across
+  // the plume) and favour some positions across the plume in every frame.
+  const std::size_t nc_all = cand.size(), m = options.max_samples;
+  std::uint64_t state = options.seed;
+  auto next = [&state]() {
+    std::uint64_t z = (state += 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+  };
+  std::vector<char> chosen(nc_all, 0);
+  for (std::size_t j = nc_all - m; j < nc_all; ++j) {
+    const std::size_t t = static_cast<std::size_t>(next() % (j + 1));
+    chosen[chosen[t] ? j : t] = 1;
+  }
+  std::vector<std::size_t> out;
+  out.reserve(m);
+  for (std::size_t j = 0; j < nc_all; ++j)
+    if (chosen[j]) out.push_back(cand[j]);
   return out;
 }
 

@@ -20,6 +20,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <vector>
 
 #include "engine/inversion/mixing_line.h"
@@ -32,7 +33,8 @@ struct MixingLineSlopeOptions {
   // composition, netd_K, detection_sigma, ... are used as given).
   MixingLineOptions line;
   double min_snr = 10.0;          // sampled: max_c |L_c - L_bg,c| / n_c >= min_snr [1], >= 0
-  std::size_t max_samples = 3000; // at most this many pixel-frames, evenly spread over the candidates (>= 1)
+  std::size_t max_samples = 3000; // at most this many pixel-frames: a seeded random subset of the candidates (>= 1)
+  std::uint64_t seed = 0;         // of that subset (splitmix64; the same on every platform)
   std::size_t min_samples = 5;    // fewer candidates: no search, k = 0 (found = false) (>= 1)
   double grid_step_K = 10.0;      // step of the k grid [K per unit fraction], > 0
   double chi2_cap = 50.0;         // each pixel's chi2 capped at this in the total [1], > 0
@@ -55,9 +57,9 @@ struct MixingLineSlope {
 // The pixel-frames (rows of radiance and background_radiance [W/(m2 sr)],
 // N x C row-major) whose contrast reaches options.min_snr times the noise in
 // some channel (noise: options.line.netd_K times dL/dT at the channel's
-// median background temperature), at most options.max_samples of them evenly
-// spread over the candidates (in index order); *num_candidates: how many
-// reached min_snr.
+// median background temperature), at most options.max_samples of them (a
+// random subset seeded by options.seed, in index order); *num_candidates:
+// how many reached min_snr.
 std::vector<std::size_t> MixingLineSlopeSample(const MixingLineInverter& inverter,
                                                const MixingLineSlopeOptions& options,
                                                std::size_t num_pixels, const double* radiance,

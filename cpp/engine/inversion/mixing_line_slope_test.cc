@@ -4,6 +4,7 @@
 // profile; the sample; flat input and bad options.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -102,9 +103,10 @@ TEST(MixingLineSlope, RecoversAKnownSlopeFromNoisyPixelsOnTheLine) {
   }
 }
 
-// A capped sample is spread evenly over the candidates, and gives the same
-// k within its 1-sigma; progress reaches 1 and a cancel stops the search.
-TEST(MixingLineSlope, SamplesEvenlyReportsProgressAndCancels) {
+// A capped sample is a seeded random subset of the candidates (the same for
+// a seed, another for another seed) and gives the same k within its
+// 1-sigma; progress reaches 1 and a cancel stops the search.
+TEST(MixingLineSlope, SamplesAtRandomReportsProgressAndCancels) {
   const Fixture& f = F();
   MixingLineInverter inv(f.table);
   const Pixels p = OnTheLine(f, 72.0, 1500, 0.03, 12);
@@ -119,7 +121,14 @@ TEST(MixingLineSlope, SamplesEvenlyReportsProgressAndCancels) {
       MixingLineSlopeSample(inv, o, p.n, p.rad.data(), p.bg.data(), &again);
   EXPECT_EQ(again, all);
   ASSERT_EQ(some.size(), all / 3);
-  for (std::size_t j = 0; j < some.size(); ++j) EXPECT_EQ(some[j], every[j * all / some.size()]);
+  for (std::size_t j = 0; j < some.size(); ++j) {
+    EXPECT_TRUE(std::binary_search(every.begin(), every.end(), some[j])) << some[j];
+    if (j > 0) EXPECT_LT(some[j - 1], some[j]);
+  }
+  EXPECT_EQ(MixingLineSlopeSample(inv, o, p.n, p.rad.data(), p.bg.data()), some);
+  MixingLineSlopeOptions other = o;
+  other.seed = 1;
+  EXPECT_NE(MixingLineSlopeSample(inv, other, p.n, p.rad.data(), p.bg.data()), some);
   // Every pixel without gas (contrast = noise, < 10 sigma) is left out.
   for (std::size_t i : every) EXPECT_GT(p.fraction[i], 0.0) << i;
 
