@@ -1022,7 +1022,7 @@ class _InvertedColumns:
         pixel-frames with contrast >= 10x noise solved on the line for each k
         of a 10 K grid, k minimises the summed chi2 (each pixel's capped at
         50), refined by a parabola; its 1-sigma is where that profile rises
-        by the reduced chi2 (engine: qogi.inversion.mixing_line_slope). Then each pixel-frame has one unknown, x,
+        by the reduced chi2. Then each pixel-frame has one unknown, x,
         with T_peak = T_amb + k x: with a known composition (or one species)
         its least-squares value on the line (qogi.inversion.
         invert_on_mixing_line: a coarse scan and Gauss-Newton in ln x on the
