@@ -30,6 +30,8 @@ function(qogi_add_module)
           ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT dev)
   file(GLOB headers ${CMAKE_CURRENT_SOURCE_DIR}/*.h)
   list(FILTER headers EXCLUDE REGEX "_test\\.h$")
+  # *_internal.h: shared by a module's own sources only.
+  list(FILTER headers EXCLUDE REGEX "_internal\\.h$")
   install(FILES ${headers}
           DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/qogi/engine/${ARG_NAME}
           COMPONENT dev)

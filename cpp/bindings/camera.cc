@@ -8,6 +8,7 @@
 
 #include "engine/camera/calibration.h"
 #include "engine/camera/noise.h"
+#include "engine/camera/radiometric_table.h"
 #include "engine/camera/warm_optics.h"
 
 namespace qogi {
@@ -395,10 +396,59 @@ lens transmittance on one wavenumber grid (see qogi.camera.ChannelOptics).
 
 }  // namespace
 
+void BindRadiometricTable(py::module_& m);  // at the end of this file
+
 void BindCamera(py::module_& m) {
   BindCameraCalibration(m);
   BindCameraNoise(m);
   BindCameraWarmOptics(m);
+  BindRadiometricTable(m);
+}
+
+// --- the L(T) table (engine/camera/radiometric_table.h) ---------------------
+void BindRadiometricTable(py::module_& m) {
+  py::class_<RadiometricTable>(m, "RadiometricTable",
+                               "Band radiance <-> blackbody temperature of one channel, "
+                               "tabulated (engine/camera/radiometric_table.h).")
+      .def(py::init([](const SpectralResponse& channel, double t_min_K, double t_max_K,
+                       int nodes, int num_threads) {
+             py::gil_scoped_release release;
+             return std::make_unique<RadiometricTable>(channel, t_min_K, t_max_K, nodes,
+                                                       num_threads);
+           }),
+           py::arg("channel"), py::arg("t_min_K") = 150.0, py::arg("t_max_K") = 1500.0,
+           py::arg("nodes") = 512, py::arg("num_threads") = 0)
+      .def_property_readonly("t_min_K", &RadiometricTable::t_min_K)
+      .def_property_readonly("t_max_K", &RadiometricTable::t_max_K)
+      .def_property_readonly("radiance_min", &RadiometricTable::radiance_min)
+      .def_property_readonly("radiance_max", &RadiometricTable::radiance_max)
+      .def(
+          "radiance",
+          [](const RadiometricTable& t, const DoubleArray& temperature_K) {
+            py::array_t<double> out(temperature_K.request().shape);
+            const double* in = temperature_K.data();
+            double* o = out.mutable_data();
+            const std::size_t n = static_cast<std::size_t>(temperature_K.size());
+            py::gil_scoped_release release;
+            for (std::size_t i = 0; i < n; ++i) o[i] = t.Radiance(in[i]);
+            return out;
+          },
+          py::arg("temperature_K"),
+          "Band radiance [W/(m2 sr)] of blackbodies at temperature_K [K] (any shape, float64).")
+      .def(
+          "temperature",
+          [](const RadiometricTable& t, const DoubleArray& radiance) {
+            py::array_t<double> out(radiance.request().shape);
+            const double* in = radiance.data();
+            double* o = out.mutable_data();
+            const std::size_t n = static_cast<std::size_t>(radiance.size());
+            py::gil_scoped_release release;
+            for (std::size_t i = 0; i < n; ++i) o[i] = t.Temperature(in[i]);
+            return out;
+          },
+          py::arg("radiance"),
+          "Radiometric temperature [K] of band radiances [W/(m2 sr)] (any shape, float64; NaN "
+          "where no blackbody of 10 K - 1e5 K gives the radiance).");
 }
 
 }  // namespace qogi

@@ -7,6 +7,7 @@
 #include "common.h"
 #include "engine/inversion/inversion.h"
 #include "engine/inversion/mixing_line.h"
+#include "engine/inversion/mixing_line_slope.h"
 #include "engine/inversion/scene_table.h"
 #include "engine/rte/binned_model.h"
 
@@ -46,6 +47,8 @@ py::dict SceneTableOptionsDict(const SceneTableOptions& o) {
   d["linear_optical_depth"] = o.linear_optical_depth;
   return d;
 }
+
+void BindMixingLineSlope(py::module_& m);  // at the end of this file
 
 }  // namespace
 
@@ -498,6 +501,125 @@ void BindInversion(py::module_& m) {
            py::arg("background_temperature_K") = py::none(), py::arg("sigma_m") = py::none(),
            py::arg("peak_temperature_K") = py::none(), py::arg("initial") = py::none(),
            py::arg("row_length") = 0, py::arg("progress") = py::none());
+  BindMixingLineSlope(m);
 }
 
+namespace {
+
+// --- the mixing line's slope (engine/inversion/mixing_line_slope.h) ----------
+py::dict SlopeDict(const MixingLineSlope& r) {
+  py::dict d;
+  d["found"] = r.found;
+  d["slope_K_per_fraction"] = r.slope_K_per_fraction;
+  d["sigma_K_per_fraction"] = r.sigma_K_per_fraction;
+  d["num_candidates"] = r.num_candidates;
+  d["num_samples"] = r.num_samples;
+  d["num_fitted"] = r.num_fitted;
+  d["grid_K_per_fraction"] = py::array_t<double>(r.grid_K_per_fraction.size(),
+                                                 r.grid_K_per_fraction.data());
+  d["total_chi2"] = py::array_t<double>(r.total_chi2.size(), r.total_chi2.data());
+  return d;
+}
+
+void CheckRows(const MixingLineInverter& self, const DoubleArray& radiance,
+               const DoubleArray& background, const char* what) {
+  const std::size_t nc = self.table().num_channels();
+  if (radiance.ndim() != 2 || Dim(radiance, 1) != nc || background.ndim() != 2 ||
+      Dim(background, 0) != Dim(radiance, 0) || Dim(background, 1) != nc)
+    throw std::invalid_argument(std::string(what) + " needs radiance and background_radiance (N, " +
+                                std::to_string(nc) + "); got " + Shape(radiance) + ", " +
+                                Shape(background));
+}
+
+void BindMixingLineSlope(py::module_& m) {
+  auto inverter = py::type::of<MixingLineInverter>();
+  py::class_<MixingLineInverter> cls(inverter);
+  cls.def(
+         "find_slope",
+         [](const MixingLineInverter& self, const DoubleArray& radiance,
+            const DoubleArray& background, const DoubleArray& sigma,
+            std::vector<double> composition, std::vector<double> netd, double detection_sigma,
+            int max_iterations, int num_threads, int line_nodes_per_unit, double min_snr,
+            std::size_t max_samples, std::uint64_t seed, std::size_t min_samples,
+            double grid_step_K, double chi2_cap, py::object progress) {
+           CheckRows(self, radiance, background, "find_slope");
+           const std::size_t n = Dim(radiance, 0);
+           if (static_cast<std::size_t>(sigma.size()) != n)
+             throw std::invalid_argument("find_slope needs sigma_m (N,) = (" + std::to_string(n) +
+                                         ",); got " + Shape(sigma));
+           MixingLineSlopeOptions o;
+           o.line.composition = std::move(composition);
+           o.line.netd_K = std::move(netd);
+           o.line.detection_sigma = detection_sigma;
+           o.line.max_iterations = max_iterations;
+           o.line.num_threads = num_threads;
+           o.line.line_nodes_per_unit = line_nodes_per_unit;
+           o.min_snr = min_snr;
+           o.max_samples = max_samples;
+           o.seed = seed;
+           o.min_samples = min_samples;
+           o.grid_step_K = grid_step_K;
+           o.chi2_cap = chi2_cap;
+           RunControl control = MakeRunControl(progress);
+           MixingLineSlope r;
+           {
+             py::gil_scoped_release release;
+             r = FindMixingLineSlope(self, o, n, radiance.data(), background.data(), sigma.data(),
+                                     &control);
+           }
+           return SlopeDict(r);
+         },
+         py::arg("radiance"), py::arg("background_radiance"), py::arg("sigma_m"),
+         py::arg("composition"), py::arg("netd_K"), py::arg("detection_sigma") = 3.0,
+         py::arg("max_iterations") = 50, py::arg("num_threads") = 0,
+         py::arg("line_nodes_per_unit") = 16, py::arg("min_snr") = 10.0,
+         py::arg("max_samples") = 3000, py::arg("seed") = 0, py::arg("min_samples") = 5,
+         py::arg("grid_step_K") = 10.0, py::arg("chi2_cap") = 50.0,
+         py::arg("progress") = py::none(),
+         "The scene's mixing-line slope k from pixel-frames (rows of radiance and "
+         "background_radiance (N, C)): FindMixingLineSlope. Returns a dict: found, "
+         "slope_K_per_fraction, sigma_K_per_fraction, num_candidates, num_samples, num_fitted, "
+         "grid_K_per_fraction, total_chi2.")
+      .def(
+          "slope_sample",
+          [](const MixingLineInverter& self, const DoubleArray& radiance,
+             const DoubleArray& background, std::vector<double> netd, double min_snr,
+             std::size_t max_samples, std::uint64_t seed) {
+            CheckRows(self, radiance, background, "slope_sample");
+            MixingLineSlopeOptions o;
+            o.line.netd_K = std::move(netd);
+            o.min_snr = min_snr;
+            o.max_samples = max_samples;
+            o.seed = seed;
+            std::size_t candidates = 0;
+            std::vector<std::size_t> idx;
+            {
+              py::gil_scoped_release release;
+              idx = MixingLineSlopeSample(self, o, Dim(radiance, 0), radiance.data(),
+                                          background.data(), &candidates);
+            }
+            py::array_t<std::int64_t> out(idx.size());
+            for (std::size_t j = 0; j < idx.size(); ++j)
+              out.mutable_data()[j] = static_cast<std::int64_t>(idx[j]);
+            return py::make_tuple(out, candidates);
+          },
+          py::arg("radiance"), py::arg("background_radiance"), py::arg("netd_K"),
+          py::arg("min_snr") = 10.0, py::arg("max_samples") = 3000, py::arg("seed") = 0,
+          "(indices, num_candidates): the pixel-frames the slope search solves "
+          "(MixingLineSlopeSample).");
+
+  m.def(
+      "mixing_line_slope_from_profile",
+      [](std::vector<double> grid, const DoubleArray& chi2, double chi2_cap) {
+        CheckNdim(chi2, 2, "chi2");
+        if (Dim(chi2, 0) != grid.size())
+          throw std::invalid_argument("chi2 needs one row per grid value (" +
+                                      std::to_string(grid.size()) + "); got " + Shape(chi2));
+        return SlopeDict(MixingLineSlopeFromProfile(grid, Dim(chi2, 1), chi2.data(), chi2_cap));
+      },
+      py::arg("grid_K_per_fraction"), py::arg("chi2"), py::arg("chi2_cap") = 50.0,
+      "k and its 1-sigma from chi2 (K grid values, P pixels): MixingLineSlopeFromProfile.");
+}
+
+}  // namespace
 }  // namespace qogi

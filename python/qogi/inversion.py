@@ -67,6 +67,10 @@ __all__ = [
     "InversionResult",
     "scene_table",
     "invert_on_mixing_line",
+    "MixingLineSlope",
+    "mixing_line_slope",
+    "mixing_line_slope_sample",
+    "mixing_line_slope_from_profile",
     "plume_depth_from_width",
     "STATUS_NAMES",
     "CONVERGED",
@@ -766,6 +770,42 @@ def _line_inverter(table):
     return inverter
 
 
+def _line_composition(model: ForwardModel, composition) -> np.ndarray:
+    """The released gas's normalised volume fractions w_s per species of
+    ``model`` (default: its only species)."""
+    species = list(model.species)
+    if composition is None:
+        if len(species) != 1:
+            raise ValueError(f"composition is needed with several species ({species}); e.g. "
+                             f"{{{species[0]!r}: 0.5, {species[1]!r}: 0.5}}")
+        composition = {species[0]: 1.0}
+    missing = [sp for sp in species if sp not in composition]
+    if missing:
+        raise ValueError(f"composition lacks species {missing} of the model")
+    w = np.array([float(composition[sp]) for sp in species])
+    if not (np.all(np.isfinite(w)) and np.all(w >= 0) and w.sum() > 0):
+        raise ValueError(f"composition fractions must be >= 0 and not all 0; got {composition}")
+    return w / w.sum()
+
+
+def _line_pixels(model: ForwardModel, radiance, background_radiance, sigma_m=None):
+    """radiance (C, N), background broadcast to it, sigma_m broadcast to (N,)
+    (None when not given), as float arrays; shapes checked."""
+    rad = np.asarray(radiance, dtype=float)
+    nc = len(model.channels)
+    if rad.ndim != 2 or rad.shape[0] != nc:
+        raise ValueError(f"radiance must be (C, N) with C = {nc}; got shape {rad.shape}")
+    n = rad.shape[1]
+    bg = np.broadcast_to(np.asarray(background_radiance, dtype=float).reshape(nc, -1), (nc, n))
+    if sigma_m is None:
+        return rad, bg, None
+    sg = np.broadcast_to(np.asarray(sigma_m, dtype=float).ravel(), (n,)) \
+        if np.size(sigma_m) in (1, n) else None
+    if sg is None:
+        raise ValueError(f"sigma_m must be one value or (N,) = ({n},); got shape {np.shape(sigma_m)}")
+    return rad, bg, sg
+
+
 def invert_on_mixing_line(model: ForwardModel, table, slope_K_per_fraction: float,
                           radiance, background_radiance, sigma_m, *, netd_K,
                           composition: Optional[Dict[str, float]] = None,
@@ -809,28 +849,10 @@ def invert_on_mixing_line(model: ForwardModel, table, slope_K_per_fraction: floa
         columns and path concentrations with their 1-sigma.
     """
     species = list(model.species)
-    if composition is None:
-        if len(species) != 1:
-            raise ValueError(f"composition is needed with several species ({species}); e.g. "
-                             f"{{{species[0]!r}: 0.5, {species[1]!r}: 0.5}}")
-        composition = {species[0]: 1.0}
-    missing = [sp for sp in species if sp not in composition]
-    if missing:
-        raise ValueError(f"composition lacks species {missing} of the model")
-    w = np.array([float(composition[sp]) for sp in species])
-    if not (np.all(np.isfinite(w)) and np.all(w >= 0) and w.sum() > 0):
-        raise ValueError(f"composition fractions must be >= 0 and not all 0; got {composition}")
-    w = w / w.sum()
-    rad = np.asarray(radiance, dtype=float)
-    nc = len(model.channels)
-    if rad.ndim != 2 or rad.shape[0] != nc:
-        raise ValueError(f"radiance must be (C, N) with C = {nc}; got shape {rad.shape}")
+    w = _line_composition(model, composition)
+    rad, bg, sg = _line_pixels(model, radiance, background_radiance, sigma_m)
     n = rad.shape[1]
-    bg = np.broadcast_to(np.asarray(background_radiance, dtype=float).reshape(nc, -1), (nc, n))
-    sg = np.broadcast_to(np.asarray(sigma_m, dtype=float).ravel(), (n,)) \
-        if np.size(sigma_m) in (1, n) else None
-    if sg is None:
-        raise ValueError(f"sigma_m must be one value or (N,) = ({n},); got shape {np.shape(sigma_m)}")
+    nc = len(model.channels)
     netd = [float(v) for v in np.atleast_1d(netd_K)]
     out = _line_inverter(table).invert(
         np.ascontiguousarray(rad.T), np.ascontiguousarray(bg.T), np.ascontiguousarray(sg),
@@ -884,6 +906,140 @@ def invert_on_mixing_line(model: ForwardModel, table, slope_K_per_fraction: floa
         path_concentration_sigma_ppm_m=ppm_sigma, chi2=np.where(failed, 0.0, out["chi2"]),
         condition_number=np.zeros(n), iterations=out["iterations"],
         info=dict(num_channels=nc, mixing_line_K_per_fraction=slope, uses_table=True))
+
+
+@dataclass(frozen=True)
+class MixingLineSlope:
+    """The scene's mixing-line slope k (:func:`mixing_line_slope`).
+
+    Attributes
+    ----------
+    found : bool
+        False when fewer than ``min_samples`` pixel-frames reached
+        ``min_snr`` (then k = 0 and its sigma 0: no search was made).
+    slope_K_per_fraction, sigma_K_per_fraction : float, K per unit volume fraction
+        k and its 1-sigma.
+    num_candidates : int
+        Pixel-frames at or above ``min_snr``.
+    num_samples, num_fitted : int
+        Of them, those solved on the line for each k, and those in the total
+        (a finite chi2 at every k).
+    grid_K_per_fraction, total_chi2 : array (K,)
+        The profile: the k grid and the capped chi2 summed over the samples.
+    """
+
+    found: bool
+    slope_K_per_fraction: float
+    sigma_K_per_fraction: float
+    num_candidates: int
+    num_samples: int
+    num_fitted: int
+    grid_K_per_fraction: np.ndarray
+    total_chi2: np.ndarray
+
+
+def _slope(d: dict, num_candidates: Optional[int] = None) -> MixingLineSlope:
+    return MixingLineSlope(
+        found=bool(d["found"]), slope_K_per_fraction=float(d["slope_K_per_fraction"]),
+        sigma_K_per_fraction=float(d["sigma_K_per_fraction"]),
+        num_candidates=int(d["num_candidates"] if num_candidates is None else num_candidates),
+        num_samples=int(d["num_samples"]), num_fitted=int(d["num_fitted"]),
+        grid_K_per_fraction=np.asarray(d["grid_K_per_fraction"]),
+        total_chi2=np.asarray(d["total_chi2"]))
+
+
+def mixing_line_slope(model: ForwardModel, table, radiance, background_radiance, sigma_m, *,
+                      netd_K, composition: Optional[Dict[str, float]] = None,
+                      detection_sigma: float = 3.0, min_snr: float = 10.0,
+                      max_samples: int = 3000, seed: int = 0, min_samples: int = 5,
+                      grid_step_K: float = 10.0, chi2_cap: float = 50.0,
+                      num_threads: int = 0, progress=None) -> MixingLineSlope:
+    """The slope k of the scene's mixing line ``T_peak = T_amb + k X`` from
+    its pixel-frames, with a known composition (engine:
+    ``cpp/engine/inversion/mixing_line_slope.h``).
+
+    A profile likelihood: the pixel-frames whose contrast reaches
+    ``min_snr`` x noise in some channel (noise: NETD x dL/dT at the channel's
+    median background temperature; at most ``max_samples`` of them, a random
+    subset seeded by ``seed``) are solved on the line
+    (:func:`invert_on_mixing_line`) for each k of a ``grid_step_K`` grid over the table's peak-temperature range minus
+    T_amb; k minimises the summed chi2 (each pixel's capped at
+    ``chi2_cap``), refined by a parabola through the best three nodes; its
+    1-sigma is where the profile rises by the reduced chi2 (>= 1) from its
+    minimum, on the flatter side (at least half a grid step).
+
+    Parameters
+    ----------
+    model : ForwardModel
+    table : qogi._engine.SceneTable
+        :func:`scene_table` of ``model``.
+    radiance, background_radiance : array (C, N), W/(m2 sr)
+        Pixel-frames (e.g. every frame's pixels side by side).
+    sigma_m : array (N,) or float, m
+        Gaussian plume depth per pixel-frame.
+    netd_K : float or sequence (C,), K
+    composition : dict, optional
+        Volume fractions of the released gas per species (normalised here);
+        default: the model's only species.
+    detection_sigma : float, default 3
+        As :func:`invert_on_mixing_line`.
+    min_snr : float, default 10
+    max_samples : int, default 3000
+    seed : int, default 0
+        Of the random subset when there are more candidates (the engine's
+        own generator: the same subset on every platform).
+    min_samples : int, default 5
+        Fewer candidates: no search (``found`` False, k = 0).
+    grid_step_K : float, default 10, K per unit fraction
+    chi2_cap : float, default 50
+    num_threads : int, default 0 (all cores)
+    progress : callable(fraction) -> bool or None, optional
+        Returning False cancels (KeyboardInterrupt).
+
+    Returns
+    -------
+    MixingLineSlope
+    """
+    w = _line_composition(model, composition)
+    rad, bg, sg = _line_pixels(model, radiance, background_radiance, sigma_m)
+    out = _line_inverter(table).find_slope(
+        np.ascontiguousarray(rad.T), np.ascontiguousarray(bg.T), np.ascontiguousarray(sg),
+        list(w), [float(v) for v in np.atleast_1d(netd_K)], float(detection_sigma),
+        num_threads=int(num_threads), min_snr=float(min_snr), max_samples=int(max_samples),
+        seed=int(seed), min_samples=int(min_samples), grid_step_K=float(grid_step_K),
+        chi2_cap=float(chi2_cap), progress=progress)
+    return _slope(out)
+
+
+def mixing_line_slope_sample(model: ForwardModel, table, radiance, background_radiance, *,
+                             netd_K, min_snr: float = 10.0, max_samples: int = 3000,
+                             seed: int = 0) -> Tuple[np.ndarray, int]:
+    """The pixel-frames :func:`mixing_line_slope` solves, for a caller with
+    its own solver on the line (e.g. an unknown composition).
+
+    radiance, background_radiance: (C, N) [W/(m2 sr)]; netd_K [K]. Returns
+    (indices into N, increasing; the number of candidates at or above
+    ``min_snr``)."""
+    rad, bg, _ = _line_pixels(model, radiance, background_radiance)
+    idx, count = _line_inverter(table).slope_sample(
+        np.ascontiguousarray(rad.T), np.ascontiguousarray(bg.T),
+        [float(v) for v in np.atleast_1d(netd_K)], float(min_snr), int(max_samples), int(seed))
+    return np.asarray(idx, dtype=np.int64), int(count)
+
+
+def mixing_line_slope_from_profile(grid_K_per_fraction, chi2, *,
+                                   chi2_cap: float = 50.0) -> MixingLineSlope:
+    """k and its 1-sigma (as :func:`mixing_line_slope`) from the chi2 of P
+    pixels solved on the line at each of K evenly spaced slopes.
+
+    grid_K_per_fraction: (K,) increasing [K per unit fraction]; chi2: (K, P)
+    (pixels with a non-finite value at any k are left out). num_candidates
+    of the result is P."""
+    grid = [float(v) for v in np.asarray(grid_K_per_fraction, dtype=float).ravel()]
+    chi = np.asarray(chi2, dtype=float)
+    return _slope(_engine.mixing_line_slope_from_profile(grid, np.ascontiguousarray(chi),
+                                                         float(chi2_cap)),
+                  num_candidates=chi.shape[1] if chi.ndim == 2 else 0)
 
 
 def plume_depth_from_width(contrast, pixel_size_m: float, *, axis: int = -1,

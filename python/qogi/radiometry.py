@@ -12,9 +12,10 @@ and a measured band radiance ``L`` as the radiometric temperature
 (quadrature and a safeguarded Newton solve) but cost microseconds to
 milliseconds per value; a video has ~10^8 values.
 
-:class:`BandTable` tabulates each direction once per channel and
-interpolates it with cubic Hermite polynomials whose node slopes are exact
-derivatives:
+:class:`BandTable` tabulates each direction once per channel (the engine's
+``RadiometricTable``, ``cpp/engine/camera/radiometric_table.h``: the one L(T)
+table of qogi) and interpolates it with cubic Hermite polynomials whose node
+slopes are exact derivatives:
 
 - ``T -> L``: ``ln L`` as a function of ``u = 1/T`` on a uniform grid in
   ``u``. In the Wien limit ``ln L`` is linear in ``u`` (slope
@@ -41,6 +42,7 @@ from typing import Sequence
 
 import numpy as np
 
+from . import _engine
 from .optics import SpectralResponse
 
 __all__ = ["BandTable", "band_table", "temperature_to_radiance", "radiance_to_temperature"]
@@ -73,38 +75,17 @@ class BandTable:
         self.channel = channel
         self.t_min_K = float(t_min_K)
         self.t_max_K = float(t_max_K)
-
-        # T -> ln L on a uniform grid in u = 1/T (u decreasing with T).
-        u = np.linspace(1.0 / self.t_max_K, 1.0 / self.t_min_K, n)
-        t = 1.0 / u
-        lum = np.asarray(channel.band_radiance(t))
-        dl_dt = np.asarray(channel.band_radiance_derivative(t))
-        y = np.log(lum)
-        dy_du = -(dl_dt / lum) * t * t           # d ln L / du = (L'/L) dT/du
-        self._u0 = u[0]
-        self._du = u[1] - u[0]
-        self._fwd = _hermite_coefficients(y, dy_du * self._du)
-        self.radiance_min = float(lum[-1])
-        self.radiance_max = float(lum[0])
-
-        # ln L -> u on a uniform grid in x = ln L.
-        x = np.linspace(np.log(self.radiance_min), np.log(self.radiance_max), n)
-        tx = np.interp(x, y[::-1], t[::-1])      # first guess from the forward nodes
-        for _ in range(4):                       # Newton on the exact ln L(T)
-            lx = np.asarray(channel.band_radiance(tx))
-            g = np.asarray(channel.band_radiance_derivative(tx)) / lx
-            tx = tx - (np.log(lx) - x) / g
-        lx = np.asarray(channel.band_radiance(tx))
-        g = np.asarray(channel.band_radiance_derivative(tx)) / lx
-        ux = 1.0 / tx
-        du_dx = -1.0 / (tx * tx * g)             # du/dx = (dT/dx)(du/dT)
-        self._x0 = x[0]
-        self._dx = x[1] - x[0]
-        self._inv = _hermite_coefficients(ux, du_dx * self._dx)
+        self.nodes = n
+        # The engine's table (engine/camera/radiometric_table.h: ln L cubic
+        # Hermite in 1/T, 1/T cubic Hermite in ln L, exact node slopes): the
+        # one L(T) implementation.
+        self._table = _engine.RadiometricTable(channel, self.t_min_K, self.t_max_K, n)
+        self.radiance_min = float(self._table.radiance_min)
+        self.radiance_max = float(self._table.radiance_max)
 
     def __repr__(self) -> str:
         return (f"BandTable({self.channel.name!r}, {self.t_min_K:g}-{self.t_max_K:g} K, "
-                f"{len(self._fwd[0]) + 1} nodes)")
+                f"{self.nodes} nodes)")
 
     def radiance(self, temperature_K) -> np.ndarray:
         """Band radiance [W/(m2 sr)] of blackbodies at ``temperature_K`` [K].
@@ -115,10 +96,8 @@ class BandTable:
         t = np.asarray(temperature_K)
         out_dtype = np.float32 if t.dtype == np.float32 else np.float64
         tt = t.astype(np.float64, copy=False)
-        with np.errstate(all="ignore"):  # out-of-table values are redone below
-            inside = (tt >= self.t_min_K) & (tt <= self.t_max_K)
-            s = (1.0 / tt - self._u0) / self._du
-            out = np.exp(_hermite_eval(self._fwd, s))
+        inside = (tt >= self.t_min_K) & (tt <= self.t_max_K)
+        out = self._table.radiance(np.where(inside, tt, self.t_min_K))
         outside = ~inside & np.isfinite(tt)
         if np.any(outside):
             out[outside] = self.channel.band_radiance(tt[outside])
@@ -136,36 +115,13 @@ class BandTable:
         lum = np.asarray(radiance)
         out_dtype = np.float32 if lum.dtype == np.float32 else np.float64
         ll = lum.astype(np.float64, copy=False)
-        with np.errstate(all="ignore"):  # out-of-table values are redone below
-            inside = (ll >= self.radiance_min) & (ll <= self.radiance_max)
-            s = (np.log(ll) - self._x0) / self._dx
-            out = 1.0 / _hermite_eval(self._inv, s)
+        inside = (ll >= self.radiance_min) & (ll <= self.radiance_max)
+        out = self._table.temperature(np.where(inside, ll, self.radiance_min))
         outside = ~inside & np.isfinite(ll)
         if np.any(outside):
             out[outside] = self.channel.radiometric_temperature(ll[outside])
         out[~np.isfinite(ll)] = np.nan
         return out.astype(out_dtype, copy=False)
-
-
-def _hermite_coefficients(v: np.ndarray, slope_h: np.ndarray):
-    """Per-interval cubic coefficients in the local coordinate s in [0, 1]
-    from node values and slopes already scaled by the node spacing."""
-    v0, v1 = v[:-1], v[1:]
-    m0, m1 = slope_h[:-1], slope_h[1:]
-    c0 = v0
-    c1 = m0
-    c2 = 3.0 * (v1 - v0) - 2.0 * m0 - m1
-    c3 = 2.0 * (v0 - v1) + m0 + m1
-    return c0, c1, c2, c3
-
-
-def _hermite_eval(coef, s: np.ndarray) -> np.ndarray:
-    c0, c1, c2, c3 = coef
-    i = np.floor(s)
-    np.clip(i, 0, len(c0) - 1, out=i)
-    i = np.nan_to_num(i).astype(np.intp)
-    f = s - i
-    return ((c3[i] * f + c2[i]) * f + c1[i]) * f + c0[i]
 
 
 _CACHE: "OrderedDict[bytes, BandTable]" = OrderedDict()

@@ -67,6 +67,8 @@ class MixingLineInverter {
  public:
   explicit MixingLineInverter(std::shared_ptr<const SceneTable> table);
   const SceneTable& table() const { return *table_; }
+  // Each channel's band table (radiance <-> temperature) [W/(m2 sr)], [K].
+  const std::vector<BandTable>& bands() const { return bands_; }
   void Invert(const MixingLineOptions& options, std::size_t num_pixels, const double* radiance,
               const double* background_radiance, const double* sigma_m,
               const MixingLineOutput& out, const RunControl* control = nullptr) const;

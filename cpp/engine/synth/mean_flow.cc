@@ -71,50 +71,33 @@ double MeanFlow::PuffSpeed(const Station& st, double r2) {
   return st.ambient_axial_m_s + st.excess_m_s * profile;
 }
 
-MeanFlow::MeanFlow(const Release& release, const PlumeModelOptions& opt,
-                   const MixingModel& mixing, const std::array<double, 3>& lo,
-                   const std::array<double, 3>& hi, double stop_distance_m) {
-  release.Check();
-  opt.Check();
-  q_ = release.MassRateKgS();
-  d_ = release.exit_diameter_m;
-  const double area = kPi * d_ * d_ / 4;
-  const double rho_e = mixing.exit_density();
-  const double rho_a = mixing.ambient_density();
-  v0_ = q_ / (rho_e * area);
-  l_lam_ = (opt.laminar_length_diameters >= 0
-                ? opt.laminar_length_diameters
-                : (release.ExitReynoldsNumber() < 2000 ? 1.0 : 0.0)) * d_;
-  l_dev_ = opt.development_length_diameters * d_;
-  c_psi_ = opt.structure_persistence;
-  const double u_wind = release.wind_speed_m_s;
-  const double theta = release.wind_direction_deg * kPi / 180.0;
-  const double ew[3] = {std::cos(theta), std::sin(theta), 0.0};
-  const double ep[3] = {-std::sin(theta), std::cos(theta), 0.0};  // = n2
-  const double x0 = release.exit_x_m, z0 = release.stack_height_m;
-  const double ri_p = 0.8 * opt.alpha_plume;
+namespace {
 
-  auto top = [&](const OdeState& st) {
+// The integral model's right-hand side and the top-hat variables of a state
+// (the equations at the top of mean_flow.h).
+struct AxisModel {
+  const PlumeModelOptions& opt;
+  const MixingModel& mixing;
+  double q, d, v0, l_lam, rho_a, u_wind, ri_p, onset;
+
+  Top TopHat(const OdeState& st) const {
     Top o;
     const double pm = std::hypot(st.p_h, st.p_z);
     o.t_h = st.p_h / pm;
     o.t_z = st.p_z / pm;
     o.v = pm / st.mass_flux;
-    o.y = std::min(1.0, q_ / st.mass_flux);
+    o.y = std::min(1.0, q / st.mass_flux);
     o.temperature = mixing.TemperatureAtMassFraction(o.y);
     o.rho = mixing.DensityAtMassFraction(o.y);
     o.b = std::sqrt(st.mass_flux / (kPi * o.rho * o.v));
     o.ambient_axial = std::max(0.0, u_wind * o.t_h);
     o.excess = o.v - u_wind * o.t_h;
     return o;
-  };
-  // The laminar column above a low-Reynolds-number exit does not entrain
-  // turbulently; entrainment switches on over kEntrainmentOnset diameters
-  // after it (half a diameter above a turbulent exit).
-  const double onset = l_lam_ > 0 ? kEntrainmentOnset : 0.5;
-  auto rhs = [&](double s_here, const OdeState& st) {
-    const Top o = top(st);
-    const double on = SmoothStep((s_here - l_lam_) / (onset * d_));
+  }
+
+  OdeState Rhs(double s_here, const OdeState& st) const {
+    const Top o = TopHat(st);
+    const double on = SmoothStep((s_here - l_lam) / (onset * d));
     const double dv = o.excess;
     const double ri = kGravity * std::abs(rho_a - o.rho) * o.b /
                       (rho_a * std::max(dv * dv, 1e-30));
@@ -123,34 +106,52 @@ MeanFlow::MeanFlow(const Release& release, const PlumeModelOptions& opt,
     const double e = on * 2 * kPi * o.b *
                      (alpha * std::sqrt(o.rho * rho_a) * std::abs(dv) +
                       opt.beta_crossflow * rho_a * u_wind * std::abs(o.t_z));
-    OdeState d;
-    d.mass_flux = e;
-    d.p_h = e * u_wind;
-    d.p_z = kPi * o.b * o.b * kGravity * (rho_a - o.rho);
-    d.h = o.t_h;
-    d.z = o.t_z;
-    return d;
-  };
-  auto axpy = [](const OdeState& a, double k, const OdeState& b) {
-    return OdeState{a.mass_flux + k * b.mass_flux, a.p_h + k * b.p_h, a.p_z + k * b.p_z,
-                    a.h + k * b.h, a.z + k * b.z};
-  };
-  auto outside = [&](const double p[3]) {
-    double s2 = 0;
-    for (int k = 0; k < 3; ++k) {
-      const double e = std::max({lo[k] - p[k], 0.0, p[k] - hi[k]});
-      s2 += e * e;
-    }
-    return std::sqrt(s2);
-  };
+    OdeState dd;
+    dd.mass_flux = e;
+    dd.p_h = e * u_wind;
+    dd.p_z = kPi * o.b * o.b * kGravity * (rho_a - o.rho);
+    dd.h = o.t_h;
+    dd.z = o.t_z;
+    return dd;
+  }
+};
+
+OdeState Axpy(const OdeState& a, double k, const OdeState& b) {
+  return OdeState{a.mass_flux + k * b.mass_flux, a.p_h + k * b.p_h, a.p_z + k * b.p_z,
+                  a.h + k * b.h, a.z + k * b.z};
+}
+
+// A point of the marched axis.
+struct Fine {
+  double s, pos[3], t[3];
+  Top top;
+};
+
+// Distance of p outside the box [lo, hi] (0 inside).
+double Outside(const double p[3], const std::array<double, 3>& lo, const std::array<double, 3>& hi) {
+  double s2 = 0;
+  for (int k = 0; k < 3; ++k) {
+    const double e = std::max({lo[k] - p[k], 0.0, p[k] - hi[k]});
+    s2 += e * e;
+  }
+  return std::sqrt(s2);
+}
+
+// Step 1: the integral model marched (RK4) from the exit until the axis is
+// stop_distance_m (plus the plume's reach) outside the box, storing every
+// step; *s_view_end: where the axis first leaves the box (-1: never).
+std::vector<Fine> MarchAxis(const AxisModel& m, const double ew[3], double x0, double z0,
+                            const std::array<double, 3>& lo, const std::array<double, 3>& hi,
+                            double stop_distance_m, double* s_view_end_out) {
+  const double q_ = m.q, d_ = m.d, v0_ = m.v0, u_wind = m.u_wind;
+  auto top = [&](const OdeState& st) { return m.TopHat(st); };
+  auto rhs = [&](double s_here, const OdeState& st) { return m.Rhs(s_here, st); };
+  auto axpy = Axpy;
+  auto outside = [&](const double p[3]) { return Outside(p, lo, hi); };
   double box_size = 0;
   for (int k = 0; k < 3; ++k) box_size = std::max(box_size, hi[k] - lo[k]);
 
   // --- integrate the ODE (RK4), storing every step ---------------------------
-  struct Fine {
-    double s, pos[3], t[3];
-    Top top;
-  };
   std::vector<Fine> fine;
   OdeState st{q_, q_ * v0_, 0.0, 0.0, z0};
   st.p_z = st.p_h;  // vertical exit
@@ -195,7 +196,24 @@ MeanFlow::MeanFlow(const Release& release, const PlumeModelOptions& opt,
     s += ds;
   }
 
-  // --- similarity profiles at each fine point --------------------------------
+  *s_view_end_out = s_view_end;
+  return fine;
+}
+
+// The profile parameters the similarity step needs besides the options.
+struct ProfileInputs {
+  double q, rho_e, l_lam, l_dev, c_psi;
+  double ep[3];  // n2: horizontal, across the wind
+};
+
+// Step 2: the similarity profiles (widths, speeds, puff sizes, turbulence)
+// at each marched point, and the structure age psi and travel time
+// integrated along s.
+std::vector<Station> SimilarityProfiles(const std::vector<Fine>& fine, const Release& release,
+                                        const PlumeModelOptions& opt, const ProfileInputs& in) {
+  const double q_ = in.q, rho_e = in.rho_e, l_lam_ = in.l_lam, l_dev_ = in.l_dev,
+               c_psi_ = in.c_psi;
+  const double* ep = in.ep;
   const double lambda = opt.concentration_width_ratio;
   const double f_inf = opt.puff_size_fraction;
   const double eps = opt.edge_speed_fraction;
@@ -308,7 +326,14 @@ MeanFlow::MeanFlow(const Release& release, const PlumeModelOptions& opt,
                    ds / 2 * (1 / fs[i].mass_weighted_speed + 1 / fs[i - 1].mass_weighted_speed);
   }
 
-  // --- stations in pairs along s, with the pipe segment in front -------------
+  return fs;
+}
+
+// Step 3: stations in pairs along s (a station and the midpoint to the
+// next), the pipe segment in front of the exit; *exit_station: the index of
+// the exit's station.
+std::vector<Station> PlaceStations(const std::vector<Station>& fs, int* exit_station) {
+  std::vector<Station> stations_;
   const Station exit = fs.front();
   const double s_birth = -3.0 * exit.sigma_c;
   auto at_s_fine = [&](double s_here) {
@@ -340,7 +365,7 @@ MeanFlow::MeanFlow(const Release& release, const PlumeModelOptions& opt,
       stations_.push_back(at_s_fine(s_birth + p * h));
       stations_.push_back(at_s_fine(s_birth + (p + 0.5) * h));
     }
-    exit_station_ = static_cast<int>(stations_.size());
+    *exit_station = static_cast<int>(stations_.size());
     const double s_end = fs.back().s;
     double s_here = 0;
     for (;;) {
@@ -364,7 +389,12 @@ MeanFlow::MeanFlow(const Release& release, const PlumeModelOptions& opt,
     throw std::invalid_argument("the view is too small for the plume model: enlarge "
                                 "the view or the distance");
 
-  // --- puff widths that reproduce the centreline density ----------------------
+  return stations_;
+}
+
+// Step 4: puff widths that reproduce the centreline density near the exit.
+void CorrectPuffWidths(std::vector<Station>* stations, double q_, double rho_e) {
+  std::vector<Station>& stations_ = *stations;
   // Where all puffs travel on the axis (no cross-stream offsets: near the
   // exit), the puff field's centreline density is the convolution along it
   //   rho_sm(s) = sum_i (Q / W_i) ds_i N3(X(s) - X(s_i); sigma_i),
@@ -415,10 +445,19 @@ MeanFlow::MeanFlow(const Release& release, const PlumeModelOptions& opt,
     }
   }
 
-  // --- structure scale bands ---------------------------------------------------
+}
+
+// Step 5: the structure scale bands (log-spaced time scales over the view)
+// and each station's normalised weights on them.
+int AssignScaleBands(std::vector<Station>* stations, const PlumeModelOptions& opt, double l_lam_,
+                     double l_dev_, double s_view_end, double s_last,
+                     std::array<double, kMaxBands>* band_time) {
+  std::vector<Station>& stations_ = *stations;
+  std::array<double, kMaxBands>& band_time_ = *band_time;
+  int num_bands_ = 1;
   const double c_tau = opt.structure_length;
   double t_min = 1e300, t_max = 0;
-  if (s_view_end < 0) s_view_end = fs.back().s;
+  if (s_view_end < 0) s_view_end = s_last;
   for (const Station& a : stations_) {
     if (a.s < l_lam_ || a.s > std::max(s_view_end, l_lam_ + l_dev_)) continue;
     const double tt = c_tau * a.sigma_c / a.mass_weighted_speed;
@@ -445,7 +484,12 @@ MeanFlow::MeanFlow(const Release& release, const PlumeModelOptions& opt,
     for (int b = 0; b < num_bands_; ++b) a.band_w[b] /= norm;
   }
 
-  // --- band-weight derivatives along s (central differences) ------------------
+  return num_bands_;
+}
+
+// Step 6: the band weights' derivatives along s (central differences).
+void BandWeightSlopes(std::vector<Station>* stations, int num_bands_) {
+  std::vector<Station>& stations_ = *stations;
   const int n = static_cast<int>(stations_.size());
   for (int j = 0; j < n; ++j) {
     const int a = std::max(0, j - 1), b = std::min(n - 1, j + 1);
@@ -454,6 +498,48 @@ MeanFlow::MeanFlow(const Release& release, const PlumeModelOptions& opt,
     Station& o = stations_[j];
     for (int k = 0; k < num_bands_; ++k) o.band_dw_ds[k] = (sb.band_w[k] - sa.band_w[k]) / h;
   }
+}
+
+}  // namespace
+
+MeanFlow::MeanFlow(const Release& release, const PlumeModelOptions& opt,
+                   const MixingModel& mixing, const std::array<double, 3>& lo,
+                   const std::array<double, 3>& hi, double stop_distance_m) {
+  release.Check();
+  opt.Check();
+  q_ = release.MassRateKgS();
+  d_ = release.exit_diameter_m;
+  const double area = kPi * d_ * d_ / 4;
+  const double rho_e = mixing.exit_density();
+  const double rho_a = mixing.ambient_density();
+  v0_ = q_ / (rho_e * area);
+  l_lam_ = (opt.laminar_length_diameters >= 0
+                ? opt.laminar_length_diameters
+                : (release.ExitReynoldsNumber() < 2000 ? 1.0 : 0.0)) * d_;
+  l_dev_ = opt.development_length_diameters * d_;
+  c_psi_ = opt.structure_persistence;
+  const double u_wind = release.wind_speed_m_s;
+  const double theta = release.wind_direction_deg * kPi / 180.0;
+  const double ew[3] = {std::cos(theta), std::sin(theta), 0.0};
+  const double x0 = release.exit_x_m, z0 = release.stack_height_m;
+  // The laminar column above a low-Reynolds-number exit does not entrain
+  // turbulently; entrainment switches on over kEntrainmentOnset diameters
+  // after it (half a diameter above a turbulent exit).
+  const double onset = l_lam_ > 0 ? kEntrainmentOnset : 0.5;
+  const AxisModel axis{opt, mixing, q_, d_, v0_, l_lam_, rho_a, u_wind, 0.8 * opt.alpha_plume,
+                       onset};
+
+  double s_view_end = -1;
+  const std::vector<Fine> fine =
+      MarchAxis(axis, ew, x0, z0, lo, hi, stop_distance_m, &s_view_end);
+  const ProfileInputs in{q_, rho_e, l_lam_, l_dev_, c_psi_,
+                         {-std::sin(theta), std::cos(theta), 0.0}};
+  const std::vector<Station> fs = SimilarityProfiles(fine, release, opt, in);
+  stations_ = PlaceStations(fs, &exit_station_);
+  CorrectPuffWidths(&stations_, q_, rho_e);
+  num_bands_ = AssignScaleBands(&stations_, opt, l_lam_, l_dev_, s_view_end, fs.back().s,
+                                &band_time_);
+  BandWeightSlopes(&stations_, num_bands_);
 }
 
 Station MeanFlow::AtS(double s) const {

@@ -533,22 +533,6 @@ class InvertedColumns:
         def stage(a, b, label):
             return lambda f: progress(a + (b - a) * f) if progress else None
 
-        # 1. The mixing line's slope: the scene parameter k that minimises the
-        # total chi2 of a sample of the detected pixel-frames (<= 3000, contrast
-        # >= 10x noise) solved on the line (a profile likelihood over a grid of
-        # k, refined by a parabola). Pixel-by-pixel free temperatures are too
-        # weakly determined (and two-branched) to average into k.
-        t_bg = [float(ch.radiometric_temperature(float(np.median(b2[c]))))
-                for c, ch in enumerate(self.rec.channels)]
-        netd = np.broadcast_to(np.asarray(self._inv_kw["netd_K"], float), (nc,))
-        noise = np.array([netd[c] * ch.band_radiance_derivative(t_bg[c])
-                          for c, ch in enumerate(self.rec.channels)])[:, None]
-        snr = np.max(np.abs(r2 - b2) / noise, axis=0)
-        rng = np.random.default_rng(0)
-        cand = np.flatnonzero(snr >= 10.0)
-        if cand.size > 3000:
-            cand = np.sort(rng.choice(cand, 3000, replace=False))
-        self.k_K_per_fraction, self.k_sigma, self.mixing_pixels = 0.0, 0.0, int(cand.size)
         # 2. Every pixel-frame: x = g(x) with T_peak = T_amb + k x. In u = ln x
         # the root of phi(u) = ln g(e^u) - u is bracketed by x -> 0 (g(0) > 0:
         # phi > 0) and x = g(0) (phi <= 0 when g decreases, as it does for gas
@@ -611,36 +595,33 @@ class InvertedColumns:
 
         solve = solve_line if comp is not None else solve_passes
 
-        if cand.size >= 5:
-            step = 10.0
-            grid = np.arange(lo - t_amb, hi - t_amb + 1e-9, step)
-            chi = []
-            for i, kk in enumerate(grid):
-                r = solve(float(kk), cand, 0.3 * i / grid.size, 0.3 * (i + 1) / grid.size)
-                chi.append(r.chi2)
-            chi = np.asarray(chi)                             # (k values, pixels)
-            good = np.all(np.isfinite(chi), axis=0)
-            # Per-pixel chi2 capped (robust: a few saturated pixels that no
-            # temperature fits must not decide the scene's k).
-            total = np.minimum(chi[:, good], 50.0).sum(axis=1)
-            i = int(np.argmin(total))
-            k = float(grid[i])
-            dof = max(1, int(good.sum()) - 1)
-            scale = max(1.0, total[i] / dof)  # model error widens Delta chi2 = 1
-            if 0 < i < grid.size - 1:
-                y0, y1, y2 = total[i - 1], total[i], total[i + 1]
-                curv = (y0 - 2 * y1 + y2) / step ** 2
-                if curv > 0:
-                    k = float(np.clip(grid[i] - 0.5 * (y2 - y0) / step / curv,
-                                      grid[i] - 0.5 * step, grid[i] + 0.5 * step))
-            # 1-sigma: where the (interpolated) total rises by `scale` from its
-            # minimum, on the flatter side.
-            fine = np.linspace(grid[0], grid[-1], 1 + 20 * (grid.size - 1))
-            curve = np.interp(fine, grid, total)
-            inside = fine[curve <= total[i] + scale]
-            self.k_sigma = float(max(k - inside.min(), inside.max() - k, 0.5 * step)) \
-                if inside.size else float(step)
-            self.k_K_per_fraction = k
+        # 1. The mixing line's slope: the scene parameter k that minimises the
+        # total chi2 of a sample of the detected pixel-frames (<= 3000, contrast
+        # >= 10x noise) solved on the line (a profile likelihood over a 10 K
+        # grid of k, refined by a parabola; engine: qogi.inversion.
+        # mixing_line_slope). Pixel-by-pixel free temperatures are too weakly
+        # determined (and two-branched) to average into k. Without a known
+        # composition the engine chooses the sample and reads k off the
+        # profile; the fixed-point passes above solve it on the line.
+        netd_K = self._inv_kw["netd_K"]
+        if comp is not None:
+            found = inv.mixing_line_slope(self.model, self.table, r2, b2, s2, netd_K=netd_K,
+                                          composition=comp, num_threads=cfg.num_threads,
+                                          progress=stage(0.0, 0.3, "mixing line"))
+        else:
+            cand, _ = inv.mixing_line_slope_sample(self.model, self.table, r2, b2, netd_K=netd_K)
+            found = None
+            if cand.size >= 5:
+                grid = np.arange(lo - t_amb, hi - t_amb + 1e-9, 10.0)
+                chi = [solve(float(kk), cand, 0.3 * i / grid.size, 0.3 * (i + 1) / grid.size).chi2
+                       for i, kk in enumerate(grid)]
+                found = inv.mixing_line_slope_from_profile(grid, np.asarray(chi))
+        self.k_K_per_fraction, self.k_sigma, self.mixing_pixels = 0.0, 0.0, 0
+        if found is not None:
+            self.mixing_pixels = found.num_samples
+            if found.found:
+                self.k_K_per_fraction = found.slope_K_per_fraction
+                self.k_sigma = found.sigma_K_per_fraction
         k = self.k_K_per_fraction
         self._set_proxy_lookup(k)
 
