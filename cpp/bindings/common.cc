@@ -12,6 +12,16 @@ std::string ShapeOf(const py::array& a) {
   return s + (a.ndim() == 1 ? ",)" : ")");
 }
 
+const double* OptionalValues(const py::object& value, std::size_t size, const char* name,
+                             const std::string& what, DoubleArray* keep) {
+  if (value.is_none()) return nullptr;
+  *keep = value.cast<DoubleArray>();
+  if (static_cast<std::size_t>(keep->size()) != size)
+    throw std::invalid_argument(std::string(name) + " needs " + what + "; got shape " +
+                                ShapeOf(*keep));
+  return keep->data();
+}
+
 namespace bind_detail {
 
 void RejectUnknown(const char* type_name, const py::kwargs& unknown,

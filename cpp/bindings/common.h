@@ -39,7 +39,8 @@
 // DoubleArray converts any input to contiguous float64 (a copy only when
 // needed); FloatArray takes float32 C-contiguous frames without a copy (and
 // may be written in place). ToVector / FlatVector copy an array into a
-// std::vector, ToArray copies a std::vector into a new array.
+// std::vector, ToArray copies a std::vector into a new array, OutputArrays
+// allocates the arrays an engine call fills and returns them as a dict.
 #pragma once
 
 #include <pybind11/functional.h>
@@ -111,6 +112,28 @@ std::vector<T> FlatVector(const py::array_t<T, Flags>& a) {
   static_assert(Flags & py::array::c_style, "FlatVector needs a C-contiguous array type");
   return std::vector<T>(a.data(), a.data() + a.size());
 }
+
+// Arrays a function returns as a dict: New<T>(name, shape) allocates one,
+// keeps it under `name` and returns its data for the engine to fill.
+class OutputArrays {
+ public:
+  template <typename T>
+  T* New(const char* name, py::array::ShapeContainer shape) {
+    py::array_t<T> a(std::move(shape));
+    dict_[name] = a;
+    return a.mutable_data();
+  }
+  const py::dict& dict() const { return dict_; }
+
+ private:
+  py::dict dict_;
+};
+
+// The data of an optional float64 argument (nullptr for None) holding
+// `size` values; `keep` holds the converted array. Otherwise throws
+// std::invalid_argument "<name> needs <what>; got shape (...)".
+const double* OptionalValues(const py::object& value, std::size_t size, const char* name,
+                             const std::string& what, DoubleArray* keep);
 
 // --- fields of a bound struct --------------------------------------------------
 

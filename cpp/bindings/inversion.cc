@@ -93,25 +93,20 @@ void BindInversion(py::module_& m) {
             o.max_iterations = max_iterations;
             o.num_threads = num_threads;
             o.line_nodes_per_unit = line_nodes_per_unit;
-            py::array_t<double> x(n), xs(n), tp(n), chi2(n);
-            py::array_t<std::int32_t> status(n), iters(n);
-            MixingLineOutput out{x.mutable_data(), xs.mutable_data(), tp.mutable_data(),
-                                 chi2.mutable_data(), status.mutable_data(),
-                                 iters.mutable_data()};
+            OutputArrays res;
+            MixingLineOutput out{res.New<double>("fraction", {n}),
+                                 res.New<double>("fraction_sigma", {n}),
+                                 res.New<double>("peak_temperature_K", {n}),
+                                 res.New<double>("chi2", {n}),
+                                 res.New<std::int32_t>("status", {n}),
+                                 res.New<std::int32_t>("iterations", {n})};
             RunControl control = MakeRunControl(progress);
             {
               py::gil_scoped_release release;
               self.Invert(o, n, radiance.data(), background.data(), sigma.data(), out,
                           &control);
             }
-            py::dict d;
-            d["fraction"] = x;
-            d["fraction_sigma"] = xs;
-            d["peak_temperature_K"] = tp;
-            d["chi2"] = chi2;
-            d["status"] = status;
-            d["iterations"] = iters;
-            return d;
+            return res.dict();
           },
           py::arg("radiance"), py::arg("background_radiance"), py::arg("sigma_m"),
           py::arg("slope_K_per_fraction"), py::arg("composition"), py::arg("netd_K"),
@@ -351,66 +346,33 @@ void BindInversion(py::module_& m) {
              b.radiance = radiance.data();
              b.background_per_frame = Dim(bg, 0) == nf && nf > 1;
              (bg_is_t ? b.background_temperature_K : b.background_radiance) = bg.data();
-             if (!sigma_m.is_none()) {
-               sg = sigma_m.cast<DoubleArray>();
-               if (static_cast<std::size_t>(sg.size()) != n)
-                 throw std::invalid_argument("sigma_m needs one value per pixel (" +
-                                             std::to_string(n) + "); got shape " + ShapeOf(sg));
-               b.sigma_m = sg.data();
-             }
-             if (!peak_temperature.is_none()) {
-               tp = peak_temperature.cast<DoubleArray>();
-               if (static_cast<std::size_t>(tp.size()) != n)
-                 throw std::invalid_argument("peak_temperature_K needs one value per pixel (" +
-                                             std::to_string(n) + "); got shape " + ShapeOf(tp));
-               b.peak_temperature_K = tp.data();
-             }
-             if (!initial.is_none()) {
-               init = initial.cast<DoubleArray>();
-               if (static_cast<std::size_t>(init.size()) != n * np)
-                 throw std::invalid_argument("initial needs (pixels, " + std::to_string(np) +
-                                             ") values; got shape " + ShapeOf(init));
-               b.initial = init.data();
-             }
-             py::array_t<std::uint8_t> status({nf, n}), bound({nf, n}), flags({nf, n});
-             py::array_t<double> params({nf, n, np}), psig({nf, n, np}), cov({nf, n, np, np});
-             py::array_t<double> col({nf, n, ns}), colsig({nf, n, ns}), ppm({nf, n, ns}),
-                 ppmsig({nf, n, ns}), chi2({nf, n}), cond({nf, n});
-             py::array_t<std::int32_t> iters({nf, n});
+             const std::string per_pixel = "one value per pixel (" + std::to_string(n) + ")";
+             b.sigma_m = OptionalValues(sigma_m, n, "sigma_m", per_pixel, &sg);
+             b.peak_temperature_K =
+                 OptionalValues(peak_temperature, n, "peak_temperature_K", per_pixel, &tp);
+             b.initial = OptionalValues(initial, n * np, "initial",
+                                        "(pixels, " + std::to_string(np) + ") values", &init);
+             OutputArrays out;
              InversionOutput o;
-             o.status = status.mutable_data();
-             o.bound_mask = bound.mutable_data();
-             o.flags = flags.mutable_data();
-             o.parameters = params.mutable_data();
-             o.parameter_sigma = psig.mutable_data();
-             o.covariance = cov.mutable_data();
-             o.column_density = col.mutable_data();
-             o.column_density_sigma = colsig.mutable_data();
-             o.path_concentration = ppm.mutable_data();
-             o.path_concentration_sigma = ppmsig.mutable_data();
-             o.chi2 = chi2.mutable_data();
-             o.condition_number = cond.mutable_data();
-             o.iterations = iters.mutable_data();
+             o.status = out.New<std::uint8_t>("status", {nf, n});
+             o.bound_mask = out.New<std::uint8_t>("bound_mask", {nf, n});
+             o.flags = out.New<std::uint8_t>("flags", {nf, n});
+             o.parameters = out.New<double>("parameters", {nf, n, np});
+             o.parameter_sigma = out.New<double>("parameter_sigma", {nf, n, np});
+             o.covariance = out.New<double>("covariance", {nf, n, np, np});
+             o.column_density = out.New<double>("column_density", {nf, n, ns});
+             o.column_density_sigma = out.New<double>("column_density_sigma", {nf, n, ns});
+             o.path_concentration = out.New<double>("path_concentration", {nf, n, ns});
+             o.path_concentration_sigma = out.New<double>("path_concentration_sigma", {nf, n, ns});
+             o.chi2 = out.New<double>("chi2", {nf, n});
+             o.condition_number = out.New<double>("condition_number", {nf, n});
+             o.iterations = out.New<std::int32_t>("iterations", {nf, n});
              RunControl control = MakeRunControl(progress);
              {
                py::gil_scoped_release release;
                inv.Invert(b, o, &control);
              }
-             py::dict d;
-             d["status"] = status;
-             d["bound_mask"] = bound;
-             d["flags"] = flags;
-             d["parameters"] = params;
-             d["parameter_sigma"] = psig;
-             d["covariance"] = cov;
-             d["column_density"] = col;
-             d["column_density_sigma"] = colsig;
-             d["path_concentration"] = ppm;
-             d["path_concentration_sigma"] = ppmsig;
-             d["chi2"] = chi2;
-             d["condition_number"] = cond;
-             d["iterations"] = iters;
-             return d;
+             return out.dict();
            },
            py::arg("radiance"), py::arg("background_radiance") = py::none(),
            py::arg("background_temperature_K") = py::none(), py::arg("sigma_m") = py::none(),

@@ -84,7 +84,8 @@ name : str
            }),
            py::arg("nu_cm1"), py::arg("response"), py::arg("name") = "")
       .def_property_readonly("name", &SpectralResponse::name)
-      .def_property_readonly("nu_cm1", [](const SpectralResponse& s) { return ToArray(s.nu_cm1()); },
+      .def_property_readonly("nu_cm1",
+                             [](const SpectralResponse& s) { return ToArray(s.nu_cm1()); },
                              "Wavenumber samples [cm-1] (a copy).")
       .def_property_readonly("response",
                              [](const SpectralResponse& s) { return ToArray(s.response()); },
