@@ -20,6 +20,8 @@
 // a value seen by Python as a V through a getter and a setter (e.g. an enum
 // as its name). BindOptions returns the py::class_ for further methods.
 // ToDict(obj, Field(...)...) turns a result struct into a dict the same way.
+// The fields are writable, so a getter of options an engine object holds
+// returns a copy: def_property_readonly(..., py::return_value_policy::copy).
 //
 // How to bind a function taking arrays (glue only; the work is the engine's):
 //
@@ -48,7 +50,6 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
-#include <initializer_list>
 #include <string>
 #include <type_traits>
 #include <utility>
