@@ -14,14 +14,6 @@
 namespace qogi {
 namespace {
 
-std::vector<double> ToVector(const DoubleArray& a) {
-  return std::vector<double>(a.data(), a.data() + a.size());
-}
-
-py::array_t<double> ToArray(const std::vector<double>& v) {
-  return py::array_t<double>(v.size(), v.data());
-}
-
 void CheckFrames(const FloatArray& a, int height, int width, const char* name) {
   if (a.ndim() < 2 || a.shape(a.ndim() - 2) != height || a.shape(a.ndim() - 1) != width)
     throw std::invalid_argument(std::string(name) + " must end in the calibration's frame size (" +
@@ -30,107 +22,52 @@ void CheckFrames(const FloatArray& a, int height, int width, const char* name) {
 }
 
 py::dict StatsDict(const ApplyStats& s) {
-  py::dict d;
-  d["out_of_range"] = s.out_of_range;
-  d["replaced"] = s.replaced;
-  d["unreplaced"] = s.unreplaced;
-  return d;
-}
-
-py::dict OptionsDict(const CalibrationOptions& o) {
-  py::dict d;
-  d["quadratic"] = o.quadratic;
-  d["saturation_counts"] = o.saturation_counts;
-  d["min_valid_counts"] = o.min_valid_counts;
-  d["bad_response_tolerance"] = o.bad_response_tolerance;
-  d["bad_noise_factor"] = o.bad_noise_factor;
-  d["max_bad_fraction"] = o.max_bad_fraction;
-  d["nuc_cold_scene"] = o.nuc_cold_scene;
-  d["nuc_hot_scene"] = o.nuc_hot_scene;
-  d["blackbody_emissivity"] = o.blackbody_emissivity;
-  d["ambient_temperature_K"] = o.ambient_temperature_K;
-  d["num_threads"] = o.num_threads;
-  return d;
+  return ToDict(s, Field("out_of_range", &ApplyStats::out_of_range),
+                Field("replaced", &ApplyStats::replaced),
+                Field("unreplaced", &ApplyStats::unreplaced));
 }
 
 // ---------------------------------------------------------------------------
 // Calibration: options, curve, per-channel calibration, fit, stack apply.
 void BindCameraCalibration(py::module_& m) {
-  py::class_<CalibrationOptions>(m, "CalibrationOptions", R"doc(
+  using O = CalibrationOptions;
+  BindOptions<O>(m, "CalibrationOptions", R"doc(
 Options of the radiometric calibration fit (engine struct; see
 qogi.camera.fit_calibration for the meaning of each field).
-)doc")
-      .def(py::init([](bool quadratic, double saturation_counts, double min_valid_counts,
-                       double bad_response_tolerance, double bad_noise_factor,
-                       double max_bad_fraction, int nuc_cold_scene, int nuc_hot_scene,
-                       double blackbody_emissivity, double ambient_temperature_K,
-                       int num_threads) {
-             CalibrationOptions o;
-             o.quadratic = quadratic;
-             o.saturation_counts = saturation_counts;
-             o.min_valid_counts = min_valid_counts;
-             o.bad_response_tolerance = bad_response_tolerance;
-             o.bad_noise_factor = bad_noise_factor;
-             o.max_bad_fraction = max_bad_fraction;
-             o.nuc_cold_scene = nuc_cold_scene;
-             o.nuc_hot_scene = nuc_hot_scene;
-             o.blackbody_emissivity = blackbody_emissivity;
-             o.ambient_temperature_K = ambient_temperature_K;
-             o.num_threads = num_threads;
-             o.Check();
-             return o;
-           }),
-           py::kw_only(), py::arg("quadratic") = false, py::arg("saturation_counts") = 65535.0,
-           py::arg("min_valid_counts") = 0.0, py::arg("bad_response_tolerance") = 0.3,
-           py::arg("bad_noise_factor") = 6.0, py::arg("max_bad_fraction") = 0.05,
-           py::arg("nuc_cold_scene") = -1, py::arg("nuc_hot_scene") = -1,
-           py::arg("blackbody_emissivity") = 1.0, py::arg("ambient_temperature_K") = 0.0,
-           py::arg("num_threads") = 0)
-      .def_readwrite("quadratic", &CalibrationOptions::quadratic)
-      .def_readwrite("saturation_counts", &CalibrationOptions::saturation_counts)
-      .def_readwrite("min_valid_counts", &CalibrationOptions::min_valid_counts)
-      .def_readwrite("bad_response_tolerance", &CalibrationOptions::bad_response_tolerance)
-      .def_readwrite("bad_noise_factor", &CalibrationOptions::bad_noise_factor)
-      .def_readwrite("max_bad_fraction", &CalibrationOptions::max_bad_fraction)
-      .def_readwrite("nuc_cold_scene", &CalibrationOptions::nuc_cold_scene)
-      .def_readwrite("nuc_hot_scene", &CalibrationOptions::nuc_hot_scene)
-      .def_readwrite("blackbody_emissivity", &CalibrationOptions::blackbody_emissivity)
-      .def_readwrite("ambient_temperature_K", &CalibrationOptions::ambient_temperature_K)
-      .def_readwrite("num_threads", &CalibrationOptions::num_threads)
-      .def("check", &CalibrationOptions::Check)
-      .def("to_dict", [](const CalibrationOptions& o) { return OptionsDict(o); })
-      .def("__repr__", [](const CalibrationOptions& o) {
-        std::string s = "CalibrationOptions(";
-        bool first = true;
-        for (auto item : OptionsDict(o)) {
-          s += (first ? "" : ", ") + item.first.cast<std::string>() + "=" +
-               py::repr(item.second).cast<std::string>();
-          first = false;
-        }
-        return s + ")";
-      });
+)doc", Args::kKeywordOnly,
+      Field("quadratic", &O::quadratic, "fit the quadratic term Q L^2 (needs >= 4 "
+            "temperatures); default False"),
+      Field("saturation_counts", &O::saturation_counts,
+            "raw counts >= this are saturated [counts]; default 65535"),
+      Field("min_valid_counts", &O::min_valid_counts,
+            "raw counts <= this are under range (dead) [counts]; default 0"),
+      Field("bad_response_tolerance", &O::bad_response_tolerance,
+            "a pixel whose NUC responsivity differs from the median by more than "
+            "this fraction of it is bad [-], (0, 1); default 0.3"),
+      Field("bad_noise_factor", &O::bad_noise_factor,
+            "a pixel whose temporal noise exceeds this multiple of the median is bad "
+            "[-], >= 1; default 6"),
+      Field("max_bad_fraction", &O::max_bad_fraction,
+            "more bad pixels than this fraction is an error [-]; default 0.05"),
+      Field("nuc_cold_scene", &O::nuc_cold_scene,
+            "index of the cold NUC scene; default -1 = the coldest"),
+      Field("nuc_hot_scene", &O::nuc_hot_scene,
+            "index of the hot NUC scene; default -1 = the hottest"),
+      Field("blackbody_emissivity", &O::blackbody_emissivity,
+            "emissivity of the calibration source [-], (0, 1]; default 1"),
+      Field("ambient_temperature_K", &O::ambient_temperature_K,
+            "temperature of the surroundings reflected by the source [K]; default "
+            "0 = none (needed when blackbody_emissivity < 1)"),
+      Field("num_threads", &O::num_threads, "worker threads; default 0 = all cores"));
 
-  py::class_<CountsFluxCurve>(m, "CountsFluxCurve", R"doc(
+  BindOptions<CountsFluxCurve>(m, "CountsFluxCurve", R"doc(
 F(L) = G L + O + Q L^2 [counts/s] of band radiance L [W/(m2 sr)].
-)doc")
-      .def(py::init([](double gain, double offset, double quadratic) {
-             return CountsFluxCurve{gain, offset, quadratic};
-           }),
-           py::arg("gain"), py::arg("offset"), py::arg("quadratic") = 0.0)
-      .def_readonly("gain", &CountsFluxCurve::gain, "G [counts/s per W/(m2 sr)]")
-      .def_readonly("offset", &CountsFluxCurve::offset, "O [counts/s]")
-      .def_readonly("quadratic", &CountsFluxCurve::quadratic, "Q [counts/s per (W/(m2 sr))^2]")
+)doc", Args::kPositional,
+      Required(Field("gain", &CountsFluxCurve::gain, "G [counts/s per W/(m2 sr)]")),
+      Required(Field("offset", &CountsFluxCurve::offset, "O [counts/s]")),
+      Field("quadratic", &CountsFluxCurve::quadratic, "Q [counts/s per (W/(m2 sr))^2]"))
       .def("flux", &CountsFluxCurve::Flux, py::arg("radiance"))
-      .def("radiance", &CountsFluxCurve::Radiance, py::arg("flux"))
-      .def("__repr__", [](const CountsFluxCurve& c) {
-        return "CountsFluxCurve(gain=" + FormatNumber(c.gain) + ", offset=" +
-               FormatNumber(c.offset) + ", quadratic=" + FormatNumber(c.quadratic) + ")";
-      })
-      .def(py::pickle(
-          [](const CountsFluxCurve& c) { return py::make_tuple(c.gain, c.offset, c.quadratic); },
-          [](py::tuple t) {
-            return CountsFluxCurve{t[0].cast<double>(), t[1].cast<double>(), t[2].cast<double>()};
-          }));
+      .def("radiance", &CountsFluxCurve::Radiance, py::arg("flux"));
 
   py::class_<ChannelCalibration>(m, "ChannelCalibration", R"doc(
 One channel's calibration: per-pixel NUC gain/offset, bad-pixel map and the
@@ -160,7 +97,7 @@ counts-flux curve (use qogi.camera.fit_calibration / Calibration).
                  pts.push_back({t[k], ti[k], l[k], f[k], rf[k], rk[k], sn[k]});
              }
              return ChannelCalibration(
-                 channel, h, w, ToVector(gain), ToVector(offset),
+                 channel, h, w, FlatVector(gain), FlatVector(offset),
                  std::vector<std::uint8_t>(bad.data(), bad.data() + bad.size()), curve,
                  std::move(pts), saturation_counts, min_valid_counts);
            }),
@@ -183,7 +120,8 @@ counts-flux curve (use qogi.camera.fit_calibration / Calibration).
         return out;
       }, "Bad-pixel map (height, width), True = bad.")
       .def_property_readonly("num_bad_pixels", &ChannelCalibration::num_bad_pixels)
-      .def_property_readonly("curve", &ChannelCalibration::curve)
+      .def_property_readonly("curve", &ChannelCalibration::curve,
+                             py::return_value_policy::copy)
       .def_property_readonly("points", [](const ChannelCalibration& c) {
         py::dict d;
         std::vector<double> cols[7];
@@ -213,7 +151,7 @@ counts-flux curve (use qogi.camera.fit_calibration / Calibration).
              CheckSameLength(raw.size(), out.size(), "raw", "out");
              const std::size_t nc = raw.shape(1), npix = raw.shape(2) * raw.shape(3);
              if (channel >= nc) throw std::invalid_argument("channel index out of range");
-             const std::vector<double> t = ToVector(times);
+             const std::vector<double> t = FlatVector(times);
              RunControl control = MakeRunControl(progress);
              const float* src = raw.data() + channel * npix;
              float* dst = out.mutable_data() + channel * npix;
@@ -237,7 +175,7 @@ counts-flux curve (use qogi.camera.fit_calibration / Calibration).
              CheckSameLength(radiance.size(), out.size(), "radiance", "out");
              const std::size_t nc = radiance.shape(1), npix = radiance.shape(2) * radiance.shape(3);
              if (channel >= nc) throw std::invalid_argument("channel index out of range");
-             const std::vector<double> t = ToVector(times);
+             const std::vector<double> t = FlatVector(times);
              const float* src = radiance.data() + channel * npix;
              float* dst = out.mutable_data() + channel * npix;
              const std::size_t nf = radiance.shape(0);
@@ -309,7 +247,7 @@ void BindCameraNoise(py::module_& m) {
                 "frames must hold whole frames of " + std::to_string(nc) + " channels x " +
                 std::to_string(pixels_per_frame) + " pixels; got " +
                 std::to_string(frames.size()) + " values");
-          const std::vector<double> s = ToVector(sigma);
+          const std::vector<double> s = FlatVector(sigma);
           RunControl control = MakeRunControl(progress);
           float* data = frames.mutable_data();
           const std::size_t nf = frames.size() / per;
@@ -339,9 +277,11 @@ lens transmittance on one wavenumber grid (see qogi.camera.ChannelOptics).
              if (!rf.is_none()) {
                DoubleArray r = rf.cast<DoubleArray>();
                CheckNdim(r, 1, "filter_reflectance");
-               rho = ToVector(r);
+               rho = ToVector(r, "filter_reflectance");
              }
-             return ChannelOptics(ToVector(nu), ToVector(d), ToVector(tf), ToVector(tl),
+             return ChannelOptics(ToVector(nu, "nu_cm1"), ToVector(d, "detector_response"),
+                                  ToVector(tf, "filter_transmittance"),
+                                  ToVector(tl, "lens_transmittance"),
                                   std::move(rho), std::move(name));
            }),
            py::arg("nu_cm1"), py::arg("detector_response"), py::arg("filter_transmittance"),

@@ -22,96 +22,47 @@ std::shared_ptr<const BinnedModel> Borrow(const BinnedModel& m) {
 
 std::size_t Dim(const py::array& a, int k) { return static_cast<std::size_t>(a.shape(k)); }
 
-std::string Shape(const py::array& a) {
-  std::string s = "(";
-  for (int k = 0; k < a.ndim(); ++k) s += (k ? ", " : "") + std::to_string(a.shape(k));
-  return s + (a.ndim() == 1 ? ",)" : ")");
-}
-
-py::dict SceneTableOptionsDict(const SceneTableOptions& o) {
-  py::dict d;
-  d["ambient_temperature_K"] = o.ambient_temperature_K;
-  d["min_peak_temperature_K"] = o.min_peak_temperature_K;
-  d["max_peak_temperature_K"] = o.max_peak_temperature_K;
-  d["temperature_step_K"] = o.temperature_step_K;
-  d["max_sigma_m"] = o.max_sigma_m;
-  d["nodes_per_decade"] = o.nodes_per_decade;
-  d["fraction_nodes"] = o.fraction_nodes;
-  d["thin_optical_depth"] = o.thin_optical_depth;
-  d["min_background_K"] = o.min_background_K;
-  d["max_background_K"] = o.max_background_K;
-  d["planck_tolerance"] = o.planck_tolerance;
-  d["num_threads"] = o.num_threads;
-  d["num_nodes"] = o.num_nodes;
-  d["negligible_fraction"] = o.negligible_fraction;
-  d["linear_optical_depth"] = o.linear_optical_depth;
-  return d;
-}
-
 void BindMixingLineSlope(py::module_& m);  // at the end of this file
 
 }  // namespace
 
 void BindInversion(py::module_& m) {
   // --- scene tables ----------------------------------------------------------
-  py::class_<SceneTableOptions>(m, "SceneTableOptions",
-                                "Settings of the per-scene table (see engine/inversion/scene_table.h).")
-      .def(py::init([](double t_amb, double t_lo, double t_hi, double dt, double smax, int npd,
-                       int nx, double thin, double bg_lo, double bg_hi, double tol, int threads,
-                       int nodes, double negligible, double linear) {
-             SceneTableOptions o;
-             o.ambient_temperature_K = t_amb;
-             o.min_peak_temperature_K = t_lo;
-             o.max_peak_temperature_K = t_hi;
-             o.temperature_step_K = dt;
-             o.max_sigma_m = smax;
-             o.nodes_per_decade = npd;
-             o.fraction_nodes = nx;
-             o.thin_optical_depth = thin;
-             o.min_background_K = bg_lo;
-             o.max_background_K = bg_hi;
-             o.planck_tolerance = tol;
-             o.num_threads = threads;
-             o.num_nodes = nodes;
-             o.negligible_fraction = negligible;
-             o.linear_optical_depth = linear;
-             o.Check();
-             return o;
-           }),
-           py::arg("ambient_temperature_K") = SceneTableOptions().ambient_temperature_K,
-           py::arg("min_peak_temperature_K") = SceneTableOptions().min_peak_temperature_K,
-           py::arg("max_peak_temperature_K") = SceneTableOptions().max_peak_temperature_K,
-           py::arg("temperature_step_K") = SceneTableOptions().temperature_step_K,
-           py::arg("max_sigma_m") = SceneTableOptions().max_sigma_m,
-           py::arg("nodes_per_decade") = SceneTableOptions().nodes_per_decade,
-           py::arg("fraction_nodes") = SceneTableOptions().fraction_nodes,
-           py::arg("thin_optical_depth") = SceneTableOptions().thin_optical_depth,
-           py::arg("min_background_K") = SceneTableOptions().min_background_K,
-           py::arg("max_background_K") = SceneTableOptions().max_background_K,
-           py::arg("planck_tolerance") = SceneTableOptions().planck_tolerance,
-           py::arg("num_threads") = SceneTableOptions().num_threads,
-           py::arg("num_nodes") = SceneTableOptions().num_nodes,
-           py::arg("negligible_fraction") = SceneTableOptions().negligible_fraction,
-           py::arg("linear_optical_depth") = SceneTableOptions().linear_optical_depth)
-      .def_readonly("ambient_temperature_K", &SceneTableOptions::ambient_temperature_K)
-      .def_readonly("min_peak_temperature_K", &SceneTableOptions::min_peak_temperature_K)
-      .def_readonly("max_peak_temperature_K", &SceneTableOptions::max_peak_temperature_K)
-      .def_readonly("temperature_step_K", &SceneTableOptions::temperature_step_K)
-      .def_readonly("max_sigma_m", &SceneTableOptions::max_sigma_m)
-      .def_readonly("nodes_per_decade", &SceneTableOptions::nodes_per_decade)
-      .def_readonly("fraction_nodes", &SceneTableOptions::fraction_nodes)
-      .def_readonly("thin_optical_depth", &SceneTableOptions::thin_optical_depth)
-      .def_readonly("min_background_K", &SceneTableOptions::min_background_K)
-      .def_readonly("max_background_K", &SceneTableOptions::max_background_K)
-      .def_readonly("planck_tolerance", &SceneTableOptions::planck_tolerance)
-      .def_readonly("num_threads", &SceneTableOptions::num_threads)
-      .def_readonly("num_nodes", &SceneTableOptions::num_nodes)
-      .def_readonly("negligible_fraction", &SceneTableOptions::negligible_fraction)
-      .def_readonly("linear_optical_depth", &SceneTableOptions::linear_optical_depth)
-      .def("to_dict", &SceneTableOptionsDict)
-      .def("__repr__", [](const SceneTableOptions& o) {
-        return "SceneTableOptions(" + py::str(SceneTableOptionsDict(o)).cast<std::string>() + ")";
-      });
+  using S = SceneTableOptions;
+  BindOptions<S>(m, "SceneTableOptions",
+                 "Settings of the per-scene table (see engine/inversion/scene_table.h).",
+                 Args::kPositional,
+      Field("ambient_temperature_K", &S::ambient_temperature_K,
+            "T_amb of the scene [K], inside the model's tables (default 296)"),
+      Field("min_peak_temperature_K", &S::min_peak_temperature_K,
+            "lowest T_peak tabulated [K]; 0 = the model's lowest (default 0)"),
+      Field("max_peak_temperature_K", &S::max_peak_temperature_K,
+            "highest T_peak tabulated [K]; 0 = the model's highest (default 0)"),
+      Field("temperature_step_K", &S::temperature_step_K,
+            "T_peak grid step [K], within [1, 50] (default 5)"),
+      Field("max_sigma_m", &S::max_sigma_m,
+            "largest plume depth sigma served [m] (default 2)"),
+      Field("nodes_per_decade", &S::nodes_per_decade,
+            "grid density in u = x sigma [nodes per factor 10], 2-40 (default 8)"),
+      Field("fraction_nodes", &S::fraction_nodes,
+            "self-broadening grid over x in [0, 1], 4-21 (default 4)"),
+      Field("thin_optical_depth", &S::thin_optical_depth,
+            "strongest bin's peak optical depth at the smallest u, 1e-8-1e-3 (default 1e-5)"),
+      Field("min_background_K", &S::min_background_K,
+            "lowest background temperature served [K], >= 50 (default 150)"),
+      Field("max_background_K", &S::max_background_K,
+            "highest background temperature served [K], <= 2000 (default 700)"),
+      Field("planck_tolerance", &S::planck_tolerance,
+            "relative truncation of the background Planck basis, 1e-14-1e-4 (default 1e-8)"),
+      Field("num_threads", &S::num_threads, "build threads; 0 = all cores (default 0)"),
+      Field("num_nodes", &S::num_nodes,
+            "line-of-sight nodes of the table's march, odd >= 5; 0 = the model's (default 0)"),
+      Field("negligible_fraction", &S::negligible_fraction,
+            "bins whose largest contrasts stay below this fraction of the band radiance "
+            "are left out, [0, 1e-3] (default 1e-6)"),
+      Field("linear_optical_depth", &S::linear_optical_depth,
+            "bins optically thinner than this are scaled, not marched, [1e-9, 1e-3] "
+            "(default 1e-4)"));
 
   py::class_<MixingLineInverter>(m, "MixingLineInverter",
                                  "Per-pixel inversion on a plume's mixing line "
@@ -135,8 +86,8 @@ void BindInversion(py::module_& m) {
                 Dim(background, 1) != nc || static_cast<std::size_t>(sigma.size()) != n)
               throw std::invalid_argument(
                   "invert needs radiance and background_radiance (N, " + std::to_string(nc) +
-                  ") and sigma_m (N,); got " + Shape(radiance) + ", " + Shape(background) +
-                  ", " + Shape(sigma));
+                  ") and sigma_m (N,); got " + ShapeOf(radiance) + ", " + ShapeOf(background) +
+                  ", " + ShapeOf(sigma));
             MixingLineOptions o;
             o.slope_K_per_fraction = slope;
             o.composition = std::move(composition);
@@ -145,25 +96,20 @@ void BindInversion(py::module_& m) {
             o.max_iterations = max_iterations;
             o.num_threads = num_threads;
             o.line_nodes_per_unit = line_nodes_per_unit;
-            py::array_t<double> x(n), xs(n), tp(n), chi2(n);
-            py::array_t<std::int32_t> status(n), iters(n);
-            MixingLineOutput out{x.mutable_data(), xs.mutable_data(), tp.mutable_data(),
-                                 chi2.mutable_data(), status.mutable_data(),
-                                 iters.mutable_data()};
+            OutputArrays res;
+            MixingLineOutput out{res.New<double>("fraction", {n}),
+                                 res.New<double>("fraction_sigma", {n}),
+                                 res.New<double>("peak_temperature_K", {n}),
+                                 res.New<double>("chi2", {n}),
+                                 res.New<std::int32_t>("status", {n}),
+                                 res.New<std::int32_t>("iterations", {n})};
             RunControl control = MakeRunControl(progress);
             {
               py::gil_scoped_release release;
               self.Invert(o, n, radiance.data(), background.data(), sigma.data(), out,
                           &control);
             }
-            py::dict d;
-            d["fraction"] = x;
-            d["fraction_sigma"] = xs;
-            d["peak_temperature_K"] = tp;
-            d["chi2"] = chi2;
-            d["status"] = status;
-            d["iterations"] = iters;
-            return d;
+            return res.dict();
           },
           py::arg("radiance"), py::arg("background_radiance"), py::arg("sigma_m"),
           py::arg("slope_K_per_fraction"), py::arg("composition"), py::arg("netd_K"),
@@ -188,7 +134,7 @@ void BindInversion(py::module_& m) {
            }),
            py::arg("model"), py::arg("options"), py::arg("progress") = py::none(),
            py::keep_alive<1, 2>())
-      .def_property_readonly("options", &SceneTable::options)
+      .def_property_readonly("options", &SceneTable::options, py::return_value_policy::copy)
       .def_property_readonly("build_seconds", &SceneTable::build_seconds)
       .def_property_readonly("memory_bytes", &SceneTable::memory_bytes)
       .def_property_readonly("num_tabulated_bins", &SceneTable::num_tabulated_bins)
@@ -277,12 +223,11 @@ void BindInversion(py::module_& m) {
             py::gil_scoped_release release;
             r = MeasureTableError(t, n, seed, floor_fraction, jac);
           }
-          py::dict d;
-          d["max_relative_error"] = r.max_relative_error;
-          d["rms_relative_error"] = r.rms_relative_error;
-          d["max_jacobian_error"] = r.max_jacobian_error;
-          d["num_samples"] = r.num_samples;
-          return d;
+          using R = TableErrorReport;
+          return ToDict(r, Field("max_relative_error", &R::max_relative_error),
+                        Field("rms_relative_error", &R::rms_relative_error),
+                        Field("max_jacobian_error", &R::max_jacobian_error),
+                        Field("num_samples", &R::num_samples));
         },
         py::arg("table"), py::arg("num_samples") = 200, py::arg("seed") = 1,
         py::arg("floor_fraction") = 1e-3, py::arg("check_jacobian") = false,
@@ -308,80 +253,48 @@ void BindInversion(py::module_& m) {
       .value("table", SolverKind::kTable)
       .value("full_model", SolverKind::kFullModel);
 
-  py::class_<ParameterSpec>(m, "ParameterSpec")
-      .def(py::init([](ParameterMode mode, double value, double prior_sigma, double lower,
-                       double upper, int tied_to) {
-             return ParameterSpec{mode, value, prior_sigma, lower, upper, tied_to};
-           }),
-           py::arg("mode"), py::arg("value") = 0.0, py::arg("prior_sigma") = 0.0,
-           py::arg("lower") = 0.0, py::arg("upper") = 0.0, py::arg("tied_to") = -1)
-      .def_readonly("tied_to", &ParameterSpec::tied_to)
-      .def_readonly("mode", &ParameterSpec::mode)
-      .def_readonly("value", &ParameterSpec::value)
-      .def_readonly("prior_sigma", &ParameterSpec::prior_sigma)
-      .def_readonly("lower", &ParameterSpec::lower)
-      .def_readonly("upper", &ParameterSpec::upper)
-      .def("__repr__", [](const ParameterSpec& p) {
-        return "ParameterSpec(mode=" + py::str(py::cast(p.mode)).cast<std::string>() +
-               ", value=" + FormatNumber(p.value) + ", prior_sigma=" + FormatNumber(p.prior_sigma) +
-               ", lower=" + FormatNumber(p.lower) + ", upper=" + FormatNumber(p.upper) +
-               ", tied_to=" + std::to_string(p.tied_to) + ")";
-      });
+  BindOptions<ParameterSpec>(m, "ParameterSpec", nullptr, Args::kPositional,
+      Required(Field("mode", &ParameterSpec::mode)),
+      Field("value", &ParameterSpec::value,
+            "fixed value, prior mean, start value when free, or the ratio when tied"),
+      Field("prior_sigma", &ParameterSpec::prior_sigma,
+            "1-sigma width of the prior (prior; > 0), same unit"),
+      Field("lower", &ParameterSpec::lower, "lower bound (same unit)"),
+      Field("upper", &ParameterSpec::upper, "upper bound (> lower)"),
+      Field("tied_to", &ParameterSpec::tied_to,
+            "tied: index of the (estimated) species this fraction follows"));
 
-  py::class_<InversionOptions>(m, "InversionOptions")
-      .def(py::init([](std::vector<ParameterSpec> fractions, ParameterSpec temperature,
-                       ParameterSpec sigma, std::vector<double> netd, double detection_sigma,
-                       double model_error_fraction, int max_iterations, double tolerance_chi2,
-                       InitialGuess guess, int candidates, int guess_iterations, int starts,
-                       SolverKind solver, int threads, ColdStart cold_start) {
-             InversionOptions o;
-             o.fractions = std::move(fractions);
-             o.temperature = temperature;
-             o.sigma = sigma;
-             o.netd_K = std::move(netd);
-             o.detection_sigma = detection_sigma;
-             o.model_error_fraction = model_error_fraction;
-             o.max_iterations = max_iterations;
-             o.tolerance_chi2 = tolerance_chi2;
-             o.initial_guess = guess;
-             o.temperature_candidates = candidates;
-             o.guess_iterations = guess_iterations;
-             o.num_starts = starts;
-             o.solver = solver;
-             o.num_threads = threads;
-             o.cold_start = cold_start;
-             return o;
-           }),
-           py::arg("fractions") = std::vector<ParameterSpec>(),
-           py::arg("temperature") = InversionOptions().temperature,
-           py::arg("sigma") = InversionOptions().sigma,
-           py::arg("netd_K") = InversionOptions().netd_K,
-           py::arg("detection_sigma") = InversionOptions().detection_sigma,
-           py::arg("model_error_fraction") = InversionOptions().model_error_fraction,
-           py::arg("max_iterations") = InversionOptions().max_iterations,
-           py::arg("tolerance_chi2") = InversionOptions().tolerance_chi2,
-           py::arg("initial_guess") = InversionOptions().initial_guess,
-           py::arg("temperature_candidates") = InversionOptions().temperature_candidates,
-           py::arg("guess_iterations") = InversionOptions().guess_iterations,
-           py::arg("num_starts") = InversionOptions().num_starts,
-           py::arg("solver") = InversionOptions().solver,
-           py::arg("num_threads") = InversionOptions().num_threads,
-           py::arg("cold_start") = InversionOptions().cold_start)
-      .def_readonly("fractions", &InversionOptions::fractions)
-      .def_readonly("temperature", &InversionOptions::temperature)
-      .def_readonly("sigma", &InversionOptions::sigma)
-      .def_readonly("netd_K", &InversionOptions::netd_K)
-      .def_readonly("detection_sigma", &InversionOptions::detection_sigma)
-      .def_readonly("model_error_fraction", &InversionOptions::model_error_fraction)
-      .def_readonly("max_iterations", &InversionOptions::max_iterations)
-      .def_readonly("tolerance_chi2", &InversionOptions::tolerance_chi2)
-      .def_readonly("initial_guess", &InversionOptions::initial_guess)
-      .def_readonly("temperature_candidates", &InversionOptions::temperature_candidates)
-      .def_readonly("guess_iterations", &InversionOptions::guess_iterations)
-      .def_readonly("num_starts", &InversionOptions::num_starts)
-      .def_readonly("solver", &InversionOptions::solver)
-      .def_readonly("num_threads", &InversionOptions::num_threads)
-      .def_readonly("cold_start", &InversionOptions::cold_start);
+  using I = InversionOptions;
+  BindOptions<I>(m, "InversionOptions", nullptr, Args::kPositional,
+      Field("fractions", &I::fractions,
+            "one ParameterSpec per species (peak volume fraction); empty: every species "
+            "free in [0, 1], start 1e-3"),
+      Field("temperature", &I::temperature,
+            "T_peak [K]; default fixed at ambient (value 0 = ambient, bounds 0 = the table's)"),
+      Field("sigma", &I::sigma, "Gaussian depth sigma [m]; default fixed at 0.05 m"),
+      Field("netd_K", &I::netd_K, "NETD per channel [K], one value = every channel "
+            "(default [0.017])"),
+      Field("detection_sigma", &I::detection_sigma,
+            "below detection when |y_c| < detection_sigma x n_c in every channel (default 3)"),
+      Field("model_error_fraction", &I::model_error_fraction,
+            "relative model uncertainty per channel, in quadrature with the noise, [0, 1] "
+            "(default 0)"),
+      Field("max_iterations", &I::max_iterations, "solver iterations per solve, >= 1 "
+            "(default 100)"),
+      Field("tolerance_chi2", &I::tolerance_chi2,
+            "converged when a Gauss-Newton step would lower chi2 by less, [1e-12, 1] "
+            "(default 0.01)"),
+      Field("initial_guess", &I::initial_guess, "default table"),
+      Field("temperature_candidates", &I::temperature_candidates,
+            "starts only: T_peak candidates of the coarse lookup, 1-50 (default 5)"),
+      Field("guess_iterations", &I::guess_iterations,
+            "starts only: fraction refinements per candidate, 0-100 (default 3)"),
+      Field("num_starts", &I::num_starts,
+            "starts only: full solves from the best candidates, 0-50, 0 = all (default 0)"),
+      Field("solver", &I::solver, "default auto"),
+      Field("num_threads", &I::num_threads, "threads over pixels; 0 = all cores (default 0)"),
+      Field("cold_start", &I::cold_start,
+            "how a pixel without a warm start is solved when T_peak is free (default profile)"));
 
   m.def("pixel_status_name", [](int s) { return std::string(PixelStatusName(static_cast<PixelStatus>(s))); },
         py::arg("status"));
@@ -425,7 +338,7 @@ void BindInversion(py::module_& m) {
              DoubleArray bg = (bg_is_t ? background_temperature : background_radiance).cast<DoubleArray>();
              CheckNdim(bg, 3, "background (frames or 1, channels, pixels)");
              if (!((Dim(bg, 0) == 1 || Dim(bg, 0) == nf) && Dim(bg, 1) == nc && Dim(bg, 2) == n))
-               throw std::invalid_argument("the background has shape " + Shape(bg) +
+               throw std::invalid_argument("the background has shape " + ShapeOf(bg) +
                                            "; expected (1 or " + std::to_string(nf) + ", " +
                                            std::to_string(nc) + ", " + std::to_string(n) + ")");
              DoubleArray sg, tp, init;
@@ -436,66 +349,33 @@ void BindInversion(py::module_& m) {
              b.radiance = radiance.data();
              b.background_per_frame = Dim(bg, 0) == nf && nf > 1;
              (bg_is_t ? b.background_temperature_K : b.background_radiance) = bg.data();
-             if (!sigma_m.is_none()) {
-               sg = sigma_m.cast<DoubleArray>();
-               if (static_cast<std::size_t>(sg.size()) != n)
-                 throw std::invalid_argument("sigma_m needs one value per pixel (" +
-                                             std::to_string(n) + "); got shape " + Shape(sg));
-               b.sigma_m = sg.data();
-             }
-             if (!peak_temperature.is_none()) {
-               tp = peak_temperature.cast<DoubleArray>();
-               if (static_cast<std::size_t>(tp.size()) != n)
-                 throw std::invalid_argument("peak_temperature_K needs one value per pixel (" +
-                                             std::to_string(n) + "); got shape " + Shape(tp));
-               b.peak_temperature_K = tp.data();
-             }
-             if (!initial.is_none()) {
-               init = initial.cast<DoubleArray>();
-               if (static_cast<std::size_t>(init.size()) != n * np)
-                 throw std::invalid_argument("initial needs (pixels, " + std::to_string(np) +
-                                             ") values; got shape " + Shape(init));
-               b.initial = init.data();
-             }
-             py::array_t<std::uint8_t> status({nf, n}), bound({nf, n}), flags({nf, n});
-             py::array_t<double> params({nf, n, np}), psig({nf, n, np}), cov({nf, n, np, np});
-             py::array_t<double> col({nf, n, ns}), colsig({nf, n, ns}), ppm({nf, n, ns}),
-                 ppmsig({nf, n, ns}), chi2({nf, n}), cond({nf, n});
-             py::array_t<std::int32_t> iters({nf, n});
+             const std::string per_pixel = "one value per pixel (" + std::to_string(n) + ")";
+             b.sigma_m = OptionalValues(sigma_m, n, "sigma_m", per_pixel, &sg);
+             b.peak_temperature_K =
+                 OptionalValues(peak_temperature, n, "peak_temperature_K", per_pixel, &tp);
+             b.initial = OptionalValues(initial, n * np, "initial",
+                                        "(pixels, " + std::to_string(np) + ") values", &init);
+             OutputArrays out;
              InversionOutput o;
-             o.status = status.mutable_data();
-             o.bound_mask = bound.mutable_data();
-             o.flags = flags.mutable_data();
-             o.parameters = params.mutable_data();
-             o.parameter_sigma = psig.mutable_data();
-             o.covariance = cov.mutable_data();
-             o.column_density = col.mutable_data();
-             o.column_density_sigma = colsig.mutable_data();
-             o.path_concentration = ppm.mutable_data();
-             o.path_concentration_sigma = ppmsig.mutable_data();
-             o.chi2 = chi2.mutable_data();
-             o.condition_number = cond.mutable_data();
-             o.iterations = iters.mutable_data();
+             o.status = out.New<std::uint8_t>("status", {nf, n});
+             o.bound_mask = out.New<std::uint8_t>("bound_mask", {nf, n});
+             o.flags = out.New<std::uint8_t>("flags", {nf, n});
+             o.parameters = out.New<double>("parameters", {nf, n, np});
+             o.parameter_sigma = out.New<double>("parameter_sigma", {nf, n, np});
+             o.covariance = out.New<double>("covariance", {nf, n, np, np});
+             o.column_density = out.New<double>("column_density", {nf, n, ns});
+             o.column_density_sigma = out.New<double>("column_density_sigma", {nf, n, ns});
+             o.path_concentration = out.New<double>("path_concentration", {nf, n, ns});
+             o.path_concentration_sigma = out.New<double>("path_concentration_sigma", {nf, n, ns});
+             o.chi2 = out.New<double>("chi2", {nf, n});
+             o.condition_number = out.New<double>("condition_number", {nf, n});
+             o.iterations = out.New<std::int32_t>("iterations", {nf, n});
              RunControl control = MakeRunControl(progress);
              {
                py::gil_scoped_release release;
                inv.Invert(b, o, &control);
              }
-             py::dict d;
-             d["status"] = status;
-             d["bound_mask"] = bound;
-             d["flags"] = flags;
-             d["parameters"] = params;
-             d["parameter_sigma"] = psig;
-             d["covariance"] = cov;
-             d["column_density"] = col;
-             d["column_density_sigma"] = colsig;
-             d["path_concentration"] = ppm;
-             d["path_concentration_sigma"] = ppmsig;
-             d["chi2"] = chi2;
-             d["condition_number"] = cond;
-             d["iterations"] = iters;
-             return d;
+             return out.dict();
            },
            py::arg("radiance"), py::arg("background_radiance") = py::none(),
            py::arg("background_temperature_K") = py::none(), py::arg("sigma_m") = py::none(),
@@ -527,8 +407,8 @@ void CheckRows(const MixingLineInverter& self, const DoubleArray& radiance,
   if (radiance.ndim() != 2 || Dim(radiance, 1) != nc || background.ndim() != 2 ||
       Dim(background, 0) != Dim(radiance, 0) || Dim(background, 1) != nc)
     throw std::invalid_argument(std::string(what) + " needs radiance and background_radiance (N, " +
-                                std::to_string(nc) + "); got " + Shape(radiance) + ", " +
-                                Shape(background));
+                                std::to_string(nc) + "); got " + ShapeOf(radiance) + ", " +
+                                ShapeOf(background));
 }
 
 void BindMixingLineSlope(py::module_& m) {
@@ -546,7 +426,7 @@ void BindMixingLineSlope(py::module_& m) {
            const std::size_t n = Dim(radiance, 0);
            if (static_cast<std::size_t>(sigma.size()) != n)
              throw std::invalid_argument("find_slope needs sigma_m (N,) = (" + std::to_string(n) +
-                                         ",); got " + Shape(sigma));
+                                         ",); got " + ShapeOf(sigma));
            MixingLineSlopeOptions o;
            o.line.composition = std::move(composition);
            o.line.netd_K = std::move(netd);
@@ -614,7 +494,7 @@ void BindMixingLineSlope(py::module_& m) {
         CheckNdim(chi2, 2, "chi2");
         if (Dim(chi2, 0) != grid.size())
           throw std::invalid_argument("chi2 needs one row per grid value (" +
-                                      std::to_string(grid.size()) + "); got " + Shape(chi2));
+                                      std::to_string(grid.size()) + "); got " + ShapeOf(chi2));
         return SlopeDict(MixingLineSlopeFromProfile(grid, Dim(chi2, 1), chi2.data(), chi2_cap));
       },
       py::arg("grid_K_per_fraction"), py::arg("chi2"), py::arg("chi2_cap") = 50.0,

@@ -1,7 +1,7 @@
 // Bindings of engine/io: the JPEG-LS decoder.
 #include "common.h"
 
-#include <cstring>
+#include <cstdint>
 
 #include "engine/io/jpegls.h"
 
@@ -23,27 +23,16 @@ void BindIo(py::module_& m) {
           img = DecodeJpegLs(bytes, size);
         }
         const std::vector<py::ssize_t> shape = {img.components, img.height, img.width};
-        py::array out;
-        if (img.bits_per_sample <= 8) {
-          py::array_t<std::uint8_t> a(shape);
-          std::uint8_t* dst = a.mutable_data();
-          for (std::size_t i = 0; i < img.samples.size(); ++i)
-            dst[i] = static_cast<std::uint8_t>(img.samples[i]);
-          out = a;
-        } else {
-          py::array_t<std::uint16_t> a(shape);
-          std::memcpy(a.mutable_data(), img.samples.data(),
-                      img.samples.size() * sizeof(std::uint16_t));
-          out = a;
-        }
-        py::dict meta;
-        meta["width"] = img.width;
-        meta["height"] = img.height;
-        meta["components"] = img.components;
-        meta["bits_per_sample"] = img.bits_per_sample;
-        meta["max_value"] = img.max_value;
-        meta["near"] = img.near;
-        meta["interleave"] = img.interleave;
+        py::array out = img.bits_per_sample <= 8
+                            ? py::array(ToArray<std::uint8_t>(img.samples, shape))
+                            : py::array(ToArray(img.samples, shape));
+        using J = JpegLsImage;
+        const py::dict meta =
+            ToDict(img, Field("width", &J::width), Field("height", &J::height),
+                   Field("components", &J::components),
+                   Field("bits_per_sample", &J::bits_per_sample),
+                   Field("max_value", &J::max_value), Field("near", &J::near),
+                   Field("interleave", &J::interleave));
         return py::make_tuple(out, meta);
       },
       py::arg("data"),

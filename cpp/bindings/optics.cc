@@ -23,6 +23,22 @@ py::array_t<double> Map(const DoubleArray& in, Fn fn) {
   return out;
 }
 
+// fn(nu, t, out, n) over blocks of equal-length 1-D arrays nu_cm1 and
+// temperature_K, in parallel with the GIL released.
+template <typename Fn>
+py::array_t<double> MapPairs(const DoubleArray& nu, const DoubleArray& t, Fn fn) {
+  CheckNdim(nu, 1, "nu_cm1");
+  CheckNdim(t, 1, "temperature_K");
+  CheckSameLength(nu.size(), t.size(), "nu_cm1", "temperature_K");
+  py::array_t<double> out(nu.size());
+  const double *pn = nu.data(), *pt = t.data();
+  double* po = out.mutable_data();
+  const std::size_t n = static_cast<std::size_t>(nu.size());
+  py::gil_scoped_release release;
+  ParallelFor(n, 8192, [&](std::size_t b, std::size_t e) { fn(pn + b, pt + b, po + b, e - b); });
+  return out;
+}
+
 }  // namespace
 
 void BindOptics(py::module_& m) {
@@ -32,18 +48,8 @@ void BindOptics(py::module_& m) {
 
   m.def("planck_radiance",
         [](const DoubleArray& nu, const DoubleArray& t) {
-          CheckNdim(nu, 1, "nu_cm1");
-          CheckNdim(t, 1, "temperature_K");
-          CheckSameLength(nu.size(), t.size(), "nu_cm1", "temperature_K");
-          py::array_t<double> out(nu.size());
-          const double *pn = nu.data(), *pt = t.data();
-          double* po = out.mutable_data();
-          const std::size_t n = static_cast<std::size_t>(nu.size());
-          py::gil_scoped_release release;
-          ParallelFor(n, 8192, [&](std::size_t b, std::size_t e) {
-            PlanckRadiance(pn + b, pt + b, po + b, e - b);
-          });
-          return out;
+          return MapPairs(nu, t, [](const double* nu, const double* t, double* out,
+                                    std::size_t n) { PlanckRadiance(nu, t, out, n); });
         },
         py::arg("nu_cm1"), py::arg("temperature_K"),
         "Planck spectral radiance B(nu, T) [W/(m2 sr cm-1)] over equal-length "
@@ -51,19 +57,10 @@ void BindOptics(py::module_& m) {
 
   m.def("planck_radiance_derivative",
         [](const DoubleArray& nu, const DoubleArray& t) {
-          CheckNdim(nu, 1, "nu_cm1");
-          CheckNdim(t, 1, "temperature_K");
-          CheckSameLength(nu.size(), t.size(), "nu_cm1", "temperature_K");
-          py::array_t<double> out(nu.size());
-          const double *pn = nu.data(), *pt = t.data();
-          double* po = out.mutable_data();
-          const std::size_t n = static_cast<std::size_t>(nu.size());
-          py::gil_scoped_release release;
-          ParallelFor(n, 8192, [&](std::size_t b, std::size_t e) {
-            for (std::size_t i = b; i < e; ++i)
-              po[i] = PlanckRadianceDerivative(pn[i], pt[i]);
+          return MapPairs(nu, t, [](const double* nu, const double* t, double* out,
+                                    std::size_t n) {
+            for (std::size_t i = 0; i < n; ++i) out[i] = PlanckRadianceDerivative(nu[i], t[i]);
           });
-          return out;
         },
         py::arg("nu_cm1"), py::arg("temperature_K"),
         "dB/dT [W/(m2 sr cm-1 K)] over equal-length 1-D arrays.");
@@ -82,20 +79,17 @@ name : str
     Channel name shown in tables and plots.
 )doc")
       .def(py::init([](const DoubleArray& nu, const DoubleArray& r, std::string name) {
-             CheckNdim(nu, 1, "nu_cm1");
-             CheckNdim(r, 1, "response");
-             return SpectralResponse(
-                 std::vector<double>(nu.data(), nu.data() + nu.size()),
-                 std::vector<double>(r.data(), r.data() + r.size()), std::move(name));
+             return SpectralResponse(ToVector(nu, "nu_cm1"), ToVector(r, "response"),
+                                     std::move(name));
            }),
            py::arg("nu_cm1"), py::arg("response"), py::arg("name") = "")
       .def_property_readonly("name", &SpectralResponse::name)
-      .def_property_readonly("nu_cm1", [](const SpectralResponse& s) {
-        return py::array_t<double>(s.nu_cm1().size(), s.nu_cm1().data());
-      }, "Wavenumber samples [cm-1] (a copy).")
-      .def_property_readonly("response", [](const SpectralResponse& s) {
-        return py::array_t<double>(s.response().size(), s.response().data());
-      }, "Response samples [dimensionless] (a copy).")
+      .def_property_readonly("nu_cm1",
+                             [](const SpectralResponse& s) { return ToArray(s.nu_cm1()); },
+                             "Wavenumber samples [cm-1] (a copy).")
+      .def_property_readonly("response",
+                             [](const SpectralResponse& s) { return ToArray(s.response()); },
+                             "Response samples [dimensionless] (a copy).")
       .def_property_readonly("integral_cm1", &SpectralResponse::Integral,
                              "Integral of the response over wavenumber [cm-1].")
       .def_property_readonly("centroid_cm1", &SpectralResponse::CentroidWavenumber,

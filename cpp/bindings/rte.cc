@@ -72,15 +72,13 @@ std::vector<double> BackgroundOf(const PlumeBatch& b, std::size_t i, std::size_t
 
 Path MakePath(const DoubleArray& position, const DoubleArray& temperature,
               const DoubleArray& fractions, double pressure) {
-  CheckNdim(position, 1, "position_m");
-  CheckNdim(temperature, 1, "temperature_K");
   CheckNdim(fractions, 2, "fractions");
   Path p;
   p.num_species = static_cast<std::size_t>(fractions.shape(1));
   p.pressure_Pa = pressure;
-  p.position_m.assign(position.data(), position.data() + position.size());
-  p.temperature_K.assign(temperature.data(), temperature.data() + temperature.size());
-  p.fraction.assign(fractions.data(), fractions.data() + fractions.size());
+  p.position_m = ToVector(position, "position_m");
+  p.temperature_K = ToVector(temperature, "temperature_K");
+  p.fraction = FlatVector(fractions);
   if (static_cast<std::size_t>(fractions.shape(0)) != p.position_m.size())
     throw std::invalid_argument("fractions must have one row per node");
   return p;
@@ -102,8 +100,7 @@ void BindRte(py::module_& m) {
              t.pressure_Pa = pressure;
              t.nu0_cm1 = nu0;
              t.dnu_cm1 = dnu;
-             CheckNdim(temps, 1, "temperatures_K");
-             t.temperatures_K.assign(temps.data(), temps.data() + temps.size());
+             t.temperatures_K = ToVector(temps, "temperatures_K");
              if (air.ndim() != 2) throw std::invalid_argument("sigma_air must be 2-D (n_T, n_nu)");
              t.n_nu = static_cast<std::size_t>(air.shape(1));
              t.sigma_air = TableValues(air, t.temperatures_K.size(), t.n_nu, "sigma_air");
@@ -126,79 +123,48 @@ void BindRte(py::module_& m) {
       .def_property_readonly("has_self", &AbsorberTable::has_self)
       .def_property_readonly("molar_mass_kg_mol", &AbsorberTable::molar_mass);
 
-  py::class_<ExactModelOptions>(m, "ExactModelOptions")
-      .def(py::init([](int num_nodes, double z_max, bool richardson, int num_threads) {
-             ExactModelOptions o;
-             o.num_nodes = num_nodes;
-             o.z_max = z_max;
-             o.richardson = richardson;
-             o.num_threads = num_threads;
-             o.Check();
-             return o;
-           }),
-           py::arg("num_nodes") = ExactModelOptions().num_nodes,
-           py::arg("z_max") = ExactModelOptions().z_max,
-           py::arg("richardson") = ExactModelOptions().richardson,
-           py::arg("num_threads") = ExactModelOptions().num_threads)
-      .def_readonly("num_nodes", &ExactModelOptions::num_nodes)
-      .def_readonly("z_max", &ExactModelOptions::z_max)
-      .def_readonly("richardson", &ExactModelOptions::richardson)
-      .def_readonly("num_threads", &ExactModelOptions::num_threads);
+  BindOptions<ExactModelOptions>(m, "ExactModelOptions", nullptr, Args::kPositional,
+      Field("num_nodes", &ExactModelOptions::num_nodes,
+            "line-of-sight nodes of a Gaussian plume, >= 3, odd keeps the centre (default 401)"),
+      Field("z_max", &ExactModelOptions::z_max,
+            "the plume is sampled over [-z_max, z_max] sigma (default 6.5)"),
+      Field("richardson", &ExactModelOptions::richardson,
+            "Richardson-extrapolate the march on all and on every other node (default True)"),
+      Field("num_threads", &ExactModelOptions::num_threads, "0 = all cores (default 0)"));
 
-  py::class_<BinnedModelOptions>(m, "BinnedModelOptions")
-      .def(py::init([](double bin_ratio, std::vector<double> keys, double floor_fraction,
-                       int cheb, double seg, int nodes, double zmax, bool rich, bool self_key) {
-             BinnedModelOptions o;
-             o.self_key = self_key;
-             o.bin_ratio = bin_ratio;
-             o.key_temperatures_K = std::move(keys);
-             o.floor_fraction = floor_fraction;
-             o.chebyshev_nodes = cheb;
-             o.segment_width_cm1 = seg;
-             o.num_nodes = nodes;
-             o.z_max = zmax;
-             o.richardson = rich;
-             o.Check();
-             return o;
-           }),
-           py::arg("bin_ratio") = BinnedModelOptions().bin_ratio,
-           py::arg("key_temperatures_K") = BinnedModelOptions().key_temperatures_K,
-           py::arg("floor_fraction") = BinnedModelOptions().floor_fraction,
-           py::arg("chebyshev_nodes") = BinnedModelOptions().chebyshev_nodes,
-           py::arg("segment_width_cm1") = BinnedModelOptions().segment_width_cm1,
-           py::arg("num_nodes") = BinnedModelOptions().num_nodes,
-           py::arg("z_max") = BinnedModelOptions().z_max,
-           py::arg("richardson") = BinnedModelOptions().richardson,
-           py::arg("self_key") = BinnedModelOptions().self_key)
-      .def_readonly("self_key", &BinnedModelOptions::self_key)
-      .def_readonly("bin_ratio", &BinnedModelOptions::bin_ratio)
-      .def_readonly("key_temperatures_K", &BinnedModelOptions::key_temperatures_K)
-      .def_readonly("floor_fraction", &BinnedModelOptions::floor_fraction)
-      .def_readonly("chebyshev_nodes", &BinnedModelOptions::chebyshev_nodes)
-      .def_readonly("segment_width_cm1", &BinnedModelOptions::segment_width_cm1)
-      .def_readonly("num_nodes", &BinnedModelOptions::num_nodes)
-      .def_readonly("z_max", &BinnedModelOptions::z_max)
-      .def_readonly("richardson", &BinnedModelOptions::richardson);
+  using B = BinnedModelOptions;
+  BindOptions<B>(m, "BinnedModelOptions", nullptr, Args::kPositional,
+      Field("bin_ratio", &B::bin_ratio,
+            "max ratio of cross-sections within a bin at each key temperature, > 1 "
+            "(default 1.5)"),
+      Field("key_temperatures_K", &B::key_temperatures_K,
+            "binning temperatures [K], within the tables (default [250, 350, 500])"),
+      Field("floor_fraction", &B::floor_fraction,
+            "cross-sections below this fraction of a species' maximum count as zero "
+            "(default 1e-8)"),
+      Field("chebyshev_nodes", &B::chebyshev_nodes,
+            "Planck interpolation nodes per segment, 4-32 (default 12)"),
+      Field("segment_width_cm1", &B::segment_width_cm1,
+            "max width of a Chebyshev segment [cm-1] (default 300)"),
+      Field("num_nodes", &B::num_nodes,
+            "line-of-sight nodes of a Gaussian plume, >= 3, odd for Richardson (default 129)"),
+      Field("z_max", &B::z_max, "the plume is sampled over [-z_max, z_max] sigma (default 5.5)"),
+      Field("richardson", &B::richardson,
+            "Richardson-extrapolate the march on all and on every other node (default True)"),
+      Field("self_key", &B::self_key,
+            "also bin by the self-broadened cross-section (default False)"));
 
-  py::class_<AtmosphericPath>(m, "AtmosphericPath")
-      .def(py::init([](double d, double t, double rh, double co2, double ch4) {
-             AtmosphericPath a;
-             a.distance_m = d;
-             a.temperature_K = t;
-             a.relative_humidity = rh;
-             a.co2_ppm = co2;
-             a.ch4_ppm = ch4;
-             a.Check();
-             return a;
-           }),
-           py::arg("distance_m") = 0.0, py::arg("temperature_K") = 288.15,
-           py::arg("relative_humidity") = 0.5, py::arg("co2_ppm") = 420.0,
-           py::arg("ch4_ppm") = 1.9)
-      .def_readonly("distance_m", &AtmosphericPath::distance_m)
-      .def_readonly("temperature_K", &AtmosphericPath::temperature_K)
-      .def_readonly("relative_humidity", &AtmosphericPath::relative_humidity)
-      .def_readonly("co2_ppm", &AtmosphericPath::co2_ppm)
-      .def_readonly("ch4_ppm", &AtmosphericPath::ch4_ppm);
+  BindOptions<AtmosphericPath>(m, "AtmosphericPath", nullptr, Args::kPositional,
+      Field("distance_m", &AtmosphericPath::distance_m,
+            "path length [m]; 0 = no atmosphere (default 0)"),
+      Field("temperature_K", &AtmosphericPath::temperature_K,
+            "air temperature [K] (default 288.15)"),
+      Field("relative_humidity", &AtmosphericPath::relative_humidity,
+            "[0, 1]; H2O from the saturation pressure, needs an H2O table (default 0.5)"),
+      Field("co2_ppm", &AtmosphericPath::co2_ppm,
+            "ambient CO2 [ppm], used if the model has a CO2 table (default 420)"),
+      Field("ch4_ppm", &AtmosphericPath::ch4_ppm,
+            "ambient CH4 [ppm], used if the model has a CH4 table (default 1.9)"));
 
   m.def("saturation_vapor_pressure", &SaturationVaporPressure, py::arg("temperature_K"));
 
@@ -280,8 +246,7 @@ void BindRte(py::module_& m) {
                py::gil_scoped_release release;
                mdl.SpectralContrast(channel, p, tbg, &nu, &dl);
              }
-             return py::make_tuple(py::array_t<double>(nu.size(), nu.data()),
-                                   py::array_t<double>(dl.size(), dl.data()));
+             return py::make_tuple(ToArray(nu), ToArray(dl));
            },
            py::arg("channel"), py::arg("position_m"), py::arg("temperature_K"),
            py::arg("fractions"), py::arg("pressure_Pa"), py::arg("background_temperature_K"))
@@ -297,8 +262,7 @@ void BindRte(py::module_& m) {
              const Path p = mdl.GaussianPath(g);
              py::array_t<double> fr({p.size(), p.num_species});
              std::copy(p.fraction.begin(), p.fraction.end(), fr.mutable_data());
-             return py::make_tuple(py::array_t<double>(p.size(), p.position_m.data()),
-                                   py::array_t<double>(p.size(), p.temperature_K.data()), fr);
+             return py::make_tuple(ToArray(p.position_m), ToArray(p.temperature_K), fr);
            },
            py::arg("peak_fractions"), py::arg("peak_temperature_K"),
            py::arg("ambient_temperature_K"), py::arg("sigma_m"), py::arg("pressure_Pa"));
@@ -318,7 +282,7 @@ void BindRte(py::module_& m) {
       .def_property_readonly("max_temperature_K", &BinnedModel::max_temperature_K)
       .def_property_readonly("planck_interpolation_error", &BinnedModel::planck_interpolation_error)
       .def("num_bins", &BinnedModel::num_bins, py::arg("channel"))
-      .def_property_readonly("options", &BinnedModel::options)
+      .def_property_readonly("options", &BinnedModel::options, py::return_value_policy::copy)
       .def("band_radiance",
            [](const BinnedModel& mdl, const DoubleArray& x, const DoubleArray& tp,
               const DoubleArray& ta, const DoubleArray& sigma, const DoubleArray& tbg,
@@ -373,15 +337,14 @@ void BindRte(py::module_& m) {
                py::gil_scoped_release release;
                mdl.BinContrasts(p, channel, tbg, &out);
              }
-             return py::array_t<double>(out.size(), out.data());
+             return ToArray(out);
            },
            py::arg("position_m"), py::arg("temperature_K"), py::arg("fractions"),
            py::arg("pressure_Pa"), py::arg("channel"), py::arg("background_temperature_K"),
            "Unweighted contrast of every bin of one channel [W/(m2 sr cm-1)].")
       .def("weights", [](const BinnedModel& mdl, std::size_t c) {
              if (c >= mdl.num_channels()) throw std::invalid_argument("channel index out of range");
-             const auto& w = mdl.weights(c);
-             return py::array_t<double>(w.size(), w.data());
+             return ToArray(mdl.weights(c));
            }, py::arg("channel"), "Bin weights of a channel [cm-1].")
       .def("subset", &BinnedModel::Subset, py::arg("bins"), py::arg("weights"),
            py::call_guard<py::gil_scoped_release>())

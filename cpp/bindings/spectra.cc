@@ -2,7 +2,6 @@
 // line parameters, the Voigt profile, cross-sections and sigma(nu, T) tables.
 #include <limits>
 #include <memory>
-#include <sstream>
 
 #include "common.h"
 #include "engine/spectra/cross_section.h"
@@ -15,20 +14,6 @@
 namespace qogi {
 namespace {
 
-template <class T>
-py::array_t<T> ToArray(const std::vector<T>& v) {
-  return py::array_t<T>(static_cast<py::ssize_t>(v.size()), v.data());
-}
-
-template <class T>
-std::vector<T> ToVector(const py::array_t<T, py::array::c_style | py::array::forcecast>& a,
-                        const char* name) {
-  CheckNdim(a, 1, name);
-  return std::vector<T>(a.data(), a.data() + a.size());
-}
-
-using IntArray = py::array_t<int, py::array::c_style | py::array::forcecast>;
-
 LineSelection MakeSelection(double nu_min, double nu_max, int molecule,
                             std::vector<int> isotopologues, double min_intensity) {
   LineSelection s;
@@ -39,30 +24,6 @@ LineSelection MakeSelection(double nu_min, double nu_max, int molecule,
   s.min_intensity = min_intensity;
   s.Check();
   return s;
-}
-
-std::string OptionsRepr(const CrossSectionOptions& o) {
-  std::ostringstream s;
-  s << "CrossSectionOptions(wing_half_widths=" << FormatNumber(o.wing_half_widths)
-    << ", wing_cm1=" << FormatNumber(o.wing_cm1)
-    << ", line_shift=" << (o.line_shift ? "True" : "False")
-    << ", min_intensity=" << FormatNumber(o.min_intensity) << ")";
-  return s.str();
-}
-
-std::string ConditionsRepr(const GasConditions& c) {
-  return "GasConditions(temperature_K=" + FormatNumber(c.temperature_K) +
-         ", pressure_Pa=" + FormatNumber(c.pressure_Pa) +
-         ", self_fraction=" + FormatNumber(c.self_fraction) + ")";
-}
-
-py::dict OptionsDict(const CrossSectionOptions& o) {
-  py::dict d;
-  d["wing_half_widths"] = o.wing_half_widths;
-  d["wing_cm1"] = o.wing_cm1;
-  d["line_shift"] = o.line_shift;
-  d["min_intensity"] = o.min_intensity;
-  return d;
 }
 
 WavenumberGrid MakeGrid(double nu0, double step, std::size_t n) {
@@ -80,20 +41,15 @@ void BindSpectra(py::module_& m) {
   m.def("molecule_formula", &MoleculeFormula, py::arg("molecule"),
         "Formula of a HITRAN molecule code (6 -> 'CH4').");
   m.def("isotopologues", [] {
+    using I = Isotopologue;
     py::list out;
-    for (const Isotopologue& i : Isotopologues()) {
-      py::dict d;
-      d["molecule"] = i.molecule;
-      d["local_id"] = i.local_id;
-      d["global_id"] = i.global_id;
-      d["formula"] = i.formula;
-      d["abundance"] = i.abundance;
-      d["molar_mass_g_mol"] = i.molar_mass_g_mol;
-      d["q_ref"] = i.q_ref;
-      d["t_min_K"] = i.t_min_K;
-      d["t_max_K"] = i.t_max_K;
-      out.append(d);
-    }
+    for (const I& i : Isotopologues())
+      out.append(ToDict(i, Field("molecule", &I::molecule), Field("local_id", &I::local_id),
+                        Field("global_id", &I::global_id), Field("formula", &I::formula),
+                        Field("abundance", &I::abundance),
+                        Field("molar_mass_g_mol", &I::molar_mass_g_mol),
+                        Field("q_ref", &I::q_ref), Field("t_min_K", &I::t_min_K),
+                        Field("t_max_K", &I::t_max_K)));
     return out;
   }, "Isotopologues with shipped data (HITRAN masses and abundances, TIPS-2025 Q).");
   m.def("partition_sum",
@@ -229,46 +185,25 @@ nu_max_cm1, source index) spans used when merging files).
         py::arg("lists"), "Merges line lists given in priority order (see MergeLineLists).");
 
   // --- conditions and options ----------------------------------------------
-  py::class_<GasConditions>(m, "GasConditions")
-      .def(py::init([](double t, double p, double x) {
-             GasConditions c{t, p, x};
-             c.Check();
-             return c;
-           }),
-           py::arg("temperature_K") = 296.0, py::arg("pressure_Pa") = 101325.0,
-           py::arg("self_fraction") = 0.0)
-      .def_readwrite("temperature_K", &GasConditions::temperature_K)
-      .def_readwrite("pressure_Pa", &GasConditions::pressure_Pa)
-      .def_readwrite("self_fraction", &GasConditions::self_fraction)
-      .def("check", &GasConditions::Check)
-      .def("__repr__", &ConditionsRepr)
-      .def("to_dict", [](const GasConditions& c) {
-        py::dict d;
-        d["temperature_K"] = c.temperature_K;
-        d["pressure_Pa"] = c.pressure_Pa;
-        d["self_fraction"] = c.self_fraction;
-        return d;
-      });
+  BindOptions<GasConditions>(m, "GasConditions", nullptr, Args::kPositional,
+      Field("temperature_K", &GasConditions::temperature_K,
+            "gas temperature [K], > 0 (default 296)"),
+      Field("pressure_Pa", &GasConditions::pressure_Pa,
+            "total pressure [Pa], >= 0 (default 101325)"),
+      Field("self_fraction", &GasConditions::self_fraction,
+            "absorber mole fraction for broadening, [0, 1] (default 0)"));
 
-  py::class_<CrossSectionOptions>(m, "CrossSectionOptions")
-      .def(py::init([](double hw, double wing, bool shift, double smin) {
-             CrossSectionOptions o;
-             o.wing_half_widths = hw;
-             o.wing_cm1 = wing;
-             o.line_shift = shift;
-             o.min_intensity = smin;
-             o.Check();
-             return o;
-           }),
-           py::arg("wing_half_widths") = 50.0, py::arg("wing_cm1") = 0.0,
-           py::arg("line_shift") = true, py::arg("min_intensity") = 0.0)
-      .def_readwrite("wing_half_widths", &CrossSectionOptions::wing_half_widths)
-      .def_readwrite("wing_cm1", &CrossSectionOptions::wing_cm1)
-      .def_readwrite("line_shift", &CrossSectionOptions::line_shift)
-      .def_readwrite("min_intensity", &CrossSectionOptions::min_intensity)
-      .def("check", &CrossSectionOptions::Check)
-      .def("__repr__", &OptionsRepr)
-      .def("to_dict", &OptionsDict);
+  using X = CrossSectionOptions;
+  BindOptions<X>(m, "CrossSectionOptions", nullptr, Args::kPositional,
+      Field("wing_half_widths", &X::wing_half_widths,
+            "wing half-width in units of max(gamma_L, gamma_D), >= 0 (default 50, HAPI's "
+            "WavenumberWingHW)"),
+      Field("wing_cm1", &X::wing_cm1,
+            "minimum wing half-width [cm-1], >= 0 (default 0, HAPI's WavenumberWing)"),
+      Field("line_shift", &X::line_shift,
+            "apply the pressure shift of line centres (default True, HAPI's LineShift)"),
+      Field("min_intensity", &X::min_intensity,
+            "lines with S(T) below this are skipped [cm/molecule], >= 0 (default 0)"));
 
   m.def("grid_from_range",
         [](double lo, double hi, double step) {
@@ -375,10 +310,8 @@ qogi.spectra.CrossSectionTable for the public API.
                          std::to_string(sigma.shape(0)) + " rows for " +
                          std::to_string(temps.size()) + " temperatures");
              const WavenumberGrid g = MakeGrid(nu0, step, static_cast<std::size_t>(sigma.shape(1)));
-             return std::make_shared<XsecTable>(
-                 g, std::vector<double>(temps.data(), temps.data() + temps.size()), p, x, o,
-                 std::vector<float>(sigma.data(), sigma.data() + sigma.size()),
-                 std::move(metadata));
+             return std::make_shared<XsecTable>(g, ToVector(temps, "temperatures_K"), p, x, o,
+                                                FlatVector(sigma), std::move(metadata));
            }),
            py::arg("nu0_cm1"), py::arg("step_cm1"), py::arg("temperatures_K"),
            py::arg("pressure_Pa"), py::arg("self_fraction"), py::arg("options"),
@@ -387,9 +320,8 @@ qogi.spectra.CrossSectionTable for the public API.
                   [](const LineList& l, double nu0, double step, std::size_t n,
                      const DoubleArray& temps, double p, double x, const CrossSectionOptions& o,
                      int threads, py::object progress) {
-                    CheckNdim(temps, 1, "temperatures_K");
                     const WavenumberGrid g = MakeGrid(nu0, step, n);
-                    const std::vector<double> t(temps.data(), temps.data() + temps.size());
+                    const std::vector<double> t = ToVector(temps, "temperatures_K");
                     const RunControl control = MakeRunControl(progress);
                     ComputeSettings s;
                     s.num_threads = threads;
@@ -413,7 +345,7 @@ qogi.spectra.CrossSectionTable for the public API.
                              [](const XsecTable& t) { return ToArray(t.temperatures_K()); })
       .def_property_readonly("pressure_Pa", &XsecTable::pressure_Pa)
       .def_property_readonly("self_fraction", &XsecTable::self_fraction)
-      .def_property_readonly("options", &XsecTable::options)
+      .def_property_readonly("options", &XsecTable::options, py::return_value_policy::copy)
       .def_property("metadata", &XsecTable::metadata, &XsecTable::set_metadata,
                     "Free text stored with the table (qogi writes JSON).")
       .def_property_readonly("sigma", [](py::object self) {

@@ -24,20 +24,6 @@ using synth::Release;
 using synth::Station;
 using synth::View;
 
-template <typename T>
-py::array_t<T> ToArray(const std::vector<T>& v, std::vector<py::ssize_t> shape) {
-  py::array_t<T> out(shape);
-  std::memcpy(out.mutable_data(), v.data(), v.size() * sizeof(T));
-  return out;
-}
-
-py::array_t<float> ToFloat(const std::vector<double>& v, std::vector<py::ssize_t> shape) {
-  py::array_t<float> out(shape);
-  float* p = out.mutable_data();
-  for (std::size_t i = 0; i < v.size(); ++i) p[i] = static_cast<float>(v[i]);
-  return out;
-}
-
 py::dict StationsToDict(const MeanFlow& mf) {
   const std::vector<Station>& st = mf.stations();
   const py::ssize_t n = static_cast<py::ssize_t>(st.size());
@@ -103,11 +89,9 @@ Grid GridFromDict(const py::dict& d) {
 }
 
 py::dict GridToDict(const Grid& g) {
-  py::dict d;
-  d["x0"] = g.x0; d["y0"] = g.y0; d["z0"] = g.z0;
-  d["dx"] = g.dx; d["dy"] = g.dy; d["dz"] = g.dz;
-  d["nx"] = g.nx; d["ny"] = g.ny; d["nz"] = g.nz;
-  return d;
+  return ToDict(g, Field("x0", &Grid::x0), Field("y0", &Grid::y0), Field("z0", &Grid::z0),
+                Field("dx", &Grid::dx), Field("dy", &Grid::dy), Field("dz", &Grid::dz),
+                Field("nx", &Grid::nx), Field("ny", &Grid::ny), Field("nz", &Grid::nz));
 }
 
 ControlPlane PlaneFrom(const py::sequence& point, const py::sequence& normal) {
@@ -126,27 +110,26 @@ ControlPlane PlaneFrom(const py::sequence& point, const py::sequence& normal) {
 }  // namespace
 
 void BindSynth(py::module_& m) {
-  py::class_<Release>(m, "SynthRelease", "Gas release (see qogi.synth.Release).")
-      .def(py::init<>())
-      .def_readwrite("rate", &Release::rate)
-      .def_property("rate_unit",
-                    [](const Release& r) { return synth::RateUnitName(r.rate_unit); },
-                    [](Release& r, const std::string& u) { r.rate_unit = synth::ParseRateUnit(u); })
-      .def_readwrite("composition", &Release::composition)
-      .def_readwrite("exit_diameter_m", &Release::exit_diameter_m)
-      .def_readwrite("stack_height_m", &Release::stack_height_m)
-      .def_readwrite("exit_x_m", &Release::exit_x_m)
-      .def_readwrite("exit_temperature_K", &Release::exit_temperature_K)
-      .def_readwrite("ambient_temperature_K", &Release::ambient_temperature_K)
-      .def_readwrite("pressure_Pa", &Release::pressure_Pa)
-      .def_readwrite("wind_speed_m_s", &Release::wind_speed_m_s)
-      .def_readwrite("wind_direction_deg", &Release::wind_direction_deg)
-      .def_readwrite("turbulence_intensity", &Release::turbulence_intensity)
-      .def_readwrite("draft_m_s", &Release::draft_m_s)
-      .def_readwrite("ambient_time_scale_s", &Release::ambient_time_scale_s)
-      .def_readwrite("standard_temperature_K", &Release::standard_temperature_K)
-      .def_readwrite("standard_pressure_Pa", &Release::standard_pressure_Pa)
-      .def("check", &Release::Check)
+  BindOptions<Release>(m, "SynthRelease", "Gas release (see qogi.synth.Release).",
+                       Args::kKeywordOnly,
+      Field("rate", &Release::rate),
+      Property<std::string, Release>(
+          "rate_unit", [](const Release& r) { return synth::RateUnitName(r.rate_unit); },
+          [](Release& r, const std::string& u) { r.rate_unit = synth::ParseRateUnit(u); }),
+      Field("composition", &Release::composition),
+      Field("exit_diameter_m", &Release::exit_diameter_m),
+      Field("stack_height_m", &Release::stack_height_m),
+      Field("exit_x_m", &Release::exit_x_m),
+      Field("exit_temperature_K", &Release::exit_temperature_K),
+      Field("ambient_temperature_K", &Release::ambient_temperature_K),
+      Field("pressure_Pa", &Release::pressure_Pa),
+      Field("wind_speed_m_s", &Release::wind_speed_m_s),
+      Field("wind_direction_deg", &Release::wind_direction_deg),
+      Field("turbulence_intensity", &Release::turbulence_intensity),
+      Field("draft_m_s", &Release::draft_m_s),
+      Field("ambient_time_scale_s", &Release::ambient_time_scale_s),
+      Field("standard_temperature_K", &Release::standard_temperature_K),
+      Field("standard_pressure_Pa", &Release::standard_pressure_Pa))
       .def("mass_rate_kg_s", &Release::MassRateKgS)
       .def("exit_density_kg_m3", &Release::ExitDensity)
       .def("exit_velocity_m_s", &Release::ExitVelocity)
@@ -164,18 +147,14 @@ void BindSynth(py::module_& m) {
       .def("released_molar_mass_kg_mol",
            [](const Release& r) { return r.ReleasedGas().molar_mass_kg_mol(); });
 
-  py::class_<View>(m, "SynthView", "Camera geometry (see qogi.synth.View).")
-      .def(py::init<>())
-      .def_readwrite("width_px", &View::width_px)
-      .def_readwrite("height_px", &View::height_px)
-      .def_readwrite("ifov_rad", &View::ifov_rad)
-      .def_readwrite("distance_m", &View::distance_m)
-      .def_property("projection",
-                    [](const View& v) { return synth::ProjectionName(v.projection); },
-                    [](View& v, const std::string& p) { v.projection = synth::ParseProjection(p); })
-      .def_readwrite("center_x_m", &View::center_x_m)
-      .def_readwrite("center_z_m", &View::center_z_m)
-      .def("check", &View::Check)
+  BindOptions<View>(m, "SynthView", "Camera geometry (see qogi.synth.View).",
+                    Args::kKeywordOnly,
+      Field("width_px", &View::width_px), Field("height_px", &View::height_px),
+      Field("ifov_rad", &View::ifov_rad), Field("distance_m", &View::distance_m),
+      Property<std::string, View>(
+          "projection", [](const View& v) { return synth::ProjectionName(v.projection); },
+          [](View& v, const std::string& p) { v.projection = synth::ParseProjection(p); }),
+      Field("center_x_m", &View::center_x_m), Field("center_z_m", &View::center_z_m))
       .def_property_readonly("footprint_m", &View::footprint_m)
       .def("pixel_x", &View::PixelX, py::arg("column"), py::arg("y") = 0.0)
       .def("pixel_z", &View::PixelZ, py::arg("row"), py::arg("y") = 0.0)
@@ -188,25 +167,21 @@ void BindSynth(py::module_& m) {
         return py::make_tuple(std::vector<double>(o, o + 3), std::vector<double>(d, d + 3));
       }, py::arg("column"), py::arg("row"));
 
-  py::class_<PlumeModelOptions>(m, "SynthModelOptions", "Plume model settings.")
-      .def(py::init<>())
-      .def_readwrite("alpha_jet", &PlumeModelOptions::alpha_jet)
-      .def_readwrite("alpha_plume", &PlumeModelOptions::alpha_plume)
-      .def_readwrite("beta_crossflow", &PlumeModelOptions::beta_crossflow)
-      .def_readwrite("concentration_width_ratio", &PlumeModelOptions::concentration_width_ratio)
-      .def_readwrite("edge_speed_fraction", &PlumeModelOptions::edge_speed_fraction)
-      .def_readwrite("laminar_length_diameters", &PlumeModelOptions::laminar_length_diameters)
-      .def_readwrite("development_length_diameters",
-                     &PlumeModelOptions::development_length_diameters)
-      .def_readwrite("puff_size_fraction", &PlumeModelOptions::puff_size_fraction)
-      .def_readwrite("puff_rate_per_s", &PlumeModelOptions::puff_rate_per_s)
-      .def_readwrite("axial_turbulence", &PlumeModelOptions::axial_turbulence)
-      .def_readwrite("structure_length", &PlumeModelOptions::structure_length)
-      .def_readwrite("structure_persistence", &PlumeModelOptions::structure_persistence)
-      .def_readwrite("modes_per_band", &PlumeModelOptions::modes_per_band)
-      .def_readwrite("spin_up_s", &PlumeModelOptions::spin_up_s)
-      .def_readwrite("seed", &PlumeModelOptions::seed)
-      .def("check", &PlumeModelOptions::Check);
+  using P = PlumeModelOptions;
+  BindOptions<P>(m, "SynthModelOptions", "Plume model settings.", Args::kKeywordOnly,
+      Field("alpha_jet", &P::alpha_jet), Field("alpha_plume", &P::alpha_plume),
+      Field("beta_crossflow", &P::beta_crossflow),
+      Field("concentration_width_ratio", &P::concentration_width_ratio),
+      Field("edge_speed_fraction", &P::edge_speed_fraction),
+      Field("laminar_length_diameters", &P::laminar_length_diameters),
+      Field("development_length_diameters", &P::development_length_diameters),
+      Field("puff_size_fraction", &P::puff_size_fraction),
+      Field("puff_rate_per_s", &P::puff_rate_per_s),
+      Field("axial_turbulence", &P::axial_turbulence),
+      Field("structure_length", &P::structure_length),
+      Field("structure_persistence", &P::structure_persistence),
+      Field("modes_per_band", &P::modes_per_band), Field("spin_up_s", &P::spin_up_s),
+      Field("seed", &P::seed));
 
   m.def("synth_known_species", &synth::KnownSpecies);
   m.def("synth_to_kg_per_s",
@@ -279,16 +254,15 @@ void BindSynth(py::module_& m) {
       .def_property_readonly("species", &PlumeSimulation::species)
       .def_property_readonly("species_mass_fractions", &PlumeSimulation::species_mass_fractions)
       .def_property_readonly("species_mole_fractions", &PlumeSimulation::species_mole_fractions)
-      .def_property_readonly("release", &PlumeSimulation::release)
-      .def_property_readonly("view", &PlumeSimulation::view)
-      .def_property_readonly("model", &PlumeSimulation::options)
+      .def_property_readonly("release", &PlumeSimulation::release, py::return_value_policy::copy)
+      .def_property_readonly("view", &PlumeSimulation::view, py::return_value_policy::copy)
+      .def_property_readonly("model", &PlumeSimulation::options, py::return_value_policy::copy)
       .def_property_readonly("box", [](const PlumeSimulation& s) { return BoxToDict(s.box()); })
       .def_property_readonly("stats", [](const PlumeSimulation& s) {
-        py::dict d;
-        d["puffs_emitted"] = s.stats().puffs_emitted;
-        d["max_live_puffs"] = s.stats().max_live_puffs;
-        d["puffs_lost_inside"] = s.stats().puffs_lost_inside;
-        return d;
+        using S = std::decay_t<decltype(s.stats())>;
+        return ToDict(s.stats(), Field("puffs_emitted", &S::puffs_emitted),
+                      Field("max_live_puffs", &S::max_live_puffs),
+                      Field("puffs_lost_inside", &S::puffs_lost_inside));
       })
       .def("mean_flow", [](const PlumeSimulation& s) { return StationsToDict(s.mean_flow()); })
       .def("default_grid", [](const PlumeSimulation& s) { return GridToDict(synth::DefaultGrid(s)); })
@@ -317,11 +291,11 @@ void BindSynth(py::module_& m) {
         }
         const std::vector<py::ssize_t> shape = {t.height, t.width};
         py::dict d;
-        d["column_kg_m2"] = ToFloat(t.column, shape);
-        d["flux_x_kg_m_s"] = ToFloat(t.flux_x, shape);
-        d["flux_z_kg_m_s"] = ToFloat(t.flux_z, shape);
-        d["velocity_x_m_s"] = ToFloat(t.velocity_x, shape);
-        d["velocity_z_m_s"] = ToFloat(t.velocity_z, shape);
+        d["column_kg_m2"] = ToArray<float>(t.column, shape);
+        d["flux_x_kg_m_s"] = ToArray<float>(t.flux_x, shape);
+        d["flux_z_kg_m_s"] = ToArray<float>(t.flux_z, shape);
+        d["velocity_x_m_s"] = ToArray<float>(t.velocity_x, shape);
+        d["velocity_z_m_s"] = ToArray<float>(t.velocity_z, shape);
         return d;
       }, py::arg("frame"), py::arg("num_threads") = 0)
       .def("plane_flux", [](const PlumeSimulation& s, const py::sequence& points,

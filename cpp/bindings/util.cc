@@ -50,12 +50,8 @@ void BindUtil(py::module_& m) {
         "Number of worker threads used for `requested` (0 = all cores).");
   m.def(
       "lookup_lines",
-      [](py::array_t<float, py::array::c_style> stack, bool lines_are_rows,
-         const py::array_t<double, py::array::c_style | py::array::forcecast>& x,
-         const py::array_t<double, py::array::c_style | py::array::forcecast>& y,
-         const py::array_t<int, py::array::c_style | py::array::forcecast>& node_of_line,
-         const py::array_t<double, py::array::c_style | py::array::forcecast>& weight_of_line,
-         int num_threads) {
+      [](FloatArray stack, bool lines_are_rows, const DoubleArray& x, const DoubleArray& y,
+         const IntArray& node_of_line, const DoubleArray& weight_of_line, int num_threads) {
         CheckNdim(stack, 3, "stack");
         CheckNdim(x, 2, "x");
         CheckNdim(y, 2, "y");

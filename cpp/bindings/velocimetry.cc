@@ -24,73 +24,6 @@ namespace {
 
 using ByteArray = py::array_t<std::uint8_t, py::array::c_style | py::array::forcecast>;
 
-// Registers an option struct: fields as read/write attributes, a keyword
-// constructor (unknown names raise TypeError; values are checked), check(),
-// to_dict(), repr, equality and pickling.
-template <typename T>
-class OptionsClass {
- public:
-  OptionsClass(py::module_& m, const char* name, const char* doc) : cls_(m, name, doc) {}
-
-  template <typename F>
-  OptionsClass& field(const char* name, F T::*member, const char* doc) {
-    cls_.def_readwrite(name, member, doc);
-    names_.push_back(name);
-    return *this;
-  }
-
-  void finish() {
-    const std::vector<std::string> names = names_;
-    const std::string type_name = py::str(cls_.attr("__name__"));
-    cls_.def(py::init([names, type_name](const py::kwargs& kw) {
-      py::object obj = py::cast(T{});
-      for (auto item : kw) {
-        const std::string key = py::str(item.first);
-        if (std::find(names.begin(), names.end(), key) == names.end())
-          throw py::type_error(type_name + " has no field '" + key + "'");
-        obj.attr(key.c_str()) = item.second;
-      }
-      T o = obj.cast<T>();
-      o.Check();
-      return o;
-    }));
-    cls_.def("check", &T::Check,
-             "Raise ValueError naming the first field out of its range.");
-    auto to_dict = [names](const py::object& self) {
-      py::dict d;
-      for (const auto& n : names) d[n.c_str()] = self.attr(n.c_str());
-      return d;
-    };
-    cls_.def("to_dict", to_dict, "The fields as a dict (name -> value).");
-    cls_.def("__repr__", [names, type_name](const py::object& self) {
-      std::string s = type_name + "(";
-      for (std::size_t i = 0; i < names.size(); ++i) {
-        if (i) s += ", ";
-        s += names[i] + "=" + std::string(py::repr(self.attr(names[i].c_str())));
-      }
-      return s + ")";
-    });
-    cls_.def("__eq__", [to_dict](const py::object& a, const py::object& b) {
-      if (!py::isinstance(b, py::type::of(a))) return false;
-      return to_dict(a).equal(to_dict(b));
-    });
-    cls_.def(py::pickle(
-        [to_dict](const py::object& self) { return to_dict(self); },
-        [names](const py::dict& d) {
-          py::object obj = py::cast(T{});
-          for (auto item : d) obj.attr(py::str(item.first)) = item.second;
-          return obj.cast<T>();
-        }));
-    py::tuple fields(names.size());
-    for (std::size_t i = 0; i < names.size(); ++i) fields[i] = py::str(names[i]);
-    cls_.attr("fields") = fields;
-  }
-
- private:
-  py::class_<T> cls_;
-  std::vector<std::string> names_;
-};
-
 cv::Mat FloatMat(const FloatArray& a, const char* name) {
   CheckNdim(a, 2, name);
   return cv::Mat(static_cast<int>(a.shape(0)), static_cast<int>(a.shape(1)), CV_32FC1,
@@ -104,7 +37,7 @@ cv::Mat ByteMat(const ByteArray& a, const char* name) {
 }
 
 template <typename Scalar>
-py::array_t<Scalar> ToArray(const cv::Mat& m) {
+py::array_t<Scalar> MatToArray(const cv::Mat& m) {
   py::array_t<Scalar> out({m.rows, m.cols});
   cv::Mat dst(m.rows, m.cols, m.type(), out.mutable_data());
   m.copyTo(dst);
@@ -174,8 +107,8 @@ class FlowEstimator {
       impl_->Calc(p, n, f, m);
     }
     const cv::Mat valid01 = (f.valid != 0) / 255;
-    return py::make_tuple(ToArray<float>(f.u), ToArray<float>(f.v),
-                          ToArray<float>(f.quality), ToArray<std::uint8_t>(valid01),
+    return py::make_tuple(MatToArray<float>(f.u), MatToArray<float>(f.v),
+                          MatToArray<float>(f.quality), MatToArray<std::uint8_t>(valid01),
                           f.residual_ratio);
   }
 
@@ -197,147 +130,141 @@ std::vector<cv::Mat> Slices(const py::array& a, int type) {
 }  // namespace
 
 void BindVelocimetry(py::module_& m) {
-  OptionsClass<FluidFlowOptions>(m, "FluidFlowOptions",
-                                 "Options of the continuity-equation (fluid) flow; "
-                                 "see qogi.velocimetry.")
-      .field("alpha", &FluidFlowOptions::alpha, "smoothness weight, > 0 (default 0.1)")
-      .field("alpha_div", &FluidFlowOptions::alpha_div,
-             "weight of short-scale divergence, >= 0 (default 3)")
-      .field("alpha_curl", &FluidFlowOptions::alpha_curl,
-             "weight of short-scale vorticity, >= 0 (default 0)")
-      .field("div_curl_scale", &FluidFlowOptions::div_curl_scale,
-             "scale [px] below which div/curl are penalised, > 0 (default 8)")
-      .field("smoothness_scale", &FluidFlowOptions::smoothness_scale,
-             "scale [px] above which the flow is not smoothed, >= 0, 0 = classic "
-             "smoothness (default 8)")
-      .field("patch_search_scale", &FluidFlowOptions::patch_search_scale,
-             "finest scale of the patch-search initialisation, 0 = full resolution, "
-             "-1 = none (default 0)")
-      .field("patch_size", &FluidFlowOptions::patch_size,
-             "patch side of the search [px], 4-64 (default 8)")
-      .field("patch_stride", &FluidFlowOptions::patch_stride,
-             "patch spacing of the search [px], < patch_size (default 4)")
-      .field("patch_iterations", &FluidFlowOptions::patch_iterations,
-             "gradient-descent iterations per patch (default 16)")
-      .field("patch_search_warm", &FluidFlowOptions::patch_search_warm,
-             "run the search also when warm-started (default False)")
-      .field("levels", &FluidFlowOptions::levels, "pyramid levels, 1-12 (default 5)")
-      .field("min_level_size", &FluidFlowOptions::min_level_size,
-             "smallest side of the coarsest level [px] (default 16)")
-      .field("finest_level", &FluidFlowOptions::finest_level,
-             "finest level solved, 0 = full resolution (default 1)")
-      .field("warm_levels", &FluidFlowOptions::warm_levels,
-             "levels solved after the search or a warm start, 0 = all (default 3)")
-      .field("warps", &FluidFlowOptions::warps, "warps per level (default 2)")
-      .field("iterations", &FluidFlowOptions::iterations,
-             "conjugate-gradient iterations per warp (default 10)")
-      .field("tolerance", &FluidFlowOptions::tolerance,
-             "relative CG tolerance (default 1e-3)")
-      .finish();
-  OptionsClass<HornSchunckOptions>(m, "HornSchunckOptions",
-                                   "Options of coarse-to-fine Horn-Schunck.")
-      .field("alpha", &HornSchunckOptions::alpha, "smoothness weight, > 0 (default 0.3)")
-      .field("levels", &HornSchunckOptions::levels, "pyramid levels (default 5)")
-      .field("min_level_size", &HornSchunckOptions::min_level_size,
-             "smallest side of the coarsest level [px] (default 16)")
-      .field("finest_level", &HornSchunckOptions::finest_level,
-             "finest level solved (default 0)")
-      .field("warm_levels", &HornSchunckOptions::warm_levels,
-             "levels solved after a warm start, 0 = all (default 3)")
-      .field("warps", &HornSchunckOptions::warps, "warps per level (default 3)")
-      .field("iterations", &HornSchunckOptions::iterations,
-             "CG iterations per warp (default 20)")
-      .field("tolerance", &HornSchunckOptions::tolerance, "relative CG tolerance (default 1e-3)")
-      .finish();
-  OptionsClass<LucasKanadeOptions>(m, "LucasKanadeOptions",
-                                   "Options of dense pyramidal Lucas-Kanade.")
-      .field("window_sigma", &LucasKanadeOptions::window_sigma,
-             "Gaussian window sigma [px] (default 3)")
-      .field("levels", &LucasKanadeOptions::levels, "pyramid levels (default 5)")
-      .field("min_level_size", &LucasKanadeOptions::min_level_size,
-             "smallest side of the coarsest level [px] (default 32)")
-      .field("finest_level", &LucasKanadeOptions::finest_level,
-             "finest level solved (default 0)")
-      .field("iterations", &LucasKanadeOptions::iterations, "iterations per level (default 4)")
-      .field("min_eigenvalue", &LucasKanadeOptions::min_eigenvalue,
-             "smallest structure-tensor eigenvalue of a valid vector (default 1e-3)")
-      .finish();
-  OptionsClass<FarnebackOptions>(m, "FarnebackOptions", "Options of OpenCV's Farneback flow.")
-      .field("pyr_scale", &FarnebackOptions::pyr_scale, "pyramid scale (default 0.5)")
-      .field("levels", &FarnebackOptions::levels, "pyramid levels (default 5)")
-      .field("winsize", &FarnebackOptions::winsize, "averaging window [px] (default 15)")
-      .field("iterations", &FarnebackOptions::iterations, "iterations per level (default 3)")
-      .field("poly_n", &FarnebackOptions::poly_n, "polynomial neighbourhood, 5 or 7 (default 5)")
-      .field("poly_sigma", &FarnebackOptions::poly_sigma, "polynomial sigma [px] (default 1.1)")
-      .field("gaussian_window", &FarnebackOptions::gaussian_window,
-             "Gaussian averaging window (default True)")
-      .finish();
-  OptionsClass<DisOptions>(m, "DisOptions", "Options of OpenCV's DIS flow.")
-      .field("finest_scale", &DisOptions::finest_scale, "finest level (default 0)")
-      .field("patch_size", &DisOptions::patch_size, "patch size [px] (default 8)")
-      .field("patch_stride", &DisOptions::patch_stride, "patch stride [px] (default 3)")
-      .field("gradient_descent_iterations", &DisOptions::gradient_descent_iterations,
-             "iterations per patch (default 25)")
-      .field("variational_refinement_iterations",
+  BindOptions<FluidFlowOptions>(m, "FluidFlowOptions",
+                                "Options of the continuity-equation (fluid) flow; "
+                                "see qogi.velocimetry.", Args::kKeywordOnly,
+      Field("alpha", &FluidFlowOptions::alpha, "smoothness weight, > 0 (default 0.1)"),
+      Field("alpha_div", &FluidFlowOptions::alpha_div,
+            "weight of short-scale divergence, >= 0 (default 3)"),
+      Field("alpha_curl", &FluidFlowOptions::alpha_curl,
+            "weight of short-scale vorticity, >= 0 (default 0)"),
+      Field("div_curl_scale", &FluidFlowOptions::div_curl_scale,
+            "scale [px] below which div/curl are penalised, > 0 (default 8)"),
+      Field("smoothness_scale", &FluidFlowOptions::smoothness_scale,
+            "scale [px] above which the flow is not smoothed, >= 0, 0 = classic "
+                                "smoothness (default 8)"),
+      Field("patch_search_scale", &FluidFlowOptions::patch_search_scale,
+            "finest scale of the patch-search initialisation, 0 = full resolution, "
+                                "-1 = none (default 0)"),
+      Field("patch_size", &FluidFlowOptions::patch_size,
+            "patch side of the search [px], 4-64 (default 8)"),
+      Field("patch_stride", &FluidFlowOptions::patch_stride,
+            "patch spacing of the search [px], < patch_size (default 4)"),
+      Field("patch_iterations", &FluidFlowOptions::patch_iterations,
+            "gradient-descent iterations per patch (default 16)"),
+      Field("patch_search_warm", &FluidFlowOptions::patch_search_warm,
+            "run the search also when warm-started (default False)"),
+      Field("levels", &FluidFlowOptions::levels, "pyramid levels, 1-12 (default 5)"),
+      Field("min_level_size", &FluidFlowOptions::min_level_size,
+            "smallest side of the coarsest level [px] (default 16)"),
+      Field("finest_level", &FluidFlowOptions::finest_level,
+            "finest level solved, 0 = full resolution (default 1)"),
+      Field("warm_levels", &FluidFlowOptions::warm_levels,
+            "levels solved after the search or a warm start, 0 = all (default 3)"),
+      Field("warps", &FluidFlowOptions::warps, "warps per level (default 2)"),
+      Field("iterations", &FluidFlowOptions::iterations,
+            "conjugate-gradient iterations per warp (default 10)"),
+      Field("tolerance", &FluidFlowOptions::tolerance,
+            "relative CG tolerance (default 1e-3)"));
+  BindOptions<HornSchunckOptions>(m, "HornSchunckOptions",
+                                  "Options of coarse-to-fine Horn-Schunck.", Args::kKeywordOnly,
+      Field("alpha", &HornSchunckOptions::alpha, "smoothness weight, > 0 (default 0.3)"),
+      Field("levels", &HornSchunckOptions::levels, "pyramid levels (default 5)"),
+      Field("min_level_size", &HornSchunckOptions::min_level_size,
+            "smallest side of the coarsest level [px] (default 16)"),
+      Field("finest_level", &HornSchunckOptions::finest_level,
+            "finest level solved (default 0)"),
+      Field("warm_levels", &HornSchunckOptions::warm_levels,
+            "levels solved after a warm start, 0 = all (default 3)"),
+      Field("warps", &HornSchunckOptions::warps, "warps per level (default 3)"),
+      Field("iterations", &HornSchunckOptions::iterations,
+            "CG iterations per warp (default 20)"),
+      Field("tolerance", &HornSchunckOptions::tolerance, "relative CG tolerance (default 1e-3)"));
+  BindOptions<LucasKanadeOptions>(m, "LucasKanadeOptions",
+                                  "Options of dense pyramidal Lucas-Kanade.", Args::kKeywordOnly,
+      Field("window_sigma", &LucasKanadeOptions::window_sigma,
+            "Gaussian window sigma [px] (default 3)"),
+      Field("levels", &LucasKanadeOptions::levels, "pyramid levels (default 5)"),
+      Field("min_level_size", &LucasKanadeOptions::min_level_size,
+            "smallest side of the coarsest level [px] (default 32)"),
+      Field("finest_level", &LucasKanadeOptions::finest_level,
+            "finest level solved (default 0)"),
+      Field("iterations", &LucasKanadeOptions::iterations, "iterations per level (default 4)"),
+      Field("min_eigenvalue", &LucasKanadeOptions::min_eigenvalue,
+            "smallest structure-tensor eigenvalue of a valid vector (default 1e-3)"));
+  BindOptions<FarnebackOptions>(m, "FarnebackOptions", "Options of OpenCV's Farneback flow.",
+                                Args::kKeywordOnly,
+      Field("pyr_scale", &FarnebackOptions::pyr_scale, "pyramid scale (default 0.5)"),
+      Field("levels", &FarnebackOptions::levels, "pyramid levels (default 5)"),
+      Field("winsize", &FarnebackOptions::winsize, "averaging window [px] (default 15)"),
+      Field("iterations", &FarnebackOptions::iterations, "iterations per level (default 3)"),
+      Field("poly_n", &FarnebackOptions::poly_n, "polynomial neighbourhood, 5 or 7 (default 5)"),
+      Field("poly_sigma", &FarnebackOptions::poly_sigma, "polynomial sigma [px] (default 1.1)"),
+      Field("gaussian_window", &FarnebackOptions::gaussian_window,
+            "Gaussian averaging window (default True)"));
+  BindOptions<DisOptions>(m, "DisOptions", "Options of OpenCV's DIS flow.", Args::kKeywordOnly,
+      Field("finest_scale", &DisOptions::finest_scale, "finest level (default 0)"),
+      Field("patch_size", &DisOptions::patch_size, "patch size [px] (default 8)"),
+      Field("patch_stride", &DisOptions::patch_stride, "patch stride [px] (default 3)"),
+      Field("gradient_descent_iterations", &DisOptions::gradient_descent_iterations,
+            "iterations per patch (default 25)"),
+      Field("variational_refinement_iterations",
              &DisOptions::variational_refinement_iterations,
-             "refinement iterations (default 5)")
-      .field("variational_refinement_alpha", &DisOptions::variational_refinement_alpha,
-             "refinement smoothness (default 20)")
-      .field("variational_refinement_delta", &DisOptions::variational_refinement_delta,
-             "refinement colour constancy (default 5)")
-      .field("variational_refinement_gamma", &DisOptions::variational_refinement_gamma,
-             "refinement gradient constancy (default 10)")
-      .field("use_mean_normalization", &DisOptions::use_mean_normalization,
-             "normalise patch means (default True)")
-      .field("use_spatial_propagation", &DisOptions::use_spatial_propagation,
-             "spatial propagation (default True)")
-      .finish();
-  OptionsClass<PivOptions>(m, "PivOptions", "Options of window-deformation FFT PIV.")
-      .field("window_size", &PivOptions::window_size, "final window [px], even (default 16)")
-      .field("initial_window_size", &PivOptions::initial_window_size,
-             "first-pass window [px], even (default 64)")
-      .field("overlap", &PivOptions::overlap, "window overlap fraction (default 0.5)")
-      .field("final_passes", &PivOptions::final_passes, "passes at the final size (default 3)")
-      .field("deform", &PivOptions::deform, "deform the frames between passes (default True)")
-      .field("median_threshold", &PivOptions::median_threshold,
-             "normalised median test threshold (default 2)")
-      .field("median_epsilon", &PivOptions::median_epsilon,
-             "normalised median test noise level [px] (default 0.1)")
-      .field("min_correlation", &PivOptions::min_correlation,
-             "smallest valid peak correlation (default 0.2)")
-      .field("min_mask_fraction", &PivOptions::min_mask_fraction,
-             "smallest share of gas pixels in a window (default 0.25)")
-      .finish();
-  OptionsClass<MedianTestOptions>(m, "MedianTestOptions",
-                                  "Options of the normalised median test.")
-      .field("threshold", &MedianTestOptions::threshold, "threshold (default 2)")
-      .field("epsilon", &MedianTestOptions::epsilon, "noise level [px/frame] (default 0.1)")
-      .field("radius", &MedianTestOptions::radius, "neighbourhood radius (default 1)")
-      .finish();
+            "refinement iterations (default 5)"),
+      Field("variational_refinement_alpha", &DisOptions::variational_refinement_alpha,
+            "refinement smoothness (default 20)"),
+      Field("variational_refinement_delta", &DisOptions::variational_refinement_delta,
+            "refinement colour constancy (default 5)"),
+      Field("variational_refinement_gamma", &DisOptions::variational_refinement_gamma,
+            "refinement gradient constancy (default 10)"),
+      Field("use_mean_normalization", &DisOptions::use_mean_normalization,
+            "normalise patch means (default True)"),
+      Field("use_spatial_propagation", &DisOptions::use_spatial_propagation,
+            "spatial propagation (default True)"));
+  BindOptions<PivOptions>(m, "PivOptions", "Options of window-deformation FFT PIV.",
+                          Args::kKeywordOnly,
+      Field("window_size", &PivOptions::window_size, "final window [px], even (default 16)"),
+      Field("initial_window_size", &PivOptions::initial_window_size,
+            "first-pass window [px], even (default 64)"),
+      Field("overlap", &PivOptions::overlap, "window overlap fraction (default 0.5)"),
+      Field("final_passes", &PivOptions::final_passes, "passes at the final size (default 3)"),
+      Field("deform", &PivOptions::deform, "deform the frames between passes (default True)"),
+      Field("median_threshold", &PivOptions::median_threshold,
+            "normalised median test threshold (default 2)"),
+      Field("median_epsilon", &PivOptions::median_epsilon,
+            "normalised median test noise level [px] (default 0.1)"),
+      Field("min_correlation", &PivOptions::min_correlation,
+            "smallest valid peak correlation (default 0.2)"),
+      Field("min_mask_fraction", &PivOptions::min_mask_fraction,
+            "smallest share of gas pixels in a window (default 0.25)"));
+  BindOptions<MedianTestOptions>(m, "MedianTestOptions",
+                                 "Options of the normalised median test.", Args::kKeywordOnly,
+      Field("threshold", &MedianTestOptions::threshold, "threshold (default 2)"),
+      Field("epsilon", &MedianTestOptions::epsilon, "noise level [px/frame] (default 0.1)"),
+      Field("radius", &MedianTestOptions::radius, "neighbourhood radius (default 1)"));
   py::enum_<TemporalStatistic>(m, "TemporalStatistic")
       .value("mean", TemporalStatistic::kMean)
       .value("median", TemporalStatistic::kMedian);
-  OptionsClass<TemporalFilterOptions>(m, "TemporalFilterOptions",
-                                      "Options of the temporal filter.")
-      .field("window", &TemporalFilterOptions::window, "window [frames], odd (default 5)")
-      .field("statistic", &TemporalFilterOptions::statistic, "mean or median (default median)")
-      .field("min_valid_fraction", &TemporalFilterOptions::min_valid_fraction,
-             "share of valid frames needed (default 0.5)")
-      .finish();
-  OptionsClass<PlumeMaskOptions>(m, "PlumeMaskOptions", "Options of the plume mask.")
-      .field("threshold", &PlumeMaskOptions::threshold, "absolute threshold (default 0)")
-      .field("relative_threshold", &PlumeMaskOptions::relative_threshold,
-             "threshold relative to the 99th percentile (default 0.1)")
-      .field("open_radius", &PlumeMaskOptions::open_radius, "opening radius [px] (default 1)")
-      .field("close_radius", &PlumeMaskOptions::close_radius, "closing radius [px] (default 2)")
-      .field("min_area", &PlumeMaskOptions::min_area, "smallest region [px] (default 20)")
-      .field("dilate_radius", &PlumeMaskOptions::dilate_radius,
-             "final dilation [px] (default 2)")
-      .finish();
+  BindOptions<TemporalFilterOptions>(m, "TemporalFilterOptions",
+                                     "Options of the temporal filter.", Args::kKeywordOnly,
+      Field("window", &TemporalFilterOptions::window, "window [frames], odd (default 5)"),
+      Field("statistic", &TemporalFilterOptions::statistic, "mean or median (default median)"),
+      Field("min_valid_fraction", &TemporalFilterOptions::min_valid_fraction,
+            "share of valid frames needed (default 0.5)"));
+  BindOptions<PlumeMaskOptions>(m, "PlumeMaskOptions", "Options of the plume mask.",
+                                Args::kKeywordOnly,
+      Field("threshold", &PlumeMaskOptions::threshold, "absolute threshold (default 0)"),
+      Field("relative_threshold", &PlumeMaskOptions::relative_threshold,
+            "threshold relative to the 99th percentile (default 0.1)"),
+      Field("open_radius", &PlumeMaskOptions::open_radius, "opening radius [px] (default 1)"),
+      Field("close_radius", &PlumeMaskOptions::close_radius, "closing radius [px] (default 2)"),
+      Field("min_area", &PlumeMaskOptions::min_area, "smallest region [px] (default 20)"),
+      Field("dilate_radius", &PlumeMaskOptions::dilate_radius,
+            "final dilation [px] (default 2)"));
 
   py::class_<FlowEstimator>(m, "FlowEstimator",
                             "One flow method with reusable buffers (use "
-                            "qogi.velocimetry.FlowEstimator).")
+                                "qogi.velocimetry.FlowEstimator).")
       .def(py::init<const py::object&>(), py::arg("options"))
       .def_property_readonly("method", &FlowEstimator::method)
       .def("set_source_mask", &FlowEstimator::SetSourceMask, py::arg("source_mask"))
@@ -359,7 +286,7 @@ void BindVelocimetry(py::module_& m) {
             py::gil_scoped_release release;
             out = NormalisedMedianTest(mu, mv, mk, o);
           }
-          return ToArray<std::uint8_t>(out);
+          return MatToArray<std::uint8_t>(out);
         },
         py::arg("u"), py::arg("v"), py::arg("valid"), py::arg("options"));
 
@@ -372,8 +299,8 @@ void BindVelocimetry(py::module_& m) {
             py::gil_scoped_release release;
             ReplaceVectors(mu, mv, mk, max_distance, ru, rv, filled);
           }
-          return py::make_tuple(ToArray<float>(ru), ToArray<float>(rv),
-                                ToArray<std::uint8_t>(filled));
+          return py::make_tuple(MatToArray<float>(ru), MatToArray<float>(rv),
+                                MatToArray<std::uint8_t>(filled));
         },
         py::arg("u"), py::arg("v"), py::arg("keep"), py::arg("max_distance"));
 
@@ -433,7 +360,7 @@ void BindVelocimetry(py::module_& m) {
             py::gil_scoped_release release;
             InvertDisplacement(mu, mv, iterations, bu, bv);
           }
-          return py::make_tuple(ToArray<float>(bu), ToArray<float>(bv));
+          return py::make_tuple(MatToArray<float>(bu), MatToArray<float>(bv));
         },
         py::arg("u"), py::arg("v"), py::arg("iterations"));
 
@@ -445,7 +372,7 @@ void BindVelocimetry(py::module_& m) {
             py::gil_scoped_release release;
             out = PlumeMask(d, o);
           }
-          return ToArray<std::uint8_t>(out);
+          return MatToArray<std::uint8_t>(out);
         },
         py::arg("density"), py::arg("options"));
 

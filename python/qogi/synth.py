@@ -58,46 +58,21 @@ PUFF_FIELDS = ("x_m", "y_m", "z_m", "u_m_s", "v_m_s", "w_m_s", "sigma_m", "sigma
 
 
 class _Options:
-    """Keyword constructor, repr and dict conversion over the engine's fields."""
-
-    _fields: tuple = ()
-    check: Callable[[], None]  # the engine base class's range check (annotation only)
+    """The engine's options classes (keyword constructor checked on entry, repr,
+    to_dict, equality, pickling) plus :meth:`replace`."""
 
     def __init__(self, **kwargs):
-        super().__init__()
-        for name, value in kwargs.items():
-            if name not in self._fields:
-                raise TypeError(f"{type(self).__name__} has no field {name!r}; "
-                                f"fields: {', '.join(self._fields)}")
-            setattr(self, name, value)
-        self.check()
-
-    def to_dict(self) -> dict:
-        """The fields as a plain dict (composition copied)."""
-        return {name: copy.copy(getattr(self, name)) for name in self._fields}
+        unknown = [k for k in kwargs if k not in self.fields]
+        if unknown:  # named after the Python class, not the engine's
+            raise TypeError(f"{type(self).__name__} has no field {unknown[0]!r}; "
+                            f"fields: {', '.join(self.fields)}")
+        super().__init__(**kwargs)
 
     def replace(self, **kwargs):
         """A copy with some fields changed."""
         d = self.to_dict()
         d.update(kwargs)
         return type(self)(**d)
-
-    def __repr__(self) -> str:
-        inner = ", ".join(f"{k}={getattr(self, k)!r}" for k in self._fields)
-        return f"{type(self).__name__}({inner})"
-
-    def __eq__(self, other) -> bool:
-        return type(self) is type(other) and self.to_dict() == other.to_dict()
-
-    # Options are mutable: equal by value, not hashable (as __eq__ alone implies).
-    __hash__ = None  # type: ignore[assignment]
-
-    def __reduce__(self):
-        return (_rebuild, (type(self), self.to_dict()))
-
-
-def _rebuild(cls, d):
-    return cls(**d)
 
 
 class Release(_Options, _engine.SynthRelease):
@@ -147,11 +122,6 @@ class Release(_Options, _engine.SynthRelease):
         Naming the first bad field and its accepted range.
     """
 
-    _fields = ("rate", "rate_unit", "composition", "exit_diameter_m", "stack_height_m",
-               "exit_x_m", "exit_temperature_K", "ambient_temperature_K", "pressure_Pa",
-               "wind_speed_m_s", "wind_direction_deg", "turbulence_intensity", "draft_m_s",
-               "ambient_time_scale_s", "standard_temperature_K", "standard_pressure_Pa")
-
     def emission_rate_kg_s(self) -> dict:
         """Release rate of each species, kg/s (its mass fraction x the rate)."""
         total = self.mass_rate_kg_s()
@@ -177,9 +147,6 @@ class View(_Options, _engine.SynthView):
     projection : {"orthographic", "perspective"}, default "orthographic"
     center_x_m, center_z_m : float, default 0
     """
-
-    _fields = ("width_px", "height_px", "ifov_rad", "distance_m", "projection", "center_x_m",
-               "center_z_m")
 
     @classmethod
     def framing(cls, release: Release, exit_pixel: Sequence[float], **kwargs) -> "View":
@@ -219,12 +186,6 @@ class PlumeModel(_Options, _engine.SynthModelOptions):
     spin_up_s : float, default -1 (automatic)
     seed : int, default 0
     """
-
-    _fields = ("alpha_jet", "alpha_plume", "beta_crossflow", "concentration_width_ratio",
-               "edge_speed_fraction", "laminar_length_diameters",
-               "development_length_diameters", "puff_size_fraction", "puff_rate_per_s",
-               "axial_turbulence", "structure_length", "structure_persistence",
-               "modes_per_band", "spin_up_s", "seed")
 
 
 def known_species() -> list:
