@@ -8,6 +8,8 @@
 #include <limits>
 #include <vector>
 
+#include "engine/util/portability.h"
+
 namespace qogi {
 namespace flow_ops {
 
@@ -121,7 +123,46 @@ inline void CubicWeights(float t, float w[4]) {
   w[3] = 0.5f * t3 - 0.5f * t2;
 }
 
-inline int Clamp(int i, int hi) { return i < 0 ? 0 : (i > hi ? hi : i); }
+}  // namespace
+
+namespace {
+
+// Samples of the padded source beyond the frame on each side: enough for the
+// bicubic's 4 x 4 taps around a position clamped to 2 px outside the frame.
+constexpr int kWarpPad = 4;
+
+// One row of Warp: base points at the padded source's pixel (-kWarpPad,
+// -kWarpPad), step is its row stride in floats. Branch-free (the padding
+// replicates the border) and with int offsets, so that it vectorises with
+// gathers.
+QOGI_VELOCIMETRY_KERNEL
+void WarpRow(int W, int y, const float* QOGI_RESTRICT base, int step,
+             const float* QOGI_RESTRICT pu, const float* QOGI_RESTRICT pv, float wmax,
+             float hmax, float* QOGI_RESTRICT pd, uchar* QOGI_RESTRICT pin) {
+  const float fy = static_cast<float>(y);
+  for (int x = 0; x < W; ++x) {
+    float px = static_cast<float>(x) + pu[x], py = fy + pv[x];
+    pin[x] = (px >= 0.f && px <= wmax && py >= 0.f && py <= hmax) ? 1 : 0;
+    px = px > -2.f ? px : -2.f;  // also maps NaN to the border
+    py = py > -2.f ? py : -2.f;
+    px = px < wmax + 2.f ? px : wmax + 2.f;
+    py = py < hmax + 2.f ? py : hmax + 2.f;
+    // floor by truncation of a positive number (px, py >= -2): without
+    // SSE4.1 std::floor is a library call.
+    const int ix = static_cast<int>(px + 2.f) - 2, iy = static_cast<int>(py + 2.f) - 2;
+    float wx[4], wy[4];
+    CubicWeights(px - static_cast<float>(ix), wx);
+    CubicWeights(py - static_cast<float>(iy), wy);
+    const int o = (iy - 1 + kWarpPad) * step + (ix - 1 + kWarpPad);
+    float acc = 0.f;
+    for (int j = 0; j < 4; ++j) {
+      const int oj = o + j * step;
+      acc += wy[j] * (wx[0] * base[oj] + wx[1] * base[oj + 1] + wx[2] * base[oj + 2] +
+                      wx[3] * base[oj + 3]);
+    }
+    pd[x] = acc;
+  }
+}
 
 }  // namespace
 
@@ -129,46 +170,24 @@ void Warp(const cv::Mat& src, const cv::Mat& u, const cv::Mat& v, cv::Mat& dst,
           cv::Mat* inside) {
   CV_Assert(src.type() == CV_32FC1 && u.size() == src.size() && v.size() == src.size());
   dst.create(src.size(), CV_32FC1);
-  if (inside) inside->create(src.size(), CV_8UC1);
+  // The kernel always writes the inside flags (no branch in its loop).
+  thread_local cv::Mat unused_inside;
+  cv::Mat& in = inside ? *inside : unused_inside;
+  in.create(src.size(), CV_8UC1);
   const int W = src.cols, H = src.rows;
   const float wmax = static_cast<float>(W - 1), hmax = static_cast<float>(H - 1);
+  // The source with its border replicated kWarpPad px out (the same samples
+  // as clamping each tap's index), kept between calls.
+  thread_local cv::Mat padded;
+  cv::copyMakeBorder(src, padded, kWarpPad, kWarpPad, kWarpPad, kWarpPad,
+                     cv::BORDER_REPLICATE);
+  CV_Assert(padded.isContinuous() && padded.total() < (1u << 31));
+  const float* base = padded.ptr<float>(0);
+  const int step = padded.cols;
   ParallelRows(H, W, [&](int y0, int y1) {
-    for (int y = y0; y < y1; ++y) {
-      const float* pu = u.ptr<float>(y);
-      const float* pv = v.ptr<float>(y);
-      float* pd = dst.ptr<float>(y);
-      uchar* pin = inside ? inside->ptr<uchar>(y) : nullptr;
-      for (int x = 0; x < W; ++x) {
-        float px = x + pu[x], py = y + pv[x];
-        if (pin) pin[x] = (px >= 0.f && px <= wmax && py >= 0.f && py <= hmax) ? 1 : 0;
-        if (!(px > -2.f)) px = -2.f;  // also maps NaN to the border
-        if (!(py > -2.f)) py = -2.f;
-        px = std::min(px, wmax + 2.f);
-        py = std::min(py, hmax + 2.f);
-        // floor by truncation of a positive number (px, py >= -2): without
-        // SSE4.1 std::floor is a library call, the largest part of a warp.
-        const int ix = static_cast<int>(px + 2.f) - 2, iy = static_cast<int>(py + 2.f) - 2;
-        float wx[4], wy[4];
-        CubicWeights(px - static_cast<float>(ix), wx);
-        CubicWeights(py - static_cast<float>(iy), wy);
-        float acc = 0.f;
-        if (ix >= 1 && ix + 2 < W && iy >= 1 && iy + 2 < H) {
-          for (int j = 0; j < 4; ++j) {
-            const float* row = src.ptr<float>(iy - 1 + j) + ix - 1;
-            acc += wy[j] * (wx[0] * row[0] + wx[1] * row[1] + wx[2] * row[2] +
-                            wx[3] * row[3]);
-          }
-        } else {
-          for (int j = 0; j < 4; ++j) {
-            const float* row = src.ptr<float>(Clamp(iy - 1 + j, H - 1));
-            float r = 0.f;
-            for (int i = 0; i < 4; ++i) r += wx[i] * row[Clamp(ix - 1 + i, W - 1)];
-            acc += wy[j] * r;
-          }
-        }
-        pd[x] = acc;
-      }
-    }
+    for (int y = y0; y < y1; ++y)
+      WarpRow(W, y, base, step, u.ptr<float>(y), v.ptr<float>(y), wmax, hmax,
+              dst.ptr<float>(y), in.ptr<uchar>(y));
   });
 }
 

@@ -9,7 +9,14 @@
 #include <functional>
 #include <vector>
 
+#include "engine/util/portability.h"
 #include "engine/velocimetry/flow.h"
+
+// The solvers' per-row kernels: a clone for x86-64-v3 (AVX2, 8 floats a
+// vector) besides the baseline build, chosen at load time. The engine is
+// compiled with ISO floating-point contraction off, so the clones compute the
+// same operations (only the grouping of vectorised float reductions differs).
+#define QOGI_VELOCIMETRY_KERNEL QOGI_TARGET_CLONES("arch=x86-64-v3", "default")
 
 namespace qogi {
 namespace flow_ops {

@@ -32,6 +32,7 @@ double Sum(const Partials& p) {
 // functions with QOGI_RESTRICT parameters so that the compiler vectorises them.
 
 // g = 0.5 c div(a p) (continuity data term, central differences).
+QOGI_VELOCIMETRY_KERNEL
 void ForwardContRow(int n, const float* QOGI_RESTRICT c, const float* QOGI_RESTRICT a,
                     const float* QOGI_RESTRICT a_up, const float* QOGI_RESTRICT a_dn,
                     const float* QOGI_RESTRICT pu, const float* QOGI_RESTRICT pv_up,
@@ -43,6 +44,7 @@ void ForwardContRow(int n, const float* QOGI_RESTRICT c, const float* QOGI_RESTR
 }
 
 // del = ad div p, kap = ac curl p (kap skipped when null).
+QOGI_VELOCIMETRY_KERNEL
 void DivCurlRow(int n, float ad, float ac, const float* QOGI_RESTRICT pu,
                 const float* QOGI_RESTRICT pu_up,
                 const float* QOGI_RESTRICT pu_dn, const float* QOGI_RESTRICT pv,
@@ -57,6 +59,7 @@ void DivCurlRow(int n, float ad, float ac, const float* QOGI_RESTRICT pu,
 }
 
 // (ou, ov) = D^T del + C^T kap on the row interior (kap may be null).
+QOGI_VELOCIMETRY_KERNEL
 void DivCurlAdjointRow(int n, const float* QOGI_RESTRICT del,
                        const float* QOGI_RESTRICT del_up,
                        const float* QOGI_RESTRICT del_dn, const float* QOGI_RESTRICT kap,
@@ -76,6 +79,7 @@ void DivCurlAdjointRow(int n, const float* QOGI_RESTRICT del,
 
 // (ou, ov) (+)= A^T g + alpha L p on the row interior; returns <p, o> there.
 template <bool kContinuity, bool kAccumulate>
+QOGI_VELOCIMETRY_KERNEL
 float AdjointRow(int n, float alpha, const float* QOGI_RESTRICT a,
                  const float* QOGI_RESTRICT b, const float* QOGI_RESTRICT g,
                  const float* QOGI_RESTRICT g_up, const float* QOGI_RESTRICT g_dn,
@@ -114,7 +118,10 @@ void GaussianAux(const cv::Mat& src, cv::Mat& dst, double sigma) {
   cv::GaussianBlur(src, dst, cv::Size(k, k), sigma, sigma, cv::BORDER_REPLICATE);
 }
 
-// res -= step q; returns <res, P res> and <res, res> in rz, rr.
+// res -= step q; returns <res, P res> and <res, res> in rz, rr. kDiagonal:
+// the preconditioner's off-diagonal pb is zero (continuity), not read.
+template <bool kDiagonal>
+QOGI_VELOCIMETRY_KERNEL
 void UpdateResidual(int n, float step, const float* QOGI_RESTRICT qu,
                     const float* QOGI_RESTRICT qv, const float* QOGI_RESTRICT pa,
                     const float* QOGI_RESTRICT pb, const float* QOGI_RESTRICT pc,
@@ -125,7 +132,10 @@ void UpdateResidual(int n, float step, const float* QOGI_RESTRICT qu,
     const float a = ru[i] - step * qu[i], b = rv[i] - step * qv[i];
     ru[i] = a;
     rv[i] = b;
-    sz += a * (pa[i] * a + pb[i] * b) + b * (pb[i] * a + pc[i] * b);
+    if (kDiagonal)
+      sz += a * (pa[i] * a) + b * (pc[i] * b);
+    else
+      sz += a * (pa[i] * a + pb[i] * b) + b * (pb[i] * a + pc[i] * b);
     sr += a * a + b * b;
   }
   rz = sz;
@@ -133,6 +143,8 @@ void UpdateResidual(int n, float step, const float* QOGI_RESTRICT qu,
 }
 
 // x += step p; p = P res + beta p.
+template <bool kDiagonal>
+QOGI_VELOCIMETRY_KERNEL
 void UpdateDirection(int n, float step, float beta, const float* QOGI_RESTRICT ru,
                      const float* QOGI_RESTRICT rv, const float* QOGI_RESTRICT pa,
                      const float* QOGI_RESTRICT pb, const float* QOGI_RESTRICT pc,
@@ -141,9 +153,33 @@ void UpdateDirection(int n, float step, float beta, const float* QOGI_RESTRICT r
   for (int i = 0; i < n; ++i) {
     xu[i] += step * pu[i];
     xv[i] += step * pv[i];
-    pu[i] = pa[i] * ru[i] + pb[i] * rv[i] + beta * pu[i];
-    pv[i] = pb[i] * ru[i] + pc[i] * rv[i] + beta * pv[i];
+    if (kDiagonal) {
+      pu[i] = pa[i] * ru[i] + beta * pu[i];
+      pv[i] = pc[i] * rv[i] + beta * pv[i];
+    } else {
+      pu[i] = pa[i] * ru[i] + pb[i] * rv[i] + beta * pu[i];
+      pv[i] = pb[i] * ru[i] + pc[i] * rv[i] + beta * pv[i];
+    }
   }
+}
+
+// The two updates for a preconditioner that is diagonal (pb == 0) or not.
+void UpdateResidual(bool diagonal, int n, float step, const float* qu, const float* qv,
+                    const float* pa, const float* pb, const float* pc, float* ru,
+                    float* rv, float& rz, float& rr) {
+  if (diagonal)
+    UpdateResidual<true>(n, step, qu, qv, pa, pb, pc, ru, rv, rz, rr);
+  else
+    UpdateResidual<false>(n, step, qu, qv, pa, pb, pc, ru, rv, rz, rr);
+}
+
+void UpdateDirection(bool diagonal, int n, float step, float beta, const float* ru,
+                     const float* rv, const float* pa, const float* pb, const float* pc,
+                     float* xu, float* xv, float* pu, float* pv) {
+  if (diagonal)
+    UpdateDirection<true>(n, step, beta, ru, rv, pa, pb, pc, xu, xv, pu, pv);
+  else
+    UpdateDirection<false>(n, step, beta, ru, rv, pa, pb, pc, xu, xv, pu, pv);
 }
 
 }  // namespace
@@ -250,6 +286,8 @@ void VariationalSolver::SolveLevel(int level, int finest, const VariationalSetti
   float* qv = qu + n;
   const float* pa = pre_a_.data();
   const float* pb = pre_b_.data();
+  // The continuity blocks are diagonal (pre_b_ = 0): the updates skip it.
+  const bool diagonal = data_ == DataModel::kContinuity;
   const float* pc = pre_c_.data();
 
   for (int warp = 0; warp < warps; ++warp) {
@@ -282,9 +320,9 @@ void VariationalSolver::SolveLevel(int level, int finest, const VariationalSetti
       std::fill(pu + b, pu + b + len, 0.f);
       std::fill(pv + b, pv + b + len, 0.f);
       float rz = 0.f, rr = 0.f;
-      UpdateResidual(len, 0.f, qu + b, qv + b, pa + b, pb + b, pc + b, ru + b, rv + b,
+      UpdateResidual(diagonal, len, 0.f, qu + b, qv + b, pa + b, pb + b, pc + b, ru + b, rv + b,
                      rz, rr);
-      UpdateDirection(len, 0.f, 0.f, ru + b, rv + b, pa + b, pb + b, pc + b, xu + b,
+      UpdateDirection(diagonal, len, 0.f, 0.f, ru + b, rv + b, pa + b, pb + b, pc + b, xu + b,
                       xv + b, pu + b, pv + b);
       prz[st] = rz;
       prr[st] = rr;
@@ -302,7 +340,7 @@ void VariationalSolver::SolveLevel(int level, int finest, const VariationalSetti
       ParallelStripes(H, W, [&](int st, int y0, int y1) {
         const std::size_t b = static_cast<std::size_t>(y0) * W;
         float z = 0.f, r = 0.f;
-        UpdateResidual((y1 - y0) * W, step, qu + b, qv + b, pa + b, pb + b, pc + b,
+        UpdateResidual(diagonal, (y1 - y0) * W, step, qu + b, qv + b, pa + b, pb + b, pc + b,
                        ru + b, rv + b, z, r);
         pz[st] = z;
         pr[st] = r;
@@ -314,7 +352,7 @@ void VariationalSolver::SolveLevel(int level, int finest, const VariationalSetti
       // x += step p (and, unless done, the next search direction).
       ParallelStripes(H, W, [&](int, int y0, int y1) {
         const std::size_t b = static_cast<std::size_t>(y0) * W;
-        UpdateDirection((y1 - y0) * W, step, beta, ru + b, rv + b, pa + b, pb + b,
+        UpdateDirection(diagonal, (y1 - y0) * W, step, beta, ru + b, rv + b, pa + b, pb + b,
                         pc + b, xu + b, xv + b, pu + b, pv + b);
       });
       if (done) break;
