@@ -304,9 +304,15 @@ void QualityFromResidual(const cv::Mat& residual, const cv::Mat& valid,
   const int step = static_cast<int>(std::max<long long>(1, n / 20000));
   std::vector<float> samples;
   samples.reserve(static_cast<std::size_t>(n / step + 1));
-  for (long long i = 0; i < n; i += step) {
-    const int y = static_cast<int>(i / r.cols), x = static_cast<int>(i % r.cols);
+  // Every step-th pixel in row-major order (x, y kept incrementally: an
+  // integer division per sample cost more than the selection).
+  for (int y = 0, x = 0; y < r.rows;) {
     if (valid.empty() || valid.at<uchar>(y, x)) samples.push_back(r.at<float>(y, x));
+    x += step;
+    while (x >= r.cols && y < r.rows) {
+      x -= r.cols;
+      ++y;
+    }
   }
   double s = 0.0;
   if (!samples.empty()) {

@@ -110,6 +110,49 @@ float AdjointRow(int n, float alpha, const float* QOGI_RESTRICT a,
   return dot;
 }
 
+// Inverse of the symmetric 2 x 2 block [[d11, d12], [d12, d22]] into (pa, pb,
+// pc); a near-singular block falls back to the inverse of its diagonal.
+QOGI_ALWAYS_INLINE void InvertBlock(float d11, float d12, float d22, float& pa, float& pb,
+                                    float& pc) {
+  const float det = d11 * d22 - d12 * d12;
+  if (det > 1e-6f * d11 * d22 && det > 0.f) {
+    pa = d22 / det;
+    pb = -d12 / det;
+    pc = d11 / det;
+  } else {
+    pa = d11 > 0 ? 1.f / d11 : 1.f;
+    pb = 0.f;
+    pc = d22 > 0 ? 1.f / d22 : 1.f;
+  }
+}
+
+// The preconditioner's blocks (inverse diagonal blocks of A^T W A + R) on
+// columns [x0, x1) of a row, neither of them on the frame's border; reg is the
+// regularisation's diagonal there, c_up / c_dn the rows above and below (a
+// zero row beyond the frame).
+template <bool kContinuity>
+QOGI_VELOCIMETRY_KERNEL
+void BlockInverseRow(int x0, int x1, float reg, const float* QOGI_RESTRICT a,
+                     const float* QOGI_RESTRICT b, const float* QOGI_RESTRICT w,
+                     const float* QOGI_RESTRICT c, const float* QOGI_RESTRICT c_up,
+                     const float* QOGI_RESTRICT c_dn, float* QOGI_RESTRICT pa,
+                     float* QOGI_RESTRICT pb, float* QOGI_RESTRICT pc) {
+  for (int x = x0; x < x1; ++x) {
+    float d11, d12, d22;
+    if (!kContinuity) {
+      d11 = w[x] * a[x] * a[x];
+      d12 = w[x] * a[x] * b[x];
+      d22 = w[x] * b[x] * b[x];
+    } else {
+      const float a2 = a[x] * a[x] * 0.25f;
+      d11 = a2 * (c[x - 1] + c[x + 1]);
+      d22 = a2 * (c_up[x] + c_dn[x]);
+      d12 = 0.f;
+    }
+    InvertBlock(d11 + reg, d12, d22 + reg, pa[x], pb[x], pc[x]);
+  }
+}
+
 // Gaussian of the auxiliary fields (G(w), xi, zeta), truncated at 3 sigma
 // (OpenCV's default for float images is 4 sigma: a third more taps for
 // 0.3 % of the weight).
@@ -275,6 +318,7 @@ void VariationalSolver::SolveLevel(int level, int finest, const VariationalSetti
   for (auto* vec : {&a_, &b_, &w_, &r_, &c_, &g_, &del_, &kap_, &pre_a_, &pre_b_, &pre_c_})
     vec->resize(n);
   for (auto* vec : {&x_, &res_, &p_, &q_}) vec->resize(2 * n);
+  zero_row_.assign(W, 0.f);
   std::fill(q_.begin(), q_.end(), 0.f);
   float* xu = x_.data();
   float* xv = xu + n;
@@ -444,6 +488,7 @@ void VariationalSolver::Linearise(int level, const VariationalSettings& s) {
   const float half_ad = static_cast<float>(0.5 * alpha_div_);
   const float half_ac = static_cast<float>(0.5 * alpha_curl_);
   const float alpha = static_cast<float>(alpha_);
+  const float* zero = zero_row_.data();
   ParallelRows(H, W, [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y) {
       const std::size_t row = static_cast<std::size_t>(y) * W;
@@ -451,14 +496,21 @@ void VariationalSolver::Linearise(int level, const VariationalSettings& s) {
       const float* b = b_.data() + row;
       const float* w = w_.data() + row;
       const float* c = c_.data() + row;  // w b^2 (continuity)
-      const float* c_up = y > 0 ? c - W : nullptr;
-      const float* c_dn = y < H - 1 ? c + W : nullptr;
+      const float* c_up = y > 0 ? c - W : zero;
+      const float* c_dn = y < H - 1 ? c + W : zero;
       float* pa = pre_a_.data() + row;
       float* pb = pre_b_.data() + row;
       float* pc = pre_c_.data() + row;
-      for (int x = 0; x < W; ++x) {
-        const int nbrs = (x > 0) + (x < W - 1) + (y > 0) + (y < H - 1);
-        const float reg = alpha * nbrs + half_ad + half_ac;
+      const int row_nbrs = (y > 0) + (y < H - 1);
+      // Interior columns, then the frame's first and last.
+      const float reg = alpha * (row_nbrs + 2) + half_ad + half_ac;
+      if (cont)
+        BlockInverseRow<true>(1, W - 1, reg, a, b, w, c, c_up, c_dn, pa, pb, pc);
+      else
+        BlockInverseRow<false>(1, W - 1, reg, a, b, w, c, c_up, c_dn, pa, pb, pc);
+      for (const int x : {0, W - 1}) {
+        const int nbrs = (x > 0) + (x < W - 1) + row_nbrs;
+        const float reg_x = alpha * nbrs + half_ad + half_ac;
         float d11, d12, d22;
         if (!cont) {
           d11 = w[x] * a[x] * a[x];
@@ -467,21 +519,10 @@ void VariationalSolver::Linearise(int level, const VariationalSettings& s) {
         } else {
           const float a2 = a[x] * a[x] * 0.25f;
           d11 = a2 * ((x > 0 ? c[x - 1] : 0.f) + (x < W - 1 ? c[x + 1] : 0.f));
-          d22 = a2 * ((c_up ? c_up[x] : 0.f) + (c_dn ? c_dn[x] : 0.f));
+          d22 = a2 * (c_up[x] + c_dn[x]);
           d12 = 0.f;
         }
-        d11 += reg;
-        d22 += reg;
-        const float det = d11 * d22 - d12 * d12;
-        if (det > 1e-6f * d11 * d22 && det > 0.f) {
-          pa[x] = d22 / det;
-          pb[x] = -d12 / det;
-          pc[x] = d11 / det;
-        } else {
-          pa[x] = d11 > 0 ? 1.f / d11 : 1.f;
-          pb[x] = 0.f;
-          pc[x] = d22 > 0 ? 1.f / d22 : 1.f;
-        }
+        InvertBlock(d11 + reg_x, d12, d22 + reg_x, pa[x], pb[x], pc[x]);
       }
     }
   });
@@ -594,74 +635,83 @@ double VariationalSolver::AdjointPass(const float* pu, const float* pv, float* o
   const float* g = g_.data();
   const float* del = del_.data();
   const float* kap = kap_.data();
-  // One pixel with neighbour checks (the border).
-  auto pixel = [&](int x, int y) {
-    const std::size_t k = static_cast<std::size_t>(y) * W + x;
-    const bool left = x > 0, right = x < W - 1, up = y > 0, down = y < H - 1;
-    float su, sv;
-    if (cont) {
-      const float gl = left ? g[k - 1] : 0.f, gr = right ? g[k + 1] : 0.f;
-      const float gu = up ? g[k - W] : 0.f, gd = down ? g[k + W] : 0.f;
-      su = 0.5f * a[k] * (gl - gr);
-      sv = 0.5f * a[k] * (gu - gd);
-    } else {
-      su = a[k] * g[k];
-      sv = b[k] * g[k];
-    }
-    float lu = 0.f, lv = 0.f;
-    if (left) { lu += pu[k] - pu[k - 1]; lv += pv[k] - pv[k - 1]; }
-    if (right) { lu += pu[k] - pu[k + 1]; lv += pv[k] - pv[k + 1]; }
-    if (up) { lu += pu[k] - pu[k - W]; lv += pv[k] - pv[k - W]; }
-    if (down) { lu += pu[k] - pu[k + W]; lv += pv[k] - pv[k + W]; }
-    su += alpha * lu;
-    sv += alpha * lv;
-    if (dc) {
-      const float dl = left ? del[k - 1] : 0.f, dr = right ? del[k + 1] : 0.f;
-      const float du = up ? del[k - W] : 0.f, dd = down ? del[k + W] : 0.f;
-      const float kl = left ? kap[k - 1] : 0.f, kr = right ? kap[k + 1] : 0.f;
-      const float ku = up ? kap[k - W] : 0.f, kd = down ? kap[k + W] : 0.f;
-      su += 0.5f * (dl - dr) + 0.5f * (kd - ku);
-      sv += 0.5f * (du - dd) + 0.5f * (kl - kr);
-    }
-    ou[k] = su;
-    ov[k] = sv;
-    return static_cast<double>(pu[k]) * su + static_cast<double>(pv[k]) * sv;
-  };
+  const float* zero = zero_row_.data();
+  // Pyramid levels are >= 4 px a side (min_level_size), so every row has an
+  // interior and two frame columns.
+  CV_Assert(W >= 3 && H >= 2 && static_cast<int>(zero_row_.size()) >= W);
   Partials partial{};
   ParallelStripes(H, W, [&](int st, int y0, int y1) {
     double dot = 0;
     for (int y = y0; y < y1; ++y) {
-      if (y == 0 || y == H - 1 || W < 3) {
-        for (int x = 0; x < W; ++x) dot += pixel(x, y);
-        continue;
-      }
       const std::size_t row = static_cast<std::size_t>(y) * W;
+      // The rows above and below: beyond the frame, a zero row for g, del
+      // and kap (the forward pass leaves them 0 on the frame's border ring)
+      // and the row itself for p (its difference to the missing neighbour,
+      // the Laplacian's natural boundary condition, is 0).
+      const bool top = y == 0, bottom = y == H - 1;
+      const float* g_up = top ? zero : g + row - W;
+      const float* g_dn = bottom ? zero : g + row + W;
+      const float* del_up = top ? zero : del + row - W;
+      const float* del_dn = bottom ? zero : del + row + W;
+      const float* kap_up = top ? zero : kap + row - W;
+      const float* kap_dn = bottom ? zero : kap + row + W;
+      const float* pu_up = pu + (top ? row : row - W);
+      const float* pu_dn = pu + (bottom ? row : row + W);
+      const float* pv_up = pv + (top ? row : row - W);
+      const float* pv_dn = pv + (bottom ? row : row + W);
       if (dc) {
-        DivCurlAdjointRow(W, del + row, del + row - W, del + row + W,
-                          has_curl ? kap + row : nullptr, kap + row - W,
-                          kap + row + W, ou + row, ov + row);
+        DivCurlAdjointRow(W, del + row, del_up, del_dn, has_curl ? kap + row : nullptr,
+                          kap_up, kap_dn, ou + row, ov + row);
       }
       float d;
       if (cont) {
-        d = dc ? AdjointRow<true, true>(W, alpha, a + row, b + row, g + row,
-                                        g + row - W, g + row + W, pu + row,
-                                        pu + row - W, pu + row + W, pv + row,
-                                        pv + row - W, pv + row + W, ou + row, ov + row)
-               : AdjointRow<true, false>(W, alpha, a + row, b + row, g + row,
-                                         g + row - W, g + row + W, pu + row,
-                                         pu + row - W, pu + row + W, pv + row,
-                                         pv + row - W, pv + row + W, ou + row, ov + row);
+        d = dc ? AdjointRow<true, true>(W, alpha, a + row, b + row, g + row, g_up, g_dn,
+                                        pu + row, pu_up, pu_dn, pv + row, pv_up, pv_dn,
+                                        ou + row, ov + row)
+               : AdjointRow<true, false>(W, alpha, a + row, b + row, g + row, g_up, g_dn,
+                                         pu + row, pu_up, pu_dn, pv + row, pv_up, pv_dn,
+                                         ou + row, ov + row);
       } else {
-        d = dc ? AdjointRow<false, true>(W, alpha, a + row, b + row, g + row,
-                                         g + row - W, g + row + W, pu + row,
-                                         pu + row - W, pu + row + W, pv + row,
-                                         pv + row - W, pv + row + W, ou + row, ov + row)
-               : AdjointRow<false, false>(W, alpha, a + row, b + row, g + row,
-                                          g + row - W, g + row + W, pu + row,
-                                          pu + row - W, pu + row + W, pv + row,
-                                          pv + row - W, pv + row + W, ou + row, ov + row);
+        d = dc ? AdjointRow<false, true>(W, alpha, a + row, b + row, g + row, g_up, g_dn,
+                                         pu + row, pu_up, pu_dn, pv + row, pv_up, pv_dn,
+                                         ou + row, ov + row)
+               : AdjointRow<false, false>(W, alpha, a + row, b + row, g + row, g_up, g_dn,
+                                          pu + row, pu_up, pu_dn, pv + row, pv_up, pv_dn,
+                                          ou + row, ov + row);
       }
-      dot += d + pixel(0, y) + pixel(W - 1, y);
+      dot += d;
+      // The frame's first and last column.
+      for (const int x : {0, W - 1}) {
+        const std::size_t k = row + x;
+        const bool left = x > 0, right = x < W - 1;
+        float su, sv;
+        if (cont) {
+          const float gl = left ? g[k - 1] : 0.f, gr = right ? g[k + 1] : 0.f;
+          su = 0.5f * a[k] * (gl - gr);
+          sv = 0.5f * a[k] * (g_up[x] - g_dn[x]);
+        } else {
+          su = a[k] * g[k];
+          sv = b[k] * g[k];
+        }
+        float lu = 0.f, lv = 0.f;
+        if (left) { lu += pu[k] - pu[k - 1]; lv += pv[k] - pv[k - 1]; }
+        if (right) { lu += pu[k] - pu[k + 1]; lv += pv[k] - pv[k + 1]; }
+        lu += pu[k] - pu_up[x];
+        lv += pv[k] - pv_up[x];
+        lu += pu[k] - pu_dn[x];
+        lv += pv[k] - pv_dn[x];
+        su += alpha * lu;
+        sv += alpha * lv;
+        if (dc) {
+          const float dl = left ? del[k - 1] : 0.f, dr = right ? del[k + 1] : 0.f;
+          const float kl = left ? kap[k - 1] : 0.f, kr = right ? kap[k + 1] : 0.f;
+          su += 0.5f * (dl - dr) + 0.5f * (kap_dn[x] - kap_up[x]);
+          sv += 0.5f * (del_up[x] - del_dn[x]) + 0.5f * (kl - kr);
+        }
+        ou[k] = su;
+        ov[k] = sv;
+        dot += static_cast<double>(pu[k]) * su + static_cast<double>(pv[k]) * sv;
+      }
     }
     partial[st] = dot;
   });
