@@ -110,6 +110,36 @@ float AdjointRow(int n, float alpha, const float* QOGI_RESTRICT a,
   return dot;
 }
 
+// The continuity data term's linearisation on one row (see Linearise):
+// a = rho1(x + w0), b = det(1 + grad w0) (at least kMinJacobian, else the
+// pixel's weight is 0), r = a b - rho0, w the weight (inside the frame x
+// the source mask x row_weight, 0 on the frame's first and last column),
+// c = w b^2.
+template <bool kSource>
+QOGI_VELOCIMETRY_KERNEL
+void ContinuityDataRow(int n, float row_weight, const uchar* QOGI_RESTRICT pin,
+                       const float* QOGI_RESTRICT ps, const float* QOGI_RESTRICT ux,
+                       const float* QOGI_RESTRICT uy, const float* QOGI_RESTRICT vx,
+                       const float* QOGI_RESTRICT vy, const float* QOGI_RESTRICT pw,
+                       const float* QOGI_RESTRICT p0, float* QOGI_RESTRICT a,
+                       float* QOGI_RESTRICT b, float* QOGI_RESTRICT r,
+                       float* QOGI_RESTRICT w, float* QOGI_RESTRICT c) {
+  for (int x = 0; x < n; ++x) {
+    float weight = pin[x] ? 1.f : 0.f;
+    if (kSource) weight *= ps[x];
+    float jac = (1.f + ux[x]) * (1.f + vy[x]) - uy[x] * vx[x];
+    const bool folded = !(jac > kMinJacobian);
+    jac = folded ? kMinJacobian : jac;
+    weight = folded ? 0.f : weight * row_weight;
+    a[x] = pw[x];
+    b[x] = jac;
+    r[x] = pw[x] * jac - p0[x];
+    w[x] = weight;
+    c[x] = weight * jac * jac;
+  }
+  w[0] = w[n - 1] = c[0] = c[n - 1] = 0.f;
+}
+
 // Inverse of the symmetric 2 x 2 block [[d11, d12], [d12, d22]] into (pa, pb,
 // pc); a near-singular block falls back to the inverse of its diagonal.
 QOGI_ALWAYS_INLINE void InvertBlock(float d11, float d12, float d22, float& pa, float& pb,
@@ -465,22 +495,12 @@ void VariationalSolver::Linearise(int level, const VariationalSettings& s) {
       const float* uy = uy_.ptr<float>(y);
       const float* vx = vx_.ptr<float>(y);
       const float* vy = vy_.ptr<float>(y);
-      const bool border_row = y == 0 || y == H - 1;
-      for (int x = 0; x < W; ++x) {
-        float weight = pin[x] ? 1.f : 0.f;
-        if (ps) weight *= ps[x];
-        float jac = (1.f + ux[x]) * (1.f + vy[x]) - uy[x] * vx[x];
-        if (!(jac > kMinJacobian)) {
-          jac = kMinJacobian;
-          weight = 0.f;
-        }
-        if (border_row || x == 0 || x == W - 1) weight = 0.f;
-        a[x] = pw[x];
-        b[x] = jac;
-        r[x] = pw[x] * jac - p0[x];
-        w[x] = weight;
-        c[x] = weight * jac * jac;
-      }
+      const float row_weight = (y == 0 || y == H - 1) ? 0.f : 1.f;
+      if (ps)
+        ContinuityDataRow<true>(W, row_weight, pin, ps, ux, uy, vx, vy, pw, p0, a, b, r, w, c);
+      else
+        ContinuityDataRow<false>(W, row_weight, pin, ps, ux, uy, vx, vy, pw, p0, a, b, r, w,
+                                 c);
     }
   });
   // Inverse of the 2 x 2 diagonal blocks of A^T W A + R.
@@ -543,11 +563,8 @@ void VariationalSolver::Linearise(int level, const VariationalSettings& s) {
       }
       pxi[0] = pxi[W - 1] = pze[0] = pze[W - 1] = 0.f;
       const std::size_t row = static_cast<std::size_t>(y) * W;
-      for (int x = 1; x < W - 1; ++x) {
-        const std::size_t k = row + x;
-        pxi[x] = 0.5f * (fu[k + 1] - fu[k - 1] + fv[k + W] - fv[k - W]);
-        pze[x] = 0.5f * (fv[k + 1] - fv[k - 1] - fu[k + W] + fu[k - W]);
-      }
+      DivCurlRow(W, 1.f, 1.f, fu + row, fu + row - W, fu + row + W, fv + row, fv + row - W,
+                 fv + row + W, pxi, pze);
     }
   });
   const double sigma = div_curl_scale_ / static_cast<double>(1 << level);
