@@ -396,17 +396,34 @@ void FinishWithBrightnessResidual(const cv::Mat& i0, const cv::Mat& i1,
   QualityFromResidual(residual, flow.valid, flow.quality);
 }
 
+namespace {
+
+// valid &= mask (when kMask) and u, v finite, on one row.
+template <bool kMask>
+QOGI_VELOCIMETRY_KERNEL
+void ApplyMaskRow(int n, const uchar* QOGI_RESTRICT pm, const float* QOGI_RESTRICT pu,
+                  const float* QOGI_RESTRICT pw, uchar* QOGI_RESTRICT pv) {
+  constexpr float kMax = std::numeric_limits<float>::max();
+  for (int x = 0; x < n; ++x) {
+    // |u| <= max is false for NaN and the infinities (std::isfinite does
+    // not vectorise).
+    const bool keep = (!kMask || pm[x] != 0) && std::abs(pu[x]) <= kMax &&
+                      std::abs(pw[x]) <= kMax;
+    pv[x] = (pv[x] != 0 && keep) ? 1 : 0;
+  }
+}
+
+}  // namespace
+
 void ApplyMask(const cv::Mat& mask, const cv::Mat& u, const cv::Mat& v,
                cv::Mat& valid) {
   for (int y = 0; y < valid.rows; ++y) {
-    uchar* pv = valid.ptr<uchar>(y);
-    const float* pu = u.ptr<float>(y);
-    const float* pw = v.ptr<float>(y);
-    const uchar* pm = mask.empty() ? nullptr : mask.ptr<uchar>(y);
-    for (int x = 0; x < valid.cols; ++x) {
-      const bool keep = (!pm || pm[x]) && std::isfinite(pu[x]) && std::isfinite(pw[x]);
-      pv[x] = (pv[x] && keep) ? 1 : 0;
-    }
+    if (mask.empty())
+      ApplyMaskRow<false>(valid.cols, nullptr, u.ptr<float>(y), v.ptr<float>(y),
+                          valid.ptr<uchar>(y));
+    else
+      ApplyMaskRow<true>(valid.cols, mask.ptr<uchar>(y), u.ptr<float>(y), v.ptr<float>(y),
+                         valid.ptr<uchar>(y));
   }
 }
 

@@ -140,6 +140,18 @@ void ContinuityDataRow(int n, float row_weight, const uchar* QOGI_RESTRICT pin,
   w[0] = w[n - 1] = c[0] = c[n - 1] = 0.f;
 }
 
+// out = 1 where (x, y) + (u, v) lies in [0, wmax] x [0, hmax], else 0
+// (NaN: 0), on one row.
+QOGI_VELOCIMETRY_KERNEL
+void InsideRow(int n, int y, float wmax, float hmax, const float* QOGI_RESTRICT pu,
+               const float* QOGI_RESTRICT pv, uchar* QOGI_RESTRICT out) {
+  const float fy = static_cast<float>(y);
+  for (int x = 0; x < n; ++x) {
+    const float px = static_cast<float>(x) + pu[x], py = fy + pv[x];
+    out[x] = (px >= 0.f && px <= wmax && py >= 0.f && py <= hmax) ? 1 : 0;
+  }
+}
+
 // Inverse of the symmetric 2 x 2 block [[d11, d12], [d12, d22]] into (pa, pb,
 // pc); a near-singular block falls back to the inverse of its diagonal.
 QOGI_ALWAYS_INLINE void InvertBlock(float d11, float d12, float d22, float& pa, float& pb,
@@ -790,15 +802,9 @@ void VariationalSolver::FinalResidual(int level, FlowField& flow, const cv::Mat&
   }
   // Validity at full resolution: x + w inside the frame, inside the mask.
   const int W = flow.u.cols, H = flow.u.rows;
-  for (int y = 0; y < H; ++y) {
-    const float* fu = flow.u.ptr<float>(y);
-    const float* fv = flow.v.ptr<float>(y);
-    uchar* out = flow.valid.ptr<uchar>(y);
-    for (int x = 0; x < W; ++x) {
-      const float px = x + fu[x], py = y + fv[x];
-      out[x] = (px >= 0.f && px <= W - 1 && py >= 0.f && py <= H - 1) ? 1 : 0;
-    }
-  }
+  for (int y = 0; y < H; ++y)
+    InsideRow(W, y, static_cast<float>(W - 1), static_cast<float>(H - 1),
+              flow.u.ptr<float>(y), flow.v.ptr<float>(y), flow.valid.ptr<uchar>(y));
   ApplyMask(mask, flow.u, flow.v, flow.valid);
 }
 
