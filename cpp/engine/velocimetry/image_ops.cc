@@ -400,8 +400,7 @@ namespace {
 
 // valid &= mask (when kMask) and u, v finite, on one row.
 template <bool kMask>
-QOGI_VELOCIMETRY_KERNEL
-void ApplyMaskRow(int n, const uchar* QOGI_RESTRICT pm, const float* QOGI_RESTRICT pu,
+QOGI_ALWAYS_INLINE void ApplyMaskRowBody(int n, const uchar* QOGI_RESTRICT pm, const float* QOGI_RESTRICT pu,
                   const float* QOGI_RESTRICT pw, uchar* QOGI_RESTRICT pv) {
   constexpr float kMax = std::numeric_limits<float>::max();
   for (int x = 0; x < n; ++x) {
@@ -413,18 +412,25 @@ void ApplyMaskRow(int n, const uchar* QOGI_RESTRICT pm, const float* QOGI_RESTRI
   }
 }
 
+// ApplyMaskRowBody with or without a mask (a non-template for clang's
+// target_clones).
+QOGI_VELOCIMETRY_KERNEL
+void ApplyMaskRow(bool use_mask, int n, const uchar* QOGI_RESTRICT pm,
+                  const float* QOGI_RESTRICT pu, const float* QOGI_RESTRICT pw,
+                  uchar* QOGI_RESTRICT pv) {
+  if (use_mask)
+    ApplyMaskRowBody<true>(n, pm, pu, pw, pv);
+  else
+    ApplyMaskRowBody<false>(n, pm, pu, pw, pv);
+}
+
 }  // namespace
 
 void ApplyMask(const cv::Mat& mask, const cv::Mat& u, const cv::Mat& v,
                cv::Mat& valid) {
-  for (int y = 0; y < valid.rows; ++y) {
-    if (mask.empty())
-      ApplyMaskRow<false>(valid.cols, nullptr, u.ptr<float>(y), v.ptr<float>(y),
-                          valid.ptr<uchar>(y));
-    else
-      ApplyMaskRow<true>(valid.cols, mask.ptr<uchar>(y), u.ptr<float>(y), v.ptr<float>(y),
-                         valid.ptr<uchar>(y));
-  }
+  for (int y = 0; y < valid.rows; ++y)
+    ApplyMaskRow(!mask.empty(), valid.cols, mask.empty() ? nullptr : mask.ptr<uchar>(y),
+                 u.ptr<float>(y), v.ptr<float>(y), valid.ptr<uchar>(y));
 }
 
 }  // namespace flow_ops

@@ -79,8 +79,7 @@ void DivCurlAdjointRow(int n, const float* QOGI_RESTRICT del,
 
 // (ou, ov) (+)= A^T g + alpha L p on the row interior; returns <p, o> there.
 template <bool kContinuity, bool kAccumulate>
-QOGI_VELOCIMETRY_KERNEL
-float AdjointRow(int n, float alpha, const float* QOGI_RESTRICT a,
+QOGI_ALWAYS_INLINE float AdjointRowBody(int n, float alpha, const float* QOGI_RESTRICT a,
                  const float* QOGI_RESTRICT b, const float* QOGI_RESTRICT g,
                  const float* QOGI_RESTRICT g_up, const float* QOGI_RESTRICT g_dn,
                  const float* QOGI_RESTRICT pu, const float* QOGI_RESTRICT pu_up,
@@ -110,14 +109,34 @@ float AdjointRow(int n, float alpha, const float* QOGI_RESTRICT a,
   return dot;
 }
 
+// AdjointRowBody for the data model and accumulation given at run time.
+QOGI_VELOCIMETRY_KERNEL
+float AdjointRow(bool continuity, bool accumulate, int n, float alpha,
+                 const float* QOGI_RESTRICT a, const float* QOGI_RESTRICT b,
+                 const float* QOGI_RESTRICT g, const float* QOGI_RESTRICT g_up,
+                 const float* QOGI_RESTRICT g_dn, const float* QOGI_RESTRICT pu,
+                 const float* QOGI_RESTRICT pu_up, const float* QOGI_RESTRICT pu_dn,
+                 const float* QOGI_RESTRICT pv, const float* QOGI_RESTRICT pv_up,
+                 const float* QOGI_RESTRICT pv_dn, float* QOGI_RESTRICT ou,
+                 float* QOGI_RESTRICT ov) {
+  if (continuity)
+    return accumulate ? AdjointRowBody<true, true>(n, alpha, a, b, g, g_up, g_dn, pu, pu_up,
+                                                   pu_dn, pv, pv_up, pv_dn, ou, ov)
+                      : AdjointRowBody<true, false>(n, alpha, a, b, g, g_up, g_dn, pu,
+                                                    pu_up, pu_dn, pv, pv_up, pv_dn, ou, ov);
+  return accumulate ? AdjointRowBody<false, true>(n, alpha, a, b, g, g_up, g_dn, pu, pu_up,
+                                                  pu_dn, pv, pv_up, pv_dn, ou, ov)
+                    : AdjointRowBody<false, false>(n, alpha, a, b, g, g_up, g_dn, pu, pu_up,
+                                                   pu_dn, pv, pv_up, pv_dn, ou, ov);
+}
+
 // The continuity data term's linearisation on one row (see Linearise):
 // a = rho1(x + w0), b = det(1 + grad w0) (at least kMinJacobian, else the
 // pixel's weight is 0), r = a b - rho0, w the weight (inside the frame x
 // the source mask x row_weight, 0 on the frame's first and last column),
 // c = w b^2.
 template <bool kSource>
-QOGI_VELOCIMETRY_KERNEL
-void ContinuityDataRow(int n, float row_weight, const uchar* QOGI_RESTRICT pin,
+QOGI_ALWAYS_INLINE void ContinuityDataRowBody(int n, float row_weight, const uchar* QOGI_RESTRICT pin,
                        const float* QOGI_RESTRICT ps, const float* QOGI_RESTRICT ux,
                        const float* QOGI_RESTRICT uy, const float* QOGI_RESTRICT vx,
                        const float* QOGI_RESTRICT vy, const float* QOGI_RESTRICT pw,
@@ -138,6 +157,22 @@ void ContinuityDataRow(int n, float row_weight, const uchar* QOGI_RESTRICT pin,
     c[x] = weight * jac * jac;
   }
   w[0] = w[n - 1] = c[0] = c[n - 1] = 0.f;
+}
+
+// ContinuityDataRowBody with or without a source mask.
+QOGI_VELOCIMETRY_KERNEL
+void ContinuityDataRow(bool source, int n, float row_weight, const uchar* QOGI_RESTRICT pin,
+                       const float* QOGI_RESTRICT ps, const float* QOGI_RESTRICT ux,
+                       const float* QOGI_RESTRICT uy, const float* QOGI_RESTRICT vx,
+                       const float* QOGI_RESTRICT vy, const float* QOGI_RESTRICT pw,
+                       const float* QOGI_RESTRICT p0, float* QOGI_RESTRICT a,
+                       float* QOGI_RESTRICT b, float* QOGI_RESTRICT r,
+                       float* QOGI_RESTRICT w, float* QOGI_RESTRICT c) {
+  if (source)
+    ContinuityDataRowBody<true>(n, row_weight, pin, ps, ux, uy, vx, vy, pw, p0, a, b, r, w, c);
+  else
+    ContinuityDataRowBody<false>(n, row_weight, pin, ps, ux, uy, vx, vy, pw, p0, a, b, r, w,
+                                 c);
 }
 
 // out = 1 where (x, y) + (u, v) lies in [0, wmax] x [0, hmax], else 0
@@ -173,8 +208,7 @@ QOGI_ALWAYS_INLINE void InvertBlock(float d11, float d12, float d22, float& pa, 
 // regularisation's diagonal there, c_up / c_dn the rows above and below (a
 // zero row beyond the frame).
 template <bool kContinuity>
-QOGI_VELOCIMETRY_KERNEL
-void BlockInverseRow(int x0, int x1, float reg, const float* QOGI_RESTRICT a,
+QOGI_ALWAYS_INLINE void BlockInverseRowBody(int x0, int x1, float reg, const float* QOGI_RESTRICT a,
                      const float* QOGI_RESTRICT b, const float* QOGI_RESTRICT w,
                      const float* QOGI_RESTRICT c, const float* QOGI_RESTRICT c_up,
                      const float* QOGI_RESTRICT c_dn, float* QOGI_RESTRICT pa,
@@ -195,6 +229,20 @@ void BlockInverseRow(int x0, int x1, float reg, const float* QOGI_RESTRICT a,
   }
 }
 
+// BlockInverseRowBody for the data model given at run time.
+QOGI_VELOCIMETRY_KERNEL
+void BlockInverseRow(bool continuity, int x0, int x1, float reg,
+                     const float* QOGI_RESTRICT a, const float* QOGI_RESTRICT b,
+                     const float* QOGI_RESTRICT w, const float* QOGI_RESTRICT c,
+                     const float* QOGI_RESTRICT c_up, const float* QOGI_RESTRICT c_dn,
+                     float* QOGI_RESTRICT pa, float* QOGI_RESTRICT pb,
+                     float* QOGI_RESTRICT pc) {
+  if (continuity)
+    BlockInverseRowBody<true>(x0, x1, reg, a, b, w, c, c_up, c_dn, pa, pb, pc);
+  else
+    BlockInverseRowBody<false>(x0, x1, reg, a, b, w, c, c_up, c_dn, pa, pb, pc);
+}
+
 // Gaussian of the auxiliary fields (G(w), xi, zeta), truncated at 3 sigma
 // (OpenCV's default for float images is 4 sigma: a third more taps for
 // 0.3 % of the weight).
@@ -206,8 +254,7 @@ void GaussianAux(const cv::Mat& src, cv::Mat& dst, double sigma) {
 // res -= step q; returns <res, P res> and <res, res> in rz, rr. kDiagonal:
 // the preconditioner's off-diagonal pb is zero (continuity), not read.
 template <bool kDiagonal>
-QOGI_VELOCIMETRY_KERNEL
-void UpdateResidual(int n, float step, const float* QOGI_RESTRICT qu,
+QOGI_ALWAYS_INLINE void UpdateResidualBody(int n, float step, const float* QOGI_RESTRICT qu,
                     const float* QOGI_RESTRICT qv, const float* QOGI_RESTRICT pa,
                     const float* QOGI_RESTRICT pb, const float* QOGI_RESTRICT pc,
                     float* QOGI_RESTRICT ru, float* QOGI_RESTRICT rv, float& rz,
@@ -229,8 +276,7 @@ void UpdateResidual(int n, float step, const float* QOGI_RESTRICT qu,
 
 // x += step p; p = P res + beta p.
 template <bool kDiagonal>
-QOGI_VELOCIMETRY_KERNEL
-void UpdateDirection(int n, float step, float beta, const float* QOGI_RESTRICT ru,
+QOGI_ALWAYS_INLINE void UpdateDirectionBody(int n, float step, float beta, const float* QOGI_RESTRICT ru,
                      const float* QOGI_RESTRICT rv, const float* QOGI_RESTRICT pa,
                      const float* QOGI_RESTRICT pb, const float* QOGI_RESTRICT pc,
                      float* QOGI_RESTRICT xu, float* QOGI_RESTRICT xv,
@@ -249,22 +295,26 @@ void UpdateDirection(int n, float step, float beta, const float* QOGI_RESTRICT r
 }
 
 // The two updates for a preconditioner that is diagonal (pb == 0) or not.
+// (The kernels with clones are these non-templates: clang's target_clones
+// does not take function templates.)
+QOGI_VELOCIMETRY_KERNEL
 void UpdateResidual(bool diagonal, int n, float step, const float* qu, const float* qv,
                     const float* pa, const float* pb, const float* pc, float* ru,
                     float* rv, float& rz, float& rr) {
   if (diagonal)
-    UpdateResidual<true>(n, step, qu, qv, pa, pb, pc, ru, rv, rz, rr);
+    UpdateResidualBody<true>(n, step, qu, qv, pa, pb, pc, ru, rv, rz, rr);
   else
-    UpdateResidual<false>(n, step, qu, qv, pa, pb, pc, ru, rv, rz, rr);
+    UpdateResidualBody<false>(n, step, qu, qv, pa, pb, pc, ru, rv, rz, rr);
 }
 
+QOGI_VELOCIMETRY_KERNEL
 void UpdateDirection(bool diagonal, int n, float step, float beta, const float* ru,
                      const float* rv, const float* pa, const float* pb, const float* pc,
                      float* xu, float* xv, float* pu, float* pv) {
   if (diagonal)
-    UpdateDirection<true>(n, step, beta, ru, rv, pa, pb, pc, xu, xv, pu, pv);
+    UpdateDirectionBody<true>(n, step, beta, ru, rv, pa, pb, pc, xu, xv, pu, pv);
   else
-    UpdateDirection<false>(n, step, beta, ru, rv, pa, pb, pc, xu, xv, pu, pv);
+    UpdateDirectionBody<false>(n, step, beta, ru, rv, pa, pb, pc, xu, xv, pu, pv);
 }
 
 }  // namespace
@@ -508,11 +558,8 @@ void VariationalSolver::Linearise(int level, const VariationalSettings& s) {
       const float* vx = vx_.ptr<float>(y);
       const float* vy = vy_.ptr<float>(y);
       const float row_weight = (y == 0 || y == H - 1) ? 0.f : 1.f;
-      if (ps)
-        ContinuityDataRow<true>(W, row_weight, pin, ps, ux, uy, vx, vy, pw, p0, a, b, r, w, c);
-      else
-        ContinuityDataRow<false>(W, row_weight, pin, ps, ux, uy, vx, vy, pw, p0, a, b, r, w,
-                                 c);
+      ContinuityDataRow(ps != nullptr, W, row_weight, pin, ps, ux, uy, vx, vy, pw, p0, a, b,
+                        r, w, c);
     }
   });
   // Inverse of the 2 x 2 diagonal blocks of A^T W A + R.
@@ -536,10 +583,7 @@ void VariationalSolver::Linearise(int level, const VariationalSettings& s) {
       const int row_nbrs = (y > 0) + (y < H - 1);
       // Interior columns, then the frame's first and last.
       const float reg = alpha * (row_nbrs + 2) + half_ad + half_ac;
-      if (cont)
-        BlockInverseRow<true>(1, W - 1, reg, a, b, w, c, c_up, c_dn, pa, pb, pc);
-      else
-        BlockInverseRow<false>(1, W - 1, reg, a, b, w, c, c_up, c_dn, pa, pb, pc);
+      BlockInverseRow(cont, 1, W - 1, reg, a, b, w, c, c_up, c_dn, pa, pb, pc);
       for (const int x : {0, W - 1}) {
         const int nbrs = (x > 0) + (x < W - 1) + row_nbrs;
         const float reg_x = alpha * nbrs + half_ad + half_ac;
@@ -692,22 +736,9 @@ double VariationalSolver::AdjointPass(const float* pu, const float* pv, float* o
         DivCurlAdjointRow(W, del + row, del_up, del_dn, has_curl ? kap + row : nullptr,
                           kap_up, kap_dn, ou + row, ov + row);
       }
-      float d;
-      if (cont) {
-        d = dc ? AdjointRow<true, true>(W, alpha, a + row, b + row, g + row, g_up, g_dn,
-                                        pu + row, pu_up, pu_dn, pv + row, pv_up, pv_dn,
-                                        ou + row, ov + row)
-               : AdjointRow<true, false>(W, alpha, a + row, b + row, g + row, g_up, g_dn,
-                                         pu + row, pu_up, pu_dn, pv + row, pv_up, pv_dn,
-                                         ou + row, ov + row);
-      } else {
-        d = dc ? AdjointRow<false, true>(W, alpha, a + row, b + row, g + row, g_up, g_dn,
-                                         pu + row, pu_up, pu_dn, pv + row, pv_up, pv_dn,
-                                         ou + row, ov + row)
-               : AdjointRow<false, false>(W, alpha, a + row, b + row, g + row, g_up, g_dn,
-                                          pu + row, pu_up, pu_dn, pv + row, pv_up, pv_dn,
-                                          ou + row, ov + row);
-      }
+      const float d = AdjointRow(cont, dc, W, alpha, a + row, b + row, g + row, g_up, g_dn,
+                                 pu + row, pu_up, pu_dn, pv + row, pv_up, pv_dn, ou + row,
+                                 ov + row);
       dot += d;
       // The frame's first and last column.
       for (const int x : {0, W - 1}) {
