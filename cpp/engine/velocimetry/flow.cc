@@ -81,8 +81,7 @@ void OpticalFlow::Calc(const cv::Mat& prev, const cv::Mat& next, FlowField& flow
     Require(mask.size() == prev.size(), "mask must have the frames' size " +
                                             SizeText(prev) + "; got " + SizeText(mask));
   }
-  const bool warm = flow.HasSize(prev.size()) && cv::checkRange(flow.u) &&
-                    cv::checkRange(flow.v);
+  const bool warm = flow.HasSize(prev.size()) && finite(flow.u) && finite(flow.v);
   if (!warm) {
     flow.Reset(prev.size());
   } else {

@@ -32,6 +32,7 @@ double Sum(const Partials& p) {
 // functions with QOGI_RESTRICT parameters so that the compiler vectorises them.
 
 // g = 0.5 c div(a p) (continuity data term, central differences).
+QOGI_VELOCIMETRY_KERNEL
 void ForwardContRow(int n, const float* QOGI_RESTRICT c, const float* QOGI_RESTRICT a,
                     const float* QOGI_RESTRICT a_up, const float* QOGI_RESTRICT a_dn,
                     const float* QOGI_RESTRICT pu, const float* QOGI_RESTRICT pv_up,
@@ -43,6 +44,7 @@ void ForwardContRow(int n, const float* QOGI_RESTRICT c, const float* QOGI_RESTR
 }
 
 // del = ad div p, kap = ac curl p (kap skipped when null).
+QOGI_VELOCIMETRY_KERNEL
 void DivCurlRow(int n, float ad, float ac, const float* QOGI_RESTRICT pu,
                 const float* QOGI_RESTRICT pu_up,
                 const float* QOGI_RESTRICT pu_dn, const float* QOGI_RESTRICT pv,
@@ -57,6 +59,7 @@ void DivCurlRow(int n, float ad, float ac, const float* QOGI_RESTRICT pu,
 }
 
 // (ou, ov) = D^T del + C^T kap on the row interior (kap may be null).
+QOGI_VELOCIMETRY_KERNEL
 void DivCurlAdjointRow(int n, const float* QOGI_RESTRICT del,
                        const float* QOGI_RESTRICT del_up,
                        const float* QOGI_RESTRICT del_dn, const float* QOGI_RESTRICT kap,
@@ -76,7 +79,7 @@ void DivCurlAdjointRow(int n, const float* QOGI_RESTRICT del,
 
 // (ou, ov) (+)= A^T g + alpha L p on the row interior; returns <p, o> there.
 template <bool kContinuity, bool kAccumulate>
-float AdjointRow(int n, float alpha, const float* QOGI_RESTRICT a,
+QOGI_ALWAYS_INLINE float AdjointRowBody(int n, float alpha, const float* QOGI_RESTRICT a,
                  const float* QOGI_RESTRICT b, const float* QOGI_RESTRICT g,
                  const float* QOGI_RESTRICT g_up, const float* QOGI_RESTRICT g_dn,
                  const float* QOGI_RESTRICT pu, const float* QOGI_RESTRICT pu_up,
@@ -106,6 +109,140 @@ float AdjointRow(int n, float alpha, const float* QOGI_RESTRICT a,
   return dot;
 }
 
+// AdjointRowBody for the data model and accumulation given at run time.
+QOGI_VELOCIMETRY_KERNEL
+float AdjointRow(bool continuity, bool accumulate, int n, float alpha,
+                 const float* QOGI_RESTRICT a, const float* QOGI_RESTRICT b,
+                 const float* QOGI_RESTRICT g, const float* QOGI_RESTRICT g_up,
+                 const float* QOGI_RESTRICT g_dn, const float* QOGI_RESTRICT pu,
+                 const float* QOGI_RESTRICT pu_up, const float* QOGI_RESTRICT pu_dn,
+                 const float* QOGI_RESTRICT pv, const float* QOGI_RESTRICT pv_up,
+                 const float* QOGI_RESTRICT pv_dn, float* QOGI_RESTRICT ou,
+                 float* QOGI_RESTRICT ov) {
+  if (continuity)
+    return accumulate ? AdjointRowBody<true, true>(n, alpha, a, b, g, g_up, g_dn, pu, pu_up,
+                                                   pu_dn, pv, pv_up, pv_dn, ou, ov)
+                      : AdjointRowBody<true, false>(n, alpha, a, b, g, g_up, g_dn, pu,
+                                                    pu_up, pu_dn, pv, pv_up, pv_dn, ou, ov);
+  return accumulate ? AdjointRowBody<false, true>(n, alpha, a, b, g, g_up, g_dn, pu, pu_up,
+                                                  pu_dn, pv, pv_up, pv_dn, ou, ov)
+                    : AdjointRowBody<false, false>(n, alpha, a, b, g, g_up, g_dn, pu, pu_up,
+                                                   pu_dn, pv, pv_up, pv_dn, ou, ov);
+}
+
+// The continuity data term's linearisation on one row (see Linearise):
+// a = rho1(x + w0), b = det(1 + grad w0) (at least kMinJacobian, else the
+// pixel's weight is 0), r = a b - rho0, w the weight (inside the frame x
+// the source mask x row_weight, 0 on the frame's first and last column),
+// c = w b^2.
+template <bool kSource>
+QOGI_ALWAYS_INLINE void ContinuityDataRowBody(int n, float row_weight, const uchar* QOGI_RESTRICT pin,
+                       const float* QOGI_RESTRICT ps, const float* QOGI_RESTRICT ux,
+                       const float* QOGI_RESTRICT uy, const float* QOGI_RESTRICT vx,
+                       const float* QOGI_RESTRICT vy, const float* QOGI_RESTRICT pw,
+                       const float* QOGI_RESTRICT p0, float* QOGI_RESTRICT a,
+                       float* QOGI_RESTRICT b, float* QOGI_RESTRICT r,
+                       float* QOGI_RESTRICT w, float* QOGI_RESTRICT c) {
+  for (int x = 0; x < n; ++x) {
+    float weight = pin[x] ? 1.f : 0.f;
+    if (kSource) weight *= ps[x];
+    float jac = (1.f + ux[x]) * (1.f + vy[x]) - uy[x] * vx[x];
+    const bool folded = !(jac > kMinJacobian);
+    jac = folded ? kMinJacobian : jac;
+    weight = folded ? 0.f : weight * row_weight;
+    a[x] = pw[x];
+    b[x] = jac;
+    r[x] = pw[x] * jac - p0[x];
+    w[x] = weight;
+    c[x] = weight * jac * jac;
+  }
+  w[0] = w[n - 1] = c[0] = c[n - 1] = 0.f;
+}
+
+// ContinuityDataRowBody with or without a source mask.
+QOGI_VELOCIMETRY_KERNEL
+void ContinuityDataRow(bool source, int n, float row_weight, const uchar* QOGI_RESTRICT pin,
+                       const float* QOGI_RESTRICT ps, const float* QOGI_RESTRICT ux,
+                       const float* QOGI_RESTRICT uy, const float* QOGI_RESTRICT vx,
+                       const float* QOGI_RESTRICT vy, const float* QOGI_RESTRICT pw,
+                       const float* QOGI_RESTRICT p0, float* QOGI_RESTRICT a,
+                       float* QOGI_RESTRICT b, float* QOGI_RESTRICT r,
+                       float* QOGI_RESTRICT w, float* QOGI_RESTRICT c) {
+  if (source)
+    ContinuityDataRowBody<true>(n, row_weight, pin, ps, ux, uy, vx, vy, pw, p0, a, b, r, w, c);
+  else
+    ContinuityDataRowBody<false>(n, row_weight, pin, ps, ux, uy, vx, vy, pw, p0, a, b, r, w,
+                                 c);
+}
+
+// out = 1 where (x, y) + (u, v) lies in [0, wmax] x [0, hmax], else 0
+// (NaN: 0), on one row.
+QOGI_VELOCIMETRY_KERNEL
+void InsideRow(int n, int y, float wmax, float hmax, const float* QOGI_RESTRICT pu,
+               const float* QOGI_RESTRICT pv, uchar* QOGI_RESTRICT out) {
+  const float fy = static_cast<float>(y);
+  for (int x = 0; x < n; ++x) {
+    const float px = static_cast<float>(x) + pu[x], py = fy + pv[x];
+    out[x] = (px >= 0.f && px <= wmax && py >= 0.f && py <= hmax) ? 1 : 0;
+  }
+}
+
+// Inverse of the symmetric 2 x 2 block [[d11, d12], [d12, d22]] into (pa, pb,
+// pc); a near-singular block falls back to the inverse of its diagonal.
+QOGI_ALWAYS_INLINE void InvertBlock(float d11, float d12, float d22, float& pa, float& pb,
+                                    float& pc) {
+  const float det = d11 * d22 - d12 * d12;
+  if (det > 1e-6f * d11 * d22 && det > 0.f) {
+    pa = d22 / det;
+    pb = -d12 / det;
+    pc = d11 / det;
+  } else {
+    pa = d11 > 0 ? 1.f / d11 : 1.f;
+    pb = 0.f;
+    pc = d22 > 0 ? 1.f / d22 : 1.f;
+  }
+}
+
+// The preconditioner's blocks (inverse diagonal blocks of A^T W A + R) on
+// columns [x0, x1) of a row, neither of them on the frame's border; reg is the
+// regularisation's diagonal there, c_up / c_dn the rows above and below (a
+// zero row beyond the frame).
+template <bool kContinuity>
+QOGI_ALWAYS_INLINE void BlockInverseRowBody(int x0, int x1, float reg, const float* QOGI_RESTRICT a,
+                     const float* QOGI_RESTRICT b, const float* QOGI_RESTRICT w,
+                     const float* QOGI_RESTRICT c, const float* QOGI_RESTRICT c_up,
+                     const float* QOGI_RESTRICT c_dn, float* QOGI_RESTRICT pa,
+                     float* QOGI_RESTRICT pb, float* QOGI_RESTRICT pc) {
+  for (int x = x0; x < x1; ++x) {
+    float d11, d12, d22;
+    if (!kContinuity) {
+      d11 = w[x] * a[x] * a[x];
+      d12 = w[x] * a[x] * b[x];
+      d22 = w[x] * b[x] * b[x];
+    } else {
+      const float a2 = a[x] * a[x] * 0.25f;
+      d11 = a2 * (c[x - 1] + c[x + 1]);
+      d22 = a2 * (c_up[x] + c_dn[x]);
+      d12 = 0.f;
+    }
+    InvertBlock(d11 + reg, d12, d22 + reg, pa[x], pb[x], pc[x]);
+  }
+}
+
+// BlockInverseRowBody for the data model given at run time.
+QOGI_VELOCIMETRY_KERNEL
+void BlockInverseRow(bool continuity, int x0, int x1, float reg,
+                     const float* QOGI_RESTRICT a, const float* QOGI_RESTRICT b,
+                     const float* QOGI_RESTRICT w, const float* QOGI_RESTRICT c,
+                     const float* QOGI_RESTRICT c_up, const float* QOGI_RESTRICT c_dn,
+                     float* QOGI_RESTRICT pa, float* QOGI_RESTRICT pb,
+                     float* QOGI_RESTRICT pc) {
+  if (continuity)
+    BlockInverseRowBody<true>(x0, x1, reg, a, b, w, c, c_up, c_dn, pa, pb, pc);
+  else
+    BlockInverseRowBody<false>(x0, x1, reg, a, b, w, c, c_up, c_dn, pa, pb, pc);
+}
+
 // Gaussian of the auxiliary fields (G(w), xi, zeta), truncated at 3 sigma
 // (OpenCV's default for float images is 4 sigma: a third more taps for
 // 0.3 % of the weight).
@@ -114,8 +251,10 @@ void GaussianAux(const cv::Mat& src, cv::Mat& dst, double sigma) {
   cv::GaussianBlur(src, dst, cv::Size(k, k), sigma, sigma, cv::BORDER_REPLICATE);
 }
 
-// res -= step q; returns <res, P res> and <res, res> in rz, rr.
-void UpdateResidual(int n, float step, const float* QOGI_RESTRICT qu,
+// res -= step q; returns <res, P res> and <res, res> in rz, rr. kDiagonal:
+// the preconditioner's off-diagonal pb is zero (continuity), not read.
+template <bool kDiagonal>
+QOGI_ALWAYS_INLINE void UpdateResidualBody(int n, float step, const float* QOGI_RESTRICT qu,
                     const float* QOGI_RESTRICT qv, const float* QOGI_RESTRICT pa,
                     const float* QOGI_RESTRICT pb, const float* QOGI_RESTRICT pc,
                     float* QOGI_RESTRICT ru, float* QOGI_RESTRICT rv, float& rz,
@@ -125,7 +264,10 @@ void UpdateResidual(int n, float step, const float* QOGI_RESTRICT qu,
     const float a = ru[i] - step * qu[i], b = rv[i] - step * qv[i];
     ru[i] = a;
     rv[i] = b;
-    sz += a * (pa[i] * a + pb[i] * b) + b * (pb[i] * a + pc[i] * b);
+    if (kDiagonal)
+      sz += a * (pa[i] * a) + b * (pc[i] * b);
+    else
+      sz += a * (pa[i] * a + pb[i] * b) + b * (pb[i] * a + pc[i] * b);
     sr += a * a + b * b;
   }
   rz = sz;
@@ -133,7 +275,8 @@ void UpdateResidual(int n, float step, const float* QOGI_RESTRICT qu,
 }
 
 // x += step p; p = P res + beta p.
-void UpdateDirection(int n, float step, float beta, const float* QOGI_RESTRICT ru,
+template <bool kDiagonal>
+QOGI_ALWAYS_INLINE void UpdateDirectionBody(int n, float step, float beta, const float* QOGI_RESTRICT ru,
                      const float* QOGI_RESTRICT rv, const float* QOGI_RESTRICT pa,
                      const float* QOGI_RESTRICT pb, const float* QOGI_RESTRICT pc,
                      float* QOGI_RESTRICT xu, float* QOGI_RESTRICT xv,
@@ -141,9 +284,37 @@ void UpdateDirection(int n, float step, float beta, const float* QOGI_RESTRICT r
   for (int i = 0; i < n; ++i) {
     xu[i] += step * pu[i];
     xv[i] += step * pv[i];
-    pu[i] = pa[i] * ru[i] + pb[i] * rv[i] + beta * pu[i];
-    pv[i] = pb[i] * ru[i] + pc[i] * rv[i] + beta * pv[i];
+    if (kDiagonal) {
+      pu[i] = pa[i] * ru[i] + beta * pu[i];
+      pv[i] = pc[i] * rv[i] + beta * pv[i];
+    } else {
+      pu[i] = pa[i] * ru[i] + pb[i] * rv[i] + beta * pu[i];
+      pv[i] = pb[i] * ru[i] + pc[i] * rv[i] + beta * pv[i];
+    }
   }
+}
+
+// The two updates for a preconditioner that is diagonal (pb == 0) or not.
+// (The kernels with clones are these non-templates: clang's target_clones
+// does not take function templates.)
+QOGI_VELOCIMETRY_KERNEL
+void UpdateResidual(bool diagonal, int n, float step, const float* qu, const float* qv,
+                    const float* pa, const float* pb, const float* pc, float* ru,
+                    float* rv, float& rz, float& rr) {
+  if (diagonal)
+    UpdateResidualBody<true>(n, step, qu, qv, pa, pb, pc, ru, rv, rz, rr);
+  else
+    UpdateResidualBody<false>(n, step, qu, qv, pa, pb, pc, ru, rv, rz, rr);
+}
+
+QOGI_VELOCIMETRY_KERNEL
+void UpdateDirection(bool diagonal, int n, float step, float beta, const float* ru,
+                     const float* rv, const float* pa, const float* pb, const float* pc,
+                     float* xu, float* xv, float* pu, float* pv) {
+  if (diagonal)
+    UpdateDirectionBody<true>(n, step, beta, ru, rv, pa, pb, pc, xu, xv, pu, pv);
+  else
+    UpdateDirectionBody<false>(n, step, beta, ru, rv, pa, pb, pc, xu, xv, pu, pv);
 }
 
 }  // namespace
@@ -239,6 +410,7 @@ void VariationalSolver::SolveLevel(int level, int finest, const VariationalSetti
   for (auto* vec : {&a_, &b_, &w_, &r_, &c_, &g_, &del_, &kap_, &pre_a_, &pre_b_, &pre_c_})
     vec->resize(n);
   for (auto* vec : {&x_, &res_, &p_, &q_}) vec->resize(2 * n);
+  zero_row_.assign(W, 0.f);
   std::fill(q_.begin(), q_.end(), 0.f);
   float* xu = x_.data();
   float* xv = xu + n;
@@ -250,6 +422,8 @@ void VariationalSolver::SolveLevel(int level, int finest, const VariationalSetti
   float* qv = qu + n;
   const float* pa = pre_a_.data();
   const float* pb = pre_b_.data();
+  // The continuity blocks are diagonal (pre_b_ = 0): the updates skip it.
+  const bool diagonal = data_ == DataModel::kContinuity;
   const float* pc = pre_c_.data();
 
   for (int warp = 0; warp < warps; ++warp) {
@@ -282,9 +456,9 @@ void VariationalSolver::SolveLevel(int level, int finest, const VariationalSetti
       std::fill(pu + b, pu + b + len, 0.f);
       std::fill(pv + b, pv + b + len, 0.f);
       float rz = 0.f, rr = 0.f;
-      UpdateResidual(len, 0.f, qu + b, qv + b, pa + b, pb + b, pc + b, ru + b, rv + b,
+      UpdateResidual(diagonal, len, 0.f, qu + b, qv + b, pa + b, pb + b, pc + b, ru + b, rv + b,
                      rz, rr);
-      UpdateDirection(len, 0.f, 0.f, ru + b, rv + b, pa + b, pb + b, pc + b, xu + b,
+      UpdateDirection(diagonal, len, 0.f, 0.f, ru + b, rv + b, pa + b, pb + b, pc + b, xu + b,
                       xv + b, pu + b, pv + b);
       prz[st] = rz;
       prr[st] = rr;
@@ -302,7 +476,7 @@ void VariationalSolver::SolveLevel(int level, int finest, const VariationalSetti
       ParallelStripes(H, W, [&](int st, int y0, int y1) {
         const std::size_t b = static_cast<std::size_t>(y0) * W;
         float z = 0.f, r = 0.f;
-        UpdateResidual((y1 - y0) * W, step, qu + b, qv + b, pa + b, pb + b, pc + b,
+        UpdateResidual(diagonal, (y1 - y0) * W, step, qu + b, qv + b, pa + b, pb + b, pc + b,
                        ru + b, rv + b, z, r);
         pz[st] = z;
         pr[st] = r;
@@ -314,7 +488,7 @@ void VariationalSolver::SolveLevel(int level, int finest, const VariationalSetti
       // x += step p (and, unless done, the next search direction).
       ParallelStripes(H, W, [&](int, int y0, int y1) {
         const std::size_t b = static_cast<std::size_t>(y0) * W;
-        UpdateDirection((y1 - y0) * W, step, beta, ru + b, rv + b, pa + b, pb + b,
+        UpdateDirection(diagonal, (y1 - y0) * W, step, beta, ru + b, rv + b, pa + b, pb + b,
                         pc + b, xu + b, xv + b, pu + b, pv + b);
       });
       if (done) break;
@@ -383,22 +557,9 @@ void VariationalSolver::Linearise(int level, const VariationalSettings& s) {
       const float* uy = uy_.ptr<float>(y);
       const float* vx = vx_.ptr<float>(y);
       const float* vy = vy_.ptr<float>(y);
-      const bool border_row = y == 0 || y == H - 1;
-      for (int x = 0; x < W; ++x) {
-        float weight = pin[x] ? 1.f : 0.f;
-        if (ps) weight *= ps[x];
-        float jac = (1.f + ux[x]) * (1.f + vy[x]) - uy[x] * vx[x];
-        if (!(jac > kMinJacobian)) {
-          jac = kMinJacobian;
-          weight = 0.f;
-        }
-        if (border_row || x == 0 || x == W - 1) weight = 0.f;
-        a[x] = pw[x];
-        b[x] = jac;
-        r[x] = pw[x] * jac - p0[x];
-        w[x] = weight;
-        c[x] = weight * jac * jac;
-      }
+      const float row_weight = (y == 0 || y == H - 1) ? 0.f : 1.f;
+      ContinuityDataRow(ps != nullptr, W, row_weight, pin, ps, ux, uy, vx, vy, pw, p0, a, b,
+                        r, w, c);
     }
   });
   // Inverse of the 2 x 2 diagonal blocks of A^T W A + R.
@@ -406,6 +567,7 @@ void VariationalSolver::Linearise(int level, const VariationalSettings& s) {
   const float half_ad = static_cast<float>(0.5 * alpha_div_);
   const float half_ac = static_cast<float>(0.5 * alpha_curl_);
   const float alpha = static_cast<float>(alpha_);
+  const float* zero = zero_row_.data();
   ParallelRows(H, W, [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y) {
       const std::size_t row = static_cast<std::size_t>(y) * W;
@@ -413,14 +575,18 @@ void VariationalSolver::Linearise(int level, const VariationalSettings& s) {
       const float* b = b_.data() + row;
       const float* w = w_.data() + row;
       const float* c = c_.data() + row;  // w b^2 (continuity)
-      const float* c_up = y > 0 ? c - W : nullptr;
-      const float* c_dn = y < H - 1 ? c + W : nullptr;
+      const float* c_up = y > 0 ? c - W : zero;
+      const float* c_dn = y < H - 1 ? c + W : zero;
       float* pa = pre_a_.data() + row;
       float* pb = pre_b_.data() + row;
       float* pc = pre_c_.data() + row;
-      for (int x = 0; x < W; ++x) {
-        const int nbrs = (x > 0) + (x < W - 1) + (y > 0) + (y < H - 1);
-        const float reg = alpha * nbrs + half_ad + half_ac;
+      const int row_nbrs = (y > 0) + (y < H - 1);
+      // Interior columns, then the frame's first and last.
+      const float reg = alpha * (row_nbrs + 2) + half_ad + half_ac;
+      BlockInverseRow(cont, 1, W - 1, reg, a, b, w, c, c_up, c_dn, pa, pb, pc);
+      for (const int x : {0, W - 1}) {
+        const int nbrs = (x > 0) + (x < W - 1) + row_nbrs;
+        const float reg_x = alpha * nbrs + half_ad + half_ac;
         float d11, d12, d22;
         if (!cont) {
           d11 = w[x] * a[x] * a[x];
@@ -429,21 +595,10 @@ void VariationalSolver::Linearise(int level, const VariationalSettings& s) {
         } else {
           const float a2 = a[x] * a[x] * 0.25f;
           d11 = a2 * ((x > 0 ? c[x - 1] : 0.f) + (x < W - 1 ? c[x + 1] : 0.f));
-          d22 = a2 * ((c_up ? c_up[x] : 0.f) + (c_dn ? c_dn[x] : 0.f));
+          d22 = a2 * (c_up[x] + c_dn[x]);
           d12 = 0.f;
         }
-        d11 += reg;
-        d22 += reg;
-        const float det = d11 * d22 - d12 * d12;
-        if (det > 1e-6f * d11 * d22 && det > 0.f) {
-          pa[x] = d22 / det;
-          pb[x] = -d12 / det;
-          pc[x] = d11 / det;
-        } else {
-          pa[x] = d11 > 0 ? 1.f / d11 : 1.f;
-          pb[x] = 0.f;
-          pc[x] = d22 > 0 ? 1.f / d22 : 1.f;
-        }
+        InvertBlock(d11 + reg_x, d12, d22 + reg_x, pa[x], pb[x], pc[x]);
       }
     }
   });
@@ -464,11 +619,8 @@ void VariationalSolver::Linearise(int level, const VariationalSettings& s) {
       }
       pxi[0] = pxi[W - 1] = pze[0] = pze[W - 1] = 0.f;
       const std::size_t row = static_cast<std::size_t>(y) * W;
-      for (int x = 1; x < W - 1; ++x) {
-        const std::size_t k = row + x;
-        pxi[x] = 0.5f * (fu[k + 1] - fu[k - 1] + fv[k + W] - fv[k - W]);
-        pze[x] = 0.5f * (fv[k + 1] - fv[k - 1] - fu[k + W] + fu[k - W]);
-      }
+      DivCurlRow(W, 1.f, 1.f, fu + row, fu + row - W, fu + row + W, fv + row, fv + row - W,
+                 fv + row + W, pxi, pze);
     }
   });
   const double sigma = div_curl_scale_ / static_cast<double>(1 << level);
@@ -556,74 +708,70 @@ double VariationalSolver::AdjointPass(const float* pu, const float* pv, float* o
   const float* g = g_.data();
   const float* del = del_.data();
   const float* kap = kap_.data();
-  // One pixel with neighbour checks (the border).
-  auto pixel = [&](int x, int y) {
-    const std::size_t k = static_cast<std::size_t>(y) * W + x;
-    const bool left = x > 0, right = x < W - 1, up = y > 0, down = y < H - 1;
-    float su, sv;
-    if (cont) {
-      const float gl = left ? g[k - 1] : 0.f, gr = right ? g[k + 1] : 0.f;
-      const float gu = up ? g[k - W] : 0.f, gd = down ? g[k + W] : 0.f;
-      su = 0.5f * a[k] * (gl - gr);
-      sv = 0.5f * a[k] * (gu - gd);
-    } else {
-      su = a[k] * g[k];
-      sv = b[k] * g[k];
-    }
-    float lu = 0.f, lv = 0.f;
-    if (left) { lu += pu[k] - pu[k - 1]; lv += pv[k] - pv[k - 1]; }
-    if (right) { lu += pu[k] - pu[k + 1]; lv += pv[k] - pv[k + 1]; }
-    if (up) { lu += pu[k] - pu[k - W]; lv += pv[k] - pv[k - W]; }
-    if (down) { lu += pu[k] - pu[k + W]; lv += pv[k] - pv[k + W]; }
-    su += alpha * lu;
-    sv += alpha * lv;
-    if (dc) {
-      const float dl = left ? del[k - 1] : 0.f, dr = right ? del[k + 1] : 0.f;
-      const float du = up ? del[k - W] : 0.f, dd = down ? del[k + W] : 0.f;
-      const float kl = left ? kap[k - 1] : 0.f, kr = right ? kap[k + 1] : 0.f;
-      const float ku = up ? kap[k - W] : 0.f, kd = down ? kap[k + W] : 0.f;
-      su += 0.5f * (dl - dr) + 0.5f * (kd - ku);
-      sv += 0.5f * (du - dd) + 0.5f * (kl - kr);
-    }
-    ou[k] = su;
-    ov[k] = sv;
-    return static_cast<double>(pu[k]) * su + static_cast<double>(pv[k]) * sv;
-  };
+  const float* zero = zero_row_.data();
+  // Pyramid levels are >= 4 px a side (min_level_size), so every row has an
+  // interior and two frame columns.
+  CV_Assert(W >= 3 && H >= 2 && static_cast<int>(zero_row_.size()) >= W);
   Partials partial{};
   ParallelStripes(H, W, [&](int st, int y0, int y1) {
     double dot = 0;
     for (int y = y0; y < y1; ++y) {
-      if (y == 0 || y == H - 1 || W < 3) {
-        for (int x = 0; x < W; ++x) dot += pixel(x, y);
-        continue;
-      }
       const std::size_t row = static_cast<std::size_t>(y) * W;
+      // The rows above and below: beyond the frame, a zero row for g, del
+      // and kap (the forward pass leaves them 0 on the frame's border ring)
+      // and the row itself for p (its difference to the missing neighbour,
+      // the Laplacian's natural boundary condition, is 0).
+      const bool top = y == 0, bottom = y == H - 1;
+      const float* g_up = top ? zero : g + row - W;
+      const float* g_dn = bottom ? zero : g + row + W;
+      const float* del_up = top ? zero : del + row - W;
+      const float* del_dn = bottom ? zero : del + row + W;
+      const float* kap_up = top ? zero : kap + row - W;
+      const float* kap_dn = bottom ? zero : kap + row + W;
+      const float* pu_up = pu + (top ? row : row - W);
+      const float* pu_dn = pu + (bottom ? row : row + W);
+      const float* pv_up = pv + (top ? row : row - W);
+      const float* pv_dn = pv + (bottom ? row : row + W);
       if (dc) {
-        DivCurlAdjointRow(W, del + row, del + row - W, del + row + W,
-                          has_curl ? kap + row : nullptr, kap + row - W,
-                          kap + row + W, ou + row, ov + row);
+        DivCurlAdjointRow(W, del + row, del_up, del_dn, has_curl ? kap + row : nullptr,
+                          kap_up, kap_dn, ou + row, ov + row);
       }
-      float d;
-      if (cont) {
-        d = dc ? AdjointRow<true, true>(W, alpha, a + row, b + row, g + row,
-                                        g + row - W, g + row + W, pu + row,
-                                        pu + row - W, pu + row + W, pv + row,
-                                        pv + row - W, pv + row + W, ou + row, ov + row)
-               : AdjointRow<true, false>(W, alpha, a + row, b + row, g + row,
-                                         g + row - W, g + row + W, pu + row,
-                                         pu + row - W, pu + row + W, pv + row,
-                                         pv + row - W, pv + row + W, ou + row, ov + row);
-      } else {
-        d = dc ? AdjointRow<false, true>(W, alpha, a + row, b + row, g + row,
-                                         g + row - W, g + row + W, pu + row,
-                                         pu + row - W, pu + row + W, pv + row,
-                                         pv + row - W, pv + row + W, ou + row, ov + row)
-               : AdjointRow<false, false>(W, alpha, a + row, b + row, g + row,
-                                          g + row - W, g + row + W, pu + row,
-                                          pu + row - W, pu + row + W, pv + row,
-                                          pv + row - W, pv + row + W, ou + row, ov + row);
+      const float d = AdjointRow(cont, dc, W, alpha, a + row, b + row, g + row, g_up, g_dn,
+                                 pu + row, pu_up, pu_dn, pv + row, pv_up, pv_dn, ou + row,
+                                 ov + row);
+      dot += d;
+      // The frame's first and last column.
+      for (const int x : {0, W - 1}) {
+        const std::size_t k = row + x;
+        const bool left = x > 0, right = x < W - 1;
+        float su, sv;
+        if (cont) {
+          const float gl = left ? g[k - 1] : 0.f, gr = right ? g[k + 1] : 0.f;
+          su = 0.5f * a[k] * (gl - gr);
+          sv = 0.5f * a[k] * (g_up[x] - g_dn[x]);
+        } else {
+          su = a[k] * g[k];
+          sv = b[k] * g[k];
+        }
+        float lu = 0.f, lv = 0.f;
+        if (left) { lu += pu[k] - pu[k - 1]; lv += pv[k] - pv[k - 1]; }
+        if (right) { lu += pu[k] - pu[k + 1]; lv += pv[k] - pv[k + 1]; }
+        lu += pu[k] - pu_up[x];
+        lv += pv[k] - pv_up[x];
+        lu += pu[k] - pu_dn[x];
+        lv += pv[k] - pv_dn[x];
+        su += alpha * lu;
+        sv += alpha * lv;
+        if (dc) {
+          const float dl = left ? del[k - 1] : 0.f, dr = right ? del[k + 1] : 0.f;
+          const float kl = left ? kap[k - 1] : 0.f, kr = right ? kap[k + 1] : 0.f;
+          su += 0.5f * (dl - dr) + 0.5f * (kap_dn[x] - kap_up[x]);
+          sv += 0.5f * (del_up[x] - del_dn[x]) + 0.5f * (kl - kr);
+        }
+        ou[k] = su;
+        ov[k] = sv;
+        dot += static_cast<double>(pu[k]) * su + static_cast<double>(pv[k]) * sv;
       }
-      dot += d + pixel(0, y) + pixel(W - 1, y);
     }
     partial[st] = dot;
   });
@@ -685,15 +833,9 @@ void VariationalSolver::FinalResidual(int level, FlowField& flow, const cv::Mat&
   }
   // Validity at full resolution: x + w inside the frame, inside the mask.
   const int W = flow.u.cols, H = flow.u.rows;
-  for (int y = 0; y < H; ++y) {
-    const float* fu = flow.u.ptr<float>(y);
-    const float* fv = flow.v.ptr<float>(y);
-    uchar* out = flow.valid.ptr<uchar>(y);
-    for (int x = 0; x < W; ++x) {
-      const float px = x + fu[x], py = y + fv[x];
-      out[x] = (px >= 0.f && px <= W - 1 && py >= 0.f && py <= H - 1) ? 1 : 0;
-    }
-  }
+  for (int y = 0; y < H; ++y)
+    InsideRow(W, y, static_cast<float>(W - 1), static_cast<float>(H - 1),
+              flow.u.ptr<float>(y), flow.v.ptr<float>(y), flow.valid.ptr<uchar>(y));
   ApplyMask(mask, flow.u, flow.v, flow.valid);
 }
 

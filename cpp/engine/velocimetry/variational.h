@@ -102,6 +102,7 @@ class VariationalSolver {
   // a = rho (warped next), b = det(1 + grad w0). w = data weight, r = r0.
   std::vector<float> a_, b_, w_, r_, c_;  // c = w b^2 (continuity)
   std::vector<float> g_, del_, kap_;
+  std::vector<float> zero_row_;  // W zeros: the missing neighbour rows of g, del, kap
   cv::Mat smooth_u_, smooth_v_;  // w0 - share G(w0): the smoothness's rhs argument
   double smoothness_scale_ = 0;
   cv::Mat xi_, zeta_, quality_level_;  // smooth divergence and vorticity targets
