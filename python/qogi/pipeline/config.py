@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Dict, List, Optional, Tuple, Union
+from typing import Any, Dict, Generic, List, Optional, Tuple, TypeVar, Union, overload
 
 import numpy as np
 
@@ -216,18 +216,28 @@ def _default(name: str):
     return f.default_factory() if f.default is dataclasses.MISSING else f.default
 
 
-class _Flat:
-    """A flat key of the config, read from and written to its role's object."""
+T = TypeVar("T")
 
-    def __set_name__(self, owner, name):
+
+class _Flat(Generic[T]):
+    """A flat key of the config, read from and written to its role's object
+    (typed: ``cfg.velocity`` is the ``str`` of ``cfg.methods.velocity``)."""
+
+    def __set_name__(self, owner, name: str) -> None:
         self.name, self.group = name, FIELDS[name]
+
+    @overload
+    def __get__(self, obj: None, owner: Any = None) -> _Flat[T]: ...
+
+    @overload
+    def __get__(self, obj: QuantifyConfig, owner: Any = None) -> T: ...
 
     def __get__(self, obj, owner=None):
         if obj is None:
             return self
         return getattr(obj.__dict__[self.group], self.name)
 
-    def __set__(self, obj, value):
+    def __set__(self, obj: QuantifyConfig, value: T) -> None:
         setattr(obj.__dict__[self.group], self.name, value)
 
 
@@ -244,6 +254,32 @@ class QuantifyConfig:
     conditions: SceneConditions
     methods: Methods
     execution: Execution
+
+    # The flat keys, each read from and written to its role's object.
+    species: _Flat[List[str]] = _Flat()
+    gas_temperature: _Flat[Union[str, float]] = _Flat()
+    velocity: _Flat[str] = _Flat()
+    wind_speed_m_s: _Flat[Optional[float]] = _Flat()
+    exit_velocity_m_s: _Flat[Optional[float]] = _Flat()
+    averaging: _Flat[str] = _Flat()
+    background: _Flat[Union[str, Region]] = _Flat()
+    background_percentile: _Flat[float] = _Flat()
+    source: _Flat[Optional[Tuple[float, float]]] = _Flat()
+    distance_m: _Flat[Optional[float]] = _Flat()
+    ambient_temperature_K: _Flat[Optional[float]] = _Flat()
+    pressure_Pa: _Flat[Optional[float]] = _Flat()
+    sigma_m: _Flat[Optional[float]] = _Flat()
+    frames: _Flat[Optional[Tuple[int, int]]] = _Flat()
+    num_threads: _Flat[int] = _Flat()
+    composition: _Flat[Optional[Dict[str, float]]] = _Flat()
+    column_density: _Flat[str] = _Flat()
+    velocity_systematic: _Flat[Optional[float]] = _Flat()
+    column_systematic: _Flat[Optional[float]] = _Flat()
+    flux_level: _Flat[bool] = _Flat()
+    pair_stride: _Flat[Optional[int]] = _Flat()
+    block_frames: _Flat[Optional[int]] = _Flat()
+    line_shape: _Flat[str] = _Flat()
+    exit_temperature_K: _Flat[Optional[float]] = _Flat()
 
     def __init__(self, **kwargs):
         unknown = sorted(set(kwargs) - set(FIELDS))
@@ -355,8 +391,4 @@ def _plain(v):
     return v
 
 
-for _name in FIELDS:
-    _flat = _Flat()
-    _flat.__set_name__(QuantifyConfig, _name)
-    setattr(QuantifyConfig, _name, _flat)
-del _name, _flat
+assert all(isinstance(QuantifyConfig.__dict__.get(n), _Flat) for n in FIELDS), "a flat key undeclared"
