@@ -81,7 +81,7 @@ class App:
         def cb(sender=None, app_data=None, user_data=None):
             try:
                 return fn(sender, app_data, user_data)
-            except Exception as e:  # the window must survive anything a handler does
+            except Exception as e:  # noqa: BLE001 - the window must survive any handler
                 traceback.print_exc()
                 self.vm.log.error(f"internal error in the viewer ({type(e).__name__}: {e}); "
                                   "details were printed to the terminal")
@@ -161,7 +161,7 @@ class App:
         dpg.run_callbacks(dpg.get_callback_queue())
         try:
             self.update()
-        except Exception as e:  # keep the window alive whatever a redraw hits
+        except Exception as e:  # noqa: BLE001 - keep the window alive whatever a redraw hits
             traceback.print_exc()
             self.vm.log.error(f"internal error while drawing ({type(e).__name__}: {e})")
         dpg.render_dearpygui_frame()

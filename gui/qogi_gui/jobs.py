@@ -102,7 +102,7 @@ class Job:
                 self._finish(CANCELLED, error=e)
             else:
                 self._finish(FAILED, error=e, tb=traceback.format_exc())
-        except Exception as e:  # any failure is reported in the window, never raised
+        except Exception as e:  # noqa: BLE001 - any failure is reported in the window
             self._finish(FAILED, error=e, tb=traceback.format_exc())
         else:
             self._finish(DONE, value=value)

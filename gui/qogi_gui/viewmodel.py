@@ -144,7 +144,7 @@ class ViewModel:
         if self.recording is not None:
             try:
                 self.recording.close()
-            except Exception:  # nothing useful to do about it while closing
+            except Exception:  # noqa: BLE001 - nothing useful to do about it while closing
                 pass
 
 

@@ -50,7 +50,7 @@ from __future__ import annotations
 import math
 import threading
 from dataclasses import dataclass, field
-from typing import Dict, Mapping, Optional, Sequence, Tuple, Union
+from typing import Any, Dict, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -182,6 +182,9 @@ def _spec(p: Parameter, default_value: float, default_bounds: Tuple[float, float
     if p.mode == "tied":
         if species is None:
             raise ValueError("only fractions can be tied")
+        if p.tied_to is None or p.value is None:
+            raise ValueError("a tied fraction needs tied_to (the species) and value (the ratio): "
+                             "use qogi.inversion.tied(species, ratio)")
         if p.tied_to not in species:
             raise ValueError(f"tied to {p.tied_to!r}, which is not one of the species {list(species)}")
         return _engine.ParameterSpec(_MODES["tied"], p.value, 0.0, 0.0, 0.0,
@@ -197,7 +200,7 @@ def _spec(p: Parameter, default_value: float, default_bounds: Tuple[float, float
 # ---------------------------------------------------------------------------
 # Scene tables (cached per model and scene)
 
-_tables: Dict[tuple, object] = {}
+_tables: Dict[tuple, Tuple[object, _engine.SceneTable]] = {}  # key -> (fast model, table)
 _tables_lock = threading.Lock()
 
 
@@ -456,7 +459,8 @@ class Inversion:
         # Table range of peak temperatures.
         t = self.temperature
         if t.mode == "fixed":
-            lo, hi = t.value - 10.0, t.value + 10.0
+            t_fixed = t_amb if t.value is None else t.value  # the value _spec gives the engine
+            lo, hi = t_fixed - 10.0, t_fixed + 10.0
         else:
             lo = t.lower if t.lower is not None else t_amb + DEFAULT_TEMPERATURE_SPAN_K[0]
             hi = t.upper if t.upper is not None else t_amb + DEFAULT_TEMPERATURE_SPAN_K[1]
@@ -508,6 +512,7 @@ class Inversion:
                 raise ValueError("solver 'table' needs spectrally separate species: "
                                  + "; ".join(_engine.spectral_overlaps(model.fast))
                                  + "; use solver='full_model'")
+        self._settings: Dict[str, Any]  # InversionOptions' other keyword arguments
         self._settings = dict(num_starts=int(num_starts), detection_sigma=float(detection_sigma),
                               model_error_fraction=float(model_error_fraction),
                               max_iterations=int(max_iterations),
@@ -537,8 +542,11 @@ class Inversion:
         key = (int(guess), float(noise_scale))
         inv = self._inverters.get(key)
         if inv is None:
-            inv = _engine.Inverter(self.model.fast, self.table, self.ambient_temperature_K,
-                                   self._options(guess, noise_scale))
+            # The binding takes a None table (std::shared_ptr<SceneTable>: the
+            # full-model solver); the generated stub types it SceneTable only.
+            inv = _engine.Inverter(self.model.fast,
+                                   self.table,  # type: ignore[arg-type]
+                                   self.ambient_temperature_K, self._options(guess, noise_scale))
             self._inverters[key] = inv
         return inv
 
@@ -599,7 +607,7 @@ class Inversion:
         spatial = rad.shape[lead + 1:]
         if (background_radiance is None) == (background_temperature_K is None):
             raise ValueError("give exactly one of background_radiance and background_temperature_K")
-        rad3 = rad.reshape((frames, nc, -1))
+        rad3: np.ndarray = rad.reshape((frames, nc, -1))
         n = rad3.shape[2]
         use_l = background_radiance is not None
         bg = self._background(background_radiance if use_l else background_temperature_K,
@@ -875,8 +883,8 @@ def invert_on_mixing_line(model: ForwardModel, table, slope_K_per_fraction: floa
     on_line = (t_amb + slope * big_x > t_lo) & (t_amb + slope * big_x < t_hi) & ~below & ~failed
     c0, dcol = {}, {}
     for k, sp in enumerate(species):
-        f = np.interp(tp, grid, unit[sp])
-        df = np.interp(tp, grid, np.gradient(unit[sp], grid))
+        f = np.interp(tp, grid, np.asarray(unit[sp]))
+        df = np.interp(tp, grid, np.gradient(np.asarray(unit[sp]), grid))
         c0[sp] = w[k] * big_x * sg * f
         # d column / d X along the line (T_peak moves with X); below
         # detection: the thin limit at ambient.

@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import hashlib
 from collections import OrderedDict
-from typing import Sequence
+from typing import List, Sequence, Union
 
 import numpy as np
 
@@ -155,7 +155,7 @@ def _per_channel(values, channels: Sequence[SpectralResponse], axis: int, fn_nam
                          f"{len(channels)} channel responses were given")
     out = np.empty(a.shape, dtype=np.float32 if a.dtype == np.float32 else np.float64)
     for k, ch in enumerate(channels):
-        idx = [slice(None)] * a.ndim
+        idx: List[Union[slice, int]] = [slice(None)] * a.ndim
         idx[ax] = k
         out[tuple(idx)] = getattr(band_table(ch), fn_name)(a[tuple(idx)])
     return out

@@ -28,7 +28,7 @@ from __future__ import annotations
 import copy
 import json
 from importlib import resources
-from typing import Callable, Iterable, Optional, Sequence
+from typing import TYPE_CHECKING, Callable, ClassVar, Iterable, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -60,6 +60,11 @@ PUFF_FIELDS = ("x_m", "y_m", "z_m", "u_m_s", "v_m_s", "w_m_s", "sigma_m", "sigma
 class _Options:
     """The engine's options classes (keyword constructor checked on entry, repr,
     to_dict, equality, pickling) plus :meth:`replace`."""
+
+    if TYPE_CHECKING:  # provided by the engine class each subclass mixes in (not overridden)
+        fields: ClassVar[Tuple[str, ...]]
+
+        def to_dict(self) -> dict: ...
 
     def __init__(self, **kwargs):
         unknown = [k for k in kwargs if k not in self.fields]

@@ -57,7 +57,7 @@ Post-processing (pure functions returning new arrays and masks):
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Iterable, Optional, Sequence, Union
+from typing import Callable, Iterable, Optional, Sequence, Tuple, Union, overload
 
 import numpy as np
 
@@ -133,6 +133,10 @@ def _frame(a: ArrayLike, name: str) -> np.ndarray:
     return np.ascontiguousarray(arr, dtype=np.float32)
 
 
+@overload
+def _mask(a: None, name: str, shape) -> None: ...
+@overload
+def _mask(a: ArrayLike, name: str, shape) -> np.ndarray: ...
 def _mask(a: Optional[ArrayLike], name: str, shape) -> Optional[np.ndarray]:
     if a is None:
         return None
@@ -220,7 +224,7 @@ class FlowEstimator:
         self.method = method
         self.options = options
         self._impl = _engine.FlowEstimator(options)
-        self._source_shape = None
+        self._source_shape: Optional[Tuple[int, ...]] = None
         if source_mask is not None:
             self.set_source_mask(source_mask)
 

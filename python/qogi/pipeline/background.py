@@ -7,7 +7,7 @@ pipeline's stage that applies it to a run.)"""
 
 from __future__ import annotations
 
-from typing import Optional
+from typing import Dict, Optional
 
 import numpy as np
 
@@ -29,6 +29,8 @@ def prepare(run: RunState) -> None:
                             run.background_temperature_K)
     if not isinstance(bg_cfg.background, Region) and bg_cfg.background != "percentile":
         sl = run.roi.slices()
+        # setup.prepare samples frames for every method but a region and the percentile.
+        assert run.sample_frames is not None
         background.set_static_shape(run.sample_frames[:, :, sl[0], sl[1]].mean(axis=0))
     run.background = background
 
@@ -64,10 +66,10 @@ class Background:
         self.roi = roi
         self.channel_sign = np.asarray(channel_sign, dtype=float)
         self.typical_temperature_K = typical_temperature_K
-        self.percentile_img = None
+        self.percentile_img: Optional[np.ndarray] = None
         # The background's static shape beyond a straight line across the
         # region (set by the run from its time-averaged frames).
-        self.shape_correction = None
+        self.shape_correction: Optional[Dict[bool, np.ndarray]] = None
         if cfg.background == "percentile":
             # Sign-aware: a plume warmer than the background raises radiance,
             # so its background is a low percentile; a colder one a high one.
@@ -79,9 +81,9 @@ class Background:
                 stack.append(rec.frame(f, quantity="radiance")[:, sl[0], sl[1]])
                 if k % 50 == 0:
                     say(0.02 * k / len(use), "background (temporal percentile)")
-            stack = np.asarray(stack)
-            lo = np.percentile(stack, cfg.background_percentile, axis=0)
-            hi = np.percentile(stack, 100 - cfg.background_percentile, axis=0)
+            stacked = np.asarray(stack)
+            lo = np.percentile(stacked, cfg.background_percentile, axis=0)
+            hi = np.percentile(stacked, 100 - cfg.background_percentile, axis=0)
             self.percentile_img = np.where(channel_sign[:, None, None] >= 0, lo, hi)
 
     def region_mean(self, frame: np.ndarray, region: Region) -> np.ndarray:
@@ -97,6 +99,7 @@ class Background:
         if isinstance(cfg.background, Region):
             return np.repeat(self.region_mean(frame, cfg.background)[..., None], n, axis=-1)
         if cfg.background == "percentile":
+            assert self.percentile_img is not None  # made in __init__ for "percentile"
             return np.broadcast_to(_bilinear(self.percentile_img, xy - [self.roi.x0, self.roi.y0]),
                                    frame.shape[:-2] + (n,))
         # Beside the surface: the mean radiance of short stretches just beyond
@@ -113,14 +116,16 @@ class Background:
         return ends[0][..., None] * (1 - t) + ends[1][..., None] * t
 
     def field(self, frame_roi: np.ndarray, horizontal: bool,
-              channel: Optional[int] = None) -> np.ndarray:
+              channel: Optional[int] = None) -> Optional[np.ndarray]:
         """Background over the analysis region: (C, h, w) for the frame's
         channels (C, h, w), or (h, w) for ``channel`` given one channel's
-        (h, w); leading frame axes pass through."""
+        (h, w); leading frame axes pass through. None for a region background
+        (uniform: the caller takes :meth:`region_mean`)."""
         cfg = self.cfg
         if isinstance(cfg.background, Region):
             return None
         if cfg.background == "percentile":
+            assert self.percentile_img is not None  # made in __init__ for "percentile"
             return self.percentile_img if channel is None else self.percentile_img[channel]
         # Per line along the plume, linear between 4-px strips at the region's
         # edges across it, plus the static shape of the background that a

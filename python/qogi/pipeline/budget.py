@@ -16,7 +16,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from typing import Dict
+from typing import Dict, Optional, cast
 
 import numpy as np
 
@@ -102,7 +102,8 @@ def finish(st: RunState, complete: bool) -> Result:
     results = []
     advice: Dict[str, list] = {sp: [] for sp in cfg.species}
     flux_inputs: Dict[tuple, object] = {}
-    bg_choice = velocity_info.get("background_choice")
+    # The record of background._choose_background (a dict) or None.
+    bg_choice = cast(Optional[dict], velocity_info.get("background_choice"))
     rise_speeds: Dict[int, float] = {}
     for j, (s, samples) in enumerate(zip(st.surfaces, st.samples)):
         per_species = {}
@@ -113,10 +114,9 @@ def finish(st: RunState, complete: bool) -> Result:
                 advice[sp].append(_record_advice(finite, n_eff, summary, samples.dl, columns,
                                                  j, scene))
             flux_inputs[(j, sp)] = summary
-            if sp == cfg.species[0]:
-                if summary.mass_line > 0 and finite.size:
-                    rise_speeds[j] = float(np.sum(finite)) / summary.mass_line * \
-                        (done / finite.size)
+            if sp == cfg.species[0] and summary.mass_line > 0 and finite.size:
+                rise_speeds[j] = float(np.sum(finite)) / summary.mass_line * \
+                    (done / finite.size)
             per_species[sp] = rate
         results.append(SurfaceResult(s, per_species))
     info = {"seconds": time.perf_counter() - st.t_start, "frames": int(done),
@@ -174,7 +174,7 @@ def _systematics(st: RunState, done: int) -> Systematics:
     if few:
         vsys = max(vsys, 1.0)
     # The inferred temperature's mixing-line slope and its effect on the columns.
-    mixing = {}
+    mixing: Dict[str, float] = {}
     col_sys = cfg.column_systematic
     if col_sys is None:
         col_sys = COLUMN_SYSTEMATIC_INFERRED if cfg.conditions.infers_temperature else \
@@ -226,7 +226,7 @@ def _species_rate(st: RunState, j: int, surface, samples, sp: str, systematics: 
     mean_h = mean * 3600
     ci = (mean_h - 1.645 * sigma, mean_h + 1.645 * sigma)
     ci = _check_direction(summary, mean, ci, warnings, surface.name, sp)
-    dominant = max(terms, key=terms.get)
+    dominant = max(terms, key=lambda k: terms[k])
     limit, det = None, None
     if isinstance(columns, InvertedColumns):  # not truth columns
         from ..detection import velocity_from_sums, detection_limit_from_sums
@@ -308,8 +308,8 @@ def _record_warnings(advice: Dict[str, list], info: dict, warnings) -> None:
     into ``info["record_length"]`` and, when the record is shorter, the
     warning ``record-too-short``."""
     out = {}
-    for sp, items in advice.items():
-        items = [a for a in items if np.isfinite(a["needed_s"])]
+    for sp, all_items in advice.items():
+        items = [a for a in all_items if np.isfinite(a["needed_s"])]
         if not items:
             continue
         worst = max(items, key=lambda a: a["needed_s"])

@@ -15,7 +15,7 @@ block's :class:`~.state.BlockColumns`.
 from __future__ import annotations
 
 import math
-from typing import Dict, Optional, Sequence
+from typing import Any, Dict, List, Optional, Sequence
 
 import numpy as np
 
@@ -47,6 +47,7 @@ class TruthColumns:
     isolates the velocimetry and flux from the inversion)."""
 
     def __init__(self, rec: Recording, cfg: QuantifyConfig):
+        assert rec.truth is not None  # pipeline.setup.check_inputs requires truth maps
         self.ds = {sp: rec.truth.datasets[f"column_density_kg_m2_{sp}"] for sp in cfg.species}
 
     def frame(self, f: int, roi: Region) -> Dict[str, np.ndarray]:
@@ -183,16 +184,17 @@ class InvertedColumns:
                 inv._line_inverter(table)  # its band tables, cached
             return table
 
-        self._table_job = workers.submit(build, "qogi-scene-table")
+        self._table_job: Optional[_workers_mod.Task] = workers.submit(build, "qogi-scene-table")
         # The other line-shape rules, for the budget's line-shape term.
         from ..budget import AlternativeModels
         self.alternatives = AlternativeModels(channels, cfg.species, scene.pressure_Pa,
                                               cfg.line_shape, start=workers.start)
-        self.k_K_per_fraction, self.k_sigma, self.k_relative_effect = None, 0.0, 0.0
+        self.k_K_per_fraction: Optional[float] = None
+        self.k_sigma, self.k_relative_effect = 0.0, 0.0
         self.mixing_pixels = 0
         # A known composition ties the species' fractions (then the ratios of
         # the bands' contrasts measure the temperature); otherwise each is free.
-        fractions = None
+        fractions: Optional[Dict[str, object]] = None
         if cfg.composition is not None and len(cfg.species) > 1:
             ref = cfg.species[0]
             fractions = {ref: "free"}
@@ -267,7 +269,8 @@ class InvertedColumns:
         ts = np.tile(t, n)
         sg = np.repeat(np.asarray(sigmas, float), m)
         contrast = np.abs(self._contrast(frs, ts, sg)[:, self.proxy_channel]).reshape(n, m)
-        cols = self.model.column_density(frs, ts, sg, scene.ambient_K)[cfg.species[0]].reshape(n, m)
+        cols = np.asarray(self.model.column_density(frs, ts, sg, scene.ambient_K)[cfg.species[0]])
+        cols = cols.reshape(n, m)
         out = []
         for i in range(n):
             keep = np.concatenate([[True], np.diff(contrast[i]) > 0])
@@ -307,8 +310,8 @@ class InvertedColumns:
                           for sp in self.cfg.species], axis=1)
             tbg = np.full((tp.size, len(self.rec.channels)), float(self._bg_t))
             return np.asarray(self.table.contrast(np.ascontiguousarray(x), tp, sg, tbg)[0])
-        l = self.model.band_radiance(fractions, tp, sg, self.scene.ambient_K, self._bg_t)
-        return l - np.array([ch.band_radiance(self._bg_t) for ch in self.rec.channels])
+        rad = self.model.band_radiance(fractions, tp, sg, self.scene.ambient_K, self._bg_t)
+        return rad - np.array([ch.band_radiance(self._bg_t) for ch in self.rec.channels])
 
     def mean_contrast_snr(self, j: int) -> Optional[np.ndarray]:
         """The time-averaged proxy-channel contrast along surface ``j`` in
@@ -389,6 +392,7 @@ class InvertedColumns:
         fr = frame[..., c, sl[0], sl[1]]
         bg = self.background.field(fr, self.horizontal, channel=c)
         if bg is None:  # a uniform region background
+            assert isinstance(self.cfg.background, Region)  # field() is None only for a region
             bg = self.background.region_mean(frame, self.cfg.background)[..., c, None, None]
         # Signed (gas contrast positive): noise averages out of the sums the
         # velocimetry's flux level takes along the plume.
@@ -406,12 +410,14 @@ class InvertedColumns:
         field = self.proxy_field(frames, out)
         origin = [self.roi.x0, self.roi.y0]
         rad, bg, prof = [], [], []
-        for s, (xy, n, dl, t) in zip(surfaces, samples):
+        for s, (xy, _n, _dl, t) in zip(surfaces, samples):
             rad.append(_bilinear(frames, xy))
             bg.append(self.background.along(frames, s, xy, t))
             prof.append(_bilinear(field, xy - origin))
         if not hasattr(self, "_rad"):
-            self._rad, self._bg, self._prof = [], [], []
+            self._rad: List[np.ndarray] = []
+            self._bg: List[np.ndarray] = []
+            self._prof: List[List[np.ndarray]] = []
         self._rad.extend(np.concatenate(rad, axis=-1))
         self._bg.extend(np.concatenate(bg, axis=-1))
         self._prof.extend([p[i] for p in prof] for i in range(len(frames)))
@@ -521,7 +527,7 @@ class InvertedColumns:
         s2 = np.tile(sig, nt)
         kw = dict(self._inv_kw)
         kw.pop("temperature")
-        fixed = []  # the fixed-temperature inversion of the fixed-point passes, made on use
+        fixed: List[Any] = []  # the fixed-point passes' fixed-temperature inversion, made on use
 
         def fixed_t():
             if not fixed:
@@ -549,8 +555,8 @@ class InvertedColumns:
             span = (b - a) / passes
             out, g0 = g(np.zeros(idx.size), kk, idx, a, a + span)
             out = _owned(out)
-            live = np.flatnonzero((g0 > 0) & out.valid)
-            ua = np.full(live.size, math.log(1e-7))
+            live: np.ndarray = np.flatnonzero((g0 > 0) & out.valid)
+            ua: np.ndarray = np.full(live.size, math.log(1e-7))
             fa = np.log(g0[live]) - ua                      # > 0
             ub = np.log(np.minimum(g0[live], 1.0))
             res, gb = g(np.exp(ub), kk, idx[live], a + span, a + 2 * span)
@@ -559,7 +565,7 @@ class InvertedColumns:
             # No bracket (g not decreasing there): keep the pass at x = g(0).
             keep = (fb < 0) & (np.abs(fb) > 3e-3)
             live, ua, fa, ub, fb = live[keep], ua[keep], fa[keep], ub[keep], fb[keep]
-            side = np.zeros(live.size, int)
+            side: np.ndarray = np.zeros(live.size, int)
             for step in range(passes - 2):
                 if live.size == 0:
                     break
@@ -629,7 +635,7 @@ class InvertedColumns:
         # worker thread alongside the per-pixel solve.
         job = None
         if alongside is not None:
-            self.proxy_nodes  # made here, before the worker uses it
+            _ = self.proxy_nodes  # made here, before the worker uses it
             job = _workers_mod.current().submit(alongside, "qogi-proxy")
         try:
             everything = np.arange(nt * n)
@@ -703,7 +709,7 @@ def _anchor_proxy(fields: np.ndarray, samples, surf_cols, species: str, horizont
     a single-channel lookup cannot promise where the gas cools and thins.
     Returns {line: ratio} of the anchors (for the record)."""
     pos, ratio = [], []
-    for (xy, n, dl, t), cols in zip(samples, surf_cols):
+    for (xy, _n, _dl, _t), cols in zip(samples, surf_cols):
         inv = cols[species][:fields.shape[0]]
         good = np.isfinite(inv)
         if not good.any():
@@ -717,12 +723,12 @@ def _anchor_proxy(fields: np.ndarray, samples, surf_cols, species: str, horizont
     if not pos:
         return {}
     order = np.argsort(pos)
-    pos, ratio = np.asarray(pos)[order], np.asarray(ratio)[order]
+    pos_a, ratio_a = np.asarray(pos)[order], np.asarray(ratio)[order]
     view = fields if horizontal else fields.transpose(0, 2, 1)
     lines = np.arange(view.shape[1])
-    scale = np.exp(np.interp(lines, pos, np.log(ratio))).astype(np.float32)
+    scale = np.exp(np.interp(lines, pos_a, np.log(ratio_a))).astype(np.float32)
     view *= scale[None, :, None]
-    return {f"{p:.0f}": float(r) for p, r in zip(pos, ratio)}
+    return {f"{p:.0f}": float(r) for p, r in zip(pos_a, ratio_a)}
 
 
 
@@ -765,12 +771,13 @@ def block_columns(st: RunState, blk, say) -> BlockColumns:
     time_averaged = cfg.methods.time_averaged
     try:
         if cfg.methods.truth_columns:
+            acc: Dict[str, np.ndarray] = {}  # the truth columns' sum (time-averaged order)
             for k in range(nb):
                 fields = columns.frame(first + k, roi)
                 if time_averaged:
                     acc = fields if k == 0 else {sp: acc[sp] + fields[sp] for sp in fields}
                 col_fields[k] = sum(fields.values())
-                for j, (xy, n, dl, t) in enumerate(samples):
+                for j, (xy, _n, _dl, _t) in enumerate(samples):
                     for sp in cfg.species:
                         surf_cols[j][sp][k] = _bilinear(fields[sp], xy - [roi.x0, roi.y0])
                 counts["converged"] = counts.get("converged", 0) + \
@@ -789,7 +796,7 @@ def block_columns(st: RunState, blk, say) -> BlockColumns:
                 done = k + m
                 say(0.05 + 0.3 * done / nb, f"background and column field, frame {done}/{nb}")
         if time_averaged and cfg.methods.truth_columns:
-            for j, (xy, n, dl, t) in enumerate(samples):
+            for j, (xy, _n, _dl, _t) in enumerate(samples):
                 for sp in cfg.species:
                     surf_cols[j][sp][:] = _bilinear(acc[sp] / nb, xy - [roi.x0, roi.y0])
         # The proxy field over the whole region (the flow runs on its part,

@@ -196,24 +196,27 @@ _GROUPS = {"conditions": SceneConditions, "methods": Methods, "execution": Execu
 
 #: The flat keys of :class:`QuantifyConfig`, in their saved order, with the
 #: role (attribute of the config) each belongs to.
-FIELDS: Dict[str, str] = {name: group for name, group in (
-    ("species", "conditions"), ("gas_temperature", "conditions"), ("velocity", "methods"),
-    ("wind_speed_m_s", "conditions"), ("exit_velocity_m_s", "conditions"),
-    ("averaging", "methods"), ("background", "methods"), ("background_percentile", "methods"),
-    ("source", "conditions"), ("distance_m", "conditions"),
-    ("ambient_temperature_K", "conditions"), ("pressure_Pa", "conditions"),
-    ("sigma_m", "conditions"), ("frames", "execution"), ("num_threads", "execution"),
-    ("composition", "conditions"), ("column_density", "methods"),
-    ("velocity_systematic", "methods"), ("column_systematic", "methods"),
-    ("flux_level", "methods"), ("pair_stride", "execution"), ("block_frames", "execution"),
-    ("line_shape", "methods"), ("exit_temperature_K", "conditions"))}
+FIELDS: Dict[str, str] = {
+    "species": "conditions", "gas_temperature": "conditions", "velocity": "methods",
+    "wind_speed_m_s": "conditions", "exit_velocity_m_s": "conditions",
+    "averaging": "methods", "background": "methods", "background_percentile": "methods",
+    "source": "conditions", "distance_m": "conditions",
+    "ambient_temperature_K": "conditions", "pressure_Pa": "conditions",
+    "sigma_m": "conditions", "frames": "execution", "num_threads": "execution",
+    "composition": "conditions", "column_density": "methods",
+    "velocity_systematic": "methods", "column_systematic": "methods",
+    "flux_level": "methods", "pair_stride": "execution", "block_frames": "execution",
+    "line_shape": "methods", "exit_temperature_K": "conditions"}
 
 assert set(FIELDS) == {f.name for g in _GROUPS.values() for f in dataclasses.fields(g)}
 
 
 def _default(name: str):
     f = next(f for f in dataclasses.fields(_GROUPS[FIELDS[name]]) if f.name == name)
-    return f.default_factory() if f.default is dataclasses.MISSING else f.default
+    if f.default is not dataclasses.MISSING:
+        return f.default
+    assert f.default_factory is not dataclasses.MISSING  # every role field has a default
+    return f.default_factory()
 
 
 T = TypeVar("T")
@@ -308,10 +311,11 @@ class QuantifyConfig:
                    methods: Optional[Methods] = None,
                    execution: Optional[Execution] = None) -> "QuantifyConfig":
         """The config of three role objects (defaults for those not given)."""
-        parts = {"conditions": conditions or SceneConditions(), "methods": methods or Methods(),
-                 "execution": execution or Execution()}
+        parts: Dict[str, Union[SceneConditions, Methods, Execution]] = {
+            "conditions": conditions or SceneConditions(), "methods": methods or Methods(),
+            "execution": execution or Execution()}
         flat = {}
-        for group, obj in parts.items():
+        for obj in parts.values():
             flat.update({f.name: getattr(obj, f.name) for f in dataclasses.fields(obj)})
         return cls(**flat)
 
@@ -343,7 +347,7 @@ class QuantifyConfig:
             return NotImplemented
         return all(getattr(self, g) == getattr(other, g) for g in _GROUPS)
 
-    __hash__ = None  # type: ignore[assignment]  (mutable, as the dataclass was)
+    __hash__ = None  # type: ignore[assignment]  # unhashable (mutable), as the dataclass was
 
     def __repr__(self) -> str:
         return "QuantifyConfig(" + ", ".join(f"{n}={getattr(self, n)!r}" for n in FIELDS) + ")"

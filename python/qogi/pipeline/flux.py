@@ -27,7 +27,7 @@ def block_flux(st: RunState, blk, cols: BlockColumns, vn: Optional[List[np.ndarr
     k0 = blk.offset
     k1 = max(k0, min(k0 + blk.n_keep, cols.done))
     flux = []
-    for j, (xy, n, dl, t) in enumerate(st.samples):
+    for j, (xy, _n, dl, _t) in enumerate(st.samples):
         v = np.zeros((k1 - k0, len(xy))) if vn is None else vn[j][k0:k1]
         flux.append({sp: _surface_flux(cols.columns[j][sp][k0:k1], cols.sigmas[j][sp][k0:k1], v,
                                        dl, _speed_floor(st, flows, j, sp))

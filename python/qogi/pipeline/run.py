@@ -77,8 +77,9 @@ def quantify(recording: Union[Recording, str], surfaces: Sequence[Surface],
     result.warnings.extend_unique(
         w for w in (getattr(rec, "warnings", None) or ())
         if not (w.code == "frames-dropped" and result.warnings.has("frames-dropped")))
-    if getattr(rec, "scene_origin", None):
-        result.info["scene_origin"] = dict(rec.scene_origin)
+    scene_origin = getattr(rec, "scene_origin", None)  # set by qogi.io.open
+    if scene_origin:
+        result.info["scene_origin"] = dict(scene_origin)
     return result
 
 

@@ -6,7 +6,7 @@ up to 50 frames spread over the run for the stages that choose from the scene
 from __future__ import annotations
 
 import time
-from typing import List, Optional
+from typing import List, Optional, Sequence
 
 import numpy as np
 
@@ -32,11 +32,11 @@ def check_inputs(rec: Recording, surfaces: Sequence[Surface], cfg: QuantifyConfi
     if cfg.conditions.infers_temperature and rec.n_channels < 2:
         raise ValueError("gas_temperature='infer' needs a camera with >= 2 channels; this recording "
                          f"has {rec.n_channels}: give the gas temperature or use 'ambient'")
-    if cfg.methods.truth_columns:
-        if rec.truth is None or not all(f"column_density_kg_m2_{sp}" in rec.truth.datasets
-                                        for sp in cfg.species):
-            raise ValueError("column_density='truth' needs a synthetic recording with truth maps "
-                             "(qogi synth ... --truth-maps)")
+    if cfg.methods.truth_columns and (
+            rec.truth is None or not all(f"column_density_kg_m2_{sp}" in rec.truth.datasets
+                                         for sp in cfg.species)):
+        raise ValueError("column_density='truth' needs a synthetic recording with truth maps "
+                         "(qogi synth ... --truth-maps)")
     if cfg.frames is not None and cfg.frames[1] > rec.n_frames:
         raise ValueError(f"frames {cfg.frames} exceed the recording's {rec.n_frames} frames")
     if isinstance(cfg.background, Region):

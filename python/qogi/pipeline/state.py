@@ -33,7 +33,10 @@ class Scene:
         self.ambient_K = cfg.ambient_temperature_K or sc.ambient_temperature_K
         self.pressure_Pa = cfg.pressure_Pa or sc.pressure_Pa
         self.ifov = rec.camera.ifov_rad
-        self.frame_rate = rec.camera.frame_rate_hz
+        # A Recording always has a frame rate: opening checks /camera frame_rate_hz and
+        # from_array takes it from time_s when not given.
+        assert rec.camera.frame_rate_hz is not None
+        self.frame_rate: float = rec.camera.frame_rate_hz
         self.pixel_m = self.distance_m * self.ifov
         self.m_s_per_px_frame = self.pixel_m * self.frame_rate
         self.netd = rec.camera.netd_K or 0.02

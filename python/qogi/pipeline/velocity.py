@@ -33,7 +33,8 @@ def prepare(run: RunState) -> None:
     cfg = run.cfg
     source = cfg.source
     sample_frames, run.sample_frames = run.sample_frames, None
-    if wants_source(cfg) and len(sample_frames) >= 2:
+    # setup.prepare samples frames whenever wants_source(cfg).
+    if wants_source(cfg) and sample_frames is not None and len(sample_frames) >= 2:
         from ..surfaces import _plume_image, detect_source
         try:
             source = detect_source(_plume_image(sample_frames))
@@ -71,9 +72,12 @@ def normal_velocity(st: RunState, flows: Optional[Flow], xy: np.ndarray, n: np.n
     the given speed, or the flow's (px per nominal frame interval) sampled
     at the surface (zero outside the flow's part; NaN without a flow)."""
     cfg, roi = st.cfg, st.roi
+    # QuantifyConfig's check makes the given speed a number for its method.
     if cfg.velocity == "wind":
+        assert cfg.wind_speed_m_s is not None
         return np.full((nb, len(xy)), float(cfg.wind_speed_m_s))
     if cfg.velocity == "exit":
+        assert cfg.exit_velocity_m_s is not None
         return np.full((nb, len(xy)), float(cfg.exit_velocity_m_s))
     if flows is None:
         return np.full((nb, len(xy)), np.nan)
@@ -128,6 +132,8 @@ def _block_velocity(st: RunState, col_fields: np.ndarray, intervals: np.ndarray,
     # steady plume; docs/velocimetry.md).
     plan = flux_level_plan(cfg, source, done)
     if plan.on:
+        # plan.on needs a source with the fluid method: prepare set the transport.
+        assert st.transport is not None
         axis, index, region_index = st.transport.axis, st.transport.index, \
             st.transport.region_index
     field = velocity_frames[:, crop[0], crop[1]]
@@ -183,6 +189,7 @@ def _block_velocity(st: RunState, col_fields: np.ndarray, intervals: np.ndarray,
     flux_note = plan.off_note()
     if plan.on:
         try:
+            assert job is not None  # submitted above when plan.on
             tf = job.result()  # its error is reported as the level's note
             # In the flow field's units and lines.
             lines = crop[0] if axis in ("up", "down") else crop[1]
