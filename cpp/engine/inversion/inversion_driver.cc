@@ -87,7 +87,8 @@ Inverter::Inverter(std::shared_ptr<const BinnedModel> model, std::shared_ptr<con
   // Per-channel band tables and noise.
   const double bg_lo = table_ ? table_->options().min_background_K : 150.0;
   const double bg_hi = table_ ? table_->options().max_background_K : 700.0;
-  for (std::size_t c = 0; c < nc; ++c) bands_.emplace_back(model_->channels()[c], bg_lo, bg_hi);
+  for (std::size_t c = 0; c < nc; ++c)
+    bands_.push_back(BackgroundBandTable(model_->channels()[c], bg_lo, bg_hi));
   netd_.assign(nc, options_.netd_K[0]);
   if (options_.netd_K.size() == nc) netd_ = options_.netd_K;
   for (std::size_t s = 0; s < ns; ++s)

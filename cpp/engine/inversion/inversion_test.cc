@@ -6,10 +6,12 @@
 // tests/python/test_inversion_hitran.py.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <memory>
 #include <random>
+#include <utility>
 #include <vector>
 
 #include "engine/inversion/bspline.h"
@@ -132,6 +134,33 @@ TEST(MarchKernel, SymmetricHalfEqualsTheWholePath) {
     for (std::size_t j = 0; j < n; ++j) {
       EXPECT_NEAR(he[j] * p[j] + eb[j], de[j], 1e-13 * (1.0 + std::abs(de[j]))) << u << " " << j;
       EXPECT_NEAR(ha[j] * p[j] + ab[j], da[j], 1e-13) << u << " " << j;
+    }
+  }
+}
+
+// The inversion's band tables hold their tolerances (see
+// RadiometricTable.ServesTheInversionsBackgroundRangeToItsTolerances) over
+// the widest background range a scene table serves, not only the default.
+TEST(BackgroundBandTable, HoldsTheInversionsTolerancesOverTheServedRange) {
+  const std::vector<SpectralResponse> channels = {
+      SpectralResponse({1852.0, 6667.0}, {1.0, 1.0}, "InSb"),
+      SpectralResponse({2941.18, 3125.0}, {1.0, 1.0}, "3.2-3.4 um")};
+  for (const auto& ch : channels) {
+    for (const auto& range : {std::pair<double, double>{150.0, 700.0}, {50.0, 2000.0}}) {
+      const RadiometricTable table =
+          BackgroundBandTable(ch, range.first, range.second, /*num_threads=*/1);
+      double worst_l = 0, worst_d = 0, worst_t = 0;
+      for (double t = range.first; t <= range.second; t *= 1.0007) {
+        const double l = ch.BandRadiance(t);
+        double tl, tdl;
+        table.RadianceAndDerivative(t, &tl, &tdl);
+        worst_l = std::max(worst_l, std::abs(tl / l - 1.0));
+        worst_d = std::max(worst_d, std::abs(tdl / ch.BandRadianceDerivative(t) - 1.0));
+        worst_t = std::max(worst_t, std::abs(table.Temperature(l) - t));
+      }
+      EXPECT_LT(worst_l, 1e-8) << ch.name() << " " << range.first;
+      EXPECT_LT(worst_d, 1e-6) << ch.name() << " " << range.first;
+      EXPECT_LT(worst_t, 1e-6) << ch.name() << " " << range.first;  // K
     }
   }
 }

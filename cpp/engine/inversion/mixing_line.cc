@@ -213,8 +213,8 @@ MixingLineInverter::MixingLineInverter(std::shared_ptr<const SceneTable> table)
   ParallelFor(nc, 1, [&](std::size_t b, std::size_t e) {
     for (std::size_t c = b; c < e; ++c)
       built[c] = std::make_unique<RadiometricTable>(
-          table_->model().channels()[c], table_->options().min_background_K,
-          table_->options().max_background_K, 512, /*num_threads=*/1);
+          BackgroundBandTable(table_->model().channels()[c], table_->options().min_background_K,
+                              table_->options().max_background_K, /*num_threads=*/1));
   });
   for (auto& t : built) bands_.push_back(std::move(*t));
 }
