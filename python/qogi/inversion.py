@@ -764,8 +764,8 @@ _line_inverters: Dict[int, tuple] = {}
 
 
 def _line_inverter(table):
-    """The engine's MixingLineInverter of ``table`` (its band tables take
-    ~0.1 s per channel to build), cached like the tables."""
+    """The engine's MixingLineInverter of ``table`` (it builds a band table
+    per channel), cached like the tables."""
     with _tables_lock:
         hit = _line_inverters.get(id(table))
     if hit is not None and hit[0] is table:

@@ -33,6 +33,11 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 }  // namespace
 
 double RadiometricTable::Cubic::Eval(double x) const {
+  double slope;
+  return Eval(x, &slope);
+}
+
+double RadiometricTable::Cubic::Eval(double x, double* slope) const {
   const double s = (x - x0) / dx;
   const std::size_t n = c.size() / 4;
   double i = std::floor(s);
@@ -41,6 +46,7 @@ double RadiometricTable::Cubic::Eval(double x) const {
   const std::size_t k = static_cast<std::size_t>(i);
   const double f = s - i;
   const double* p = &c[4 * k];
+  *slope = ((3.0 * p[3] * f + 2.0 * p[2]) * f + p[1]) / dx;
   return ((p[3] * f + p[2]) * f + p[1]) * f + p[0];
 }
 
@@ -120,6 +126,26 @@ double RadiometricTable::Radiance(double t) const {
   if (!(t > 0)) return kNaN;
   if (t >= t_min_ && t <= t_max_) return std::exp(forward_.Eval(1.0 / t));
   return channel_.BandRadiance(t);
+}
+
+double RadiometricTable::Derivative(double t) const {
+  double l, dl;
+  RadianceAndDerivative(t, &l, &dl);
+  return dl;
+}
+
+void RadiometricTable::RadianceAndDerivative(double t, double* l, double* dl) const {
+  if (!(t > 0)) {
+    *l = *dl = kNaN;
+  } else if (t >= t_min_ && t <= t_max_) {
+    const double u = 1.0 / t;
+    double slope;
+    *l = std::exp(forward_.Eval(u, &slope));
+    *dl = -*l * slope * u * u;
+  } else {
+    *l = channel_.BandRadiance(t);
+    *dl = channel_.BandRadianceDerivative(t);
+  }
 }
 
 double RadiometricTable::Temperature(double l) const {

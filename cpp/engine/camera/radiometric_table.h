@@ -38,6 +38,11 @@ class RadiometricTable {
   // Band radiance [W/(m2 sr)] of a blackbody at temperature_K. NaN for NaN
   // or a temperature <= 0.
   double Radiance(double temperature_K) const;
+  // dL/dT [W/(m2 sr K)] at temperature_K (the forward cubic's slope:
+  // dL/dT = -L u^2 d(ln L)/du); NaN like Radiance.
+  double Derivative(double temperature_K) const;
+  // Radiance and Derivative at once.
+  void RadianceAndDerivative(double temperature_K, double* radiance, double* derivative) const;
   // Radiometric temperature [K] of a band radiance [W/(m2 sr)]. NaN for NaN
   // or a radiance no blackbody of 10 K - 1e5 K gives (e.g. <= 0): such a
   // pixel is flagged, not clamped.
@@ -54,6 +59,7 @@ class RadiometricTable {
     double x0 = 0, dx = 1;
     std::vector<double> c;  // 4 coefficients per interval, in s in [0, 1]
     double Eval(double x) const;
+    double Eval(double x, double* slope) const;  // slope: d/dx
   };
   static Cubic Hermite(double x0, double dx, const std::vector<double>& v,
                        const std::vector<double>& slope);

@@ -33,6 +33,43 @@ TEST(RadiometricTable, MatchesTheExactQuadratureBothWays) {
   }
 }
 
+// The inversion's use: background radiance L(T_bg) enters the contrast
+// y = L - L(T_bg), the background temperature T(L_bg) the forward model, and
+// the noise NETD dL/dT. A 0.02 K NETD is a contrast of ~1e-3 L at 300 K in
+// the MWIR, so a table error of 1e-8 L, 1e-6 K and 1e-6 relative in dL/dT is
+// at least ~1e4 below any contrast or noise the inversion resolves.
+TEST(RadiometricTable, ServesTheInversionsBackgroundRangeToItsTolerances) {
+  std::vector<double> nu, r;
+  for (double x = 2800; x <= 3300; x += 1.0) {
+    nu.push_back(x);
+    r.push_back(0.8 / (1 + std::exp(-(x - 2950) / 4.0)) / (1 + std::exp((x - 3150) / 4.0)));
+  }
+  std::vector<SpectralResponse> channels = {SpectralResponse(nu, r, "logistic 2950-3150 cm-1"),
+                                            SpectralResponse({1852.0, 6667.0}, {1.0, 1.0}, "InSb"),
+                                            CameraPreset("fast-m150").channels[1]};
+  for (const auto& ch : channels) {
+    const RadiometricTable table(ch, 150.0, 700.0);  // the scene table's default range
+    double worst_l = 0, worst_d = 0, worst_t = 0;
+    for (double t = 150.0; t <= 700.0; t += 0.37) {
+      const double l = ch.BandRadiance(t), dl = ch.BandRadianceDerivative(t);
+      double tl, tdl;
+      table.RadianceAndDerivative(t, &tl, &tdl);
+      worst_l = std::max(worst_l, std::abs(tl / l - 1.0));
+      worst_d = std::max(worst_d, std::abs(tdl / dl - 1.0));
+      EXPECT_EQ(table.Derivative(t), tdl);
+      worst_t = std::max(worst_t, std::abs(table.Temperature(l) - t));
+    }
+    EXPECT_LT(worst_l, 1e-8) << ch.name();
+    EXPECT_LT(worst_d, 1e-6) << ch.name();
+    EXPECT_LT(worst_t, 1e-6) << ch.name();  // K
+    // Outside the table the slope is the exact one.
+    for (double t : {100.0, 900.0})
+      EXPECT_NEAR(table.Derivative(t) / ch.BandRadianceDerivative(t), 1.0, 1e-12) << ch.name();
+    EXPECT_TRUE(std::isnan(table.Derivative(0.0)));
+    EXPECT_TRUE(std::isnan(table.Derivative(std::nan(""))));
+  }
+}
+
 TEST(RadiometricTable, OutsideTheTableFallsBackAndFlagsTheImpossible) {
   const SpectralResponse ch({2941.18, 3125.0}, {1.0, 1.0});
   const RadiometricTable table(ch, 250.0, 400.0, 32);

@@ -54,7 +54,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/inversion/band_table.h"
+#include "engine/camera/radiometric_table.h"
 #include "engine/inversion/scene_table.h"
 #include "engine/rte/binned_model.h"
 #include "engine/util/parallel.h"
@@ -241,7 +241,7 @@ class Inverter {
   double ambient_temperature_K() const { return t_amb_; }
   // Channel noise [W/(m2 sr)] for a background temperature.
   double ChannelNoise(std::size_t channel, double background_temperature_K) const;
-  const BandTable& band_table(std::size_t channel) const { return bands_[channel]; }
+  const RadiometricTable& band_table(std::size_t channel) const { return bands_[channel]; }
 
   // Inverts every pixel (and frame) of the batch into `out`; parallel over
   // rows; honours control (cancel -> qogi::Cancelled, progress).
@@ -300,7 +300,7 @@ class Inverter {
   double t_amb_ = 0;
   InversionOptions options_;
   std::vector<ParameterSpec> specs_;  // per parameter (S fractions, T_peak, sigma), defaults resolved
-  std::vector<BandTable> bands_;
+  std::vector<RadiometricTable> bands_;
   std::vector<double> netd_;  // per channel
   std::vector<double> column_factor_;  // K_s = M_s p / (N_A k_B)
   // The table contracted at the profile's temperatures (the bounds of T_peak

@@ -88,7 +88,7 @@ Inverter::Inverter(std::shared_ptr<const BinnedModel> model, std::shared_ptr<con
   const double bg_lo = table_ ? table_->options().min_background_K : 150.0;
   const double bg_hi = table_ ? table_->options().max_background_K : 700.0;
   for (std::size_t c = 0; c < nc; ++c)
-    bands_.emplace_back(model_->channels()[c], bg_lo, bg_hi, 0.5);
+    bands_.push_back(BackgroundBandTable(model_->channels()[c], bg_lo, bg_hi));
   netd_.assign(nc, options_.netd_K[0]);
   if (options_.netd_K.size() == nc) netd_ = options_.netd_K;
   for (std::size_t s = 0; s < ns; ++s)
@@ -183,17 +183,17 @@ bool Inverter::PreparePixel(const PixelBatch& b, std::size_t f, std::size_t i, P
     double t_bg = 0, l_bg = 0, dl_dt = 0;
     if (b.background_temperature_K) {
       t_bg = b.background_temperature_K[(fb * nc + c) * n + i];
-      if (!(std::isfinite(t_bg) && t_bg >= bands_[c].min_temperature_K() &&
-            t_bg <= bands_[c].max_temperature_K())) {
+      if (!(std::isfinite(t_bg) && t_bg >= bands_[c].t_min_K() && t_bg <= bands_[c].t_max_K())) {
         ok = false;
-        t_bg = bands_[c].min_temperature_K();
+        t_bg = bands_[c].t_min_K();
       }
       bands_[c].RadianceAndDerivative(t_bg, &l_bg, &dl_dt);
     } else {
       l_bg = b.background_radiance[(fb * nc + c) * n + i];
-      if (!bands_[c].Temperature(l_bg, &t_bg)) {
+      t_bg = bands_[c].Temperature(l_bg);  // NaN when no blackbody gives l_bg
+      if (!(t_bg >= bands_[c].t_min_K() && t_bg <= bands_[c].t_max_K())) {
         ok = false;
-        t_bg = bands_[c].min_temperature_K();
+        t_bg = bands_[c].t_min_K();
       }
       dl_dt = bands_[c].Derivative(t_bg);
     }

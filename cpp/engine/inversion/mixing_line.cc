@@ -207,14 +207,14 @@ class LineTable {
 MixingLineInverter::MixingLineInverter(std::shared_ptr<const SceneTable> table)
     : table_(std::move(table)) {
   Require(table_ != nullptr, "MixingLineInverter needs a table");
-  // One band table per channel (~0.1 s each), built in parallel.
+  // One band table per channel, built in parallel over the channels.
   const std::size_t nc = table_->num_channels();
-  std::vector<std::unique_ptr<BandTable>> built(nc);
+  std::vector<std::unique_ptr<RadiometricTable>> built(nc);
   ParallelFor(nc, 1, [&](std::size_t b, std::size_t e) {
     for (std::size_t c = b; c < e; ++c)
-      built[c] = std::make_unique<BandTable>(table_->model().channels()[c],
-                                             table_->options().min_background_K,
-                                             table_->options().max_background_K, 0.5);
+      built[c] = std::make_unique<RadiometricTable>(
+          BackgroundBandTable(table_->model().channels()[c], table_->options().min_background_K,
+                              table_->options().max_background_K, /*num_threads=*/1));
   });
   for (auto& t : built) bands_.push_back(std::move(*t));
 }
@@ -224,7 +224,7 @@ void MixingLineInverter::Invert(const MixingLineOptions& options, std::size_t n,
                                 const double* sigma_m, const MixingLineOutput& out,
                                 const RunControl* control) const {
   const SceneTable& table = *table_;
-  const std::vector<BandTable>& bands = bands_;
+  const std::vector<RadiometricTable>& bands = bands_;
   const std::size_t nc = table.num_channels(), ns = table.num_species();
   options.Check(ns, nc);
   Require(out.fraction && out.fraction_sigma && out.peak_temperature_K && out.chi2 &&
@@ -301,8 +301,8 @@ void MixingLineInverter::Invert(const MixingLineOptions& options, std::size_t n,
           bool detected = false;
           for (std::size_t c = 0; c < nc && ok; ++c) {
             const double l = radiance[i * nc + c], l_bg = background_radiance[i * nc + c];
-            double t = 0;
-            if (!(std::isfinite(l) && std::isfinite(l_bg) && bands[c].Temperature(l_bg, &t))) {
+            const double t = bands[c].Temperature(l_bg);
+            if (!(std::isfinite(l) && t >= bands[c].t_min_K() && t <= bands[c].t_max_K())) {
               ok = false;
               break;
             }

@@ -19,7 +19,7 @@
 #include <memory>
 #include <vector>
 
-#include "engine/inversion/band_table.h"
+#include "engine/camera/radiometric_table.h"
 #include "engine/inversion/scene_table.h"
 #include "engine/util/parallel.h"
 
@@ -62,20 +62,20 @@ struct MixingLineOutput {
 };
 
 // Holds the scene table and each channel's band table (radiance <->
-// temperature, built once: ~0.1 s per channel).
+// temperature, built once).
 class MixingLineInverter {
  public:
   explicit MixingLineInverter(std::shared_ptr<const SceneTable> table);
   const SceneTable& table() const { return *table_; }
   // Each channel's band table (radiance <-> temperature) [W/(m2 sr)], [K].
-  const std::vector<BandTable>& bands() const { return bands_; }
+  const std::vector<RadiometricTable>& bands() const { return bands_; }
   void Invert(const MixingLineOptions& options, std::size_t num_pixels, const double* radiance,
               const double* background_radiance, const double* sigma_m,
               const MixingLineOutput& out, const RunControl* control = nullptr) const;
 
  private:
   std::shared_ptr<const SceneTable> table_;
-  std::vector<BandTable> bands_;
+  std::vector<RadiometricTable> bands_;
 };
 
 }  // namespace qogi

@@ -47,13 +47,13 @@ std::vector<std::size_t> MixingLineSlopeSample(const MixingLineInverter& inverte
       if (n % 2 == 0) median = 0.5 * (median + *std::max_element(column.begin(),
                                                                    column.begin() + h));
     }
-    double t_bg = 0;
-    Require(inverter.bands()[c].Temperature(median, &t_bg),
+    const RadiometricTable& band = inverter.bands()[c];
+    const double t_bg = band.Temperature(median);
+    Require(t_bg >= band.t_min_K() && t_bg <= band.t_max_K(),
             "the median background radiance of channel " + std::to_string(c) + " (" +
                 FormatNumber(median) +
                 " W/(m2 sr)) is outside the scene table's background temperature range");
-    noise[c] = (netd_in.size() == nc ? netd_in[c] : netd_in[0]) *
-               inverter.bands()[c].Derivative(t_bg);
+    noise[c] = (netd_in.size() == nc ? netd_in[c] : netd_in[0]) * band.Derivative(t_bg);
   }
   std::vector<std::size_t> cand;
   for (std::size_t i = 0; i < n; ++i) {

@@ -11,7 +11,6 @@
 #include <random>
 #include <vector>
 
-#include "engine/inversion/band_table.h"
 #include "engine/inversion/mixing_line.h"
 #include "engine/inversion/mixing_line_slope.h"
 #include "engine/inversion/scene_fixture_test.h"
@@ -34,8 +33,6 @@ struct Pixels {
 Pixels OnTheLine(const Fixture& f, double k, std::size_t n, double netd_K, unsigned seed) {
   const SceneTable& t = *f.table;
   const std::size_t nc = t.num_channels();
-  std::vector<BandTable> bands;
-  for (std::size_t c = 0; c < nc; ++c) bands.emplace_back(t.model().channels()[c], 150, 700, 0.5);
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> u01(0.0, 1.0);
   std::normal_distribution<double> gauss(0.0, 1.0);
@@ -57,9 +54,10 @@ Pixels OnTheLine(const Fixture& f, double k, std::size_t n, double netd_K, unsig
                                  t.max_peak_temperature_K());
     if (big_x > 0) t.Contrast(x, tp, p.sigma[i], phi.data(), m.data(), nullptr);
     for (std::size_t c = 0; c < nc; ++c) {
-      const double l_bg = bands[c].Radiance(t_bg);
+      const SpectralResponse& channel = t.model().channels()[c];
+      const double l_bg = channel.BandRadiance(t_bg);
       p.bg[i * nc + c] = l_bg;
-      p.rad[i * nc + c] = l_bg + m[c] + netd_K * bands[c].Derivative(t_bg) * gauss(rng);
+      p.rad[i * nc + c] = l_bg + m[c] + netd_K * channel.BandRadianceDerivative(t_bg) * gauss(rng);
     }
   }
   return p;

@@ -949,4 +949,11 @@ TableErrorReport MeasureTableError(const SceneTable& table, int num_samples, uns
   return rep;
 }
 
+RadiometricTable BackgroundBandTable(const SpectralResponse& channel, double lo, double hi,
+                                     int num_threads) {
+  const double du = (1.0 / 150.0 - 1.0 / 700.0) / 511.0;
+  const int nodes = std::max(64, static_cast<int>(std::ceil((1.0 / lo - 1.0 / hi) / du)) + 1);
+  return RadiometricTable(channel, lo, hi, nodes, num_threads);
+}
+
 }  // namespace qogi

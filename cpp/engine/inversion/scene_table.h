@@ -43,6 +43,7 @@
 #include <string>
 #include <vector>
 
+#include "engine/camera/radiometric_table.h"
 #include "engine/inversion/bspline.h"
 #include "engine/rte/binned_model.h"
 #include "engine/util/parallel.h"
@@ -256,5 +257,12 @@ struct TableErrorReport {
 };
 TableErrorReport MeasureTableError(const SceneTable& table, int num_samples, unsigned seed,
                                    double floor_fraction = 1e-3, bool check_jacobian = false);
+
+// The band table (radiance <-> temperature) the inversion uses for
+// backgrounds of `channel` in [min_background_K, max_background_K]: nodes as
+// dense in 1/T as 512 over 150-700 K, at least 64 (L, dL/dT and T(L) within
+// 1e-8, 1e-6 relative and 1e-6 K of the quadrature over 50-2000 K).
+RadiometricTable BackgroundBandTable(const SpectralResponse& channel, double min_background_K,
+                                     double max_background_K, int num_threads = 0);
 
 }  // namespace qogi
