@@ -1043,42 +1043,79 @@ def mixing_line_slope_from_profile(grid_K_per_fraction, chi2, *,
 
 
 def plume_depth_from_width(contrast, pixel_size_m: float, *, axis: int = -1,
-                           threshold: float = 0.0) -> np.ndarray:
+                           threshold: float = 0.0, cut: float = 0.2) -> np.ndarray:
     """Gaussian depth sigma [m] of an axisymmetric plume from its width across
     the image.
 
     For an axisymmetric plume whose cross-section is Gaussian, the depth along
     the line of sight equals the width across it: the standard deviation of
     the plume's transverse profile. Along ``axis`` (across the plume) this
-    takes the profile of ``contrast`` (contrast, or a first-pass column
-    density; values <= ``threshold`` are ignored) and returns its second
-    central moment, sqrt(sum w (s - s_bar)^2 / sum w), times ``pixel_size_m``
-    (the pixel's footprint at the plume: IFOV x distance).
+    keeps the samples of ``contrast`` (contrast, or a column density) above
+    ``max(cut x peak, threshold)``: noise in the wings would inflate a plain
+    second moment, and the wings may leave the image. The kept samples'
+    mean and variance (weights = values) are those of a Gaussian cut to the
+    same samples, not of the whole Gaussian (a cut at 20 % of the peak
+    keeps |s - mu| < 1.79 sigma, whose variance is only 0.59 sigma^2); so
+    (mu, sigma) are found such that a Gaussian evaluated on exactly the kept
+    samples has the measured mean and variance (fixed-point iteration on
+    both, exact for a sampled Gaussian, whether the cut, the pixel grid or
+    the profile's ends truncated it). Times ``pixel_size_m`` (the pixel's
+    footprint at the plume: IFOV x distance).
 
     Parameters
     ----------
     contrast : array (..., n)
-        Non-negative profile(s) across the plume (e.g. rows of an image of a
-        vertical plume).
+        Profile(s) across the plume, positive for gas (e.g. rows of an image
+        of a vertical plume); non-finite values count as 0.
     pixel_size_m : float, m
     axis : int, default -1
         The transverse axis.
     threshold : float, default 0
-        Values at or below it (noise) do not count.
+        Values at or below it (noise) do not count, in the units of
+        ``contrast``.
+    cut : float, default 0.2
+        Values at or below ``cut`` x the profile's maximum do not count,
+        in [0, 1).
 
     Returns
     -------
     ndarray
-        sigma [m] per profile (the other axes); 0 where no value exceeds the
-        threshold.
+        sigma [m] per profile (the other axes); 0 where the width is not
+        measurable: fewer than two samples kept, or kept samples flatter
+        than any Gaussian.
     """
     c = np.moveaxis(np.asarray(contrast, dtype=float), axis, -1)
     if not (np.isfinite(pixel_size_m) and pixel_size_m > 0):
         raise ValueError(f"pixel_size_m must be finite and > 0; got {pixel_size_m}")
-    w = np.where(np.isfinite(c) & (c > threshold), c, 0.0)
+    if not 0.0 <= cut < 1.0:
+        raise ValueError(f"cut must be within [0, 1); got {cut}")
+    p = np.where(np.isfinite(c), c, 0.0)
+    peak = p.max(axis=-1, initial=0.0)
+    level = np.maximum(cut * peak, threshold)
+    keep = (p > level[..., None]) & (peak > 0)[..., None]
+    w = np.where(keep, p, 0.0)
     s = np.arange(c.shape[-1], dtype=float)
     tot = w.sum(axis=-1)
     safe = np.where(tot > 0, tot, 1.0)
     mean = (w * s).sum(axis=-1) / safe
     var = (w * (s - mean[..., None]) ** 2).sum(axis=-1) / safe
-    return np.where(tot > 0, np.sqrt(var) * pixel_size_m, 0.0)
+    # The variance a Gaussian can have on the kept samples is below theirs
+    # with uniform weights; a measured one at or above it has no solution.
+    n = keep.sum(axis=-1)
+    nsafe = np.where(n > 0, n, 1)
+    um = (keep * s).sum(axis=-1) / nsafe
+    uvar = (keep * (s - um[..., None]) ** 2).sum(axis=-1) / nsafe
+    ok = (n >= 2) & (var > 0) & (var < uvar)
+    mu = np.where(ok, mean, 0.0)
+    sig = np.where(ok, np.sqrt(np.where(ok, var, 1.0)), 1.0)
+    for _ in range(200):
+        g = np.where(keep, np.exp(-0.5 * ((s - mu[..., None]) / sig[..., None]) ** 2), 0.0)
+        gs = np.maximum(g.sum(axis=-1), 1e-300)
+        m_mod = (g * s).sum(axis=-1) / gs
+        v_mod = (g * (s - m_mod[..., None]) ** 2).sum(axis=-1) / gs
+        ratio = np.where(ok & (v_mod > 0), var / np.where(v_mod > 0, v_mod, 1.0), 1.0)
+        mu = mu + np.where(ok, mean - m_mod, 0.0)
+        sig = np.minimum(sig * np.sqrt(ratio), 1e3 * c.shape[-1])
+        if np.all(np.abs(ratio - 1.0) < 1e-10):
+            break
+    return np.where(ok, sig * pixel_size_m, 0.0)
