@@ -1051,16 +1051,18 @@ def plume_depth_from_width(contrast, pixel_size_m: float, *, axis: int = -1,
     the line of sight equals the width across it: the standard deviation of
     the plume's transverse profile. Along ``axis`` (across the plume) this
     keeps the samples of ``contrast`` (contrast, or a column density) above
-    ``max(cut x peak, threshold)``: noise in the wings would inflate a plain
-    second moment, and the wings may leave the image. The kept samples'
-    mean and variance (weights = values) are those of a Gaussian cut to the
-    same samples, not of the whole Gaussian (a cut at 20 % of the peak
-    keeps |s - mu| < 1.79 sigma, whose variance is only 0.59 sigma^2); so
-    (mu, sigma) are found such that a Gaussian evaluated on exactly the kept
-    samples has the measured mean and variance (fixed-point iteration on
-    both, exact for a sampled Gaussian, whether the cut, the pixel grid or
-    the profile's ends truncated it). Times ``pixel_size_m`` (the pixel's
-    footprint at the plume: IFOV x distance).
+    the level ``max(cut x peak, threshold)`` (noise in the wings would
+    inflate a plain second moment), takes their second central moment
+    (weights = values) and corrects it for the truncation: a Gaussian cut at
+    z_c = sqrt(2 ln(peak / level)) has the moment
+
+        sigma^2 (1 - 2 z_c phi(z_c) / (2 Phi(z_c) - 1))
+
+    (0.69 sigma^2 at the default 20 % cut). Times ``pixel_size_m`` (the
+    pixel's footprint at the plume: IFOV x distance). The cut falls between
+    samples: a Gaussian comes out within 6 % at sigma = 1.5 samples, 4.5 %
+    at 3, 2 % at 6.5; the profile must hold the plume down to the level (a
+    profile cut short by its ends comes out narrow).
 
     Parameters
     ----------
@@ -1080,9 +1082,8 @@ def plume_depth_from_width(contrast, pixel_size_m: float, *, axis: int = -1,
     Returns
     -------
     ndarray
-        sigma [m] per profile (the other axes); 0 where the width is not
-        measurable: fewer than two samples kept, or kept samples flatter
-        than any Gaussian.
+        sigma [m] per profile (the other axes); 0 where no value exceeds the
+        level.
     """
     c = np.moveaxis(np.asarray(contrast, dtype=float), axis, -1)
     if not (np.isfinite(pixel_size_m) and pixel_size_m > 0):
@@ -1092,30 +1093,17 @@ def plume_depth_from_width(contrast, pixel_size_m: float, *, axis: int = -1,
     p = np.where(np.isfinite(c), c, 0.0)
     peak = p.max(axis=-1, initial=0.0)
     level = np.maximum(cut * peak, threshold)
-    keep = (p > level[..., None]) & (peak > 0)[..., None]
-    w = np.where(keep, p, 0.0)
+    w = np.where((p > level[..., None]) & (peak > 0)[..., None], p, 0.0)
     s = np.arange(c.shape[-1], dtype=float)
     tot = w.sum(axis=-1)
     safe = np.where(tot > 0, tot, 1.0)
     mean = (w * s).sum(axis=-1) / safe
     var = (w * (s - mean[..., None]) ** 2).sum(axis=-1) / safe
-    # The variance a Gaussian can have on the kept samples is below theirs
-    # with uniform weights; a measured one at or above it has no solution.
-    n = keep.sum(axis=-1)
-    nsafe = np.where(n > 0, n, 1)
-    um = (keep * s).sum(axis=-1) / nsafe
-    uvar = (keep * (s - um[..., None]) ** 2).sum(axis=-1) / nsafe
-    ok = (n >= 2) & (var > 0) & (var < uvar)
-    mu = np.where(ok, mean, 0.0)
-    sig = np.where(ok, np.sqrt(np.where(ok, var, 1.0)), 1.0)
-    for _ in range(200):
-        g = np.where(keep, np.exp(-0.5 * ((s - mu[..., None]) / sig[..., None]) ** 2), 0.0)
-        gs = np.maximum(g.sum(axis=-1), 1e-300)
-        m_mod = (g * s).sum(axis=-1) / gs
-        v_mod = (g * (s - m_mod[..., None]) ** 2).sum(axis=-1) / gs
-        ratio = np.where(ok & (v_mod > 0), var / np.where(v_mod > 0, v_mod, 1.0), 1.0)
-        mu = mu + np.where(ok, mean - m_mod, 0.0)
-        sig = np.minimum(sig * np.sqrt(ratio), 1e3 * c.shape[-1])
-        if np.all(np.abs(ratio - 1.0) < 1e-10):
-            break
-    return np.where(ok, sig * pixel_size_m, 0.0)
+    # The truncation factor at z_c (1 without a level: z_c infinite).
+    ratio = np.where((level > 0) & (tot > 0), level / np.where(peak > 0, peak, 1.0), 0.0)
+    zc = np.sqrt(2.0 * np.log(1.0 / np.where(ratio > 0, ratio, 1.0)))
+    phi = np.exp(-0.5 * zc * zc) / math.sqrt(2.0 * math.pi)
+    big_phi = 0.5 * (1.0 + np.vectorize(math.erf, otypes=[float])(zc / math.sqrt(2.0)))
+    factor = np.where(ratio > 0, 1.0 - 2.0 * zc * phi / np.maximum(2.0 * big_phi - 1.0, 1e-300),
+                      1.0)
+    return np.where(tot > 0, np.sqrt(var / np.maximum(factor, 1e-300)) * pixel_size_m, 0.0)
