@@ -670,8 +670,8 @@ def cross_section_table(species: Union[str, int, None], nu_min_cm1: float, nu_ma
              else np.asarray(temperatures_K, dtype=float).ravel())
     opt = _options(cutoff, line_shift, float(min_intensity))
     key = _table_key(digest, formula, grid, temps, pressure_Pa, self_fraction, opt)
-    path = cache_path("xsec", f"{formula}_{grid[0]:g}-{grid[0] + grid[1] * (grid[2] - 1):g}_{key[:20]}",
-                      _xsec_cache_version(), ".qxs")
+    stem = f"{formula}_{grid[0]:g}-{grid[0] + grid[1] * (grid[2] - 1):g}_{key[:20]}"
+    path = cache_path("xsec", stem, _xsec_cache_version(), ".qxs")
     if cache and path.is_file():
         try:
             table = _engine.XsecTable.load(os.fspath(path))

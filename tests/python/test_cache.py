@@ -4,9 +4,6 @@ atomic writes that never stop the computation."""
 
 from __future__ import annotations
 
-import os
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -35,7 +32,8 @@ def test_the_cache_folder_honours_qogi_cache_dir_then_xdg_cache_home(monkeypatch
 
 def test_a_cache_name_carries_its_format_version(monkeypatch, tmp_path):
     monkeypatch.setenv("QOGI_CACHE_DIR", str(tmp_path))
-    assert cache.cache_path("xsec", "CH4_1-2_ab", "3-1", ".qxs") == tmp_path / "xsec" / "CH4_1-2_ab.v3-1.qxs"
+    assert cache.cache_path("xsec", "CH4_1-2_ab", "3-1", ".qxs") == \
+        tmp_path / "xsec" / "CH4_1-2_ab.v3-1.qxs"
     assert cache.cache_path("xsec", "a", 2, ".qxs") != cache.cache_path("xsec", "a", 3, ".qxs")
     with pytest.raises(ValueError, match="stem"):
         cache.cache_path("xsec", "../escape", 1, ".qxs")
@@ -51,7 +49,8 @@ def test_store_is_atomic_and_a_cache_that_cannot_be_written_is_skipped(tmp_path)
         raise RuntimeError("writer failed")
     with pytest.raises(RuntimeError):
         cache.store(target, boom)
-    assert target.read_bytes() == b"abc" and sorted(p.name for p in target.parent.iterdir()) == ["f.v1.bin"]
+    assert target.read_bytes() == b"abc"
+    assert sorted(p.name for p in target.parent.iterdir()) == ["f.v1.bin"]  # no temporary left
     (tmp_path / "ro").write_text("a file where the folder should be")
     assert cache.store(tmp_path / "ro" / "x.v1.bin", lambda tmp: tmp.write_bytes(b"x")) is False
 

@@ -452,7 +452,7 @@ def test_a_forged_variable_length_attribute_is_refused_not_hung_on():
         qogi.open_recording(forged)
 
 
-def test_channel_lists_are_checked_once_a_recording_refuses_with_a_data_error_an_argument_with_a_usage_error():
+def test_one_channel_check_a_recording_refuses_with_a_data_error_an_argument_with_a_usage_error():
     """One check (qogi.optics.channel_problem) of a channel list: a
     recording's camera without a response, or with something that is not a
     SpectralResponse, is a RecordingError (a DataError: the data is wrong);
