@@ -13,7 +13,6 @@ from pathlib import Path
 from typing import Callable, Optional, Tuple
 
 from .jobs import Stopped
-from .store import cache_dir
 
 __all__ = ["DEMO", "demo_path", "source_pixel", "ensure_demo"]
 
@@ -22,13 +21,17 @@ DEMO = {"preset": "lab-ch4-5slpm-gf320", "duration_s": 4.0, "frame_rate_hz": Non
 
 
 def demo_path(folder: Optional[os.PathLike] = None) -> Path:
-    """Where the demo recording is kept (one file per demo definition and qogi version)."""
+    """Where the demo recording is kept (one file per demo definition, qogi
+    version and recording format version, :func:`qogi.cache.cache_path`)."""
     from qogi import __version__
+    from qogi.cache import cache_path
+    from qogi.recording import VERSION
 
     rate = DEMO["frame_rate_hz"]
-    name = (f"{DEMO['preset']}_{DEMO['duration_s']:g}s"
-            f"{'' if rate is None else f'_{rate:g}Hz'}_seed{DEMO['seed']}_qogi{__version__}.h5")
-    return (Path(folder) if folder is not None else cache_dir() / "demo") / name
+    stem = (f"{DEMO['preset']}_{DEMO['duration_s']:g}s"
+            f"{'' if rate is None else f'_{rate:g}Hz'}_seed{DEMO['seed']}_qogi{__version__}")
+    path = cache_path("demo", stem, VERSION, ".h5")
+    return path if folder is None else Path(folder) / path.name
 
 
 def source_pixel() -> Tuple[float, float]:

@@ -37,8 +37,8 @@ def config_dir() -> Path:
 
 def cache_dir() -> Path:
     """The folder for regenerable files (the demo recording): qogi's per-user
-    cache, ``$QOGI_CACHE_DIR`` or ``~/.cache/qogi`` (:func:`qogi.spectra.cache_dir`)."""
-    from qogi.spectra import cache_dir as qogi_cache_dir
+    cache, ``$QOGI_CACHE_DIR`` or ``~/.cache/qogi`` (:func:`qogi.cache.cache_dir`)."""
+    from qogi.cache import cache_dir as qogi_cache_dir
 
     return Path(qogi_cache_dir())
 

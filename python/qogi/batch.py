@@ -35,6 +35,7 @@ from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 
 from ._version import __version__
 from .errors import UsageError
+from .optics import channel_problem
 
 __all__ = ["Row", "load_manifest", "manifest_keys", "run", "run_row", "summary_frame",
            "SUMMARY_CSV", "SUMMARY_PARQUET", "RESULT_JSON", "FAILURE_JSON"]
@@ -524,8 +525,8 @@ def _override_camera(rec, row: Row) -> None:
     cam = rec.camera
     if row.camera is not None:
         preset = camera_preset(row.camera)
-        if len(preset.channels) != rec.n_channels:
-            raise ValueError(f"camera {row.camera!r} has {len(preset.channels)} channel(s) but "
+        if channel_problem(preset.channels, rec.n_channels) is not None:
+            raise UsageError(f"camera {row.camera!r} has {len(preset.channels)} channel(s) but "
                              f"{row.path} has {rec.n_channels}; choose a camera with as many "
                              "channels as the recording")
         cam = dataclasses.replace(cam, name=preset.name, ifov_rad=preset.ifov_rad,

@@ -32,7 +32,8 @@ from typing import Any, Iterable, Optional, Sequence, Union
 import numpy as np
 
 from . import _engine
-from .optics import SpectralResponse
+from .errors import UsageError
+from .optics import SpectralResponse, channel_problem
 
 __all__ = [
     # calibration
@@ -58,11 +59,9 @@ def _channel_list(channels) -> list:
     if isinstance(channels, _engine.SpectralResponse):
         channels = [channels]
     out = list(channels)
-    if not out:
-        raise ValueError("at least one channel is needed; got none")
-    for k, ch in enumerate(out):
-        if not isinstance(ch, _engine.SpectralResponse):
-            raise TypeError(f"channel {k} must be a qogi.SpectralResponse; got {type(ch).__name__}")
+    bad = channel_problem(out)
+    if bad is not None:
+        raise UsageError(f"channels{bad[0]}: {bad[1]}. Fix: {bad[2]}")
     return out
 
 

@@ -1051,42 +1051,67 @@ def mixing_line_slope_from_profile(grid_K_per_fraction, chi2, *,
 
 
 def plume_depth_from_width(contrast, pixel_size_m: float, *, axis: int = -1,
-                           threshold: float = 0.0) -> np.ndarray:
+                           threshold: float = 0.0, cut: float = 0.2) -> np.ndarray:
     """Gaussian depth sigma [m] of an axisymmetric plume from its width across
     the image.
 
     For an axisymmetric plume whose cross-section is Gaussian, the depth along
     the line of sight equals the width across it: the standard deviation of
     the plume's transverse profile. Along ``axis`` (across the plume) this
-    takes the profile of ``contrast`` (contrast, or a first-pass column
-    density; values <= ``threshold`` are ignored) and returns its second
-    central moment, sqrt(sum w (s - s_bar)^2 / sum w), times ``pixel_size_m``
-    (the pixel's footprint at the plume: IFOV x distance).
+    keeps the samples of ``contrast`` (contrast, or a column density) above
+    the level ``max(cut x peak, threshold)`` (noise in the wings would
+    inflate a plain second moment), takes their second central moment
+    (weights = values) and corrects it for the truncation: a Gaussian cut at
+    z_c = sqrt(2 ln(peak / level)) has the moment
+
+        sigma^2 (1 - 2 z_c phi(z_c) / (2 Phi(z_c) - 1))
+
+    (0.69 sigma^2 at the default 20 % cut). Times ``pixel_size_m`` (the
+    pixel's footprint at the plume: IFOV x distance). The cut falls between
+    samples: a Gaussian comes out within 6 % at sigma = 1.5 samples, 4.5 %
+    at 3, 2 % at 6.5; the profile must hold the plume down to the level (a
+    profile cut short by its ends comes out narrow).
 
     Parameters
     ----------
     contrast : array (..., n)
-        Non-negative profile(s) across the plume (e.g. rows of an image of a
-        vertical plume).
+        Profile(s) across the plume, positive for gas (e.g. rows of an image
+        of a vertical plume); non-finite values count as 0.
     pixel_size_m : float, m
     axis : int, default -1
         The transverse axis.
     threshold : float, default 0
-        Values at or below it (noise) do not count.
+        Values at or below it (noise) do not count, in the units of
+        ``contrast``.
+    cut : float, default 0.2
+        Values at or below ``cut`` x the profile's maximum do not count,
+        in [0, 1).
 
     Returns
     -------
     ndarray
         sigma [m] per profile (the other axes); 0 where no value exceeds the
-        threshold.
+        level.
     """
     c = np.moveaxis(np.asarray(contrast, dtype=float), axis, -1)
     if not (np.isfinite(pixel_size_m) and pixel_size_m > 0):
         raise ValueError(f"pixel_size_m must be finite and > 0; got {pixel_size_m}")
-    w = np.where(np.isfinite(c) & (c > threshold), c, 0.0)
+    if not 0.0 <= cut < 1.0:
+        raise ValueError(f"cut must be within [0, 1); got {cut}")
+    p = np.where(np.isfinite(c), c, 0.0)
+    peak = p.max(axis=-1, initial=0.0)
+    level = np.maximum(cut * peak, threshold)
+    w = np.where((p > level[..., None]) & (peak > 0)[..., None], p, 0.0)
     s = np.arange(c.shape[-1], dtype=float)
     tot = w.sum(axis=-1)
     safe = np.where(tot > 0, tot, 1.0)
     mean = (w * s).sum(axis=-1) / safe
     var = (w * (s - mean[..., None]) ** 2).sum(axis=-1) / safe
-    return np.where(tot > 0, np.sqrt(var) * pixel_size_m, 0.0)
+    # The truncation factor at z_c (1 without a level: z_c infinite).
+    ratio = np.where((level > 0) & (tot > 0), level / np.where(peak > 0, peak, 1.0), 0.0)
+    zc = np.sqrt(2.0 * np.log(1.0 / np.where(ratio > 0, ratio, 1.0)))
+    phi = np.exp(-0.5 * zc * zc) / math.sqrt(2.0 * math.pi)
+    big_phi = 0.5 * (1.0 + np.vectorize(math.erf, otypes=[float])(zc / math.sqrt(2.0)))
+    factor = np.where(ratio > 0, 1.0 - 2.0 * zc * phi / np.maximum(2.0 * big_phi - 1.0, 1e-300),
+                      1.0)
+    return np.where(tot > 0, np.sqrt(var / np.maximum(factor, 1e-300)) * pixel_size_m, 0.0)

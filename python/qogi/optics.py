@@ -9,7 +9,7 @@ from __future__ import annotations
 import csv
 import os
 import re
-from typing import List, Union
+from typing import List, Optional, Tuple, Union
 
 import numpy as np
 
@@ -17,7 +17,7 @@ from . import _engine
 
 ArrayLike = Union[float, np.ndarray, list]
 
-__all__ = ["SpectralResponse", "planck_radiance", "planck_radiance_derivative"]
+__all__ = ["SpectralResponse", "channel_problem", "planck_radiance", "planck_radiance_derivative"]
 
 
 def _broadcast_call(fn, *args):
@@ -183,3 +183,29 @@ class SpectralResponse(_engine.SpectralResponse):
         with this band radiance [W/(m2 sr)]. Accepts radiances of blackbodies
         between 10 K and 1e5 K; raises ValueError outside."""
         return _map(self._radiometric_temperature, band_radiance)
+
+
+def channel_problem(channels, num_frame_channels: Optional[int] = None
+                    ) -> Optional[Tuple[str, str, str]]:
+    """What is wrong with a camera's channel responses, or None: the one check
+    of a channel list, whoever holds it.
+
+    The channels must be at least one, each a :class:`SpectralResponse`, and
+    (when ``num_frame_channels`` is given) exactly one per frame channel.
+    Returns ``(location, problem, fix)``: ``location`` is ``""`` for the list
+    or ``"/<k>"`` for channel k. The caller raises the type its input calls
+    for: a :class:`qogi.RecordingError` (a DataError) for a recording's
+    camera, a :class:`qogi.errors.UsageError` for a function's argument.
+    """
+    channels = list(channels)
+    if not channels:
+        return ("", "no channel response", "give one qogi.SpectralResponse per frame channel")
+    for k, ch in enumerate(channels):
+        if not isinstance(ch, _engine.SpectralResponse):
+            return (f"/{k}", f"must be a qogi.SpectralResponse; got {type(ch).__name__}",
+                    "build it with qogi.SpectralResponse(nu_cm1, response, name) or "
+                    "SpectralResponse.from_csv(path)")
+    if num_frame_channels is not None and len(channels) != num_frame_channels:
+        return ("", f"{len(channels)} channel responses for {num_frame_channels} frame channels",
+                "give exactly one response per frame channel (axis 1 of the frames)")
+    return None

@@ -43,7 +43,7 @@ from typing import Any, Dict, Iterator, List, Optional, Sequence, Tuple, Union
 import numpy as np
 
 from .errors import DataError
-from .optics import SpectralResponse
+from .optics import SpectralResponse, channel_problem
 from .radiometry import band_table
 
 __all__ = [
@@ -96,6 +96,13 @@ class RecordingError(DataError):
         if fix:
             msg += f". Fix: {fix}"
         super().__init__(msg)
+
+
+def _check_channels(channels, path: str, num_frame_channels: Optional[int] = None) -> None:
+    """:func:`qogi.optics.channel_problem` as a RecordingError at /camera/channels."""
+    bad = channel_problem(channels, num_frame_channels)
+    if bad is not None:
+        raise RecordingError(path, "/camera/channels" + bad[0], bad[1], bad[2])
 
 
 def _check_range(key: str, value, path: str, location: str, fix: str = "") -> float:
@@ -164,15 +171,7 @@ class Camera:
                          "/camera attr frame_rate_hz")
         if self.netd_K is not None:
             _check_range("camera.netd_K", self.netd_K, path, "/camera attr netd_K")
-        if len(self.channels) == 0:
-            raise RecordingError(path, "/camera/channels", "no channel response",
-                                 "give one qogi.SpectralResponse per frame channel")
-        for k, ch in enumerate(self.channels):
-            if not isinstance(ch, SpectralResponse):
-                raise RecordingError(path, f"/camera/channels/{k}",
-                                     f"must be a qogi.SpectralResponse; got {type(ch).__name__}",
-                                     "build it with qogi.SpectralResponse(nu_cm1, response, "
-                                     "name) or SpectralResponse.from_csv(path)")
+        _check_channels(self.channels, path)
 
 
 @dataclass
@@ -516,11 +515,7 @@ class Recording:
         self.scene.validate(path)
         if self.truth is not None:
             self.truth.validate(path)
-        if len(self.camera.channels) != c:
-            raise RecordingError(path, "/camera/channels",
-                                 f"{len(self.camera.channels)} channel responses for {c} "
-                                 f"frame channels (/frames shape {self.shape})",
-                                 "give exactly one response per channel (axis 1 of /frames)")
+        _check_channels(self.camera.channels, path, c)
         _check_frame_rate(path, self.time_s, self.camera.frame_rate_hz)
 
     def _scan_frames(self, batch_bytes: int = 64 << 20) -> None:
@@ -1276,10 +1271,7 @@ class RecordingWriter:
         scene.validate(self.path)
         if truth is not None:
             truth.validate(self.path)
-        if len(camera.channels) != shape[0]:
-            raise RecordingError(self.path, "/camera/channels",
-                                 f"{len(camera.channels)} channel responses for {shape[0]} "
-                                 "frame channels", "give one response per channel")
+        _check_channels(camera.channels, self.path, shape[0])
         if not overwrite and os.path.exists(self.path):
             raise FileExistsError(f"{self.path} exists (pass overwrite=True to replace it)")
         self.quantity, self.camera, self.scene = quantity, camera, scene

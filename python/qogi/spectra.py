@@ -53,6 +53,7 @@ import numpy as np
 
 from . import _engine
 from ._version import __version__
+from .cache import cache_dir, cache_path, store
 
 log = logging.getLogger(__name__)
 
@@ -98,16 +99,6 @@ _LINE_EXTENSIONS = (".par", ".data", ".par.gz", ".data.gz")
 
 # ---------------------------------------------------------------------------
 # Where things live
-
-def cache_dir() -> pathlib.Path:
-    """Per-user cache folder: ``$QOGI_CACHE_DIR`` or ``~/.cache/qogi``."""
-    env = os.environ.get("QOGI_CACHE_DIR")
-    if env:
-        return pathlib.Path(env).expanduser()
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    base = pathlib.Path(xdg).expanduser() if xdg else pathlib.Path.home() / ".cache"
-    return base / "qogi"
-
 
 def bundled_hitran_dir() -> pathlib.Path:
     """The folder of line-list subsets shipped inside the package."""
@@ -679,7 +670,8 @@ def cross_section_table(species: Union[str, int, None], nu_min_cm1: float, nu_ma
              else np.asarray(temperatures_K, dtype=float).ravel())
     opt = _options(cutoff, line_shift, float(min_intensity))
     key = _table_key(digest, formula, grid, temps, pressure_Pa, self_fraction, opt)
-    path = cache_dir() / "xsec" / f"{formula}_{grid[0]:g}-{grid[0] + grid[1] * (grid[2] - 1):g}_{key[:20]}.qxs"
+    stem = f"{formula}_{grid[0]:g}-{grid[0] + grid[1] * (grid[2] - 1):g}_{key[:20]}"
+    path = cache_path("xsec", stem, _xsec_cache_version(), ".qxs")
     if cache and path.is_file():
         try:
             table = _engine.XsecTable.load(os.fspath(path))
@@ -698,19 +690,14 @@ def cross_section_table(species: Union[str, int, None], nu_min_cm1: float, nu_ma
             "build_seconds": round(time.perf_counter() - t0, 3)}
     table.metadata = json.dumps(meta)
     if cache:
-        _atomic_save(table, path)
+        store(path, lambda tmp: table.save(str(tmp)))
     return CrossSectionTable(table)
 
 
-def _atomic_save(table, path: pathlib.Path) -> None:
-    from .files import atomic_path
-
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with atomic_path(path) as tmp:
-            table.save(str(tmp))
-    except OSError as e:  # a read-only cache must not stop the computation
-        log.warning("could not write the table cache %s: %s", path, e)
+def _xsec_cache_version() -> str:
+    """A cached table's format version: the engine's file format and the
+    spectral model's version (either changes what the file means)."""
+    return f"{int(_engine.XSEC_TABLE_FORMAT_VERSION)}-{SPECTRA_MODEL_VERSION}"
 
 
 # ---------------------------------------------------------------------------

@@ -664,7 +664,8 @@ def test_demo_file_name_names_its_definition(tmp_path):
     p = demo.demo_path(tmp_path)
     assert p.parent == tmp_path
     assert demo.DEMO["preset"] in p.name and f"seed{demo.DEMO['seed']}" in p.name
-    assert p.name.endswith(f"qogi{qogi.__version__}.h5")
+    from qogi.recording import VERSION
+    assert p.name.endswith(f"qogi{qogi.__version__}.v{VERSION}.h5")  # qogi and format version
     x, y = demo.source_pixel()
     assert 0 <= x < 320 and 0 <= y < 256
 

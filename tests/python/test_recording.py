@@ -450,3 +450,26 @@ def test_a_forged_variable_length_attribute_is_refused_not_hung_on():
     forged = pathlib.Path(__file__).parents[1] / "data/fuzz/crashes/recording.h5-vlen-attribute-hang"
     with pytest.raises(qogi.RecordingError, match=r"/ attr format: cannot be read within .* CPU"):
         qogi.open_recording(forged)
+
+
+def test_one_channel_check_a_recording_refuses_with_a_data_error_an_argument_with_a_usage_error():
+    """One check (qogi.optics.channel_problem) of a channel list: a
+    recording's camera without a response, or with something that is not a
+    SpectralResponse, is a RecordingError (a DataError: the data is wrong);
+    the same list passed to a function of qogi.camera is a UsageError (the
+    call is wrong); both name the channel."""
+    from qogi.camera import netd_radiance_sigma
+    from qogi.errors import DataError, UsageError
+    cam = camera()
+    for chans, where in (([], r"/camera/channels: no channel response"),
+                         ([cam.channels[0], "band.csv"], r"/camera/channels/1: must be a qogi")):
+        bad = qogi.Camera(name="c", ifov_rad=1e-3, channels=chans)
+        with pytest.raises(qogi.RecordingError, match=where) as e:
+            bad.validate()
+        assert isinstance(e.value, DataError)
+        with pytest.raises(UsageError, match=r"channels(/1)?: (no channel|must be a qogi)"):
+            netd_radiance_sigma(chans, 0.02)
+    with pytest.raises(qogi.RecordingError, match="1 channel responses for 2 frame channels"):
+        qogi.Recording.from_arrays(frames(), quantity="radiance",
+                                   camera=qogi.Camera(name="c", ifov_rad=1e-3, frame_rate_hz=15.0,
+                                                      channels=cam.channels[:1]), scene=scene())

@@ -39,7 +39,7 @@ import numpy as np
 
 from ..diagnostics import Diagnostics
 from ..errors import DataError, UsageError
-from ..optics import SpectralResponse
+from ..optics import SpectralResponse, channel_problem
 from ..recording import Camera, Recording, RecordingError, Scene, typical_interval
 from ..recording import open_recording as _open_hdf5
 
@@ -362,7 +362,7 @@ def _open_flir(p, camera, distance_m, ambient_K, pressure_Pa, ifov_rad, nonfinit
                 probe.metadata(i)
         raise _no_camera(p, "FLIR")
     cam = resolve_camera(camera, ifov_rad=ifov_rad)
-    if len(cam.channels) != 1:
+    if channel_problem(cam.channels, 1) is not None:
         raise UsageError(f"{p}: a FLIR file holds one channel; the camera {cam.name!r} has "
                          f"{len(cam.channels)} (give a one-channel camera, e.g. gf320 or a "
                          "response CSV)")
@@ -476,7 +476,7 @@ def _open_hcc(p, camera, distance_m, ambient_K, pressure_Pa, ifov_rad, nonfinite
             order, turns, skipped = [int(fields["FWPosition"][0])], \
                 np.arange(h.n_frames)[:, None], 0
         positions = sorted(order)
-        if len(cam.channels) != len(positions):
+        if channel_problem(cam.channels, len(positions)) is not None:
             raise UsageError(
                 f"{p}: the file has {len(positions)} filter position(s) "
                 f"({', '.join(map(str, positions))}) but the camera {cam.name!r} has "

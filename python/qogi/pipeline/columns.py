@@ -21,6 +21,7 @@ import numpy as np
 
 from .. import workers as _workers_mod
 from ..errors import Cancelled
+from ..inversion import plume_depth_from_width
 from ..recording import Recording
 from ..surfaces import Region, Surface
 from .background import Background
@@ -100,29 +101,6 @@ def _scatter(full, part, idx: np.ndarray) -> None:
         for sp, v in getattr(part, name).items():
             getattr(full, name)[sp][idx] = v
 
-
-
-def _gaussian_width(profile: np.ndarray, cut: float = 0.2) -> float:
-    """Standard deviation [samples] of a Gaussian-like profile from the second
-    moment of its part above ``cut`` x its maximum (noise in the wings would
-    inflate a plain second moment), corrected for the truncation: for a
-    Gaussian cut at z_c = sqrt(2 ln(1/cut)) the moment is
-    sigma^2 (1 - 2 z_c phi(z_c) / (2 Phi(z_c) - 1))."""
-    p = np.asarray(profile, dtype=float)
-    p = np.where(np.isfinite(p), p, 0.0)
-    top = p.max() if p.size else 0.0
-    if not top > 0:
-        return float("nan")
-    w = np.where(p > cut * top, p, 0.0)
-    s = np.arange(p.size, dtype=float)
-    tot = w.sum()
-    mean = (w * s).sum() / tot
-    var = (w * (s - mean) ** 2).sum() / tot
-    zc = math.sqrt(2.0 * math.log(1.0 / cut))
-    phi = math.exp(-0.5 * zc * zc) / math.sqrt(2.0 * math.pi)
-    big_phi = 0.5 * (1.0 + math.erf(zc / math.sqrt(2.0)))
-    factor = 1.0 - 2.0 * zc * phi / (2.0 * big_phi - 1.0)
-    return math.sqrt(var / factor)
 
 
 class InvertedColumns:
@@ -350,10 +328,8 @@ class InvertedColumns:
         mean = self._lookup(view.mean(axis=0))              # (lines, across)
         top = mean.max()
         lines = np.arange(mean.shape[0])
-        widths = np.full(mean.shape[0], np.nan)
-        for r in lines:
-            if top > 0 and mean[r].max() > 0.05 * top:
-                widths[r] = _gaussian_width(mean[r]) * self.scene.pixel_m
+        seen = (mean.max(axis=1) > 0.05 * top) if top > 0 else np.zeros(len(lines), bool)
+        widths = np.where(seen, plume_depth_from_width(mean, self.scene.pixel_m), np.nan)
         ok = np.isfinite(widths) & (widths > 0)
         if not ok.any():
             for k in range(contrast.shape[0]):
@@ -442,7 +418,7 @@ class InvertedColumns:
                 sigma = self.cfg.sigma_m
             else:
                 mean_prof = np.mean([self._lookup(p[j]) for p in self._prof], axis=0)
-                sigma = _gaussian_width(mean_prof) * self.scene.pixel_m
+                sigma = float(plume_depth_from_width(mean_prof, self.scene.pixel_m))
                 if not (np.isfinite(sigma) and sigma > 0):
                     sigma = 0.02
             self.sigma_m[j] = float(sigma)
