@@ -37,8 +37,15 @@ def looped(src_path, dst_path, duration_s, start):
     src = qogi.open_recording(src_path)
     rate = src.camera.frame_rate_hz
     n = int(round(duration_s * rate))
-    with RecordingWriter(dst_path, quantity=src.quantity, camera=src.camera, scene=src.scene,
-                         frame_shape=src.shape[1:], truth=src.truth, expected_frames=n) as w:
+    with RecordingWriter(
+        dst_path,
+        quantity=src.quantity,
+        camera=src.camera,
+        scene=src.scene,
+        frame_shape=src.shape[1:],
+        truth=src.truth,
+        expected_frames=n,
+    ) as w:
         for i in range(n):
             w.append(src.frame((start + i) % src.n_frames), i / rate)
     src.close()
@@ -58,35 +65,47 @@ def main():
             render.synthesize(PRESET, d / f"src{s}.h5", duration_s=3.0, seed=s)
         lines = ["path,name,surfaces,source,species"]
         for k in range(N_RECORDINGS):
-            looped(d / f"src{k % SOURCES}.h5", d / f"clip{k:02d}.h5", duration,
-                   start=5 * (k // SOURCES))
-            lines.append(f'clip{k:02d}.h5,clip{k:02d},"100,207,220,207;90,187,230,187",'
-                         f'"159.5,227",CH4')
+            looped(
+                d / f"src{k % SOURCES}.h5",
+                d / f"clip{k:02d}.h5",
+                duration,
+                start=5 * (k // SOURCES),
+            )
+            lines.append(
+                f'clip{k:02d}.h5,clip{k:02d},"100,207,220,207;90,187,230,187","159.5,227",CH4'
+            )
         (d / "survey.csv").write_text("\n".join(lines) + "\n")
-        print(f"{N_RECORDINGS} recordings of {duration:g} s at 15 Hz (320x240, one channel), "
-              f"2 surfaces each; made in {time.perf_counter() - t:.0f} s; "
-              f"{os.cpu_count()} CPUs")
+        print(
+            f"{N_RECORDINGS} recordings of {duration:g} s at 15 Hz (320x240, one channel), "
+            f"2 surfaces each; made in {time.perf_counter() - t:.0f} s; "
+            f"{os.cpu_count()} CPUs"
+        )
         per_hour = {1: [], 2: []}
         for rep in range(repeats):
             for workers in (1, 2):
                 before = load()
                 t = time.perf_counter()
-                df = batch.run(d / "survey.csv", d / f"out{rep}-{workers}", workers=workers,
-                               progress=False)
+                df = batch.run(
+                    d / "survey.csv", d / f"out{rep}-{workers}", workers=workers, progress=False
+                )
                 wall = time.perf_counter() - t
                 ok = int((df["status"] == "ok").sum())
                 per_hour[workers].append(3600.0 * N_RECORDINGS / wall)
                 truth = df["S1/CH4 truth_kg_h"].iloc[0]
                 err = (df["S1/CH4 mean_kg_h"] / truth - 1.0) * 100
                 cpu = df["cpu_time_s"].sum()
-                print(f"  {workers} worker(s): {wall:6.1f} s wall, {per_hour[workers][-1]:6.0f} "
-                      f"recordings/h ({ok}/{N_RECORDINGS} ok; per recording "
-                      f"{df['run_time_s'].mean():.1f} s wall and {cpu / len(df):.1f} CPU s in "
-                      f"its task; CPUs obtained {cpu / wall:.2f}; S1 error vs truth "
-                      f"{err.mean():+.1f} % mean) [{before} -> {load()}]")
+                print(
+                    f"  {workers} worker(s): {wall:6.1f} s wall, {per_hour[workers][-1]:6.0f} "
+                    f"recordings/h ({ok}/{N_RECORDINGS} ok; per recording "
+                    f"{df['run_time_s'].mean():.1f} s wall and {cpu / len(df):.1f} CPU s in "
+                    f"its task; CPUs obtained {cpu / wall:.2f}; S1 error vs truth "
+                    f"{err.mean():+.1f} % mean) [{before} -> {load()}]"
+                )
         for rep, (one, two) in enumerate(zip(per_hour[1], per_hour[2])):
-            print(f"  scaling, pair {rep + 1}: 2 workers / 1 worker = {two / one:.2f}x "
-                  f"(baseline: 1 worker, {one:.0f} recordings/h)")
+            print(
+                f"  scaling, pair {rep + 1}: 2 workers / 1 worker = {two / one:.2f}x "
+                f"(baseline: 1 worker, {one:.0f} recordings/h)"
+            )
 
 
 if __name__ == "__main__":

@@ -12,8 +12,12 @@ import numpy as np
 
 import qogi
 
-HITRAN = pathlib.Path(os.environ.get("QOGI_SHARED_DIR",
-                                     pathlib.Path(__file__).resolve().parents[2] / "shared")) / "hitran"
+HITRAN = (
+    pathlib.Path(
+        os.environ.get("QOGI_SHARED_DIR", pathlib.Path(__file__).resolve().parents[2] / "shared")
+    )
+    / "hitran"
+)
 
 
 def rate(fn, min_time=2.0):
@@ -29,16 +33,21 @@ def rate(fn, min_time=2.0):
 def main():
     cam = qogi.camera_preset("fast-m150")
     t0 = time.perf_counter()
-    model = qogi.ForwardModel(cam, ["CH4", "CO2"], line_lists={"CH4": HITRAN / "CH4.par",
-                                                               "CO2": HITRAN / "CO2.par"})
+    model = qogi.ForwardModel(
+        cam, ["CH4", "CO2"], line_lists={"CH4": HITRAN / "CH4.par", "CO2": HITRAN / "CO2.par"}
+    )
     fast = model.fast
-    print(f"tables + fast model ready in {time.perf_counter() - t0:.1f} s; bins per channel "
-          f"{[fast.num_bins(c) for c in range(len(cam.channels))]}")
+    print(
+        f"tables + fast model ready in {time.perf_counter() - t0:.1f} s; bins per channel "
+        f"{[fast.num_bins(c) for c in range(len(cam.channels))]}"
+    )
     plume = ({"CH4": 0.05, "CO2": 0.05}, 340.0, 0.03, 293.0, 283.0)
     r_exact = rate(lambda: model.band_radiance(*plume, exact=True), 5.0)
     r_fast = rate(lambda: model.band_radiance(*plume, num_threads=1))
-    print(f"one 4-channel pixel: exact {r_exact:.3g} eval/s, fast {r_fast:.3g} eval/s "
-          f"(1 thread): fast = {r_fast / r_exact:.0f}x exact (target >= 100x)")
+    print(
+        f"one 4-channel pixel: exact {r_exact:.3g} eval/s, fast {r_fast:.3g} eval/s "
+        f"(1 thread): fast = {r_fast / r_exact:.0f}x exact (target >= 100x)"
+    )
     # A batch uses both cores.
     n = 200
     batch = ({"CH4": np.full(n, 0.05), "CO2": np.full(n, 0.05)}, 340.0, 0.03, 293.0, 283.0)
@@ -61,11 +70,15 @@ def main():
         bg = model.background_radiance(tb)
         worst_c = np.maximum(worst_c, np.abs(lf - le) / np.maximum(np.abs(le - bg), 1e-4 * bg))
         worst_l = np.maximum(worst_l, np.abs(lf / le - 1))
-    print(f"fast vs exact over {draws} random plumes (x 0-1 CH4/CO2 alone and mixed, T_amb "
-          f"250-320 K, T_peak T_amb-30..+200 K, sigma 1 mm-0.5 m, T_bg 250-350 K):")
+    print(
+        f"fast vs exact over {draws} random plumes (x 0-1 CH4/CO2 alone and mixed, T_amb "
+        f"250-320 K, T_peak T_amb-30..+200 K, sigma 1 mm-0.5 m, T_bg 250-350 K):"
+    )
     for c, ch in enumerate(cam.channels):
-        print(f"  {ch.name:24s} worst contrast error {100 * worst_c[c]:.3f} %  "
-              f"worst L error {100 * worst_l[c]:.4f} %")
+        print(
+            f"  {ch.name:24s} worst contrast error {100 * worst_c[c]:.3f} %  "
+            f"worst L error {100 * worst_l[c]:.4f} %"
+        )
 
 
 if __name__ == "__main__":

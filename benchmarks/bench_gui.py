@@ -41,14 +41,22 @@ def make_recording(path: Path) -> None:
     cam = qogi.camera_preset("fast-m150")
     rng = np.random.default_rng(0)
     y, x = np.mgrid[0:H, 0:W]
-    with qogi.RecordingWriter(path, quantity="radiance",
-                              camera=qogi.Camera(cam.name, cam.ifov_rad, cam.channels,
-                                                 frame_rate_hz=RATE, netd_K=cam.netd_K),
-                              scene=qogi.Scene(3.0, 293.15, 101325.0, species=("CH4", "CO2")),
-                              frame_shape=(C, H, W)) as wr:
+    with qogi.RecordingWriter(
+        path,
+        quantity="radiance",
+        camera=qogi.Camera(
+            cam.name, cam.ifov_rad, cam.channels, frame_rate_hz=RATE, netd_K=cam.netd_K
+        ),
+        scene=qogi.Scene(3.0, 293.15, 101325.0, species=("CH4", "CO2")),
+        frame_shape=(C, H, W),
+    ) as wr:
         for i in range(T):
-            temp = (288.0 + 0.01 * x + 6.0 * np.exp(-((x - 160) ** 2 + (y - 200 + i * 0.5) ** 2)
-                                                    / 400.0) + rng.normal(0, 0.02, (H, W)))
+            temp = (
+                288.0
+                + 0.01 * x
+                + 6.0 * np.exp(-((x - 160) ** 2 + (y - 200 + i * 0.5) ** 2) / 400.0)
+                + rng.normal(0, 0.02, (H, W))
+            )
             frame = temperature_to_radiance(np.broadcast_to(temp, (C, H, W)), cam.channels)
             wr.append(frame.astype(np.float32), i / RATE)
 
@@ -66,9 +74,12 @@ def start_xvfb():
     if exe is None:
         return None, None
     r, w = os.pipe()
-    proc = subprocess.Popen([exe, "-displayfd", str(w), "-screen", "0", "1600x1000x24",
-                             "-nolisten", "tcp"], pass_fds=(w,), stdout=subprocess.DEVNULL,
-                            stderr=subprocess.DEVNULL)
+    proc = subprocess.Popen(
+        [exe, "-displayfd", str(w), "-screen", "0", "1600x1000x24", "-nolisten", "tcp"],
+        pass_fds=(w,),
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     os.close(w)
     with os.fdopen(r) as f:
         number = f.readline().strip()
@@ -98,8 +109,13 @@ dpg.destroy_context()
 
 def bare_window_fps(seconds: float = 5.0) -> float:
     """Frames/s of a bare Dear PyGui window of the viewer's size (own process)."""
-    out = subprocess.run([sys.executable, "-c", BARE_WINDOW, str(seconds)], capture_output=True,
-                         text=True, check=True, timeout=120)
+    out = subprocess.run(
+        [sys.executable, "-c", BARE_WINDOW, str(seconds)],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=120,
+    )
     return float(out.stdout.strip().splitlines()[-1])
 
 
@@ -133,8 +149,11 @@ def window_playback(path: Path, seconds: float = 5.0) -> dict:
                     last_frame = vm.frame
             elapsed = t - t0
             out["playing" if playing else "paused"] = {
-                "fps": drawn / elapsed, "shown": shown / elapsed,
-                "max_gap_ms": 1e3 * max(gaps), "p95_gap_ms": 1e3 * float(np.percentile(gaps, 95))}
+                "fps": drawn / elapsed,
+                "shown": shown / elapsed,
+                "max_gap_ms": 1e3 * max(gaps),
+                "p95_gap_ms": 1e3 * float(np.percentile(gaps, 95)),
+            }
         app.close()
     return out
 
@@ -148,8 +167,10 @@ def main():
         make_recording(path)
         rec = qogi.open_recording(path)
         raw = rate(lambda i: rec.frames(i % T, i % T + 1), 300)
-        print(f"recording {T} x {C} x {H}x{W} at {RATE:g} Hz; baseline raw frame read "
-              f"(Recording.frames, 4 channels): {raw:.0f} frames/s")
+        print(
+            f"recording {T} x {C} x {H}x{W} at {RATE:g} Hz; baseline raw frame read "
+            f"(Recording.frames, 4 channels): {raw:.0f} frames/s"
+        )
         vm = ViewModel(store=UserStore(Path(tmp) / "cfg"), demo_provider=lambda p: "")
         vm.open(path)
         for quantity in ("radiance", "radiometric_temperature"):
@@ -159,10 +180,13 @@ def main():
                 def show(i):
                     vm.seek(i % T)
                     vm.render()
+
                 r = rate(show, 300)
-                print(f"view-model display path ({quantity}, {rng_mode} range): {r:.0f} "
-                      f"frames/s = {r / raw:.2f} x the raw read rate "
-                      f"({1e3 / r:.2f} ms per frame; {r / RATE:.1f} x the 100 Hz need)")
+                print(
+                    f"view-model display path ({quantity}, {rng_mode} range): {r:.0f} "
+                    f"frames/s = {r / raw:.2f} x the raw read rate "
+                    f"({1e3 / r:.2f} ms per frame; {r / RATE:.1f} x the 100 Hz need)"
+                )
         vm.close()
         rec.close()
 
@@ -182,15 +206,19 @@ def main():
                 proc.wait(10)
         where = "Xvfb + Mesa llvmpipe (software OpenGL)" if proc is not None else display
         idle, play = res["paused"], res["playing"]
-        print(f"window 1440x900 on {where}: baseline 1, bare Dear PyGui window: {bare:.1f} "
-              f"frames drawn/s; baseline 2, the viewer with the video paused: {idle['fps']:.1f} "
-              f"frames drawn/s = {idle['fps'] / bare:.2f} x the bare window")
-        print(f"window playing at 1x: {play['fps']:.1f} frames drawn/s = "
-              f"{play['fps'] / bare:.2f} x the bare window, "
-              f"{play['fps'] / idle['fps']:.2f} x the paused viewer; {play['shown']:.1f} new "
-              f"recording frames shown/s (recording: {RATE:g}/s, the rest skipped to keep real "
-              f"time); gap between drawn frames p95 {play['p95_gap_ms']:.0f} ms, max "
-              f"{play['max_gap_ms']:.0f} ms")
+        print(
+            f"window 1440x900 on {where}: baseline 1, bare Dear PyGui window: {bare:.1f} "
+            f"frames drawn/s; baseline 2, the viewer with the video paused: {idle['fps']:.1f} "
+            f"frames drawn/s = {idle['fps'] / bare:.2f} x the bare window"
+        )
+        print(
+            f"window playing at 1x: {play['fps']:.1f} frames drawn/s = "
+            f"{play['fps'] / bare:.2f} x the bare window, "
+            f"{play['fps'] / idle['fps']:.2f} x the paused viewer; {play['shown']:.1f} new "
+            f"recording frames shown/s (recording: {RATE:g}/s, the rest skipped to keep real "
+            f"time); gap between drawn frames p95 {play['p95_gap_ms']:.0f} ms, max "
+            f"{play['max_gap_ms']:.0f} ms"
+        )
 
 
 if __name__ == "__main__":

@@ -52,17 +52,29 @@ def one(path: str, minutes: float) -> dict:
     src = qogi.open_recording(path).load()
     rate = src.camera.frame_rate_hz
     n = int(round(minutes * 60 * rate))
-    rec = Recording(source=Looped(src.to_array(), n), time_s=np.arange(n) / rate,
-                    quantity=src.quantity, camera=src.camera, scene=src.scene, truth=src.truth,
-                    path=f"<{minutes:g} min looped>", nonfinite="error")
+    rec = Recording(
+        source=Looped(src.to_array(), n),
+        time_s=np.arange(n) / rate,
+        quantity=src.quantity,
+        camera=src.camera,
+        scene=src.scene,
+        truth=src.truth,
+        path=f"<{minutes:g} min looped>",
+        nonfinite="error",
+    )
     surfaces, source = truth_surfaces(rec, heights_m=[0.04, 0.08, 0.12], half_width_px=50)
     t0 = time.perf_counter()
     res = quantify(rec, surfaces, QuantifyConfig(species=["CH4"], source=source))
     dt = time.perf_counter() - t0
     r = res.surfaces[1].species["CH4"]
-    return {"minutes": minutes, "frames": n, "seconds": dt,
-            "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
-            "blocks": res.info.get("blocks", 1), "mean_kg_h": r.mean_kg_h}
+    return {
+        "minutes": minutes,
+        "frames": n,
+        "seconds": dt,
+        "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+        "blocks": res.info.get("blocks", 1),
+        "mean_kg_h": r.mean_kg_h,
+    }
 
 
 def main(lengths):
@@ -73,19 +85,27 @@ def main(lengths):
         render.synthesize(PRESET, path, duration_s=BASE_S, seed=3)
         rows = []
         for m in lengths:
-            out = subprocess.run([sys.executable, __file__, "--one", path, str(m)],
-                                 check=True, capture_output=True, text=True)
+            out = subprocess.run(
+                [sys.executable, __file__, "--one", path, str(m)],
+                check=True,
+                capture_output=True,
+                text=True,
+            )
             rows.append(json.loads(out.stdout.strip().splitlines()[-1]))
             print(f"  {m:g} min done", flush=True)
     base = rows[0]
-    print(f"{'length':>8} {'frames':>7} {'blocks':>6} {'peak RSS MB':>12} {'x 1st':>6} "
-          f"{'ms/frame':>9} {'x 1st':>6} {'kg/h':>8}")
+    print(
+        f"{'length':>8} {'frames':>7} {'blocks':>6} {'peak RSS MB':>12} {'x 1st':>6} "
+        f"{'ms/frame':>9} {'x 1st':>6} {'kg/h':>8}"
+    )
     for r in rows:
         ms = 1000 * r["seconds"] / r["frames"]
         ms0 = 1000 * base["seconds"] / base["frames"]
-        print(f"{r['minutes']:>6g} m {r['frames']:>7d} {r['blocks']:>6d} {r['peak_rss_mb']:>12.0f} "
-              f"{r['peak_rss_mb'] / base['peak_rss_mb']:>6.2f} {ms:>9.1f} {ms / ms0:>6.2f} "
-              f"{r['mean_kg_h']:>8.4f}")
+        print(
+            f"{r['minutes']:>6g} m {r['frames']:>7d} {r['blocks']:>6d} {r['peak_rss_mb']:>12.0f} "
+            f"{r['peak_rss_mb'] / base['peak_rss_mb']:>6.2f} {ms:>9.1f} {ms / ms0:>6.2f} "
+            f"{r['mean_kg_h']:>8.4f}"
+        )
 
 
 if __name__ == "__main__":

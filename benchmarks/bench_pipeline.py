@@ -21,7 +21,6 @@ import os
 import tempfile
 import time
 
-
 import qogi
 from qogi import render
 from qogi.pipeline import QuantifyConfig, quantify
@@ -38,8 +37,15 @@ def looped(src_path, dst_path, duration_s):
     src = qogi.open_recording(src_path)
     rate = src.camera.frame_rate_hz
     n = int(round(duration_s * rate))
-    with RecordingWriter(dst_path, quantity=src.quantity, camera=src.camera, scene=src.scene,
-                         frame_shape=src.shape[1:], truth=src.truth, expected_frames=n) as w:
+    with RecordingWriter(
+        dst_path,
+        quantity=src.quantity,
+        camera=src.camera,
+        scene=src.scene,
+        frame_shape=src.shape[1:],
+        truth=src.truth,
+        expected_frames=n,
+    ) as w:
         for i in range(n):
             w.append(src.frame(i % src.n_frames), i / rate)
     return dst_path
@@ -55,27 +61,38 @@ def main():
             t_render = time.perf_counter() - t
             path = looped(src, os.path.join(d, "rec.h5"), duration)
             rec = qogi.open_recording(path)
-            surf, source = truth_surfaces(rec, heights_m=(0.04, 0.08, 0.12),
-                                          half_width_px=50 if rec.height == 256 else 40)
-            cfg = QuantifyConfig(species=list(rec.scene.species), gas_temperature=gas,
-                                 composition=comp, source=source)
+            surf, source = truth_surfaces(
+                rec, heights_m=(0.04, 0.08, 0.12), half_width_px=50 if rec.height == 256 else 40
+            )
+            cfg = QuantifyConfig(
+                species=list(rec.scene.species),
+                gas_temperature=gas,
+                composition=comp,
+                source=source,
+            )
             times = []
-            runs = ("cold", "warm")[:int(os.environ.get("QOGI_BENCH_RUNS", "1"))]
+            runs = ("cold", "warm")[: int(os.environ.get("QOGI_BENCH_RUNS", "1"))]
             for _run in runs:
                 t = time.perf_counter()
                 c = time.process_time()
                 res = quantify(rec, surf, cfg)
                 times.append((time.perf_counter() - t, time.process_time() - c))
-            print(f"{preset}: {rec.n_frames} frames ({duration:g} s of {rec.n_channels}-channel "
-                  f"{rec.width}x{rec.height} at {rec.camera.frame_rate_hz:g} Hz), gas temperature "
-                  f"{gas}, {len(surf)} surfaces")
+            print(
+                f"{preset}: {rec.n_frames} frames ({duration:g} s of {rec.n_channels}-channel "
+                f"{rec.width}x{rec.height} at {rec.camera.frame_rate_hz:g} Hz), gas temperature "
+                f"{gas}, {len(surf)} surfaces"
+            )
             for run, (wall, cpu) in zip(runs, times):
-                print(f"  {run}: {wall:.1f} s wall ({cpu:.1f} s CPU) = {wall / duration:.2f}x real "
-                      f"time ({'faster' if wall < duration else 'SLOWER'} than the camera)")
+                print(
+                    f"  {run}: {wall:.1f} s wall ({cpu:.1f} s CPU) = {wall / duration:.2f}x real "
+                    f"time ({'faster' if wall < duration else 'SLOWER'} than the camera)"
+                )
             r = res.surfaces[len(res.surfaces) // 2].species["CH4"]
             middle = res.surfaces[len(res.surfaces) // 2].surface.name
-            print(f"  (source rendered in {t_render:.0f} s; {middle}: "
-                  f"{r.mean_kg_h * 1000:.1f} g/h CH4, truth {r.truth_kg_h * 1000:.1f} g/h)")
+            print(
+                f"  (source rendered in {t_render:.0f} s; {middle}: "
+                f"{r.mean_kg_h * 1000:.1f} g/h CH4, truth {r.truth_kg_h * 1000:.1f} g/h)"
+            )
             rec.close()
 
 

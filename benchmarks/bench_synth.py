@@ -81,19 +81,31 @@ def main() -> None:
     assert np.allclose(total_col, ref, rtol=1e-4, atol=1e-6 * ref.max())
 
     total = t_sim + t_maps + t_rays
-    print(f"scene: {PRESET}, {sim.num_frames} frames of {sim.view.width_px}x{sim.view.height_px}, "
-          f"{sim.stats['max_live_puffs']} puffs at most, {threads} threads")
-    print(f"baseline (numpy column maps, {BASELINE_FRAMES} frames "
-          f"x {sim.num_frames // BASELINE_FRAMES}): {t_base:8.2f} s for {sim.num_frames} frames")
-    print(f"simulation (incl. {sim.spin_up_s:.1f} s spin-up):      {t_sim:8.2f} s   "
-          f"= {t_sim / t_base:.3f} x baseline")
-    print(f"truth maps, all frames:                 {t_maps:8.2f} s   "
-          f"= {t_maps / t_base:.3f} x baseline  ({1e3 * t_maps / sim.num_frames:.1f} ms/frame)")
-    print(f"ray samples ({RAY_FRAMES} frames x {sim.num_frames // RAY_FRAMES}):"
-          f"           {t_rays:8.2f} s   = {t_rays / t_base:.3f} x baseline  "
-          f"({samples / RAY_FRAMES / 1e6:.1f} M samples/frame)")
-    print(f"projected total without rendering:      {total:8.2f} s   "
-          f"= {total / t_base:.3f} x baseline  ({100 * total / BUDGET_S:.1f} % of the 10 min budget)")
+    print(
+        f"scene: {PRESET}, {sim.num_frames} frames of {sim.view.width_px}x{sim.view.height_px}, "
+        f"{sim.stats['max_live_puffs']} puffs at most, {threads} threads"
+    )
+    print(
+        f"baseline (numpy column maps, {BASELINE_FRAMES} frames "
+        f"x {sim.num_frames // BASELINE_FRAMES}): {t_base:8.2f} s for {sim.num_frames} frames"
+    )
+    print(
+        f"simulation (incl. {sim.spin_up_s:.1f} s spin-up):      {t_sim:8.2f} s   "
+        f"= {t_sim / t_base:.3f} x baseline"
+    )
+    print(
+        f"truth maps, all frames:                 {t_maps:8.2f} s   "
+        f"= {t_maps / t_base:.3f} x baseline  ({1e3 * t_maps / sim.num_frames:.1f} ms/frame)"
+    )
+    print(
+        f"ray samples ({RAY_FRAMES} frames x {sim.num_frames // RAY_FRAMES}):"
+        f"           {t_rays:8.2f} s   = {t_rays / t_base:.3f} x baseline  "
+        f"({samples / RAY_FRAMES / 1e6:.1f} M samples/frame)"
+    )
+    print(
+        f"projected total without rendering:      {total:8.2f} s   "
+        f"= {total / t_base:.3f} x baseline  ({100 * total / BUDGET_S:.1f} % of the 10 min budget)"
+    )
 
 
 if __name__ == "__main__":

@@ -95,13 +95,19 @@ def best_of(fn, repeats=3):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--frames", type=int, default=81,
-                    help="frames per run (default 81: the cold first pair, several "
-                         "times the cost of a warm one, is amortised as in a stream)")
-    ap.add_argument("--threads", type=int, default=0,
-                    help="engine threads (default 0 = all cores)")
-    ap.add_argument("--methods", default=",".join(vel.METHODS),
-                    help="comma-separated engine methods (default all)")
+    ap.add_argument(
+        "--frames",
+        type=int,
+        default=81,
+        help="frames per run (default 81: the cold first pair, several "
+        "times the cost of a warm one, is amortised as in a stream)",
+    )
+    ap.add_argument("--threads", type=int, default=0, help="engine threads (default 0 = all cores)")
+    ap.add_argument(
+        "--methods",
+        default=",".join(vel.METHODS),
+        help="comma-separated engine methods (default all)",
+    )
     args = ap.parse_args(argv)
     methods = [m for m in args.methods.split(",") if m]
     for m in methods:
@@ -111,10 +117,14 @@ def main(argv=None):
     pairs = len(frames) - 1
     vel.set_num_threads(args.threads)
     cores = vel.get_num_threads()
-    print(f"velocimetry on {W} x {H} frames: {pairs} warm-started pairs per run, best of 3 "
-          f"runs, {cores} engine threads")
-    print("frames/s = pairs / wall time; per core = pairs / CPU time of all threads (what "
-          "one unloaded core delivers); CPU ms = CPU time of all threads per pair")
+    print(
+        f"velocimetry on {W} x {H} frames: {pairs} warm-started pairs per run, best of 3 "
+        f"runs, {cores} engine threads"
+    )
+    print(
+        "frames/s = pairs / wall time; per core = pairs / CPU time of all threads (what "
+        "one unloaded core delivers); CPU ms = CPU time of all threads per pair"
+    )
     print(f"load average (1 min) before: {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
 
     # Baselines.
@@ -135,14 +145,17 @@ def main(argv=None):
         def run():
             for k in range(pairs):
                 d.calc(f8[k], f8[k + 1], None)
+
         return run
 
     w, c = best_of(farneback)
     base_fb = pairs / w
     print(f"baseline cv2 Farneback : {base_fb:8.1f} frames/s  ({pairs / c:.1f} per core)")
     baselines = {"cv2 Farneback": (base_fb, pairs / c)}
-    for name, preset in (("cv2 DIS ultrafast", cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST),
-                         ("cv2 DIS medium", cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)):
+    for name, preset in (
+        ("cv2 DIS ultrafast", cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST),
+        ("cv2 DIS medium", cv2.DISOPTICAL_FLOW_PRESET_MEDIUM),
+    ):
         w, c = best_of(dis(preset))
         baselines[name] = (pairs / w, pairs / c)
         print(f"baseline {name:<14}: {pairs / w:8.1f} frames/s  ({pairs / c:.1f} per core)")
@@ -150,8 +163,10 @@ def main(argv=None):
     base_copy = pairs / w
     print(f"baseline frame copy    : {base_copy:8.1f} frames/s")
     print()
-    print(f"{'method':<14}{'workers':>8}{'frames/s':>10}{'per core':>10}{'CPU ms':>8}"
-          f"{'x Farneback':>13}{'x copy':>9}{'mean EPE [px]':>15}")
+    print(
+        f"{'method':<14}{'workers':>8}{'frames/s':>10}{'per core':>10}{'CPU ms':>8}"
+        f"{'x Farneback':>13}{'x copy':>9}{'mean EPE [px]':>15}"
+    )
     margin = (slice(None), slice(16, -16), slice(16, -16))
     results = {}
     cpu_ms = {}
@@ -171,29 +186,38 @@ def main(argv=None):
             results[(method, workers)] = fps
             cpu_ms[(method, workers)] = 1000 * c / pairs
             tag = "  (default)" if method == vel.DEFAULT_METHOD else ""
-            print(f"{method:<14}{workers:>8}{fps:10.1f}{pairs / c:10.1f}{1000 * c / pairs:8.2f}"
-                  f"{fps / base_fb:13.2f}{fps / base_copy:9.4f}{epe:15.3f}{tag}")
+            print(
+                f"{method:<14}{workers:>8}{fps:10.1f}{pairs / c:10.1f}{1000 * c / pairs:8.2f}"
+                f"{fps / base_fb:13.2f}{fps / base_copy:9.4f}{epe:15.3f}{tag}"
+            )
     print(f"\nload average (1 min) after: {os.getloadavg()[0]:.2f}")
     if vel.DEFAULT_METHOD not in methods:
         return
     best = max(v for (m, _), v in results.items() if m == vel.DEFAULT_METHOD)
-    best_core = max(pairs / (cpu_ms[(m, k)] * pairs / 1000) for (m, k) in cpu_ms
-                    if m == vel.DEFAULT_METHOD)
-    print(f"\nsame run, {W} x {H}: frames/s (wall, {cores} cores), per core (CPU time), and "
-          f"the default's ratio to each")
+    best_core = max(
+        pairs / (cpu_ms[(m, k)] * pairs / 1000) for (m, k) in cpu_ms if m == vel.DEFAULT_METHOD
+    )
+    print(
+        f"\nsame run, {W} x {H}: frames/s (wall, {cores} cores), per core (CPU time), and "
+        f"the default's ratio to each"
+    )
     print(f"{'method':<22}{'frames/s':>10}{'per core':>10}{'default / it':>14}")
     print(f"{vel.DEFAULT_METHOD + ' (default)':<22}{best:10.1f}{best_core:10.1f}{1.0:14.2f}")
     for name, (fps, per_core) in baselines.items():
         print(f"{name:<22}{fps:10.1f}{per_core:10.1f}{best / fps:14.2f}")
     verdict = "meets" if best >= TARGET_FPS else "MISSES"
-    print(f"\ndefault method '{vel.DEFAULT_METHOD}': {best:.1f} frames/s on this machine now, "
-          f"{verdict} the {TARGET_FPS:.0f} frames/s target ({best / base_fb:.2f} x cv2 "
-          f"Farneback timed alongside)")
+    print(
+        f"\ndefault method '{vel.DEFAULT_METHOD}': {best:.1f} frames/s on this machine now, "
+        f"{verdict} the {TARGET_FPS:.0f} frames/s target ({best / base_fb:.2f} x cv2 "
+        f"Farneback timed alongside)"
+    )
     ms = min(v for (m, _), v in cpu_ms.items() if m == vel.DEFAULT_METHOD)
     idle = cores * 1000.0 / ms
-    print(f"its CPU time: {ms:.2f} ms per frame pair, i.e. {idle:.0f} frames/s on {cores} idle "
-          f"cores ({'meets' if idle >= TARGET_FPS else 'MISSES'} the target when the machine "
-          f"is not shared)")
+    print(
+        f"its CPU time: {ms:.2f} ms per frame pair, i.e. {idle:.0f} frames/s on {cores} idle "
+        f"cores ({'meets' if idle >= TARGET_FPS else 'MISSES'} the target when the machine "
+        f"is not shared)"
+    )
 
 
 if __name__ == "__main__":

@@ -17,9 +17,9 @@ import numpy as np
 
 from qogi.camera import ChannelOptics, camera_optics
 
-T_OPTICS = 293.15   # 20 C
-T_BG = 288.15       # 15 C
-EMISSIVITY = 0.05   # interference filter: out-of-band rejection by reflection
+T_OPTICS = 293.15  # 20 C
+T_BG = 288.15  # 15 C
+EMISSIVITY = 0.05  # interference filter: out-of-band rejection by reflection
 
 
 def reflective(o: ChannelOptics) -> ChannelOptics:
@@ -29,10 +29,14 @@ def reflective(o: ChannelOptics) -> ChannelOptics:
 
 
 def main() -> None:
-    print(f"fast-m150, optics at {T_OPTICS - 273.15:.0f} C, background {T_BG - 273.15:.0f} C "
-          "(radiances in W/(m2 sr))")
-    print(f"{'channel':22s} {'filter':10s} {'L_bg':>8s} {'W_lens':>8s} {'W_filter':>9s} "
-          f"{'W/L_bg':>7s} {'T_app [K]':>10s} {'dT_app/dT_opt':>14s}")
+    print(
+        f"fast-m150, optics at {T_OPTICS - 273.15:.0f} C, background {T_BG - 273.15:.0f} C "
+        "(radiances in W/(m2 sr))"
+    )
+    print(
+        f"{'channel':22s} {'filter':10s} {'L_bg':>8s} {'W_lens':>8s} {'W_filter':>9s} "
+        f"{'W/L_bg':>7s} {'T_app [K]':>10s} {'dT_app/dT_opt':>14s}"
+    )
     for o in camera_optics("fast-m150"):
         for label, opt in (("absorbing", o), (f"eps={EMISSIVITY}", reflective(o))):
             if label != "absorbing" and np.all(o.filter_transmittance == 1.0):
@@ -42,11 +46,14 @@ def main() -> None:
             w_l, w_f = opt.lens_term(T_OPTICS), opt.filter_term(T_OPTICS)
             w = w_l + w_f
             t_app = r.radiometric_temperature(l_bg + w)
-            drift = (opt.warm_radiance_derivative_lens(T_OPTICS)
-                     + opt.warm_radiance_derivative_filter(T_OPTICS)) \
-                / r.band_radiance_derivative(t_app)
-            print(f"{o.name:22s} {label:10s} {l_bg:8.4f} {w_l:8.4f} {w_f:9.4f} "
-                  f"{w / l_bg:7.3f} {t_app:10.2f} {drift:14.2f}")
+            drift = (
+                opt.warm_radiance_derivative_lens(T_OPTICS)
+                + opt.warm_radiance_derivative_filter(T_OPTICS)
+            ) / r.band_radiance_derivative(t_app)
+            print(
+                f"{o.name:22s} {label:10s} {l_bg:8.4f} {w_l:8.4f} {w_f:9.4f} "
+                f"{w / l_bg:7.3f} {t_app:10.2f} {drift:14.2f}"
+            )
 
 
 if __name__ == "__main__":

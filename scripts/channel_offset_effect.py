@@ -34,16 +34,26 @@ def main() -> None:
     args = ap.parse_args()
     d = tempfile.mkdtemp(prefix="qogi-offset-")
     fast = os.path.join(d, "fast.h5")
-    render.synthesize("lab-heated-ch4-55c-gf320", fast, duration_s=args.duration, seed=args.seed,
-                      camera_name="fast-m150", frame_rate_hz=400.0, truth_maps=True)
+    render.synthesize(
+        "lab-heated-ch4-55c-gf320",
+        fast,
+        duration_s=args.duration,
+        seed=args.seed,
+        camera_name="fast-m150",
+        frame_rate_hz=400.0,
+        truth_maps=True,
+    )
     with qogi.open_recording(fast) as rec:
         L = rec.to_array()
         n = rec.n_frames // 4
         t = rec.time_s
         surfs, source = truth_surfaces(rec, heights_m=[0.04, 0.08, 0.12], half_width_px=50)
-        cam = qogi.Camera(rec.camera.name, rec.camera.ifov_rad, rec.channels, None, rec.camera.netd_K)
-        sim = qogi.Recording.from_arrays(L[2:4 * n:4], t[2:4 * n:4], quantity="radiance",
-                                         camera=cam, scene=rec.scene)
+        cam = qogi.Camera(
+            rec.camera.name, rec.camera.ifov_rad, rec.channels, None, rec.camera.netd_K
+        )
+        sim = qogi.Recording.from_arrays(
+            L[2 : 4 * n : 4], t[2 : 4 * n : 4], quantity="radiance", camera=cam, scene=rec.scene
+        )
         frames, times, pos = [], [], []
         for i in range(n):
             for k in range(4):
@@ -53,23 +63,39 @@ def main() -> None:
         hcc = os.path.join(d, "wheel.hcc")
         write_hcc(hcc, frames, times, fw_positions=pos, calibration_mode=3, frame_rate_hz=400.0)
         scene = rec.scene
-    wheel = qogi.open_recording(hcc, camera="fast-m150", distance_m=scene.distance_m,
-                                ambient_temperature_K=scene.ambient_temperature_K)
-    cfg = QuantifyConfig(species=["CH4"], gas_temperature="infer", velocity="exit",
-                         exit_velocity_m_s=1.0, source=source)
+    wheel = qogi.open_recording(
+        hcc,
+        camera="fast-m150",
+        distance_m=scene.distance_m,
+        ambient_temperature_K=scene.ambient_temperature_K,
+    )
+    cfg = QuantifyConfig(
+        species=["CH4"],
+        gas_temperature="infer",
+        velocity="exit",
+        exit_velocity_m_s=1.0,
+        source=source,
+    )
     out, infos = {}, {}
     for name, r in (("simultaneous", sim), ("wheel", wheel)):
         res = quantify(r, surfs, cfg)
         out[name] = np.array([s.species["CH4"].mean_kg_h for s in res.surfaces])
-        infos[name] = {k: v for k, v in res.info.items()
-                       if "temperature" in k or "mixing" in k}
+        infos[name] = {k: v for k, v in res.info.items() if "temperature" in k or "mixing" in k}
         infos[name]["pixels"] = res.pixel_status
-    print("turns:", n, "channel offsets [ms]:", np.round(wheel.attrs["channel_time_offset_s"] * 1e3, 3))
+    print(
+        "turns:",
+        n,
+        "channel offsets [ms]:",
+        np.round(wheel.attrs["channel_time_offset_s"] * 1e3, 3),
+    )
     for name, v in out.items():
         print(f"{name:>12}: " + "  ".join(f"{x:.5g}" for x in v) + " kg/h (4, 8, 12 cm)")
     for name, v in infos.items():
         print(f"{name:>12}: {v}")
-    print("wheel / simultaneous - 1: " + "  ".join(f"{x:+.2%}" for x in out["wheel"] / out["simultaneous"] - 1))
+    print(
+        "wheel / simultaneous - 1: "
+        + "  ".join(f"{x:+.2%}" for x in out["wheel"] / out["simultaneous"] - 1)
+    )
 
 
 if __name__ == "__main__":

@@ -18,7 +18,6 @@ test: it runs the pipeline on every scene of the sweep)
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
 import sys
@@ -28,14 +27,19 @@ import numpy as np
 
 import qogi
 from qogi import render, synth
-from qogi.detection import CONFIDENCE, DETECTION_SIGMA, detection_limit_kg_s, \
-    noise_equivalent_column, zeng_morris_g_h
+from qogi.detection import (
+    CONFIDENCE,
+    DETECTION_SIGMA,
+    detection_limit_kg_s,
+    noise_equivalent_column,
+    zeng_morris_g_h,
+)
 from qogi.forward import forward_model
 from qogi.pipeline import QuantifyConfig, quantify
 from qogi.surfaces import Surface
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests", "python"))
-from test_reporting import _band_recording  # noqa: E402  (the test's exact-truth scene)
+from test_reporting import _band_recording
 
 AMBIENT_K = 293.15
 DISTANCES_M = (1.5, 3.0, 5.0, 10.0, 20.0)
@@ -53,8 +57,15 @@ def preset_plumes(folder):
     row = ey - 0.04 / pix
     s = Surface([(ex - 45, row), (ex + 45, row)], name="4 cm")
     r = quantify(rec, [s], QuantifyConfig(species=["CH4"], source=(ex, ey))).total("CH4")
-    out.append(("lab 5 SLPM, 4 cm above the exit", r.detection["velocity_m_s"],
-                r.detection["width_m"], r.detection_limit_kg_h, rec))
+    out.append(
+        (
+            "lab 5 SLPM, 4 cm above the exit",
+            r.detection["velocity_m_s"],
+            r.detection["width_m"],
+            r.detection_limit_kg_h,
+            rec,
+        )
+    )
     name = "stack-20kgh-wind6-gf320"
     p = os.path.join(folder, "stack.h5")
     render.synthesize(name, p, duration_s=2.0, seed=4)
@@ -65,8 +76,15 @@ def preset_plumes(folder):
     ey = 0.5 * (view.height_px - 1) - (rel.stack_height_m - view.center_z_m) / fp
     s = Surface([(ex + 50, ey - 45), (ex + 50, ey + 45)], name="50 px")
     r = quantify(rec, [s], QuantifyConfig(species=["CH4"], source=(ex, ey))).total("CH4")
-    out.append(("stack 20 kg/h in 6 m/s wind, 0.65 m downwind", r.detection["velocity_m_s"],
-                r.detection["width_m"], r.detection_limit_kg_h, rec))
+    out.append(
+        (
+            "stack 20 kg/h in 6 m/s wind, 0.65 m downwind",
+            r.detection["velocity_m_s"],
+            r.detection["width_m"],
+            r.detection_limit_kg_h,
+            rec,
+        )
+    )
     return out
 
 
@@ -115,9 +133,13 @@ def main():
                 zm = float(zeng_morris_g_h(dT, d))
                 cells.append(f"{q:.3g} / {zm:.3g}")
             print(f"| {dT:g} | " + " | ".join(cells) + " |")
-    print("\n## The model against the pipeline (band scenes: a Gaussian band, sigma 4 px, at 1 m/s)\n")
-    print("| d [m] | dT [K] | lowest rate detected in >= 95 % of frames [g/h] | "
-          "limit stated [g/h] | ratio |")
+    print(
+        "\n## The model against the pipeline (band scenes: a Gaussian band, sigma 4 px, at 1 m/s)\n"
+    )
+    print(
+        "| d [m] | dT [K] | lowest rate detected in >= 95 % of frames [g/h] | "
+        "limit stated [g/h] | ratio |"
+    )
     print("|---|---|---|---|---|")
     for d, dT in ((2.0, 5.0), (2.0, 15.0), (10.0, 5.0), (10.0, 15.0)):
         seen, lim = band_check(d, dT)

@@ -16,6 +16,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests" / "python"))
 
 import flux_cases as fc  # noqa: E402
+
 from qogi import velocimetry as vel  # noqa: E402
 from qogi.pipeline.flux import _surface_flux  # noqa: E402
 
@@ -31,23 +32,34 @@ def main() -> None:
         out[f"td_{name}"] = vel.typical_displacement(frames, axis)
         for level_name, level in (("slow", 1.6), ("backwards", -3.0)):
             fu, fv = fc.frame_velocities(seed, frames.shape, axis, level)
-            u, v, scale = vel.calibrate_flux_level(None, frames, axis, src,
-                                                   frame_velocities=(fu, fv))
+            u, v, scale = vel.calibrate_flux_level(
+                None, frames, axis, src, frame_velocities=(fu, fv)
+            )
             out[f"cal_{name}_{level_name}_u"] = fc.digest(u)
             out[f"cal_{name}_{level_name}_v"] = fc.digest(v)
             out[f"cal_{name}_{level_name}_scale"] = scale
     # A flow sequence and a given transport of a sub-stretch, smoothing off.
     frames = fc.puffing_plume(7)
     fu, fv = fc.frame_velocities(7, frames.shape, "up", 1.8)
-    seq = vel.FlowSequence(fu[1:], fv[1:], np.ones_like(fu[1:]), np.ones(fu[1:].shape, bool),
-                           np.zeros(fu.shape[0] - 1), "exact")
+    seq = vel.FlowSequence(
+        fu[1:],
+        fv[1:],
+        np.ones_like(fu[1:]),
+        np.ones(fu[1:].shape, bool),
+        np.zeros(fu.shape[0] - 1),
+        "exact",
+    )
     u, v, scale = vel.calibrate_flux_level(seq, frames, "up", None, smooth_px=0.0)
     out["cal_seq_u"], out["cal_seq_v"], out["cal_seq_scale"] = fc.digest(u), fc.digest(v), scale
     full = vel.transport_flux(frames, "up")
     part = full.lines(slice(20, 64), scale=1.3)
-    u, v, scale = vel.calibrate_flux_level(None, frames[:, 20:], "up", transport=part,
-                                           frame_velocities=(fu[:, 20:].copy(),
-                                                             fv[:, 20:].copy()))
+    u, v, scale = vel.calibrate_flux_level(
+        None,
+        frames[:, 20:],
+        "up",
+        transport=part,
+        frame_velocities=(fu[:, 20:].copy(), fv[:, 20:].copy()),
+    )
     out["cal_part_u"], out["cal_part_v"], out["cal_part_scale"] = fc.digest(u), fc.digest(v), scale
     for seed in (1, 2):
         c, sig, vn, dl = fc.surface_case(seed)
@@ -56,8 +68,10 @@ def main() -> None:
         out[f"sf_{seed}_pixels"] = sf.pixels
         out[f"sf_{seed}_column_variance"] = sf.column_variance
     np.savez_compressed(ROOT / "tests" / "data" / "flux_reference.npz", **out)
-    print(f"{len(out)} arrays; " + ", ".join(f"{k}={float(np.nansum(v)):.6g}"
-                                             for k, v in out.items() if k.startswith("td_")))
+    print(
+        f"{len(out)} arrays; "
+        + ", ".join(f"{k}={float(np.nansum(v)):.6g}" for k, v in out.items() if k.startswith("td_"))
+    )
 
 
 if __name__ == "__main__":

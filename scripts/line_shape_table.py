@@ -36,8 +36,10 @@ def retrieved_column(model, channel, contrast, t_peak, sigma):
     """The column the model retrieves from a contrast at known temperature
     and depth (monotone lookup over the peak fraction)."""
     x = np.geomspace(1e-6, 1.0, 400)
-    c = model.band_radiance({"CH4": x}, t_peak, sigma, T_AMB, T_BG)[:, channel] \
+    c = (
+        model.band_radiance({"CH4": x}, t_peak, sigma, T_AMB, T_BG)[:, channel]
         - model.background_radiance(T_BG)[channel]
+    )
     col = model.column_density({"CH4": x}, t_peak, sigma, T_AMB)["CH4"]
     keep = np.concatenate([[True], np.diff(c) > 0])
     return float(np.interp(contrast, c[keep], col[keep]))
@@ -47,19 +49,25 @@ def main() -> int:
     cam = qogi.camera_preset("gf320")
     models = {r: forward_model(cam.channels, ["CH4"], line_shape=r) for r in RULES}
     default = models[RULES[0]]
-    print("GF320 (3.2-3.4 um), plate 285 K, ambient 295 K. Per rule: band contrast / default's "
-          "contrast; column the default retrieves from that rule's contrast / true column.\n")
+    print(
+        "GF320 (3.2-3.4 um), plate 285 K, ambient 295 K. Per rule: band contrast / default's "
+        "contrast; column the default retrieves from that rule's contrast / true column.\n"
+    )
     print("| plume | " + " | ".join(RULES) + " |")
     print("|---|" + "---|" * len(RULES))
     for label, x, sigma, tp in PLUMES:
         truth = default.column_density({"CH4": x}, tp, sigma, T_AMB)["CH4"]
-        base = float(default.band_radiance({"CH4": x}, tp, sigma, T_AMB, T_BG)[0]
-                     - default.background_radiance(T_BG)[0])
+        base = float(
+            default.band_radiance({"CH4": x}, tp, sigma, T_AMB, T_BG)[0]
+            - default.background_radiance(T_BG)[0]
+        )
         cells = []
         for r in RULES:
             m = models[r]
-            c = float(m.band_radiance({"CH4": x}, tp, sigma, T_AMB, T_BG)[0]
-                      - m.background_radiance(T_BG)[0])
+            c = float(
+                m.band_radiance({"CH4": x}, tp, sigma, T_AMB, T_BG)[0]
+                - m.background_radiance(T_BG)[0]
+            )
             col = retrieved_column(default, 0, c, tp, sigma)
             cells.append(f"{c / base:.3f} / {col / truth:.3f}")
         print(f"| {label} | " + " | ".join(cells) + " |")

@@ -52,9 +52,12 @@ STEP = 0.01
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--line-lists", type=pathlib.Path,
-                    default=REPO / "python" / "qogi" / "data" / "hitran",
-                    help="folder of NAME.par.gz (default: the ones qogi ships)")
+    ap.add_argument(
+        "--line-lists",
+        type=pathlib.Path,
+        default=REPO / "python" / "qogi" / "data" / "hitran",
+        help="folder of NAME.par.gz (default: the ones qogi ships)",
+    )
     args = ap.parse_args()
     with contextlib.redirect_stdout(io.StringIO()):
         import hapi
@@ -62,11 +65,18 @@ def main() -> None:
         raise SystemExit(f"expected HAPI 1.3.0.0, found {hapi.HAPI_VERSION}")
     src = args.line_lists
     arrays: dict[str, np.ndarray] = {}
-    meta = {"hapi_version": hapi.HAPI_VERSION, "function": "absorptionCoefficient_Voigt",
-            "Diluent": {"air": 1.0}, "HITRAN_units": True, "pressure_atm": 1.0,
-            "WavenumberStep": STEP, "defaults": "WavenumberWingHW=50, LineShift=True, "
-            "partitionFunction=PYTIPS (TIPS-2025), IntensityThreshold=0",
-            "cases": [], "line_files": {}}
+    meta = {
+        "hapi_version": hapi.HAPI_VERSION,
+        "function": "absorptionCoefficient_Voigt",
+        "Diluent": {"air": 1.0},
+        "HITRAN_units": True,
+        "pressure_atm": 1.0,
+        "WavenumberStep": STEP,
+        "defaults": "WavenumberWingHW=50, LineShift=True, "
+        "partitionFunction=PYTIPS (TIPS-2025), IntensityThreshold=0",
+        "cases": [],
+        "line_files": {},
+    }
     with tempfile.TemporaryDirectory() as tmp:
         for name in sorted({c[1] for c in CASES}):
             records = gzip.decompress((src / (name + ".gz")).read_bytes())
@@ -79,16 +89,29 @@ def main() -> None:
             t0 = time.perf_counter()
             with contextlib.redirect_stdout(io.StringIO()):
                 nu, sigma = hapi.absorptionCoefficient_Voigt(
-                    SourceTables=table, WavenumberRange=(lo, hi), WavenumberStep=STEP,
-                    Environment={"T": temp, "p": 1.0}, Diluent={"air": 1.0},
-                    HITRAN_units=True)
+                    SourceTables=table,
+                    WavenumberRange=(lo, hi),
+                    WavenumberStep=STEP,
+                    Environment={"T": temp, "p": 1.0},
+                    Diluent={"air": 1.0},
+                    HITRAN_units=True,
+                )
             dt = time.perf_counter() - t0
             key = f"{species}_{int(lo)}_{int(hi)}_{int(temp)}K"
             arrays[key] = np.asarray(sigma, dtype=np.float32)
-            meta["cases"].append({"key": key, "species": species, "line_file": fname,
-                                  "nu0_cm1": float(nu[0]), "step_cm1": STEP,
-                                  "size": int(len(nu)), "nu_last_cm1": float(nu[-1]),
-                                  "temperature_K": temp, "hapi_seconds": round(dt, 2)})
+            meta["cases"].append(
+                {
+                    "key": key,
+                    "species": species,
+                    "line_file": fname,
+                    "nu0_cm1": float(nu[0]),
+                    "step_cm1": STEP,
+                    "size": int(len(nu)),
+                    "nu_last_cm1": float(nu[-1]),
+                    "temperature_K": temp,
+                    "hapi_seconds": round(dt, 2),
+                }
+            )
             print(f"{key}: {len(nu)} points, {dt:.1f} s")
     np.savez_compressed(OUT, meta=np.array(json.dumps(meta)), **arrays)
     print(f"wrote {OUT} ({OUT.stat().st_size / 1e3:.0f} kB)")

@@ -61,17 +61,23 @@ def main() -> None:
 
     keys = sorted(k for k in iso if k[0] in MOLECULES)
     with open(OUT / "isotopologues.csv", "w") as fh:
-        fh.write("# HITRAN isotopologues: natural abundance and molar mass "
-                 "(HITRAN, via HAPI 1.3.0.0's ISO table)\n")
+        fh.write(
+            "# HITRAN isotopologues: natural abundance and molar mass "
+            "(HITRAN, via HAPI 1.3.0.0's ISO table)\n"
+        )
         fh.write("molecule_id,local_id,global_id,formula,abundance,molar_mass_g_mol\n")
         for m, i in keys:
             row = iso[(m, i)]
-            fh.write(f"{m},{i},{row[idx['id']]},{row[idx['iso_name']]},"
-                     f"{float(row[idx['abundance']])!r},{float(row[idx['mass']])!r}\n")
+            fh.write(
+                f"{m},{i},{row[idx['id']]},{row[idx['iso_name']]},"
+                f"{float(row[idx['abundance']])!r},{float(row[idx['mass']])!r}\n"
+            )
 
     with open(OUT / "tips_2025.csv", "w") as fh:
-        fh.write("# Total internal partition sums Q(T), TIPS-2025 (Gamache et al., "
-                 "JQSRT 345 (2025) 109568), as shipped in HAPI 1.3.0.0\n")
+        fh.write(
+            "# Total internal partition sums Q(T), TIPS-2025 (Gamache et al., "
+            "JQSRT 345 (2025) 109568), as shipped in HAPI 1.3.0.0\n"
+        )
         fh.write("molecule_id,local_id,temperature_K,q\n")
         for m, i in keys:
             temps = hapi.TIPS_2025_ISOT_HASH[(m, i)]

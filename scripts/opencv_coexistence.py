@@ -23,18 +23,20 @@ import numpy as np
 def main(order: str) -> None:
     if order == "cv2-first":
         import cv2
+
         import qogi
     else:
-        import qogi
         import cv2
+
+        import qogi
     rng = np.random.default_rng(7)
     h, w = 96, 128
     noise = rng.standard_normal((h + 8, w + 8)).astype(np.float32)
     tex = cv2.GaussianBlur(noise, (0, 0), 2.0)
     shift = (1.25, -0.75)  # (dx, dy) px
     m = np.float32([[1, 0, shift[0]], [0, 1, shift[1]]])
-    prev = tex[4:4 + h, 4:4 + w].copy()
-    moved = cv2.warpAffine(tex, m, (w + 8, h + 8), flags=cv2.INTER_CUBIC)[4:4 + h, 4:4 + w]
+    prev = tex[4 : 4 + h, 4 : 4 + w].copy()
+    moved = cv2.warpAffine(tex, m, (w + 8, h + 8), flags=cv2.INTER_CUBIC)[4 : 4 + h, 4 : 4 + w]
     inner = (slice(16, -16), slice(16, -16))
 
     u8 = lambda a: np.clip((a - tex.min()) / (tex.max() - tex.min()) * 255, 0, 255).astype(np.uint8)
@@ -44,9 +46,11 @@ def main(order: str) -> None:
     f = qogi.optical_flow(prev - prev.min() + 1.0, moved - prev.min() + 1.0, method="horn_schunck")
     q_shift = (float(np.median(np.asarray(f.u)[inner])), float(np.median(np.asarray(f.v)[inner])))
 
-    print(f"opencv_coexistence ({order}): cv2 {cv2.__version__} Farneback "
-          f"({cv_shift[0]:.3f}, {cv_shift[1]:.3f}) px, qogi horn_schunck "
-          f"({q_shift[0]:.3f}, {q_shift[1]:.3f}) px, truth {shift}")
+    print(
+        f"opencv_coexistence ({order}): cv2 {cv2.__version__} Farneback "
+        f"({cv_shift[0]:.3f}, {cv_shift[1]:.3f}) px, qogi horn_schunck "
+        f"({q_shift[0]:.3f}, {q_shift[1]:.3f}) px, truth {shift}"
+    )
     for name, got in (("cv2", cv_shift), ("qogi", q_shift)):
         err = np.hypot(got[0] - shift[0], got[1] - shift[1])
         if not err < 0.15:

@@ -51,28 +51,72 @@ from qogi.pipeline import QuantifyConfig, quantify
 from qogi.surfaces import Surface, truth_surfaces
 
 CASES = {
-    "m150": dict(preset="lab-ch4co2-90c-m150", camera=None, duration_s=2.0,
-                 gas_temperature="infer", composition={"CH4": 0.5, "CO2": 0.5}),
-    "gf320": dict(preset="lab-ch4-5slpm-gf320", camera=None, duration_s=10.0,
-                  gas_temperature="ambient", composition=None),
-    "heated-1ch": dict(preset="lab-heated-ch4-55c-gf320", camera=None, duration_s=10.0,
-                       gas_temperature="ambient", composition=None),
-    "heated-4ch": dict(preset="lab-heated-ch4-55c-gf320", camera="fast-m150", duration_s=2.0,
-                       gas_temperature="infer", composition=None),
-    "wind": dict(preset="stack-20kgh-wind6-gf320", camera=None, duration_s=10.0,
-                 gas_temperature="ambient", composition=None),
-    "sky": dict(preset="stack-10kgh-wind4-sky-gf320", camera=None, duration_s=10.0,
-                gas_temperature="ambient", composition=None),
-    "cross-rule": dict(preset="lab-ch4-5slpm-gf320", camera=None, duration_s=10.0,
-                       gas_temperature="ambient", composition=None, render_line_shape="hapi+air"),
-    "heated-1ch-exit": dict(preset="lab-heated-ch4-55c-gf320", camera=None, duration_s=10.0,
-                            gas_temperature="ambient", composition=None, recording="heated-1ch",
-                            exit_temperature_K=328.15),
+    "m150": dict(
+        preset="lab-ch4co2-90c-m150",
+        camera=None,
+        duration_s=2.0,
+        gas_temperature="infer",
+        composition={"CH4": 0.5, "CO2": 0.5},
+    ),
+    "gf320": dict(
+        preset="lab-ch4-5slpm-gf320",
+        camera=None,
+        duration_s=10.0,
+        gas_temperature="ambient",
+        composition=None,
+    ),
+    "heated-1ch": dict(
+        preset="lab-heated-ch4-55c-gf320",
+        camera=None,
+        duration_s=10.0,
+        gas_temperature="ambient",
+        composition=None,
+    ),
+    "heated-4ch": dict(
+        preset="lab-heated-ch4-55c-gf320",
+        camera="fast-m150",
+        duration_s=2.0,
+        gas_temperature="infer",
+        composition=None,
+    ),
+    "wind": dict(
+        preset="stack-20kgh-wind6-gf320",
+        camera=None,
+        duration_s=10.0,
+        gas_temperature="ambient",
+        composition=None,
+    ),
+    "sky": dict(
+        preset="stack-10kgh-wind4-sky-gf320",
+        camera=None,
+        duration_s=10.0,
+        gas_temperature="ambient",
+        composition=None,
+    ),
+    "cross-rule": dict(
+        preset="lab-ch4-5slpm-gf320",
+        camera=None,
+        duration_s=10.0,
+        gas_temperature="ambient",
+        composition=None,
+        render_line_shape="hapi+air",
+    ),
+    "heated-1ch-exit": dict(
+        preset="lab-heated-ch4-55c-gf320",
+        camera=None,
+        duration_s=10.0,
+        gas_temperature="ambient",
+        composition=None,
+        recording="heated-1ch",
+        exit_temperature_K=328.15,
+    ),
 }
 #: Downwind distances [px] of the vertical surfaces of the crosswind cases.
-WIND_DISTANCES_PX = {"wind": (50, 100, 150),
-                     # 0.5, 1.0, 1.5 m at 1.309 cm per pixel
-                     "sky": (38, 76, 115)}
+WIND_DISTANCES_PX = {
+    "wind": (50, 100, 150),
+    # 0.5, 1.0, 1.5 m at 1.309 cm per pixel
+    "sky": (38, 76, 115),
+}
 MAX_HEIGHT_M = 0.125
 
 
@@ -87,8 +131,14 @@ def ensure_recording(cache: Path, case: str, seed: int) -> Path:
         c = CASES[case]
         tmp = path.with_suffix(".part.h5")
         t = time.perf_counter()
-        render.synthesize(c["preset"], tmp, duration_s=c["duration_s"], seed=seed,
-                          camera_name=c["camera"], line_shape=c.get("render_line_shape"))
+        render.synthesize(
+            c["preset"],
+            tmp,
+            duration_s=c["duration_s"],
+            seed=seed,
+            camera_name=c["camera"],
+            line_shape=c.get("render_line_shape"),
+        )
         os.replace(tmp, path)
         print(f"  rendered {path.name} in {time.perf_counter() - t:.0f} s", flush=True)
     return path
@@ -100,15 +150,19 @@ def surfaces_for(rec, case: str):
     preset's geometry), 90 px tall."""
     if case in WIND_DISTANCES_PX:
         from qogi import synth
+
         name = CASES[case]["preset"]
         view, rel = synth.preset_view(name), synth.preset_release(name)
         fp = view.distance_m * view.ifov_rad
         ex = 0.5 * (view.width_px - 1) + (rel.exit_x_m - view.center_x_m) / fp
         ey = 0.5 * (view.height_px - 1) - (rel.stack_height_m - view.center_z_m) / fp
-        return [Surface([(ex + d, ey - 45), (ex + d, ey + 45)], name=f"{d} px")
-                for d in WIND_DISTANCES_PX[case]], (ex, ey)
-    return truth_surfaces(rec, max_height_m=MAX_HEIGHT_M,
-                          half_width_px=50 if rec.height == 256 else 40)
+        return [
+            Surface([(ex + d, ey - 45), (ex + d, ey + 45)], name=f"{d} px")
+            for d in WIND_DISTANCES_PX[case]
+        ], (ex, ey)
+    return truth_surfaces(
+        rec, max_height_m=MAX_HEIGHT_M, half_width_px=50 if rec.height == 256 else 40
+    )
 
 
 def run_case(cache: Path, case: str, seed: int) -> dict:
@@ -118,33 +172,53 @@ def run_case(cache: Path, case: str, seed: int) -> dict:
     c = CASES[case]
     rec = qogi.open_recording(ensure_recording(cache, case, seed))
     surfaces, source = surfaces_for(rec, case)
-    cfg = QuantifyConfig(species=list(rec.scene.species), gas_temperature=c["gas_temperature"],
-                         composition=c["composition"], source=source,
-                         exit_temperature_K=c.get("exit_temperature_K"))
+    cfg = QuantifyConfig(
+        species=list(rec.scene.species),
+        gas_temperature=c["gas_temperature"],
+        composition=c["composition"],
+        source=source,
+        exit_temperature_K=c.get("exit_temperature_K"),
+    )
     t = time.perf_counter()
     res = quantify(rec, surfaces, cfg)
     seconds = time.perf_counter() - t
     rows = []
     for s in res.surfaces:
         r = s.species["CH4"]
-        rows.append(dict(surface=s.surface.name, mean_kg_h=r.mean_kg_h, ci90_kg_h=list(r.ci90_kg_h),
-                         truth_kg_h=r.truth_kg_h, error=r.error_vs_truth,
-                         covered=bool(r.ci90_kg_h[0] <= r.truth_kg_h <= r.ci90_kg_h[1]),
-                         dominant=r.dominant_uncertainty, terms=r.uncertainty_terms_kg_h))
+        rows.append(
+            dict(
+                surface=s.surface.name,
+                mean_kg_h=r.mean_kg_h,
+                ci90_kg_h=list(r.ci90_kg_h),
+                truth_kg_h=r.truth_kg_h,
+                error=r.error_vs_truth,
+                covered=bool(r.ci90_kg_h[0] <= r.truth_kg_h <= r.ci90_kg_h[1]),
+                dominant=r.dominant_uncertainty,
+                terms=r.uncertainty_terms_kg_h,
+            )
+        )
     info = {k: v for k, v in res.info.items() if isinstance(v, (int, float))}
     for k in ("record_length", "gas_temperature_check"):
         if k in res.info:
             info[k] = res.info[k]
     if res.info.get("background_choice"):
         info["background"] = res.info["background_choice"]["method"]
-    d = dict(case=case, seed=seed, seconds=seconds, frames=rec.n_frames, surfaces=rows, info=info,
-             warnings=[w.to_dict() for w in res.warnings])
+    d = dict(
+        case=case,
+        seed=seed,
+        seconds=seconds,
+        frames=rec.n_frames,
+        surfaces=rows,
+        info=info,
+        warnings=[w.to_dict() for w in res.warnings],
+    )
     out_json.write_text(json.dumps(d, indent=1))
     return d
 
 
 def report(cache: Path, cases, seeds: int, img_dir: Path | None) -> None:
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
@@ -154,31 +228,47 @@ def report(cache: Path, cases, seeds: int, img_dir: Path | None) -> None:
         if not runs:
             continue
         names = [s["surface"] for s in runs[0]["surfaces"]]
-        print(f"\n{case}: {len(runs)} seeds, {CASES[case]['preset']}"
-              f"{' via ' + CASES[case]['camera'] if CASES[case]['camera'] else ''}, "
-              f"gas temperature {CASES[case]['gas_temperature']}")
-        print("| surface | mean error | seeds' range | 90 % interval covers truth | dominant term |")
+        print(
+            f"\n{case}: {len(runs)} seeds, {CASES[case]['preset']}"
+            f"{' via ' + CASES[case]['camera'] if CASES[case]['camera'] else ''}, "
+            f"gas temperature {CASES[case]['gas_temperature']}"
+        )
+        print(
+            "| surface | mean error | seeds' range | 90 % interval covers truth | dominant term |"
+        )
         print("|---|---|---|---|---|")
         errs_all = []
         for i, name in enumerate(names):
             e = np.array([r["surfaces"][i]["error"] for r in runs if len(r["surfaces"]) > i])
             cov = sum(r["surfaces"][i]["covered"] for r in runs if len(r["surfaces"]) > i)
-            dom = max({r["surfaces"][i]["dominant"] for r in runs},
-                      key=[r["surfaces"][i]["dominant"] for r in runs].count)
+            dom = max(
+                {r["surfaces"][i]["dominant"] for r in runs},
+                key=[r["surfaces"][i]["dominant"] for r in runs].count,
+            )
             errs_all.append(e)
-            print(f"| {name} | {100 * e.mean():+.1f} % | "
-                  f"{100 * e.min():+.1f} .. {100 * e.max():+.1f} % | {cov}/{len(e)} | {dom} |")
+            print(
+                f"| {name} | {100 * e.mean():+.1f} % | "
+                f"{100 * e.min():+.1f} .. {100 * e.max():+.1f} % | {cov}/{len(e)} | {dom} |"
+            )
         codes: dict = {}
         for r in runs:
             for code in sorted({w["code"] for w in r.get("warnings", [])}):
                 codes[code] = codes.get(code, 0) + 1
         if codes:
-            print("warnings (seeds): " + ", ".join(f"{k} {v}/{len(runs)}" for k, v in codes.items()))
-        ls = [s["terms"].get("line shape", 0.0) / s["mean_kg_h"] for r in runs for s in r["surfaces"]
-              if s["mean_kg_h"]]
+            print(
+                "warnings (seeds): " + ", ".join(f"{k} {v}/{len(runs)}" for k, v in codes.items())
+            )
+        ls = [
+            s["terms"].get("line shape", 0.0) / s["mean_kg_h"]
+            for r in runs
+            for s in r["surfaces"]
+            if s["mean_kg_h"]
+        ]
         if ls:
-            print(f"line-shape term: {100 * np.median(ls):.1f} % of the rate (median; "
-                  f"{100 * min(ls):.1f} .. {100 * max(ls):.1f} %)")
+            print(
+                f"line-shape term: {100 * np.median(ls):.1f} % of the rate (median; "
+                f"{100 * min(ls):.1f} .. {100 * max(ls):.1f} %)"
+            )
         secs = np.mean([r["seconds"] for r in runs])
         print(f"quantify: {secs:.0f} s per run of {runs[0]['frames']} frames (mean)")
         if img_dir is not None:
@@ -189,9 +279,15 @@ def report(cache: Path, cases, seeds: int, img_dir: Path | None) -> None:
                     lo, hi = s["ci90_kg_h"]
                     t = s["truth_kg_h"]
                     x = i + 0.06 * (r["seed"] - seeds / 2)
-                    ax.errorbar(x, s["mean_kg_h"] / t, yerr=[[(s["mean_kg_h"] - lo) / t],
-                                                             [(hi - s["mean_kg_h"]) / t]],
-                                fmt="o", ms=3, color="C0" if s["covered"] else "C3", lw=0.8)
+                    ax.errorbar(
+                        x,
+                        s["mean_kg_h"] / t,
+                        yerr=[[(s["mean_kg_h"] - lo) / t], [(hi - s["mean_kg_h"]) / t]],
+                        fmt="o",
+                        ms=3,
+                        color="C0" if s["covered"] else "C3",
+                        lw=0.8,
+                    )
             ax.axhline(1.0, color="k", lw=1)
             ax.set_xticks(range(len(names)), names)
             ax.set_ylabel("estimate / truth (90 % interval)")
@@ -205,8 +301,13 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=10)
     ap.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES))
-    ap.add_argument("--cache", type=Path, default=Path(os.environ.get(
-        "QOGI_VALIDATION_CACHE", Path.home() / ".cache" / "qogi" / "validation")))
+    ap.add_argument(
+        "--cache",
+        type=Path,
+        default=Path(
+            os.environ.get("QOGI_VALIDATION_CACHE", Path.home() / ".cache" / "qogi" / "validation")
+        ),
+    )
     ap.add_argument("--render-only", action="store_true", help="only render the recordings")
     ap.add_argument("--report", action="store_true", help="tables and plots from the cache")
     ap.add_argument("--images", type=Path, default=None, help="write plots into this folder")
@@ -226,9 +327,14 @@ def main(argv=None) -> int:
                 if p.exists():
                     p.unlink()
             d = run_case(a.cache, case, seed)
-            print(f"{case} seed {seed}: " + ", ".join(
-                f"{s['surface']} {100 * s['error']:+.1f} %{'' if s['covered'] else ' (miss)'}"
-                for s in d["surfaces"]), flush=True)
+            print(
+                f"{case} seed {seed}: "
+                + ", ".join(
+                    f"{s['surface']} {100 * s['error']:+.1f} %{'' if s['covered'] else ' (miss)'}"
+                    for s in d["surfaces"]
+                ),
+                flush=True,
+            )
     report(a.cache, a.cases, a.seeds, a.images)
     return 0
 

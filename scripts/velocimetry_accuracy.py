@@ -57,8 +57,7 @@ def jacobian(w, x, y, h=1e-4):
 
 def noisy(a, b, level, scale, seed):
     rng = np.random.default_rng(seed)
-    return (a + rng.normal(0, level * scale, a.shape),
-            b + rng.normal(0, level * scale, b.shape))
+    return (a + rng.normal(0, level * scale, a.shape), b + rng.normal(0, level * scale, b.shape))
 
 
 def texture_scene(w, H=160, W=192):
@@ -80,7 +79,7 @@ def density_scene(w, H=160, W=192, contrast=0.2):
     cx, cy = W / 2, H / 2
 
     def rho(xx, yy):
-        env = np.exp(-((xx - cx) ** 2 + (yy - cy) ** 2) / (2 * 50.0 ** 2))
+        env = np.exp(-((xx - cx) ** 2 + (yy - cy) ** 2) / (2 * 50.0**2))
         return env * np.exp(contrast * t(xx, yy))
 
     a = rho(x, y)
@@ -88,7 +87,7 @@ def density_scene(w, H=160, W=192, contrast=0.2):
     b = rho(x0, y0) / jacobian(w, x0, y0)
     a, b = noisy(a, b, 0.005, a.max(), 3)
     tu, tv = w(x, y)
-    return a, b, tu, tv, (x - cx) ** 2 + (y - cy) ** 2 <= 60 ** 2
+    return a, b, tu, tv, (x - cx) ** 2 + (y - cy) ** 2 <= 60**2
 
 
 def epe(f, tu, tv, region):
@@ -105,8 +104,9 @@ def table(title, scenes):
         print(f"| {name} | " + " | ".join(f"{e:.3f}" for e in errs) + " |")
 
 
-def steady_column(t0, H=192, W=128, exit_y=180.0, cx=64.0, sx=12.0, u0=3.0, k=0.008,
-                  age=25.0, contrast=0.3):
+def steady_column(
+    t0, H=192, W=128, exit_y=180.0, cx=64.0, sx=12.0, u0=3.0, k=0.008, age=25.0, contrast=0.3
+):
     """Frames t0, t0 + 1 of the steady decelerating column of the C++ tests."""
     t = texture(11)
     y, x = np.mgrid[0:H, 0:W].astype(float)
@@ -118,7 +118,7 @@ def steady_column(t0, H=192, W=128, exit_y=180.0, cx=64.0, sx=12.0, u0=3.0, k=0.
         born = time - tau
         wgt = np.clip((-born - age) / 4.0, 0, 1)
         m = 1 + contrast * wgt * t(x, born * u0)
-        e = np.exp(-(x - cx) ** 2 / (2 * sx ** 2))
+        e = np.exp(-((x - cx) ** 2) / (2 * sx**2))
         return np.where(z >= 0, e * u0 / (u0 - k * zz) * m, 0.0)
 
     a, b = rho(t0), rho(t0 + 1)
@@ -133,43 +133,55 @@ def main():
 
     def rotation(th, cx, cy):
         c, s = np.cos(th), np.sin(th)
-        return lambda x, y: (c * (x - cx) - s * (y - cy) - (x - cx),
-                             s * (x - cx) + c * (y - cy) - (y - cy))
+        return lambda x, y: (
+            c * (x - cx) - s * (y - cy) - (x - cx),
+            s * (x - cx) + c * (y - cy) - (y - cy),
+        )
 
     def jet(peak, cy, sig):
-        return lambda x, y: (peak * np.exp(-(y - cy) ** 2 / (2 * sig ** 2)), 0 * y)
+        return lambda x, y: (peak * np.exp(-((y - cy) ** 2) / (2 * sig**2)), 0 * y)
 
     def spreading(r, cx, cy):
         return lambda x, y: (r * (x - cx), r * (y - cy))
 
     def source(r, cx, cy, sig, dx, dy):
         def w(x, y):
-            g = np.exp(-((x - cx) ** 2 + (y - cy) ** 2) / (2 * sig ** 2))
+            g = np.exp(-((x - cx) ** 2 + (y - cy) ** 2) / (2 * sig**2))
             return dx + r * (x - cx) * g, dy + r * (y - cy) * g
+
         return w
 
     def vortex(peak, cx, cy, sig, dx, dy):
         def w(x, y):
-            g = np.exp(-((x - cx) ** 2 + (y - cy) ** 2) / (2 * sig ** 2))
+            g = np.exp(-((x - cx) ** 2 + (y - cy) ** 2) / (2 * sig**2))
             return dx - peak * (y - cy) / sig * g, dy + peak * (x - cx) / sig * g
+
         return w
 
-    table("Moving textures, 192 x 160, 1 % noise, mean EPE [px] over the interior:", {
-        "translation 1 px": texture_scene(translation(0.8, -0.6)),
-        "translation 3 px": texture_scene(translation(2.4, 1.8)),
-        "rotation (3 px at corners)": texture_scene(rotation(3 / 125, 96, 80)),
-        "jet shear (2.5 px peak)": texture_scene(jet(2.5, 80, 25)),
-    })
-    table("Continuity-advected blobs (texture +-20 %, 0.5 % noise), mean EPE [px] "
-          "within 60 px of the centre:", {
-              "vortex + drift (div-free)": density_scene(vortex(1.5, 96, 80, 30, 1.0, 0.5)),
-              "spreading (div 0.03 /frame)": density_scene(spreading(0.015, 96, 80)),
-              "source + drift": density_scene(source(0.05, 96, 80, 30, 1.5, -0.8)),
-          })
+    table(
+        "Moving textures, 192 x 160, 1 % noise, mean EPE [px] over the interior:",
+        {
+            "translation 1 px": texture_scene(translation(0.8, -0.6)),
+            "translation 3 px": texture_scene(translation(2.4, 1.8)),
+            "rotation (3 px at corners)": texture_scene(rotation(3 / 125, 96, 80)),
+            "jet shear (2.5 px peak)": texture_scene(jet(2.5, 80, 25)),
+        },
+    )
+    table(
+        "Continuity-advected blobs (texture +-20 %, 0.5 % noise), mean EPE [px] "
+        "within 60 px of the centre:",
+        {
+            "vortex + drift (div-free)": density_scene(vortex(1.5, 96, 80, 30, 1.0, 0.5)),
+            "spreading (div 0.03 /frame)": density_scene(spreading(0.015, 96, 80)),
+            "source + drift": density_scene(source(0.05, 96, 80, 30, 1.5, -0.8)),
+        },
+    )
 
     print("\nSteady column, featureless base (5-55 px above the exit, within 1 sigma):")
-    print("mean v [px/frame] read in the base; truth first. 'fluid seq' = 6 warm-started "
-          "pairs with the exit as source_mask.")
+    print(
+        "mean v [px/frame] read in the base; truth first. 'fluid seq' = 6 warm-started "
+        "pairs with the exit as source_mask."
+    )
     a, b, tv = steady_column(0.0)
     base = np.zeros(a.shape, bool)
     base[125:175, 52:77] = True

@@ -55,8 +55,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import sys
 import time
 from pathlib import Path
 
@@ -79,6 +77,7 @@ REPO = Path(__file__).resolve().parents[1]
 
 # -- cases: simulation and truth ----------------------------------------------
 
+
 def _geometry(sim, name, heights_m=HEIGHTS_M):
     view = sim.view
     fp = view.distance_m * view.ifov_rad
@@ -100,7 +99,7 @@ def source_mask(shape, exit_row, exit_col, exit_diameter_m, fp):
     half = 0.5 * exit_diameter_m / fp + 1.0
     c0 = int(np.floor(exit_col - half))
     c1 = int(np.ceil(exit_col + half))
-    m[int(round(exit_row)):, max(c0, 0):c1 + 1] = True
+    m[int(round(exit_row)) :, max(c0, 0) : c1 + 1] = True
     return m
 
 
@@ -108,6 +107,7 @@ def _fill(a, gas, sigma=6.0):
     """Velocity where no gas reaches the ray (NaN) by normalised convolution
     of the neighbours (only trajectories leaving the gas pass there)."""
     import cv2
+
     g = gas.astype(np.float32)
     num = cv2.GaussianBlur(np.where(gas, a, 0).astype(np.float32), (0, 0), sigma)
     den = cv2.GaussianBlur(g, (0, 0), sigma)
@@ -121,6 +121,7 @@ def oracle_displacement(name, rate, seed, duration, fp, num_frames):
     per frame, maps of a simulation at 16x the frame rate with the same seed:
     identical frames)."""
     import cv2
+
     n = ORACLE_SUBSTEPS
     fine = synth.simulate_preset(name, duration_s=duration, frame_rate_hz=rate * n, seed=seed)
     H, W = fine.view.height_px, fine.view.width_px
@@ -165,7 +166,9 @@ def load_case(name, rate, seed, cache_dir, oracle=True, heights_m=HEIGHTS_M):
     the released gas, upward mass-weighted velocity vz (T, H, W) [m/s] (0
     where no gas), exact plane flux (T, P) [kg/s], geometry, and the exact
     pair displacements."""
-    tag = "" if tuple(heights_m) == HEIGHTS_M else "_h" + "-".join(f"{h * 100:g}" for h in heights_m)
+    tag = (
+        "" if tuple(heights_m) == HEIGHTS_M else "_h" + "-".join(f"{h * 100:g}" for h in heights_m)
+    )
     path = Path(cache_dir) / f"case_{name}_{rate:g}hz_seed{seed}{tag}.npz"
     if path.exists():
         d = dict(np.load(path))
@@ -186,10 +189,19 @@ def load_case(name, rate, seed, cache_dir, oracle=True, heights_m=HEIGHTS_M):
         vz[t] = np.nan_to_num(m["velocity_z_m_s"])
     planes = synth.horizontal_planes(sim.release.stack_height_m + heights)
     flux = sim.plane_flux(planes)["total"]
-    d = dict(column=column, vz=vz, plane_flux=flux, fp=fp, exit_row=exit_row,
-             exit_col=exit_col, rows=rows, heights=heights, rate=rate,
-             exit_diameter=sim.release.exit_diameter_m,
-             emission=sim.mass_rate_kg_s)
+    d = dict(
+        column=column,
+        vz=vz,
+        plane_flux=flux,
+        fp=fp,
+        exit_row=exit_row,
+        exit_col=exit_col,
+        rows=rows,
+        heights=heights,
+        rate=rate,
+        exit_diameter=sim.release.exit_diameter_m,
+        emission=sim.mass_rate_kg_s,
+    )
     if oracle:
         d["oracle"] = oracle_displacement(name, rate, seed, duration, fp, T)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -198,6 +210,7 @@ def load_case(name, rate, seed, cache_dir, oracle=True, heights_m=HEIGHTS_M):
 
 
 # -- the column a per-pixel inversion would deliver ---------------------------
+
 
 class _ScaledSimulation:
     """A Simulation whose released gas is scaled by ``scale`` (ray samples only),
@@ -223,6 +236,7 @@ def noisy_column(name, rate, seed, case, cache_dir):
         return np.load(path)
     from qogi import camera as camera_mod
     from qogi import render
+
     p = synth.preset(name)
     _, cam = render._camera_for(p)
     bgd = p["scene"]["background"]
@@ -235,7 +249,9 @@ def noisy_column(name, rate, seed, case, cache_dir):
     # Gas-free pixels: a thin layer of released gas at the ambient temperature.
     x = 1e-4 * np.array([sim.mole_fractions[s] for s in r.species])
     t_amb = sim.release.ambient_temperature_K
-    l_thin = r.forward.band_radiance(x, t_amb, 0.01, t_amb, t_bg) - r.forward.background_radiance(t_bg)
+    l_thin = r.forward.band_radiance(x, t_amb, 0.01, t_amb, t_bg) - r.forward.background_radiance(
+        t_bg
+    )
     c_thin = sum(r.forward.column_density(x, t_amb, 0.01, t_amb).values())
     s0 = np.asarray(l_thin, float).ravel() / c_thin
     r_hi = render.SceneRenderer.__new__(render.SceneRenderer)
@@ -261,6 +277,7 @@ def noisy_column(name, rate, seed, case, cache_dir):
 
 # -- methods -----------------------------------------------------------------
 
+
 def run_method(frames, method, case, options=None):
     """Displacements [px/frame] of every pair, invalid vectors replaced by the
     median of their valid neighbours."""
@@ -268,8 +285,13 @@ def run_method(frames, method, case, options=None):
     masks = np.stack([vel.plume_mask(f) for f in frames])
     kw = {}
     if method == "fluid":
-        kw["source_mask"] = source_mask((H, W), float(case["exit_row"]), float(case["exit_col"]),
-                                        float(case["exit_diameter"]), float(case["fp"]))
+        kw["source_mask"] = source_mask(
+            (H, W),
+            float(case["exit_row"]),
+            float(case["exit_col"]),
+            float(case["exit_diameter"]),
+            float(case["fp"]),
+        )
     w0, c0 = time.perf_counter(), time.process_time()
     seq = qogi.optical_flow_sequence(frames, method=method, options=options, masks=masks, **kw)
     wall, cpu = time.perf_counter() - w0, time.process_time() - c0
@@ -291,11 +313,12 @@ def run_spec(frames, spec, case):
     fluid method with the flux level from the transport of the
     line-integrated column (qogi.velocimetry.calibrate_flux_level)."""
     if spec.endswith("+transport"):
-        method, opts = parse_method(spec[:-len("+transport")])
+        method, opts = parse_method(spec[: -len("+transport")])
         u, v, wall, cpu = run_method(frames, method, case, opts)
         w0, c0 = time.perf_counter(), time.process_time()
-        seq = vel.FlowSequence(u, v, np.ones_like(u), np.ones(u.shape, bool),
-                               np.zeros(u.shape[0]), method)
+        seq = vel.FlowSequence(
+            u, v, np.ones_like(u), np.ones(u.shape, bool), np.zeros(u.shape[0]), method
+        )
         fu, fv, _ = vel.calibrate_flux_level(seq, frames, "up", float(case["exit_row"]))
         return fu, fv, wall + time.perf_counter() - w0, cpu + time.process_time() - c0
     method, opts = parse_method(spec)
@@ -303,7 +326,7 @@ def run_spec(frames, spec, case):
 
 
 def parse_method(spec):
-    """"fluid:smoothness_scale=0" -> ("fluid", FluidFlowOptions(smoothness_scale=0))."""
+    """ "fluid:smoothness_scale=0" -> ("fluid", FluidFlowOptions(smoothness_scale=0))."""
     name, *fields = spec.split(":")
     if not fields:
         return name, None
@@ -315,6 +338,7 @@ def parse_method(spec):
 
 
 # -- the quantity compared ---------------------------------------------------
+
 
 def surface_velocity(column, up, rows, frames):
     """Time-averaged mass-weighted upward velocity on each row: sum over the
@@ -356,34 +380,57 @@ def evaluate(case, u, v, column_in, centred):
 
 # -- driver --------------------------------------------------------------------
 
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--presets", default=",".join(PRESETS))
     ap.add_argument("--rates", default=",".join(f"{r:g}" for r in RATES_HZ))
     ap.add_argument("--seeds", default="0,1")
-    ap.add_argument("--methods", default=",".join(["fluid+transport"] + list(vel.METHODS)),
-                    help="methods; METHOD:FIELD=VALUE:... sets options; fluid+transport is "
-                         "the fluid method with the flux level from the transport of the "
-                         "line-integrated column (default: it and every method with its "
-                         "defaults; fluid:smoothness_scale=0 is the fluid method with the "
-                         "classic first-order smoothness)")
-    ap.add_argument("--inputs", default="truth",
-                    help="truth and/or noisy (the column of an ideal per-pixel inversion "
-                         "of the rendered frames; slow to make)")
-    ap.add_argument("--velocity", default="centred",
-                    help="frame velocity: pair (forward displacement) and/or centred")
+    ap.add_argument(
+        "--methods",
+        default=",".join(["fluid+transport"] + list(vel.METHODS)),
+        help="methods; METHOD:FIELD=VALUE:... sets options; fluid+transport is "
+        "the fluid method with the flux level from the transport of the "
+        "line-integrated column (default: it and every method with its "
+        "defaults; fluid:smoothness_scale=0 is the fluid method with the "
+        "classic first-order smoothness)",
+    )
+    ap.add_argument(
+        "--inputs",
+        default="truth",
+        help="truth and/or noisy (the column of an ideal per-pixel inversion "
+        "of the rendered frames; slow to make)",
+    )
+    ap.add_argument(
+        "--velocity",
+        default="centred",
+        help="frame velocity: pair (forward displacement) and/or centred",
+    )
     ap.add_argument("--cache", default=str(REPO / "build" / "velstudy"))
     ap.add_argument("--json", default=None, help="write all results to this JSON file")
-    ap.add_argument("--figures", default=None,
-                    help="write the figures (error against height) into this directory")
+    ap.add_argument(
+        "--figures",
+        default=None,
+        help="write the figures (error against height) into this directory",
+    )
     ap.add_argument("--no-oracle", action="store_true", help="skip the exact-displacement rows")
-    ap.add_argument("--heights", default=",".join(f"{h:g}" for h in HEIGHTS_M),
-                    help="control lines above the exit [m] (default 0.02,...,0.12)")
-    ap.add_argument("--from-json", nargs="+", default=None,
-                    help="print the tables (and figures) of saved results instead of running")
-    ap.add_argument("--options", default=None,
-                    help="JSON dict of options for the (single) method given, e.g. "
-                         "'{\"alpha\": 0.2}' with --methods fluid")
+    ap.add_argument(
+        "--heights",
+        default=",".join(f"{h:g}" for h in HEIGHTS_M),
+        help="control lines above the exit [m] (default 0.02,...,0.12)",
+    )
+    ap.add_argument(
+        "--from-json",
+        nargs="+",
+        default=None,
+        help="print the tables (and figures) of saved results instead of running",
+    )
+    ap.add_argument(
+        "--options",
+        default=None,
+        help="JSON dict of options for the (single) method given, e.g. "
+        "'{\"alpha\": 0.2}' with --methods fluid",
+    )
     args = ap.parse_args(argv)
     if args.from_json:
         results = [r for f in args.from_json for r in json.loads(Path(f).read_text())]
@@ -403,26 +450,49 @@ def main(argv=None):
         for rate in rates:
             for seed in seeds:
                 t0 = time.perf_counter()
-                case = load_case(name, rate, seed, args.cache, oracle=not args.no_oracle,
-                                 heights_m=heights)
-                v_true = surface_velocity(case["column"], case["vz"], case["rows"],
-                                          np.arange(SKIP_PAIRS, case["column"].shape[0] - 1))
-                print(f"# {name} {rate:g} Hz seed {seed}: {case['column'].shape[0]} frames, "
-                      f"truth V = {', '.join(f'{x:.3f}' for x in v_true)} m/s "
-                      f"({time.perf_counter() - t0:.0f} s)", flush=True)
+                case = load_case(
+                    name, rate, seed, args.cache, oracle=not args.no_oracle, heights_m=heights
+                )
+                v_true = surface_velocity(
+                    case["column"],
+                    case["vz"],
+                    case["rows"],
+                    np.arange(SKIP_PAIRS, case["column"].shape[0] - 1),
+                )
+                print(
+                    f"# {name} {rate:g} Hz seed {seed}: {case['column'].shape[0]} frames, "
+                    f"truth V = {', '.join(f'{x:.3f}' for x in v_true)} m/s "
+                    f"({time.perf_counter() - t0:.0f} s)",
+                    flush=True,
+                )
                 runs = []
                 if not args.no_oracle and "oracle" in case:
-                    runs.append(("exact", "truth", case["oracle"][:, 0], case["oracle"][:, 1], 0, 0,
-                                 case["column"]))
+                    runs.append(
+                        (
+                            "exact",
+                            "truth",
+                            case["oracle"][:, 0],
+                            case["oracle"][:, 1],
+                            0,
+                            0,
+                            case["column"],
+                        )
+                    )
                 for inp in inputs:
-                    frames = case["column"] if inp == "truth" else \
-                        noisy_column(name, rate, seed, case, args.cache)
+                    frames = (
+                        case["column"]
+                        if inp == "truth"
+                        else noisy_column(name, rate, seed, case, args.cache)
+                    )
                     for spec in methods:
                         if args.options:
                             method, _ = parse_method(spec)
                             u, v, wall, cpu = run_method(
-                                frames, method, case,
-                                vel.options_for(method, **json.loads(args.options)))
+                                frames,
+                                method,
+                                case,
+                                vel.options_for(method, **json.loads(args.options)),
+                            )
                         else:
                             u, v, wall, cpu = run_spec(frames, spec, case)
                         runs.append((spec, inp, u, v, wall, cpu, frames))
@@ -432,17 +502,30 @@ def main(argv=None):
                         if got is None:
                             continue
                         ev, ef, vt = got
-                        res = dict(preset=name, rate=rate, seed=seed, method=method, input=inp,
-                                   heights_m=list(map(float, case["heights"])),
-                                   velocity=mode, v_err=list(map(float, ev)),
-                                   flux_err=list(map(float, ef)), v_true=list(map(float, vt)),
-                                   wall_s=wall, cpu_s=cpu, pairs=int(u.shape[0]))
+                        res = dict(
+                            preset=name,
+                            rate=rate,
+                            seed=seed,
+                            method=method,
+                            input=inp,
+                            heights_m=list(map(float, case["heights"])),
+                            velocity=mode,
+                            v_err=list(map(float, ev)),
+                            flux_err=list(map(float, ef)),
+                            v_true=list(map(float, vt)),
+                            wall_s=wall,
+                            cpu_s=cpu,
+                            pairs=int(u.shape[0]),
+                        )
                         results.append(res)
-                        print(f"{method:24s} {inp:6s} {mode:8s} V err % "
-                              + " ".join(f"{x:+6.1f}" for x in ev) + "   flux err % "
-                              + " ".join(f"{x:+6.1f}" for x in ef)
-                              + (f"   {1000 * cpu / u.shape[0]:.1f} ms CPU/pair" if cpu else ""),
-                              flush=True)
+                        print(
+                            f"{method:24s} {inp:6s} {mode:8s} V err % "
+                            + " ".join(f"{x:+6.1f}" for x in ev)
+                            + "   flux err % "
+                            + " ".join(f"{x:+6.1f}" for x in ef)
+                            + (f"   {1000 * cpu / u.shape[0]:.1f} ms CPU/pair" if cpu else ""),
+                            flush=True,
+                        )
     if args.json:
         Path(args.json).write_text(json.dumps(results, indent=1))
     print()
@@ -466,8 +549,10 @@ def print_tables(results):
             continue
         print(f"\n### input: {inp} column, velocity: {mode}\n")
         hs = sel[0].get("heights_m", HEIGHTS_M)
-        print("Error of the time-averaged mass-weighted upward velocity [%], mean over seeds "
-              "(min / max), heights " + ", ".join(f"{h * 100:.0f}" for h in hs) + " cm\n")
+        print(
+            "Error of the time-averaged mass-weighted upward velocity [%], mean over seeds "
+            "(min / max), heights " + ", ".join(f"{h * 100:.0f}" for h in hs) + " cm\n"
+        )
         cases = sorted({(r["preset"], r["rate"]) for r in sel}, key=lambda c: (c[0], -c[1]))
         methods = list(dict.fromkeys(r["method"] for r in sel))
         print("| method | " + " | ".join(f"{p} {rt:g} Hz" for p, rt in cases) + " |")
@@ -480,25 +565,35 @@ def print_tables(results):
                     cells.append("")
                     continue
                 mean, lo, hi = _stats(rs, "v_err")
-                cells.append(" ".join(f"{x:+.0f}" for x in mean)
-                             + (f" ({min(lo):+.0f} / {max(hi):+.0f})" if len(rs) > 1 else ""))
+                cells.append(
+                    " ".join(f"{x:+.0f}" for x in mean)
+                    + (f" ({min(lo):+.0f} / {max(hi):+.0f})" if len(rs) > 1 else "")
+                )
             print(f"| {m} | " + " | ".join(cells) + " |")
         if inp != "truth":
-            print("\nFlux error [%] (input column x velocity against the exact plane flux), mean:\n")
+            print(
+                "\nFlux error [%] (input column x velocity against the exact plane flux), mean:\n"
+            )
             print("| method | " + " | ".join(f"{p} {rt:g} Hz" for p, rt in cases) + " |")
             print("|---|" + "---|" * len(cases))
             for m in methods:
                 cells = []
                 for p, rt in cases:
-                    rs = [r for r in sel if r["method"] == m and r["preset"] == p and r["rate"] == rt]
-                    cells.append(" ".join(f"{x:+.0f}" for x in _stats(rs, "flux_err")[0]) if rs else "")
+                    rs = [
+                        r for r in sel if r["method"] == m and r["preset"] == p and r["rate"] == rt
+                    ]
+                    cells.append(
+                        " ".join(f"{x:+.0f}" for x in _stats(rs, "flux_err")[0]) if rs else ""
+                    )
                 print(f"| {m} | " + " | ".join(cells) + " |")
 
 
 def plot(results, outdir):
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
     outdir.mkdir(parents=True, exist_ok=True)
     h_cm = np.array(results[0].get("heights_m", HEIGHTS_M)) * 100
     for inp in sorted({r["input"] for r in results}):
@@ -512,11 +607,15 @@ def plot(results, outdir):
             methods = list(dict.fromkeys(r["method"] for r in sel))
             for ax, (p, rt) in zip(axes, cases):
                 for m in methods:
-                    rs = [r for r in sel if r["method"] == m and r["preset"] == p and r["rate"] == rt]
+                    rs = [
+                        r for r in sel if r["method"] == m and r["preset"] == p and r["rate"] == rt
+                    ]
                     if not rs:
                         continue
                     mean, lo, hi = _stats(rs, "v_err")
-                    line, = ax.plot(h_cm, mean, "o-", label=m, lw=2 if m == vel.DEFAULT_METHOD else 1)
+                    (line,) = ax.plot(
+                        h_cm, mean, "o-", label=m, lw=2 if m == vel.DEFAULT_METHOD else 1
+                    )
                     ax.fill_between(h_cm, lo, hi, color=line.get_color(), alpha=0.15)
                 lim = 10 if rt >= 100 else 20
                 ax.axhspan(-lim, lim, color="0.9", zorder=0)
@@ -527,8 +626,10 @@ def plot(results, outdir):
                 ax.grid(alpha=0.3)
             axes[0].set_ylabel("error of mass-weighted velocity [%]")
             axes[-1].legend(fontsize=7, loc="lower right")
-            fig.suptitle(f"input: {inp} column, velocity: {mode} (band: seeds min-max; "
-                         f"grey: the target)", fontsize=9)
+            fig.suptitle(
+                f"input: {inp} column, velocity: {mode} (band: seeds min-max; grey: the target)",
+                fontsize=9,
+            )
             fig.tight_layout()
             fig.savefig(outdir / f"velocimetry_plume_{inp}_{mode}.png", dpi=80)
             plt.close(fig)

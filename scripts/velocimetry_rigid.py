@@ -37,11 +37,16 @@ def main():
     else:
         print(f"FLIR sample not in {shared}: the synthetic column only")
     frames, tu_v, tv_v = scenes.vortex_pair.__wrapped__()
-    runs = [("fluid", None, "fluid (default)"),
-            ("fluid", vel.options_for("fluid", **BEFORE), "fluid (before)")]
+    runs = [
+        ("fluid", None, "fluid (default)"),
+        ("fluid", vel.options_for("fluid", **BEFORE), "fluid (before)"),
+    ]
     runs += [(m, None, m) for m in vel.METHODS if m != "fluid"]
-    cols = [f"{name} {th:+.3f} rad ({dx:+.1f}, {dy:+.1f}) px"
-            for name in columns for th, dx, dy in scenes.MOTIONS]
+    cols = [
+        f"{name} {th:+.3f} rad ({dx:+.1f}, {dy:+.1f}) px"
+        for name in columns
+        for th, dx, dy in scenes.MOTIONS
+    ]
     cols += ["vortex pair", "vortex pair, sequence"]
     print("| method | " + " | ".join(cols) + " |")
     print("|---" * (len(cols) + 1) + "|")

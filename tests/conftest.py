@@ -18,9 +18,11 @@ SHARED = Path(os.environ.get("QOGI_SHARED_DIR", REPO.parent / "shared"))
 @pytest.fixture(scope="session")
 def shared_dir() -> Path:
     if not (SHARED / "samples").is_dir():
-        pytest.skip(f"third-party sample files not found at {SHARED / 'samples'} (they are "
-                    "not shipped with qogi; set QOGI_SHARED_DIR to a folder holding "
-                    "samples/flir to run this test)")
+        pytest.skip(
+            f"third-party sample files not found at {SHARED / 'samples'} (they are "
+            "not shipped with qogi; set QOGI_SHARED_DIR to a folder holding "
+            "samples/flir to run this test)"
+        )
     return SHARED
 
 
@@ -28,5 +30,5 @@ def shared_dir() -> Path:
 def hitran_dir() -> Path:
     """The HITRAN subsets shipped inside the package (python/qogi/data/hitran)."""
     from qogi.spectra import bundled_hitran_dir
-    return bundled_hitran_dir()
 
+    return bundled_hitran_dir()

@@ -32,8 +32,7 @@ void RejectUnknown(const char* type_name, const py::kwargs& unknown,
   for (auto item : unknown) {
     const std::string key = py::str(item.first);
     if (std::find(names.begin(), names.end(), key) == names.end())
-      throw py::type_error(std::string(type_name) + " has no field '" + key + "'; fields: " +
-                           list);
+      throw py::type_error(std::string(type_name) + " has no field '" + key + "'; fields: " + list);
   }
 }
 

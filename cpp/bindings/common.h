@@ -144,7 +144,7 @@ struct MemberField {
   using Value = M;
   static constexpr bool kRequired = false;
   const char* name;
-  M C::*member;
+  M C::* member;
   const char* doc;
 
   const M& Get(const C& o) const { return o.*member; }
@@ -156,7 +156,7 @@ struct MemberField {
 };
 
 template <typename C, typename M>
-MemberField<C, M> Field(const char* name, M C::*member, const char* doc = nullptr) {
+MemberField<C, M> Field(const char* name, M C::* member, const char* doc = nullptr) {
   return {name, member, doc};
 }
 
@@ -234,8 +234,7 @@ py::class_<T> BindOptions(py::module_& m, const char* name, const char* doc, Arg
                           F... fields) {
   py::class_<T> cls(m, name, doc);
   const std::vector<std::string> names = {fields.name...};
-  auto make = [fields..., name, names](typename F::Value... values,
-                                       const py::kwargs& unknown) {
+  auto make = [fields..., name, names](typename F::Value... values, const py::kwargs& unknown) {
     bind_detail::RejectUnknown(name, unknown, names);
     T o;
     (fields.Set(o, std::move(values)), ...);

@@ -50,8 +50,8 @@ void BindFlux(py::module_& m) {
         std::copy(r.samples.begin(), r.samples.end(), samples.mutable_data());
         return py::make_tuple(DoubleVector(r.rate), samples, DoubleVector(r.rate_variance));
       },
-      py::arg("column"), py::arg("column_sigma"), py::arg("normal_velocity"),
-      py::arg("length_m"), py::arg("molar_mass_kg_mol") = 0.0,
+      py::arg("column"), py::arg("column_sigma"), py::arg("normal_velocity"), py::arg("length_m"),
+      py::arg("molar_mass_kg_mol") = 0.0,
       "(rate [kg/s], samples, rate_variance [(kg/s)^2]) per frame (engine/flux/surface_flux.h).");
 
   m.def(
@@ -88,8 +88,8 @@ void BindFlux(py::module_& m) {
         CheckNdim(frames, 3, "frames");
         const FluxAxis a = ParseFluxAxis(axis);
         py::gil_scoped_release release;
-        return TypicalDisplacement(frames.data(), frames.shape(0), frames.shape(1),
-                                   frames.shape(2), a, max_px, num_threads);
+        return TypicalDisplacement(frames.data(), frames.shape(0), frames.shape(1), frames.shape(2),
+                                   a, max_px, num_threads);
       },
       py::arg("frames"), py::arg("axis") = "up", py::arg("max_px") = 16,
       py::arg("num_threads") = 0);
@@ -117,8 +117,8 @@ void BindFlux(py::module_& m) {
         FluxLevel level;
         {
           py::gil_scoped_release release;
-          level = FlowFluxLevel(frames.data(), u.data(), v.data(), frames.shape(0),
-                                frames.shape(1), frames.shape(2), tf, options, &control);
+          level = FlowFluxLevel(frames.data(), u.data(), v.data(), frames.shape(0), frames.shape(1),
+                                frames.shape(2), tf, options, &control);
         }
         py::array_t<float> scale(static_cast<py::ssize_t>(level.scale.size()));
         std::copy(level.scale.begin(), level.scale.end(), scale.mutable_data());
@@ -147,8 +147,8 @@ void BindFlux(py::module_& m) {
         }
         return py::make_tuple(u, v);
       },
-      py::arg("velocity"), py::arg("line_column"), py::arg("axis"), py::arg("T"),
-      py::arg("H"), py::arg("W"),
+      py::arg("velocity"), py::arg("line_column"), py::arg("axis"), py::arg("T"), py::arg("H"),
+      py::arg("W"),
       "(u, v) float32 (T, H, W): each line's transport velocity along the axis "
       "(engine/flux/flux_level.h).");
 }

@@ -29,9 +29,9 @@ void BindMixingLineSlope(py::module_& m);  // at the end of this file
 void BindInversion(py::module_& m) {
   // --- scene tables ----------------------------------------------------------
   using S = SceneTableOptions;
-  BindOptions<S>(m, "SceneTableOptions",
-                 "Settings of the per-scene table (see engine/inversion/scene_table.h).",
-                 Args::kPositional,
+  BindOptions<S>(
+      m, "SceneTableOptions",
+      "Settings of the per-scene table (see engine/inversion/scene_table.h).", Args::kPositional,
       Field("ambient_temperature_K", &S::ambient_temperature_K,
             "T_amb of the scene [K], inside the model's tables (default 296)"),
       Field("min_peak_temperature_K", &S::min_peak_temperature_K,
@@ -40,8 +40,7 @@ void BindInversion(py::module_& m) {
             "highest T_peak tabulated [K]; 0 = the model's highest (default 0)"),
       Field("temperature_step_K", &S::temperature_step_K,
             "T_peak grid step [K], within [1, 50] (default 5)"),
-      Field("max_sigma_m", &S::max_sigma_m,
-            "largest plume depth sigma served [m] (default 2)"),
+      Field("max_sigma_m", &S::max_sigma_m, "largest plume depth sigma served [m] (default 2)"),
       Field("nodes_per_decade", &S::nodes_per_decade,
             "grid density in u = x sigma [nodes per factor 10], 2-40 (default 8)"),
       Field("fraction_nodes", &S::fraction_nodes,
@@ -77,17 +76,16 @@ void BindInversion(py::module_& m) {
           [](const MixingLineInverter& self, const DoubleArray& radiance,
              const DoubleArray& background, const DoubleArray& sigma, double slope,
              std::vector<double> composition, std::vector<double> netd, double detection_sigma,
-             int max_iterations, int num_threads, int line_nodes_per_unit,
-             py::object progress) {
+             int max_iterations, int num_threads, int line_nodes_per_unit, py::object progress) {
             const std::size_t nc = self.table().num_channels();
             CheckNdim(radiance, 2, "radiance");
             const std::size_t n = Dim(radiance, 0);
             if (Dim(radiance, 1) != nc || background.ndim() != 2 || Dim(background, 0) != n ||
                 Dim(background, 1) != nc || static_cast<std::size_t>(sigma.size()) != n)
-              throw std::invalid_argument(
-                  "invert needs radiance and background_radiance (N, " + std::to_string(nc) +
-                  ") and sigma_m (N,); got " + ShapeOf(radiance) + ", " + ShapeOf(background) +
-                  ", " + ShapeOf(sigma));
+              throw std::invalid_argument("invert needs radiance and background_radiance (N, " +
+                                          std::to_string(nc) + ") and sigma_m (N,); got " +
+                                          ShapeOf(radiance) + ", " + ShapeOf(background) + ", " +
+                                          ShapeOf(sigma));
             MixingLineOptions o;
             o.slope_K_per_fraction = slope;
             o.composition = std::move(composition);
@@ -106,8 +104,7 @@ void BindInversion(py::module_& m) {
             RunControl control = MakeRunControl(progress);
             {
               py::gil_scoped_release release;
-              self.Invert(o, n, radiance.data(), background.data(), sigma.data(), out,
-                          &control);
+              self.Invert(o, n, radiance.data(), background.data(), sigma.data(), out, &control);
             }
             return res.dict();
           },
@@ -144,95 +141,101 @@ void BindInversion(py::module_& m) {
       .def_property_readonly("max_peak_temperature_K", &SceneTable::max_peak_temperature_K)
       .def_property_readonly("min_column_proxy_m", &SceneTable::min_column_proxy_m)
       .def_property_readonly("max_column_proxy_m", &SceneTable::max_column_proxy_m)
-      .def_property_readonly("grid_shape", [](const SceneTable& t) {
-        return py::make_tuple(t.num_u_nodes(), t.num_fraction_nodes(), t.num_temperature_nodes());
-      })
+      .def_property_readonly("grid_shape",
+                             [](const SceneTable& t) {
+                               return py::make_tuple(t.num_u_nodes(), t.num_fraction_nodes(),
+                                                     t.num_temperature_nodes());
+                             })
       .def("has_table", &SceneTable::has_table, py::arg("channel"), py::arg("species"))
       .def("basis_rank", &SceneTable::basis_rank, py::arg("channel"), py::arg("species"))
-      .def("contrast",
-           [](const SceneTable& t, const DoubleArray& x, const DoubleArray& tp, const DoubleArray& sigma,
-              const DoubleArray& tbg) {
-             const std::size_t nc = t.num_channels(), ns = t.num_species(), np = ns + 2;
-             CheckNdim(x, 2, "peak_fractions");
-             CheckNdim(tbg, 2, "background_temperature_K");
-             const std::size_t n = Dim(x, 0);
-             if (Dim(x, 1) != ns || static_cast<std::size_t>(tp.size()) != n ||
-                 static_cast<std::size_t>(sigma.size()) != n || Dim(tbg, 0) != n || Dim(tbg, 1) != nc)
-               throw std::invalid_argument(
-                   "contrast needs peak_fractions (N, " + std::to_string(ns) +
-                   "), peak_temperature_K (N,), sigma_m (N,), background_temperature_K (N, " +
-                   std::to_string(nc) + ")");
-             py::array_t<double> out({n, nc}), jac({n, nc, np});
-             double* o = out.mutable_data();
-             double* j = jac.mutable_data();
-             {
-               py::gil_scoped_release release;
-               std::vector<double> phi(t.background_size());
-               for (std::size_t i = 0; i < n; ++i) {
-                 t.Background(tbg.data() + i * nc, phi.data());
-                 t.Contrast(x.data() + i * ns, tp.data()[i], sigma.data()[i], phi.data(), o + i * nc,
-                            j + i * nc * np);
-               }
-             }
-             return py::make_tuple(out, jac);
-           },
-           py::arg("peak_fractions"), py::arg("peak_temperature_K"), py::arg("sigma_m"),
-           py::arg("background_temperature_K"),
-           "Contrast (N, C) [W/(m2 sr)] and its Jacobian (N, C, S + 2) over (fractions, "
-           "T_peak, sigma) from the table.")
-      .def("export",
-           [](const SceneTable& t, std::size_t c, std::size_t s) {
-             // The coefficients and grids of one table, for independent
-             // (e.g. numpy) evaluators of the same model.
-             py::dict d;
-             if (!t.has_table(c, s)) return d;
-             std::vector<double> coef, psi;
-             double nu_ref = 0;
-             t.Export(c, s, &coef, &psi, &nu_ref);
-             const int r1 = t.basis_rank(c, s) + 1;
-             const int nx = t.fraction_axis(s);
-             const std::size_t nxc = nx > 1 ? nx + 2 : 1;
-             d["coefficients"] = py::array_t<double>(
-                 {static_cast<std::size_t>(t.num_temperature_nodes() + 2), nxc,
-                  static_cast<std::size_t>(t.num_u_nodes() + 2), static_cast<std::size_t>(r1)},
-                 coef.data());
-             d["log_u0"] = t.min_log_u();
-             d["log_u_step"] = t.log_u_step();
-             d["num_u"] = t.num_u_nodes();
-             d["num_x"] = nx;
-             d["t0"] = t.min_peak_temperature_K();
-             d["t_step"] = (t.max_peak_temperature_K() - t.min_peak_temperature_K()) /
-                           (t.num_temperature_nodes() - 1);
-             d["num_t"] = t.num_temperature_nodes();
-             d["rank"] = r1 - 1;
-             d["nu_ref_cm1"] = nu_ref;
-             d["background_t0"] = t.options().min_background_K;
-             d["background_step"] = t.background_step_K();
-             d["psi_coefficients"] = py::array_t<double>(
-                 {psi.size() / static_cast<std::size_t>(std::max(1, r1 - 1)),
-                  static_cast<std::size_t>(r1 - 1)},
-                 psi.data());
-             return d;
-           },
-           py::arg("channel"), py::arg("species"));
+      .def(
+          "contrast",
+          [](const SceneTable& t, const DoubleArray& x, const DoubleArray& tp,
+             const DoubleArray& sigma, const DoubleArray& tbg) {
+            const std::size_t nc = t.num_channels(), ns = t.num_species(), np = ns + 2;
+            CheckNdim(x, 2, "peak_fractions");
+            CheckNdim(tbg, 2, "background_temperature_K");
+            const std::size_t n = Dim(x, 0);
+            if (Dim(x, 1) != ns || static_cast<std::size_t>(tp.size()) != n ||
+                static_cast<std::size_t>(sigma.size()) != n || Dim(tbg, 0) != n ||
+                Dim(tbg, 1) != nc)
+              throw std::invalid_argument(
+                  "contrast needs peak_fractions (N, " + std::to_string(ns) +
+                  "), peak_temperature_K (N,), sigma_m (N,), background_temperature_K (N, " +
+                  std::to_string(nc) + ")");
+            py::array_t<double> out({n, nc}), jac({n, nc, np});
+            double* o = out.mutable_data();
+            double* j = jac.mutable_data();
+            {
+              py::gil_scoped_release release;
+              std::vector<double> phi(t.background_size());
+              for (std::size_t i = 0; i < n; ++i) {
+                t.Background(tbg.data() + i * nc, phi.data());
+                t.Contrast(x.data() + i * ns, tp.data()[i], sigma.data()[i], phi.data(), o + i * nc,
+                           j + i * nc * np);
+              }
+            }
+            return py::make_tuple(out, jac);
+          },
+          py::arg("peak_fractions"), py::arg("peak_temperature_K"), py::arg("sigma_m"),
+          py::arg("background_temperature_K"),
+          "Contrast (N, C) [W/(m2 sr)] and its Jacobian (N, C, S + 2) over (fractions, "
+          "T_peak, sigma) from the table.")
+      .def(
+          "export",
+          [](const SceneTable& t, std::size_t c, std::size_t s) {
+            // The coefficients and grids of one table, for independent
+            // (e.g. numpy) evaluators of the same model.
+            py::dict d;
+            if (!t.has_table(c, s)) return d;
+            std::vector<double> coef, psi;
+            double nu_ref = 0;
+            t.Export(c, s, &coef, &psi, &nu_ref);
+            const int r1 = t.basis_rank(c, s) + 1;
+            const int nx = t.fraction_axis(s);
+            const std::size_t nxc = nx > 1 ? nx + 2 : 1;
+            d["coefficients"] = py::array_t<double>(
+                {static_cast<std::size_t>(t.num_temperature_nodes() + 2), nxc,
+                 static_cast<std::size_t>(t.num_u_nodes() + 2), static_cast<std::size_t>(r1)},
+                coef.data());
+            d["log_u0"] = t.min_log_u();
+            d["log_u_step"] = t.log_u_step();
+            d["num_u"] = t.num_u_nodes();
+            d["num_x"] = nx;
+            d["t0"] = t.min_peak_temperature_K();
+            d["t_step"] = (t.max_peak_temperature_K() - t.min_peak_temperature_K()) /
+                          (t.num_temperature_nodes() - 1);
+            d["num_t"] = t.num_temperature_nodes();
+            d["rank"] = r1 - 1;
+            d["nu_ref_cm1"] = nu_ref;
+            d["background_t0"] = t.options().min_background_K;
+            d["background_step"] = t.background_step_K();
+            d["psi_coefficients"] =
+                py::array_t<double>({psi.size() / static_cast<std::size_t>(std::max(1, r1 - 1)),
+                                     static_cast<std::size_t>(r1 - 1)},
+                                    psi.data());
+            return d;
+          },
+          py::arg("channel"), py::arg("species"));
 
-  m.def("measure_table_error",
-        [](const SceneTable& t, int n, unsigned seed, double floor_fraction, bool jac) {
-          TableErrorReport r;
-          {
-            py::gil_scoped_release release;
-            r = MeasureTableError(t, n, seed, floor_fraction, jac);
-          }
-          using R = TableErrorReport;
-          return ToDict(r, Field("max_relative_error", &R::max_relative_error),
-                        Field("rms_relative_error", &R::rms_relative_error),
-                        Field("max_jacobian_error", &R::max_jacobian_error),
-                        Field("num_samples", &R::num_samples));
-        },
-        py::arg("table"), py::arg("num_samples") = 200, py::arg("seed") = 1,
-        py::arg("floor_fraction") = 1e-3, py::arg("check_jacobian") = false,
-        "Error of the table against the binned model over random plumes (see "
-        "MeasureTableError).");
+  m.def(
+      "measure_table_error",
+      [](const SceneTable& t, int n, unsigned seed, double floor_fraction, bool jac) {
+        TableErrorReport r;
+        {
+          py::gil_scoped_release release;
+          r = MeasureTableError(t, n, seed, floor_fraction, jac);
+        }
+        using R = TableErrorReport;
+        return ToDict(r, Field("max_relative_error", &R::max_relative_error),
+                      Field("rms_relative_error", &R::rms_relative_error),
+                      Field("max_jacobian_error", &R::max_jacobian_error),
+                      Field("num_samples", &R::num_samples));
+      },
+      py::arg("table"), py::arg("num_samples") = 200, py::arg("seed") = 1,
+      py::arg("floor_fraction") = 1e-3, py::arg("check_jacobian") = false,
+      "Error of the table against the binned model over random plumes (see "
+      "MeasureTableError).");
 
   // --- options ---------------------------------------------------------------
   py::enum_<ParameterMode>(m, "ParameterMode")
@@ -253,8 +256,8 @@ void BindInversion(py::module_& m) {
       .value("table", SolverKind::kTable)
       .value("full_model", SolverKind::kFullModel);
 
-  BindOptions<ParameterSpec>(m, "ParameterSpec", nullptr, Args::kPositional,
-      Required(Field("mode", &ParameterSpec::mode)),
+  BindOptions<ParameterSpec>(
+      m, "ParameterSpec", nullptr, Args::kPositional, Required(Field("mode", &ParameterSpec::mode)),
       Field("value", &ParameterSpec::value,
             "fixed value, prior mean, start value when free, or the ratio when tied"),
       Field("prior_sigma", &ParameterSpec::prior_sigma,
@@ -265,21 +268,24 @@ void BindInversion(py::module_& m) {
             "tied: index of the (estimated) species this fraction follows"));
 
   using I = InversionOptions;
-  BindOptions<I>(m, "InversionOptions", nullptr, Args::kPositional,
+  BindOptions<I>(
+      m, "InversionOptions", nullptr, Args::kPositional,
       Field("fractions", &I::fractions,
             "one ParameterSpec per species (peak volume fraction); empty: every species "
             "free in [0, 1], start 1e-3"),
       Field("temperature", &I::temperature,
             "T_peak [K]; default fixed at ambient (value 0 = ambient, bounds 0 = the table's)"),
       Field("sigma", &I::sigma, "Gaussian depth sigma [m]; default fixed at 0.05 m"),
-      Field("netd_K", &I::netd_K, "NETD per channel [K], one value = every channel "
+      Field("netd_K", &I::netd_K,
+            "NETD per channel [K], one value = every channel "
             "(default [0.017])"),
       Field("detection_sigma", &I::detection_sigma,
             "below detection when |y_c| < detection_sigma x n_c in every channel (default 3)"),
       Field("model_error_fraction", &I::model_error_fraction,
             "relative model uncertainty per channel, in quadrature with the noise, [0, 1] "
             "(default 0)"),
-      Field("max_iterations", &I::max_iterations, "solver iterations per solve, >= 1 "
+      Field("max_iterations", &I::max_iterations,
+            "solver iterations per solve, >= 1 "
             "(default 100)"),
       Field("tolerance_chi2", &I::tolerance_chi2,
             "converged when a Gauss-Newton step would lower chi2 by less, [1e-12, 1] "
@@ -296,16 +302,19 @@ void BindInversion(py::module_& m) {
       Field("cold_start", &I::cold_start,
             "how a pixel without a warm start is solved when T_peak is free (default profile)"));
 
-  m.def("pixel_status_name", [](int s) { return std::string(PixelStatusName(static_cast<PixelStatus>(s))); },
-        py::arg("status"));
-  m.def("gaussian_profile_integral",
-        [](double tp, double ta) {
-          double i, di;
-          GaussianProfileIntegral(tp, ta, &i, &di);
-          return py::make_tuple(i, di);
-        },
-        py::arg("peak_temperature_K"), py::arg("ambient_temperature_K"),
-        "(I, dI/dT_peak) with I = integral g(z) / T(z) dz of a Gaussian plume [1/K].");
+  m.def(
+      "pixel_status_name",
+      [](int s) { return std::string(PixelStatusName(static_cast<PixelStatus>(s))); },
+      py::arg("status"));
+  m.def(
+      "gaussian_profile_integral",
+      [](double tp, double ta) {
+        double i, di;
+        GaussianProfileIntegral(tp, ta, &i, &di);
+        return py::make_tuple(i, di);
+      },
+      py::arg("peak_temperature_K"), py::arg("ambient_temperature_K"),
+      "(I, dI/dT_peak) with I = integral g(z) / T(z) dz of a Gaussian plume [1/K].");
 
   // --- the inverter ----------------------------------------------------------
   py::class_<Inverter>(m, "Inverter")
@@ -320,67 +329,69 @@ void BindInversion(py::module_& m) {
       .def_property_readonly("num_parameters", &Inverter::num_parameters)
       .def("channel_noise", &Inverter::ChannelNoise, py::arg("channel"),
            py::arg("background_temperature_K"))
-      .def("invert",
-           [](const Inverter& inv, const DoubleArray& radiance, py::object background_radiance,
-              py::object background_temperature, py::object sigma_m, py::object peak_temperature,
-              py::object initial, std::size_t row_length, py::object progress) {
-             const std::size_t nc = inv.model().num_channels(), ns = inv.model().num_species();
-             const std::size_t np = ns + 2;
-             CheckNdim(radiance, 3, "radiance (frames, channels, pixels)");
-             const std::size_t nf = Dim(radiance, 0), n = Dim(radiance, 2);
-             if (Dim(radiance, 1) != nc)
-               throw std::invalid_argument("radiance has " + std::to_string(Dim(radiance, 1)) +
-                                           " channels; the model has " + std::to_string(nc));
-             if (background_radiance.is_none() == background_temperature.is_none())
-               throw std::invalid_argument(
-                   "give exactly one of background_radiance and background_temperature_K");
-             const bool bg_is_t = !background_temperature.is_none();
-             DoubleArray bg = (bg_is_t ? background_temperature : background_radiance).cast<DoubleArray>();
-             CheckNdim(bg, 3, "background (frames or 1, channels, pixels)");
-             if (!((Dim(bg, 0) == 1 || Dim(bg, 0) == nf) && Dim(bg, 1) == nc && Dim(bg, 2) == n))
-               throw std::invalid_argument("the background has shape " + ShapeOf(bg) +
-                                           "; expected (1 or " + std::to_string(nf) + ", " +
-                                           std::to_string(nc) + ", " + std::to_string(n) + ")");
-             DoubleArray sg, tp, init;
-             PixelBatch b;
-             b.num_pixels = n;
-             b.num_frames = nf;
-             b.row_length = row_length;
-             b.radiance = radiance.data();
-             b.background_per_frame = Dim(bg, 0) == nf && nf > 1;
-             (bg_is_t ? b.background_temperature_K : b.background_radiance) = bg.data();
-             const std::string per_pixel = "one value per pixel (" + std::to_string(n) + ")";
-             b.sigma_m = OptionalValues(sigma_m, n, "sigma_m", per_pixel, &sg);
-             b.peak_temperature_K =
-                 OptionalValues(peak_temperature, n, "peak_temperature_K", per_pixel, &tp);
-             b.initial = OptionalValues(initial, n * np, "initial",
-                                        "(pixels, " + std::to_string(np) + ") values", &init);
-             OutputArrays out;
-             InversionOutput o;
-             o.status = out.New<std::uint8_t>("status", {nf, n});
-             o.bound_mask = out.New<std::uint8_t>("bound_mask", {nf, n});
-             o.flags = out.New<std::uint8_t>("flags", {nf, n});
-             o.parameters = out.New<double>("parameters", {nf, n, np});
-             o.parameter_sigma = out.New<double>("parameter_sigma", {nf, n, np});
-             o.covariance = out.New<double>("covariance", {nf, n, np, np});
-             o.column_density = out.New<double>("column_density", {nf, n, ns});
-             o.column_density_sigma = out.New<double>("column_density_sigma", {nf, n, ns});
-             o.path_concentration = out.New<double>("path_concentration", {nf, n, ns});
-             o.path_concentration_sigma = out.New<double>("path_concentration_sigma", {nf, n, ns});
-             o.chi2 = out.New<double>("chi2", {nf, n});
-             o.condition_number = out.New<double>("condition_number", {nf, n});
-             o.iterations = out.New<std::int32_t>("iterations", {nf, n});
-             RunControl control = MakeRunControl(progress);
-             {
-               py::gil_scoped_release release;
-               inv.Invert(b, o, &control);
-             }
-             return out.dict();
-           },
-           py::arg("radiance"), py::arg("background_radiance") = py::none(),
-           py::arg("background_temperature_K") = py::none(), py::arg("sigma_m") = py::none(),
-           py::arg("peak_temperature_K") = py::none(), py::arg("initial") = py::none(),
-           py::arg("row_length") = 0, py::arg("progress") = py::none());
+      .def(
+          "invert",
+          [](const Inverter& inv, const DoubleArray& radiance, py::object background_radiance,
+             py::object background_temperature, py::object sigma_m, py::object peak_temperature,
+             py::object initial, std::size_t row_length, py::object progress) {
+            const std::size_t nc = inv.model().num_channels(), ns = inv.model().num_species();
+            const std::size_t np = ns + 2;
+            CheckNdim(radiance, 3, "radiance (frames, channels, pixels)");
+            const std::size_t nf = Dim(radiance, 0), n = Dim(radiance, 2);
+            if (Dim(radiance, 1) != nc)
+              throw std::invalid_argument("radiance has " + std::to_string(Dim(radiance, 1)) +
+                                          " channels; the model has " + std::to_string(nc));
+            if (background_radiance.is_none() == background_temperature.is_none())
+              throw std::invalid_argument(
+                  "give exactly one of background_radiance and background_temperature_K");
+            const bool bg_is_t = !background_temperature.is_none();
+            DoubleArray bg =
+                (bg_is_t ? background_temperature : background_radiance).cast<DoubleArray>();
+            CheckNdim(bg, 3, "background (frames or 1, channels, pixels)");
+            if (!((Dim(bg, 0) == 1 || Dim(bg, 0) == nf) && Dim(bg, 1) == nc && Dim(bg, 2) == n))
+              throw std::invalid_argument("the background has shape " + ShapeOf(bg) +
+                                          "; expected (1 or " + std::to_string(nf) + ", " +
+                                          std::to_string(nc) + ", " + std::to_string(n) + ")");
+            DoubleArray sg, tp, init;
+            PixelBatch b;
+            b.num_pixels = n;
+            b.num_frames = nf;
+            b.row_length = row_length;
+            b.radiance = radiance.data();
+            b.background_per_frame = Dim(bg, 0) == nf && nf > 1;
+            (bg_is_t ? b.background_temperature_K : b.background_radiance) = bg.data();
+            const std::string per_pixel = "one value per pixel (" + std::to_string(n) + ")";
+            b.sigma_m = OptionalValues(sigma_m, n, "sigma_m", per_pixel, &sg);
+            b.peak_temperature_K =
+                OptionalValues(peak_temperature, n, "peak_temperature_K", per_pixel, &tp);
+            b.initial = OptionalValues(initial, n * np, "initial",
+                                       "(pixels, " + std::to_string(np) + ") values", &init);
+            OutputArrays out;
+            InversionOutput o;
+            o.status = out.New<std::uint8_t>("status", {nf, n});
+            o.bound_mask = out.New<std::uint8_t>("bound_mask", {nf, n});
+            o.flags = out.New<std::uint8_t>("flags", {nf, n});
+            o.parameters = out.New<double>("parameters", {nf, n, np});
+            o.parameter_sigma = out.New<double>("parameter_sigma", {nf, n, np});
+            o.covariance = out.New<double>("covariance", {nf, n, np, np});
+            o.column_density = out.New<double>("column_density", {nf, n, ns});
+            o.column_density_sigma = out.New<double>("column_density_sigma", {nf, n, ns});
+            o.path_concentration = out.New<double>("path_concentration", {nf, n, ns});
+            o.path_concentration_sigma = out.New<double>("path_concentration_sigma", {nf, n, ns});
+            o.chi2 = out.New<double>("chi2", {nf, n});
+            o.condition_number = out.New<double>("condition_number", {nf, n});
+            o.iterations = out.New<std::int32_t>("iterations", {nf, n});
+            RunControl control = MakeRunControl(progress);
+            {
+              py::gil_scoped_release release;
+              inv.Invert(b, o, &control);
+            }
+            return out.dict();
+          },
+          py::arg("radiance"), py::arg("background_radiance") = py::none(),
+          py::arg("background_temperature_K") = py::none(), py::arg("sigma_m") = py::none(),
+          py::arg("peak_temperature_K") = py::none(), py::arg("initial") = py::none(),
+          py::arg("row_length") = 0, py::arg("progress") = py::none());
   BindMixingLineSlope(m);
 }
 
@@ -395,8 +406,8 @@ py::dict SlopeDict(const MixingLineSlope& r) {
   d["num_candidates"] = r.num_candidates;
   d["num_samples"] = r.num_samples;
   d["num_fitted"] = r.num_fitted;
-  d["grid_K_per_fraction"] = py::array_t<double>(r.grid_K_per_fraction.size(),
-                                                 r.grid_K_per_fraction.data());
+  d["grid_K_per_fraction"] =
+      py::array_t<double>(r.grid_K_per_fraction.size(), r.grid_K_per_fraction.data());
   d["total_chi2"] = py::array_t<double>(r.total_chi2.size(), r.total_chi2.data());
   return d;
 }

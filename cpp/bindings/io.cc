@@ -13,8 +13,7 @@ void BindIo(py::module_& m) {
       [](py::buffer data) {
         const py::buffer_info info = data.request();
         if (info.ndim != 1 || info.itemsize != 1 || info.strides[0] != 1)
-          throw std::invalid_argument(
-              "decode_jpegls: data must be a contiguous bytes-like object");
+          throw std::invalid_argument("decode_jpegls: data must be a contiguous bytes-like object");
         const auto* bytes = static_cast<const std::uint8_t*>(info.ptr);
         const std::size_t size = static_cast<std::size_t>(info.size);
         JpegLsImage img;
@@ -30,9 +29,8 @@ void BindIo(py::module_& m) {
         const py::dict meta =
             ToDict(img, Field("width", &J::width), Field("height", &J::height),
                    Field("components", &J::components),
-                   Field("bits_per_sample", &J::bits_per_sample),
-                   Field("max_value", &J::max_value), Field("near", &J::near),
-                   Field("interleave", &J::interleave));
+                   Field("bits_per_sample", &J::bits_per_sample), Field("max_value", &J::max_value),
+                   Field("near", &J::near), Field("interleave", &J::interleave));
         return py::make_tuple(out, meta);
       },
       py::arg("data"),

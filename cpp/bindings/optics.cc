@@ -46,24 +46,26 @@ void BindOptics(py::module_& m) {
   m.attr("C2") = constants::kC2;
   m.attr("WIEN_NU") = constants::kWienNu;
 
-  m.def("planck_radiance",
-        [](const DoubleArray& nu, const DoubleArray& t) {
-          return MapPairs(nu, t, [](const double* nu, const double* t, double* out,
-                                    std::size_t n) { PlanckRadiance(nu, t, out, n); });
-        },
-        py::arg("nu_cm1"), py::arg("temperature_K"),
-        "Planck spectral radiance B(nu, T) [W/(m2 sr cm-1)] over equal-length "
-        "1-D arrays (use qogi.planck_radiance for broadcasting).");
+  m.def(
+      "planck_radiance",
+      [](const DoubleArray& nu, const DoubleArray& t) {
+        return MapPairs(nu, t, [](const double* nu, const double* t, double* out, std::size_t n) {
+          PlanckRadiance(nu, t, out, n);
+        });
+      },
+      py::arg("nu_cm1"), py::arg("temperature_K"),
+      "Planck spectral radiance B(nu, T) [W/(m2 sr cm-1)] over equal-length "
+      "1-D arrays (use qogi.planck_radiance for broadcasting).");
 
-  m.def("planck_radiance_derivative",
-        [](const DoubleArray& nu, const DoubleArray& t) {
-          return MapPairs(nu, t, [](const double* nu, const double* t, double* out,
-                                    std::size_t n) {
-            for (std::size_t i = 0; i < n; ++i) out[i] = PlanckRadianceDerivative(nu[i], t[i]);
-          });
-        },
-        py::arg("nu_cm1"), py::arg("temperature_K"),
-        "dB/dT [W/(m2 sr cm-1 K)] over equal-length 1-D arrays.");
+  m.def(
+      "planck_radiance_derivative",
+      [](const DoubleArray& nu, const DoubleArray& t) {
+        return MapPairs(nu, t, [](const double* nu, const double* t, double* out, std::size_t n) {
+          for (std::size_t i = 0; i < n; ++i) out[i] = PlanckRadianceDerivative(nu[i], t[i]);
+        });
+      },
+      py::arg("nu_cm1"), py::arg("temperature_K"),
+      "dB/dT [W/(m2 sr cm-1 K)] over equal-length 1-D arrays.");
 
   py::class_<SpectralResponse>(m, "SpectralResponse", R"doc(
 A channel's spectral response (filter x lens x detector), piecewise linear
@@ -84,36 +86,39 @@ name : str
            }),
            py::arg("nu_cm1"), py::arg("response"), py::arg("name") = "")
       .def_property_readonly("name", &SpectralResponse::name)
-      .def_property_readonly("nu_cm1",
-                             [](const SpectralResponse& s) { return ToArray(s.nu_cm1()); },
-                             "Wavenumber samples [cm-1] (a copy).")
-      .def_property_readonly("response",
-                             [](const SpectralResponse& s) { return ToArray(s.response()); },
-                             "Response samples [dimensionless] (a copy).")
+      .def_property_readonly(
+          "nu_cm1", [](const SpectralResponse& s) { return ToArray(s.nu_cm1()); },
+          "Wavenumber samples [cm-1] (a copy).")
+      .def_property_readonly(
+          "response", [](const SpectralResponse& s) { return ToArray(s.response()); },
+          "Response samples [dimensionless] (a copy).")
       .def_property_readonly("integral_cm1", &SpectralResponse::Integral,
                              "Integral of the response over wavenumber [cm-1].")
       .def_property_readonly("centroid_cm1", &SpectralResponse::CentroidWavenumber,
                              "Response-weighted mean wavenumber [cm-1].")
-      .def("_evaluate", [](const SpectralResponse& s, const DoubleArray& nu) {
-        return Map(nu, [&](double x) { return s.Evaluate(x); });
-      })
-      .def("_band_radiance", [](const SpectralResponse& s, const DoubleArray& t) {
-        return Map(t, [&](double x) { return s.BandRadiance(x); });
-      })
-      .def("_band_radiance_derivative", [](const SpectralResponse& s, const DoubleArray& t) {
-        return Map(t, [&](double x) { return s.BandRadianceDerivative(x); });
-      })
-      .def("_radiometric_temperature", [](const SpectralResponse& s, const DoubleArray& l) {
-        return Map(l, [&](double x) { return s.RadiometricTemperature(x); });
-      })
+      .def("_evaluate",
+           [](const SpectralResponse& s, const DoubleArray& nu) {
+             return Map(nu, [&](double x) { return s.Evaluate(x); });
+           })
+      .def("_band_radiance",
+           [](const SpectralResponse& s, const DoubleArray& t) {
+             return Map(t, [&](double x) { return s.BandRadiance(x); });
+           })
+      .def("_band_radiance_derivative",
+           [](const SpectralResponse& s, const DoubleArray& t) {
+             return Map(t, [&](double x) { return s.BandRadianceDerivative(x); });
+           })
+      .def("_radiometric_temperature",
+           [](const SpectralResponse& s, const DoubleArray& l) {
+             return Map(l, [&](double x) { return s.RadiometricTemperature(x); });
+           })
       .def(py::pickle(
           [](const SpectralResponse& s) {
             return py::make_tuple(s.nu_cm1(), s.response(), s.name());
           },
           [](py::tuple t) {
             return SpectralResponse(t[0].cast<std::vector<double>>(),
-                                    t[1].cast<std::vector<double>>(),
-                                    t[2].cast<std::string>());
+                                    t[1].cast<std::vector<double>>(), t[2].cast<std::string>());
           }));
 }
 

@@ -12,10 +12,12 @@ namespace {
 
 using Float2D = py::array_t<float, py::array::c_style | py::array::forcecast>;
 
-std::vector<float> TableValues(const Float2D& a, std::size_t nt, std::size_t nnu, const char* name) {
+std::vector<float> TableValues(const Float2D& a, std::size_t nt, std::size_t nnu,
+                               const char* name) {
   if (a.ndim() != 2 || static_cast<std::size_t>(a.shape(0)) != nt ||
       static_cast<std::size_t>(a.shape(1)) != nnu)
-    throw std::invalid_argument(std::string(name) + " must have shape (n_temperatures, n_wavenumbers) = (" +
+    throw std::invalid_argument(std::string(name) +
+                                " must have shape (n_temperatures, n_wavenumbers) = (" +
                                 std::to_string(nt) + ", " + std::to_string(nnu) + ")");
   return std::vector<float>(a.data(), a.data() + a.size());
 }
@@ -39,8 +41,9 @@ PlumeBatch MakeBatch(const DoubleArray& x, const DoubleArray& tp, const DoubleAr
                                 std::to_string(ns) + "); got " + std::to_string(x.shape(1)));
   for (const auto* a : {&tp, &ta, &sigma})
     if (static_cast<std::size_t>(a->size()) != b.n)
-      throw std::invalid_argument("peak_temperature_K, ambient_temperature_K and sigma_m need one value per plume (" +
-                                  std::to_string(b.n) + ")");
+      throw std::invalid_argument(
+          "peak_temperature_K, ambient_temperature_K and sigma_m need one value per plume (" +
+          std::to_string(b.n) + ")");
   if (static_cast<std::size_t>(tbg.size()) == b.n)
     b.tbg_stride = 1;
   else if (static_cast<std::size_t>(tbg.size()) == b.n * nc)
@@ -123,7 +126,8 @@ void BindRte(py::module_& m) {
       .def_property_readonly("has_self", &AbsorberTable::has_self)
       .def_property_readonly("molar_mass_kg_mol", &AbsorberTable::molar_mass);
 
-  BindOptions<ExactModelOptions>(m, "ExactModelOptions", nullptr, Args::kPositional,
+  BindOptions<ExactModelOptions>(
+      m, "ExactModelOptions", nullptr, Args::kPositional,
       Field("num_nodes", &ExactModelOptions::num_nodes,
             "line-of-sight nodes of a Gaussian plume, >= 3, odd keeps the centre (default 401)"),
       Field("z_max", &ExactModelOptions::z_max,
@@ -133,7 +137,8 @@ void BindRte(py::module_& m) {
       Field("num_threads", &ExactModelOptions::num_threads, "0 = all cores (default 0)"));
 
   using B = BinnedModelOptions;
-  BindOptions<B>(m, "BinnedModelOptions", nullptr, Args::kPositional,
+  BindOptions<B>(
+      m, "BinnedModelOptions", nullptr, Args::kPositional,
       Field("bin_ratio", &B::bin_ratio,
             "max ratio of cross-sections within a bin at each key temperature, > 1 "
             "(default 1.5)"),
@@ -154,7 +159,8 @@ void BindRte(py::module_& m) {
       Field("self_key", &B::self_key,
             "also bin by the self-broadened cross-section (default False)"));
 
-  BindOptions<AtmosphericPath>(m, "AtmosphericPath", nullptr, Args::kPositional,
+  BindOptions<AtmosphericPath>(
+      m, "AtmosphericPath", nullptr, Args::kPositional,
       Field("distance_m", &AtmosphericPath::distance_m,
             "path length [m]; 0 = no atmosphere (default 0)"),
       Field("temperature_K", &AtmosphericPath::temperature_K,
@@ -168,19 +174,20 @@ void BindRte(py::module_& m) {
 
   m.def("saturation_vapor_pressure", &SaturationVaporPressure, py::arg("temperature_K"));
 
-  m.def("gaussian_column_density",
-        [](std::vector<double> x, double tp, double ta, double sigma, double p,
-           std::vector<double> masses) {
-          GaussianPlume g;
-          g.peak_fractions = std::move(x);
-          g.peak_temperature_K = tp;
-          g.ambient_temperature_K = ta;
-          g.sigma_m = sigma;
-          g.pressure_Pa = p;
-          return GaussianColumnDensity(g, masses);
-        },
-        py::arg("peak_fractions"), py::arg("peak_temperature_K"), py::arg("ambient_temperature_K"),
-        py::arg("sigma_m"), py::arg("pressure_Pa"), py::arg("molar_masses_kg_mol"));
+  m.def(
+      "gaussian_column_density",
+      [](std::vector<double> x, double tp, double ta, double sigma, double p,
+         std::vector<double> masses) {
+        GaussianPlume g;
+        g.peak_fractions = std::move(x);
+        g.peak_temperature_K = tp;
+        g.ambient_temperature_K = ta;
+        g.sigma_m = sigma;
+        g.pressure_Pa = p;
+        return GaussianColumnDensity(g, masses);
+      },
+      py::arg("peak_fractions"), py::arg("peak_temperature_K"), py::arg("ambient_temperature_K"),
+      py::arg("sigma_m"), py::arg("pressure_Pa"), py::arg("molar_masses_kg_mol"));
 
   py::class_<ExactModel>(m, "ExactModel")
       .def(py::init([](std::vector<SpectralResponse> ch, std::vector<AbsorberTable> tabs,
@@ -194,78 +201,82 @@ void BindRte(py::module_& m) {
       .def_property_readonly("num_channels", &ExactModel::num_channels)
       .def_property_readonly("min_temperature_K", &ExactModel::min_temperature_K)
       .def_property_readonly("max_temperature_K", &ExactModel::max_temperature_K)
-      .def("band_radiance",
-           [](const ExactModel& mdl, const DoubleArray& x, const DoubleArray& tp,
-              const DoubleArray& ta, const DoubleArray& sigma, const DoubleArray& tbg,
-              double pressure, const AtmosphericPath& atm, py::object progress) {
-             const std::size_t nc = mdl.num_channels();
-             const PlumeBatch b = MakeBatch(x, tp, ta, sigma, tbg, mdl.num_species(), nc);
-             py::array_t<double> out({b.n, nc});
-             double* o = out.mutable_data();
-             RunControl control = MakeRunControl(progress);
-             {
-               py::gil_scoped_release release;
-               for (std::size_t i = 0; i < b.n; ++i) {
-                 GaussianPlume g;
-                 g.peak_fractions.assign(b.x + i * b.ns, b.x + (i + 1) * b.ns);
-                 g.peak_temperature_K = b.tp[i];
-                 g.ambient_temperature_K = b.ta[i];
-                 g.sigma_m = b.sigma[i];
-                 g.pressure_Pa = pressure;
-                 const auto l = mdl.BandRadiance(g, BackgroundOf(b, i, nc), atm, &control);
-                 std::copy(l.begin(), l.end(), o + i * nc);
-                 if (control.progress) {
-                   py::gil_scoped_acquire gil;
-                   control.progress(static_cast<double>(i + 1) / b.n);
-                 }
-               }
-             }
-             return out;
-           },
-           py::arg("peak_fractions"), py::arg("peak_temperature_K"),
-           py::arg("ambient_temperature_K"), py::arg("sigma_m"),
-           py::arg("background_temperature_K"), py::arg("pressure_Pa"),
-           py::arg("atmosphere") = AtmosphericPath(), py::arg("progress") = py::none())
-      .def("band_radiance_path",
-           [](const ExactModel& mdl, const DoubleArray& pos, const DoubleArray& temp,
-              const DoubleArray& fr, double pressure, std::vector<double> tbg,
-              const AtmosphericPath& atm) {
-             const Path p = MakePath(pos, temp, fr, pressure);
-             py::gil_scoped_release release;
-             return mdl.BandRadiance(p, tbg, atm);
-           },
-           py::arg("position_m"), py::arg("temperature_K"), py::arg("fractions"),
-           py::arg("pressure_Pa"), py::arg("background_temperature_K"),
-           py::arg("atmosphere") = AtmosphericPath())
-      .def("spectral_contrast",
-           [](const ExactModel& mdl, std::size_t channel, const DoubleArray& pos,
-              const DoubleArray& temp, const DoubleArray& fr, double pressure, double tbg) {
-             const Path p = MakePath(pos, temp, fr, pressure);
-             std::vector<double> nu, dl;
-             {
-               py::gil_scoped_release release;
-               mdl.SpectralContrast(channel, p, tbg, &nu, &dl);
-             }
-             return py::make_tuple(ToArray(nu), ToArray(dl));
-           },
-           py::arg("channel"), py::arg("position_m"), py::arg("temperature_K"),
-           py::arg("fractions"), py::arg("pressure_Pa"), py::arg("background_temperature_K"))
-      .def("gaussian_path",
-           [](const ExactModel& mdl, std::vector<double> x, double tp, double ta, double sigma,
-              double pressure) {
-             GaussianPlume g;
-             g.peak_fractions = std::move(x);
-             g.peak_temperature_K = tp;
-             g.ambient_temperature_K = ta;
-             g.sigma_m = sigma;
-             g.pressure_Pa = pressure;
-             const Path p = mdl.GaussianPath(g);
-             py::array_t<double> fr({p.size(), p.num_species});
-             std::copy(p.fraction.begin(), p.fraction.end(), fr.mutable_data());
-             return py::make_tuple(ToArray(p.position_m), ToArray(p.temperature_K), fr);
-           },
-           py::arg("peak_fractions"), py::arg("peak_temperature_K"),
-           py::arg("ambient_temperature_K"), py::arg("sigma_m"), py::arg("pressure_Pa"));
+      .def(
+          "band_radiance",
+          [](const ExactModel& mdl, const DoubleArray& x, const DoubleArray& tp,
+             const DoubleArray& ta, const DoubleArray& sigma, const DoubleArray& tbg,
+             double pressure, const AtmosphericPath& atm, py::object progress) {
+            const std::size_t nc = mdl.num_channels();
+            const PlumeBatch b = MakeBatch(x, tp, ta, sigma, tbg, mdl.num_species(), nc);
+            py::array_t<double> out({b.n, nc});
+            double* o = out.mutable_data();
+            RunControl control = MakeRunControl(progress);
+            {
+              py::gil_scoped_release release;
+              for (std::size_t i = 0; i < b.n; ++i) {
+                GaussianPlume g;
+                g.peak_fractions.assign(b.x + i * b.ns, b.x + (i + 1) * b.ns);
+                g.peak_temperature_K = b.tp[i];
+                g.ambient_temperature_K = b.ta[i];
+                g.sigma_m = b.sigma[i];
+                g.pressure_Pa = pressure;
+                const auto l = mdl.BandRadiance(g, BackgroundOf(b, i, nc), atm, &control);
+                std::copy(l.begin(), l.end(), o + i * nc);
+                if (control.progress) {
+                  py::gil_scoped_acquire gil;
+                  control.progress(static_cast<double>(i + 1) / b.n);
+                }
+              }
+            }
+            return out;
+          },
+          py::arg("peak_fractions"), py::arg("peak_temperature_K"),
+          py::arg("ambient_temperature_K"), py::arg("sigma_m"), py::arg("background_temperature_K"),
+          py::arg("pressure_Pa"), py::arg("atmosphere") = AtmosphericPath(),
+          py::arg("progress") = py::none())
+      .def(
+          "band_radiance_path",
+          [](const ExactModel& mdl, const DoubleArray& pos, const DoubleArray& temp,
+             const DoubleArray& fr, double pressure, std::vector<double> tbg,
+             const AtmosphericPath& atm) {
+            const Path p = MakePath(pos, temp, fr, pressure);
+            py::gil_scoped_release release;
+            return mdl.BandRadiance(p, tbg, atm);
+          },
+          py::arg("position_m"), py::arg("temperature_K"), py::arg("fractions"),
+          py::arg("pressure_Pa"), py::arg("background_temperature_K"),
+          py::arg("atmosphere") = AtmosphericPath())
+      .def(
+          "spectral_contrast",
+          [](const ExactModel& mdl, std::size_t channel, const DoubleArray& pos,
+             const DoubleArray& temp, const DoubleArray& fr, double pressure, double tbg) {
+            const Path p = MakePath(pos, temp, fr, pressure);
+            std::vector<double> nu, dl;
+            {
+              py::gil_scoped_release release;
+              mdl.SpectralContrast(channel, p, tbg, &nu, &dl);
+            }
+            return py::make_tuple(ToArray(nu), ToArray(dl));
+          },
+          py::arg("channel"), py::arg("position_m"), py::arg("temperature_K"), py::arg("fractions"),
+          py::arg("pressure_Pa"), py::arg("background_temperature_K"))
+      .def(
+          "gaussian_path",
+          [](const ExactModel& mdl, std::vector<double> x, double tp, double ta, double sigma,
+             double pressure) {
+            GaussianPlume g;
+            g.peak_fractions = std::move(x);
+            g.peak_temperature_K = tp;
+            g.ambient_temperature_K = ta;
+            g.sigma_m = sigma;
+            g.pressure_Pa = pressure;
+            const Path p = mdl.GaussianPath(g);
+            py::array_t<double> fr({p.size(), p.num_species});
+            std::copy(p.fraction.begin(), p.fraction.end(), fr.mutable_data());
+            return py::make_tuple(ToArray(p.position_m), ToArray(p.temperature_K), fr);
+          },
+          py::arg("peak_fractions"), py::arg("peak_temperature_K"),
+          py::arg("ambient_temperature_K"), py::arg("sigma_m"), py::arg("pressure_Pa"));
 
   py::class_<BinnedModel>(m, "BinnedModel")
       .def(py::init([](std::vector<SpectralResponse> ch, std::vector<AbsorberTable> tabs,
@@ -283,114 +294,130 @@ void BindRte(py::module_& m) {
       .def_property_readonly("planck_interpolation_error", &BinnedModel::planck_interpolation_error)
       .def("num_bins", &BinnedModel::num_bins, py::arg("channel"))
       .def_property_readonly("options", &BinnedModel::options, py::return_value_policy::copy)
-      .def("band_radiance",
-           [](const BinnedModel& mdl, const DoubleArray& x, const DoubleArray& tp,
-              const DoubleArray& ta, const DoubleArray& sigma, const DoubleArray& tbg,
-              int num_threads, py::object progress) {
-             const std::size_t nc = mdl.num_channels();
-             const PlumeBatch b = MakeBatch(x, tp, ta, sigma, tbg, mdl.num_species(), nc);
-             for (std::size_t i = 0; i < b.n; ++i) {
-               const double lo = std::min(b.tp[i], b.ta[i]), hi = std::max(b.tp[i], b.ta[i]);
-               if (lo < mdl.min_temperature_K() - 1e-9 || hi > mdl.max_temperature_K() + 1e-9)
-                 throw std::invalid_argument(
-                     "plume " + std::to_string(i) + " has temperatures " + FormatNumber(lo) + "-" +
-                     FormatNumber(hi) + " K outside the tables' range [" +
-                     FormatNumber(mdl.min_temperature_K()) + ", " +
-                     FormatNumber(mdl.max_temperature_K()) + "] K");
-             }
-             py::array_t<double> out({b.n, nc});
-             double* o = out.mutable_data();
-             RunControl control = MakeRunControl(progress);
-             {
-               py::gil_scoped_release release;
-               ParallelFor(b.n, 16, [&](std::size_t lo, std::size_t hi) {
-                 for (std::size_t i = lo; i < hi; ++i) {
-                   const Path p = mdl.GaussianPath<double>(b.x + i * b.ns, b.tp[i], b.ta[i], b.sigma[i]);
-                   const std::vector<double> t = BackgroundOf(b, i, nc);
-                   mdl.Contrast<double>(p, t.data(), o + i * nc);
-                   for (std::size_t c = 0; c < nc; ++c)
-                     o[i * nc + c] += mdl.channels()[c].BandRadiance(t[c]);
-                 }
-               }, num_threads, &control);
-             }
-             return out;
-           },
-           py::arg("peak_fractions"), py::arg("peak_temperature_K"),
-           py::arg("ambient_temperature_K"), py::arg("sigma_m"),
-           py::arg("background_temperature_K"), py::arg("num_threads") = 0,
-           py::arg("progress") = py::none())
-      .def("band_radiance_path",
-           [](const BinnedModel& mdl, const DoubleArray& pos, const DoubleArray& temp,
-              const DoubleArray& fr, double pressure, std::vector<double> tbg) {
-             const Path p = MakePath(pos, temp, fr, pressure);
-             py::gil_scoped_release release;
-             return mdl.BandRadiance(p, tbg);
-           },
-           py::arg("position_m"), py::arg("temperature_K"), py::arg("fractions"),
-           py::arg("pressure_Pa"), py::arg("background_temperature_K"))
-      .def("bin_contrasts",
-           [](const BinnedModel& mdl, const DoubleArray& pos, const DoubleArray& temp,
-              const DoubleArray& fr, double pressure, std::size_t channel, double tbg) {
-             const Path p = MakePath(pos, temp, fr, pressure);
-             std::vector<double> out;
-             {
-               py::gil_scoped_release release;
-               mdl.BinContrasts(p, channel, tbg, &out);
-             }
-             return ToArray(out);
-           },
-           py::arg("position_m"), py::arg("temperature_K"), py::arg("fractions"),
-           py::arg("pressure_Pa"), py::arg("channel"), py::arg("background_temperature_K"),
-           "Unweighted contrast of every bin of one channel [W/(m2 sr cm-1)].")
-      .def("weights", [](const BinnedModel& mdl, std::size_t c) {
-             if (c >= mdl.num_channels()) throw std::invalid_argument("channel index out of range");
-             return ToArray(mdl.weights(c));
-           }, py::arg("channel"), "Bin weights of a channel [cm-1].")
+      .def(
+          "band_radiance",
+          [](const BinnedModel& mdl, const DoubleArray& x, const DoubleArray& tp,
+             const DoubleArray& ta, const DoubleArray& sigma, const DoubleArray& tbg,
+             int num_threads, py::object progress) {
+            const std::size_t nc = mdl.num_channels();
+            const PlumeBatch b = MakeBatch(x, tp, ta, sigma, tbg, mdl.num_species(), nc);
+            for (std::size_t i = 0; i < b.n; ++i) {
+              const double lo = std::min(b.tp[i], b.ta[i]), hi = std::max(b.tp[i], b.ta[i]);
+              if (lo < mdl.min_temperature_K() - 1e-9 || hi > mdl.max_temperature_K() + 1e-9)
+                throw std::invalid_argument("plume " + std::to_string(i) + " has temperatures " +
+                                            FormatNumber(lo) + "-" + FormatNumber(hi) +
+                                            " K outside the tables' range [" +
+                                            FormatNumber(mdl.min_temperature_K()) + ", " +
+                                            FormatNumber(mdl.max_temperature_K()) + "] K");
+            }
+            py::array_t<double> out({b.n, nc});
+            double* o = out.mutable_data();
+            RunControl control = MakeRunControl(progress);
+            {
+              py::gil_scoped_release release;
+              ParallelFor(
+                  b.n, 16,
+                  [&](std::size_t lo, std::size_t hi) {
+                    for (std::size_t i = lo; i < hi; ++i) {
+                      const Path p =
+                          mdl.GaussianPath<double>(b.x + i * b.ns, b.tp[i], b.ta[i], b.sigma[i]);
+                      const std::vector<double> t = BackgroundOf(b, i, nc);
+                      mdl.Contrast<double>(p, t.data(), o + i * nc);
+                      for (std::size_t c = 0; c < nc; ++c)
+                        o[i * nc + c] += mdl.channels()[c].BandRadiance(t[c]);
+                    }
+                  },
+                  num_threads, &control);
+            }
+            return out;
+          },
+          py::arg("peak_fractions"), py::arg("peak_temperature_K"),
+          py::arg("ambient_temperature_K"), py::arg("sigma_m"), py::arg("background_temperature_K"),
+          py::arg("num_threads") = 0, py::arg("progress") = py::none())
+      .def(
+          "band_radiance_path",
+          [](const BinnedModel& mdl, const DoubleArray& pos, const DoubleArray& temp,
+             const DoubleArray& fr, double pressure, std::vector<double> tbg) {
+            const Path p = MakePath(pos, temp, fr, pressure);
+            py::gil_scoped_release release;
+            return mdl.BandRadiance(p, tbg);
+          },
+          py::arg("position_m"), py::arg("temperature_K"), py::arg("fractions"),
+          py::arg("pressure_Pa"), py::arg("background_temperature_K"))
+      .def(
+          "bin_contrasts",
+          [](const BinnedModel& mdl, const DoubleArray& pos, const DoubleArray& temp,
+             const DoubleArray& fr, double pressure, std::size_t channel, double tbg) {
+            const Path p = MakePath(pos, temp, fr, pressure);
+            std::vector<double> out;
+            {
+              py::gil_scoped_release release;
+              mdl.BinContrasts(p, channel, tbg, &out);
+            }
+            return ToArray(out);
+          },
+          py::arg("position_m"), py::arg("temperature_K"), py::arg("fractions"),
+          py::arg("pressure_Pa"), py::arg("channel"), py::arg("background_temperature_K"),
+          "Unweighted contrast of every bin of one channel [W/(m2 sr cm-1)].")
+      .def(
+          "weights",
+          [](const BinnedModel& mdl, std::size_t c) {
+            if (c >= mdl.num_channels()) throw std::invalid_argument("channel index out of range");
+            return ToArray(mdl.weights(c));
+          },
+          py::arg("channel"), "Bin weights of a channel [cm-1].")
       .def("subset", &BinnedModel::Subset, py::arg("bins"), py::arg("weights"),
            py::call_guard<py::gil_scoped_release>())
-      .def("use_fine_temperature_grid", &BinnedModel::UseFineTemperatureGrid,
-           py::arg("t_lo"), py::arg("t_hi"), py::arg("step_K") = 1.0);
+      .def("use_fine_temperature_grid", &BinnedModel::UseFineTemperatureGrid, py::arg("t_lo"),
+           py::arg("t_hi"), py::arg("step_K") = 1.0);
 
-  m.def("render_contrast",
-        [](const BinnedModel& mdl, py::array_t<std::int64_t, py::array::c_style | py::array::forcecast> offset,
-           py::array_t<float, py::array::c_style | py::array::forcecast> step,
-           py::array_t<float, py::array::c_style | py::array::forcecast> temperature,
-           std::vector<py::array_t<float, py::array::c_style | py::array::forcecast>> fractions,
-           double t_amb, const DoubleArray& tbg, int num_threads, py::object progress) {
-          RayBatch rays;
-          rays.num_rays = static_cast<std::size_t>(offset.size()) - 1;
-          if (offset.size() < 1 || static_cast<std::size_t>(step.size()) != rays.num_rays)
-            throw std::invalid_argument("offset needs num_rays + 1 values and step_m num_rays");
-          const std::int64_t ns_total = offset.data()[rays.num_rays];
-          if (temperature.size() < ns_total)
-            throw std::invalid_argument("temperature_K has fewer values than the offsets address");
-          rays.offset = offset.data();
-          rays.step_m = step.data();
-          rays.temperature_K = temperature.data();
-          for (auto& f : fractions) {
-            if (f.size() < ns_total)
-              throw std::invalid_argument("a fractions array has fewer values than the offsets address");
-            rays.fraction.push_back(f.data());
-          }
-          const std::size_t nc = mdl.num_channels();
-          std::size_t stride;
-          if (static_cast<std::size_t>(tbg.size()) == nc) stride = 0;
-          else if (static_cast<std::size_t>(tbg.size()) == nc * rays.num_rays) stride = nc;
-          else throw std::invalid_argument("background_temperature_K needs one value per channel or per ray and channel");
-          py::array_t<float> out({rays.num_rays, nc});
-          float* o = out.mutable_data();
-          const double* tb = tbg.data();
-          RunControl control = MakeRunControl(progress);
-          {
-            py::gil_scoped_release release;
-            RenderContrast(mdl, rays, t_amb, tb, stride, o, num_threads, &control);
-          }
-          return out;
-        },
-        py::arg("model"), py::arg("offset"), py::arg("step_m"), py::arg("temperature_K"),
-        py::arg("fractions"), py::arg("ambient_temperature_K"), py::arg("background_temperature_K"),
-        py::arg("num_threads") = 0, py::arg("progress") = py::none(),
-        "Contrast [W/(m2 sr)] of many rays (samples background -> camera), (rays, channels).");
+  m.def(
+      "render_contrast",
+      [](const BinnedModel& mdl,
+         py::array_t<std::int64_t, py::array::c_style | py::array::forcecast> offset,
+         py::array_t<float, py::array::c_style | py::array::forcecast> step,
+         py::array_t<float, py::array::c_style | py::array::forcecast> temperature,
+         std::vector<py::array_t<float, py::array::c_style | py::array::forcecast>> fractions,
+         double t_amb, const DoubleArray& tbg, int num_threads, py::object progress) {
+        RayBatch rays;
+        rays.num_rays = static_cast<std::size_t>(offset.size()) - 1;
+        if (offset.size() < 1 || static_cast<std::size_t>(step.size()) != rays.num_rays)
+          throw std::invalid_argument("offset needs num_rays + 1 values and step_m num_rays");
+        const std::int64_t ns_total = offset.data()[rays.num_rays];
+        if (temperature.size() < ns_total)
+          throw std::invalid_argument("temperature_K has fewer values than the offsets address");
+        rays.offset = offset.data();
+        rays.step_m = step.data();
+        rays.temperature_K = temperature.data();
+        for (auto& f : fractions) {
+          if (f.size() < ns_total)
+            throw std::invalid_argument(
+                "a fractions array has fewer values than the offsets address");
+          rays.fraction.push_back(f.data());
+        }
+        const std::size_t nc = mdl.num_channels();
+        std::size_t stride;
+        if (static_cast<std::size_t>(tbg.size()) == nc)
+          stride = 0;
+        else if (static_cast<std::size_t>(tbg.size()) == nc * rays.num_rays)
+          stride = nc;
+        else
+          throw std::invalid_argument(
+              "background_temperature_K needs one value per channel or per ray and channel");
+        py::array_t<float> out({rays.num_rays, nc});
+        float* o = out.mutable_data();
+        const double* tb = tbg.data();
+        RunControl control = MakeRunControl(progress);
+        {
+          py::gil_scoped_release release;
+          RenderContrast(mdl, rays, t_amb, tb, stride, o, num_threads, &control);
+        }
+        return out;
+      },
+      py::arg("model"), py::arg("offset"), py::arg("step_m"), py::arg("temperature_K"),
+      py::arg("fractions"), py::arg("ambient_temperature_K"), py::arg("background_temperature_K"),
+      py::arg("num_threads") = 0, py::arg("progress") = py::none(),
+      "Contrast [W/(m2 sr)] of many rays (samples background -> camera), (rays, channels).");
 }
 
 }  // namespace qogi

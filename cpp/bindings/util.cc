@@ -9,9 +9,8 @@ namespace qogi {
 
 void CheckNdim(const py::array& a, int ndim, const char* name) {
   if (a.ndim() != ndim)
-    throw std::invalid_argument(std::string(name) + " must be a " +
-                                std::to_string(ndim) + "-D array; got " +
-                                std::to_string(a.ndim()) + "-D");
+    throw std::invalid_argument(std::string(name) + " must be a " + std::to_string(ndim) +
+                                "-D array; got " + std::to_string(a.ndim()) + "-D");
 }
 
 RunControl MakeRunControl(py::object progress) {

@@ -50,19 +50,19 @@ static bool FluxWorks() {
     }
   qogi::SurfaceFluxOptions options;
   options.molar_mass_kg_mol = molar_mass;
-  const qogi::SurfaceRate rate = qogi::SurfaceFluxRate(
-      column.data(), sigma.data(), velocity.data(), lengths.data(), frames, samples, options);
+  const qogi::SurfaceRate rate = qogi::SurfaceFluxRate(column.data(), sigma.data(), velocity.data(),
+                                                       lengths.data(), frames, samples, options);
   const double kg_h = rate.rate[0] * 3600.0;
-  std::printf("qogi consumer: Gaussian CH4 plume at 3 m/s through a 4 m surface, rate = "
-              "%.6f kg/h +- %.2e (column term; expected %.6f)\n",
-              kg_h, std::sqrt(rate.rate_variance[0]) * 3600.0, q_kg_s * 3600.0);
+  std::printf(
+      "qogi consumer: Gaussian CH4 plume at 3 m/s through a 4 m surface, rate = "
+      "%.6f kg/h +- %.2e (column term; expected %.6f)\n",
+      kg_h, std::sqrt(rate.rate_variance[0]) * 3600.0, q_kg_s * 3600.0);
   // The midpoint rule over +-5 sigma of the Gaussian: its tails (6e-7) only.
   return std::abs(kg_h / (q_kg_s * 3600.0) - 1) < 1e-5;
 }
 
 int main() {
-  const qogi::SpectralResponse channel({2941.18, 3125.0}, {1.0, 1.0},
-                                       "3.2-3.4 um bandpass");
+  const qogi::SpectralResponse channel({2941.18, 3125.0}, {1.0, 1.0}, "3.2-3.4 um bandpass");
   const double t = 300.0;
   const double l = channel.BandRadiance(t);
   const double back = channel.RadiometricTemperature(l);

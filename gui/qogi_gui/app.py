@@ -51,8 +51,13 @@ class App:
         Initial window size.
     """
 
-    def __init__(self, vm: Optional[ViewModel] = None, width: int = 1440, height: int = 900,
-                 vsync: bool = True):
+    def __init__(
+        self,
+        vm: Optional[ViewModel] = None,
+        width: int = 1440,
+        height: int = 900,
+        vsync: bool = True,
+    ):
         self.vm = vm if vm is not None else ViewModel()
         self.width, self.height = width, height
         self.vsync = vsync
@@ -78,13 +83,17 @@ class App:
     # ================================================================= safety
     def safe(self, fn):
         """Wrap a callback so that any exception becomes a message in the window."""
+
         def cb(sender=None, app_data=None, user_data=None):
             try:
                 return fn(sender, app_data, user_data)
             except Exception as e:  # noqa: BLE001 - the window must survive any handler
                 traceback.print_exc()
-                self.vm.log.error(f"internal error in the viewer ({type(e).__name__}: {e}); "
-                                  "details were printed to the terminal")
+                self.vm.log.error(
+                    f"internal error in the viewer ({type(e).__name__}: {e}); "
+                    "details were printed to the terminal"
+                )
+
         return cb
 
     # ================================================================= build
@@ -92,8 +101,14 @@ class App:
         """Create the context, the widgets and the viewport (shown)."""
         dpg.create_context()
         dpg.configure_app(manual_callback_management=True)
-        dpg.create_viewport(title="qogi viewer", width=self.width, height=self.height,
-                            min_width=900, min_height=600, vsync=self.vsync)
+        dpg.create_viewport(
+            title="qogi viewer",
+            width=self.width,
+            height=self.height,
+            min_width=900,
+            min_height=600,
+            vsync=self.vsync,
+        )
         self.themes = build_themes()
         build_colormaps()
         dpg.add_texture_registry(tag="textures")
@@ -125,25 +140,31 @@ class App:
                 dpg.add_menu_item(label="Load the demo scene", callback=s(self.on_demo))
                 dpg.add_menu(label="Recent", tag="recent_menu")
                 dpg.add_separator()
-                dpg.add_menu_item(label="Export all results...", callback=s(
-                    lambda *a: self.on_export("all")))
-                dpg.add_menu_item(label="Save window screenshot",
-                                  callback=s(lambda *a: self.on_export("window")))
+                dpg.add_menu_item(
+                    label="Export all results...", callback=s(lambda *a: self.on_export("all"))
+                )
+                dpg.add_menu_item(
+                    label="Save window screenshot", callback=s(lambda *a: self.on_export("window"))
+                )
                 dpg.add_separator()
                 dpg.add_menu_item(label="Quit", callback=s(lambda *a: dpg.stop_dearpygui()))
             with dpg.menu(label="View"):
                 dpg.add_menu_item(label="Fit image", callback=s(lambda *a: self.fit_image()))
             with dpg.menu(label="Help"):
-                dpg.add_menu_item(label="Mouse and keys", callback=s(
-                    lambda *a: self.dialogs.popup("Mouse and keys", HELP_TEXT, "info")))
+                dpg.add_menu_item(
+                    label="Mouse and keys",
+                    callback=s(lambda *a: self.dialogs.popup("Mouse and keys", HELP_TEXT, "info")),
+                )
 
     def _build_tabs(self) -> None:
         with dpg.tab_bar(tag="tabs"):
-            for name, label, panel in (("recording", "Recording", self.recording_tab),
-                                       ("display", "Display", self.display_tab),
-                                       ("surfaces", "Surfaces", self.surfaces_tab),
-                                       ("analysis", "Analysis", self.analysis_tab),
-                                       ("results", "Results", self.results_tab)):
+            for name, label, panel in (
+                ("recording", "Recording", self.recording_tab),
+                ("display", "Display", self.display_tab),
+                ("surfaces", "Surfaces", self.surfaces_tab),
+                ("analysis", "Analysis", self.analysis_tab),
+                ("results", "Results", self.results_tab),
+            ):
                 with dpg.tab(label=label, tag=f"tab_{name}"):
                     panel.build()
 
@@ -298,11 +319,28 @@ class App:
         dpg.set_value("tabs", f"tab_{name}")
 
 
-HELP_TEXT = """Image: mouse wheel zooms, dragging pans (look mode), double-click fits.
-Surfaces tab: choose what a click does. 'draw a line': click the two ends. 'draw a polyline': click the points, then right-click (or Enter, or 'Finish surface'). 'edit': drag the points. The arrow on each surface shows the direction counted positive (the left-hand side walking from its first to its last point); 'reverse' flips it.
-Keys (mouse over the image): Space play/pause, Left/Right step, Enter finish, Backspace undo point, Esc stop drawing, Delete remove the selected surface.
-Analysis tab: each field says what it accepts; problems show in red beside it. Run starts the quantification in the background; the window stays usable and Cancel keeps the frames finished so far.
-Results tab: rates per surface and species, side by side, and the exports."""
+HELP_TEXT = "\n".join(
+    [
+        ("Image: mouse wheel zooms, dragging pans (look mode), double-click fits."),
+        (
+            "Surfaces tab: choose what a click does. 'draw a line': click the two ends. 'draw"
+            " a polyline': click the points, then right-click (or Enter, or 'Finish "
+            "surface'). 'edit': drag the points. The arrow on each surface shows the "
+            "direction counted positive (the left-hand side walking from its first to its "
+            "last point); 'reverse' flips it."
+        ),
+        (
+            "Keys (mouse over the image): Space play/pause, Left/Right step, Enter finish, "
+            "Backspace undo point, Esc stop drawing, Delete remove the selected surface."
+        ),
+        (
+            "Analysis tab: each field says what it accepts; problems show in red beside it. "
+            "Run starts the quantification in the background; the window stays usable and "
+            "Cancel keeps the frames finished so far."
+        ),
+        ("Results tab: rates per surface and species, side by side, and the exports."),
+    ]
+)
 
 
 class NoDisplayError(RuntimeError):
@@ -318,7 +356,8 @@ def check_display() -> None:
     if not name:
         raise NoDisplayError(
             "no display: DISPLAY is not set. Run the viewer on a desktop session, or "
-            "under a virtual X server: xvfb-run -s '-screen 0 1600x1000x24' qogi gui")
+            "under a virtual X server: xvfb-run -s '-screen 0 1600x1000x24' qogi gui"
+        )
     import ctypes
     import ctypes.util
 
@@ -331,8 +370,10 @@ def check_display() -> None:
     x11.XCloseDisplay.argtypes = [ctypes.c_void_p]
     d = x11.XOpenDisplay(name.encode())
     if not d:
-        raise NoDisplayError(f"cannot open the X display {name!r}: is the X server running and "
-                             "may this user connect to it (xauth)?")
+        raise NoDisplayError(
+            f"cannot open the X display {name!r}: is the X server running and "
+            "may this user connect to it (xauth)?"
+        )
     x11.XCloseDisplay(d)
 
 

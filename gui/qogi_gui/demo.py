@@ -28,8 +28,10 @@ def demo_path(folder: Optional[os.PathLike] = None) -> Path:
     from qogi.recording import VERSION
 
     rate = DEMO["frame_rate_hz"]
-    stem = (f"{DEMO['preset']}_{DEMO['duration_s']:g}s"
-            f"{'' if rate is None else f'_{rate:g}Hz'}_seed{DEMO['seed']}_qogi{__version__}")
+    stem = (
+        f"{DEMO['preset']}_{DEMO['duration_s']:g}s"
+        f"{'' if rate is None else f'_{rate:g}Hz'}_seed{DEMO['seed']}_qogi{__version__}"
+    )
     path = cache_path("demo", stem, VERSION, ".h5")
     return path if folder is None else Path(folder) / path.name
 
@@ -52,8 +54,9 @@ def _valid(path: Path) -> bool:
         return False
 
 
-def ensure_demo(progress: Callable[[float, str], bool], folder: Optional[os.PathLike] = None
-                ) -> str:
+def ensure_demo(
+    progress: Callable[[float, str], bool], folder: Optional[os.PathLike] = None
+) -> str:
     """The demo recording's path, synthesising it first if it is not cached.
 
     ``progress(fraction, message)`` is told how far the synthesis is; when it
@@ -80,8 +83,13 @@ def _synthesise(path: Path, progress: Callable[[float, str], bool]) -> None:
     from qogi.render import synthesize
 
     try:
-        synthesize(DEMO["preset"], str(path), duration_s=DEMO["duration_s"],
-                   frame_rate_hz=DEMO["frame_rate_hz"], seed=DEMO["seed"],
-                   progress=lambda f, m: progress(f, f"demo scene: {m}"))
+        synthesize(
+            DEMO["preset"],
+            str(path),
+            duration_s=DEMO["duration_s"],
+            frame_rate_hz=DEMO["frame_rate_hz"],
+            seed=DEMO["seed"],
+            progress=lambda f, m: progress(f, f"demo scene: {m}"),
+        )
     except (Cancelled, KeyboardInterrupt):  # a cancelled progress callback, or Ctrl-C
         raise Stopped("the demo scene was cancelled") from None

@@ -12,27 +12,36 @@ on screen is converted).
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 from typing import Optional, Tuple
 
 import numpy as np
 
 __all__ = [
-    "COLORMAPS", "QUANTITY_LABELS", "colormap_lut", "read_channel", "robust_range",
-    "recording_range", "colorize", "colorize_overlay", "to_uint8_rgb",
+    "COLORMAPS",
+    "QUANTITY_LABELS",
+    "colormap_lut",
+    "read_channel",
+    "robust_range",
+    "recording_range",
+    "colorize",
+    "colorize_overlay",
+    "to_uint8_rgb",
 ]
 
 #: Colour maps offered for the video (matplotlib names); the first is the default.
 COLORMAPS = ("inferno", "gray", "magma", "viridis", "plasma", "cividis", "turbo", "hot")
 #: Colour maps offered for the column-density overlay.
 OVERLAY_COLORMAPS = ("viridis", "turbo", "plasma", "cool", "winter")
-QUANTITY_LABELS = {"radiance": "band radiance [W/(m2 sr)]",
-                   "radiometric_temperature": "radiometric temperature [K]"}
+QUANTITY_LABELS = {
+    "radiance": "band radiance [W/(m2 sr)]",
+    "radiometric_temperature": "radiometric temperature [K]",
+}
 #: Percentiles of the robust ("auto") display range.
 AUTO_PERCENTILES = (0.5, 99.5)
 
 
-@lru_cache(maxsize=None)
+@cache
 def colormap_lut(name: str, n: int = 256) -> np.ndarray:
     """(n, 4) float32 RGBA table in [0, 1] of the matplotlib colour map ``name``."""
     import matplotlib
@@ -40,15 +49,15 @@ def colormap_lut(name: str, n: int = 256) -> np.ndarray:
     try:
         cmap = matplotlib.colormaps[name]
     except KeyError:
-        raise ValueError(f"unknown colour map {name!r}; choose one of {', '.join(COLORMAPS)}"
-                         ) from None
+        raise ValueError(
+            f"unknown colour map {name!r}; choose one of {', '.join(COLORMAPS)}"
+        ) from None
     lut = np.asarray(cmap.resampled(n)(np.arange(n)), dtype=np.float32)
     lut.setflags(write=False)
     return lut
 
 
-def read_channel(recording, index: int, channel: int, quantity: Optional[str] = None
-                 ) -> np.ndarray:
+def read_channel(recording, index: int, channel: int, quantity: Optional[str] = None) -> np.ndarray:
     """One channel of frame ``index`` as float32 (H, W) in ``quantity``
     (default: the stored one), converting only that channel."""
     stored = recording.frames(index, index + 1)[0, channel]
@@ -64,8 +73,9 @@ def read_channel(recording, index: int, channel: int, quantity: Optional[str] = 
     raise ValueError(f"quantity must be 'radiance' or 'radiometric_temperature'; got {quantity!r}")
 
 
-def robust_range(a: np.ndarray, percentiles: Tuple[float, float] = AUTO_PERCENTILES,
-                 step: int = 2) -> Tuple[float, float]:
+def robust_range(
+    a: np.ndarray, percentiles: Tuple[float, float] = AUTO_PERCENTILES, step: int = 2
+) -> Tuple[float, float]:
     """Low and high percentiles of the finite values of ``a`` (every ``step``-th
     pixel each way, for speed); a flat or empty image gets a unit-wide range."""
     sub = np.asarray(a)[::step, ::step] if np.ndim(a) == 2 else np.asarray(a)
@@ -79,8 +89,9 @@ def robust_range(a: np.ndarray, percentiles: Tuple[float, float] = AUTO_PERCENTI
     return lo, hi
 
 
-def recording_range(recording, channel: int, quantity: Optional[str] = None,
-                    samples: int = 12) -> Tuple[float, float]:
+def recording_range(
+    recording, channel: int, quantity: Optional[str] = None, samples: int = 12
+) -> Tuple[float, float]:
     """Robust display range of one channel over the whole recording, from
     ``samples`` frames spread evenly over it (so playback does not flicker)."""
     n = recording.n_frames
@@ -89,9 +100,14 @@ def recording_range(recording, channel: int, quantity: Optional[str] = None,
     return robust_range(stack.ravel(), step=1)
 
 
-def colorize(a: np.ndarray, vmin: float, vmax: float, lut: np.ndarray,
-             out: Optional[np.ndarray] = None, scratch: Optional[np.ndarray] = None
-             ) -> np.ndarray:
+def colorize(
+    a: np.ndarray,
+    vmin: float,
+    vmax: float,
+    lut: np.ndarray,
+    out: Optional[np.ndarray] = None,
+    scratch: Optional[np.ndarray] = None,
+) -> np.ndarray:
     """Map (H, W) values to RGBA float32 (H, W, 4) through ``lut``.
 
     Values at or below ``vmin`` get the first colour, at or above ``vmax`` the
@@ -119,8 +135,14 @@ def colorize(a: np.ndarray, vmin: float, vmax: float, lut: np.ndarray,
     return out
 
 
-def colorize_overlay(a: np.ndarray, vmax: float, lut: np.ndarray, threshold: float = 0.03,
-                     opacity: float = 0.85, out: Optional[np.ndarray] = None) -> np.ndarray:
+def colorize_overlay(
+    a: np.ndarray,
+    vmax: float,
+    lut: np.ndarray,
+    threshold: float = 0.03,
+    opacity: float = 0.85,
+    out: Optional[np.ndarray] = None,
+) -> np.ndarray:
     """Column density (H, W) -> RGBA (H, W, 4) for drawing over the video.
 
     Colour from ``lut`` over [0, vmax]; opacity rises from 0 at

@@ -19,10 +19,16 @@ from typing import List, Optional, Sequence
 import numpy as np
 
 from .results import pixel_status_rows, rate_rows, standard_conditions_text
-from .surfaces import SurfaceDraft, RegionDraft, flow_arrow
+from .surfaces import RegionDraft, SurfaceDraft, flow_arrow
 
-__all__ = ["check_writable", "write_frame_png", "write_plots", "write_report", "write_pdf_report",
-           "ExportError"]
+__all__ = [
+    "check_writable",
+    "write_frame_png",
+    "write_plots",
+    "write_report",
+    "write_pdf_report",
+    "ExportError",
+]
 
 
 class ExportError(ValueError):
@@ -72,9 +78,13 @@ def write_plots(result, path: os.PathLike, maps: bool = False) -> List[Path]:
     return written
 
 
-def render_frame_rgb(rgba: np.ndarray, surfaces: Sequence[SurfaceDraft],
-                     region: Optional[RegionDraft] = None, zoom: int = 3,
-                     source=None) -> np.ndarray:
+def render_frame_rgb(
+    rgba: np.ndarray,
+    surfaces: Sequence[SurfaceDraft],
+    region: Optional[RegionDraft] = None,
+    zoom: int = 3,
+    source=None,
+) -> np.ndarray:
     """The shown frame (RGBA float (H, W, 4), overlay already blended) scaled
     up ``zoom`` times, with surfaces, their flux arrows and the background
     region drawn on it; uint8 RGB (H*zoom, W*zoom, 3)."""
@@ -91,9 +101,15 @@ def render_frame_rgb(rgba: np.ndarray, surfaces: Sequence[SurfaceDraft],
         return (int(round((p[0] + 0.5) * zoom * k)), int(round((p[1] + 0.5) * zoom * k)))
 
     if region is not None:
-        cv2.rectangle(img, px((region.x0 - 0.5, region.y0 - 0.5)),
-                      px((region.x1 - 0.5, region.y1 - 0.5)), (255, 255, 255), 1,
-                      cv2.LINE_AA, shift)
+        cv2.rectangle(
+            img,
+            px((region.x0 - 0.5, region.y0 - 0.5)),
+            px((region.x1 - 0.5, region.y1 - 0.5)),
+            (255, 255, 255),
+            1,
+            cv2.LINE_AA,
+            shift,
+        )
     for s in surfaces:
         if len(s.points) < 2:
             continue
@@ -101,14 +117,36 @@ def render_frame_rgb(rgba: np.ndarray, surfaces: Sequence[SurfaceDraft],
         cv2.polylines(img, [pts], False, tuple(int(c) for c in s.colour), 2, cv2.LINE_AA, shift)
         arrow = flow_arrow(s.points, length=max(6.0, 0.04 * max(rgba.shape[:2])))
         if arrow is not None:
-            cv2.arrowedLine(img, px(arrow[0]), px(arrow[1]), tuple(int(c) for c in s.colour), 2,
-                            cv2.LINE_AA, shift, 0.35)
+            cv2.arrowedLine(
+                img,
+                px(arrow[0]),
+                px(arrow[1]),
+                tuple(int(c) for c in s.colour),
+                2,
+                cv2.LINE_AA,
+                shift,
+                0.35,
+            )
         x, y = s.points[0]
-        cv2.putText(img, s.name, (int((x + 0.5) * zoom) + 4, int((y + 0.5) * zoom) - 6),
-                    cv2.FONT_HERSHEY_SIMPLEX, 0.5, tuple(int(c) for c in s.colour), 1, cv2.LINE_AA)
+        cv2.putText(
+            img,
+            s.name,
+            (int((x + 0.5) * zoom) + 4, int((y + 0.5) * zoom) - 6),
+            cv2.FONT_HERSHEY_SIMPLEX,
+            0.5,
+            tuple(int(c) for c in s.colour),
+            1,
+            cv2.LINE_AA,
+        )
     if source is not None:
-        cv2.drawMarker(img, (int((source[0] + 0.5) * zoom), int((source[1] + 0.5) * zoom)),
-                       (255, 60, 60), cv2.MARKER_CROSS, 14, 2)
+        cv2.drawMarker(
+            img,
+            (int((source[0] + 0.5) * zoom), int((source[1] + 0.5) * zoom)),
+            (255, 60, 60),
+            cv2.MARKER_CROSS,
+            14,
+            2,
+        )
     return img
 
 
@@ -133,41 +171,67 @@ def _fmt(x: float, nd: int = 3) -> str:
     return f"{x:.{nd}g}"
 
 
-def report_text(result, recording_summary: dict, surfaces: Sequence[SurfaceDraft],
-                settings_kwargs: dict, files: Sequence[os.PathLike] = ()) -> str:
+def report_text(
+    result,
+    recording_summary: dict,
+    surfaces: Sequence[SurfaceDraft],
+    settings_kwargs: dict,
+    files: Sequence[os.PathLike] = (),
+) -> str:
     """A short Markdown report: recording, surfaces, settings, rates (with the
     truth when known), pixel status, the pipeline's own summary."""
     from qogi import __version__
 
     rs = recording_summary or {}
     cam, fr, sc = rs.get("camera", {}), rs.get("frames", {}), rs.get("scene", {})
-    lines = ["# qogi emission-rate report", "",
-             f"Written {datetime.datetime.now().isoformat(timespec='seconds')} by the qogi "
-             f"viewer (qogi {__version__}).", "", "## Recording", ""]
+    lines = [
+        "# qogi emission-rate report",
+        "",
+        f"Written {datetime.datetime.now().isoformat(timespec='seconds')} by the qogi "
+        f"viewer (qogi {__version__}).",
+        "",
+        "## Recording",
+        "",
+    ]
     lines.append(f"- file: `{rs.get('path', getattr(result, 'recording_path', ''))}`")
-    lines.append(f"- camera: {cam.get('name', '?')}, {fr.get('C', '?')} channel(s) "
-                 f"({', '.join(c.get('name', '') for c in rs.get('channels', []))}), "
-                 f"ifov {_fmt(cam.get('ifov_rad', math.nan))} rad, "
-                 f"{_fmt(cam.get('frame_rate_hz', math.nan))} Hz")
-    lines.append(f"- frames: {fr.get('T', '?')} x {fr.get('W', '?')}x{fr.get('H', '?')} px, "
-                 f"{_fmt(fr.get('duration_s', math.nan))} s, stored as {fr.get('quantity', '?')}")
-    lines.append(f"- scene: distance {_fmt(sc.get('distance_m', math.nan))} m, ambient "
-                 f"{_fmt(sc.get('ambient_temperature_K', math.nan), 5)} K, pressure "
-                 f"{_fmt(sc.get('pressure_Pa', math.nan), 6)} Pa")
-    lines += ["", "## Control surfaces", "",
-              "Flux counts positive along each surface's left-hand normal walking from its "
-              "first point to its last (x right, y down).", ""]
+    lines.append(
+        f"- camera: {cam.get('name', '?')}, {fr.get('C', '?')} channel(s) "
+        f"({', '.join(c.get('name', '') for c in rs.get('channels', []))}), "
+        f"ifov {_fmt(cam.get('ifov_rad', math.nan))} rad, "
+        f"{_fmt(cam.get('frame_rate_hz', math.nan))} Hz"
+    )
+    lines.append(
+        f"- frames: {fr.get('T', '?')} x {fr.get('W', '?')}x{fr.get('H', '?')} px, "
+        f"{_fmt(fr.get('duration_s', math.nan))} s, stored as {fr.get('quantity', '?')}"
+    )
+    lines.append(
+        f"- scene: distance {_fmt(sc.get('distance_m', math.nan))} m, ambient "
+        f"{_fmt(sc.get('ambient_temperature_K', math.nan), 5)} K, pressure "
+        f"{_fmt(sc.get('pressure_Pa', math.nan), 6)} Pa"
+    )
+    lines += [
+        "",
+        "## Control surfaces",
+        "",
+        "Flux counts positive along each surface's left-hand normal walking from its "
+        "first point to its last (x right, y down).",
+        "",
+    ]
     for s in surfaces:
         pts = ", ".join(f"({x:.1f}, {y:.1f})" for x, y in s.points)
         lines.append(f"- {s.name}: {pts}")
     lines += ["", "## Settings", ""]
     for k, v in settings_kwargs.items():
         lines.append(f"- {k}: {v}")
-    lines += ["", "## Emission rates", "",
-              "| surface | species | mean [kg/h] | 90% interval [kg/h] | [g/h] | [SLPM] | truth "
-              "[kg/h] | error | frames (valid) | pixels (median) | dominant uncertainty | "
-              "detection limit [kg/h] |",
-              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    lines += [
+        "",
+        "## Emission rates",
+        "",
+        "| surface | species | mean [kg/h] | 90% interval [kg/h] | [g/h] | [SLPM] | truth "
+        "[kg/h] | error | frames (valid) | pixels (median) | dominant uncertainty | "
+        "detection limit [kg/h] |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
     for r in rate_rows(result):
         err = r.error_pct
         lines.append(
@@ -176,7 +240,8 @@ def report_text(result, recording_summary: dict, surfaces: Sequence[SurfaceDraft
             f"{_fmt(r.truth_kg_h, 4) if r.truth_kg_h is not None else '-'} | "
             f"{f'{err:+.1f} %' if err is not None else '-'} | {r.n_frames} "
             f"({r.n_frames_valid}) | {_fmt(r.pixels_median, 4)} | {r.dominant_uncertainty} | "
-            f"{r.detection_text} |")
+            f"{r.detection_text} |"
+        )
     sc_std = standard_conditions_text(result)
     if sc_std:
         lines += ["", f"SLPM at standard conditions: {sc_std}."]

@@ -51,8 +51,12 @@ class Job:
     traceback : formatted traceback of a failure ("" otherwise)
     """
 
-    def __init__(self, name: str, work: Callable[[Callable[[float, str], bool]], Any],
-                 cancelled_types: tuple = ()):
+    def __init__(
+        self,
+        name: str,
+        work: Callable[[Callable[[float, str], bool]], Any],
+        cancelled_types: tuple = (),
+    ):
         self.name = name
         self._work = work
         from qogi.errors import Cancelled  # qogi's one cancellation type
@@ -75,7 +79,7 @@ class Job:
 
         self._workers = Workers()
 
-    def start(self) -> "Job":
+    def start(self) -> Job:
         self._workers.start(self._run, f"qogi-gui {self.name}")
         return self
 
@@ -137,8 +141,12 @@ class Job:
         """A consistent copy of the state: state, fraction, message, elapsed_s."""
         with self._lock:
             end = self.finished_s if self.finished_s is not None else time.monotonic()
-            return {"state": self.state, "fraction": self.fraction, "message": self.message,
-                    "elapsed_s": end - self.started_s}
+            return {
+                "state": self.state,
+                "fraction": self.fraction,
+                "message": self.message,
+                "elapsed_s": end - self.started_s,
+            }
 
     def wait(self, timeout: Optional[float] = None) -> bool:
         """Block until the work ends (for scripts, tests and closing); True if

@@ -13,9 +13,22 @@ from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-__all__ = ["RateRow", "rate_rows", "uncertainty_terms", "warning_lines", "rate_series", "finite_segments", "pixel_status_rows",
-           "standard_conditions_text", "frame_maps", "map_frame_keys", "full_frame_maps",
-           "vector_field", "overlay_scale", "arrow_segments"]
+__all__ = [
+    "RateRow",
+    "rate_rows",
+    "uncertainty_terms",
+    "warning_lines",
+    "rate_series",
+    "finite_segments",
+    "pixel_status_rows",
+    "standard_conditions_text",
+    "frame_maps",
+    "map_frame_keys",
+    "full_frame_maps",
+    "vector_field",
+    "overlay_scale",
+    "arrow_segments",
+]
 
 KG_S_TO_KG_H = 3600.0
 STATUS_ORDER = ("converged", "at bound", "below detection", "failed", "masked")
@@ -84,19 +97,27 @@ def rate_rows(result) -> List[RateRow]:
             pix = np.asarray(getattr(r, "pixels_used", []), dtype=float)
             lo, hi = (tuple(r.ci90_kg_h) + (math.nan, math.nan))[:2]
             truth = getattr(r, "truth_kg_h", None)
-            rows.append(RateRow(
-                surface=name, species=sp, mean_kg_h=_f(r.mean_kg_h), ci90_kg_h=(_f(lo), _f(hi)),
-                mean_g_h=_f(getattr(r, "mean_g_h", math.nan)),
-                mean_slpm=_f(getattr(r, "mean_slpm", math.nan)),
-                truth_kg_h=None if truth is None else _f(truth),
-                n_frames=int(getattr(r, "n_frames", rate.size)),
-                n_frames_valid=int(np.count_nonzero(np.isfinite(rate))),
-                pixels_median=float(np.median(pix)) if pix.size else math.nan,
-                dominant_uncertainty=str(getattr(r, "dominant_uncertainty", "")),
-                detection_limit_kg_h=getattr(r, "detection_limit_kg_h", None),
-                detected=getattr(r, "detected", None),
-                uncertainty_terms_kg_h={str(k): _f(v) for k, v in
-                                        (getattr(r, "uncertainty_terms_kg_h", None) or {}).items()}))
+            rows.append(
+                RateRow(
+                    surface=name,
+                    species=sp,
+                    mean_kg_h=_f(r.mean_kg_h),
+                    ci90_kg_h=(_f(lo), _f(hi)),
+                    mean_g_h=_f(getattr(r, "mean_g_h", math.nan)),
+                    mean_slpm=_f(getattr(r, "mean_slpm", math.nan)),
+                    truth_kg_h=None if truth is None else _f(truth),
+                    n_frames=int(getattr(r, "n_frames", rate.size)),
+                    n_frames_valid=int(np.count_nonzero(np.isfinite(rate))),
+                    pixels_median=float(np.median(pix)) if pix.size else math.nan,
+                    dominant_uncertainty=str(getattr(r, "dominant_uncertainty", "")),
+                    detection_limit_kg_h=getattr(r, "detection_limit_kg_h", None),
+                    detected=getattr(r, "detected", None),
+                    uncertainty_terms_kg_h={
+                        str(k): _f(v)
+                        for k, v in (getattr(r, "uncertainty_terms_kg_h", None) or {}).items()
+                    },
+                )
+            )
     return rows
 
 
@@ -118,13 +139,17 @@ def rate_series(result) -> List[dict]:
     out = []
     for sr in result.surfaces:
         for sp, r in sr.species.items():
-            out.append({
-                "surface": sr.surface.name or "surface", "species": sp,
-                "time_s": np.asarray(r.time_s, dtype=float),
-                "rate_kg_h": np.asarray(r.rate_kg_s, dtype=float) * KG_S_TO_KG_H,
-                "mean_kg_h": _f(r.mean_kg_h),
-                "ci90_kg_h": tuple(_f(v) for v in r.ci90_kg_h),
-                "truth_kg_h": getattr(r, "truth_kg_h", None)})
+            out.append(
+                {
+                    "surface": sr.surface.name or "surface",
+                    "species": sp,
+                    "time_s": np.asarray(r.time_s, dtype=float),
+                    "rate_kg_h": np.asarray(r.rate_kg_s, dtype=float) * KG_S_TO_KG_H,
+                    "mean_kg_h": _f(r.mean_kg_h),
+                    "ci90_kg_h": tuple(_f(v) for v in r.ci90_kg_h),
+                    "truth_kg_h": getattr(r, "truth_kg_h", None),
+                }
+            )
     return out
 
 
@@ -140,8 +165,7 @@ def standard_conditions_text(result) -> str:
     return str(sc) if sc else ""
 
 
-def finite_segments(x: Sequence[float], y: Sequence[float]
-                    ) -> List[Tuple[np.ndarray, np.ndarray]]:
+def finite_segments(x: Sequence[float], y: Sequence[float]) -> List[Tuple[np.ndarray, np.ndarray]]:
     """Split a series at non-finite values into runs of finite points, so a
     plot shows gaps where frames could not be quantified instead of bridging them."""
     x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
@@ -169,8 +193,9 @@ def pixel_status_rows(result) -> List[Tuple[str, int, float]]:
         status[name] = status.get(name, 0) + int(v)
     total = sum(status.values())
     names = [s for s in STATUS_ORDER if s in status] + sorted(set(status) - set(STATUS_ORDER))
-    return [(s, int(status[s]), 100.0 * int(status[s]) / total if total else math.nan)
-            for s in names]
+    return [
+        (s, int(status[s]), 100.0 * int(status[s]) / total if total else math.nan) for s in names
+    ]
 
 
 def map_frame_keys(result) -> Dict[int, int]:
@@ -222,7 +247,7 @@ def _embed(a, origin: Tuple[int, int], shape: Tuple[int, int], fill) -> np.ndarr
     out = np.full(shape, fill, dtype=np.float32 if isinstance(fill, float) else np.int16)
     h, w = a.shape
     ys, xs = slice(max(0, y0), min(shape[0], y0 + h)), slice(max(0, x0), min(shape[1], x0 + w))
-    out[ys, xs] = a[ys.start - y0:ys.stop - y0, xs.start - x0:xs.stop - x0]
+    out[ys, xs] = a[ys.start - y0 : ys.stop - y0, xs.start - x0 : xs.stop - x0]
     return out
 
 
@@ -231,22 +256,25 @@ def full_frame_maps(maps: dict, shape: Tuple[int, int]) -> dict:
     origin = tuple(maps.get("origin", (0, 0)))
     out = dict(maps)
     if "column_density_kg_m2" in maps:
-        out["column_density_kg_m2"] = {sp: _embed(c, origin, shape, np.nan)
-                                       for sp, c in maps["column_density_kg_m2"].items()}
+        out["column_density_kg_m2"] = {
+            sp: _embed(c, origin, shape, np.nan) for sp, c in maps["column_density_kg_m2"].items()
+        }
     if "velocity_px_per_frame" in maps:
         u, v = maps["velocity_px_per_frame"]
-        out["velocity_px_per_frame"] = (_embed(u, origin, shape, np.nan),
-                                        _embed(v, origin, shape, np.nan))
+        out["velocity_px_per_frame"] = (
+            _embed(u, origin, shape, np.nan),
+            _embed(v, origin, shape, np.nan),
+        )
     if "status" in maps:
         st = np.asarray(maps["status"])
-        out["status"] = _embed(st, origin, shape, -1) if np.issubdtype(st.dtype, np.number) \
-            else st
+        out["status"] = _embed(st, origin, shape, -1) if np.issubdtype(st.dtype, np.number) else st
     out["origin"] = (0, 0)
     return out
 
 
-def overlay_scale(result, species: str, frames: Sequence[int],
-                  shape: Optional[Tuple[int, int]] = None) -> float:
+def overlay_scale(
+    result, species: str, frames: Sequence[int], shape: Optional[Tuple[int, int]] = None
+) -> float:
     """A column-density colour-scale top [kg/m2] for ``species``: the 99.5th
     percentile of the positive values over a few frames' maps (fixed for the
     whole playback so the colours mean the same in every frame)."""
@@ -267,9 +295,14 @@ def overlay_scale(result, species: str, frames: Sequence[int],
     return float(np.percentile(np.concatenate(vals), 99.5))
 
 
-def vector_field(u: np.ndarray, v: np.ndarray, weight: Optional[np.ndarray] = None,
-                 spacing: int = 12, min_weight: float = 0.0, target_px: Optional[float] = None
-                 ) -> Tuple[np.ndarray, np.ndarray, float]:
+def vector_field(
+    u: np.ndarray,
+    v: np.ndarray,
+    weight: Optional[np.ndarray] = None,
+    spacing: int = 12,
+    min_weight: float = 0.0,
+    target_px: Optional[float] = None,
+) -> Tuple[np.ndarray, np.ndarray, float]:
     """Arrows for a velocity map on a regular grid.
 
     Parameters
@@ -293,7 +326,7 @@ def vector_field(u: np.ndarray, v: np.ndarray, weight: Optional[np.ndarray] = No
     """
     u, v = np.asarray(u, dtype=float), np.asarray(v, dtype=float)
     h, w = u.shape
-    ys, xs = np.mgrid[spacing // 2:h:spacing, spacing // 2:w:spacing]
+    ys, xs = np.mgrid[spacing // 2 : h : spacing, spacing // 2 : w : spacing]
     uu, vv = u[ys, xs], v[ys, xs]
     keep = np.isfinite(uu) & np.isfinite(vv)
     if weight is not None:
@@ -310,9 +343,13 @@ def vector_field(u: np.ndarray, v: np.ndarray, weight: Optional[np.ndarray] = No
     return tails, heads, scale
 
 
-def arrow_segments(tails: np.ndarray, heads: np.ndarray, head_frac: float = 0.3,
-                   head_angle_deg: float = 25.0, min_head: float = 0.0
-                   ) -> Tuple[np.ndarray, np.ndarray]:
+def arrow_segments(
+    tails: np.ndarray,
+    heads: np.ndarray,
+    head_frac: float = 0.3,
+    head_angle_deg: float = 25.0,
+    min_head: float = 0.0,
+) -> Tuple[np.ndarray, np.ndarray]:
     """Arrows as line segments for a plot: shaft plus two head strokes each.
 
     Returns x and y arrays laid out as consecutive (start, end) pairs (3 pairs

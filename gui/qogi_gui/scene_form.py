@@ -15,10 +15,12 @@ from typing import Dict, List
 __all__ = ["SceneRequest", "FIELDS", "parse_facts"]
 
 #: Form fields: key -> (label, unit).
-FIELDS = {"camera": ("camera", "preset or response CSV"),
-          "distance_m": ("distance", "m"),
-          "ambient_temperature_K": ("ambient temperature", "K"),
-          "pressure_Pa": ("pressure", "Pa")}
+FIELDS = {
+    "camera": ("camera", "preset or response CSV"),
+    "distance_m": ("distance", "m"),
+    "ambient_temperature_K": ("ambient temperature", "K"),
+    "pressure_Pa": ("pressure", "Pa"),
+}
 
 
 @dataclasses.dataclass
@@ -55,8 +57,11 @@ class SceneRequest:
 
     @property
     def title(self) -> str:
-        return (f"{os.path.basename(self.path)}: a {self.kind.upper() if self.kind == 'flir' else 'Telops'}"
-                " file; give what it does not hold")
+        return (
+            f"{os.path.basename(self.path)}: a "
+            f"{self.kind.upper() if self.kind == 'flir' else 'Telops'}"
+            " file; give what it does not hold"
+        )
 
 
 def parse_facts(values: Dict[str, str], needs: List[str]):
@@ -68,8 +73,11 @@ def parse_facts(values: Dict[str, str], needs: List[str]):
         facts["camera"] = cam
     elif "camera" in needs:
         errors["camera"] = "give the camera: gf320, fast-m150 or a spectral-response CSV path"
-    for key, lo, hi in (("distance_m", 0.0, 1e5), ("ambient_temperature_K", 180.0, 350.0),
-                        ("pressure_Pa", 3e4, 1.1e5)):
+    for key, lo, hi in (
+        ("distance_m", 0.0, 1e5),
+        ("ambient_temperature_K", 180.0, 350.0),
+        ("pressure_Pa", 3e4, 1.1e5),
+    ):
         text = str(values.get(key, "") or "").strip()
         if not text:
             if key in needs:

@@ -17,8 +17,17 @@ import math
 from dataclasses import dataclass, field
 from typing import Dict, List, Optional, Tuple
 
-__all__ = ["AnalysisSettings", "FIELDS", "GAS_TEMPERATURE_MODES", "AVERAGING", "BACKGROUNDS",
-           "LINE_SHAPE_WINGS", "LINE_SHAPE_BROADENINGS", "velocity_choices", "SettingsError"]
+__all__ = [
+    "AnalysisSettings",
+    "FIELDS",
+    "GAS_TEMPERATURE_MODES",
+    "AVERAGING",
+    "BACKGROUNDS",
+    "LINE_SHAPE_WINGS",
+    "LINE_SHAPE_BROADENINGS",
+    "velocity_choices",
+    "SettingsError",
+]
 
 GAS_TEMPERATURE_MODES = ("ambient", "given", "infer")
 AVERAGING = ("per-frame", "time-averaged")
@@ -64,13 +73,23 @@ FIELDS: Dict[str, Tuple[str, str]] = {
 
 # Config field names (as they appear in the pipeline's error messages) -> form field.
 _CONFIG_TO_FORM = {
-    "species": "species", "gas_temperature": "gas_temperature_K", "velocity": "velocity",
-    "wind_speed_m_s": "wind_speed_m_s", "exit_velocity_m_s": "exit_velocity_m_s",
-    "averaging": "averaging", "background_percentile": "background_percentile",
-    "background": "background", "source": "source", "distance_m": "distance_m",
-    "ambient_temperature_K": "ambient_temperature_K", "pressure_Pa": "pressure_Pa",
-    "sigma_m": "sigma_m", "frames": "frame_start", "num_threads": "num_threads",
-    "exit_temperature_K": "exit_temperature_K", "line_shape": "line_shape",
+    "species": "species",
+    "gas_temperature": "gas_temperature_K",
+    "velocity": "velocity",
+    "wind_speed_m_s": "wind_speed_m_s",
+    "exit_velocity_m_s": "exit_velocity_m_s",
+    "averaging": "averaging",
+    "background_percentile": "background_percentile",
+    "background": "background",
+    "source": "source",
+    "distance_m": "distance_m",
+    "ambient_temperature_K": "ambient_temperature_K",
+    "pressure_Pa": "pressure_Pa",
+    "sigma_m": "sigma_m",
+    "frames": "frame_start",
+    "num_threads": "num_threads",
+    "exit_temperature_K": "exit_temperature_K",
+    "line_shape": "line_shape",
     "line shape": "line_shape",  # qogi.forward.LineShape's own messages
 }
 
@@ -128,7 +147,7 @@ def _integer(text: str) -> int:
 
 
 def _check_range(text: str, bounds: Tuple[float, float], unit: str) -> str:
-    """"" if ``text`` is a number within the closed ``bounds``, else the message."""
+    """ "" if ``text`` is a number within the closed ``bounds``, else the message."""
     try:
         v = _number(text)
     except ValueError as e:
@@ -138,7 +157,7 @@ def _check_range(text: str, bounds: Tuple[float, float], unit: str) -> str:
 
 
 def _check_contract_range(key: str, text: str) -> str:
-    """"" if ``text`` is a number inside RANGES[key], else the message."""
+    """ "" if ``text`` is a number inside RANGES[key], else the message."""
     try:
         v = _number(text)
     except ValueError as e:
@@ -183,7 +202,7 @@ class AnalysisSettings:
 
     # ----------------------------------------------------------------- defaults
     @classmethod
-    def for_recording(cls, recording) -> "AnalysisSettings":
+    def for_recording(cls, recording) -> AnalysisSettings:
         """Defaults for a recording: its scene's species (or CH4) ticked, its
         scene values as the scene fields, all frames."""
         scene = recording.scene
@@ -216,17 +235,23 @@ class AnalysisSettings:
             + "; empty = recording's",
             "pressure_Pa": _range_text("scene.pressure_Pa") + "; empty = recording's",
             "sigma_m": "> 0 m; empty = from the plume width",
-            "exit_temperature_K": (f"[{EXIT_TEMPERATURE_RANGE_K[0]:g}, "
-                                   f"{EXIT_TEMPERATURE_RANGE_K[1]:g}] K; the gas's temperature "
-                                   "at the exit, when known: checks an assumed (ambient or "
-                                   "given) gas temperature, warning gas-temperature-suspect; "
-                                   "empty = not known"),
-            "line_shape": ("wing rule (fixed window or HAPI's 50 half-widths) and broadening "
-                           "(self + air, or air only) of the cross-sections; default fixed "
-                           f"{LINE_WING_CM1_DEFAULT:g} cm-1 + self (docs/forward_model.md); the "
-                           "budget's 'line shape' term is the spread between the rules"),
-            "line_shape_wing_cm1": (f"[{LINE_WING_CM1_RANGE[0]:g}, {LINE_WING_CM1_RANGE[1]:g}] "
-                                    "cm-1, the fixed window around each line"),
+            "exit_temperature_K": (
+                f"[{EXIT_TEMPERATURE_RANGE_K[0]:g}, "
+                f"{EXIT_TEMPERATURE_RANGE_K[1]:g}] K; the gas's temperature "
+                "at the exit, when known: checks an assumed (ambient or "
+                "given) gas temperature, warning gas-temperature-suspect; "
+                "empty = not known"
+            ),
+            "line_shape": (
+                "wing rule (fixed window or HAPI's 50 half-widths) and broadening "
+                "(self + air, or air only) of the cross-sections; default fixed "
+                f"{LINE_WING_CM1_DEFAULT:g} cm-1 + self (docs/forward_model.md); the "
+                "budget's 'line shape' term is the spread between the rules"
+            ),
+            "line_shape_wing_cm1": (
+                f"[{LINE_WING_CM1_RANGE[0]:g}, {LINE_WING_CM1_RANGE[1]:g}] "
+                "cm-1, the fixed window around each line"
+            ),
             "frame_start": "0 ..",
             "frame_stop": "empty = to the end",
             "num_threads": "0 = all cores",
@@ -236,27 +261,34 @@ class AnalysisSettings:
             t = recording.n_frames
             h["frame_start"] = f"0 .. {t - 2}"
             h["frame_stop"] = f"2 .. {t}; empty = to the end ({t})"
-            h["source"] = (f"x in [-0.5, {recording.width - 0.5}], y in [-0.5, "
-                           f"{recording.height - 0.5}] px; flow away from it counts positive")
+            h["source"] = (
+                f"x in [-0.5, {recording.width - 0.5}], y in [-0.5, "
+                f"{recording.height - 0.5}] px; flow away from it counts positive"
+            )
         return h
 
     # ----------------------------------------------------------------- checks
-    def validate(self, recording, region=None, n_surfaces: Optional[int] = None
-                 ) -> Dict[str, str]:
+    def validate(self, recording, region=None, n_surfaces: Optional[int] = None) -> Dict[str, str]:
         """One message per field ("" when fine), against ``recording``
         (channels, frames, image size) and the picked background ``region``."""
-        err = {k: "" for k in FIELDS}
+        err = dict.fromkeys(FIELDS, "")
         if not any(self.species.values()):
             err["species"] = "tick at least one species"
         if self.gas_temperature_mode not in GAS_TEMPERATURE_MODES:
             err["gas_temperature_K"] = f"choose one of {', '.join(GAS_TEMPERATURE_MODES)}"
         elif self.gas_temperature_mode == "given":
-            err["gas_temperature_K"] = _check_contract_range("scene.gas_temperature_K",
-                                                             self.gas_temperature_K)
-        elif self.gas_temperature_mode == "infer" and recording is not None \
-                and recording.n_channels < 2:
-            err["gas_temperature_K"] = (f"inferring it needs >= 2 channels; this recording has "
-                                        f"{recording.n_channels}: choose ambient or given")
+            err["gas_temperature_K"] = _check_contract_range(
+                "scene.gas_temperature_K", self.gas_temperature_K
+            )
+        elif (
+            self.gas_temperature_mode == "infer"
+            and recording is not None
+            and recording.n_channels < 2
+        ):
+            err["gas_temperature_K"] = (
+                f"inferring it needs >= 2 channels; this recording has "
+                f"{recording.n_channels}: choose ambient or given"
+            )
         choices = velocity_choices()
         if self.velocity not in choices:
             err["velocity"] = f"choose one of {', '.join(choices)}"
@@ -297,8 +329,9 @@ class AnalysisSettings:
             except ValueError as e:
                 err["sigma_m"] = str(e)
         if str(self.exit_temperature_K).strip():
-            err["exit_temperature_K"] = _check_range(self.exit_temperature_K,
-                                                     EXIT_TEMPERATURE_RANGE_K, "K")
+            err["exit_temperature_K"] = _check_range(
+                self.exit_temperature_K, EXIT_TEMPERATURE_RANGE_K, "K"
+            )
         err["line_shape"], err["line_shape_wing_cm1"] = self._check_line_shape()
         err["frame_start"], err["frame_stop"] = self._check_frames(recording)
         try:
@@ -323,8 +356,11 @@ class AnalysisSettings:
     def line_shape(self) -> str:
         """The rule in ``qogi.QuantifyConfig.line_shape``'s text form
         (``"fixed:25+self"``, ``"hapi+air"``) of a valid form."""
-        wing = (f"fixed:{_number(self.line_shape_wing_cm1):g}" if self.line_shape_wing == "fixed"
-                else self.line_shape_wing)
+        wing = (
+            f"fixed:{_number(self.line_shape_wing_cm1):g}"
+            if self.line_shape_wing == "fixed"
+            else self.line_shape_wing
+        )
         return f"{wing}+{self.line_shape_broadening}"
 
     def _frame_range(self, recording) -> Tuple[int, int]:
@@ -351,8 +387,9 @@ class AnalysisSettings:
         if stop > n:
             return "", f"{stop} is beyond the last frame: the recording has {n} frames"
         if stop - start < 2:
-            return "", (f"frames {start}..{stop - 1} are fewer than 2: velocity needs at "
-                        "least two frames")
+            return "", (
+                f"frames {start}..{stop - 1} are fewer than 2: velocity needs at least two frames"
+            )
         return "", ""
 
     def _check_source(self, recording) -> str:
@@ -360,10 +397,13 @@ class AnalysisSettings:
             x, y = _number(self.source_x), _number(self.source_y)
         except ValueError as e:
             return f"{e} (pick the source on the image or type x and y)"
-        if recording is not None and not (-0.5 <= x <= recording.width - 0.5
-                                          and -0.5 <= y <= recording.height - 0.5):
-            return (f"({x:g}, {y:g}) is outside the image (x in [-0.5, "
-                    f"{recording.width - 0.5}], y in [-0.5, {recording.height - 0.5}])")
+        if recording is not None and not (
+            -0.5 <= x <= recording.width - 0.5 and -0.5 <= y <= recording.height - 0.5
+        ):
+            return (
+                f"({x:g}, {y:g}) is outside the image (x in [-0.5, "
+                f"{recording.width - 0.5}], y in [-0.5, {recording.height - 0.5}])"
+            )
         return ""
 
     # ----------------------------------------------------------------- config
@@ -392,8 +432,13 @@ class AnalysisSettings:
             kw["background_percentile"] = _number(self.background_percentile)
         if self.use_source:
             kw["source"] = (_number(self.source_x), _number(self.source_y))
-        for name in ("distance_m", "ambient_temperature_K", "pressure_Pa", "sigma_m",
-                     "exit_temperature_K"):
+        for name in (
+            "distance_m",
+            "ambient_temperature_K",
+            "pressure_Pa",
+            "sigma_m",
+            "exit_temperature_K",
+        ):
             text = str(getattr(self, name)).strip()
             kw[name] = _number(text) if text else None
         kw["line_shape"] = self.line_shape()

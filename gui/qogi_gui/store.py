@@ -95,9 +95,15 @@ class UserStore:
         self.last_dir = last if isinstance(last, str) else ""
         facts = data.get("scene_facts", {})
         if isinstance(facts, dict):
-            self.scene_facts = {str(k): {fk: fv for fk, fv in v.items()
-                                         if fk in SCENE_FACT_KEYS and isinstance(fv, (str, int, float))}
-                                for k, v in facts.items() if isinstance(v, dict)}
+            self.scene_facts = {
+                str(k): {
+                    fk: fv
+                    for fk, fv in v.items()
+                    if fk in SCENE_FACT_KEYS and isinstance(fv, (str, int, float))
+                }
+                for k, v in facts.items()
+                if isinstance(v, dict)
+            }
 
     def save(self) -> bool:
         """Write the file; on failure set :attr:`warning` and return False."""
@@ -106,8 +112,16 @@ class UserStore:
             from qogi.files import atomic_open
 
             with atomic_open(self.path, "w", encoding="utf-8") as fh:
-                fh.write(json.dumps({"recent": self.recent, "last_dir": self.last_dir,
-                                     "scene_facts": self.scene_facts}, indent=1))
+                fh.write(
+                    json.dumps(
+                        {
+                            "recent": self.recent,
+                            "last_dir": self.last_dir,
+                            "scene_facts": self.scene_facts,
+                        },
+                        indent=1,
+                    )
+                )
         except OSError as e:
             self.warning = f"could not save the viewer settings to {self.path} ({e})"
             return False
@@ -140,5 +154,6 @@ class UserStore:
     def set_scene(self, path: os.PathLike, facts: dict) -> None:
         """Remember the scene facts given for ``path``, then save."""
         self.scene_facts[os.path.abspath(os.fspath(path))] = {
-            k: v for k, v in facts.items() if k in SCENE_FACT_KEYS and v not in (None, "")}
+            k: v for k, v in facts.items() if k in SCENE_FACT_KEYS and v not in (None, "")
+        }
         self.save()

@@ -19,14 +19,27 @@ import math
 from dataclasses import dataclass, field
 from typing import List, Optional, Sequence, Tuple
 
-__all__ = ["SurfaceDraft", "RegionDraft", "left_normal", "flow_arrow", "polyline_length",
-           "point_segment_distance", "SURFACE_COLOURS"]
+__all__ = [
+    "SurfaceDraft",
+    "RegionDraft",
+    "left_normal",
+    "flow_arrow",
+    "polyline_length",
+    "point_segment_distance",
+    "SURFACE_COLOURS",
+]
 
 Point = Tuple[float, float]
 
 #: Colours (RGB 0-255) given to surfaces in drawing order, repeated.
-SURFACE_COLOURS = ((0, 220, 255), (255, 200, 0), (120, 255, 90), (255, 90, 200),
-                   (255, 255, 255), (255, 130, 40))
+SURFACE_COLOURS = (
+    (0, 220, 255),
+    (255, 200, 0),
+    (120, 255, 90),
+    (255, 90, 200),
+    (255, 255, 255),
+    (255, 130, 40),
+)
 
 
 @dataclass
@@ -48,7 +61,7 @@ class SurfaceDraft:
     def complete(self) -> bool:
         return len(self.points) >= 2 and polyline_length(self.points) > 0
 
-    def reversed(self) -> "SurfaceDraft":
+    def reversed(self) -> SurfaceDraft:
         """The same surface walked the other way (the positive flux direction flips)."""
         return SurfaceDraft(self.name, list(reversed(self.points)), self.colour)
 
@@ -58,8 +71,9 @@ class SurfaceDraft:
             return math.inf
         if len(self.points) == 1:
             return math.dist(self.points[0], p)
-        return min(point_segment_distance(p, a, b)
-                   for a, b in zip(self.points[:-1], self.points[1:]))
+        return min(
+            point_segment_distance(p, a, b) for a, b in zip(self.points[:-1], self.points[1:])
+        )
 
     def nearest_vertex(self, p: Point) -> Tuple[int, float]:
         """(index, distance [px]) of the vertex closest to ``p``."""
@@ -79,7 +93,7 @@ class RegionDraft:
     y1: int
 
     @classmethod
-    def from_corners(cls, a: Point, b: Point, width: int, height: int) -> "RegionDraft":
+    def from_corners(cls, a: Point, b: Point, width: int, height: int) -> RegionDraft:
         """The pixels whose centres lie in the rectangle spanned by two clicked
         corners, limited to the image."""
         (ax, ay), (bx, by) = a, b

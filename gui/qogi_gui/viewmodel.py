@@ -40,38 +40,124 @@ from .panels.video import RANGE_MODES, DisplayState, Video
 from .panels.work import Work
 from .store import UserStore
 
-__all__ = ["ViewModel", "Message", "MODES", "SPEEDS", "RANGE_MODES", "DisplayState",
-           "MAX_MESSAGES"]
+__all__ = ["ViewModel", "Message", "MODES", "SPEEDS", "RANGE_MODES", "DisplayState", "MAX_MESSAGES"]
 
 #: The view-model's names for its panels' state and actions: panel attribute ->
 #: {view-model name: the panel's name}. Each is a read/write property of
 #: :class:`ViewModel` (methods come back bound to their panel).
 _FORWARD = {
     "log": {"messages": "messages", "last_message": "last"},
-    "file": {n: n for n in ("open", "open_demo", "submit_scene", "cancel_scene",
-                            "scene_request", "summary", "metadata_rows", "set_recording")}
+    "file": {
+        n: n
+        for n in (
+            "open",
+            "open_demo",
+            "submit_scene",
+            "cancel_scene",
+            "scene_request",
+            "summary",
+            "metadata_rows",
+            "set_recording",
+        )
+    }
     | {"recording_path": "path"},
-    "player": {n: n for n in ("frame", "playing", "speed", "n_frames", "frame_time_s", "seek",
-                              "step", "play", "set_speed", "tick")},
-    "video": {n: n for n in ("display", "set_display", "unit", "current_frame",
-                             "channel_image", "auto_range", "display_range", "render",
-                             "last_range", "readout", "px_per_frame_to_m_s")},
-    "overlay": {"frame_maps": "frame_maps", "map_frames": "map_frames",
-                "seek_map_frame": "seek_map_frame", "overlay_vmax": "vmax",
-                "render_overlay": "render", "vectors": "vectors"},
-    "editor": {n: n for n in ("mode", "surfaces", "drawing", "selected", "region",
-                              "region_corner", "set_mode", "click", "finish_drawing",
-                              "cancel_drawing", "undo_point", "add_surface", "auto_surfaces",
-                              "move_vertex", "delete_surface", "reverse_surface",
-                              "rename_surface", "set_region")},
-    "form": {n: n for n in ("settings", "field_errors", "update_settings",
-                            "validate_settings")},
-    "work": {"job": "job", "job_kind": "kind", "busy": "busy", "progress": "progress",
-             "poll": "poll", "cancel_run": "cancel"},
-    "run": {n: n for n in ("result", "result_partial", "result_surfaces", "result_settings",
-                           "result_has_maps", "result_stale", "result_species", "start_run")},
-    "exporter": {n: n for n in ("export_csv", "export_json", "export_plots", "export_frame",
-                                "export_report", "export_all", "frame_picture", "report")},
+    "player": {
+        n: n
+        for n in (
+            "frame",
+            "playing",
+            "speed",
+            "n_frames",
+            "frame_time_s",
+            "seek",
+            "step",
+            "play",
+            "set_speed",
+            "tick",
+        )
+    },
+    "video": {
+        n: n
+        for n in (
+            "display",
+            "set_display",
+            "unit",
+            "current_frame",
+            "channel_image",
+            "auto_range",
+            "display_range",
+            "render",
+            "last_range",
+            "readout",
+            "px_per_frame_to_m_s",
+        )
+    },
+    "overlay": {
+        "frame_maps": "frame_maps",
+        "map_frames": "map_frames",
+        "seek_map_frame": "seek_map_frame",
+        "overlay_vmax": "vmax",
+        "render_overlay": "render",
+        "vectors": "vectors",
+    },
+    "editor": {
+        n: n
+        for n in (
+            "mode",
+            "surfaces",
+            "drawing",
+            "selected",
+            "region",
+            "region_corner",
+            "set_mode",
+            "click",
+            "finish_drawing",
+            "cancel_drawing",
+            "undo_point",
+            "add_surface",
+            "auto_surfaces",
+            "move_vertex",
+            "delete_surface",
+            "reverse_surface",
+            "rename_surface",
+            "set_region",
+        )
+    },
+    "form": {n: n for n in ("settings", "field_errors", "update_settings", "validate_settings")},
+    "work": {
+        "job": "job",
+        "job_kind": "kind",
+        "busy": "busy",
+        "progress": "progress",
+        "poll": "poll",
+        "cancel_run": "cancel",
+    },
+    "run": {
+        n: n
+        for n in (
+            "result",
+            "result_partial",
+            "result_surfaces",
+            "result_settings",
+            "result_has_maps",
+            "result_stale",
+            "result_species",
+            "start_run",
+        )
+    },
+    "exporter": {
+        n: n
+        for n in (
+            "export_csv",
+            "export_json",
+            "export_plots",
+            "export_frame",
+            "export_report",
+            "export_all",
+            "frame_picture",
+            "report",
+        )
+    },
 }
 
 
@@ -103,9 +189,13 @@ class ViewModel:
         Monotonic time for playback (tests pass a fake clock).
     """
 
-    def __init__(self, api=None, store: Optional[UserStore] = None,
-                 demo_provider: Optional[Callable] = None,
-                 clock: Callable[[], float] = time.monotonic):
+    def __init__(
+        self,
+        api=None,
+        store: Optional[UserStore] = None,
+        demo_provider: Optional[Callable] = None,
+        clock: Callable[[], float] = time.monotonic,
+    ):
         if api is None:
             import qogi as api
         self.api = api
@@ -119,8 +209,14 @@ class ViewModel:
         #: The open ``qogi.Recording`` (set by ``file``), shared by every panel.
         self.recording = None
         #: Bumped when the corresponding state changes, so the window redraws only then.
-        self.rev = {"recording": 0, "surfaces": 0, "result": 0, "settings": 0, "display": 0,
-                    "scene_request": 0}
+        self.rev = {
+            "recording": 0,
+            "surfaces": 0,
+            "result": 0,
+            "settings": 0,
+            "display": 0,
+            "scene_request": 0,
+        }
 
         self.file = RecordingPanel(self, demo_provider)
         self.player = Playback(self)
@@ -134,8 +230,17 @@ class ViewModel:
 
     def panels(self) -> list:
         """The panels, in the order they start afresh on a new recording."""
-        return [self.file, self.player, self.editor, self.form, self.run, self.overlay,
-                self.video, self.work, self.exporter]
+        return [
+            self.file,
+            self.player,
+            self.editor,
+            self.form,
+            self.run,
+            self.overlay,
+            self.video,
+            self.work,
+            self.exporter,
+        ]
 
     def close(self) -> None:
         """Stop any job, wait until it has stopped, and close the recording

@@ -9,14 +9,43 @@ The heavy lifting is done by the C++ engine in :mod:`qogi._engine`; this
 package is the public API.
 """
 
+from . import (  # noqa: F401  (qogi.io.read_flir etc. after `import qogi`)
+    camera,
+    inversion,
+    io,
+    radiometry,
+    synth,
+    units,
+)
 from ._version import __version__
-from .optics import SpectralResponse, planck_radiance, planck_radiance_derivative
-from .presets import camera_preset, camera_preset_names
+from .camera import (
+    Calibration,
+    CalibrationScene,
+    ChannelOptics,
+    add_netd_noise,
+    add_warm_optics,
+    camera_optics,
+    correct_warm_optics,
+    fit_calibration,
+    netd_radiance_sigma,
+    warm_optics_radiance,
+)
 from .forward import ForwardModel, band_radiance, column_density, forward_model
-from . import io, radiometry  # noqa: F401  (qogi.io.read_flir etc. after `import qogi`)
-from .recording import (Camera, Recording, RecordingError, RecordingWriter, Scene, Truth,
-                        write_recording)
+from .inversion import Inversion, InversionResult
 from .io.open import open_recording  # HDF5 recordings and camera files (FLIR, Telops)
+from .optics import SpectralResponse, planck_radiance, planck_radiance_derivative
+from .pipeline import Cancelled, QuantifyConfig, quantify
+from .presets import camera_preset, camera_preset_names
+from .recording import (
+    Camera,
+    Recording,
+    RecordingError,
+    RecordingWriter,
+    Scene,
+    Truth,
+    write_recording,
+)
+from .result import Result
 from .spectra import (
     CrossSectionTable,
     LineList,
@@ -28,18 +57,8 @@ from .spectra import (
     partition_sum,
     voigt_profile,
 )
-from . import camera  # noqa: F401  (qogi.camera: calibration, noise, warm optics)
 from .surfaces import Region, Surface, auto_surfaces, detect_source, plume_image
-from .pipeline import Cancelled, QuantifyConfig, quantify
-from .result import Result
-from . import units  # noqa: F401  (qogi.units.convert: kg/h, SLPM, scfh, mcf/day...)
-from .camera import (Calibration, CalibrationScene, ChannelOptics, add_netd_noise,
-                     add_warm_optics, camera_optics, correct_warm_optics, fit_calibration,
-                     netd_radiance_sigma, warm_optics_radiance)
 from .velocimetry import FlowEstimator, optical_flow, optical_flow_sequence
-from . import synth
-from . import inversion  # noqa: F401  (qogi.inversion.fixed/free/prior, plume_depth_from_width)
-from .inversion import Inversion, InversionResult
 
 __all__ = [
     "Cancelled",

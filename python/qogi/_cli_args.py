@@ -66,7 +66,7 @@ def nonnegative_int(text: str) -> int:
 def seed(text: str) -> int:
     """A random seed: a whole number in [0, 2^64)."""
     v = nonnegative_int(text)
-    if v >= 2 ** 64:
+    if v >= 2**64:
         raise argparse.ArgumentTypeError(f"must be < 2^64; got {text}")
     return v
 
@@ -75,8 +75,9 @@ def pixel_xy(text: str) -> Tuple[float, float]:
     """``X,Y``: a pixel position, two finite numbers."""
     parts = text.split(",")
     if len(parts) != 2:
-        raise argparse.ArgumentTypeError(f"expected X,Y (two numbers separated by a comma); "
-                                         f"got {text!r}")
+        raise argparse.ArgumentTypeError(
+            f"expected X,Y (two numbers separated by a comma); got {text!r}"
+        )
     try:
         x, y = (float(p) for p in parts)
     except ValueError:
@@ -94,8 +95,9 @@ def frame_range(text: str) -> Tuple[int, int]:
     try:
         a, b = (int(p) for p in parts)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected START:STOP as whole numbers; got "
-                                         f"{text!r}") from None
+        raise argparse.ArgumentTypeError(
+            f"expected START:STOP as whole numbers; got {text!r}"
+        ) from None
     if a < 0 or b <= a:
         raise argparse.ArgumentTypeError(f"need 0 <= START < STOP; got {text!r}")
     return a, b

@@ -10,8 +10,9 @@ import sys
 from typing import Optional
 
 
-def convert(rec, out, *, compression: Optional[str] = None, progress=None,
-            batch_bytes: int = 64 << 20) -> str:
+def convert(
+    rec, out, *, compression: Optional[str] = None, progress=None, batch_bytes: int = 64 << 20
+) -> str:
     """Write the recording ``rec`` (e.g. a camera file opened with
     :func:`qogi.open_recording`) to ``out`` as a qogi HDF5 recording.
 
@@ -29,9 +30,17 @@ def convert(rec, out, *, compression: Optional[str] = None, progress=None,
     t, c, h, w = rec.shape
     step = max(1, batch_bytes // max(1, c * h * w * 4))
     with atomic_path(out) as tmp:
-        with RecordingWriter(tmp, quantity=rec.quantity, camera=rec.camera, scene=rec.scene,
-                             frame_shape=(c, h, w), truth=rec.truth, compression=compression,
-                             expected_frames=t, allow_nonfinite=True) as wr:
+        with RecordingWriter(
+            tmp,
+            quantity=rec.quantity,
+            camera=rec.camera,
+            scene=rec.scene,
+            frame_shape=(c, h, w),
+            truth=rec.truth,
+            compression=compression,
+            expected_frames=t,
+            allow_nonfinite=True,
+        ) as wr:
             for s in range(0, t, step):
                 e = min(t, s + step)
                 wr.append(rec.frames(s, e), rec.time_s[s:e])
@@ -48,7 +57,8 @@ def convert(rec, out, *, compression: Optional[str] = None, progress=None,
             ct = getattr(rec, "channel_time_s", None)
             if ct is not None:
                 wr._f.attrs["channel_time_offset_s"] = np.asarray(
-                    ct - np.asarray(ct).mean(axis=1, keepdims=True)).mean(axis=0)
+                    ct - np.asarray(ct).mean(axis=1, keepdims=True)
+                ).mean(axis=0)
     return os.fspath(out)
 
 
@@ -79,14 +89,16 @@ def add_commands(sub) -> None:
     from ._cli_camera import add_scene_options
 
     c = sub.add_parser(
-        "convert", help="convert a camera file (or recording) into a qogi recording (.h5)",
+        "convert",
+        help="convert a camera file (or recording) into a qogi recording (.h5)",
         description="Read a FLIR .seq/.csq/.jpg/.fff or Telops .hcc file (or a qogi recording) "
-                    "and write a qogi HDF5 recording, streaming in blocks and atomically (the "
-                    "output appears only when complete). Camera files do not hold everything: "
-                    "give --camera and, for .hcc, --distance and --ambient-temperature "
-                    "(`qogi info FILE` says what is needed). Each scene fact's origin is kept "
-                    "in the file.",
-        epilog="example: qogi convert clip.seq -o clip.h5 --camera gf320 --distance 12")
+        "and write a qogi HDF5 recording, streaming in blocks and atomically (the "
+        "output appears only when complete). Camera files do not hold everything: "
+        "give --camera and, for .hcc, --distance and --ambient-temperature "
+        "(`qogi info FILE` says what is needed). Each scene fact's origin is kept "
+        "in the file.",
+        epilog="example: qogi convert clip.seq -o clip.h5 --camera gf320 --distance 12",
+    )
     c.add_argument("recording", metavar="IN", help="camera file or recording")
     c.add_argument("-o", "--output", required=True, metavar="OUT.h5", help="recording to write")
     c.add_argument("--compression", choices=["gzip", "lzf"], help="compress /frames (lossless)")

@@ -29,15 +29,23 @@ def _config_from_args(args):
     if args.exit_velocity is not None:
         over.update(velocity="exit", exit_velocity_m_s=args.exit_velocity)
     if args.background is not None:
-        over["background"] = (args.background if args.background in ("auto", "beside-surface",
-                                                                     "percentile")
-                              else Region.parse(args.background))
+        over["background"] = (
+            args.background
+            if args.background in ("auto", "beside-surface", "percentile")
+            else Region.parse(args.background)
+        )
     # --frames and --source arrive parsed and checked (qogi._cli_args).
-    for key, value in (("species", args.species), ("averaging", args.averaging),
-                       ("distance_m", args.distance), ("sigma_m", args.sigma),
-                       ("num_threads", args.threads), ("frames", args.frames),
-                       ("source", args.source), ("line_shape", args.line_shape),
-                       ("exit_temperature_K", args.exit_temperature)):
+    for key, value in (
+        ("species", args.species),
+        ("averaging", args.averaging),
+        ("distance_m", args.distance),
+        ("sigma_m", args.sigma),
+        ("num_threads", args.threads),
+        ("frames", args.frames),
+        ("source", args.source),
+        ("line_shape", args.line_shape),
+        ("exit_temperature_K", args.exit_temperature),
+    ):
         if value is not None:
             over[key] = value
     base = {}
@@ -49,8 +57,13 @@ def _config_from_args(args):
 def _outputs(args: argparse.Namespace) -> dict:
     """The files ``qogi quantify`` writes, by option (the maps plot beside
     --plot, the summary CSV beside --csv)."""
-    outs = {"--json": None if args.json == "-" else args.json, "--csv": args.csv,
-            "--plot": args.plot, "--report": args.report, "--save-config": args.save_config}
+    outs = {
+        "--json": None if args.json == "-" else args.json,
+        "--csv": args.csv,
+        "--plot": args.plot,
+        "--report": args.report,
+        "--save-config": args.save_config,
+    }
     if args.plot:
         root, ext = os.path.splitext(args.plot)
         outs["--plot (maps)"] = f"{root}_maps{ext or '.png'}"
@@ -81,22 +94,27 @@ def _signals_deferred():
             signal.signal(s, h)
     if got:
         from .cli import _Terminated
+
         raise _Terminated() if got[0] == signal.SIGTERM else KeyboardInterrupt()
 
 
 def _untrustworthy(result) -> list:
     """``surface/species`` of every rate whose mean is not a finite number."""
     import math
-    return [f"{s.surface.name}/{sp}" for s in result.surfaces for sp, r in s.species.items()
-            if not math.isfinite(r.mean_kg_h)]
+
+    return [
+        f"{s.surface.name}/{sp}"
+        for s in result.surfaces
+        for sp, r in s.species.items()
+        if not math.isfinite(r.mean_kg_h)
+    ]
 
 
 def cmd_quantify(args: argparse.Namespace) -> int:
     from ._cli_camera import open_input, origin_lines
     from ._progress import ProgressBar
-    from .errors import EXIT_DATA, EXIT_INTERRUPTED, DataError, UsageError
+    from .errors import EXIT_DATA, EXIT_INTERRUPTED, Cancelled, DataError, UsageError
     from .files import check_outputs
-    from .errors import Cancelled
     from .pipeline import _check_inputs, quantify
     from .surfaces import Surface
 
@@ -106,9 +124,13 @@ def cmd_quantify(args: argparse.Namespace) -> int:
     try:
         from .config_io import load_settings
         from .units import parse_unit
+
         args.settings = load_settings(args.config) if args.config else None
-        units = parse_unit(args.units) if args.units else \
-            ((args.settings.units if args.settings else None) or "kg/h")
+        units = (
+            parse_unit(args.units)
+            if args.units
+            else ((args.settings.units if args.settings else None) or "kg/h")
+        )
         cfg = _config_from_args(args)
         rec = open_input(args)
         if not args.quiet and getattr(rec, "scene_origin", None):
@@ -124,8 +146,11 @@ def cmd_quantify(args: argparse.Namespace) -> int:
                 # default velocimetry its transport flux level.
                 cfg.source = source
                 if not args.quiet:
-                    print(f"qogi quantify: source detected at x={source[0]:.1f}, "
-                          f"y={source[1]:.1f} (give --source X,Y to set it)", file=sys.stderr)
+                    print(
+                        f"qogi quantify: source detected at x={source[0]:.1f}, "
+                        f"y={source[1]:.1f} (give --source X,Y to set it)",
+                        file=sys.stderr,
+                    )
         if not surfaces:
             raise UsageError("give at least one --surface x0,y0,x1,y1 (or --auto-surfaces)")
         _check_inputs(rec, surfaces, cfg)  # the call's own mistakes, before any work
@@ -137,8 +162,9 @@ def cmd_quantify(args: argparse.Namespace) -> int:
         raise UsageError(str(e)) from None
     bar = ProgressBar("quantify ", enabled=not args.quiet)
     try:
-        result = quantify(rec, surfaces, cfg, progress=bar,
-                          keep_maps=bool(args.plot or args.report))
+        result = quantify(
+            rec, surfaces, cfg, progress=bar, keep_maps=bool(args.plot or args.report)
+        )
     except (UsageError, DataError):
         raise
     except ValueError as e:
@@ -173,15 +199,19 @@ def cmd_quantify(args: argparse.Namespace) -> int:
             cfg.to_toml(args.save_config, surfaces, units)
         if args.report:
             from .report import write_report
+
             write_report(result, args.report, recording=rec)
         if args.plot:
             result.plot(args.plot, kind="rates")
             if result.map_frames:
                 result.plot(_outputs(args)["--plot (maps)"], kind="maps")
     if bad or not result.complete:
-        why = (f"no finite rate for {', '.join(bad)}" if bad else "the result is incomplete")
-        print(f"qogi quantify: error: {why}; the result cannot be trusted (see its warnings; "
-              "written files say \"complete\": false)", file=sys.stderr)
+        why = f"no finite rate for {', '.join(bad)}" if bad else "the result is incomplete"
+        print(
+            f"qogi quantify: error: {why}; the result cannot be trusted (see its warnings; "
+            'written files say "complete": false)',
+            file=sys.stderr,
+        )
         return EXIT_DATA
     return 0
 
@@ -192,99 +222,182 @@ def _auto(rec, args, cfg):
     try:
         dists = [float(v) for v in args.auto_surfaces.split(",")]
     except ValueError:
-        raise ValueError(f"--auto-surfaces {args.auto_surfaces!r}: expected distances in "
-                         "pixels separated by commas, e.g. 40,80") from None
+        raise ValueError(
+            f"--auto-surfaces {args.auto_surfaces!r}: expected distances in "
+            "pixels separated by commas, e.g. 40,80"
+        ) from None
     return auto_surfaces(plume_image(rec), dists, source=cfg.source, return_source=True)
 
 
 def add_commands(sub) -> None:
     q = sub.add_parser(
-        "quantify", help="emission rate of a recording through control surfaces",
+        "quantify",
+        help="emission rate of a recording through control surfaces",
         description="Quantify the emission rate (kg/h, with a 90%% interval) of each species "
-                    "through each control surface: background, per-pixel column density "
-                    "(inversion of the radiative transfer), velocimetry, flux (thesis eq. 12). "
-                    "Flux is positive along a surface's left-hand normal walking from its first "
-                    "point to its last as displayed (x right, y down): a horizontal line drawn "
-                    "left to right counts upward flow as positive; --source orients every "
-                    "surface away from the source instead.",
+        "through each control surface: background, per-pixel column density "
+        "(inversion of the radiative transfer), velocimetry, flux (thesis eq. 12). "
+        "Flux is positive along a surface's left-hand normal walking from its first "
+        "point to its last as displayed (x right, y down): a horizontal line drawn "
+        "left to right counts upward flow as positive; --source orients every "
+        "surface away from the source instead.",
         epilog="example: qogi quantify lab.h5 --surface 100,207,220,207 --species CH4 "
-               "--source 159.5,227 --json out.json --csv out.csv --plot out.png")
-    q.add_argument("recording", help="recording (.h5) or camera file (FLIR .seq/.csq/.jpg/.fff, "
-                                     "Telops .hcc: give --camera and the scene facts it lacks; docs/recording.md)")
-    q.add_argument("--surface", action="append", metavar="X0,Y0,X1,Y1[,X2,Y2...]",
-                   help="a control surface (line or polyline) in pixels; repeatable")
-    q.add_argument("--auto-surfaces", metavar="D1,D2,...",
-                   help="detect the plume and place surfaces at these distances (px) from the source")
-    q.add_argument("--species", action="append", help="species to quantify (repeatable; default CH4)")
+        "--source 159.5,227 --json out.json --csv out.csv --plot out.png",
+    )
+    q.add_argument(
+        "recording",
+        help="recording (.h5) or camera file (FLIR .seq/.csq/.jpg/.fff, "
+        "Telops .hcc: give --camera and the scene facts it lacks; docs/recording.md)",
+    )
+    q.add_argument(
+        "--surface",
+        action="append",
+        metavar="X0,Y0,X1,Y1[,X2,Y2...]",
+        help="a control surface (line or polyline) in pixels; repeatable",
+    )
+    q.add_argument(
+        "--auto-surfaces",
+        metavar="D1,D2,...",
+        help="detect the plume and place surfaces at these distances (px) from the source",
+    )
+    q.add_argument(
+        "--species", action="append", help="species to quantify (repeatable; default CH4)"
+    )
     t = q.add_mutually_exclusive_group()
-    t.add_argument("--gas-temperature", type=positive_float, metavar="K",
-                   help="gas temperature at the plume centre [K] (default: ambient)")
-    t.add_argument("--infer-temperature", action="store_true",
-                   help="infer the gas temperature (needs >= 2 channels)")
+    t.add_argument(
+        "--gas-temperature",
+        type=positive_float,
+        metavar="K",
+        help="gas temperature at the plume centre [K] (default: ambient)",
+    )
+    t.add_argument(
+        "--infer-temperature",
+        action="store_true",
+        help="infer the gas temperature (needs >= 2 channels)",
+    )
     v = q.add_mutually_exclusive_group()
-    v.add_argument("--velocity", default=None, type=lambda m: m.replace("-", "_"),
-                   choices=["fluid", "horn_schunck", "lucas_kanade", "farneback", "dis", "piv"],
-                   help="velocimetry method (default: fluid, the continuity-equation flow)")
-    v.add_argument("--wind-speed", type=positive_float, metavar="M_S",
-                   help="use this speed [m/s] normal to every surface instead of velocimetry")
-    v.add_argument("--exit-velocity", type=positive_float, metavar="M_S",
-                   help="use the release's exit velocity [m/s] (lab checks)")
-    q.add_argument("--source", type=pixel_xy, metavar="X,Y", help="source pixel: orient surfaces away from it")
-    q.add_argument("--background", default=None,
-                   help="auto (default: beside the surfaces where the strips there are "
-                        "gas-free, else the temporal percentile), beside-surface, percentile, "
-                        "or a gas-free region x0,y0,x1,y1")
-    q.add_argument("--averaging", default=None, choices=["per-frame", "time-averaged"],
-                   help="invert every frame then average rates (default), or invert the "
-                        "time-averaged frames")
-    q.add_argument("--line-shape", default=None, metavar="RULE",
-                   help="line shape of the cross-sections: the wing rule fixed[:CM1] or hapi "
-                        "(50 half-widths), then +self or +air broadening (default "
-                        "fixed:25+self; docs/forward_model.md)")
-    q.add_argument("--exit-temperature", type=positive_float, metavar="K",
-                   help="the gas's temperature at the exit [K], when known: checked against "
-                        "the assumed gas temperature (warning gas-temperature-suspect)")
-    q.add_argument("--sigma", type=positive_float, metavar="M",
-                   help="plume depth sigma [m] (default: from the plume width across each surface)")
-    q.add_argument("--frames", type=frame_range, metavar="START:STOP",
-                   help="frame range: START (inclusive) to STOP (exclusive), from 0")
-    q.add_argument("--threads", type=nonnegative_int, default=None,
-                   help="worker threads (0 = all cores, the default)")
-    q.add_argument("--config", metavar="SETTINGS.toml|RESULT.json",
-                   help="take the settings (and surfaces, units) from a settings file or a "
-                        "result JSON; flags given explicitly override them")
-    q.add_argument("--save-config", metavar="OUT.toml",
-                   help="write the settings of this run (with the surfaces) as TOML")
-    q.add_argument("--units", metavar="UNIT",
-                   help="reporting unit: kg/h (default), g/h, kg/day, t/year, SLPM, scfh, "
-                        "mcf/day (volumes at 20 C, 1 atm)")
-    q.add_argument("--json", metavar="OUT.json",
-                   help="write the result as JSON ('-': to standard output, the summary to stderr)")
-    q.add_argument("--csv", metavar="OUT.csv",
-                   help="write the rate time series as CSV, and the summary as OUT.summary.csv")
-    q.add_argument("--report", metavar="OUT.pdf",
-                   help="write a one-recording PDF report (scene, rates, budget, settings)")
-    q.add_argument("--plot", metavar="OUT.png",
-                   help="write the rate plot (and OUT_maps.png with column and velocity maps)")
+    v.add_argument(
+        "--velocity",
+        default=None,
+        type=lambda m: m.replace("-", "_"),
+        choices=["fluid", "horn_schunck", "lucas_kanade", "farneback", "dis", "piv"],
+        help="velocimetry method (default: fluid, the continuity-equation flow)",
+    )
+    v.add_argument(
+        "--wind-speed",
+        type=positive_float,
+        metavar="M_S",
+        help="use this speed [m/s] normal to every surface instead of velocimetry",
+    )
+    v.add_argument(
+        "--exit-velocity",
+        type=positive_float,
+        metavar="M_S",
+        help="use the release's exit velocity [m/s] (lab checks)",
+    )
+    q.add_argument(
+        "--source", type=pixel_xy, metavar="X,Y", help="source pixel: orient surfaces away from it"
+    )
+    q.add_argument(
+        "--background",
+        default=None,
+        help="auto (default: beside the surfaces where the strips there are "
+        "gas-free, else the temporal percentile), beside-surface, percentile, "
+        "or a gas-free region x0,y0,x1,y1",
+    )
+    q.add_argument(
+        "--averaging",
+        default=None,
+        choices=["per-frame", "time-averaged"],
+        help="invert every frame then average rates (default), or invert the time-averaged frames",
+    )
+    q.add_argument(
+        "--line-shape",
+        default=None,
+        metavar="RULE",
+        help="line shape of the cross-sections: the wing rule fixed[:CM1] or hapi "
+        "(50 half-widths), then +self or +air broadening (default "
+        "fixed:25+self; docs/forward_model.md)",
+    )
+    q.add_argument(
+        "--exit-temperature",
+        type=positive_float,
+        metavar="K",
+        help="the gas's temperature at the exit [K], when known: checked against "
+        "the assumed gas temperature (warning gas-temperature-suspect)",
+    )
+    q.add_argument(
+        "--sigma",
+        type=positive_float,
+        metavar="M",
+        help="plume depth sigma [m] (default: from the plume width across each surface)",
+    )
+    q.add_argument(
+        "--frames",
+        type=frame_range,
+        metavar="START:STOP",
+        help="frame range: START (inclusive) to STOP (exclusive), from 0",
+    )
+    q.add_argument(
+        "--threads",
+        type=nonnegative_int,
+        default=None,
+        help="worker threads (0 = all cores, the default)",
+    )
+    q.add_argument(
+        "--config",
+        metavar="SETTINGS.toml|RESULT.json",
+        help="take the settings (and surfaces, units) from a settings file or a "
+        "result JSON; flags given explicitly override them",
+    )
+    q.add_argument(
+        "--save-config",
+        metavar="OUT.toml",
+        help="write the settings of this run (with the surfaces) as TOML",
+    )
+    q.add_argument(
+        "--units",
+        metavar="UNIT",
+        help="reporting unit: kg/h (default), g/h, kg/day, t/year, SLPM, scfh, "
+        "mcf/day (volumes at 20 C, 1 atm)",
+    )
+    q.add_argument(
+        "--json",
+        metavar="OUT.json",
+        help="write the result as JSON ('-': to standard output, the summary to stderr)",
+    )
+    q.add_argument(
+        "--csv",
+        metavar="OUT.csv",
+        help="write the rate time series as CSV, and the summary as OUT.summary.csv",
+    )
+    q.add_argument(
+        "--report",
+        metavar="OUT.pdf",
+        help="write a one-recording PDF report (scene, rates, budget, settings)",
+    )
+    q.add_argument(
+        "--plot",
+        metavar="OUT.png",
+        help="write the rate plot (and OUT_maps.png with column and velocity maps)",
+    )
     q.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     from ._cli_camera import add_scene_options
+
     add_scene_options(q)
     q.set_defaults(func=cmd_quantify)
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
     """Synthesise a release with exact truth, quantify it, compare, plot."""
-    import numpy as np
 
     from . import synth
     from ._progress import ProgressBar
+    from .errors import UsageError
+    from .files import check_outputs
     from .pipeline import QuantifyConfig, quantify
     from .recording import open_recording
     from .render import synthesize
     from .surfaces import Surface
-
-    from .errors import UsageError
-    from .files import check_outputs
 
     out = os.path.abspath(args.output)
     if args.quick:
@@ -296,18 +409,31 @@ def cmd_demo(args: argparse.Namespace) -> int:
     try:
         os.makedirs(out, exist_ok=True)
     except OSError as e:
-        raise UsageError(f"-o {args.output}: cannot create the output folder ({e.strerror})") \
-            from None
+        raise UsageError(
+            f"-o {args.output}: cannot create the output folder ({e.strerror})"
+        ) from None
     rec_path = os.path.join(out, f"{preset}.h5")
-    check_outputs({"recording": rec_path, "result.json": os.path.join(out, "result.json"),
-                   "result.csv": os.path.join(out, "result.csv"),
-                   "rates.png": os.path.join(out, "rates.png"),
-                   "maps.png": os.path.join(out, "maps.png")})
+    check_outputs(
+        {
+            "recording": rec_path,
+            "result.json": os.path.join(out, "result.json"),
+            "result.csv": os.path.join(out, "result.csv"),
+            "rates.png": os.path.join(out, "rates.png"),
+            "maps.png": os.path.join(out, "maps.png"),
+        }
+    )
     print(f"qogi demo: {p['description']}")
-    print(f"1. simulating and rendering {args.duration:g} s of {preset} "
-          f"(seed {args.seed}) -> {rec_path}")
-    synthesize(preset, rec_path, duration_s=args.duration, seed=args.seed,
-               progress=ProgressBar("   synth ", enabled=not args.quiet))
+    print(
+        f"1. simulating and rendering {args.duration:g} s of {preset} "
+        f"(seed {args.seed}) -> {rec_path}"
+    )
+    synthesize(
+        preset,
+        rec_path,
+        duration_s=args.duration,
+        seed=args.seed,
+        progress=ProgressBar("   synth ", enabled=not args.quiet),
+    )
     rec = open_recording(rec_path)
     ex, ey = p["scene"]["exit_pixel"]
     pix = rec.scene.distance_m * rec.camera.ifov_rad
@@ -315,16 +441,29 @@ def cmd_demo(args: argparse.Namespace) -> int:
     for h_cm in (4, 8, 12):
         row = ey - h_cm / 100.0 / pix
         half = max(25.0, 0.6 * h_cm / 100.0 / pix + 20)
-        surfaces.append(Surface([(max(0.0, ex - half), row), (min(rec.width - 1.0, ex + half), row)],
-                                name=f"{h_cm} cm above exit"))
+        surfaces.append(
+            Surface(
+                [(max(0.0, ex - half), row), (min(rec.width - 1.0, ex + half), row)],
+                name=f"{h_cm} cm above exit",
+            )
+        )
     species = list(rec.scene.species) or ["CH4"]
-    cfg = QuantifyConfig(species=species,
-                         gas_temperature="infer" if rec.n_channels >= 2 else "ambient",
-                         source=(ex, ey))
-    print(f"2. quantifying {len(surfaces)} surfaces, species {', '.join(species)}, gas temperature "
-          f"{cfg.gas_temperature}, velocity: {cfg.velocity} flow")
-    result = quantify(rec, surfaces, cfg, progress=ProgressBar("   quantify ", enabled=not args.quiet),
-                      keep_maps=True)
+    cfg = QuantifyConfig(
+        species=species,
+        gas_temperature="infer" if rec.n_channels >= 2 else "ambient",
+        source=(ex, ey),
+    )
+    print(
+        f"2. quantifying {len(surfaces)} surfaces, species {', '.join(species)}, gas temperature "
+        f"{cfg.gas_temperature}, velocity: {cfg.velocity} flow"
+    )
+    result = quantify(
+        rec,
+        surfaces,
+        cfg,
+        progress=ProgressBar("   quantify ", enabled=not args.quiet),
+        keep_maps=True,
+    )
     print("3. result (estimate vs truth):")
     print(result.summary())
     result.to_json(os.path.join(out, "result.json"))
@@ -332,28 +471,41 @@ def cmd_demo(args: argparse.Namespace) -> int:
     try:
         import matplotlib  # noqa: F401
     except ImportError:
-        print(f"4. wrote {out}/result.json, result.csv (plots need matplotlib: "
-              "pip install 'qogi[plot]')")
+        print(
+            f"4. wrote {out}/result.json, result.csv (plots need matplotlib: "
+            "pip install 'qogi[plot]')"
+        )
         return 0
     result.plot(os.path.join(out, "rates.png"), kind="rates")
     result.plot(os.path.join(out, "maps.png"), kind="maps")
-    print(f"4. wrote {out}/result.json, result.csv, rates.png (emission-rate time series per "
-          f"surface), maps.png (column density and velocity)")
+    print(
+        f"4. wrote {out}/result.json, result.csv, rates.png (emission-rate time series per "
+        f"surface), maps.png (column density and velocity)"
+    )
     return 0
 
 
 def add_demo_command(sub) -> None:
     d = sub.add_parser(
-        "demo", help="synthesise a release with exact truth, quantify it, compare and plot",
+        "demo",
+        help="synthesise a release with exact truth, quantify it, compare and plot",
         description="The main job end to end on a synthetic release whose true emission rate "
-                    "is known exactly: simulate and render a preset (qogi synth), quantify it "
-                    "through three control surfaces (qogi quantify), print the estimate against "
-                    "the truth with its 90%% interval, and write plots.")
-    d.add_argument("--preset", default="lab-ch4-5slpm-gf320", help="synthetic preset (qogi synth --list)")
-    d.add_argument("--duration", type=positive_float, default=10.0, help="seconds to simulate (default 10)")
-    d.add_argument("--quick", action="store_true",
-                   help="a short run (3 s of video) to check an installation")
+        "is known exactly: simulate and render a preset (qogi synth), quantify it "
+        "through three control surfaces (qogi quantify), print the estimate against "
+        "the truth with its 90%% interval, and write plots.",
+    )
+    d.add_argument(
+        "--preset", default="lab-ch4-5slpm-gf320", help="synthetic preset (qogi synth --list)"
+    )
+    d.add_argument(
+        "--duration", type=positive_float, default=10.0, help="seconds to simulate (default 10)"
+    )
+    d.add_argument(
+        "--quick", action="store_true", help="a short run (3 s of video) to check an installation"
+    )
     d.add_argument("--seed", type=seed, default=1, help="random seed (default 1)")
-    d.add_argument("-o", "--output", default="qogi-demo", help="output folder (default ./qogi-demo)")
+    d.add_argument(
+        "-o", "--output", default="qogi-demo", help="output folder (default ./qogi-demo)"
+    )
     d.add_argument("-q", "--quiet", action="store_true")
     d.set_defaults(func=cmd_demo)

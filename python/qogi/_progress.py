@@ -16,8 +16,14 @@ class ProgressBar:
     of its long-running functions; returns None: never cancels (Ctrl-C does).
     """
 
-    def __init__(self, label: str = "", width: int = 30, stream: Optional[TextIO] = None,
-                 interval_s: Optional[float] = None, enabled: bool = True):
+    def __init__(
+        self,
+        label: str = "",
+        width: int = 30,
+        stream: Optional[TextIO] = None,
+        interval_s: Optional[float] = None,
+        enabled: bool = True,
+    ):
         self.label = label
         self.width = width
         self.stream = stream or sys.stderr
@@ -40,8 +46,10 @@ class ProgressBar:
         n = int(round(f * self.width))
         elapsed = now - self._t0
         eta = f"  eta {elapsed / f - elapsed:5.0f} s" if 0.02 < f < 1.0 else ""
-        line = (f"{self.label}[{'#' * n}{'.' * (self.width - n)}] {100 * f:5.1f}%  "
-                f"{elapsed:6.1f} s{eta}  {message}")
+        line = (
+            f"{self.label}[{'#' * n}{'.' * (self.width - n)}] {100 * f:5.1f}%  "
+            f"{elapsed:6.1f} s{eta}  {message}"
+        )
         if self.tty:
             self.stream.write("\r" + line[:160].ljust(100))
             if final:

@@ -72,8 +72,13 @@ def _noise(frames: np.ndarray) -> np.ndarray:
     return np.median(mad.reshape(mad.shape[0], -1), axis=1)
 
 
-def choose(frames: np.ndarray, surfaces: Sequence, samples: Sequence, channel_sign: np.ndarray,
-           percentile: float = 5.0) -> Dict[str, object]:
+def choose(
+    frames: np.ndarray,
+    surfaces: Sequence,
+    samples: Sequence,
+    channel_sign: np.ndarray,
+    percentile: float = 5.0,
+) -> Dict[str, object]:
     """The background for this scene from a sample of its frames.
 
     Parameters
@@ -95,16 +100,16 @@ def choose(frames: np.ndarray, surfaces: Sequence, samples: Sequence, channel_si
     f = np.asarray(frames, float)
     t, nc, h, w = f.shape
     sign = np.asarray(channel_sign, float)[:, None]
-    noise = np.maximum(_noise(f), 1e-30)[:, None]                   # (C, 1)
+    noise = np.maximum(_noise(f), 1e-30)[:, None]  # (C, 1)
     lo_pct = np.where(sign >= 0, percentile, 100 - percentile)
     excess = []
     for s in surfaces:
         worst = 0.0
         for pts in strip_points(np.asarray(s.points), w, h):
-            v = _sample(f, pts)                                         # (T, C, 6)
-            mean = v.mean(axis=0)                                       # (C, 6)
+            v = _sample(f, pts)  # (T, C, 6)
+            mean = v.mean(axis=0)  # (C, 6)
             low = np.stack([np.percentile(v[:, c], lo_pct[c, 0], axis=0) for c in range(nc)])
-            e = (sign * (mean - low) / noise).mean(axis=1)              # (C,)
+            e = (sign * (mean - low) / noise).mean(axis=1)  # (C,)
             worst = max(worst, float(e.max()))
         excess.append(worst)
     beside_ok = t >= 5 and all(e <= GAS_EXCESS_SIGMA for e in excess)
@@ -117,9 +122,11 @@ def choose(frames: np.ndarray, surfaces: Sequence, samples: Sequence, channel_si
     rel = {}
     not_free = []
     for j, (s, (xy, _n, _dl, tt)) in enumerate(zip(surfaces, samples)):
-        at = _sample(f, xy)                                             # (T, C, N)
+        at = _sample(f, xy)  # (T, C, N)
         if method == "beside-surface":
-            ends = [_sample(f, pts).mean(axis=-1) for pts in strip_points(np.asarray(s.points), w, h)]
+            ends = [
+                _sample(f, pts).mean(axis=-1) for pts in strip_points(np.asarray(s.points), w, h)
+            ]
             bg = (ends[0][..., None] * (1 - tt) + ends[1][..., None] * tt).mean(axis=0)
             delta = (max(0.0, excess[j] - 1.645) + 1.0 / np.sqrt(6.0 * t)) * noise[:, 0]
         else:
@@ -128,25 +135,37 @@ def choose(frames: np.ndarray, surfaces: Sequence, samples: Sequence, channel_si
             # pixels): its excess over the straight line between the
             # surface's ends, averaged along the surface.
             line = bg[:, :1] * (1 - tt) + bg[:, -1:] * tt
-            held = np.clip(sign * (bg - line), 0, None)                 # (C, N)
+            held = np.clip(sign * (bg - line), 0, None)  # (C, N)
             held_max = float((held / noise).max())
             if held_max > PERCENTILE_GAS_SIGMA:
                 not_free.append((s.name or str(j), held_max))
             delta = 1.3 * noise[:, 0] / np.sqrt(t) + held.mean(axis=1)
-        contrast = sign * (at.mean(axis=0) - bg)                        # (C, N)
+        contrast = sign * (at.mean(axis=0) - bg)  # (C, N)
         weight = np.clip(contrast, 0, None)
-        total = weight.sum(axis=1)                                      # (C,)
+        total = weight.sum(axis=1)  # (C,)
         if not total.max() > 0:
             rel[j] = 0.0
             continue
         c_best = int(np.argmax(total))
         mean_contrast = float((contrast[c_best] * weight[c_best]).sum() / total[c_best])
         rel[j] = float(delta[c_best] / max(mean_contrast, 1e-30))
-    reason = ("the strips beside every surface are gas-free (time-mean within "
-              f"{GAS_EXCESS_SIGMA} noise of their low percentile)" if beside_ok else
-              "the strips beside surface(s) " + ", ".join(
-                  s.name or str(k) for k, (s, e) in enumerate(zip(surfaces, excess))
-                  if e > GAS_EXCESS_SIGMA) + " carry gas (time-mean above their low percentile "
-              f"by up to {max(excess):.1f} noise): temporal percentile instead")
-    return {"method": method, "strips": [float(e) for e in excess], "reason": reason,
-            "relative": rel, "not_gas_free": not_free}
+    reason = (
+        "the strips beside every surface are gas-free (time-mean within "
+        f"{GAS_EXCESS_SIGMA} noise of their low percentile)"
+        if beside_ok
+        else "the strips beside surface(s) "
+        + ", ".join(
+            s.name or str(k)
+            for k, (s, e) in enumerate(zip(surfaces, excess))
+            if e > GAS_EXCESS_SIGMA
+        )
+        + " carry gas (time-mean above their low percentile "
+        f"by up to {max(excess):.1f} noise): temporal percentile instead"
+    )
+    return {
+        "method": method,
+        "strips": [float(e) for e in excess],
+        "reason": reason,
+        "relative": rel,
+        "not_gas_free": not_free,
+    }

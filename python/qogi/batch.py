@@ -37,8 +37,18 @@ from ._version import __version__
 from .errors import UsageError
 from .optics import channel_problem
 
-__all__ = ["Row", "load_manifest", "manifest_keys", "run", "run_row", "summary_frame",
-           "SUMMARY_CSV", "SUMMARY_PARQUET", "RESULT_JSON", "FAILURE_JSON"]
+__all__ = [
+    "Row",
+    "load_manifest",
+    "manifest_keys",
+    "run",
+    "run_row",
+    "summary_frame",
+    "SUMMARY_CSV",
+    "SUMMARY_PARQUET",
+    "RESULT_JSON",
+    "FAILURE_JSON",
+]
 
 SUMMARY_CSV = "summary.csv"
 SUMMARY_PARQUET = "summary.parquet"
@@ -47,8 +57,16 @@ FAILURE_JSON = "failure.json"
 
 #: Keys a manifest row (or ``[defaults]``) may set besides the QuantifyConfig
 #: fields (docs/batch.md).
-BATCH_KEYS = ("path", "name", "surfaces", "auto_distances_px", "camera", "ifov_rad", "plots",
-              "timeout_s")
+BATCH_KEYS = (
+    "path",
+    "name",
+    "surfaces",
+    "auto_distances_px",
+    "camera",
+    "ifov_rad",
+    "plots",
+    "timeout_s",
+)
 #: QuantifyConfig fields qogi batch sets itself.
 _RESERVED = ("num_threads",)
 #: A recording's analysis memory is a few times its frames; a 60 s GF320 clip
@@ -60,6 +78,7 @@ _SUMMARY_INTERVAL_S = 10.0
 
 def _config_fields() -> List[str]:
     from .pipeline import QuantifyConfig
+
     return [name for name in QuantifyConfig.field_names() if name not in _RESERVED]
 
 
@@ -70,6 +89,7 @@ def manifest_keys() -> List[str]:
 
 # ---------------------------------------------------------------------------
 # The manifest
+
 
 @dataclasses.dataclass
 class Row:
@@ -106,9 +126,14 @@ class Row:
             ident = {"size": st.st_size, "mtime_ns": st.st_mtime_ns}
         except OSError:
             ident = {}
-        return {"recording": {"path": os.path.abspath(self.path), **ident},
-                "surfaces": self.surfaces, "auto_distances_px": self.auto_distances_px,
-                "camera": self.camera, "ifov_rad": self.ifov_rad, "config": cfg}
+        return {
+            "recording": {"path": os.path.abspath(self.path), **ident},
+            "surfaces": self.surfaces,
+            "auto_distances_px": self.auto_distances_px,
+            "camera": self.camera,
+            "ifov_rad": self.ifov_rad,
+            "config": cfg,
+        }
 
     def config_hash(self) -> str:
         """16 hex digits of the SHA-256 of :meth:`settings` (canonical JSON)."""
@@ -145,8 +170,10 @@ def _pair(v) -> Tuple[float, float]:
 def _polyline(v) -> List[Tuple[float, float]]:
     xs = _floats(v)
     if len(xs) < 4 or len(xs) % 2:
-        raise ValueError(f"a surface is x0,y0,x1,y1[,x2,y2...] (an even number >= 4 of pixel "
-                         f"coordinates); got {v!r}")
+        raise ValueError(
+            f"a surface is x0,y0,x1,y1[,x2,y2...] (an even number >= 4 of pixel "
+            f"coordinates); got {v!r}"
+        )
     return [(xs[k], xs[k + 1]) for k in range(0, len(xs), 2)]
 
 
@@ -172,6 +199,7 @@ def _background(v):
     if isinstance(v, str) and v.strip() in ("beside-surface", "percentile"):
         return v.strip()
     from .surfaces import Region
+
     xs = _floats(v)
     if len(xs) != 4:
         raise ValueError(f"expected beside-surface, percentile or a region x0,y0,x1,y1; got {v!r}")
@@ -211,12 +239,25 @@ def _parsers() -> Dict[str, Any]:
     """Column -> function turning a cell (CSV text or TOML value) into the
     value; an empty CSV cell means "use the default"."""
     p: Dict[str, Any] = {
-        "path": str, "name": str, "surfaces": _surfaces, "auto_distances_px": _floats,
-        "camera": str, "ifov_rad": float, "plots": _bool, "timeout_s": float,
-        "species": _species, "gas_temperature": _gas_temperature, "velocity": str,
-        "background": _background, "source": _pair, "frames": _frames,
-        "composition": _composition, "averaging": str, "column_density": str,
-        "flux_level": _bool, "pair_stride": int,
+        "path": str,
+        "name": str,
+        "surfaces": _surfaces,
+        "auto_distances_px": _floats,
+        "camera": str,
+        "ifov_rad": float,
+        "plots": _bool,
+        "timeout_s": float,
+        "species": _species,
+        "gas_temperature": _gas_temperature,
+        "velocity": str,
+        "background": _background,
+        "source": _pair,
+        "frames": _frames,
+        "composition": _composition,
+        "averaging": str,
+        "column_density": str,
+        "flux_level": _bool,
+        "pair_stride": int,
     }
     for name in _config_fields():
         p.setdefault(name, _optional_float)
@@ -236,8 +277,10 @@ def _read_toml(path: pathlib.Path) -> Tuple[dict, List[Tuple[str, dict]]]:
         raise UsageError(f"manifest {path}: not valid TOML ({e})") from e
     unknown = sorted(set(doc) - {"defaults", "recording", "rows"})
     if unknown:
-        raise UsageError(f"manifest {path}: unknown top-level key(s) {', '.join(unknown)}; a "
-                         "manifest has [defaults], [[recording]] tables and/or rows = \"FILE.csv\"")
+        raise UsageError(
+            f"manifest {path}: unknown top-level key(s) {', '.join(unknown)}; a "
+            'manifest has [defaults], [[recording]] tables and/or rows = "FILE.csv"'
+        )
     defaults = doc.get("defaults", {})
     if not isinstance(defaults, dict):
         raise UsageError(f"manifest {path}: [defaults] must be a table")
@@ -248,7 +291,7 @@ def _read_toml(path: pathlib.Path) -> Tuple[dict, List[Tuple[str, dict]]]:
     for k, r in enumerate(recs):
         rows.append((f"{path}: [[recording]] #{k + 1}", r))
     if "rows" in doc:
-        csv_path = (path.parent / str(doc["rows"]))
+        csv_path = path.parent / str(doc["rows"])
         rows += _read_csv(csv_path)
     return defaults, rows
 
@@ -261,21 +304,29 @@ def _read_csv(path: pathlib.Path) -> List[Tuple[str, dict]]:
         raise UsageError(f"manifest {path}: cannot read it ({e})") from e
     lines = text.splitlines(keepends=True)
     # Comment lines (#) are skipped but counted, so messages give file lines.
-    numbered = [(k + 1, ln) for k, ln in enumerate(lines)
-                if ln.strip() and not ln.lstrip().startswith("#")]
+    numbered = [
+        (k + 1, ln) for k, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")
+    ]
     if not numbered:
-        raise UsageError(f"manifest {path}: empty; the first line names the columns "
-                         "(at least 'path')")
+        raise UsageError(
+            f"manifest {path}: empty; the first line names the columns (at least 'path')"
+        )
     reader = csv.reader([ln for _, ln in numbered])
     header = [h.strip() for h in next(reader)]
     rows = []
     for (lineno, _), cells in zip(numbered[1:], reader):
         if len(cells) > len(header):
-            raise UsageError(f"manifest {path} line {lineno}: {len(cells)} cells but the header "
-                             f"has {len(header)} columns (quote cells holding commas: "
-                             "\"100,200,220,200\")")
-        rows.append((f"{path} line {lineno}",
-                     {h: c.strip() for h, c in zip(header, cells) if c.strip() != ""}))
+            raise UsageError(
+                f"manifest {path} line {lineno}: {len(cells)} cells but the header "
+                f"has {len(header)} columns (quote cells holding commas: "
+                '"100,200,220,200")'
+            )
+        rows.append(
+            (
+                f"{path} line {lineno}",
+                {h: c.strip() for h, c in zip(header, cells) if c.strip() != ""},
+            )
+        )
     return rows
 
 
@@ -316,8 +367,9 @@ def load_manifest(path: Union[str, os.PathLike], *, check_files: bool = True) ->
             if key in _RESERVED:
                 raise UsageError(f"{where}: column {key!r}: set by qogi batch (use --threads)")
             if key not in known:
-                raise UsageError(f"{where}: unknown column {key!r}; known: "
-                                 f"{', '.join(sorted(known))}")
+                raise UsageError(
+                    f"{where}: unknown column {key!r}; known: {', '.join(sorted(known))}"
+                )
             try:
                 out[key] = parsers[key](v)
             except (ValueError, TypeError) as e:
@@ -339,35 +391,50 @@ def load_manifest(path: Union[str, os.PathLike], *, check_files: bool = True) ->
         if not rec.is_absolute():
             rec = path.parent / rec
         if check_files and not rec.is_file():
-            raise UsageError(f"{where}: column 'path': {rec} does not exist; fix the path "
-                             "(relative paths start at the manifest's folder)")
+            raise UsageError(
+                f"{where}: column 'path': {rec} does not exist; fix the path "
+                "(relative paths start at the manifest's folder)"
+            )
         name = v.get("name") or rec.stem
         if not _NAME_RE.match(name):
-            raise UsageError(f"{where}: column 'name': {name!r} is not a usable folder name; "
-                             "use letters, digits, '.', '_' and '-'")
+            raise UsageError(
+                f"{where}: column 'name': {name!r} is not a usable folder name; "
+                "use letters, digits, '.', '_' and '-'"
+            )
         if name in names:
-            raise UsageError(f"{where}: output name {name!r} is already used by {names[name]}; "
-                             "give each row its own 'name'")
+            raise UsageError(
+                f"{where}: output name {name!r} is already used by {names[name]}; "
+                "give each row its own 'name'"
+            )
         names[name] = where
         surfaces = v.get("surfaces")
         if surfaces is None:
-            raise UsageError(f"{where}: column 'surfaces' is missing: give polylines "
-                             "x0,y0,x1,y1;... or 'auto' (here or in [defaults])")
+            raise UsageError(
+                f"{where}: column 'surfaces' is missing: give polylines "
+                "x0,y0,x1,y1;... or 'auto' (here or in [defaults])"
+            )
         dists = v.get("auto_distances_px")
         if surfaces == "auto" and not dists:
-            raise UsageError(f"{where}: surfaces 'auto' needs column 'auto_distances_px' (pixel "
-                             "distances from the source, e.g. 50;100)")
+            raise UsageError(
+                f"{where}: surfaces 'auto' needs column 'auto_distances_px' (pixel "
+                "distances from the source, e.g. 50;100)"
+            )
         if dists is not None and any(not (math.isfinite(d) and d > 0) for d in dists):
-            raise UsageError(f"{where}: column 'auto_distances_px': distances must be > 0 px; "
-                             f"got {dists}")
+            raise UsageError(
+                f"{where}: column 'auto_distances_px': distances must be > 0 px; got {dists}"
+            )
         if v.get("camera") is not None:
             from .presets import camera_preset_names
+
             if v["camera"] not in camera_preset_names():
-                raise UsageError(f"{where}: column 'camera': unknown camera {v['camera']!r}; "
-                                 f"known: {', '.join(camera_preset_names())}")
+                raise UsageError(
+                    f"{where}: column 'camera': unknown camera {v['camera']!r}; "
+                    f"known: {', '.join(camera_preset_names())}"
+                )
         if v.get("ifov_rad") is not None and not 0 < v["ifov_rad"] <= 0.1:
-            raise UsageError(f"{where}: column 'ifov_rad' must be within (0, 0.1] rad; got "
-                             f"{v['ifov_rad']}")
+            raise UsageError(
+                f"{where}: column 'ifov_rad' must be within (0, 0.1] rad; got {v['ifov_rad']}"
+            )
         if v.get("timeout_s") is not None and not v["timeout_s"] > 0:
             raise UsageError(f"{where}: column 'timeout_s' must be > 0 s; got {v['timeout_s']}")
         try:
@@ -376,16 +443,26 @@ def load_manifest(path: Union[str, os.PathLike], *, check_files: bool = True) ->
             col = next((k for k in fields if k in str(e)), None)
             what = f"column {col!r}: " if col else ""
             raise UsageError(f"{where}: {what}{e}") from None
-        rows.append(Row(name=name, path=str(rec), surfaces=surfaces,
-                        auto_distances_px=dists if surfaces == "auto" else None,
-                        config=cfg, camera=v.get("camera"), ifov_rad=v.get("ifov_rad"),
-                        plots=bool(v.get("plots", False)), timeout_s=v.get("timeout_s"),
-                        where=where))
+        rows.append(
+            Row(
+                name=name,
+                path=str(rec),
+                surfaces=surfaces,
+                auto_distances_px=dists if surfaces == "auto" else None,
+                config=cfg,
+                camera=v.get("camera"),
+                ifov_rad=v.get("ifov_rad"),
+                plots=bool(v.get("plots", False)),
+                timeout_s=v.get("timeout_s"),
+                where=where,
+            )
+        )
     return rows
 
 
 # ---------------------------------------------------------------------------
 # One recording (runs on a Dask worker)
+
 
 class _TimedOut(Exception):
     pass
@@ -393,6 +470,7 @@ class _TimedOut(Exception):
 
 def _cpu_count() -> int:
     from dask.system import CPU_COUNT
+
     return int(CPU_COUNT)
 
 
@@ -410,12 +488,14 @@ def _engine_threads(job: dict) -> int:
     slots = 1
     try:
         from distributed import get_client, get_worker
+
         worker = get_worker()
         slots = max(1, int(worker.state.nthreads))
         host = _host(worker.address)
         workers = get_client().scheduler_info(n_workers=-1).get("workers", {})
-        slots = max(slots, sum(int(w.get("nthreads", 1)) for a, w in workers.items()
-                               if _host(a) == host))
+        slots = max(
+            slots, sum(int(w.get("nthreads", 1)) for a, w in workers.items() if _host(a) == host)
+        )
     except (ImportError, ValueError, AttributeError, OSError):
         pass
     return max(1, _cpu_count() // slots)
@@ -424,6 +504,7 @@ def _engine_threads(job: dict) -> int:
 def _remove_stale_temporaries(folder: pathlib.Path) -> None:
     """Temporary files left by a killed writer (qogi.files names them so)."""
     from .files import _TMP_PREFIX
+
     for p in glob.glob(str(folder / (_TMP_PREFIX + "*"))):
         try:
             os.unlink(p)
@@ -433,6 +514,7 @@ def _remove_stale_temporaries(folder: pathlib.Path) -> None:
 
 def _write_json(path: pathlib.Path, d: dict) -> None:
     from .files import atomic_open
+
     with atomic_open(path, "w") as fh:
         fh.write(json.dumps(d, indent=2) + "\n")
 
@@ -440,6 +522,7 @@ def _write_json(path: pathlib.Path, d: dict) -> None:
 def _worker_address() -> str:
     try:
         from distributed import get_worker
+
         return str(get_worker().address)
     except (ImportError, ValueError):
         return ""
@@ -463,9 +546,14 @@ def run_row(job: dict) -> dict:
     folder = pathlib.Path(job["outdir"]) / row.name
     folder.mkdir(parents=True, exist_ok=True)
     _remove_stale_temporaries(folder)
-    meta = {"name": row.name, "path": row.path, "config_hash": job["config_hash"],
-            "qogi_version": __version__, "worker": _worker_address(),
-            "manifest_row": row.where}
+    meta = {
+        "name": row.name,
+        "path": row.path,
+        "config_hash": job["config_hash"],
+        "qogi_version": __version__,
+        "worker": _worker_address(),
+        "manifest_row": row.where,
+    }
     t0, c0 = time.perf_counter(), time.process_time()
     cfg = row.config.replace(num_threads=_engine_threads(job))
     meta["engine_threads"] = cfg.num_threads
@@ -485,8 +573,9 @@ def run_row(job: dict) -> dict:
             if isinstance(row.surfaces, str):  # "auto": load_manifest gave the distances
                 assert row.surfaces == "auto" and row.auto_distances_px is not None
                 stage["message"] = "placing surfaces"
-                surfaces, source = auto_surfaces(plume_image(rec), row.auto_distances_px,
-                                                 source=cfg.source, return_source=True)
+                surfaces, source = auto_surfaces(
+                    plume_image(rec), row.auto_distances_px, source=cfg.source, return_source=True
+                )
                 if cfg.source is None:
                     cfg.source = source
             else:
@@ -495,12 +584,16 @@ def run_row(job: dict) -> dict:
                 raise _TimedOut()
             result = quantify(rec, surfaces, cfg, progress=progress, keep_maps=row.plots)
     except (Cancelled, _TimedOut):
-        return _failed(folder, meta, t0, "TimeoutError",
-                       f"timed out after {row.timeout_s:g} s (timeout_s) while "
-                       f"{stage['message']}; raise timeout_s or split the recording (frames)")
+        return _failed(
+            folder,
+            meta,
+            t0,
+            "TimeoutError",
+            f"timed out after {row.timeout_s:g} s (timeout_s) while "
+            f"{stage['message']}; raise timeout_s or split the recording (frames)",
+        )
     except (ValueError, OSError) as e:
-        return _failed(folder, meta, t0, type(e).__name__, str(e),
-                       traceback.format_exc())
+        return _failed(folder, meta, t0, type(e).__name__, str(e), traceback.format_exc())
     meta["run_time_s"] = time.perf_counter() - t0
     # The worker process runs one recording at a time: its CPU time is this one's.
     meta["cpu_time_s"] = time.process_time() - c0
@@ -522,40 +615,63 @@ def run_row(job: dict) -> dict:
 
 def _override_camera(rec, row: Row) -> None:
     from .presets import camera_preset
+
     cam = rec.camera
     if row.camera is not None:
         preset = camera_preset(row.camera)
         if channel_problem(preset.channels, rec.n_channels) is not None:
-            raise UsageError(f"camera {row.camera!r} has {len(preset.channels)} channel(s) but "
-                             f"{row.path} has {rec.n_channels}; choose a camera with as many "
-                             "channels as the recording")
-        cam = dataclasses.replace(cam, name=preset.name, ifov_rad=preset.ifov_rad,
-                                  channels=preset.channels, netd_K=preset.netd_K)
+            raise UsageError(
+                f"camera {row.camera!r} has {len(preset.channels)} channel(s) but "
+                f"{row.path} has {rec.n_channels}; choose a camera with as many "
+                "channels as the recording"
+            )
+        cam = dataclasses.replace(
+            cam,
+            name=preset.name,
+            ifov_rad=preset.ifov_rad,
+            channels=preset.channels,
+            netd_K=preset.netd_K,
+        )
     if row.ifov_rad is not None:
         cam = dataclasses.replace(cam, ifov_rad=float(row.ifov_rad))
     cam.validate(row.path)
     rec.camera = cam
 
 
-def _failed(folder: pathlib.Path, meta: dict, t0: float, error_type: str, message: str,
-            tb: str = "") -> dict:
-    meta = dict(meta, status="failed", error_type=error_type, error=message,
-                run_time_s=time.perf_counter() - t0)
-    _write_json(folder / FAILURE_JSON, {"format": "qogi-batch-failure", "version": 1,
-                                        "batch": meta, "traceback": tb})
+def _failed(
+    folder: pathlib.Path, meta: dict, t0: float, error_type: str, message: str, tb: str = ""
+) -> dict:
+    meta = dict(
+        meta,
+        status="failed",
+        error_type=error_type,
+        error=message,
+        run_time_s=time.perf_counter() - t0,
+    )
+    _write_json(
+        folder / FAILURE_JSON,
+        {"format": "qogi-batch-failure", "version": 1, "batch": meta, "traceback": tb},
+    )
     return failed_row(meta)
 
 
 # ---------------------------------------------------------------------------
 # The summary table
 
+
 def summary_row(result: dict) -> dict:
     """One summary row from a result JSON (as written by :func:`run_row`):
     per surface and species the mean and 90 % interval [kg/h] (and the truth
     when the recording has it), the warnings, the batch metadata."""
     b = result.get("batch", {})
-    row = {"name": b.get("name"), "path": b.get("path"), "status": "ok", "error_type": "",
-           "error": "", "complete": bool(result.get("complete", True))}
+    row = {
+        "name": b.get("name"),
+        "path": b.get("path"),
+        "status": "ok",
+        "error_type": "",
+        "error": "",
+        "complete": bool(result.get("complete", True)),
+    }
     for s in result.get("surfaces", []):
         for sp, r in s.get("species", {}).items():
             key = f"{s.get('name') or 'surface'}/{sp}"
@@ -573,9 +689,16 @@ def summary_row(result: dict) -> dict:
 
 
 def failed_row(meta: dict) -> dict:
-    row = {"name": meta.get("name"), "path": meta.get("path"), "status": "failed",
-           "error_type": meta.get("error_type", ""), "error": meta.get("error", ""),
-           "complete": False, "n_warnings": 0, "warnings": ""}
+    row = {
+        "name": meta.get("name"),
+        "path": meta.get("path"),
+        "status": "failed",
+        "error_type": meta.get("error_type", ""),
+        "error": meta.get("error", ""),
+        "complete": False,
+        "n_warnings": 0,
+        "warnings": "",
+    }
     row.update(_meta_columns(meta))
     return row
 
@@ -583,18 +706,31 @@ def failed_row(meta: dict) -> dict:
 def pending_row(row: Row) -> dict:
     """A row not run (yet): interrupted batch, or still running at a
     periodic summary."""
-    r = {"name": row.name, "path": row.path, "status": "not done", "error_type": "",
-         "error": "", "complete": False, "n_warnings": 0, "warnings": ""}
+    r = {
+        "name": row.name,
+        "path": row.path,
+        "status": "not done",
+        "error_type": "",
+        "error": "",
+        "complete": False,
+        "n_warnings": 0,
+        "warnings": "",
+    }
     r.update(_meta_columns({"manifest_row": row.where}))
     return r
 
 
 def _meta_columns(b: dict) -> dict:
-    return {"run_time_s": _num(b.get("run_time_s")), "cpu_time_s": _num(b.get("cpu_time_s")),
-            "engine_threads": int(b.get("engine_threads") or 0),
-            "qogi_version": b.get("qogi_version", ""),
-            "config_hash": b.get("config_hash", ""), "worker": b.get("worker", ""),
-            "manifest_row": b.get("manifest_row", ""), "reused": bool(b.get("reused", False))}
+    return {
+        "run_time_s": _num(b.get("run_time_s")),
+        "cpu_time_s": _num(b.get("cpu_time_s")),
+        "engine_threads": int(b.get("engine_threads") or 0),
+        "qogi_version": b.get("qogi_version", ""),
+        "config_hash": b.get("config_hash", ""),
+        "worker": b.get("worker", ""),
+        "manifest_row": b.get("manifest_row", ""),
+        "reused": bool(b.get("reused", False)),
+    }
 
 
 def _warning_text(w: dict) -> str:
@@ -607,14 +743,25 @@ def _num(x):
 
 
 _LEADING = ["name", "path", "status", "error_type", "error", "complete"]
-_TRAILING = ["n_warnings", "warnings", "run_time_s", "cpu_time_s", "engine_threads", "qogi_version", "config_hash", "worker",
-             "manifest_row", "reused"]
+_TRAILING = [
+    "n_warnings",
+    "warnings",
+    "run_time_s",
+    "cpu_time_s",
+    "engine_threads",
+    "qogi_version",
+    "config_hash",
+    "worker",
+    "manifest_row",
+    "reused",
+]
 
 
 def summary_frame(rows: Sequence[dict]):
     """The summary table (pandas.DataFrame), one row per manifest row in
     manifest order, the per-surface/species columns in between the fixed ones."""
     import pandas as pd
+
     middle: List[str] = []
     for r in rows:
         for k in r:
@@ -628,8 +775,18 @@ def summary_frame(rows: Sequence[dict]):
         df[k] = df[k].astype(bool)
     for k in ("n_warnings", "engine_threads"):
         df[k] = pd.to_numeric(df[k], errors="coerce").fillna(0).astype("int64")
-    for k in ("name", "path", "status", "error_type", "error", "warnings", "qogi_version",
-              "config_hash", "worker", "manifest_row"):
+    for k in (
+        "name",
+        "path",
+        "status",
+        "error_type",
+        "error",
+        "warnings",
+        "qogi_version",
+        "config_hash",
+        "worker",
+        "manifest_row",
+    ):
         df[k] = df[k].fillna("").astype(str)
     return df
 
@@ -637,14 +794,16 @@ def summary_frame(rows: Sequence[dict]):
 def write_summary(df, outdir: pathlib.Path) -> None:
     """``summary.csv`` and ``summary.parquet`` in ``outdir``, each atomic."""
     from .files import atomic_open, atomic_path
+
     with atomic_open(outdir / SUMMARY_CSV, "w", newline="") as fh:
         df.to_csv(fh, index=False)
     with atomic_path(outdir / SUMMARY_PARQUET) as tmp:
         df.to_parquet(tmp, index=False)
 
 
-def _reusable(row: Row, outdir: pathlib.Path, config_hash: str,
-              reused: bool = True) -> Optional[dict]:
+def _reusable(
+    row: Row, outdir: pathlib.Path, config_hash: str, reused: bool = True
+) -> Optional[dict]:
     """The summary row of an existing result with the same config hash."""
     p = outdir / row.name / RESULT_JSON
     try:
@@ -662,12 +821,15 @@ def _reusable(row: Row, outdir: pathlib.Path, config_hash: str,
 # ---------------------------------------------------------------------------
 # Running
 
+
 def default_workers(n_jobs: int) -> int:
     """Workers for a LocalCluster: one per CPU, no more than the jobs, and
     about 2 GB of memory each."""
     from dask.system import CPU_COUNT
+
     try:
         import psutil
+
         by_memory = max(1, int(psutil.virtual_memory().total // _MEMORY_PER_WORKER))
     except ImportError:
         by_memory = CPU_COUNT
@@ -676,6 +838,7 @@ def default_workers(n_jobs: int) -> int:
 
 def _has_bokeh() -> bool:
     import importlib.util
+
     return importlib.util.find_spec("bokeh") is not None
 
 
@@ -694,11 +857,21 @@ def _dashboard(client) -> Tuple[Optional[str], str]:
         return None, f"cannot ask the scheduler ({e})"
 
 
-def run(manifest: Union[str, os.PathLike], outdir: Union[str, os.PathLike], *,
-        workers: Optional[int] = None, threads: Optional[int] = None,
-        scheduler: Optional[str] = None, resume: bool = False, overwrite: bool = False,
-        retries: int = 2, timeout_s: Optional[float] = None, plots: Optional[bool] = None,
-        progress: bool = True, log=None):
+def run(
+    manifest: Union[str, os.PathLike],
+    outdir: Union[str, os.PathLike],
+    *,
+    workers: Optional[int] = None,
+    threads: Optional[int] = None,
+    scheduler: Optional[str] = None,
+    resume: bool = False,
+    overwrite: bool = False,
+    retries: int = 2,
+    timeout_s: Optional[float] = None,
+    plots: Optional[bool] = None,
+    progress: bool = True,
+    log=None,
+):
     """Quantify every recording of a manifest on Dask; returns the summary
     table (pandas.DataFrame, also written to ``OUTDIR/summary.csv`` and
     ``.parquet``).
@@ -747,8 +920,11 @@ def run(manifest: Union[str, os.PathLike], outdir: Union[str, os.PathLike], *,
 
     from ._progress import ProgressBar
 
-    say = (lambda msg: print(msg, file=log or sys.stderr, flush=True)) if progress else \
-        (lambda msg: None)
+    say = (
+        (lambda msg: print(msg, file=log or sys.stderr, flush=True))
+        if progress
+        else (lambda msg: None)
+    )
     # 1. The manifest, validated whole.
     rows = load_manifest(manifest)
     if retries < 0:
@@ -763,13 +939,18 @@ def run(manifest: Union[str, os.PathLike], outdir: Union[str, os.PathLike], *,
     if out.exists() and not out.is_dir():
         raise UsageError(f"-o {out}: is a file; give a folder")
     if (out / SUMMARY_CSV).exists() and not (resume or overwrite):
-        raise UsageError(f"-o {out}: already holds a batch ({SUMMARY_CSV}); give --resume to "
-                         "continue it (rows done with the same settings are kept) or "
-                         "--overwrite to redo every row")
+        raise UsageError(
+            f"-o {out}: already holds a batch ({SUMMARY_CSV}); give --resume to "
+            "continue it (rows done with the same settings are kept) or "
+            "--overwrite to redo every row"
+        )
     out.mkdir(parents=True, exist_ok=True)
     from .files import check_outputs
-    check_outputs({"summary.csv": out / SUMMARY_CSV, "summary.parquet": out / SUMMARY_PARQUET},
-                  inputs=[manifest] + [r.path for r in rows])
+
+    check_outputs(
+        {"summary.csv": out / SUMMARY_CSV, "summary.parquet": out / SUMMARY_PARQUET},
+        inputs=[manifest] + [r.path for r in rows],
+    )
     for r in rows:
         if timeout_s is not None and r.timeout_s is None:
             r.timeout_s = float(timeout_s)
@@ -785,12 +966,15 @@ def run(manifest: Union[str, os.PathLike], outdir: Union[str, os.PathLike], *,
         if done is not None:
             results[k] = done
         else:
-            jobs.append((k, {"row": r, "outdir": str(out.resolve()), "config_hash": h,
-                             "threads": threads}))
+            jobs.append(
+                (k, {"row": r, "outdir": str(out.resolve()), "config_hash": h, "threads": threads})
+            )
     n_reused = len(rows) - len(jobs)
     if resume:
-        say(f"qogi batch: {n_reused} of {len(rows)} rows already done with the same settings; "
-            f"{len(jobs)} to run")
+        say(
+            f"qogi batch: {n_reused} of {len(rows)} rows already done with the same settings; "
+            f"{len(jobs)} to run"
+        )
 
     # 3. The cluster, 4. the tasks, 5. collected as they complete.
     if jobs:
@@ -802,23 +986,46 @@ def run(manifest: Union[str, os.PathLike], outdir: Union[str, os.PathLike], *,
                 for _, j in jobs:
                     j["threads"] = threads
             with dask.config.set({"distributed.scheduler.allowed-failures": retries}):
-                cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                       dashboard_address="127.0.0.1:0", host="127.0.0.1")
-            say(f"qogi batch: local cluster of {n} worker(s), {threads} engine thread(s) per "
-                f"recording")
+                cluster = LocalCluster(
+                    n_workers=n,
+                    threads_per_worker=1,
+                    processes=True,
+                    dashboard_address="127.0.0.1:0",
+                    host="127.0.0.1",
+                )
+            say(
+                f"qogi batch: local cluster of {n} worker(s), {threads} engine thread(s) per "
+                f"recording"
+            )
         try:
             client = Client(cluster) if cluster is not None else Client(scheduler, timeout=30)
         except (OSError, TimeoutError) as e:
             if cluster is not None:
                 cluster.close()
-            raise UsageError(f"--scheduler {scheduler}: cannot connect ({e}); start it with "
-                             "`dask scheduler` and check the address") from None
+            raise UsageError(
+                f"--scheduler {scheduler}: cannot connect ({e}); start it with "
+                "`dask scheduler` and check the address"
+            ) from None
         try:
             link, why = _dashboard(client)
-            say(f"qogi batch: Dask dashboard at {link}" if link else
-                f"qogi batch: Dask dashboard not available: {why}")
-            _collect(client, jobs, rows, results, hashes, out, retries, say, progress,
-                     as_completed, ProgressBar)
+            say(
+                f"qogi batch: Dask dashboard at {link}"
+                if link
+                else f"qogi batch: Dask dashboard not available: {why}"
+            )
+            _collect(
+                client,
+                jobs,
+                rows,
+                results,
+                hashes,
+                out,
+                retries,
+                say,
+                progress,
+                as_completed,
+                ProgressBar,
+            )
         except KeyboardInterrupt:
             # What finished is on disk; the summary says what is missing.
             write_summary(_table(rows, results, out, hashes), out)
@@ -831,26 +1038,32 @@ def run(manifest: Union[str, os.PathLike], outdir: Union[str, os.PathLike], *,
     write_summary(df, out)
     n_ok = int((df["status"] == "ok").sum())
     n_failed = int((df["status"] == "failed").sum())
-    say(f"qogi batch: {n_ok} ok, {n_failed} failed; summary in {out / SUMMARY_CSV} "
-        f"and {SUMMARY_PARQUET}")
+    say(
+        f"qogi batch: {n_ok} ok, {n_failed} failed; summary in {out / SUMMARY_CSV} "
+        f"and {SUMMARY_PARQUET}"
+    )
     return df
 
 
-def _table(rows: Sequence[Row], results: Sequence[Optional[dict]], out: pathlib.Path,
-           hashes: Sequence[str]):
+def _table(
+    rows: Sequence[Row], results: Sequence[Optional[dict]], out: pathlib.Path, hashes: Sequence[str]
+):
     """The summary of every row: collected results, else a result this run
     wrote but did not collect yet (interrupted), else "not done"."""
     table = []
     for row, r, h in zip(rows, results, hashes):
-        table.append(r if r is not None else
-                     _reusable(row, out, h, reused=False) or pending_row(row))
+        table.append(
+            r if r is not None else _reusable(row, out, h, reused=False) or pending_row(row)
+        )
     return summary_frame(table)
 
 
-def _collect(client, jobs, rows, results, hashes, out, retries, say, progress, as_completed,
-             ProgressBar) -> None:
+def _collect(
+    client, jobs, rows, results, hashes, out, retries, say, progress, as_completed, ProgressBar
+) -> None:
     import uuid
-    token = uuid.uuid4().hex[:8]       # one batch's keys never collide with another's
+
+    token = uuid.uuid4().hex[:8]  # one batch's keys never collide with another's
     keys = [f"qogi-batch-{j['row'].name}-{j['config_hash'][:8]}-{token}-{k}" for k, j in jobs]
     futures = client.map(run_row, [j for _, j in jobs], key=keys, retries=retries, pure=False)
     index = {f.key: (k, j) for f, (k, j) in zip(futures, jobs)}
@@ -868,11 +1081,15 @@ def _collect(client, jobs, rows, results, hashes, out, retries, say, progress, a
                     exc = fut.exception()
                 except Exception as e:  # noqa: BLE001 - a cancelled future raises its reason
                     exc = e
-                meta = {"name": rows[k].name, "path": rows[k].path,
-                        "config_hash": job["config_hash"],
-                        "qogi_version": __version__, "manifest_row": rows[k].where,
-                        "error_type": type(exc).__name__,
-                        "error": f"{exc} (retried up to {retries} times)"}
+                meta = {
+                    "name": rows[k].name,
+                    "path": rows[k].path,
+                    "config_hash": job["config_hash"],
+                    "qogi_version": __version__,
+                    "manifest_row": rows[k].where,
+                    "error_type": type(exc).__name__,
+                    "error": f"{exc} (retried up to {retries} times)",
+                }
                 row = failed_row(meta)
             fut.release()
             results[k] = row
@@ -883,8 +1100,11 @@ def _collect(client, jobs, rows, results, hashes, out, retries, say, progress, a
                 say(f"\nqogi batch: {row['name']} failed: {row['error_type']}: {row['error']}")
             done = n_ok + n_failed
             per_h = 3600.0 * done / max(time.perf_counter() - t0, 1e-9)
-            bar(done / len(jobs), f"{n_ok} ok, {n_failed} failed, {len(jobs) - done} remaining, "
-                                  f"{per_h:.0f} recordings/h")
+            bar(
+                done / len(jobs),
+                f"{n_ok} ok, {n_failed} failed, {len(jobs) - done} remaining, "
+                f"{per_h:.0f} recordings/h",
+            )
             if time.perf_counter() - last_summary > _SUMMARY_INTERVAL_S:
                 write_summary(_table(rows, results, out, hashes), out)
                 last_summary = time.perf_counter()

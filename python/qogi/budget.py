@@ -27,8 +27,14 @@ from typing import Callable, Dict, List, Optional, Sequence
 
 import numpy as np
 
-__all__ = ["AlternativeModels", "line_shape_ratios", "line_shape_systematic",
-           "record_length_advice", "direction_check", "LEVEL_SCATTER_PER_STRUCTURE"]
+__all__ = [
+    "AlternativeModels",
+    "line_shape_ratios",
+    "line_shape_systematic",
+    "record_length_advice",
+    "direction_check",
+    "LEVEL_SCATTER_PER_STRUCTURE",
+]
 
 
 class AlternativeModels:
@@ -38,13 +44,17 @@ class AlternativeModels:
     overlaps the reading instead of delaying the first block. Their
     cross-section tables are cached on disk."""
 
-    def __init__(self, channels, species: Sequence[str], pressure_Pa: float, line_shape,
-                 start=None):
+    def __init__(
+        self, channels, species: Sequence[str], pressure_Pa: float, line_shape, start=None
+    ):
         from .forward import LineShape, forward_model
 
         used = LineShape.parse(line_shape)
-        self.rules = [LineShape(w, used.wing_cm1 if w == used.wing else 25.0, b)
-                      for w in ("fixed", "hapi") for b in (True, False)]
+        self.rules = [
+            LineShape(w, used.wing_cm1 if w == used.wing else 25.0, b)
+            for w in ("fixed", "hapi")
+            for b in (True, False)
+        ]
         self.rules = [r for r in self.rules if r != used]
         self.models: List[object] = []
         self.error: Optional[BaseException] = None
@@ -64,6 +74,7 @@ class AlternativeModels:
         # engine at interpreter exit aborts the process).
         if start is None:
             from .workers import current
+
             start = current().start
         self._job = start(build, "qogi-line-shapes")
 
@@ -88,11 +99,18 @@ def fractions_of(cfg, species: str):
     return fractions
 
 
-def line_shape_ratios(model, alternatives, channel: int,
-                      fractions_of_x: Callable[[np.ndarray], Dict[str, np.ndarray]],
-                      temperature_of_x: Callable[[np.ndarray], np.ndarray], sigma_m: float,
-                      ambient_K: float, background_K: float, species: str,
-                      alt_temperature_of_x: Optional[Callable[[np.ndarray], np.ndarray]] = None):
+def line_shape_ratios(
+    model,
+    alternatives,
+    channel: int,
+    fractions_of_x: Callable[[np.ndarray], Dict[str, np.ndarray]],
+    temperature_of_x: Callable[[np.ndarray], np.ndarray],
+    sigma_m: float,
+    ambient_K: float,
+    background_K: float,
+    species: str,
+    alt_temperature_of_x: Optional[Callable[[np.ndarray], np.ndarray]] = None,
+):
     """Column ratios between line-shape rules at equal contrast.
 
     Along the plume's family of Gaussian plumes (peak fraction x of the
@@ -116,8 +134,9 @@ def line_shape_ratios(model, alternatives, channel: int,
     t_alt = t if alt_temperature_of_x is None else alt_temperature_of_x(x)
 
     def contrast(m, tt=t):
-        return np.abs(np.asarray(m.band_radiance(fr, tt, sigma_m, ambient_K, background_K))[:, channel]
-                      - base)
+        return np.abs(
+            np.asarray(m.band_radiance(fr, tt, sigma_m, ambient_K, background_K))[:, channel] - base
+        )
 
     c_used = contrast(model)
     keep = np.concatenate([[True], np.diff(c_used) > 0])
@@ -132,8 +151,9 @@ def line_shape_ratios(model, alternatives, channel: int,
     return col[keep], np.asarray(ratios)
 
 
-def line_shape_systematic(columns: np.ndarray, weights: np.ndarray, grid_columns: np.ndarray,
-                          ratios: np.ndarray) -> float:
+def line_shape_systematic(
+    columns: np.ndarray, weights: np.ndarray, grid_columns: np.ndarray, ratios: np.ndarray
+) -> float:
     """Relative 1-sigma ``line shape`` term of one surface's rate.
 
     ``columns`` (T, N) [kg/m2] (NaN where not quantified) and ``weights``
@@ -143,12 +163,14 @@ def line_shape_systematic(columns: np.ndarray, weights: np.ndarray, grid_columns
     the largest relative change of the flux: the rules bracket the real
     (sub-Lorentzian) wings, so their largest deviation stands for one sigma.
     """
-    return max([abs(f - 1.0) for f in flux_ratios(columns, weights, grid_columns, ratios)],
-               default=0.0)
+    return max(
+        [abs(f - 1.0) for f in flux_ratios(columns, weights, grid_columns, ratios)], default=0.0
+    )
 
 
-def flux_ratios(columns: np.ndarray, weights: np.ndarray, grid_columns: np.ndarray,
-                ratios: np.ndarray) -> list:
+def flux_ratios(
+    columns: np.ndarray, weights: np.ndarray, grid_columns: np.ndarray, ratios: np.ndarray
+) -> list:
     """The flux sum(c r(c) w) / sum(c w) for each row r of ``ratios`` (see
     :func:`line_shape_systematic`); 1.0 where there is no flux. (The
     pipeline keeps the same sums over a streamed run's blocks:
@@ -158,7 +180,8 @@ def flux_ratios(columns: np.ndarray, weights: np.ndarray, grid_columns: np.ndarr
     c = np.asarray(columns, float)
     w = np.broadcast_to(np.asarray(weights, float), c.shape)
     return FluxSummary.of(c, np.zeros_like(c), w, np.ones(c.shape[1])).flux_ratios(
-        grid_columns, ratios)
+        grid_columns, ratios
+    )
 
 
 #: Relative record-to-record scatter of the transport flux level times the
@@ -171,8 +194,14 @@ def flux_ratios(columns: np.ndarray, weights: np.ndarray, grid_columns: np.ndarr
 LEVEL_SCATTER_PER_STRUCTURE = 0.47
 
 
-def record_length_advice(rate_kg_s: np.ndarray, frame_rate_hz: float, n_effective: float,
-                         speed_m_s: float, width_m: float, target: float = 0.10) -> dict:
+def record_length_advice(
+    rate_kg_s: np.ndarray,
+    frame_rate_hz: float,
+    n_effective: float,
+    speed_m_s: float,
+    width_m: float,
+    target: float = 0.10,
+) -> dict:
     """The record length a mean of relative 1-sigma ``target`` needs.
 
     Two parts shrink with the record length T as 1/sqrt(T): the temporal
@@ -187,18 +216,29 @@ def record_length_advice(rate_kg_s: np.ndarray, frame_rate_hz: float, n_effectiv
     record_s = len(r) / frame_rate_hz if frame_rate_hz > 0 else float("nan")
     mean = float(np.mean(r)) if r.size else float("nan")
     if r.size < 3 or not mean > 0 or not record_s > 0:
-        return {"record_s": record_s, "needed_s": float("nan"), "temporal": float("nan"),
-                "level": float("nan"), "relative": float("nan")}
+        return {
+            "record_s": record_s,
+            "needed_s": float("nan"),
+            "temporal": float("nan"),
+            "level": float("nan"),
+            "relative": float("nan"),
+        }
     temporal = float(np.std(r, ddof=1)) / math.sqrt(max(1.0, n_effective)) / mean
     structures = record_s * abs(speed_m_s) / width_m if width_m > 0 else 0.0
     level = LEVEL_SCATTER_PER_STRUCTURE / math.sqrt(structures) if structures > 0 else 1.0
     rel = math.hypot(temporal, level)
-    return {"record_s": record_s, "needed_s": record_s * (rel / target) ** 2,
-            "temporal": temporal, "level": level, "relative": rel}
+    return {
+        "record_s": record_s,
+        "needed_s": record_s * (rel / target) ** 2,
+        "temporal": temporal,
+        "level": level,
+        "relative": rel,
+    }
 
 
-def direction_check(rate_kg_s: np.ndarray, columns: np.ndarray, column_sigma: np.ndarray,
-                    weights_abs: np.ndarray) -> Optional[dict]:
+def direction_check(
+    rate_kg_s: np.ndarray, columns: np.ndarray, column_sigma: np.ndarray, weights_abs: np.ndarray
+) -> Optional[dict]:
     """Whether a surface's rate contradicts the gas crossing it.
 
     ``rate_kg_s`` (T,) the per-frame rates, ``columns`` / ``column_sigma``

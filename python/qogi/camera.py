@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
-from typing import Any, Iterable, Optional, Sequence, Union
+from typing import Any, Optional, Sequence, Union
 
 import numpy as np
 
@@ -76,6 +76,7 @@ def _as_response(r) -> SpectralResponse:
 # Calibration
 # =============================================================================
 
+
 @dataclass
 class CalibrationScene:
     """Raw frames of a uniform blackbody filling the field of view.
@@ -106,11 +107,15 @@ def _frames_nchw(frames, num_channels: int, what: str) -> np.ndarray:
     elif num_channels == 1 and a.ndim in (2, 3):
         a = a.reshape((-1, 1) + a.shape[-2:])
     else:
-        raise ValueError(f"{what} must be shaped (N, C, H, W) with C = {num_channels} channels"
-                         f"{' (or (N, H, W))' if num_channels == 1 else ''}; got shape {a.shape}")
+        raise ValueError(
+            f"{what} must be shaped (N, C, H, W) with C = {num_channels} channels"
+            f"{' (or (N, H, W))' if num_channels == 1 else ''}; got shape {a.shape}"
+        )
     if a.shape[1] != num_channels:
-        raise ValueError(f"{what} has {a.shape[1]} channels on axis 1 but the calibration has "
-                         f"{num_channels}; shape {a.shape}")
+        raise ValueError(
+            f"{what} has {a.shape[1]} channels on axis 1 but the calibration has "
+            f"{num_channels}; shape {a.shape}"
+        )
     if not np.issubdtype(a.dtype, np.number) or np.issubdtype(a.dtype, np.complexfloating):
         raise TypeError(f"{what} must be real numbers; got dtype {a.dtype}")
     return np.ascontiguousarray(a, dtype=np.float32)
@@ -121,20 +126,31 @@ def _per_channel_times(t, num_channels: int, what: str) -> np.ndarray:
     if a.ndim == 0:
         a = np.full(num_channels, float(a))
     if a.shape != (num_channels,):
-        raise ValueError(f"{what} must be one value or one per channel ({num_channels}); "
-                         f"got shape {a.shape}")
+        raise ValueError(
+            f"{what} must be one value or one per channel ({num_channels}); got shape {a.shape}"
+        )
     if not np.all(np.isfinite(a) & (a > 0)):
         raise ValueError(f"{what} must be finite and > 0 s; got {a.tolist()}")
     return a
 
 
-def fit_calibration(scenes: Sequence[CalibrationScene], channels, *, quadratic: bool = False,
-                    saturation_counts: float = 65535.0, min_valid_counts: float = 0.0,
-                    bad_response_tolerance: float = 0.3, bad_noise_factor: float = 6.0,
-                    max_bad_fraction: float = 0.05, nuc_cold_scene: int = -1,
-                    nuc_hot_scene: int = -1, blackbody_emissivity: float = 1.0,
-                    ambient_temperature_K: float = 0.0, num_threads: int = 0,
-                    progress=None) -> "Calibration":
+def fit_calibration(
+    scenes: Sequence[CalibrationScene],
+    channels,
+    *,
+    quadratic: bool = False,
+    saturation_counts: float = 65535.0,
+    min_valid_counts: float = 0.0,
+    bad_response_tolerance: float = 0.3,
+    bad_noise_factor: float = 6.0,
+    max_bad_fraction: float = 0.05,
+    nuc_cold_scene: int = -1,
+    nuc_hot_scene: int = -1,
+    blackbody_emissivity: float = 1.0,
+    ambient_temperature_K: float = 0.0,
+    num_threads: int = 0,
+    progress=None,
+) -> Calibration:
     """Fit a radiometric calibration from uniform blackbody scenes.
 
     Model (per pixel p, integration time t, scene band radiance L)::
@@ -204,28 +220,39 @@ def fit_calibration(scenes: Sequence[CalibrationScene], channels, *, quadratic: 
     if not scenes:
         raise ValueError("fit_calibration needs calibration scenes; got none")
     opts = _engine.CalibrationOptions(
-        quadratic=quadratic, saturation_counts=saturation_counts,
-        min_valid_counts=min_valid_counts, bad_response_tolerance=bad_response_tolerance,
-        bad_noise_factor=bad_noise_factor, max_bad_fraction=max_bad_fraction,
-        nuc_cold_scene=nuc_cold_scene, nuc_hot_scene=nuc_hot_scene,
-        blackbody_emissivity=blackbody_emissivity, ambient_temperature_K=ambient_temperature_K,
-        num_threads=num_threads)
+        quadratic=quadratic,
+        saturation_counts=saturation_counts,
+        min_valid_counts=min_valid_counts,
+        bad_response_tolerance=bad_response_tolerance,
+        bad_noise_factor=bad_noise_factor,
+        max_bad_fraction=max_bad_fraction,
+        nuc_cold_scene=nuc_cold_scene,
+        nuc_hot_scene=nuc_hot_scene,
+        blackbody_emissivity=blackbody_emissivity,
+        ambient_temperature_K=ambient_temperature_K,
+        num_threads=num_threads,
+    )
     prepared = []
     for k, s in enumerate(scenes):
         if not isinstance(s, CalibrationScene):
-            raise TypeError(f"scenes[{k}] must be a qogi.camera.CalibrationScene; "
-                            f"got {type(s).__name__}")
+            raise TypeError(
+                f"scenes[{k}] must be a qogi.camera.CalibrationScene; got {type(s).__name__}"
+            )
         frames = _frames_nchw(s.frames, nc, f"scenes[{k}].frames")
         times = _per_channel_times(s.integration_time_s, nc, f"scenes[{k}].integration_time_s")
         prepared.append((float(s.blackbody_temperature_K), times, frames))
     shapes = {p[2].shape[-2:] for p in prepared}
     if len(shapes) > 1:
-        raise ValueError("calibration scenes must share one frame size (H, W); got "
-                         + ", ".join(str(p[2].shape[-2:]) for p in prepared))
+        raise ValueError(
+            "calibration scenes must share one frame size (H, W); got "
+            + ", ".join(str(p[2].shape[-2:]) for p in prepared)
+        )
     fitted = []
     for c, ch in enumerate(chans):
-        engine_scenes = [(t, float(times[c]), np.ascontiguousarray(frames[:, c]))
-                         for t, times, frames in prepared]
+        engine_scenes = [
+            (t, float(times[c]), np.ascontiguousarray(frames[:, c]))
+            for t, times, frames in prepared
+        ]
         try:
             fitted.append(_engine._fit_channel_calibration(ch, engine_scenes, opts, progress))
         except ValueError as e:
@@ -233,8 +260,15 @@ def fit_calibration(scenes: Sequence[CalibrationScene], channels, *, quadratic: 
     return Calibration(fitted)
 
 
-_POINT_COLUMNS = ("blackbody_temperature_K", "integration_time_s", "radiance", "mean_flux",
-                  "residual_flux", "residual_K", "spatial_noise_K")
+_POINT_COLUMNS = (
+    "blackbody_temperature_K",
+    "integration_time_s",
+    "radiance",
+    "mean_flux",
+    "residual_flux",
+    "residual_K",
+    "spatial_noise_K",
+)
 _FORMAT = "qogi-calibration"
 _VERSION = 1
 
@@ -265,8 +299,9 @@ class Calibration:
             raise ValueError("a Calibration needs at least one channel")
         for k, c in enumerate(chans):
             if not isinstance(c, _engine.ChannelCalibration):
-                raise TypeError(f"channels[{k}] must be a ChannelCalibration; got "
-                                f"{type(c).__name__}")
+                raise TypeError(
+                    f"channels[{k}] must be a ChannelCalibration; got {type(c).__name__}"
+                )
         shapes = {(c.height, c.width) for c in chans}
         if len(shapes) > 1:
             raise ValueError(f"channel calibrations must share one frame size; got {shapes}")
@@ -298,19 +333,25 @@ class Calibration:
         lines = []
         for k, c in enumerate(self.channels):
             cv = c.curve
-            lines.append(f"channel {k} {c.channel.name!r}: G = {cv.gain:.6g} counts/s per "
-                         f"W/(m2 sr), O = {cv.offset:.6g} counts/s, Q = {cv.quadratic:.6g}; "
-                         f"{c.num_bad_pixels} bad pixels; rms residual "
-                         f"{c.rms_residual_K * 1e3:.3f} mK")
-            lines.append("    T [K]    t_int [s]   L [W/(m2 sr)]   F [counts/s]   "
-                         "residual [counts/s]   residual [mK]   spatial noise [mK]")
+            lines.append(
+                f"channel {k} {c.channel.name!r}: G = {cv.gain:.6g} counts/s per "
+                f"W/(m2 sr), O = {cv.offset:.6g} counts/s, Q = {cv.quadratic:.6g}; "
+                f"{c.num_bad_pixels} bad pixels; rms residual "
+                f"{c.rms_residual_K * 1e3:.3f} mK"
+            )
+            lines.append(
+                "    T [K]    t_int [s]   L [W/(m2 sr)]   F [counts/s]   "
+                "residual [counts/s]   residual [mK]   spatial noise [mK]"
+            )
             p = c.points
             for i in range(len(p["radiance"])):
-                lines.append(f"  {p['blackbody_temperature_K'][i]:7.2f}  "
-                             f"{p['integration_time_s'][i]:10.4g}  {p['radiance'][i]:14.6g}  "
-                             f"{p['mean_flux'][i]:13.6g}  {p['residual_flux'][i]:20.4g}  "
-                             f"{p['residual_K'][i] * 1e3:14.3f}  "
-                             f"{p['spatial_noise_K'][i] * 1e3:18.3f}")
+                lines.append(
+                    f"  {p['blackbody_temperature_K'][i]:7.2f}  "
+                    f"{p['integration_time_s'][i]:10.4g}  {p['radiance'][i]:14.6g}  "
+                    f"{p['mean_flux'][i]:13.6g}  {p['residual_flux'][i]:20.4g}  "
+                    f"{p['residual_K'][i] * 1e3:14.3f}  "
+                    f"{p['spatial_noise_K'][i] * 1e3:18.3f}"
+                )
         return "\n".join(lines)
 
     # -- conversions ----------------------------------------------------------
@@ -319,15 +360,19 @@ class Calibration:
         nc = self.num_channels
         h, w = self.frame_shape
         if a.ndim >= 2 and a.shape[-2:] != (h, w):
-            raise ValueError(f"{what} frames are {a.shape[-2:]} pixels but the calibration is "
-                             f"for {(h, w)}; shape {a.shape}")
+            raise ValueError(
+                f"{what} frames are {a.shape[-2:]} pixels but the calibration is "
+                f"for {(h, w)}; shape {a.shape}"
+            )
         if nc == 1 and (a.ndim == 2 or (a.ndim >= 3 and a.shape[-3] != 1)):
             lead = a.shape[:-2]
             shape = lead + (1, h, w)
         else:
             if a.ndim < 3 or a.shape[-3] != nc:
-                raise ValueError(f"{what} must be shaped (..., C, H, W) with C = {nc} channels; "
-                                 f"got shape {a.shape}")
+                raise ValueError(
+                    f"{what} must be shaped (..., C, H, W) with C = {nc} channels; "
+                    f"got shape {a.shape}"
+                )
             lead = a.shape[:-3]
             shape = a.shape
         n = int(np.prod(lead, dtype=np.int64)) if lead else 1
@@ -344,17 +389,26 @@ class Calibration:
         except ValueError:
             tb = None
         if tb is None:
-            raise ValueError("integration_time_s must broadcast to (..., C) = "
-                             f"{tuple(lead) + (nc,)}: one value, one per channel or one per "
-                             f"frame and channel; got shape "
-                             f"{np.shape(integration_time_s)}")
+            raise ValueError(
+                "integration_time_s must broadcast to (..., C) = "
+                f"{tuple(lead) + (nc,)}: one value, one per channel or one per "
+                f"frame and channel; got shape "
+                f"{np.shape(integration_time_s)}"
+            )
         t = np.ascontiguousarray(tb).reshape(n, nc)
         if not np.all(np.isfinite(t) & (t > 0)):
             raise ValueError("integration_time_s must be finite and > 0 s")
         return t
 
-    def counts_to_radiance(self, raw, integration_time_s, *, replace_bad_pixels: bool = True,
-                           num_threads: int = 0, progress=None) -> np.ndarray:
+    def counts_to_radiance(
+        self,
+        raw,
+        integration_time_s,
+        *,
+        replace_bad_pixels: bool = True,
+        num_threads: int = 0,
+        progress=None,
+    ) -> np.ndarray:
         """Raw counts -> band radiance [W/(m2 sr)], float32.
 
         ``L = F^-1(a_p raw / t + b_p)`` per pixel. Saturated or under-range
@@ -379,17 +433,26 @@ class Calibration:
         stats = {"out_of_range": 0, "replaced": 0, "unreplaced": 0}
         nc = self.num_channels
         for c, cal in enumerate(self.channels):
-            step = None if progress is None else (
-                lambda f, c=c: progress((c + f) / nc))   # overall fraction
-            s = cal._counts_to_radiance(src, c, np.ascontiguousarray(times[:, c]), out,
-                                        replace_bad_pixels, num_threads, step)
+            step = (
+                None if progress is None else (lambda f, c=c: progress((c + f) / nc))
+            )  # overall fraction
+            s = cal._counts_to_radiance(
+                src,
+                c,
+                np.ascontiguousarray(times[:, c]),
+                out,
+                replace_bad_pixels,
+                num_threads,
+                step,
+            )
             for key in stats:
                 stats[key] += s[key]
         self.last_stats = stats
         return out.reshape(a.shape)
 
-    def radiance_to_counts(self, radiance, integration_time_s, *,
-                           num_threads: int = 0) -> np.ndarray:
+    def radiance_to_counts(
+        self, radiance, integration_time_s, *, num_threads: int = 0
+    ) -> np.ndarray:
         """Band radiance [W/(m2 sr)] -> the raw counts each pixel reads
         (the exact inverse of :meth:`counts_to_radiance` at good pixels; NaN
         at bad pixels; not clipped to the camera's range). float32."""
@@ -405,21 +468,26 @@ class Calibration:
         """Band radiance [W/(m2 sr)] -> radiometric temperature [K] through
         each channel's response (:mod:`qogi.radiometry` tables; NaN stays NaN)."""
         from .radiometry import radiance_to_temperature
+
         a, shape, _, _ = self._layout(radiance, "radiance")
-        return radiance_to_temperature(np.asarray(a).reshape(shape), self.responses,
-                                       axis=-3).reshape(a.shape)
+        return radiance_to_temperature(
+            np.asarray(a).reshape(shape), self.responses, axis=-3
+        ).reshape(a.shape)
 
     def temperature_to_radiance(self, temperature_K) -> np.ndarray:
         """Radiometric temperature [K] -> band radiance [W/(m2 sr)]."""
         from .radiometry import temperature_to_radiance
+
         a, shape, _, _ = self._layout(temperature_K, "temperature")
-        return temperature_to_radiance(np.asarray(a).reshape(shape), self.responses,
-                                       axis=-3).reshape(a.shape)
+        return temperature_to_radiance(
+            np.asarray(a).reshape(shape), self.responses, axis=-3
+        ).reshape(a.shape)
 
     def counts_to_temperature(self, raw, integration_time_s, **kwargs) -> np.ndarray:
         """Raw counts -> radiometric temperature [K] (float32)."""
         return self.radiance_to_temperature(
-            self.counts_to_radiance(raw, integration_time_s, **kwargs))
+            self.counts_to_radiance(raw, integration_time_s, **kwargs)
+        )
 
     def apply(self, raw, integration_time_s, quantity: str = "radiance", **kwargs) -> np.ndarray:
         """Calibrate raw frames into ``quantity``: ``"radiance"`` (band
@@ -430,13 +498,17 @@ class Calibration:
             return self.counts_to_radiance(raw, integration_time_s, **kwargs)
         if quantity == "radiometric_temperature":
             return self.counts_to_temperature(raw, integration_time_s, **kwargs)
-        raise ValueError(f"quantity must be 'radiance' or 'radiometric_temperature'; "
-                         f"got {quantity!r}")
+        raise ValueError(
+            f"quantity must be 'radiance' or 'radiometric_temperature'; got {quantity!r}"
+        )
 
     # -- persistence ----------------------------------------------------------
     def _arrays(self) -> dict:
-        out = {"format": np.array(_FORMAT), "version": np.array(_VERSION),
-               "num_channels": np.array(self.num_channels)}
+        out = {
+            "format": np.array(_FORMAT),
+            "version": np.array(_VERSION),
+            "num_channels": np.array(self.num_channels),
+        }
         for k, c in enumerate(self.channels):
             p = f"channels/{k}/"
             out[p + "name"] = np.array(c.channel.name)
@@ -452,28 +524,40 @@ class Calibration:
         return out
 
     @staticmethod
-    def _from_arrays(get, where: str) -> "Calibration":
+    def _from_arrays(get, where: str) -> Calibration:
         fmt = str(get("format"))
         if fmt != _FORMAT:
             raise ValueError(f"{where} is not a qogi calibration (format {fmt!r})")
         version = int(get("version"))
         if version > _VERSION:
-            raise ValueError(f"{where} has calibration format version {version}; this qogi "
-                             f"reads up to {_VERSION}: upgrade qogi")
+            raise ValueError(
+                f"{where} has calibration format version {version}; this qogi "
+                f"reads up to {_VERSION}: upgrade qogi"
+            )
         chans = []
         for k in range(int(get("num_channels"))):
             p = f"channels/{k}/"
-            resp = SpectralResponse(get(p + "wavenumber_cm1"), get(p + "response"),
-                                    str(get(p + "name")))
+            resp = SpectralResponse(
+                get(p + "wavenumber_cm1"), get(p + "response"), str(get(p + "name"))
+            )
             g, o, q = (float(v) for v in get(p + "curve"))
             lo, hi = (float(v) for v in get(p + "range_counts"))
-            points = {col: np.asarray(get(p + "points/" + col), dtype=np.float64)
-                      for col in _POINT_COLUMNS}
-            chans.append(_engine.ChannelCalibration(
-                resp, np.asarray(get(p + "nuc_gain"), dtype=np.float64),
-                np.asarray(get(p + "nuc_offset"), dtype=np.float64),
-                np.asarray(get(p + "bad_pixels"), dtype=np.uint8),
-                _engine.CountsFluxCurve(g, o, q), points, hi, lo))
+            points = {
+                col: np.asarray(get(p + "points/" + col), dtype=np.float64)
+                for col in _POINT_COLUMNS
+            }
+            chans.append(
+                _engine.ChannelCalibration(
+                    resp,
+                    np.asarray(get(p + "nuc_gain"), dtype=np.float64),
+                    np.asarray(get(p + "nuc_offset"), dtype=np.float64),
+                    np.asarray(get(p + "bad_pixels"), dtype=np.uint8),
+                    _engine.CountsFluxCurve(g, o, q),
+                    points,
+                    hi,
+                    lo,
+                )
+            )
         return Calibration(chans)
 
     def save(self, target, group: str = "calibration") -> None:
@@ -488,19 +572,23 @@ class Calibration:
                 np.savez(tmp, **arrays)
             return
         import h5py
+
         if isinstance(target, (str, os.PathLike)):
             # Into a copy of the file, renamed over it when complete.
             with atomic_path(target) as tmp:
                 if os.path.exists(target):
                     import shutil
+
                     shutil.copyfile(target, tmp)
                 with h5py.File(tmp, "a") as f:
                     self._save_h5(f, group, arrays)
         elif isinstance(target, h5py.Group):
             self._save_h5(target, group, arrays)
         else:
-            raise TypeError("target must be a .npz path, an HDF5 path or an h5py.Group; "
-                            f"got {type(target).__name__}")
+            raise TypeError(
+                "target must be a .npz path, an HDF5 path or an h5py.Group; "
+                f"got {type(target).__name__}"
+            )
 
     @staticmethod
     def _save_h5(parent, group: str, arrays: dict) -> None:
@@ -514,27 +602,32 @@ class Calibration:
                 g.create_dataset(key, data=v)
 
     @classmethod
-    def load(cls, source, group: str = "calibration") -> "Calibration":
+    def load(cls, source, group: str = "calibration") -> Calibration:
         """Load what :meth:`save` wrote (``.npz`` path, HDF5 path or
         ``h5py.Group``)."""
         if isinstance(source, (str, os.PathLike)) and str(source).endswith(".npz"):
             with np.load(source, allow_pickle=False) as z:
+
                 def get(key):
                     if key not in z:
                         raise ValueError(f"{source}: calibration entry {key!r} is missing")
                     return z[key][()]
+
                 return cls._from_arrays(get, str(source))
         import h5py
+
         if isinstance(source, (str, os.PathLike)):
             with h5py.File(source, "r") as f:
                 return cls._load_h5(f, group, f"{source}:/{group}")
         if isinstance(source, h5py.Group):
             return cls._load_h5(source, group, f"{source.name}/{group}")
-        raise TypeError("source must be a .npz path, an HDF5 path or an h5py.Group; "
-                        f"got {type(source).__name__}")
+        raise TypeError(
+            "source must be a .npz path, an HDF5 path or an h5py.Group; "
+            f"got {type(source).__name__}"
+        )
 
     @classmethod
-    def _load_h5(cls, parent, group: str, where: str) -> "Calibration":
+    def _load_h5(cls, parent, group: str, where: str) -> Calibration:
         if group not in parent:
             raise ValueError(f"{where}: no calibration group {group!r}")
         g = parent[group]
@@ -544,12 +637,14 @@ class Calibration:
                 raise ValueError(f"{where}: calibration entry {key!r} is missing")
             v = g[key][()]
             return v.decode() if isinstance(v, bytes) else v
+
         return cls._from_arrays(get, where)
 
 
 # =============================================================================
 # Noise
 # =============================================================================
+
 
 def _per_channel(value, n: int, what: str) -> np.ndarray:
     a = np.asarray(value, dtype=np.float64)
@@ -581,13 +676,23 @@ def netd_radiance_sigma(channels, netd_K=None, background_temperature_K=288.15) 
         netd_K = channels.netd_K
     netd = _per_channel(netd_K, len(chans), "netd_K")
     t_bg = _per_channel(background_temperature_K, len(chans), "background_temperature_K")
-    return np.array([_engine.netd_radiance_sigma(ch, float(n), float(t))
-                     for ch, n, t in zip(chans, netd, t_bg)])
+    return np.array(
+        [_engine.netd_radiance_sigma(ch, float(n), float(t)) for ch, n, t in zip(chans, netd, t_bg)]
+    )
 
 
-def add_netd_noise(frames, channels, netd_K=None, background_temperature_K=288.15, *,
-                   seed: int, offset: int = 0, in_place: bool = False, num_threads: int = 0,
-                   progress=None) -> np.ndarray:
+def add_netd_noise(
+    frames,
+    channels,
+    netd_K=None,
+    background_temperature_K=288.15,
+    *,
+    seed: int,
+    offset: int = 0,
+    in_place: bool = False,
+    num_threads: int = 0,
+    progress=None,
+) -> np.ndarray:
     """Add NETD-based Gaussian noise to band-radiance frames.
 
     Each value of channel c gets an independent draw from
@@ -617,11 +722,16 @@ def add_netd_noise(frames, channels, netd_K=None, background_temperature_K=288.1
     a = np.asarray(frames)
     nc = len(chans)
     if a.ndim < 2 or (nc > 1 and (a.ndim < 3 or a.shape[-3] != nc)):
-        raise ValueError(f"frames must be shaped (..., C, H, W) with C = {nc} channels; "
-                         f"got shape {a.shape}")
+        raise ValueError(
+            f"frames must be shaped (..., C, H, W) with C = {nc} channels; got shape {a.shape}"
+        )
     if in_place:
-        if not (isinstance(frames, np.ndarray) and frames.dtype == np.float32
-                and frames.flags.c_contiguous and frames.flags.writeable):
+        if not (
+            isinstance(frames, np.ndarray)
+            and frames.dtype == np.float32
+            and frames.flags.c_contiguous
+            and frames.flags.writeable
+        ):
             raise ValueError("in_place=True needs a writeable C-contiguous float32 array")
         out = frames
     else:
@@ -629,14 +739,16 @@ def add_netd_noise(frames, channels, netd_K=None, background_temperature_K=288.1
     if not (0 <= int(seed) < 2**64 and 0 <= int(offset) < 2**64):
         raise ValueError(f"seed and offset must be within [0, 2**64); got {seed} and {offset}")
     pixels = a.shape[-1] * a.shape[-2]
-    _engine._add_gaussian_noise(out.reshape(-1), pixels, sigma, int(seed), int(offset),
-                                num_threads, progress)
+    _engine._add_gaussian_noise(
+        out.reshape(-1), pixels, sigma, int(seed), int(offset), num_threads, progress
+    )
     return out
 
 
 # =============================================================================
 # Warm optics
 # =============================================================================
+
 
 class ChannelOptics(_engine.ChannelOptics):
     """A channel's optics: detector, filter and lens, and their emission.
@@ -675,21 +787,27 @@ class ChannelOptics(_engine.ChannelOptics):
 
     def __repr__(self) -> str:
         nu = self.nu_cm1
-        return (f"ChannelOptics(name={self.name!r}, {len(nu)} samples, "
-                f"{nu[0]:.1f}-{nu[-1]:.1f} cm-1)")
+        return (
+            f"ChannelOptics(name={self.name!r}, {len(nu)} samples, {nu[0]:.1f}-{nu[-1]:.1f} cm-1)"
+        )
 
     @classmethod
-    def _from_engine(cls, o) -> "ChannelOptics":
-        return cls(o.nu_cm1, o.detector_response, o.filter_transmittance,
-                   o.lens_transmittance, o.filter_reflectance, o.name)
+    def _from_engine(cls, o) -> ChannelOptics:
+        return cls(
+            o.nu_cm1,
+            o.detector_response,
+            o.filter_transmittance,
+            o.lens_transmittance,
+            o.filter_reflectance,
+            o.name,
+        )
 
     @property
     def response(self) -> SpectralResponse:
         """The channel response ``r = d tau_f tau_l`` (a SpectralResponse)."""
         return _as_response(self._response)
 
-    def warm_radiance(self, lens_temperature_K, filter_temperature_K,
-                      reflected_temperature_K=0.0):
+    def warm_radiance(self, lens_temperature_K, filter_temperature_K, reflected_temperature_K=0.0):
         """The warm-optics radiance W [W/(m2 sr)].
 
         ``W = integral d [tau_f (1 - tau_l) B(T_lens)
@@ -698,25 +816,42 @@ class ChannelOptics(_engine.ChannelOptics):
         returns a float or an array of their broadcast shape.
         """
         tl, tf, tr = np.broadcast_arrays(
-            *[np.asarray(x, dtype=np.float64) for x in
-              (lens_temperature_K, filter_temperature_K, reflected_temperature_K)])
-        out = self._warm_radiance(np.ascontiguousarray(tl).ravel(),
-                                  np.ascontiguousarray(tf).ravel(),
-                                  np.ascontiguousarray(tr).ravel()).reshape(tl.shape)
+            *[
+                np.asarray(x, dtype=np.float64)
+                for x in (lens_temperature_K, filter_temperature_K, reflected_temperature_K)
+            ]
+        )
+        out = self._warm_radiance(
+            np.ascontiguousarray(tl).ravel(),
+            np.ascontiguousarray(tf).ravel(),
+            np.ascontiguousarray(tr).ravel(),
+        ).reshape(tl.shape)
         return float(out) if out.ndim == 0 else out
 
-    def measured(self, channel_radiance, lens_temperature_K, filter_temperature_K,
-                 reflected_temperature_K=0.0):
+    def measured(
+        self,
+        channel_radiance,
+        lens_temperature_K,
+        filter_temperature_K,
+        reflected_temperature_K=0.0,
+    ):
         """Forward: ``L_channel + W`` [W/(m2 sr)] (broadcast)."""
         return np.asarray(channel_radiance) + self.warm_radiance(
-            lens_temperature_K, filter_temperature_K, reflected_temperature_K)
+            lens_temperature_K, filter_temperature_K, reflected_temperature_K
+        )
 
-    def corrected(self, measured_radiance, lens_temperature_K, filter_temperature_K,
-                  reflected_temperature_K=0.0):
+    def corrected(
+        self,
+        measured_radiance,
+        lens_temperature_K,
+        filter_temperature_K,
+        reflected_temperature_K=0.0,
+    ):
         """Correction: ``L_meas - W`` [W/(m2 sr)], the exact inverse of
         :meth:`measured`."""
         return np.asarray(measured_radiance) - self.warm_radiance(
-            lens_temperature_K, filter_temperature_K, reflected_temperature_K)
+            lens_temperature_K, filter_temperature_K, reflected_temperature_K
+        )
 
 
 def camera_optics(name: str) -> list:
@@ -737,13 +872,15 @@ def _optics_list(optics) -> list:
         raise ValueError("at least one ChannelOptics is needed; got none")
     for k, o in enumerate(out):
         if not isinstance(o, _engine.ChannelOptics):
-            raise TypeError(f"optics[{k}] must be a qogi.camera.ChannelOptics; "
-                            f"got {type(o).__name__}")
+            raise TypeError(
+                f"optics[{k}] must be a qogi.camera.ChannelOptics; got {type(o).__name__}"
+            )
     return out
 
 
-def warm_optics_radiance(optics, lens_temperature_K, filter_temperature_K,
-                         reflected_temperature_K=0.0) -> np.ndarray:
+def warm_optics_radiance(
+    optics, lens_temperature_K, filter_temperature_K, reflected_temperature_K=0.0
+) -> np.ndarray:
     """W [W/(m2 sr)] of every channel: shape ``temperatures' shape + (C,)``.
 
     Add it to the band radiances a forward model returns
@@ -752,24 +889,40 @@ def warm_optics_radiance(optics, lens_temperature_K, filter_temperature_K,
     optics' responses (``[o.response for o in optics]``).
     """
     opt = _optics_list(optics)
-    parts = [np.asarray(o.warm_radiance(lens_temperature_K, filter_temperature_K,
-                                        reflected_temperature_K)) for o in opt]
+    parts = [
+        np.asarray(
+            o.warm_radiance(lens_temperature_K, filter_temperature_K, reflected_temperature_K)
+        )
+        for o in opt
+    ]
     return np.stack(parts, axis=-1)
 
 
-def _warm_term(optics, shape_ndim: int, axis: int, lens_temperature_K, filter_temperature_K,
-               reflected_temperature_K):
+def _warm_term(
+    optics,
+    shape_ndim: int,
+    axis: int,
+    lens_temperature_K,
+    filter_temperature_K,
+    reflected_temperature_K,
+):
     opt = _optics_list(optics)
     if not -shape_ndim <= axis < shape_ndim:
         raise ValueError(f"axis {axis} is out of range for an array of {shape_ndim} dims")
     ax = axis - shape_ndim if axis >= 0 else axis
-    w = warm_optics_radiance(opt, lens_temperature_K, filter_temperature_K,
-                             reflected_temperature_K)
+    w = warm_optics_radiance(opt, lens_temperature_K, filter_temperature_K, reflected_temperature_K)
     return w.reshape(w.shape + (1,) * (-ax - 1)), len(opt), ax
 
 
-def add_warm_optics(radiance, optics, lens_temperature_K, filter_temperature_K,
-                    reflected_temperature_K=0.0, *, axis: int = -3) -> np.ndarray:
+def add_warm_optics(
+    radiance,
+    optics,
+    lens_temperature_K,
+    filter_temperature_K,
+    reflected_temperature_K=0.0,
+    *,
+    axis: int = -3,
+) -> np.ndarray:
     """Forward: band radiance through the channel responses -> what the
     detector measures, ``L + W(T_lens, T_filter, T_refl)``.
 
@@ -784,18 +937,28 @@ def add_warm_optics(radiance, optics, lens_temperature_K, filter_temperature_K,
         axis (e.g. one temperature per frame).
     """
     a = np.asarray(radiance)
-    w, nc, ax = _warm_term(optics, a.ndim, axis, lens_temperature_K, filter_temperature_K,
-                           reflected_temperature_K)
+    w, nc, ax = _warm_term(
+        optics, a.ndim, axis, lens_temperature_K, filter_temperature_K, reflected_temperature_K
+    )
     if a.shape[ax] != nc:
-        raise ValueError(f"radiance has {a.shape[ax]} channels on axis {axis}; "
-                         f"{nc} optics were given")
+        raise ValueError(
+            f"radiance has {a.shape[ax]} channels on axis {axis}; {nc} optics were given"
+        )
     out = a + w
     return out.astype(a.dtype, copy=False) if a.dtype == np.float32 else out
 
 
-def correct_warm_optics(measured, optics, lens_temperature_K, filter_temperature_K,
-                        reflected_temperature_K=0.0, *, reference_lens_temperature_K=None,
-                        reference_filter_temperature_K=None, axis: int = -3) -> np.ndarray:
+def correct_warm_optics(
+    measured,
+    optics,
+    lens_temperature_K,
+    filter_temperature_K,
+    reflected_temperature_K=0.0,
+    *,
+    reference_lens_temperature_K=None,
+    reference_filter_temperature_K=None,
+    axis: int = -3,
+) -> np.ndarray:
     """Correction: remove the warm-optics radiance, ``L = L_meas - W``.
 
     When the measured radiance comes from a calibration made with the whole
@@ -808,17 +971,26 @@ def correct_warm_optics(measured, optics, lens_temperature_K, filter_temperature
     Parameters as in :func:`add_warm_optics`.
     """
     a = np.asarray(measured)
-    w, nc, ax = _warm_term(optics, a.ndim, axis, lens_temperature_K, filter_temperature_K,
-                           reflected_temperature_K)
+    w, nc, ax = _warm_term(
+        optics, a.ndim, axis, lens_temperature_K, filter_temperature_K, reflected_temperature_K
+    )
     if a.shape[ax] != nc:
-        raise ValueError(f"measured has {a.shape[ax]} channels on axis {axis}; "
-                         f"{nc} optics were given")
+        raise ValueError(
+            f"measured has {a.shape[ax]} channels on axis {axis}; {nc} optics were given"
+        )
     if (reference_lens_temperature_K is None) != (reference_filter_temperature_K is None):
-        raise ValueError("give both reference_lens_temperature_K and "
-                         "reference_filter_temperature_K, or neither")
+        raise ValueError(
+            "give both reference_lens_temperature_K and reference_filter_temperature_K, or neither"
+        )
     if reference_lens_temperature_K is not None:
-        w_ref, _, _ = _warm_term(optics, a.ndim, axis, reference_lens_temperature_K,
-                                 reference_filter_temperature_K, reflected_temperature_K)
+        w_ref, _, _ = _warm_term(
+            optics,
+            a.ndim,
+            axis,
+            reference_lens_temperature_K,
+            reference_filter_temperature_K,
+            reflected_temperature_K,
+        )
         w = w - w_ref
     out = a - w
     return out.astype(a.dtype, copy=False) if a.dtype == np.float32 else out

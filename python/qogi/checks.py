@@ -12,16 +12,24 @@ result at the end).
 from __future__ import annotations
 
 import math
-from typing import Dict, Optional, Sequence
+from typing import Optional, Sequence
 
 import numpy as np
 
 from .diagnostics import Diagnostics
 from .errors import DataError, UsageError
 
-__all__ = ["MIN_FRAMES_FLOOR", "MIN_FRAMES_RATE", "RADIANCE_TEMPERATURE_RANGE_K",
-           "check_frame_count", "check_source", "check_surfaces", "RadianceCheck",
-           "report_timebase", "check_result"]
+__all__ = [
+    "MIN_FRAMES_FLOOR",
+    "MIN_FRAMES_RATE",
+    "RADIANCE_TEMPERATURE_RANGE_K",
+    "check_frame_count",
+    "check_source",
+    "check_surfaces",
+    "RadianceCheck",
+    "report_timebase",
+    "check_result",
+]
 
 #: Below this many frames the velocimetry cannot give a rate at all (the
 #: transport's flux level needs 3 frames, a frame velocity a frame on either
@@ -45,16 +53,19 @@ def check_frame_count(n_frames: int, velocity: str, diags: Diagnostics) -> None:
         raise DataError(
             f"{n_frames} frame(s) cannot give an emission rate with the {velocity} velocimetry: "
             f"it needs at least {floor} (a trustworthy rate at least {MIN_FRAMES_RATE}); give a "
-            f"longer recording or frame range")
+            f"longer recording or frame range"
+        )
     if not given and n_frames < MIN_FRAMES_RATE:
-        diags.add("few-frames",
-                  f"only {n_frames} frames: a velocimetry rate needs at least {MIN_FRAMES_RATE} "
-                  f"to be trusted; the velocity term of the interval is set to 100 % of the rate",
-                  frames=int(n_frames), minimum=MIN_FRAMES_RATE)
+        diags.add(
+            "few-frames",
+            f"only {n_frames} frames: a velocimetry rate needs at least {MIN_FRAMES_RATE} "
+            f"to be trusted; the velocity term of the interval is set to 100 % of the rate",
+            frames=int(n_frames),
+            minimum=MIN_FRAMES_RATE,
+        )
 
 
-def check_source(source, width: int, height: int, surfaces: Sequence, diags: Diagnostics
-                 ) -> None:
+def check_source(source, width: int, height: int, surfaces: Sequence, diags: Diagnostics) -> None:
     """A source (x, y) [px]: non-finite -> UsageError; outside the image, or
     within a pixel of a surface (its flux then has no defined direction) ->
     warnings ``source-outside-image``, ``source-on-surface``."""
@@ -64,18 +75,25 @@ def check_source(source, width: int, height: int, surfaces: Sequence, diags: Dia
     if not (math.isfinite(x) and math.isfinite(y)):
         raise UsageError(f"source must be a finite pixel position x,y; got {source}")
     if not (-0.5 <= x <= width - 0.5 and -0.5 <= y <= height - 0.5):
-        diags.add("source-outside-image",
-                  f"the source ({x:g}, {y:g}) lies outside the {width}x{height} image: the "
-                  f"surfaces' orientation and the flux level's plume axis are guesses; give the "
-                  f"source inside the image (or none, to detect it)", x=x, y=y)
+        diags.add(
+            "source-outside-image",
+            f"the source ({x:g}, {y:g}) lies outside the {width}x{height} image: the "
+            f"surfaces' orientation and the flux level's plume axis are guesses; give the "
+            f"source inside the image (or none, to detect it)",
+            x=x,
+            y=y,
+        )
     for s in surfaces:
         d = _distance_to_polyline(np.array([x, y]), np.asarray(s.points, float))
         if d <= 1.0:
-            diags.add("source-on-surface",
-                      f"the source ({x:g}, {y:g}) lies {d:.2f} px from surface {s.name}: which "
-                      f"side the gas leaves to is undefined there (a sub-pixel shift can flip "
-                      f"the rate's sign); draw the surface a few pixels downstream",
-                      surface=s.name, distance_px=float(d))
+            diags.add(
+                "source-on-surface",
+                f"the source ({x:g}, {y:g}) lies {d:.2f} px from surface {s.name}: which "
+                f"side the gas leaves to is undefined there (a sub-pixel shift can flip "
+                f"the rate's sign); draw the surface a few pixels downstream",
+                surface=s.name,
+                distance_px=float(d),
+            )
 
 
 def _distance_to_polyline(p: np.ndarray, pts: np.ndarray) -> float:
@@ -91,9 +109,11 @@ def check_surfaces(surfaces: Sequence) -> None:
     plume: its flux is not a flux through a line. Refused (UsageError)."""
     for k, s in enumerate(surfaces):
         if s.length_px < 1.0:
-            raise UsageError(f"surface {s.name or k + 1} is {s.length_px:.2f} px long; a control "
-                             f"surface must be at least 1 px long (draw it across the whole "
-                             f"plume)")
+            raise UsageError(
+                f"surface {s.name or k + 1} is {s.length_px:.2f} px long; a control "
+                f"surface must be at least 1 px long (draw it across the whole "
+                f"plume)"
+            )
 
 
 class RadianceCheck:
@@ -115,7 +135,7 @@ class RadianceCheck:
         recording's index of the first."""
         lo = self.low.astype(np.float32)[None, :, None, None]
         hi = self.high.astype(np.float32)[None, :, None, None]
-        bad = ~((frames >= lo) & (frames <= hi))       # NaN counts as bad
+        bad = ~((frames >= lo) & (frames <= hi))  # NaN counts as bad
         per = bad.reshape(bad.shape[0], bad.shape[1], -1)
         whole = per.all(axis=2)
         if whole.any():
@@ -128,7 +148,8 @@ class RadianceCheck:
                 f"expected {self.low[c]:.3g} ... {self.high[c]:.3g}, the band radiance of "
                 f"{RADIANCE_TEMPERATURE_RANGE_K[0]:g}-{RADIANCE_TEMPERATURE_RANGE_K[1]:g} K): "
                 f"a blank, corrupt or uncalibrated frame; remove it or choose a frame range "
-                f"without it")
+                f"without it"
+            )
         n = int(per.sum())
         if n and self.first_frame is None:
             self.first_frame = first_index + int(np.argmax(per.any(axis=(1, 2))))
@@ -137,12 +158,16 @@ class RadianceCheck:
 
     def report(self, diags: Diagnostics) -> None:
         if self.bad_pixels:
-            diags.add("radiance-nonphysical",
-                      f"{self.bad_pixels} of {self.total_pixels} pixel values (the first in frame "
-                      f"{self.first_frame}) are zero, negative or outside the band radiance of "
-                      f"{RADIANCE_TEMPERATURE_RANGE_K[0]:g}-{RADIANCE_TEMPERATURE_RANGE_K[1]:g} "
-                      f"K (dead or saturated pixels, a bad calibration); the columns there are "
-                      f"not trustworthy", pixels=self.bad_pixels, first_frame=self.first_frame)
+            diags.add(
+                "radiance-nonphysical",
+                f"{self.bad_pixels} of {self.total_pixels} pixel values (the first in frame "
+                f"{self.first_frame}) are zero, negative or outside the band radiance of "
+                f"{RADIANCE_TEMPERATURE_RANGE_K[0]:g}-{RADIANCE_TEMPERATURE_RANGE_K[1]:g} "
+                f"K (dead or saturated pixels, a bad calibration); the columns there are "
+                f"not trustworthy",
+                pixels=self.bad_pixels,
+                first_frame=self.first_frame,
+            )
 
 
 def report_timebase(tb, first_frame: int, diags: Diagnostics) -> None:
@@ -155,15 +180,20 @@ def report_timebase(tb, first_frame: int, diags: Diagnostics) -> None:
     gaps = tb.gaps
     cut = ""
     if gaps:
-        cut = (f"; not analysed across {len(gaps)} gap(s) longer than a few frame intervals "
-               f"(the longest {max(g for _, g in gaps):.3g} s after frame "
-               f"{first_frame + max(gaps, key=lambda x: x[1])[0]})")
-    diags.add("frames-dropped",
-              f"time_s shows {tb.n_dropped} frame(s) missing: {where}{more}{cut}; velocities use "
-              f"the real interval of each pair, and the interval has fewer independent samples",
-              dropped=tb.n_dropped, places=[[first_frame + i, m] for i, m in tb.dropped[:100]],
-              gaps_s=[[first_frame + i, g] for i, g in gaps[:100]],
-              segments=len(tb.segments))
+        cut = (
+            f"; not analysed across {len(gaps)} gap(s) longer than a few frame intervals "
+            f"(the longest {max(g for _, g in gaps):.3g} s after frame "
+            f"{first_frame + max(gaps, key=lambda x: x[1])[0]})"
+        )
+    diags.add(
+        "frames-dropped",
+        f"time_s shows {tb.n_dropped} frame(s) missing: {where}{more}{cut}; velocities use "
+        f"the real interval of each pair, and the interval has fewer independent samples",
+        dropped=tb.n_dropped,
+        places=[[first_frame + i, m] for i, m in tb.dropped[:100]],
+        gaps_s=[[first_frame + i, g] for i, g in gaps[:100]],
+        segments=len(tb.segments),
+    )
 
 
 def check_result(surfaces, diags: Diagnostics) -> bool:
@@ -177,15 +207,23 @@ def check_result(surfaces, diags: Diagnostics) -> bool:
             values = [r.mean_kg_h, *r.ci90_kg_h, *r.uncertainty_terms_kg_h.values()]
             if not all(math.isfinite(v) for v in values):
                 ok = False
-                diags.add("nan-in-result",
-                          f"the rate of {sp} through {s.surface.name} is not a number "
-                          f"(no frame gave a finite flux: no valid column or velocity on the "
-                          f"surface); check the surface, the frames and the warnings above",
-                          surface=s.surface.name, species=sp)
+                diags.add(
+                    "nan-in-result",
+                    f"the rate of {sp} through {s.surface.name} is not a number "
+                    f"(no frame gave a finite flux: no valid column or velocity on the "
+                    f"surface); check the surface, the frames and the warnings above",
+                    surface=s.surface.name,
+                    species=sp,
+                )
             bad = int(np.size(r.rate_kg_s) - np.isfinite(r.rate_kg_s).sum())
             if bad and math.isfinite(r.mean_kg_h):
-                diags.add("frames-unquantified",
-                          f"{bad} of {np.size(r.rate_kg_s)} frames have no rate of {sp} through "
-                          f"{s.surface.name} (no valid pixel or velocity); the mean is of the "
-                          f"others", surface=s.surface.name, species=sp, frames=bad)
+                diags.add(
+                    "frames-unquantified",
+                    f"{bad} of {np.size(r.rate_kg_s)} frames have no rate of {sp} through "
+                    f"{s.surface.name} (no valid pixel or velocity); the mean is of the "
+                    f"others",
+                    surface=s.surface.name,
+                    species=sp,
+                    frames=bad,
+                )
     return ok

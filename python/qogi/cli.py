@@ -12,29 +12,30 @@ def cmd_info(args: argparse.Namespace) -> int:
     import os
 
     from .errors import UsageError
-
-    from .info import (flir_info, format_flir_info, format_recording_info, info_json,
-                       recording_info)
+    from .info import flir_info, format_flir_info, format_recording_info, info_json, recording_info
     from .io import FLIR_EXTENSIONS
+    from .io.open import file_kind
     from .recording import open_recording
 
-    from .io.open import file_kind
     try:
         if os.path.isfile(args.path) and file_kind(args.path) in ("flir", "telops"):
             from ._cli_camera import cmd_info_camera
+
             return cmd_info_camera(args)
         if os.path.splitext(args.path)[1].lower() in FLIR_EXTENSIONS:
             info = flir_info(args.path)
             text = format_flir_info
         else:
-            with open_recording(args.path, nonfinite="invalid" if args.allow_invalid
-                                else "error") as rec:
+            with open_recording(
+                args.path, nonfinite="invalid" if args.allow_invalid else "error"
+            ) as rec:
                 info = recording_info(rec)
             text = format_recording_info
     except MemoryError:
         raise
     except (ValueError, OSError) as e:
         from .errors import DataError
+
         if not os.path.isfile(args.path):
             raise UsageError(str(e)) from None
         if isinstance(e, DataError):
@@ -54,12 +55,22 @@ def cmd_gui(args: argparse.Namespace) -> int:
         from qogi_gui import main as gui_main
         from qogi_gui.app import NoDisplayError
     except ImportError as e:
-        print(f"qogi gui: error: the viewer needs Dear PyGui and matplotlib ({e}); install them "
-              "with: pip install 'qogi[gui]'", file=sys.stderr)
+        print(
+            f"qogi gui: error: the viewer needs Dear PyGui and matplotlib ({e}); install them "
+            "with: pip install 'qogi[gui]'",
+            file=sys.stderr,
+        )
         return 2
-    scene = {k: v for k, v in (("camera", args.camera), ("distance_m", args.distance),
-                               ("ambient_temperature_K", args.ambient_temperature),
-                               ("pressure_Pa", args.pressure)) if v is not None}
+    scene = {
+        k: v
+        for k, v in (
+            ("camera", args.camera),
+            ("distance_m", args.distance),
+            ("ambient_temperature_K", args.ambient_temperature),
+            ("pressure_Pa", args.pressure),
+        )
+        if v is not None
+    }
     try:
         return gui_main(args.path, scene=scene or None)
     except NoDisplayError as e:
@@ -71,47 +82,67 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="qogi",
         description="Quantitative optical gas imaging: from radiometric MWIR video of a "
-                    "gas plume to an emission rate with an uncertainty.")
+        "gas plume to an emission rate with an uncertainty.",
+    )
     p.add_argument("--version", action="version", version=f"qogi {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     i = sub.add_parser(
-        "info", help="describe a recording (or a FLIR .seq/.csq/.jpg file)",
+        "info",
+        help="describe a recording (or a FLIR .seq/.csq/.jpg file)",
         description="Print what a recording holds: camera, channels (name, band, centroid), "
-                    "frames (T, C, H, W, quantity, duration, frame rate), scene, truth, and "
-                    "per-channel min/mean/max of the first frame in band radiance "
-                    "[W/(m2 sr)] and radiometric temperature [K]. The file is validated "
-                    "first; a bad file gives an error naming the problem and the fix. For "
-                    "a FLIR file: frames, camera, Planck calibration, object parameters "
-                    "and first-frame counts and temperatures.")
-    i.add_argument("path", help="recording (.h5), FLIR file (.seq, .csq, .fff, .jpg) or Telops "
-                                ".hcc; for a camera file it also says what a conversion needs")
+        "frames (T, C, H, W, quantity, duration, frame rate), scene, truth, and "
+        "per-channel min/mean/max of the first frame in band radiance "
+        "[W/(m2 sr)] and radiometric temperature [K]. The file is validated "
+        "first; a bad file gives an error naming the problem and the fix. For "
+        "a FLIR file: frames, camera, Planck calibration, object parameters "
+        "and first-frame counts and temperatures.",
+    )
+    i.add_argument(
+        "path",
+        help="recording (.h5), FLIR file (.seq, .csq, .fff, .jpg) or Telops "
+        ".hcc; for a camera file it also says what a conversion needs",
+    )
     i.add_argument("--json", action="store_true", help="print JSON instead of text")
-    i.add_argument("--allow-invalid", action="store_true",
-                   help="treat NaN/inf pixels as invalid instead of an error")
+    i.add_argument(
+        "--allow-invalid",
+        action="store_true",
+        help="treat NaN/inf pixels as invalid instead of an error",
+    )
     from ._cli_camera import add_scene_options
+
     add_scene_options(i)
     i.set_defaults(func=cmd_info)
     g = sub.add_parser(
-        "gui", help="open the desktop viewer",
+        "gui",
+        help="open the desktop viewer",
         description="Open the desktop viewer: play a recording, draw control surfaces with the "
-                    "mouse, set the analysis, run the quantification in the background and "
-                    "read, compare and export the emission rates. 'Load demo scene' in the "
-                    "window synthesises a known release to try it on.")
-    g.add_argument("path", nargs="?", help="recording (.h5) or camera file (.seq, .csq, .jpg, "
-                                           ".fff, .hcc) to open")
+        "mouse, set the analysis, run the quantification in the background and "
+        "read, compare and export the emission rates. 'Load demo scene' in the "
+        "window synthesises a known release to try it on.",
+    )
+    g.add_argument(
+        "path",
+        nargs="?",
+        help="recording (.h5) or camera file (.seq, .csq, .jpg, .fff, .hcc) to open",
+    )
     add_scene_options(g)
     g.set_defaults(func=cmd_gui)
     from ._cli_spectra import add_commands as add_spectra_commands
+
     add_spectra_commands(sub)
     from ._cli_synth import add_commands as add_synth_commands
+
     add_synth_commands(sub)
     from ._cli_quantify import add_commands as add_quantify_commands
     from ._cli_quantify import add_demo_command
+
     add_quantify_commands(sub)
     add_demo_command(sub)
     from ._cli_batch import add_commands as add_batch_commands
+
     add_batch_commands(sub)
     from ._cli_convert import add_commands as add_convert_commands
+
     add_convert_commands(sub)
     _add_exit_codes(p)
     return p
@@ -140,9 +171,12 @@ def _report_bug(command: str) -> None:
     import traceback
 
     traceback.print_exc()
-    print(f"qogi {command}: internal error: this is a bug in qogi, not in your input. Please "
-          "report it with the command line and the traceback above "
-          f"(qogi {__version__}, Python {sys.version.split()[0]}).", file=sys.stderr)
+    print(
+        f"qogi {command}: internal error: this is a bug in qogi, not in your input. Please "
+        "report it with the command line and the traceback above "
+        f"(qogi {__version__}, Python {sys.version.split()[0]}).",
+        file=sys.stderr,
+    )
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -156,8 +190,7 @@ def main(argv: list[str] | None = None) -> int:
     """
     import signal
 
-    from .errors import (EXIT_DATA, EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_USAGE, Cancelled,
-                         QogiError)
+    from .errors import EXIT_DATA, EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_USAGE, Cancelled, QogiError
 
     try:
         parser = build_parser()
@@ -168,8 +201,9 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return EXIT_USAGE
-    name = args.command + (f" {args.hitran_command}" if getattr(args, "hitran_command", None)
-                           else "")
+    name = args.command + (
+        f" {args.hitran_command}" if getattr(args, "hitran_command", None) else ""
+    )
     previous = None
     try:
         previous = signal.signal(signal.SIGTERM, _on_sigterm)
@@ -190,8 +224,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"qogi {name}: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
     except MemoryError:
-        print(f"qogi {name}: error: out of memory; use fewer frames (--frames) or a smaller "
-              "input", file=sys.stderr)
+        print(
+            f"qogi {name}: error: out of memory; use fewer frames (--frames) or a smaller input",
+            file=sys.stderr,
+        )
         return EXIT_DATA
     except (ValueError, OSError) as e:
         # Checks in the engine (std::invalid_argument) and the file system:

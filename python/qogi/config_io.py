@@ -31,7 +31,7 @@ import json
 import math
 import os
 import sys
-from typing import Any, Dict, List, Optional
+from typing import Any, List, Optional
 
 from .errors import UsageError
 from .files import PathLike, atomic_open
@@ -54,6 +54,7 @@ class Settings:
 
 def _fields():
     from .pipeline import QuantifyConfig
+
     return QuantifyConfig.field_names()
 
 
@@ -137,12 +138,15 @@ def _loads_toml(text: str) -> dict:
         try:
             import tomli as tomllib
         except ImportError as e:
-            raise UsageError("reading TOML on Python < 3.11 needs the package tomli "
-                             "(pip install tomli), or give the settings as JSON") from e
+            raise UsageError(
+                "reading TOML on Python < 3.11 needs the package tomli "
+                "(pip install tomli), or give the settings as JSON"
+            ) from e
     return tomllib.loads(text)
 
 
 # -- writing TOML (the small subset settings need) ----------------------------
+
 
 def _toml_value(v) -> str:
     if isinstance(v, bool):
@@ -158,8 +162,11 @@ def _toml_value(v) -> str:
     if isinstance(v, (list, tuple)):
         return "[" + ", ".join(_toml_value(x) for x in v) + "]"
     if isinstance(v, dict):
-        return "{" + ", ".join(f"{_toml_key(k)} = {_toml_value(x)}" for k, x in v.items()
-                               if x is not None) + "}"
+        return (
+            "{"
+            + ", ".join(f"{_toml_key(k)} = {_toml_value(x)}" for k, x in v.items() if x is not None)
+            + "}"
+        )
     raise UsageError(f"cannot write {type(v).__name__} {v!r} to TOML")
 
 
@@ -171,16 +178,22 @@ def _toml_key(k: str) -> str:
 def dumps_toml(config, surfaces=(), units: Optional[str] = None) -> str:
     """The settings as TOML text (reads back with :func:`load_settings` to an
     equal config; floats are written in their shortest exact form)."""
-    lines = ["# qogi quantify settings (docs/pipeline_api.md); replay with",
-             "# qogi quantify REC --config THIS.toml"]
+    lines = [
+        "# qogi quantify settings (docs/pipeline_api.md); replay with",
+        "# qogi quantify REC --config THIS.toml",
+    ]
     if units:
         lines.append(f"units = {_toml_value(units)}")
     for k, v in config.to_dict().items():
         if v is not None:
             lines.append(f"{_toml_key(k)} = {_toml_value(v)}")
     for s in surfaces:
-        lines += ["", "[[surfaces]]", f"name = {_toml_value(s.name)}",
-                  f"points = {_toml_value([[float(x), float(y)] for x, y in s.points])}"]
+        lines += [
+            "",
+            "[[surfaces]]",
+            f"name = {_toml_value(s.name)}",
+            f"points = {_toml_value([[float(x), float(y)] for x, y in s.points])}",
+        ]
     return "\n".join(lines) + "\n"
 
 

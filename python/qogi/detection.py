@@ -39,12 +39,20 @@ from __future__ import annotations
 
 import math
 from statistics import NormalDist
-from typing import Optional, Sequence
+from typing import Optional
 
 import numpy as np
 
-__all__ = ["CONFIDENCE", "DETECTION_SIGMA", "noise_equivalent_column", "detection_limit_kg_s",
-           "effective_width", "normal_velocity", "surface_detection_limit", "zeng_morris_g_h"]
+__all__ = [
+    "CONFIDENCE",
+    "DETECTION_SIGMA",
+    "noise_equivalent_column",
+    "detection_limit_kg_s",
+    "effective_width",
+    "normal_velocity",
+    "surface_detection_limit",
+    "zeng_morris_g_h",
+]
 
 #: Default confidence of the detection limit: 5 % false positives and 5 %
 #: missed detections at the limit.
@@ -57,8 +65,15 @@ DETECTION_SIGMA = 3.0
 _PROBE_FRACTION = 1e-5
 
 
-def noise_equivalent_column(model, species: str, netd_K, background_K: float, gas_K: float,
-                            ambient_K: float, sigma_m: float = 0.05) -> float:
+def noise_equivalent_column(
+    model,
+    species: str,
+    netd_K,
+    background_K: float,
+    gas_K: float,
+    ambient_K: float,
+    sigma_m: float = 0.05,
+) -> float:
     """Column density [kg/m2] whose band-radiance signal equals the camera's
     1-sigma noise in one pixel and one frame, in the most sensitive channel
     (thin limit).
@@ -89,20 +104,29 @@ def noise_equivalent_column(model, species: str, netd_K, background_K: float, ga
         raise ValueError(f"species {species!r} is not in the model ({model.species})")
     x = np.zeros(len(model.species))
     x[model.species.index(species)] = _PROBE_FRACTION
-    signal = (model.band_radiance(x, gas_K, sigma_m, ambient_K, background_K)
-              - model.band_radiance(np.zeros_like(x), gas_K, sigma_m, ambient_K, background_K))
+    signal = model.band_radiance(x, gas_K, sigma_m, ambient_K, background_K) - model.band_radiance(
+        np.zeros_like(x), gas_K, sigma_m, ambient_K, background_K
+    )
     col = float(np.asarray(model.column_density(x, gas_K, sigma_m, ambient_K)[species]))
     netd = np.broadcast_to(np.asarray(netd_K, dtype=float), (len(model.channels),))
-    noise = np.array([netd[c] * float(ch.band_radiance_derivative(background_K))
-                      for c, ch in enumerate(model.channels)])
+    noise = np.array(
+        [
+            netd[c] * float(ch.band_radiance_derivative(background_K))
+            for c, ch in enumerate(model.channels)
+        ]
+    )
     snr_per_column = np.abs(np.asarray(signal, float).reshape(-1)) / col / noise
     s = float(np.max(snr_per_column))
     return 1.0 / s if s > 0 else math.inf
 
 
-def detection_limit_kg_s(nec_kg_m2: float, velocity_m_s: float, width_m: float,
-                         confidence: float = CONFIDENCE,
-                         detection_sigma: float = DETECTION_SIGMA) -> float:
+def detection_limit_kg_s(
+    nec_kg_m2: float,
+    velocity_m_s: float,
+    width_m: float,
+    confidence: float = CONFIDENCE,
+    detection_sigma: float = DETECTION_SIGMA,
+) -> float:
     """The smallest detectable rate [kg/s] through a surface (module
     docstring): ``(k + z) NEC v w``.
 
@@ -182,13 +206,22 @@ def zeng_morris_g_h(delta_T_K, distance_m):
     differential and distance, J. Air Waste Manag. Assoc. 69 (2019) 351-361)."""
     dT = np.abs(np.asarray(delta_T_K, dtype=float))
     d = np.asarray(distance_m, dtype=float)
-    return 18.41 * dT ** -1.094 * d ** 2
+    return 18.41 * dT**-1.094 * d**2
 
 
-def surface_detection_limit(model, species: str, netd_K, background_K: float, gas_K: float,
-                            ambient_K: float, columns: np.ndarray, vn_m_s: np.ndarray,
-                            dl_m: np.ndarray, mean_snr: Optional[np.ndarray] = None,
-                            confidence: float = CONFIDENCE):
+def surface_detection_limit(
+    model,
+    species: str,
+    netd_K,
+    background_K: float,
+    gas_K: float,
+    ambient_K: float,
+    columns: np.ndarray,
+    vn_m_s: np.ndarray,
+    dl_m: np.ndarray,
+    mean_snr: Optional[np.ndarray] = None,
+    confidence: float = CONFIDENCE,
+):
     """The detection limit of one surface and species [kg/h] (None when the
     scene has no contrast) and what it came from, a dict for the result JSON:
     noise-equivalent column, measured normal velocity and effective width
@@ -201,15 +234,34 @@ def surface_detection_limit(model, species: str, netd_K, background_K: float, ga
     the plume, and its width then replaces the surface length. The pipeline,
     which streams frames in blocks, passes the same quantities summed over
     blocks to :func:`detection_limit_from_sums`."""
-    return detection_limit_from_sums(model, species, netd_K, background_K, gas_K, ambient_K,
-                                     normal_velocity(columns, vn_m_s),
-                                     frame_widths(columns, dl_m), dl_m, mean_snr, confidence)
+    return detection_limit_from_sums(
+        model,
+        species,
+        netd_K,
+        background_K,
+        gas_K,
+        ambient_K,
+        normal_velocity(columns, vn_m_s),
+        frame_widths(columns, dl_m),
+        dl_m,
+        mean_snr,
+        confidence,
+    )
 
 
-def detection_limit_from_sums(model, species: str, netd_K, background_K: float, gas_K: float,
-                              ambient_K: float, velocity_m_s: float, widths_m: np.ndarray,
-                              dl_m: np.ndarray, mean_snr: Optional[np.ndarray] = None,
-                              confidence: float = CONFIDENCE):
+def detection_limit_from_sums(
+    model,
+    species: str,
+    netd_K,
+    background_K: float,
+    gas_K: float,
+    ambient_K: float,
+    velocity_m_s: float,
+    widths_m: np.ndarray,
+    dl_m: np.ndarray,
+    mean_snr: Optional[np.ndarray] = None,
+    confidence: float = CONFIDENCE,
+):
     """:func:`surface_detection_limit` from the measured normal speed [m/s]
     (:func:`normal_velocity`) and the per-frame effective widths [m]
     (:func:`frame_widths`, NaN without gas)."""
@@ -228,15 +280,22 @@ def detection_limit_from_sums(model, species: str, netd_K, background_K: float, 
     if w is None:
         w, width_from = float(np.sum(dl_m)), "surface length (no gas seen: an upper bound)"
     limit = detection_limit_kg_s(nec, v, w, confidence) * 3600.0
-    info = {"noise_equivalent_column_kg_m2": _json_float(nec), "velocity_m_s": v,
-            "width_m": w, "width_from": width_from,
-            "background_temperature_K": float(background_K), "gas_temperature_K": float(gas_K),
-            "confidence": float(confidence), "detection_sigma": DETECTION_SIGMA}
+    info = {
+        "noise_equivalent_column_kg_m2": _json_float(nec),
+        "velocity_m_s": v,
+        "width_m": w,
+        "width_from": width_from,
+        "background_temperature_K": float(background_K),
+        "gas_temperature_K": float(gas_K),
+        "confidence": float(confidence),
+        "detection_sigma": DETECTION_SIGMA,
+    }
     return (limit if math.isfinite(limit) and limit > 0 else None), info
 
 
-def _mean_profile_width(snr: np.ndarray, dl_m: np.ndarray, detection_sigma: float,
-                        cut: float = 0.2) -> Optional[float]:
+def _mean_profile_width(
+    snr: np.ndarray, dl_m: np.ndarray, detection_sigma: float, cut: float = 0.2
+) -> Optional[float]:
     """Effective width [m] (sum / peak over the part above ``cut`` x its peak)
     of a time-averaged contrast profile in noise units, when its peak is
     significant (>= ``detection_sigma``); else None."""

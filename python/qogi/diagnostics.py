@@ -38,9 +38,14 @@ class Diagnostic:
         return d
 
     @classmethod
-    def from_dict(cls, d: dict) -> "Diagnostic":
-        return cls(code=str(d["code"]), message=str(d["message"]), surface=d.get("surface"),
-                   species=d.get("species"), data=d.get("data"))
+    def from_dict(cls, d: dict) -> Diagnostic:
+        return cls(
+            code=str(d["code"]),
+            message=str(d["message"]),
+            surface=d.get("surface"),
+            species=d.get("species"),
+            data=d.get("data"),
+        )
 
     def __str__(self) -> str:
         where = "/".join(x for x in (self.surface, self.species) if x)
@@ -50,8 +55,15 @@ class Diagnostic:
 class Diagnostics(List[Diagnostic]):
     """A list of :class:`Diagnostic` with a helper to add one and look up codes."""
 
-    def add(self, code: str, message: str, *, surface: Optional[str] = None,
-            species: Optional[str] = None, **data) -> Diagnostic:
+    def add(
+        self,
+        code: str,
+        message: str,
+        *,
+        surface: Optional[str] = None,
+        species: Optional[str] = None,
+        **data,
+    ) -> Diagnostic:
         d = Diagnostic(code, message, surface, species, data or None)
         self.append(d)
         return d

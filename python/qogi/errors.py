@@ -24,8 +24,18 @@ from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["QogiError", "UsageError", "DataError", "Cancelled", "EXIT_OK", "EXIT_INTERNAL", "EXIT_USAGE",
-           "EXIT_DATA", "EXIT_INTERRUPTED", "EXIT_CODES_HELP"]
+__all__ = [
+    "QogiError",
+    "UsageError",
+    "DataError",
+    "Cancelled",
+    "EXIT_OK",
+    "EXIT_INTERNAL",
+    "EXIT_USAGE",
+    "EXIT_DATA",
+    "EXIT_INTERRUPTED",
+    "EXIT_CODES_HELP",
+]
 
 EXIT_OK = 0
 EXIT_INTERNAL = 1
@@ -37,7 +47,8 @@ EXIT_CODES_HELP = (
     "exit status: 0 done; 1 internal error (a bug: please report it with the traceback); "
     "2 usage error (bad argument, unwritable output, missing scene fact); 3 bad data "
     "(unreadable file, non-physical input, or a result that is NaN/incomplete); "
-    "130 interrupted (Ctrl-C)")
+    "130 interrupted (Ctrl-C)"
+)
 
 
 class QogiError(ValueError):

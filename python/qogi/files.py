@@ -38,8 +38,7 @@ def atomic_path(target: PathLike, *, suffix: Optional[str] = None) -> Iterator[p
     target = pathlib.Path(target)
     folder = target.parent if str(target.parent) else pathlib.Path(".")
     sfx = target.suffix if suffix is None else suffix
-    fd, tmp = tempfile.mkstemp(prefix=_TMP_PREFIX + target.name + ".", suffix=sfx,
-                               dir=folder)
+    fd, tmp = tempfile.mkstemp(prefix=_TMP_PREFIX + target.name + ".", suffix=sfx, dir=folder)
     os.close(fd)
     tmp_path = pathlib.Path(tmp)
     try:
@@ -135,21 +134,28 @@ def check_outputs(outputs: dict, inputs: Iterable[PathLike] = ()) -> None:
         path = pathlib.Path(p)
         for i in ins:
             if _same_file(path, i):
-                raise UsageError(f"{name} {path}: that is the input file; writing it would "
-                                 "destroy the input. Choose another output path.")
+                raise UsageError(
+                    f"{name} {path}: that is the input file; writing it would "
+                    "destroy the input. Choose another output path."
+                )
         for other_name, other in seen.items():
             if _same_file(path, other):
-                raise UsageError(f"{name} and {other_name} both name {path}; give each output "
-                                 "its own path.")
+                raise UsageError(
+                    f"{name} and {other_name} both name {path}; give each output its own path."
+                )
         if path.is_dir():
             raise UsageError(f"{name} {path}: is a folder; give a file path.")
         folder = path.parent if str(path.parent) else pathlib.Path(".")
         if not folder.is_dir():
-            raise UsageError(f"{name} {path}: folder {folder} does not exist; create it first "
-                             f"(mkdir -p {folder}).")
+            raise UsageError(
+                f"{name} {path}: folder {folder} does not exist; create it first "
+                f"(mkdir -p {folder})."
+            )
         if not os.access(folder, os.W_OK | os.X_OK) or not _can_create_in(folder):
-            raise UsageError(f"{name} {path}: folder {folder} is not writable; choose another "
-                             "folder or fix its permissions.")
+            raise UsageError(
+                f"{name} {path}: folder {folder} is not writable; choose another "
+                "folder or fix its permissions."
+            )
         if path.exists() and not os.access(path, os.W_OK) and not os.access(folder, os.W_OK):
             raise UsageError(f"{name} {path}: exists and cannot be replaced.")
         seen[name] = path

@@ -55,8 +55,13 @@ class SurfaceRate:
         return float(np.sum(self.rate_variance))
 
 
-def surface_rate(column: ArrayLike, column_sigma: Optional[ArrayLike], normal_velocity: ArrayLike,
-                 length_m: ArrayLike, molar_mass_kg_mol: Optional[float] = None) -> SurfaceRate:
+def surface_rate(
+    column: ArrayLike,
+    column_sigma: Optional[ArrayLike],
+    normal_velocity: ArrayLike,
+    length_m: ArrayLike,
+    molar_mass_kg_mol: Optional[float] = None,
+) -> SurfaceRate:
     """Emission rate of one species through a surface, frame by frame.
 
     Parameters
@@ -84,18 +89,22 @@ def surface_rate(column: ArrayLike, column_sigma: Optional[ArrayLike], normal_ve
     try:
         vn = np.broadcast_to(np.asarray(normal_velocity, dtype=float), c.shape)
     except ValueError:
-        raise ValueError(f"normal_velocity must be broadcastable to the column's shape {c.shape}; "
-                         f"got {np.shape(normal_velocity)}") from None
+        raise ValueError(
+            f"normal_velocity must be broadcastable to the column's shape {c.shape}; "
+            f"got {np.shape(normal_velocity)}"
+        ) from None
     sig = np.zeros(c.shape) if column_sigma is None else np.asarray(column_sigma, dtype=float)
     if sig.shape != c.shape:
         raise ValueError(f"column_sigma must have the column's shape {c.shape}; got {sig.shape}")
     dl = np.asarray(length_m, dtype=float)
     if dl.shape != (c.shape[1],):
-        raise ValueError(f"length_m must hold one length [m] per sample ({c.shape[1]}); got shape "
-                         f"{dl.shape}")
+        raise ValueError(
+            f"length_m must hold one length [m] per sample ({c.shape[1]}); got shape {dl.shape}"
+        )
     mm = 0.0 if molar_mass_kg_mol is None else float(molar_mass_kg_mol)
     if molar_mass_kg_mol is not None and not (np.isfinite(mm) and mm > 0):
-        raise ValueError(f"molar_mass_kg_mol must be finite and > 0 [kg/mol]; got "
-                         f"{molar_mass_kg_mol}")
+        raise ValueError(
+            f"molar_mass_kg_mol must be finite and > 0 [kg/mol]; got {molar_mass_kg_mol}"
+        )
     rate, samples, var = _engine.surface_flux_rate(c, sig, np.ascontiguousarray(vn), dl, mm)
     return SurfaceRate(rate, samples, var)

@@ -43,12 +43,18 @@ class FluxSummary:
     mass_line: float = 0.0
 
     @classmethod
-    def empty(cls, n_samples: int) -> "FluxSummary":
+    def empty(cls, n_samples: int) -> FluxSummary:
         return cls(np.zeros(len(_LN_CENTRES)), np.zeros(n_samples), np.zeros(n_samples))
 
     @classmethod
-    def of(cls, c: np.ndarray, sig: np.ndarray, vn: np.ndarray, dl: np.ndarray,
-           speed_floor: float = 0.0) -> "FluxSummary":
+    def of(
+        cls,
+        c: np.ndarray,
+        sig: np.ndarray,
+        vn: np.ndarray,
+        dl: np.ndarray,
+        speed_floor: float = 0.0,
+    ) -> FluxSummary:
         """The sums of one block: columns ``c`` and their 1-sigma ``sig``
         [kg/m2], normal velocity ``vn`` [m/s] (frames x samples), sample
         lengths ``dl`` [m]; ``speed_floor`` [m/s] the least speed the flux
@@ -67,7 +73,7 @@ class FluxSummary:
             s.hist_cw = np.bincount(idx, weights=(c * w)[pos], minlength=len(_LN_CENTRES))
         s.sum_c = c0.sum(axis=0)
         sg = np.where(np.isfinite(sig), sig, 0.0)
-        s.sum_s2 = (sg ** 2).sum(axis=0)
+        s.sum_s2 = (sg**2).sum(axis=0)
         s.frames = int(c.shape[0])
         s.bound = float(np.sum(c0 * np.maximum(np.abs(v), speed_floor) * dl[None, :]))
         s.speed_num = float(np.sum(np.abs(v) * c0))
@@ -75,7 +81,7 @@ class FluxSummary:
         s.mass_line = float(np.sum(c0 * dl[None, :]))
         return s
 
-    def __iadd__(self, other: "FluxSummary") -> "FluxSummary":
+    def __iadd__(self, other: FluxSummary) -> FluxSummary:
         if other.frames == 0:
             return self
         if self.frames == 0:
@@ -116,8 +122,9 @@ class FluxSummary:
         nt = max(1, self.frames)
         mean_c = self.sum_c / nt
         noise = np.sqrt(self.sum_s2) / nt
-        if not (mean_c.size and np.any(mean_c > 3.0 * np.maximum(noise, 1e-300))
-                and mean_c.max() > 0):
+        if not (
+            mean_c.size and np.any(mean_c > 3.0 * np.maximum(noise, 1e-300)) and mean_c.max() > 0
+        ):
             return None
         bound = self.bound / nt
         mean = float(mean_rate_kg_s)

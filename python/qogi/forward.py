@@ -90,14 +90,19 @@ class LineShape:
     def __post_init__(self):
         if self.wing not in ("fixed", "hapi"):
             raise ValueError(f"line shape wing must be 'fixed' or 'hapi'; got {self.wing!r}")
-        if self.wing == "fixed" and not (np.isfinite(self.wing_cm1) and 1.0 <= self.wing_cm1 <= 100.0):
-            raise ValueError(f"line shape wing_cm1 must be within [1, 100] cm-1; got {self.wing_cm1}")
-        object.__setattr__(self, "wing_cm1", float(self.wing_cm1) if self.wing == "fixed"
-                           else TABLE_WING_CM1)
+        if self.wing == "fixed" and not (
+            np.isfinite(self.wing_cm1) and 1.0 <= self.wing_cm1 <= 100.0
+        ):
+            raise ValueError(
+                f"line shape wing_cm1 must be within [1, 100] cm-1; got {self.wing_cm1}"
+            )
+        object.__setattr__(
+            self, "wing_cm1", float(self.wing_cm1) if self.wing == "fixed" else TABLE_WING_CM1
+        )
         object.__setattr__(self, "self_broadening", bool(self.self_broadening))
 
     @classmethod
-    def parse(cls, text: Union[str, "LineShape", None]) -> "LineShape":
+    def parse(cls, text: Union[str, LineShape, None]) -> LineShape:
         """``"fixed:25+self"``, ``"hapi+air"``, ``"fixed"`` ... (see the class)."""
         if text is None:
             return cls()
@@ -106,17 +111,23 @@ class LineShape:
         t = str(text).strip().lower()
         wing, _, broad = t.partition("+")
         if broad not in ("", "self", "air"):
-            raise ValueError(f"line shape {text!r}: after '+' give 'self' or 'air' "
-                             f"(e.g. 'hapi+air', 'fixed:25+self')")
+            raise ValueError(
+                f"line shape {text!r}: after '+' give 'self' or 'air' "
+                f"(e.g. 'hapi+air', 'fixed:25+self')"
+            )
         name, _, width = wing.partition(":")
         if name not in ("fixed", "hapi") or (width and name != "fixed"):
-            raise ValueError(f"line shape {text!r}: the wing must be 'fixed', 'fixed:<cm-1>' or "
-                             f"'hapi' (e.g. 'fixed:25+self', 'hapi+air')")
+            raise ValueError(
+                f"line shape {text!r}: the wing must be 'fixed', 'fixed:<cm-1>' or "
+                f"'hapi' (e.g. 'fixed:25+self', 'hapi+air')"
+            )
         try:
             w = float(width) if width else TABLE_WING_CM1
         except ValueError:
-            raise ValueError(f"line shape {text!r}: the fixed wing's width must be a number "
-                             f"of cm-1 (e.g. 'fixed:25')") from None
+            raise ValueError(
+                f"line shape {text!r}: the fixed wing's width must be a number "
+                f"of cm-1 (e.g. 'fixed:25')"
+            ) from None
         return cls(name, w, broad != "air")
 
     @property
@@ -131,8 +142,11 @@ class LineShape:
     def alternatives(self) -> list:
         """The other rules the uncertainty budget compares this one with: the
         other wing rule, and the other broadening (docs/forward_model.md)."""
-        other_wing = LineShape("hapi", TABLE_WING_CM1, self.self_broadening) \
-            if self.wing == "fixed" else LineShape("fixed", TABLE_WING_CM1, self.self_broadening)
+        other_wing = (
+            LineShape("hapi", TABLE_WING_CM1, self.self_broadening)
+            if self.wing == "fixed"
+            else LineShape("fixed", TABLE_WING_CM1, self.self_broadening)
+        )
         return [other_wing, LineShape(self.wing, self.wing_cm1, not self.self_broadening)]
 
 
@@ -178,10 +192,18 @@ def _table_range(channels: list, lines_nu: np.ndarray) -> tuple:
     return lo, hi
 
 
-def build_absorber_tables(species: Sequence[str], channels: list, *, pressure_Pa: float = ATM_PA,
-                          temperatures_K=None, step_cm1: float = 0.01,
-                          self_broadening: bool = True, line_lists: Optional[Mapping] = None,
-                          cutoff=TABLE_WING_CM1, progress=None) -> list:
+def build_absorber_tables(
+    species: Sequence[str],
+    channels: list,
+    *,
+    pressure_Pa: float = ATM_PA,
+    temperatures_K=None,
+    step_cm1: float = 0.01,
+    self_broadening: bool = True,
+    line_lists: Optional[Mapping] = None,
+    cutoff=TABLE_WING_CM1,
+    progress=None,
+) -> list:
     """Cross-section tables (HITRAN line-by-line, cached on disk) for the
     forward models, one per species, over the part of the channels' band where
     the species has lines (``cutoff``: the wing rule, as for
@@ -189,8 +211,11 @@ def build_absorber_tables(species: Sequence[str], channels: list, *, pressure_Pa
     ``qogi._engine.AbsorberTable`` objects."""
     from . import spectra
 
-    temps = DEFAULT_TABLE_TEMPERATURES_K if temperatures_K is None else np.asarray(
-        temperatures_K, dtype=float)
+    temps = (
+        DEFAULT_TABLE_TEMPERATURES_K
+        if temperatures_K is None
+        else np.asarray(temperatures_K, dtype=float)
+    )
     out = []
     for name in species:
         ll = (line_lists or {}).get(name)
@@ -200,18 +225,35 @@ def build_absorber_tables(species: Sequence[str], channels: list, *, pressure_Pa
             raise ValueError(
                 f"the {name} line list ({float(np.min(lines.nu_cm1)):.1f}-"
                 f"{float(np.max(lines.nu_cm1)):.1f} cm-1) does not reach any channel's band; "
-                f"drop {name} from the species or give a line list that covers the channels")
+                f"drop {name} from the species or give a line list that covers the channels"
+            )
         # Align the grid start to a multiple of the step so that all species share one grid.
         lo = np.floor(lo / step_cm1) * step_cm1
-        kw = dict(step_cm1=step_cm1, temperatures_K=temps, pressure_Pa=pressure_Pa,
-                  line_list=lines, progress=progress, cutoff=cutoff)
+        kw = dict(
+            step_cm1=step_cm1,
+            temperatures_K=temps,
+            pressure_Pa=pressure_Pa,
+            line_list=lines,
+            progress=progress,
+            cutoff=cutoff,
+        )
         air = spectra.cross_section_table(name, lo, hi, self_fraction=0.0, **kw)
-        self_tab = (spectra.cross_section_table(name, lo, hi, self_fraction=1.0, **kw)
-                    if self_broadening else None)
-        out.append(_engine.AbsorberTable(
-            name, float(pressure_Pa), float(air.nu_cm1[0]), float(air.step_cm1),
-            np.asarray(air.temperatures_K, dtype=float), np.asarray(air.sigma, dtype=np.float32),
-            None if self_tab is None else np.asarray(self_tab.sigma, dtype=np.float32)))
+        self_tab = (
+            spectra.cross_section_table(name, lo, hi, self_fraction=1.0, **kw)
+            if self_broadening
+            else None
+        )
+        out.append(
+            _engine.AbsorberTable(
+                name,
+                float(pressure_Pa),
+                float(air.nu_cm1[0]),
+                float(air.step_cm1),
+                np.asarray(air.temperatures_K, dtype=float),
+                np.asarray(air.sigma, dtype=np.float32),
+                None if self_tab is None else np.asarray(self_tab.sigma, dtype=np.float32),
+            )
+        )
     return out
 
 
@@ -248,11 +290,21 @@ class ForwardModel:
         Progress of table building; return False to cancel.
     """
 
-    def __init__(self, channels: ChannelsArg, species: Sequence[str] = ("CH4",), *,
-                 pressure_Pa: float = ATM_PA, tables: Optional[list] = None,
-                 temperatures_K=None, self_broadening: bool = True,
-                 line_lists: Optional[Mapping] = None, fast_options=None, exact_options=None,
-                 progress=None, line_shape: Union[LineShape, str, None] = None):
+    def __init__(
+        self,
+        channels: ChannelsArg,
+        species: Sequence[str] = ("CH4",),
+        *,
+        pressure_Pa: float = ATM_PA,
+        tables: Optional[list] = None,
+        temperatures_K=None,
+        self_broadening: bool = True,
+        line_lists: Optional[Mapping] = None,
+        fast_options=None,
+        exact_options=None,
+        progress=None,
+        line_shape: Union[LineShape, str, None] = None,
+    ):
         self.channels = _as_channels(channels)
         if line_shape is None:
             line_shape = LineShape(self_broadening=self_broadening)
@@ -262,14 +314,20 @@ class ForwardModel:
             raise ValueError(f"pressure_Pa must be within [1000, 200000] Pa; got {pressure_Pa}")
         self.pressure_Pa = float(pressure_Pa)
         if tables is None:
-            tables = build_absorber_tables(self.species, self.channels, pressure_Pa=self.pressure_Pa,
-                                           temperatures_K=temperatures_K,
-                                           self_broadening=self.line_shape.self_broadening,
-                                           cutoff=self.line_shape.cutoff,
-                                           line_lists=line_lists, progress=progress)
+            tables = build_absorber_tables(
+                self.species,
+                self.channels,
+                pressure_Pa=self.pressure_Pa,
+                temperatures_K=temperatures_K,
+                self_broadening=self.line_shape.self_broadening,
+                cutoff=self.line_shape.cutoff,
+                line_lists=line_lists,
+                progress=progress,
+            )
         if [t.species for t in tables] != self.species:
-            raise ValueError(f"tables are for {[t.species for t in tables]}; "
-                             f"species are {self.species}")
+            raise ValueError(
+                f"tables are for {[t.species for t in tables]}; species are {self.species}"
+            )
         self.tables = list(tables)
         self._fast_options = fast_options or _engine.BinnedModelOptions()
         self._exact_options = exact_options or _engine.ExactModelOptions()
@@ -280,14 +338,14 @@ class ForwardModel:
 
     # -- the engine models, built on first use ---------------------------------
     @property
-    def fast(self) -> "_engine.BinnedModel":
+    def fast(self) -> _engine.BinnedModel:
         with self._lock:
             if self._fast is None:
                 self._fast = _engine.BinnedModel(self.channels, self.tables, self._fast_options)
             return self._fast
 
     @property
-    def exact(self) -> "_engine.ExactModel":
+    def exact(self) -> _engine.ExactModel:
         with self._lock:
             if self._exact is None:
                 self._exact = _engine.ExactModel(self.channels, self.tables, self._exact_options)
@@ -304,21 +362,34 @@ class ForwardModel:
         if isinstance(peak_fractions, Mapping):
             unknown = set(peak_fractions) - set(self.species)
             if unknown:
-                raise ValueError(f"peak_fractions has species {sorted(unknown)} the model does not "
-                                 f"have; the model's species are {self.species}")
+                raise ValueError(
+                    f"peak_fractions has species {sorted(unknown)} the model does not "
+                    f"have; the model's species are {self.species}"
+                )
             cols = [np.asarray(peak_fractions.get(s, 0.0), dtype=float) for s in self.species]
             return np.stack(np.broadcast_arrays(*cols), axis=-1)
         x = np.asarray(peak_fractions, dtype=float)
         if x.ndim == 0 and len(self.species) == 1:
             x = x[..., None]
         if x.shape[-1] != len(self.species):
-            raise ValueError(f"peak_fractions needs a last axis of {len(self.species)} "
-                             f"(species {self.species}); got shape {x.shape}")
+            raise ValueError(
+                f"peak_fractions needs a last axis of {len(self.species)} "
+                f"(species {self.species}); got shape {x.shape}"
+            )
         return x
 
-    def band_radiance(self, peak_fractions, peak_temperature_K, sigma_m, ambient_temperature_K,
-                      background_temperature_K, *, exact: bool = False, num_threads: int = 0,
-                      progress=None) -> np.ndarray:
+    def band_radiance(
+        self,
+        peak_fractions,
+        peak_temperature_K,
+        sigma_m,
+        ambient_temperature_K,
+        background_temperature_K,
+        *,
+        exact: bool = False,
+        num_threads: int = 0,
+        progress=None,
+    ) -> np.ndarray:
         """Band radiance [W/(m2 sr)] of Gaussian plumes, one value per channel.
 
         Parameters
@@ -347,34 +418,50 @@ class ForwardModel:
         tbg = np.asarray(background_temperature_K, dtype=float)
         # A last axis of length n_channels (> 1) means one background per channel.
         per_channel = nc > 1 and tbg.ndim >= 1 and tbg.shape[-1] == nc
-        plume = np.broadcast_shapes(x.shape[:-1], np.shape(peak_temperature_K), np.shape(sigma_m),
-                                    np.shape(ambient_temperature_K),
-                                    tbg.shape[:-1] if per_channel else tbg.shape)
+        plume = np.broadcast_shapes(
+            x.shape[:-1],
+            np.shape(peak_temperature_K),
+            np.shape(sigma_m),
+            np.shape(ambient_temperature_K),
+            tbg.shape[:-1] if per_channel else tbg.shape,
+        )
         x = np.broadcast_to(x, plume + (len(self.species),)).reshape(-1, len(self.species))
         tp = np.broadcast_to(np.asarray(peak_temperature_K, float), plume).ravel()
         ta = np.broadcast_to(np.asarray(ambient_temperature_K, float), plume).ravel()
         sg = np.broadcast_to(np.asarray(sigma_m, float), plume).ravel()
-        tb = (np.broadcast_to(tbg, plume + (nc,)).reshape(-1) if per_channel
-              else np.broadcast_to(tbg, plume).ravel())
+        tb = (
+            np.broadcast_to(tbg, plume + (nc,)).reshape(-1)
+            if per_channel
+            else np.broadcast_to(tbg, plume).ravel()
+        )
         a = [np.ascontiguousarray(v) for v in (x, tp, ta, sg, tb)]
         if exact:
-            out = self.exact.band_radiance(a[0], a[1], a[2], a[3], a[4], self.pressure_Pa,
-                                           progress=progress)
+            out = self.exact.band_radiance(
+                a[0], a[1], a[2], a[3], a[4], self.pressure_Pa, progress=progress
+            )
         else:
-            out = self.fast.band_radiance(a[0], a[1], a[2], a[3], a[4], num_threads=num_threads,
-                                          progress=progress)
+            out = self.fast.band_radiance(
+                a[0], a[1], a[2], a[3], a[4], num_threads=num_threads, progress=progress
+            )
         return np.asarray(out).reshape(plume + (nc,))
 
-    def column_density(self, peak_fractions, peak_temperature_K, sigma_m,
-                       ambient_temperature_K) -> Dict[str, object]:
+    def column_density(
+        self, peak_fractions, peak_temperature_K, sigma_m, ambient_temperature_K
+    ) -> Dict[str, object]:
         """Column density [kg/m2] of each species (thesis eq. 6); see
         :func:`column_density`."""
         x = self._fractions(peak_fractions)
-        return column_density(dict(zip(self.species, np.moveaxis(x, -1, 0))), peak_temperature_K,
-                              sigma_m, ambient_temperature_K, self.pressure_Pa)
+        return column_density(
+            dict(zip(self.species, np.moveaxis(x, -1, 0))),
+            peak_temperature_K,
+            sigma_m,
+            ambient_temperature_K,
+            self.pressure_Pa,
+        )
 
-    def band_radiance_path(self, position_m, temperature_K, fractions, background_temperature_K,
-                           *, exact: bool = False) -> np.ndarray:
+    def band_radiance_path(
+        self, position_m, temperature_K, fractions, background_temperature_K, *, exact: bool = False
+    ) -> np.ndarray:
         """Band radiance [W/(m2 sr)] per channel along a general line of sight.
 
         ``position_m`` (N,) increases from the background towards the camera;
@@ -392,21 +479,30 @@ class ForwardModel:
     def background_radiance(self, background_temperature_K) -> np.ndarray:
         """Band radiance [W/(m2 sr)] of the bare background, per channel."""
         tb = np.asarray(background_temperature_K, dtype=float)
-        return np.stack([ch.band_radiance(tb) if hasattr(ch, "band_radiance")
-                         else SpectralResponse(ch.nu_cm1, ch.response).band_radiance(tb)
-                         for ch in self.channels], axis=-1)
+        return np.stack(
+            [
+                ch.band_radiance(tb)
+                if hasattr(ch, "band_radiance")
+                else SpectralResponse(ch.nu_cm1, ch.response).band_radiance(tb)
+                for ch in self.channels
+            ],
+            axis=-1,
+        )
 
     def __repr__(self) -> str:
-        return (f"ForwardModel(channels={[c.name for c in self.channels]}, species={self.species}, "
-                f"pressure_Pa={self.pressure_Pa:g}, line_shape='{self.line_shape}')")
+        return (
+            f"ForwardModel(channels={[c.name for c in self.channels]}, species={self.species}, "
+            f"pressure_Pa={self.pressure_Pa:g}, line_shape='{self.line_shape}')"
+        )
 
 
 _models: Dict[tuple, ForwardModel] = {}
 _models_lock = threading.Lock()
 
 
-def forward_model(channels: ChannelsArg, species: Sequence[str], pressure_Pa: float = ATM_PA,
-                  **kwargs) -> ForwardModel:
+def forward_model(
+    channels: ChannelsArg, species: Sequence[str], pressure_Pa: float = ATM_PA, **kwargs
+) -> ForwardModel:
     """A :class:`ForwardModel`, reused across calls with the same channels,
     species and pressure (building one reads HITRAN tables)."""
     chans = _as_channels(channels)
@@ -415,8 +511,12 @@ def forward_model(channels: ChannelsArg, species: Sequence[str], pressure_Pa: fl
         kwargs["line_shape"] = LineShape.parse(kwargs["line_shape"])
         if kwargs["line_shape"] == LineShape():
             kwargs.pop("line_shape")  # the default: one cache entry
-    key = (tuple(_channel_key(c) for c in chans), tuple(names), float(pressure_Pa),
-           tuple(sorted((k, repr(v)) for k, v in kwargs.items())))
+    key = (
+        tuple(_channel_key(c) for c in chans),
+        tuple(names),
+        float(pressure_Pa),
+        tuple(sorted((k, repr(v)) for k, v in kwargs.items())),
+    )
     with _models_lock:
         model = _models.get(key)
     if model is None:
@@ -428,9 +528,16 @@ def forward_model(channels: ChannelsArg, species: Sequence[str], pressure_Pa: fl
     return model
 
 
-def band_radiance(channels: ChannelsArg, species: Mapping[str, object], peak_temperature_K,
-                  sigma_m, ambient_temperature_K, background_temperature_K,
-                  pressure_Pa: float = ATM_PA, exact: bool = False) -> np.ndarray:
+def band_radiance(
+    channels: ChannelsArg,
+    species: Mapping[str, object],
+    peak_temperature_K,
+    sigma_m,
+    ambient_temperature_K,
+    background_temperature_K,
+    pressure_Pa: float = ATM_PA,
+    exact: bool = False,
+) -> np.ndarray:
     """Band radiance [W/(m2 sr)] of a Gaussian plume, one value per channel.
 
     Parameters
@@ -458,12 +565,23 @@ def band_radiance(channels: ChannelsArg, species: Mapping[str, object], peak_tem
     >>> L = qogi.band_radiance(cam, {"CH4": 0.05}, 300.0, 0.02, 295.0, 285.0)
     """
     model = forward_model(channels, list(species), pressure_Pa)
-    return model.band_radiance(dict(species), peak_temperature_K, sigma_m, ambient_temperature_K,
-                               background_temperature_K, exact=exact)
+    return model.band_radiance(
+        dict(species),
+        peak_temperature_K,
+        sigma_m,
+        ambient_temperature_K,
+        background_temperature_K,
+        exact=exact,
+    )
 
 
-def column_density(species: Mapping[str, object], peak_temperature_K, sigma_m,
-                   ambient_temperature_K, pressure_Pa: float = ATM_PA) -> Dict[str, object]:
+def column_density(
+    species: Mapping[str, object],
+    peak_temperature_K,
+    sigma_m,
+    ambient_temperature_K,
+    pressure_Pa: float = ATM_PA,
+) -> Dict[str, object]:
     """Column density [kg/m2] of each species of a Gaussian plume (thesis eq. 6).
 
     ``c_i = (M_i / N_A) integral x_i(s) p / (k_B T(s)) ds`` with the plume's

@@ -30,7 +30,6 @@ A warning ``gas-temperature-suspect`` carries the bias direction and size.
 
 from __future__ import annotations
 
-import math
 from typing import Any, Dict, Optional
 
 import numpy as np
@@ -61,11 +60,19 @@ def _bias_factor(columns, j: int, species: str, summary, exit_K: float) -> float
 
     lo, hi = columns.model.temperature_range_K
     grid, ratios = line_shape_ratios(
-        columns.model, [columns.model], columns.proxy_channel, fractions,
-        lambda x: np.full_like(x, scene.gas_K), columns.sigma_m.get(j, cfg.sigma_m or 0.02),
-        scene.ambient_K, columns._bg_t, species,
-        alt_temperature_of_x=lambda x: np.clip(scene.ambient_K + (exit_K - scene.ambient_K) * x,
-                                               lo, hi))
+        columns.model,
+        [columns.model],
+        columns.proxy_channel,
+        fractions,
+        lambda x: np.full_like(x, scene.gas_K),
+        columns.sigma_m.get(j, cfg.sigma_m or 0.02),
+        scene.ambient_K,
+        columns._bg_t,
+        species,
+        alt_temperature_of_x=lambda x: np.clip(
+            scene.ambient_K + (exit_K - scene.ambient_K) * x, lo, hi
+        ),
+    )
     f = summary.flux_ratios(grid, ratios)[0]
     return 1.0 / f if f > 0 else float("nan")
 
@@ -87,13 +94,20 @@ def _rise_ratio(cfg, scene, results, source, samples, rise_speeds: dict) -> Opti
         z = (source[1] - float(np.mean(xy[:, 1]))) * scene.pixel_m
         speed = rise_speeds.get(j)
         # Only surfaces across a rising plume (horizontal lines) above it.
-        if (z <= 0 or speed is None or not speed > 0 or not r.mean_kg_h > 0
-                or abs(float(np.mean(n[:, 1]))) < 0.7):
+        if (
+            z <= 0
+            or speed is None
+            or not speed > 0
+            or not r.mean_kg_h > 0
+            or abs(float(np.mean(n[:, 1]))) < 0.7
+        ):
             continue
         # The whole released gas's rate from the first species' (composition).
         rate_kg_h = r.mean_kg_h * sum(mass.values()) / mass[sp]
         pred = []
-        rho_exit = float(scene.pressure_Pa) * sum(mass.values()) / (8.314462618 * float(scene.gas_K))
+        rho_exit = (
+            float(scene.pressure_Pa) * sum(mass.values()) / (8.314462618 * float(scene.gas_K))
+        )
         for d in _DIAMETERS_M:
             # Exit speeds below 1 mm/s (a rate far below any plume the camera
             # resolves, e.g. a few frames' estimate) are outside the integral
@@ -101,10 +115,15 @@ def _rise_ratio(cfg, scene, results, source, samples, rise_speeds: dict) -> Opti
             v0 = rate_kg_h / 3600.0 / (rho_exit * np.pi * (float(d) / 2) ** 2)
             if not v0 >= 1e-3:
                 continue
-            rel = synth.Release(rate=rate_kg_h, rate_unit="kg/h", composition=comp,
-                                exit_diameter_m=float(d), exit_temperature_K=float(scene.gas_K),
-                                ambient_temperature_K=float(scene.ambient_K),
-                                pressure_Pa=float(scene.pressure_Pa))
+            rel = synth.Release(
+                rate=rate_kg_h,
+                rate_unit="kg/h",
+                composition=comp,
+                exit_diameter_m=float(d),
+                exit_temperature_K=float(scene.gas_K),
+                ambient_temperature_K=float(scene.ambient_K),
+                pressure_Pa=float(scene.pressure_Pa),
+            )
             try:
                 mf = synth.mean_flow(rel, extent_m=max(0.05, 1.5 * z))
             except (ValueError, RuntimeError):
@@ -121,11 +140,22 @@ def _rise_ratio(cfg, scene, results, source, samples, rise_speeds: dict) -> Opti
 
 def _molar(species: str) -> float:
     from . import _engine
+
     return _engine.molar_mass(species)
 
 
-def check_gas_temperature(cfg, scene, results, columns, samples, flux_inputs: dict,
-                          rise_speeds: dict, source, warnings, info: dict) -> None:
+def check_gas_temperature(
+    cfg,
+    scene,
+    results,
+    columns,
+    samples,
+    flux_inputs: dict,
+    rise_speeds: dict,
+    source,
+    warnings,
+    info: dict,
+) -> None:
     """Adds ``gas-temperature-suspect`` to ``warnings`` when the evidence
     says the assumed gas temperature is wrong (see the module docstring), and
     the evidence's figures to ``info["gas_temperature_check"]``.
@@ -139,8 +169,11 @@ def check_gas_temperature(cfg, scene, results, columns, samples, flux_inputs: di
     out: Dict[str, Any] = {}
     if cfg.exit_temperature_K is not None and hasattr(columns, "proxy_channel"):
         exit_K = float(cfg.exit_temperature_K)
-        factors = [_bias_factor(columns, j, sp, flux_inputs[(j, sp)], exit_K)
-                   for j in range(len(results)) if (j, sp) in flux_inputs]
+        factors = [
+            _bias_factor(columns, j, sp, flux_inputs[(j, sp)], exit_K)
+            for j in range(len(results))
+            if (j, sp) in flux_inputs
+        ]
         factors = [f for f in factors if np.isfinite(f)]
         if factors:
             b = float(np.median(factors))
@@ -152,8 +185,12 @@ def check_gas_temperature(cfg, scene, results, columns, samples, flux_inputs: di
                     f"{scene.gas_K:.0f} K: the rate is likely {'too high' if b > 1 else 'too low'}"
                     f" by about x{b:.2f} (mixing line from the exit temperature); use a "
                     f"multichannel camera with gas_temperature='infer', or give the gas "
-                    f"temperature", species=sp, evidence="exit temperature",
-                    bias_factor=b, direction="high" if b > 1 else "low")
+                    f"temperature",
+                    species=sp,
+                    evidence="exit temperature",
+                    bias_factor=b,
+                    direction="high" if b > 1 else "low",
+                )
     if source is not None and rise_speeds and cfg.velocity not in ("wind", "exit"):
         try:
             rise = _rise_ratio(cfg, scene, results, source, samples, rise_speeds)
@@ -163,7 +200,8 @@ def check_gas_temperature(cfg, scene, results, columns, samples, flux_inputs: di
         if rise is not None:
             out.update(rise)
             if rise["rise_ratio"] < RISE_RATIO_THRESHOLD and not warnings.has(
-                    "gas-temperature-suspect"):
+                "gas-temperature-suspect"
+            ):
                 # Mass-weighted speed ~ rate^(1/3) (pure plume): the rate the
                 # measured rise supports is about rate x ratio^3.
                 b = 1.0 / rise["rise_ratio"] ** 3
@@ -173,7 +211,12 @@ def check_gas_temperature(cfg, scene, results, columns, samples, flux_inputs: di
                     f"quantified rate's buoyancy can drive at the assumed {scene.gas_K:.0f} K: "
                     f"the rate is likely too high (gas warmer than assumed), by up to about "
                     f"x{b:.1f}; use a multichannel camera with gas_temperature='infer', or "
-                    f"give exit_temperature_K", species=sp, evidence="plume rise",
-                    bias_factor=b, direction="high", rise_ratio=rise["rise_ratio"])
+                    f"give exit_temperature_K",
+                    species=sp,
+                    evidence="plume rise",
+                    bias_factor=b,
+                    direction="high",
+                    rise_ratio=rise["rise_ratio"],
+                )
     if out:
         info["gas_temperature_check"] = out

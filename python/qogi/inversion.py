@@ -127,22 +127,32 @@ def fixed(value: float) -> Parameter:
     return Parameter("fixed", float(value))
 
 
-def free(lower: Optional[float] = None, upper: Optional[float] = None,
-         start: Optional[float] = None) -> Parameter:
+def free(
+    lower: Optional[float] = None, upper: Optional[float] = None, start: Optional[float] = None
+) -> Parameter:
     """An estimated parameter within ``[lower, upper]`` (default bounds when None)."""
-    return Parameter("free", None if start is None else float(start), None,
-                     None if lower is None else float(lower),
-                     None if upper is None else float(upper))
+    return Parameter(
+        "free",
+        None if start is None else float(start),
+        None,
+        None if lower is None else float(lower),
+        None if upper is None else float(upper),
+    )
 
 
-def prior(mean: float, sigma: float, lower: Optional[float] = None,
-          upper: Optional[float] = None) -> Parameter:
+def prior(
+    mean: float, sigma: float, lower: Optional[float] = None, upper: Optional[float] = None
+) -> Parameter:
     """An estimated parameter with a Gaussian prior N(mean, sigma^2)."""
     if not (np.isfinite(sigma) and sigma > 0):
         raise ValueError(f"prior sigma must be finite and > 0; got {sigma}")
-    return Parameter("prior", float(mean), float(sigma),
-                     None if lower is None else float(lower),
-                     None if upper is None else float(upper))
+    return Parameter(
+        "prior",
+        float(mean),
+        float(sigma),
+        None if lower is None else float(lower),
+        None if upper is None else float(upper),
+    )
 
 
 def tied(species: str, ratio: float) -> Parameter:
@@ -158,37 +168,53 @@ def tied(species: str, ratio: float) -> Parameter:
 def _as_parameter(p, name: str) -> Parameter:
     if isinstance(p, Parameter):
         if p.mode not in ("fixed", "free", "prior", "tied"):
-            raise ValueError(f"{name}: mode must be 'fixed', 'free', 'prior' or 'tied'; "
-                             f"got {p.mode!r}")
+            raise ValueError(
+                f"{name}: mode must be 'fixed', 'free', 'prior' or 'tied'; got {p.mode!r}"
+            )
         return p
     if isinstance(p, str):
         if p == "free":
             return free()
-        raise ValueError(f"{name}: expected a number, 'free', or qogi.inversion.fixed/free/prior(...);"
-                         f" got {p!r}")
+        raise ValueError(
+            f"{name}: expected a number, 'free', or qogi.inversion.fixed/free/prior(...); got {p!r}"
+        )
     try:
         return fixed(float(p))
     except (TypeError, ValueError):
-        raise ValueError(f"{name}: expected a number, 'free', or qogi.inversion.fixed/free/prior(...);"
-                         f" got {p!r}") from None
+        raise ValueError(
+            f"{name}: expected a number, 'free', or qogi.inversion.fixed/free/prior(...); got {p!r}"
+        ) from None
 
 
-_MODES = {"fixed": _engine.ParameterMode.fixed, "free": _engine.ParameterMode.free,
-          "prior": _engine.ParameterMode.prior, "tied": _engine.ParameterMode.tied}
+_MODES = {
+    "fixed": _engine.ParameterMode.fixed,
+    "free": _engine.ParameterMode.free,
+    "prior": _engine.ParameterMode.prior,
+    "tied": _engine.ParameterMode.tied,
+}
 
 
-def _spec(p: Parameter, default_value: float, default_bounds: Tuple[float, float],
-          species: Optional[Sequence[str]] = None):
+def _spec(
+    p: Parameter,
+    default_value: float,
+    default_bounds: Tuple[float, float],
+    species: Optional[Sequence[str]] = None,
+):
     if p.mode == "tied":
         if species is None:
             raise ValueError("only fractions can be tied")
         if p.tied_to is None or p.value is None:
-            raise ValueError("a tied fraction needs tied_to (the species) and value (the ratio): "
-                             "use qogi.inversion.tied(species, ratio)")
+            raise ValueError(
+                "a tied fraction needs tied_to (the species) and value (the ratio): "
+                "use qogi.inversion.tied(species, ratio)"
+            )
         if p.tied_to not in species:
-            raise ValueError(f"tied to {p.tied_to!r}, which is not one of the species {list(species)}")
-        return _engine.ParameterSpec(_MODES["tied"], p.value, 0.0, 0.0, 0.0,
-                                     list(species).index(p.tied_to))
+            raise ValueError(
+                f"tied to {p.tied_to!r}, which is not one of the species {list(species)}"
+            )
+        return _engine.ParameterSpec(
+            _MODES["tied"], p.value, 0.0, 0.0, 0.0, list(species).index(p.tied_to)
+        )
     lo = default_bounds[0] if p.lower is None else p.lower
     hi = default_bounds[1] if p.upper is None else p.upper
     value = default_value if p.value is None else p.value
@@ -204,9 +230,16 @@ _tables: Dict[tuple, Tuple[object, _engine.SceneTable]] = {}  # key -> (fast mod
 _tables_lock = threading.Lock()
 
 
-def scene_table(model: ForwardModel, ambient_temperature_K: float, *,
-                min_peak_temperature_K: float, max_peak_temperature_K: float,
-                max_sigma_m: float = 2.0, progress=None, **options):
+def scene_table(
+    model: ForwardModel,
+    ambient_temperature_K: float,
+    *,
+    min_peak_temperature_K: float,
+    max_peak_temperature_K: float,
+    max_sigma_m: float = 2.0,
+    progress=None,
+    **options,
+):
     """The per-scene table of ``model``'s fast forward model, built once and
     cached for this process.
 
@@ -235,10 +268,13 @@ def scene_table(model: ForwardModel, ambient_temperature_K: float, *,
     fast = model.fast
     if _engine.spectral_overlaps(fast):
         return None
-    opts = _engine.SceneTableOptions(ambient_temperature_K=float(ambient_temperature_K),
-                                     min_peak_temperature_K=float(min_peak_temperature_K),
-                                     max_peak_temperature_K=float(max_peak_temperature_K),
-                                     max_sigma_m=float(max_sigma_m), **options)
+    opts = _engine.SceneTableOptions(
+        ambient_temperature_K=float(ambient_temperature_K),
+        min_peak_temperature_K=float(min_peak_temperature_K),
+        max_peak_temperature_K=float(max_peak_temperature_K),
+        max_sigma_m=float(max_sigma_m),
+        **options,
+    )
     key = (id(fast), tuple(sorted(opts.to_dict().items())))
     with _tables_lock:
         hit = _tables.get(key)
@@ -269,15 +305,15 @@ class InversionResult:
 
     species: list
     status: np.ndarray
-    bound_mask: np.ndarray          # bit p: parameter p held on a bound
-    flags: np.ndarray               # bit 0: AMBIGUOUS
+    bound_mask: np.ndarray  # bit p: parameter p held on a bound
+    flags: np.ndarray  # bit 0: AMBIGUOUS
     parameter_names: list
-    parameters: np.ndarray          # (..., P): fractions, T_peak [K], sigma [m]
-    parameter_sigma: np.ndarray     # (..., P)
-    covariance: np.ndarray          # (..., P, P)
-    column_density: Dict[str, np.ndarray]             # kg/m2
-    column_density_sigma: Dict[str, np.ndarray]       # kg/m2
-    path_concentration_ppm_m: Dict[str, np.ndarray]   # ppm m
+    parameters: np.ndarray  # (..., P): fractions, T_peak [K], sigma [m]
+    parameter_sigma: np.ndarray  # (..., P)
+    covariance: np.ndarray  # (..., P, P)
+    column_density: Dict[str, np.ndarray]  # kg/m2
+    column_density_sigma: Dict[str, np.ndarray]  # kg/m2
+    path_concentration_ppm_m: Dict[str, np.ndarray]  # ppm m
     path_concentration_sigma_ppm_m: Dict[str, np.ndarray]
     chi2: np.ndarray
     condition_number: np.ndarray
@@ -412,31 +448,48 @@ class Inversion:
         Progress of the table build; return False to cancel.
     """
 
-    def __init__(self, model: ForwardModel, ambient_temperature_K: float, *, netd_K,
-                 fractions: Optional[Mapping[str, object]] = None, temperature=None,
-                 sigma_m: Union[float, Parameter] = 0.05,
-                 temperature_range_K: Optional[Tuple[float, float]] = None,
-                 max_sigma_m: float = 2.0, detection_sigma: float = 3.0,
-                 model_error_fraction: float = 0.0, initial_guess: str = "table",
-                 solver: str = "auto", max_iterations: int = 100, tolerance_chi2: float = 0.01,
-                 num_starts: int = 0, cold_start: str = "profile",
-                 table_options: Optional[dict] = None, num_threads: int = 0, progress=None,
-                 table=None):
+    def __init__(
+        self,
+        model: ForwardModel,
+        ambient_temperature_K: float,
+        *,
+        netd_K,
+        fractions: Optional[Mapping[str, object]] = None,
+        temperature=None,
+        sigma_m: Union[float, Parameter] = 0.05,
+        temperature_range_K: Optional[Tuple[float, float]] = None,
+        max_sigma_m: float = 2.0,
+        detection_sigma: float = 3.0,
+        model_error_fraction: float = 0.0,
+        initial_guess: str = "table",
+        solver: str = "auto",
+        max_iterations: int = 100,
+        tolerance_chi2: float = 0.01,
+        num_starts: int = 0,
+        cold_start: str = "profile",
+        table_options: Optional[dict] = None,
+        num_threads: int = 0,
+        progress=None,
+        table=None,
+    ):
         if not isinstance(model, ForwardModel):
             raise ValueError(f"model must be a qogi.ForwardModel; got {type(model).__name__}")
         t_amb = float(ambient_temperature_K)
         lo_m, hi_m = model.temperature_range_K
         if not (np.isfinite(t_amb) and lo_m <= t_amb <= hi_m):
-            raise ValueError(f"ambient_temperature_K must be within the tables' range "
-                             f"[{lo_m:g}, {hi_m:g}] K; got {ambient_temperature_K}")
+            raise ValueError(
+                f"ambient_temperature_K must be within the tables' range "
+                f"[{lo_m:g}, {hi_m:g}] K; got {ambient_temperature_K}"
+            )
         self.model = model
         self.species = list(model.species)
         self.ambient_temperature_K = t_amb
         nc = len(model.channels)
         netd = np.atleast_1d(np.asarray(netd_K, dtype=float))
         if netd.size not in (1, nc) or np.any(~np.isfinite(netd)) or np.any(netd <= 0):
-            raise ValueError(f"netd_K needs one positive value or one per channel ({nc}); "
-                             f"got {netd_K}")
+            raise ValueError(
+                f"netd_K needs one positive value or one per channel ({nc}); got {netd_K}"
+            )
         self.netd_K = netd
         # Fractions.
         if fractions is None:
@@ -444,10 +497,13 @@ class Inversion:
         else:
             unknown = set(fractions) - set(self.species)
             if unknown:
-                raise ValueError(f"fractions has species {sorted(unknown)} the model does not have; "
-                                 f"the model's species are {self.species}")
-            fr = {s: _as_parameter(fractions.get(s, 0.0), f"fractions[{s!r}]")
-                  for s in self.species}
+                raise ValueError(
+                    f"fractions has species {sorted(unknown)} the model does not have; "
+                    f"the model's species are {self.species}"
+                )
+            fr = {
+                s: _as_parameter(fractions.get(s, 0.0), f"fractions[{s!r}]") for s in self.species
+            }
         self.fractions = fr
         # Temperature.
         if temperature is None:
@@ -468,57 +524,89 @@ class Inversion:
             lo, hi = float(temperature_range_K[0]), float(temperature_range_K[1])
         lo, hi = max(lo, lo_m), min(hi, hi_m)
         if not hi - lo >= 5.0:
-            raise ValueError(f"the peak temperature range [{lo:g}, {hi:g}] K (within the tables' "
-                             f"[{lo_m:g}, {hi_m:g}] K) is too narrow or empty")
+            raise ValueError(
+                f"the peak temperature range [{lo:g}, {hi:g}] K (within the tables' "
+                f"[{lo_m:g}, {hi_m:g}] K) is too narrow or empty"
+            )
         self.temperature_range_K = (lo, hi)
         self.max_sigma_m = float(max_sigma_m)
         tb_opts = dict(table_options or {})
         if num_threads and "num_threads" not in tb_opts:
             tb_opts["num_threads"] = num_threads
-        guesses = {"table": _engine.InitialGuess.table, "neighbour": _engine.InitialGuess.neighbour,
-                   "previous": _engine.InitialGuess.previous}
+        guesses = {
+            "table": _engine.InitialGuess.table,
+            "neighbour": _engine.InitialGuess.neighbour,
+            "previous": _engine.InitialGuess.previous,
+        }
         if initial_guess not in guesses:
-            raise ValueError(f"initial_guess must be one of {sorted(guesses)}; got {initial_guess!r}")
+            raise ValueError(
+                f"initial_guess must be one of {sorted(guesses)}; got {initial_guess!r}"
+            )
         colds = {"profile": _engine.ColdStart.profile, "starts": _engine.ColdStart.starts}
         if cold_start not in colds:
             raise ValueError(f"cold_start must be one of {sorted(colds)}; got {cold_start!r}")
-        solvers = {"auto": _engine.SolverKind.auto, "table": _engine.SolverKind.table,
-                   "full_model": _engine.SolverKind.full_model}
+        solvers = {
+            "auto": _engine.SolverKind.auto,
+            "table": _engine.SolverKind.table,
+            "full_model": _engine.SolverKind.full_model,
+        }
         if solver not in solvers:
             raise ValueError(f"solver must be one of {sorted(solvers)}; got {solver!r}")
         # Validate the specifications before the (seconds-long) table build.
         for sp in self.species:
             _spec(self.fractions[sp], 1e-3, (0.0, 1.0), self.species)
-        if not any(self.fractions[sp].mode in ("free", "prior") for sp in self.species) and \
-                self.temperature.mode == "fixed" and self.sigma.mode == "fixed":
-            raise ValueError("every parameter is fixed: make at least one species' fraction, the "
-                             "temperature or sigma free")
+        if (
+            not any(self.fractions[sp].mode in ("free", "prior") for sp in self.species)
+            and self.temperature.mode == "fixed"
+            and self.sigma.mode == "fixed"
+        ):
+            raise ValueError(
+                "every parameter is fixed: make at least one species' fraction, the "
+                "temperature or sigma free"
+            )
         self.table = None
         if table is not None and solver != "full_model":
             t_lo, t_hi = table.min_peak_temperature_K, table.max_peak_temperature_K
-            if not (t_lo <= lo + 1e-9 and hi <= t_hi + 1e-9 and
-                    table.options.max_sigma_m >= self.max_sigma_m - 1e-12):
-                raise ValueError(f"table covers peak temperatures [{t_lo:g}, {t_hi:g}] K and depths "
-                                 f"up to {table.options.max_sigma_m:g} m; this inversion needs [{lo:g}, "
-                                 f"{hi:g}] K and {self.max_sigma_m:g} m: build it with "
-                                 "scene_table(..., min_peak_temperature_K, max_peak_temperature_K, "
-                                 "max_sigma_m) covering them")
+            if not (
+                t_lo <= lo + 1e-9
+                and hi <= t_hi + 1e-9
+                and table.options.max_sigma_m >= self.max_sigma_m - 1e-12
+            ):
+                raise ValueError(
+                    f"table covers peak temperatures [{t_lo:g}, {t_hi:g}] K and depths "
+                    f"up to {table.options.max_sigma_m:g} m; this inversion needs [{lo:g}, "
+                    f"{hi:g}] K and {self.max_sigma_m:g} m: build it with "
+                    "scene_table(..., min_peak_temperature_K, max_peak_temperature_K, "
+                    "max_sigma_m) covering them"
+                )
             self.table = table
         elif solver != "full_model":
-            self.table = scene_table(model, t_amb, min_peak_temperature_K=lo,
-                                     max_peak_temperature_K=hi, max_sigma_m=self.max_sigma_m,
-                                     progress=progress, **tb_opts)
+            self.table = scene_table(
+                model,
+                t_amb,
+                min_peak_temperature_K=lo,
+                max_peak_temperature_K=hi,
+                max_sigma_m=self.max_sigma_m,
+                progress=progress,
+                **tb_opts,
+            )
             if self.table is None and solver == "table":
-                raise ValueError("solver 'table' needs spectrally separate species: "
-                                 + "; ".join(_engine.spectral_overlaps(model.fast))
-                                 + "; use solver='full_model'")
+                raise ValueError(
+                    "solver 'table' needs spectrally separate species: "
+                    + "; ".join(_engine.spectral_overlaps(model.fast))
+                    + "; use solver='full_model'"
+                )
         self._settings: Dict[str, Any]  # InversionOptions' other keyword arguments
-        self._settings = dict(num_starts=int(num_starts), detection_sigma=float(detection_sigma),
-                              model_error_fraction=float(model_error_fraction),
-                              max_iterations=int(max_iterations),
-                              tolerance_chi2=float(tolerance_chi2),
-                              solver=solvers[solver], num_threads=int(num_threads),
-                              cold_start=colds[cold_start])
+        self._settings = dict(
+            num_starts=int(num_starts),
+            detection_sigma=float(detection_sigma),
+            model_error_fraction=float(model_error_fraction),
+            max_iterations=int(max_iterations),
+            tolerance_chi2=float(tolerance_chi2),
+            solver=solvers[solver],
+            num_threads=int(num_threads),
+            cold_start=colds[cold_start],
+        )
         self._guess = guesses[initial_guess]
         self.initial_guess = initial_guess
         self._inverters: Dict[tuple, object] = {}
@@ -531,12 +619,17 @@ class Inversion:
         for s in self.species:
             specs.append(_spec(self.fractions[s], 1e-3, (0.0, 1.0), self.species))
         t_lo, t_hi = self.temperature_range_K
-        tspec = _spec(self.temperature, self.ambient_temperature_K,
-                      (t_lo, t_hi))
+        tspec = _spec(self.temperature, self.ambient_temperature_K, (t_lo, t_hi))
         sspec = _spec(self.sigma, 0.05, (1e-4, self.max_sigma_m))
         netd = list(self.netd_K * noise_scale)
-        return _engine.InversionOptions(fractions=specs, temperature=tspec, sigma=sspec,
-                                        netd_K=netd, initial_guess=guess, **self._settings)
+        return _engine.InversionOptions(
+            fractions=specs,
+            temperature=tspec,
+            sigma=sspec,
+            netd_K=netd,
+            initial_guess=guess,
+            **self._settings,
+        )
 
     def _inverter(self, guess, noise_scale: float):
         key = (int(guess), float(noise_scale))
@@ -544,9 +637,12 @@ class Inversion:
         if inv is None:
             # The binding takes a None table (std::shared_ptr<SceneTable>: the
             # full-model solver); the generated stub types it SceneTable only.
-            inv = _engine.Inverter(self.model.fast,
-                                   self.table,  # type: ignore[arg-type]
-                                   self.ambient_temperature_K, self._options(guess, noise_scale))
+            inv = _engine.Inverter(
+                self.model.fast,
+                self.table,  # type: ignore[arg-type]
+                self.ambient_temperature_K,
+                self._options(guess, noise_scale),
+            )
             self._inverters[key] = inv
         return inv
 
@@ -562,8 +658,9 @@ class Inversion:
     def channel_noise(self, background_temperature_K) -> np.ndarray:
         """Radiance noise n_c [W/(m2 sr)] per channel at background temperatures."""
         inv = self._inverter(self._guess, 1.0)
-        t = np.broadcast_to(np.asarray(background_temperature_K, dtype=float),
-                            (len(self.model.channels),))
+        t = np.broadcast_to(
+            np.asarray(background_temperature_K, dtype=float), (len(self.model.channels),)
+        )
         return np.array([inv.channel_noise(c, float(t[c])) for c in range(len(t))])
 
     # -- inputs -----------------------------------------------------------------
@@ -572,8 +669,9 @@ class Inversion:
         try:
             out = np.broadcast_to(arr, spatial)
         except ValueError:
-            raise ValueError(f"{name} has shape {arr.shape}; expected the pixel shape "
-                             f"{spatial}") from None
+            raise ValueError(
+                f"{name} has shape {arr.shape}; expected the pixel shape {spatial}"
+            ) from None
         return out.reshape(-1)
 
     def _background(self, a, name: str, spatial: Tuple[int, ...], frames: Optional[int]):
@@ -591,28 +689,47 @@ class Inversion:
             try:
                 arr3 = np.broadcast_to(arr, (nc,) + spatial)[None]
             except ValueError:
-                raise ValueError(f"{name} has shape {arr.shape}; expected {(nc,) + spatial}, "
-                                 f"({nc},) or per frame") from None
+                raise ValueError(
+                    f"{name} has shape {arr.shape}; expected {(nc,) + spatial}, "
+                    f"({nc},) or per frame"
+                ) from None
         return arr3.reshape(arr3.shape[0], nc, -1)
 
-    def _run(self, radiance, frame_axis: bool, *, background_radiance, background_temperature_K,
-             mask, sigma_m, peak_temperature_K, guess, noise_scale, progress):
+    def _run(
+        self,
+        radiance,
+        frame_axis: bool,
+        *,
+        background_radiance,
+        background_temperature_K,
+        mask,
+        sigma_m,
+        peak_temperature_K,
+        guess,
+        noise_scale,
+        progress,
+    ):
         nc = len(self.model.channels)
         rad = np.asarray(radiance, dtype=float)
         lead = 1 if frame_axis else 0
         if rad.ndim < 1 + lead or rad.shape[lead] != nc:
             where = "(T, C, ...)" if frame_axis else "(C, ...)"
-            raise ValueError(f"radiance must be {where} with C = {nc} channels; got shape {rad.shape}")
+            raise ValueError(
+                f"radiance must be {where} with C = {nc} channels; got shape {rad.shape}"
+            )
         frames = rad.shape[0] if frame_axis else 1
-        spatial = rad.shape[lead + 1:]
+        spatial = rad.shape[lead + 1 :]
         if (background_radiance is None) == (background_temperature_K is None):
             raise ValueError("give exactly one of background_radiance and background_temperature_K")
         rad3: np.ndarray = rad.reshape((frames, nc, -1))
         n = rad3.shape[2]
         use_l = background_radiance is not None
-        bg = self._background(background_radiance if use_l else background_temperature_K,
-                              "background_radiance" if use_l else "background_temperature_K",
-                              spatial, frames if frame_axis else None)
+        bg = self._background(
+            background_radiance if use_l else background_temperature_K,
+            "background_radiance" if use_l else "background_temperature_K",
+            spatial,
+            frames if frame_axis else None,
+        )
         sel = None
         if mask is not None:
             m = np.asarray(mask, dtype=bool)
@@ -620,20 +737,27 @@ class Inversion:
                 raise ValueError(f"mask has shape {m.shape}; expected the pixel shape {spatial}")
             sel = np.flatnonzero(m.reshape(-1))
         sg = None if sigma_m is None else self._per_pixel(sigma_m, "sigma_m", spatial)
-        tp = (None if peak_temperature_K is None
-              else self._per_pixel(peak_temperature_K, "peak_temperature_K", spatial))
+        tp = (
+            None
+            if peak_temperature_K is None
+            else self._per_pixel(peak_temperature_K, "peak_temperature_K", spatial)
+        )
         if tp is not None:
             lo, hi = self.temperature_range_K
             bad = (~np.isfinite(tp)) | (tp < lo) | (tp > hi)
             if np.any(bad if sel is None else bad[sel]):
-                raise ValueError(f"peak_temperature_K values must lie within the table's range "
-                                 f"[{lo:g}, {hi:g}] K (set temperature_range_K); got "
-                                 f"{np.nanmin(tp):g}-{np.nanmax(tp):g} K")
+                raise ValueError(
+                    f"peak_temperature_K values must lie within the table's range "
+                    f"[{lo:g}, {hi:g}] K (set temperature_range_K); got "
+                    f"{np.nanmin(tp):g}-{np.nanmax(tp):g} K"
+                )
         if sg is not None:
             bad = (~np.isfinite(sg)) | (sg <= 0) | (sg > self.max_sigma_m)
             if np.any(bad if sel is None else bad[sel]):
-                raise ValueError(f"sigma_m values must be finite and within (0, "
-                                 f"{self.max_sigma_m:g}] m (max_sigma_m)")
+                raise ValueError(
+                    f"sigma_m values must be finite and within (0, "
+                    f"{self.max_sigma_m:g}] m (max_sigma_m)"
+                )
         if sel is not None:
             rad3 = rad3[:, :, sel]
             bg = bg[:, :, sel]
@@ -641,10 +765,15 @@ class Inversion:
             tp = None if tp is None else tp[sel]
         row = spatial[-1] if len(spatial) >= 2 and sel is None else 0
         inv = self._inverter(guess, noise_scale)
-        kw = dict(sigma_m=None if sg is None else np.ascontiguousarray(sg),
-                  peak_temperature_K=None if tp is None else np.ascontiguousarray(tp),
-                  row_length=row, progress=progress)
-        kw["background_radiance" if use_l else "background_temperature_K"] = np.ascontiguousarray(bg)
+        kw = dict(
+            sigma_m=None if sg is None else np.ascontiguousarray(sg),
+            peak_temperature_K=None if tp is None else np.ascontiguousarray(tp),
+            row_length=row,
+            progress=progress,
+        )
+        kw["background_radiance" if use_l else "background_temperature_K"] = np.ascontiguousarray(
+            bg
+        )
         out = inv.invert(np.ascontiguousarray(rad3), **kw)
         if sel is not None:
             full = {}
@@ -663,21 +792,36 @@ class Inversion:
         ppm, psig = rs(out["path_concentration"]), rs(out["path_concentration_sigma"])
         sp = self.species
         return InversionResult(
-            species=list(sp), status=rs(out["status"]), bound_mask=rs(out["bound_mask"]),
+            species=list(sp),
+            status=rs(out["status"]),
+            bound_mask=rs(out["bound_mask"]),
             flags=rs(out["flags"]),
-            parameter_names=self.parameter_names, parameters=rs(out["parameters"]),
-            parameter_sigma=rs(out["parameter_sigma"]), covariance=rs(out["covariance"]),
+            parameter_names=self.parameter_names,
+            parameters=rs(out["parameters"]),
+            parameter_sigma=rs(out["parameter_sigma"]),
+            covariance=rs(out["covariance"]),
             column_density={s: col[..., k] for k, s in enumerate(sp)},
             column_density_sigma={s: csig[..., k] for k, s in enumerate(sp)},
             path_concentration_ppm_m={s: ppm[..., k] for k, s in enumerate(sp)},
             path_concentration_sigma_ppm_m={s: psig[..., k] for k, s in enumerate(sp)},
-            chi2=rs(out["chi2"]), condition_number=rs(out["condition_number"]),
+            chi2=rs(out["chi2"]),
+            condition_number=rs(out["condition_number"]),
             iterations=rs(out["iterations"]),
-            info=dict(num_channels=nc, noise_scale=noise_scale, uses_table=bool(inv.uses_table)))
+            info=dict(num_channels=nc, noise_scale=noise_scale, uses_table=bool(inv.uses_table)),
+        )
 
     # -- public -----------------------------------------------------------------
-    def invert(self, radiance, *, background_radiance=None, background_temperature_K=None,
-               mask=None, sigma_m=None, peak_temperature_K=None, progress=None) -> InversionResult:
+    def invert(
+        self,
+        radiance,
+        *,
+        background_radiance=None,
+        background_temperature_K=None,
+        mask=None,
+        sigma_m=None,
+        peak_temperature_K=None,
+        progress=None,
+    ) -> InversionResult:
         """Invert one image (or a set of pixels).
 
         Parameters
@@ -700,14 +844,31 @@ class Inversion:
         -------
         InversionResult
         """
-        return self._run(radiance, False, background_radiance=background_radiance,
-                         background_temperature_K=background_temperature_K, mask=mask,
-                         sigma_m=sigma_m, peak_temperature_K=peak_temperature_K,
-                         guess=self._guess, noise_scale=1.0, progress=progress)
+        return self._run(
+            radiance,
+            False,
+            background_radiance=background_radiance,
+            background_temperature_K=background_temperature_K,
+            mask=mask,
+            sigma_m=sigma_m,
+            peak_temperature_K=peak_temperature_K,
+            guess=self._guess,
+            noise_scale=1.0,
+            progress=progress,
+        )
 
-    def invert_frames(self, frames, *, background_radiance=None, background_temperature_K=None,
-                      mask=None, sigma_m=None, peak_temperature_K=None, warm_start: bool = True,
-                      progress=None) -> InversionResult:
+    def invert_frames(
+        self,
+        frames,
+        *,
+        background_radiance=None,
+        background_temperature_K=None,
+        mask=None,
+        sigma_m=None,
+        peak_temperature_K=None,
+        warm_start: bool = True,
+        progress=None,
+    ) -> InversionResult:
         """Invert every frame of ``frames`` (T, C, ...); the background is one
         image (C, ...) / (C,) or one per frame (T, C, ...).
 
@@ -719,14 +880,30 @@ class Inversion:
         compare :meth:`invert_mean`.
         """
         guess = _engine.InitialGuess.previous if warm_start else self._guess
-        return self._run(frames, True, background_radiance=background_radiance,
-                         background_temperature_K=background_temperature_K, mask=mask,
-                         sigma_m=sigma_m, peak_temperature_K=peak_temperature_K, guess=guess,
-                         noise_scale=1.0, progress=progress)
+        return self._run(
+            frames,
+            True,
+            background_radiance=background_radiance,
+            background_temperature_K=background_temperature_K,
+            mask=mask,
+            sigma_m=sigma_m,
+            peak_temperature_K=peak_temperature_K,
+            guess=guess,
+            noise_scale=1.0,
+            progress=progress,
+        )
 
-    def invert_mean(self, frames, *, background_radiance=None, background_temperature_K=None,
-                    mask=None, sigma_m=None, peak_temperature_K=None,
-                    progress=None) -> InversionResult:
+    def invert_mean(
+        self,
+        frames,
+        *,
+        background_radiance=None,
+        background_temperature_K=None,
+        mask=None,
+        sigma_m=None,
+        peak_temperature_K=None,
+        progress=None,
+    ) -> InversionResult:
         """Invert the time-averaged image of ``frames`` (T, C, ...).
 
         The noise of the mean image is taken as NETD / sqrt(T) (independent
@@ -741,19 +918,31 @@ class Inversion:
         t = fr.shape[0]
         bgr, bgt = background_radiance, background_temperature_K
         if bgt is not None and np.ndim(bgt) == fr.ndim:
-            raise ValueError("invert_mean needs one background image; average per-frame "
-                             "backgrounds as radiance and pass background_radiance")
+            raise ValueError(
+                "invert_mean needs one background image; average per-frame "
+                "backgrounds as radiance and pass background_radiance"
+            )
         if bgr is not None and np.ndim(bgr) == fr.ndim:
             bgr = np.mean(np.asarray(bgr, dtype=float), axis=0)
-        return self._run(fr.mean(axis=0), False, background_radiance=bgr,
-                         background_temperature_K=bgt, mask=mask, sigma_m=sigma_m,
-                         peak_temperature_K=peak_temperature_K, guess=self._guess,
-                         noise_scale=1.0 / np.sqrt(t), progress=progress)
+        return self._run(
+            fr.mean(axis=0),
+            False,
+            background_radiance=bgr,
+            background_temperature_K=bgt,
+            mask=mask,
+            sigma_m=sigma_m,
+            peak_temperature_K=peak_temperature_K,
+            guess=self._guess,
+            noise_scale=1.0 / np.sqrt(t),
+            progress=progress,
+        )
 
     def __repr__(self) -> str:
-        return (f"Inversion(species={self.species}, channels={len(self.model.channels)}, "
-                f"T_amb={self.ambient_temperature_K:g} K, temperature={self.temperature}, "
-                f"sigma={self.sigma}, uses_table={self.uses_table})")
+        return (
+            f"Inversion(species={self.species}, channels={len(self.model.channels)}, "
+            f"T_amb={self.ambient_temperature_K:g} K, temperature={self.temperature}, "
+            f"sigma={self.sigma}, uses_table={self.uses_table})"
+        )
 
 
 # ---------------------------------------------------------------------------
@@ -784,8 +973,10 @@ def _line_composition(model: ForwardModel, composition) -> np.ndarray:
     species = list(model.species)
     if composition is None:
         if len(species) != 1:
-            raise ValueError(f"composition is needed with several species ({species}); e.g. "
-                             f"{{{species[0]!r}: 0.5, {species[1]!r}: 0.5}}")
+            raise ValueError(
+                f"composition is needed with several species ({species}); e.g. "
+                f"{{{species[0]!r}: 0.5, {species[1]!r}: 0.5}}"
+            )
         composition = {species[0]: 1.0}
     missing = [sp for sp in species if sp not in composition]
     if missing:
@@ -807,18 +998,32 @@ def _line_pixels(model: ForwardModel, radiance, background_radiance, sigma_m=Non
     bg = np.broadcast_to(np.asarray(background_radiance, dtype=float).reshape(nc, -1), (nc, n))
     if sigma_m is None:
         return rad, bg, None
-    sg = np.broadcast_to(np.asarray(sigma_m, dtype=float).ravel(), (n,)) \
-        if np.size(sigma_m) in (1, n) else None
+    sg = (
+        np.broadcast_to(np.asarray(sigma_m, dtype=float).ravel(), (n,))
+        if np.size(sigma_m) in (1, n)
+        else None
+    )
     if sg is None:
-        raise ValueError(f"sigma_m must be one value or (N,) = ({n},); got shape {np.shape(sigma_m)}")
+        raise ValueError(
+            f"sigma_m must be one value or (N,) = ({n},); got shape {np.shape(sigma_m)}"
+        )
     return rad, bg, sg
 
 
-def invert_on_mixing_line(model: ForwardModel, table, slope_K_per_fraction: float,
-                          radiance, background_radiance, sigma_m, *, netd_K,
-                          composition: Optional[Dict[str, float]] = None,
-                          detection_sigma: float = 3.0, num_threads: int = 0,
-                          progress=None) -> InversionResult:
+def invert_on_mixing_line(
+    model: ForwardModel,
+    table,
+    slope_K_per_fraction: float,
+    radiance,
+    background_radiance,
+    sigma_m,
+    *,
+    netd_K,
+    composition: Optional[Dict[str, float]] = None,
+    detection_sigma: float = 3.0,
+    num_threads: int = 0,
+    progress=None,
+) -> InversionResult:
     """Per-pixel inversion with one unknown, the released gas's total peak
     fraction X, on the plume's mixing line ``T_peak = T_amb + k X`` with a
     known composition ``x_s = w_s X`` and a given depth sigma.
@@ -863,9 +1068,16 @@ def invert_on_mixing_line(model: ForwardModel, table, slope_K_per_fraction: floa
     nc = len(model.channels)
     netd = [float(v) for v in np.atleast_1d(netd_K)]
     out = _line_inverter(table).invert(
-        np.ascontiguousarray(rad.T), np.ascontiguousarray(bg.T), np.ascontiguousarray(sg),
-        float(slope_K_per_fraction), list(w), netd, float(detection_sigma),
-        num_threads=int(num_threads), progress=progress)
+        np.ascontiguousarray(rad.T),
+        np.ascontiguousarray(bg.T),
+        np.ascontiguousarray(sg),
+        float(slope_K_per_fraction),
+        list(w),
+        netd,
+        float(detection_sigma),
+        num_threads=int(num_threads),
+        progress=progress,
+    )
     big_x, sx = out["fraction"], out["fraction_sigma"]
     tp, status = out["peak_temperature_K"], out["status"].astype(np.int8)
     t_amb = table.options.ambient_temperature_K
@@ -878,8 +1090,9 @@ def invert_on_mixing_line(model: ForwardModel, table, slope_K_per_fraction: floa
     slope = float(slope_K_per_fraction)
     t_lo, t_hi = table.min_peak_temperature_K, table.max_peak_temperature_K
     grid = np.linspace(t_lo, t_hi, max(2, int(np.ceil((t_hi - t_lo) / 0.25)) + 1))
-    unit = model.column_density({sp: np.ones_like(grid) for sp in species}, grid,
-                                np.ones_like(grid), t_amb)
+    unit = model.column_density(
+        {sp: np.ones_like(grid) for sp in species}, grid, np.ones_like(grid), t_amb
+    )
     on_line = (t_amb + slope * big_x > t_lo) & (t_amb + slope * big_x < t_hi) & ~below & ~failed
     c0, dcol = {}, {}
     for k, sp in enumerate(species):
@@ -907,13 +1120,23 @@ def invert_on_mixing_line(model: ForwardModel, table, slope_K_per_fraction: floa
         ppm_sigma[sp] = root * psig[:, k] * sg
     names = [f"x_{sp}" for sp in species] + ["peak_temperature_K", "sigma_m"]
     return InversionResult(
-        species=species, status=status, bound_mask=np.zeros(n, np.uint8),
-        flags=np.zeros(n, np.uint8), parameter_names=names, parameters=params,
-        parameter_sigma=psig, covariance=np.zeros((n, 0, 0)), column_density=column,
-        column_density_sigma=column_sigma, path_concentration_ppm_m=ppm,
-        path_concentration_sigma_ppm_m=ppm_sigma, chi2=np.where(failed, 0.0, out["chi2"]),
-        condition_number=np.zeros(n), iterations=out["iterations"],
-        info=dict(num_channels=nc, mixing_line_K_per_fraction=slope, uses_table=True))
+        species=species,
+        status=status,
+        bound_mask=np.zeros(n, np.uint8),
+        flags=np.zeros(n, np.uint8),
+        parameter_names=names,
+        parameters=params,
+        parameter_sigma=psig,
+        covariance=np.zeros((n, 0, 0)),
+        column_density=column,
+        column_density_sigma=column_sigma,
+        path_concentration_ppm_m=ppm,
+        path_concentration_sigma_ppm_m=ppm_sigma,
+        chi2=np.where(failed, 0.0, out["chi2"]),
+        condition_number=np.zeros(n),
+        iterations=out["iterations"],
+        info=dict(num_channels=nc, mixing_line_K_per_fraction=slope, uses_table=True),
+    )
 
 
 @dataclass(frozen=True)
@@ -948,20 +1171,36 @@ class MixingLineSlope:
 
 def _slope(d: dict, num_candidates: Optional[int] = None) -> MixingLineSlope:
     return MixingLineSlope(
-        found=bool(d["found"]), slope_K_per_fraction=float(d["slope_K_per_fraction"]),
+        found=bool(d["found"]),
+        slope_K_per_fraction=float(d["slope_K_per_fraction"]),
         sigma_K_per_fraction=float(d["sigma_K_per_fraction"]),
         num_candidates=int(d["num_candidates"] if num_candidates is None else num_candidates),
-        num_samples=int(d["num_samples"]), num_fitted=int(d["num_fitted"]),
+        num_samples=int(d["num_samples"]),
+        num_fitted=int(d["num_fitted"]),
         grid_K_per_fraction=np.asarray(d["grid_K_per_fraction"]),
-        total_chi2=np.asarray(d["total_chi2"]))
+        total_chi2=np.asarray(d["total_chi2"]),
+    )
 
 
-def mixing_line_slope(model: ForwardModel, table, radiance, background_radiance, sigma_m, *,
-                      netd_K, composition: Optional[Dict[str, float]] = None,
-                      detection_sigma: float = 3.0, min_snr: float = 10.0,
-                      max_samples: int = 3000, seed: int = 0, min_samples: int = 5,
-                      grid_step_K: float = 10.0, chi2_cap: float = 50.0,
-                      num_threads: int = 0, progress=None) -> MixingLineSlope:
+def mixing_line_slope(
+    model: ForwardModel,
+    table,
+    radiance,
+    background_radiance,
+    sigma_m,
+    *,
+    netd_K,
+    composition: Optional[Dict[str, float]] = None,
+    detection_sigma: float = 3.0,
+    min_snr: float = 10.0,
+    max_samples: int = 3000,
+    seed: int = 0,
+    min_samples: int = 5,
+    grid_step_K: float = 10.0,
+    chi2_cap: float = 50.0,
+    num_threads: int = 0,
+    progress=None,
+) -> MixingLineSlope:
     """The slope k of the scene's mixing line ``T_peak = T_amb + k X`` from
     its pixel-frames, with a known composition (engine:
     ``cpp/engine/inversion/mixing_line_slope.h``).
@@ -970,10 +1209,10 @@ def mixing_line_slope(model: ForwardModel, table, radiance, background_radiance,
     ``min_snr`` x noise in some channel (noise: NETD x dL/dT at the channel's
     median background temperature; at most ``max_samples`` of them, a random
     subset seeded by ``seed``) are solved on the line
-    (:func:`invert_on_mixing_line`) for each k of a ``grid_step_K`` grid over the table's peak-temperature range minus
-    T_amb; k minimises the summed chi2 (each pixel's capped at
-    ``chi2_cap``), refined by a parabola through the best three nodes; its
-    1-sigma is where the profile rises by the reduced chi2 (>= 1) from its
+    (:func:`invert_on_mixing_line`) for each k of a ``grid_step_K`` grid over
+    the table's peak-temperature range minus T_amb; k minimises the summed
+    chi2 (each pixel's capped at ``chi2_cap``), refined by a parabola through
+    the best three nodes; its 1-sigma is where the profile rises by the reduced chi2 (>= 1) from its
     minimum, on the flatter side (at least half a grid step).
 
     Parameters
@@ -1011,17 +1250,35 @@ def mixing_line_slope(model: ForwardModel, table, radiance, background_radiance,
     w = _line_composition(model, composition)
     rad, bg, sg = _line_pixels(model, radiance, background_radiance, sigma_m)
     out = _line_inverter(table).find_slope(
-        np.ascontiguousarray(rad.T), np.ascontiguousarray(bg.T), np.ascontiguousarray(sg),
-        list(w), [float(v) for v in np.atleast_1d(netd_K)], float(detection_sigma),
-        num_threads=int(num_threads), min_snr=float(min_snr), max_samples=int(max_samples),
-        seed=int(seed), min_samples=int(min_samples), grid_step_K=float(grid_step_K),
-        chi2_cap=float(chi2_cap), progress=progress)
+        np.ascontiguousarray(rad.T),
+        np.ascontiguousarray(bg.T),
+        np.ascontiguousarray(sg),
+        list(w),
+        [float(v) for v in np.atleast_1d(netd_K)],
+        float(detection_sigma),
+        num_threads=int(num_threads),
+        min_snr=float(min_snr),
+        max_samples=int(max_samples),
+        seed=int(seed),
+        min_samples=int(min_samples),
+        grid_step_K=float(grid_step_K),
+        chi2_cap=float(chi2_cap),
+        progress=progress,
+    )
     return _slope(out)
 
 
-def mixing_line_slope_sample(model: ForwardModel, table, radiance, background_radiance, *,
-                             netd_K, min_snr: float = 10.0, max_samples: int = 3000,
-                             seed: int = 0) -> Tuple[np.ndarray, int]:
+def mixing_line_slope_sample(
+    model: ForwardModel,
+    table,
+    radiance,
+    background_radiance,
+    *,
+    netd_K,
+    min_snr: float = 10.0,
+    max_samples: int = 3000,
+    seed: int = 0,
+) -> Tuple[np.ndarray, int]:
     """The pixel-frames :func:`mixing_line_slope` solves, for a caller with
     its own solver on the line (e.g. an unknown composition).
 
@@ -1030,13 +1287,19 @@ def mixing_line_slope_sample(model: ForwardModel, table, radiance, background_ra
     ``min_snr``)."""
     rad, bg, _ = _line_pixels(model, radiance, background_radiance)
     idx, count = _line_inverter(table).slope_sample(
-        np.ascontiguousarray(rad.T), np.ascontiguousarray(bg.T),
-        [float(v) for v in np.atleast_1d(netd_K)], float(min_snr), int(max_samples), int(seed))
+        np.ascontiguousarray(rad.T),
+        np.ascontiguousarray(bg.T),
+        [float(v) for v in np.atleast_1d(netd_K)],
+        float(min_snr),
+        int(max_samples),
+        int(seed),
+    )
     return np.asarray(idx, dtype=np.int64), int(count)
 
 
-def mixing_line_slope_from_profile(grid_K_per_fraction, chi2, *,
-                                   chi2_cap: float = 50.0) -> MixingLineSlope:
+def mixing_line_slope_from_profile(
+    grid_K_per_fraction, chi2, *, chi2_cap: float = 50.0
+) -> MixingLineSlope:
     """k and its 1-sigma (as :func:`mixing_line_slope`) from the chi2 of P
     pixels solved on the line at each of K evenly spaced slopes.
 
@@ -1045,13 +1308,15 @@ def mixing_line_slope_from_profile(grid_K_per_fraction, chi2, *,
     of the result is P."""
     grid = [float(v) for v in np.asarray(grid_K_per_fraction, dtype=float).ravel()]
     chi = np.asarray(chi2, dtype=float)
-    return _slope(_engine.mixing_line_slope_from_profile(grid, np.ascontiguousarray(chi),
-                                                         float(chi2_cap)),
-                  num_candidates=chi.shape[1] if chi.ndim == 2 else 0)
+    return _slope(
+        _engine.mixing_line_slope_from_profile(grid, np.ascontiguousarray(chi), float(chi2_cap)),
+        num_candidates=chi.shape[1] if chi.ndim == 2 else 0,
+    )
 
 
-def plume_depth_from_width(contrast, pixel_size_m: float, *, axis: int = -1,
-                           threshold: float = 0.0, cut: float = 0.2) -> np.ndarray:
+def plume_depth_from_width(
+    contrast, pixel_size_m: float, *, axis: int = -1, threshold: float = 0.0, cut: float = 0.2
+) -> np.ndarray:
     """Gaussian depth sigma [m] of an axisymmetric plume from its width across
     the image.
 
@@ -1112,6 +1377,7 @@ def plume_depth_from_width(contrast, pixel_size_m: float, *, axis: int = -1,
     zc = np.sqrt(2.0 * np.log(1.0 / np.where(ratio > 0, ratio, 1.0)))
     phi = np.exp(-0.5 * zc * zc) / math.sqrt(2.0 * math.pi)
     big_phi = 0.5 * (1.0 + np.vectorize(math.erf, otypes=[float])(zc / math.sqrt(2.0)))
-    factor = np.where(ratio > 0, 1.0 - 2.0 * zc * phi / np.maximum(2.0 * big_phi - 1.0, 1e-300),
-                      1.0)
+    factor = np.where(
+        ratio > 0, 1.0 - 2.0 * zc * phi / np.maximum(2.0 * big_phi - 1.0, 1e-300), 1.0
+    )
     return np.where(tot > 0, np.sqrt(var / np.maximum(factor, 1e-300)) * pixel_size_m, 0.0)

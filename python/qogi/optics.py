@@ -88,12 +88,14 @@ class SpectralResponse(_engine.SpectralResponse):
     """
 
     def __repr__(self) -> str:
-        return (f"SpectralResponse(name={self.name!r}, {len(self.nu_cm1)} samples, "
-                f"{self.nu_cm1[0]:.1f}-{self.nu_cm1[-1]:.1f} cm-1, "
-                f"centroid {self.centroid_cm1:.1f} cm-1)")
+        return (
+            f"SpectralResponse(name={self.name!r}, {len(self.nu_cm1)} samples, "
+            f"{self.nu_cm1[0]:.1f}-{self.nu_cm1[-1]:.1f} cm-1, "
+            f"centroid {self.centroid_cm1:.1f} cm-1)"
+        )
 
     @classmethod
-    def from_wavelength_um(cls, wavelength_um, response, name: str = "") -> "SpectralResponse":
+    def from_wavelength_um(cls, wavelength_um, response, name: str = "") -> SpectralResponse:
         """Build from a response sampled in wavelength (um), any order.
 
         The response is taken as given per sample (no Jacobian is applied: a
@@ -102,8 +104,10 @@ class SpectralResponse(_engine.SpectralResponse):
         wl = np.asarray(wavelength_um, dtype=float)
         r = np.asarray(response, dtype=float)
         if wl.shape != r.shape or wl.ndim != 1:
-            raise ValueError("wavelength_um and response must be 1-D arrays of the same "
-                             f"length; got shapes {wl.shape} and {r.shape}")
+            raise ValueError(
+                "wavelength_um and response must be 1-D arrays of the same "
+                f"length; got shapes {wl.shape} and {r.shape}"
+            )
         if np.any(~np.isfinite(wl)) or np.any(wl <= 0):
             raise ValueError("wavelength_um must be finite and > 0 um")
         nu = 1e4 / wl
@@ -111,7 +115,7 @@ class SpectralResponse(_engine.SpectralResponse):
         return cls(nu[order], r[order], name)
 
     @classmethod
-    def from_csv(cls, path: str | os.PathLike, name: str | None = None) -> "SpectralResponse":
+    def from_csv(cls, path: str | os.PathLike, name: str | None = None) -> SpectralResponse:
         """Load a two-column CSV: wavenumber [cm-1] (or wavelength [um]), response.
 
         A header row is optional. If the header's first column mentions ``um``
@@ -132,16 +136,20 @@ class SpectralResponse(_engine.SpectralResponse):
                 if not row or row[0].lstrip().startswith("#"):
                     continue
                 if len(row) < 2:
-                    raise ValueError(f"{path}:{lineno}: expected two columns "
-                                     f"(wavenumber_cm1, response); got {row!r}")
+                    raise ValueError(
+                        f"{path}:{lineno}: expected two columns "
+                        f"(wavenumber_cm1, response); got {row!r}"
+                    )
                 try:
                     x, y = float(row[0]), float(row[1])
                 except ValueError:
                     if not xs:  # header
                         head = row[0].lower()
                         wavelength = "cm" not in head and (
-                            "wavelength" in head or "micro" in head
-                            or re.search(r"\bum\b|\[um\]|_um", head) is not None)
+                            "wavelength" in head
+                            or "micro" in head
+                            or re.search(r"\bum\b|\[um\]|_um", head) is not None
+                        )
                         continue
                     raise ValueError(f"{path}:{lineno}: not a number in {row!r}") from None
                 xs.append(x)
@@ -185,8 +193,9 @@ class SpectralResponse(_engine.SpectralResponse):
         return _map(self._radiometric_temperature, band_radiance)
 
 
-def channel_problem(channels, num_frame_channels: Optional[int] = None
-                    ) -> Optional[Tuple[str, str, str]]:
+def channel_problem(
+    channels, num_frame_channels: Optional[int] = None
+) -> Optional[Tuple[str, str, str]]:
     """What is wrong with a camera's channel responses, or None: the one check
     of a channel list, whoever holds it.
 
@@ -202,10 +211,16 @@ def channel_problem(channels, num_frame_channels: Optional[int] = None
         return ("", "no channel response", "give one qogi.SpectralResponse per frame channel")
     for k, ch in enumerate(channels):
         if not isinstance(ch, _engine.SpectralResponse):
-            return (f"/{k}", f"must be a qogi.SpectralResponse; got {type(ch).__name__}",
-                    "build it with qogi.SpectralResponse(nu_cm1, response, name) or "
-                    "SpectralResponse.from_csv(path)")
+            return (
+                f"/{k}",
+                f"must be a qogi.SpectralResponse; got {type(ch).__name__}",
+                "build it with qogi.SpectralResponse(nu_cm1, response, name) or "
+                "SpectralResponse.from_csv(path)",
+            )
     if num_frame_channels is not None and len(channels) != num_frame_channels:
-        return ("", f"{len(channels)} channel responses for {num_frame_channels} frame channels",
-                "give exactly one response per frame channel (axis 1 of the frames)")
+        return (
+            "",
+            f"{len(channels)} channel responses for {num_frame_channels} frame channels",
+            "give exactly one response per frame channel (axis 1 of the frames)",
+        )
     return None

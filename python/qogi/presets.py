@@ -40,6 +40,13 @@ def camera_preset(name: str) -> Camera:
     """
     m = _engine.camera_preset(name)
     channels = [SpectralResponse(ch.nu_cm1, ch.response, ch.name) for ch in m.channels]
-    return Camera(name=m.name, ifov_rad=m.ifov_rad, channels=channels,
-                  frame_rate_hz=m.frame_rate_hz, netd_K=m.netd_K, width=m.width,
-                  height=m.height, description=m.description)
+    return Camera(
+        name=m.name,
+        ifov_rad=m.ifov_rad,
+        channels=channels,
+        frame_rate_hz=m.frame_rate_hz,
+        netd_K=m.netd_K,
+        width=m.width,
+        height=m.height,
+        description=m.description,
+    )

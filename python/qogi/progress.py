@@ -39,8 +39,9 @@ def report(progress: Optional[Progress], fraction: float, message: str = "") -> 
         raise Cancelled("cancelled")
 
 
-def fraction_callback(progress: Optional[Progress], message: str = "", start: float = 0.0,
-                      stop: float = 1.0) -> Optional[Callable[[float], bool]]:
+def fraction_callback(
+    progress: Optional[Progress], message: str = "", start: float = 0.0, stop: float = 1.0
+) -> Optional[Callable[[float], bool]]:
     """A one-argument callback for engine calls: its fraction f maps to
     ``start + (stop - start) f`` of ``progress``; it returns False when
     ``progress`` asks to stop (the engine then stops and raises

@@ -62,13 +62,22 @@ class BandTable:
         Table size in each direction.
     """
 
-    def __init__(self, channel: SpectralResponse, t_min_K: float = 150.0,
-                 t_max_K: float = 1500.0, nodes: int = 1024):
+    def __init__(
+        self,
+        channel: SpectralResponse,
+        t_min_K: float = 150.0,
+        t_max_K: float = 1500.0,
+        nodes: int = 1024,
+    ):
         if not isinstance(channel, SpectralResponse):
-            raise TypeError(f"channel must be a qogi.SpectralResponse; got {type(channel).__name__}")
+            raise TypeError(
+                f"channel must be a qogi.SpectralResponse; got {type(channel).__name__}"
+            )
         if not (np.isfinite(t_min_K) and np.isfinite(t_max_K) and 10.0 < t_min_K < t_max_K < 1e5):
-            raise ValueError("t_min_K and t_max_K must satisfy 10 < t_min_K < t_max_K < 1e5 K; "
-                             f"got {t_min_K} and {t_max_K}")
+            raise ValueError(
+                "t_min_K and t_max_K must satisfy 10 < t_min_K < t_max_K < 1e5 K; "
+                f"got {t_min_K} and {t_max_K}"
+            )
         if int(nodes) < 16:
             raise ValueError(f"nodes must be >= 16; got {nodes}")
         n = int(nodes)
@@ -84,8 +93,10 @@ class BandTable:
         self.radiance_max = float(self._table.radiance_max)
 
     def __repr__(self) -> str:
-        return (f"BandTable({self.channel.name!r}, {self.t_min_K:g}-{self.t_max_K:g} K, "
-                f"{self.nodes} nodes)")
+        return (
+            f"BandTable({self.channel.name!r}, {self.t_min_K:g}-{self.t_max_K:g} K, "
+            f"{self.nodes} nodes)"
+        )
 
     def radiance(self, temperature_K) -> np.ndarray:
         """Band radiance [W/(m2 sr)] of blackbodies at ``temperature_K`` [K].
@@ -124,7 +135,7 @@ class BandTable:
         return out.astype(out_dtype, copy=False)
 
 
-_CACHE: "OrderedDict[bytes, BandTable]" = OrderedDict()
+_CACHE: OrderedDict[bytes, BandTable] = OrderedDict()
 _CACHE_SIZE = 32
 
 
@@ -151,8 +162,10 @@ def _per_channel(values, channels: Sequence[SpectralResponse], axis: int, fn_nam
         raise ValueError("frames must have a channel axis; got a scalar")
     ax = axis % a.ndim
     if a.shape[ax] != len(channels):
-        raise ValueError(f"frames have {a.shape[ax]} channels on axis {axis} but "
-                         f"{len(channels)} channel responses were given")
+        raise ValueError(
+            f"frames have {a.shape[ax]} channels on axis {axis} but "
+            f"{len(channels)} channel responses were given"
+        )
     out = np.empty(a.shape, dtype=np.float32 if a.dtype == np.float32 else np.float64)
     for k, ch in enumerate(channels):
         idx: List[Union[slice, int]] = [slice(None)] * a.ndim

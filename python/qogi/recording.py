@@ -47,9 +47,20 @@ from .optics import SpectralResponse, channel_problem
 from .radiometry import band_table
 
 __all__ = [
-    "FORMAT", "VERSION", "QUANTITIES", "RANGES", "FRAME_RATE_TOLERANCE", "typical_interval",
-    "RecordingError", "Camera", "Scene", "Truth", "Recording", "RecordingWriter",
-    "open_recording", "write_recording",
+    "FORMAT",
+    "VERSION",
+    "QUANTITIES",
+    "RANGES",
+    "FRAME_RATE_TOLERANCE",
+    "typical_interval",
+    "RecordingError",
+    "Camera",
+    "Scene",
+    "Truth",
+    "Recording",
+    "RecordingWriter",
+    "open_recording",
+    "write_recording",
 ]
 
 FORMAT = "qogi-recording"
@@ -111,18 +122,23 @@ def _check_range(key: str, value, path: str, location: str, fix: str = "") -> fl
     try:
         v = float(value)
     except (TypeError, ValueError):
-        raise RecordingError(path, location, f"{name} must be a number [{unit}]; got {value!r}",
-                             fix) from None
+        raise RecordingError(
+            path, location, f"{name} must be a number [{unit}]; got {value!r}", fix
+        ) from None
     low_ok = v > lo if mode == "exclusive_low" else v >= lo
     if not (math.isfinite(v) and low_ok and v <= hi):
         interval = f"({lo:g}, {hi:g}]" if mode == "exclusive_low" else f"[{lo:g}, {hi:g}]"
-        raise RecordingError(path, location,
-                             f"{name} = {v!r} {unit} is outside the accepted range "
-                             f"{interval} {unit}", fix)
+        raise RecordingError(
+            path,
+            location,
+            f"{name} = {v!r} {unit} is outside the accepted range {interval} {unit}",
+            fix,
+        )
     return v
 
 
 # --------------------------------------------------------------------------- metadata
+
 
 @dataclass
 class Camera:
@@ -161,14 +177,19 @@ class Camera:
     def validate(self, path: str = _MEMORY) -> None:
         """Raise :class:`RecordingError` unless every field is in range."""
         if not isinstance(self.name, str):
-            raise RecordingError(path, "/camera attr name",
-                                 f"must be a string; got {self.name!r}")
-        _check_range("camera.ifov_rad", self.ifov_rad, path, "/camera attr ifov_rad",
-                      "give the angular size of one pixel in radians "
-                      "(horizontal field of view / pixels across)")
+            raise RecordingError(path, "/camera attr name", f"must be a string; got {self.name!r}")
+        _check_range(
+            "camera.ifov_rad",
+            self.ifov_rad,
+            path,
+            "/camera attr ifov_rad",
+            "give the angular size of one pixel in radians "
+            "(horizontal field of view / pixels across)",
+        )
         if self.frame_rate_hz is not None:
-            _check_range("camera.frame_rate_hz", self.frame_rate_hz, path,
-                         "/camera attr frame_rate_hz")
+            _check_range(
+                "camera.frame_rate_hz", self.frame_rate_hz, path, "/camera attr frame_rate_hz"
+            )
         if self.netd_K is not None:
             _check_range("camera.netd_K", self.netd_K, path, "/camera attr netd_K")
         _check_channels(self.channels, path)
@@ -214,9 +235,12 @@ class Scene:
                 _check_range(f"scene.{name}", v, path, f"/scene attr {name}")
         for s in self.species:
             if not isinstance(s, str) or not _SPECIES_RE.match(s):
-                raise RecordingError(path, "/scene attr species",
-                                     f"species name {s!r} is not a molecule name",
-                                     "use HITRAN molecule names such as CH4, CO2, C2H6")
+                raise RecordingError(
+                    path,
+                    "/scene attr species",
+                    f"species name {s!r} is not a molecule name",
+                    "use HITRAN molecule names such as CH4, CO2, C2H6",
+                )
 
 
 @dataclass
@@ -242,13 +266,18 @@ class Truth:
     def validate(self, path: str = _MEMORY) -> None:
         for sp, rate in self.emission_rate_kg_s.items():
             if not _SPECIES_RE.match(str(sp)):
-                raise RecordingError(path, f"/truth attr emission_rate_kg_s_{sp}",
-                                     f"species name {sp!r} is not a molecule name")
-            _check_range("truth.emission_rate_kg_s", rate, path,
-                         f"/truth attr emission_rate_kg_s_{sp}")
+                raise RecordingError(
+                    path,
+                    f"/truth attr emission_rate_kg_s_{sp}",
+                    f"species name {sp!r} is not a molecule name",
+                )
+            _check_range(
+                "truth.emission_rate_kg_s", rate, path, f"/truth attr emission_rate_kg_s_{sp}"
+            )
 
 
 # --------------------------------------------------------------------------- frames
+
 
 def _first_nonfinite(block: np.ndarray) -> Tuple[int, ...]:
     return tuple(int(v) for v in np.argwhere(~np.isfinite(block))[0])
@@ -270,10 +299,21 @@ class Recording:
     with the default ``"error"`` a recording containing any is refused.
     """
 
-    def __init__(self, *, source, time_s: np.ndarray, quantity: str, camera: Camera,
-                 scene: Scene, truth: Optional[Truth], path: str, nonfinite: str,
-                 h5file=None, attrs: Optional[dict] = None):
-        self._source = source              # ndarray or h5py.Dataset, (T, C, H, W)
+    def __init__(
+        self,
+        *,
+        source,
+        time_s: np.ndarray,
+        quantity: str,
+        camera: Camera,
+        scene: Scene,
+        truth: Optional[Truth],
+        path: str,
+        nonfinite: str,
+        h5file=None,
+        attrs: Optional[dict] = None,
+    ):
+        self._source = source  # ndarray or h5py.Dataset, (T, C, H, W)
         self._h5 = h5file
         self.time_s = time_s
         self.quantity = quantity
@@ -289,8 +329,17 @@ class Recording:
 
     # ----------------------------------------------------------------- construction
     @classmethod
-    def from_arrays(cls, frames, time_s=None, *, quantity: str, camera: Camera, scene: Scene,
-                    truth: Optional[Truth] = None, nonfinite: str = "error") -> "Recording":
+    def from_arrays(
+        cls,
+        frames,
+        time_s=None,
+        *,
+        quantity: str,
+        camera: Camera,
+        scene: Scene,
+        truth: Optional[Truth] = None,
+        nonfinite: str = "error",
+    ) -> Recording:
         """Build a recording in memory from numpy arrays.
 
         Parameters
@@ -319,29 +368,49 @@ class Recording:
         if a.ndim == 3:
             a = a[:, None]
         if not (np.issubdtype(a.dtype, np.floating) or np.issubdtype(a.dtype, np.integer)):
-            raise RecordingError(_MEMORY, "frames", f"dtype {a.dtype} is not numeric",
-                                 "pass band radiance or radiometric temperature as numbers")
+            raise RecordingError(
+                _MEMORY,
+                "frames",
+                f"dtype {a.dtype} is not numeric",
+                "pass band radiance or radiometric temperature as numbers",
+            )
         a = np.ascontiguousarray(a, dtype=np.float32)
         if a.ndim != 4:
-            raise RecordingError(_MEMORY, "frames",
-                                 f"expected shape (T, C, H, W) or (T, H, W); got {a.shape}",
-                                 "stack frames as (time, channel, height, width)")
+            raise RecordingError(
+                _MEMORY,
+                "frames",
+                f"expected shape (T, C, H, W) or (T, H, W); got {a.shape}",
+                "stack frames as (time, channel, height, width)",
+            )
         if time_s is None:
             if camera.frame_rate_hz is None:
-                raise RecordingError(_MEMORY, "time_s",
-                                     "neither time_s nor camera.frame_rate_hz was given",
-                                     "pass time_s (s) or set camera.frame_rate_hz")
-            _check_range("camera.frame_rate_hz", camera.frame_rate_hz, _MEMORY,
-                         "camera.frame_rate_hz")
+                raise RecordingError(
+                    _MEMORY,
+                    "time_s",
+                    "neither time_s nor camera.frame_rate_hz was given",
+                    "pass time_s (s) or set camera.frame_rate_hz",
+                )
+            _check_range(
+                "camera.frame_rate_hz", camera.frame_rate_hz, _MEMORY, "camera.frame_rate_hz"
+            )
             time_s = np.arange(a.shape[0], dtype=np.float64) / float(camera.frame_rate_hz)
         t = np.asarray(time_s, dtype=np.float64)
-        cam = Camera(camera.name, camera.ifov_rad, list(camera.channels), camera.frame_rate_hz,
-                     camera.netd_K)
+        cam = Camera(
+            camera.name, camera.ifov_rad, list(camera.channels), camera.frame_rate_hz, camera.netd_K
+        )
         _validate_time(_MEMORY, t, a.shape[0], "time_s")
         if cam.frame_rate_hz is None:
             cam.frame_rate_hz = _frame_rate_from_times(t)
-        rec = cls(source=a, time_s=t, quantity=quantity, camera=cam, scene=scene,
-                  truth=truth, path=_MEMORY, nonfinite=nonfinite)
+        rec = cls(
+            source=a,
+            time_s=t,
+            quantity=quantity,
+            camera=cam,
+            scene=scene,
+            truth=truth,
+            path=_MEMORY,
+            nonfinite=nonfinite,
+        )
         rec._validate_metadata()
         rec._scan_frames()
         return rec
@@ -397,12 +466,15 @@ class Recording:
 
     def __repr__(self) -> str:
         t, c, h, w = self.shape
-        return (f"Recording({self.path!r}, {t} frames x {c} channels x {h}x{w}, "
-                f"{self.quantity} [{self.unit}], {self.camera.frame_rate_hz:g} Hz)")
+        return (
+            f"Recording({self.path!r}, {t} frames x {c} channels x {h}x{w}, "
+            f"{self.quantity} [{self.unit}], {self.camera.frame_rate_hz:g} Hz)"
+        )
 
     # ----------------------------------------------------------------- frames
-    def frames(self, start: int = 0, stop: Optional[int] = None,
-               quantity: Optional[str] = None) -> np.ndarray:
+    def frames(
+        self, start: int = 0, stop: Optional[int] = None, quantity: Optional[str] = None
+    ) -> np.ndarray:
         """Frames ``start:stop`` as a float32 array (n, C, H, W).
 
         ``quantity`` (default: the stored one) converts through the channel
@@ -432,15 +504,17 @@ class Recording:
     def __iter__(self) -> Iterator[np.ndarray]:
         return self.iter_frames()
 
-    def iter_frames(self, start: int = 0, stop: Optional[int] = None,
-                    quantity: Optional[str] = None) -> Iterator[np.ndarray]:
+    def iter_frames(
+        self, start: int = 0, stop: Optional[int] = None, quantity: Optional[str] = None
+    ) -> Iterator[np.ndarray]:
         """Yield frames one by one, (C, H, W) float32, reading each when needed."""
         stop = self.n_frames if stop is None else stop
         for i in range(start, stop):
             yield self.frames(i, i + 1, quantity)[0]
 
-    def iter_batches(self, batch_size: int, quantity: Optional[str] = None
-                     ) -> Iterator[Tuple[int, np.ndarray]]:
+    def iter_batches(
+        self, batch_size: int, quantity: Optional[str] = None
+    ) -> Iterator[Tuple[int, np.ndarray]]:
         """Yield ``(start, frames)`` blocks of up to ``batch_size`` frames."""
         if int(batch_size) < 1:
             raise ValueError(f"batch_size must be >= 1; got {batch_size}")
@@ -451,12 +525,19 @@ class Recording:
         """All frames as one float32 array (T, C, H, W) (loads the whole video)."""
         return self.frames(0, self.n_frames, quantity)
 
-    def load(self) -> "Recording":
+    def load(self) -> Recording:
         """An in-memory copy (all frames read); the file can then be closed."""
-        rec = Recording(source=self.to_array(), time_s=self.time_s.copy(),
-                        quantity=self.quantity, camera=self.camera, scene=self.scene,
-                        truth=_load_truth(self.truth), path=self.path,
-                        nonfinite=self.nonfinite, attrs=self.attrs)
+        rec = Recording(
+            source=self.to_array(),
+            time_s=self.time_s.copy(),
+            quantity=self.quantity,
+            camera=self.camera,
+            scene=self.scene,
+            truth=_load_truth(self.truth),
+            path=self.path,
+            nonfinite=self.nonfinite,
+            attrs=self.attrs,
+        )
         rec.n_invalid = self.n_invalid
         return rec
 
@@ -476,9 +557,12 @@ class Recording:
             except ValueError as e:  # values no blackbody gives (zero, negative radiance)
                 if isinstance(e, DataError):
                     raise
-                raise RecordingError(self.path, f"/frames channel {k}",
-                                     f"cannot be converted to {quantity}: {e}",
-                                     "check the frames' quantity and values") from None
+                raise RecordingError(
+                    self.path,
+                    f"/frames channel {k}",
+                    f"cannot be converted to {quantity}: {e}",
+                    "check the frames' quantity and values",
+                ) from None
         return out
 
     def _apply_nonfinite(self, block: np.ndarray, start: int) -> np.ndarray:
@@ -491,26 +575,35 @@ class Recording:
             return block
         first = _first_nonfinite(block)
         raise RecordingError(
-            self.path, "/frames",
+            self.path,
+            "/frames",
             f"{int(bad.sum())} non-finite values in frames {start}..{start + len(block) - 1}, "
             f"the first at (t={first[0] + start}, c={first[1]}, y={first[2]}, x={first[3]}) = "
             f"{block[first]!r}",
-            "open with nonfinite='invalid' to treat them as invalid pixels")
+            "open with nonfinite='invalid' to treat them as invalid pixels",
+        )
 
     # ----------------------------------------------------------------- checks
     def _validate_metadata(self) -> None:
         path = self.path
         t, c, h, w = self.shape
         if self.quantity not in QUANTITIES:
-            raise RecordingError(path, "/frames attr quantity",
-                                 f"unknown quantity {self.quantity!r}",
-                                 f"use one of {sorted(QUANTITIES)} "
-                                 "(band radiance in W/(m2 sr) or radiometric temperature in K)")
+            raise RecordingError(
+                path,
+                "/frames attr quantity",
+                f"unknown quantity {self.quantity!r}",
+                f"use one of {sorted(QUANTITIES)} "
+                "(band radiance in W/(m2 sr) or radiometric temperature in K)",
+            )
         if self.nonfinite not in ("error", "invalid"):
             raise ValueError(f"nonfinite must be 'error' or 'invalid'; got {self.nonfinite!r}")
         if t < 1 or h < 1 or w < 1:
-            raise RecordingError(path, "/frames", f"empty frames, shape {self.shape}",
-                                 "a recording needs at least one frame of at least 1x1 pixel")
+            raise RecordingError(
+                path,
+                "/frames",
+                f"empty frames, shape {self.shape}",
+                "a recording needs at least one frame of at least 1x1 pixel",
+            )
         self.camera.validate(path)
         self.scene.validate(path)
         if self.truth is not None:
@@ -525,7 +618,7 @@ class Recording:
         step = max(1, batch_bytes // per_frame)
         total, first = 0, None
         for s in range(0, t, step):
-            block = np.asarray(self._source[s:s + step])
+            block = np.asarray(self._source[s : s + step])
             bad = ~np.isfinite(block)
             nbad = int(np.count_nonzero(bad))
             if nbad:
@@ -538,18 +631,31 @@ class Recording:
             assert first is not None  # set with the first non-finite block
             (ti, ci, yi, xi), val = first
             raise RecordingError(
-                self.path, "/frames",
+                self.path,
+                "/frames",
                 f"{total} non-finite values (NaN/inf) out of {t * c * h * w}; the first at "
                 f"(t={ti}, c={ci}, y={yi}, x={xi}) = {val!r}",
                 "open with nonfinite='invalid' to treat them as invalid pixels "
-                "(they are then returned as NaN and counted), or repair the frames")
+                "(they are then returned as NaN and counted), or repair the frames",
+            )
 
     # ----------------------------------------------------------------- output
-    def save(self, path: Union[str, os.PathLike], *, compression: Optional[str] = None,
-             compression_level: Optional[int] = None, overwrite: bool = True) -> None:
+    def save(
+        self,
+        path: Union[str, os.PathLike],
+        *,
+        compression: Optional[str] = None,
+        compression_level: Optional[int] = None,
+        overwrite: bool = True,
+    ) -> None:
         """Write this recording to ``path`` (see :func:`write_recording`)."""
-        write_recording(path, self, compression=compression,
-                        compression_level=compression_level, overwrite=overwrite)
+        write_recording(
+            path,
+            self,
+            compression=compression,
+            compression_level=compression_level,
+            overwrite=overwrite,
+        )
 
     def close(self) -> None:
         """Close the file of a recording opened with :func:`open_recording`."""
@@ -557,7 +663,7 @@ class Recording:
             self._h5.close()
             self._h5 = None
 
-    def __enter__(self) -> "Recording":
+    def __enter__(self) -> Recording:
         return self
 
     def __exit__(self, *exc) -> None:
@@ -568,32 +674,57 @@ class Recording:
         t, c, h, w = self.shape
         out: Dict[str, Any] = {
             "path": self.path,
-            "format": FORMAT, "version": VERSION,
-            "camera": {"name": self.camera.name, "ifov_rad": self.camera.ifov_rad,
-                       "frame_rate_hz": self.camera.frame_rate_hz,
-                       "netd_K": self.camera.netd_K},
-            "channels": [{"index": k, "name": ch.name,
-                          "band_cm1": [float(ch.nu_cm1[0]), float(ch.nu_cm1[-1])],
-                          "band_um": [1e4 / float(ch.nu_cm1[-1]), 1e4 / float(ch.nu_cm1[0])],
-                          "half_max_cm1": list(_half_max_band(ch)),
-                          "centroid_cm1": float(ch.centroid_cm1),
-                          "centroid_um": 1e4 / float(ch.centroid_cm1)}
-                         for k, ch in enumerate(self.channels)],
-            "frames": {"T": t, "C": c, "H": h, "W": w, "quantity": self.quantity,
-                       "unit": self.unit, "duration_s": self.duration_s,
-                       "time_first_s": float(self.time_s[0]),
-                       "time_last_s": float(self.time_s[-1]),
-                       "n_invalid": self.n_invalid},
-            "scene": {k: getattr(self.scene, k) for k in (
-                "distance_m", "ambient_temperature_K", "pressure_Pa", "wind_speed_m_s",
-                "gas_temperature_K", "background_temperature_K")},
+            "format": FORMAT,
+            "version": VERSION,
+            "camera": {
+                "name": self.camera.name,
+                "ifov_rad": self.camera.ifov_rad,
+                "frame_rate_hz": self.camera.frame_rate_hz,
+                "netd_K": self.camera.netd_K,
+            },
+            "channels": [
+                {
+                    "index": k,
+                    "name": ch.name,
+                    "band_cm1": [float(ch.nu_cm1[0]), float(ch.nu_cm1[-1])],
+                    "band_um": [1e4 / float(ch.nu_cm1[-1]), 1e4 / float(ch.nu_cm1[0])],
+                    "half_max_cm1": list(_half_max_band(ch)),
+                    "centroid_cm1": float(ch.centroid_cm1),
+                    "centroid_um": 1e4 / float(ch.centroid_cm1),
+                }
+                for k, ch in enumerate(self.channels)
+            ],
+            "frames": {
+                "T": t,
+                "C": c,
+                "H": h,
+                "W": w,
+                "quantity": self.quantity,
+                "unit": self.unit,
+                "duration_s": self.duration_s,
+                "time_first_s": float(self.time_s[0]),
+                "time_last_s": float(self.time_s[-1]),
+                "n_invalid": self.n_invalid,
+            },
+            "scene": {
+                k: getattr(self.scene, k)
+                for k in (
+                    "distance_m",
+                    "ambient_temperature_K",
+                    "pressure_Pa",
+                    "wind_speed_m_s",
+                    "gas_temperature_K",
+                    "background_temperature_K",
+                )
+            },
         }
         out["scene"]["species"] = list(self.scene.species)
         if self.truth is not None:
             out["truth"] = {
                 "emission_rate_kg_s": dict(self.truth.emission_rate_kg_s),
-                "emission_rate_kg_h": {k: v * 3600.0
-                                       for k, v in self.truth.emission_rate_kg_s.items()},
+                "emission_rate_kg_h": {
+                    k: v * 3600.0 for k, v in self.truth.emission_rate_kg_s.items()
+                },
                 "datasets": {k: list(np.shape(v)) for k, v in self.truth.datasets.items()},
             }
         return out
@@ -620,30 +751,42 @@ def _half_max_band(ch: SpectralResponse) -> Tuple[float, float]:
 def _load_truth(truth: Optional[Truth]) -> Optional[Truth]:
     if truth is None:
         return None
-    return Truth(dict(truth.emission_rate_kg_s),
-                 {k: np.asarray(v) for k, v in truth.datasets.items()}, dict(truth.attrs))
+    return Truth(
+        dict(truth.emission_rate_kg_s),
+        {k: np.asarray(v) for k, v in truth.datasets.items()},
+        dict(truth.attrs),
+    )
 
 
 def _validate_time(path: str, t: np.ndarray, n_frames: int, location: str = "/time_s") -> None:
     if t.ndim != 1 or t.shape[0] != n_frames:
-        raise RecordingError(path, location,
-                             f"expected shape ({n_frames},) to match the {n_frames} frames; "
-                             f"got {t.shape}", "write one time [s] per frame")
+        raise RecordingError(
+            path,
+            location,
+            f"expected shape ({n_frames},) to match the {n_frames} frames; got {t.shape}",
+            "write one time [s] per frame",
+        )
     bad = np.flatnonzero(~np.isfinite(t))
     if bad.size:
-        raise RecordingError(path, location,
-                             f"{bad.size} non-finite times, the first at index {bad[0]} "
-                             f"({t[bad[0]]!r})", "write finite frame times in seconds")
+        raise RecordingError(
+            path,
+            location,
+            f"{bad.size} non-finite times, the first at index {bad[0]} ({t[bad[0]]!r})",
+            "write finite frame times in seconds",
+        )
     if n_frames > 1:
         d = np.diff(t)
         bad = np.flatnonzero(d <= 0)
         if bad.size:
             i = int(bad[0])
-            raise RecordingError(path, location,
-                                 f"times must be strictly increasing; time_s[{i}] = {t[i]!r} "
-                                 f"and time_s[{i + 1}] = {t[i + 1]!r} "
-                                 f"({bad.size} such steps)",
-                                 "sort the frames by time and drop duplicates")
+            raise RecordingError(
+                path,
+                location,
+                f"times must be strictly increasing; time_s[{i}] = {t[i]!r} "
+                f"and time_s[{i + 1}] = {t[i + 1]!r} "
+                f"({bad.size} such steps)",
+                "sort the frames by time and drop duplicates",
+            )
 
 
 def typical_interval(time_s) -> float:
@@ -660,32 +803,40 @@ def typical_interval(time_s) -> float:
 
 def _frame_rate_from_times(t: np.ndarray) -> float:
     if t.size < 2:
-        raise RecordingError(_MEMORY, "camera.frame_rate_hz",
-                             "cannot infer the frame rate from a single frame time",
-                             "set camera.frame_rate_hz")
+        raise RecordingError(
+            _MEMORY,
+            "camera.frame_rate_hz",
+            "cannot infer the frame rate from a single frame time",
+            "set camera.frame_rate_hz",
+        )
     return 1.0 / typical_interval(t)
 
 
 def _check_frame_rate(path: str, t: np.ndarray, frame_rate_hz: Optional[float]) -> None:
     if frame_rate_hz is None:
-        raise RecordingError(path, "/camera attr frame_rate_hz", "missing",
-                             "write the camera frame rate in Hz")
+        raise RecordingError(
+            path, "/camera attr frame_rate_hz", "missing", "write the camera frame rate in Hz"
+        )
     if t.size < 2:
         return
     measured = 1.0 / typical_interval(t)
     if abs(measured - frame_rate_hz) > FRAME_RATE_TOLERANCE * frame_rate_hz:
         raise RecordingError(
-            path, "/camera attr frame_rate_hz",
+            path,
+            "/camera attr frame_rate_hz",
             f"frame_rate_hz = {frame_rate_hz:g} Hz disagrees with /time_s, whose typical frame "
             f"interval {1.0 / measured:.6g} s means {measured:.6g} Hz "
             f"(tolerance {FRAME_RATE_TOLERANCE:.0%})",
-            "correct frame_rate_hz or time_s (time_s is what the pipeline uses)")
+            "correct frame_rate_hz or time_s (time_s is what the pipeline uses)",
+        )
 
 
 # --------------------------------------------------------------------------- HDF5 I/O
 
+
 def _h5py():
     import h5py
+
     return h5py
 
 
@@ -705,10 +856,13 @@ def set_attr(obj, name: str, value) -> None:
         b = value.encode("utf-8")
         obj.attrs.create(name, np.array(b, dtype=h5py.string_dtype("utf-8", max(1, len(b)))))
         return
-    if isinstance(value, (list, tuple, np.ndarray)) and len(value) and all(
-            isinstance(v, (str, np.str_)) for v in np.ravel(np.asarray(value, dtype=object))):
+    if (
+        isinstance(value, (list, tuple, np.ndarray))
+        and len(value)
+        and all(isinstance(v, (str, np.str_)) for v in np.ravel(np.asarray(value, dtype=object)))
+    ):
         enc = [str(v).encode("utf-8") for v in np.ravel(np.asarray(value, dtype=object))]
-        n = max(1, max(len(b) for b in enc))
+        n = max([1, *(len(b) for b in enc)])
         arr = np.array(enc, dtype=h5py.string_dtype("utf-8", n)).reshape(np.shape(value))
         obj.attrs.create(name, arr)
         return
@@ -786,50 +940,80 @@ def _check_variable_length(f, p: str) -> None:
     env = {k: v for k, v in os.environ.items() if not k.startswith("PYTHON")}
     env["OPENBLAS_NUM_THREADS"] = env["OMP_NUM_THREADS"] = "1"
     try:
-        r = subprocess.run([sys.executable, "-I", "-c", _PROBE_CODE, p, str(_PROBE_MEMORY_BYTES),
-                            str(_PROBE_CPU_S), json.dumps(items)], capture_output=True, text=True,
-                           timeout=_PROBE_WALL_S, env=env, stdin=subprocess.DEVNULL)
+        r = subprocess.run(
+            [
+                sys.executable,
+                "-I",
+                "-c",
+                _PROBE_CODE,
+                p,
+                str(_PROBE_MEMORY_BYTES),
+                str(_PROBE_CPU_S),
+                json.dumps(items),
+            ],
+            capture_output=True,
+            check=False,  # the exit status is read below
+            text=True,
+            timeout=_PROBE_WALL_S,
+            env=env,
+            stdin=subprocess.DEVNULL,
+        )
         out, ok = r.stdout.split(), r.returncode == 0 and r.stdout.rstrip().endswith("ok")
         why = (r.stderr.strip().splitlines() or [f"exit status {r.returncode}"])[-1]
         if r.returncode < 0:
             why = {9: "killed at the CPU-time limit", 24: "stopped at the CPU-time limit"}.get(
-                -r.returncode, f"killed by signal {-r.returncode}")
+                -r.returncode, f"killed by signal {-r.returncode}"
+            )
     except subprocess.TimeoutExpired as e:
         out, ok, why = (e.stdout or b"").decode(errors="replace").split(), False, "timed out"
     if ok:
         _probed_ok.add(key)
         return
     where = f"{out[-2]} attr {out[-1]}" if len(out) >= 2 else "variable-length attributes"
-    raise RecordingError(p, where,
-                         f"cannot be read within {_PROBE_MEMORY_BYTES >> 30} GiB and "
-                         f"{_PROBE_CPU_S} s of CPU ({why})",
-                         "the file is damaged or forged; write it again (qogi writes text "
-                         "attributes as fixed-length strings)")
+    raise RecordingError(
+        p,
+        where,
+        f"cannot be read within {_PROBE_MEMORY_BYTES >> 30} GiB and "
+        f"{_PROBE_CPU_S} s of CPU ({why})",
+        "the file is damaged or forged; write it again (qogi writes text "
+        "attributes as fixed-length strings)",
+    )
 
 
 def _small(ds, path: str, location: str) -> np.ndarray:
     """A metadata dataset read whole, after checking its declared size."""
     size = int(ds.size) * int(ds.dtype.itemsize)
     if size > _MAX_METADATA_BYTES:
-        raise RecordingError(path, location, f"shape {ds.shape} declares {size / 2 ** 20:.3g} "
-                             "MiB of metadata", "the file is damaged or forged")
+        raise RecordingError(
+            path,
+            location,
+            f"shape {ds.shape} declares {size / 2**20:.3g} MiB of metadata",
+            "the file is damaged or forged",
+        )
     return ds[()]
 
 
 def _attr(obj, name: str, path: str, location: str, required: bool = True, fix: str = ""):
     if name not in obj.attrs:
         if required:
-            raise RecordingError(path, f"{location} attr {name}", "missing",
-                                 fix or f"add the attribute {name} to {location}")
+            raise RecordingError(
+                path,
+                f"{location} attr {name}",
+                "missing",
+                fix or f"add the attribute {name} to {location}",
+            )
         return None
     try:
         size = int(obj.attrs.get_id(name).get_storage_size())
     except Exception:  # noqa: BLE001 - unreadable: reported by the read below
         size = 0
     if size > _MAX_METADATA_BYTES:
-        raise RecordingError(path, f"{location} attr {name}",
-                             f"declares {size / 2 ** 20:.3g} MiB (an attribute holds a few "
-                             "numbers or a name)", "the file is damaged or forged")
+        raise RecordingError(
+            path,
+            f"{location} attr {name}",
+            f"declares {size / 2**20:.3g} MiB (an attribute holds a few numbers or a name)",
+            "the file is damaged or forged",
+        )
     v = obj.attrs[name]
     if isinstance(v, bytes):
         v = v.decode("utf-8", "replace")
@@ -850,8 +1034,9 @@ def _species(value) -> Tuple[str, ...]:
     return tuple(s.decode() if isinstance(s, bytes) else str(s) for s in np.ravel(value))
 
 
-def open_recording(path: Union[str, os.PathLike], *, nonfinite: str = "error",
-                   check_frames: bool = True) -> Recording:
+def open_recording(
+    path: Union[str, os.PathLike], *, nonfinite: str = "error", check_frames: bool = True
+) -> Recording:
     """Open a recording file, validate it, and read frames lazily.
 
     Parameters
@@ -891,14 +1076,22 @@ def open_recording(path: Union[str, os.PathLike], *, nonfinite: str = "error",
     if os.path.isdir(p):
         raise RecordingError(p, "file", "is a directory, not a recording file")
     if not h5py.is_hdf5(p):
-        raise RecordingError(p, "file", "is not an HDF5 file",
-                             "a qogi recording is HDF5 (see docs/recording.md); convert camera "
-                             "files with qogi.io (read_flir, read_numpy, read_tiff)")
+        raise RecordingError(
+            p,
+            "file",
+            "is not an HDF5 file",
+            "a qogi recording is HDF5 (see docs/recording.md); convert camera "
+            "files with qogi.io (read_flir, read_numpy, read_tiff)",
+        )
     try:
         f = h5py.File(p, "r")
     except OSError as e:
-        raise RecordingError(p, "file", f"is not a readable HDF5 file ({e})",
-                             "the file is damaged or truncated; copy or export it again") from e
+        raise RecordingError(
+            p,
+            "file",
+            f"is not a readable HDF5 file ({e})",
+            "the file is damaged or truncated; copy or export it again",
+        ) from e
     try:
         rec = _read(f, p, nonfinite)
         if check_frames:
@@ -914,9 +1107,12 @@ def open_recording(path: Union[str, os.PathLike], *, nonfinite: str = "error",
 def _damaged(p: str, e: Exception) -> RecordingError:
     """What a failure of HDF5 or numpy while reading an untrusted file becomes
     (h5py raises OSError, KeyError, TypeError, ... on damaged structures)."""
-    return RecordingError(p, "file", f"cannot be read ({type(e).__name__}: {e})",
-                          "the file is damaged or not written by a recording writer; "
-                          "export it again")
+    return RecordingError(
+        p,
+        "file",
+        f"cannot be read ({type(e).__name__}: {e})",
+        "the file is damaged or not written by a recording writer; export it again",
+    )
 
 
 #: Largest frame (C x H x W values of float32) a recording may declare [bytes]:
@@ -935,25 +1131,34 @@ def _check_declared_size(p: str, ds) -> None:
     t, c, h, w = (int(v) for v in ds.shape)
     frame_bytes = c * h * w * 4
     if min(t, c, h, w) < 1:
-        raise RecordingError(p, "/frames", f"shape {ds.shape} has an empty axis",
-                             "write at least one frame of at least one pixel")
+        raise RecordingError(
+            p,
+            "/frames",
+            f"shape {ds.shape} has an empty axis",
+            "write at least one frame of at least one pixel",
+        )
     if frame_bytes > MAX_FRAME_BYTES:
-        raise RecordingError(p, "/frames",
-                             f"shape {ds.shape} declares {frame_bytes / 2 ** 30:.3g} GiB per frame "
-                             f"(at most {MAX_FRAME_BYTES / 2 ** 30:g} GiB)",
-                             "the file is damaged or forged; frames must be (T, C, H, W) with "
-                             "the camera's real size")
+        raise RecordingError(
+            p,
+            "/frames",
+            f"shape {ds.shape} declares {frame_bytes / 2**30:.3g} GiB per frame "
+            f"(at most {MAX_FRAME_BYTES / 2**30:g} GiB)",
+            "the file is damaged or forged; frames must be (T, C, H, W) with "
+            "the camera's real size",
+        )
     declared = t * frame_bytes
     try:
         stored = int(ds.id.get_storage_size())
     except Exception:  # external or virtual storage: cannot tell  # noqa: BLE001
         return
     if declared > (64 << 20) and declared > _MAX_COMPRESSION * max(stored, 1):
-        raise RecordingError(p, "/frames",
-                             f"shape {ds.shape} declares {declared / 2 ** 30:.3g} GiB but the file "
-                             f"stores {stored / 2 ** 20:.3g} MiB of frames",
-                             "the file is truncated or its frames were never written; "
-                             "re-export the recording")
+        raise RecordingError(
+            p,
+            "/frames",
+            f"shape {ds.shape} declares {declared / 2**30:.3g} GiB but the file "
+            f"stores {stored / 2**20:.3g} MiB of frames",
+            "the file is truncated or its frames were never written; re-export the recording",
+        )
 
 
 def _read(f, p: str, nonfinite: str) -> Recording:
@@ -961,82 +1166,131 @@ def _read(f, p: str, nonfinite: str) -> Recording:
     _check_variable_length(f, p)
     fmt = _attr(f, "format", p, "/", fix=f'set the root attribute format="{FORMAT}"')
     if fmt != FORMAT:
-        raise RecordingError(p, "/ attr format", f"is {fmt!r}, not {FORMAT!r}",
-                             "this is not a qogi recording; convert it with qogi.io or "
-                             "qogi.write_recording")
+        raise RecordingError(
+            p,
+            "/ attr format",
+            f"is {fmt!r}, not {FORMAT!r}",
+            "this is not a qogi recording; convert it with qogi.io or qogi.write_recording",
+        )
     ver = _attr(f, "version", p, "/", fix=f"set the root attribute version={VERSION}")
     if not isinstance(ver, (int, np.integer)) or int(ver) != VERSION:
-        raise RecordingError(p, "/ attr version",
-                             f"version {ver!r} is not supported (this qogi reads version "
-                             f"{VERSION})", "write the file with a matching qogi version")
+        raise RecordingError(
+            p,
+            "/ attr version",
+            f"version {ver!r} is not supported (this qogi reads version {VERSION})",
+            "write the file with a matching qogi version",
+        )
 
     if "frames" not in f or not isinstance(f["frames"], h5py.Dataset):
-        raise RecordingError(p, "/frames", "missing",
-                             "write the frames as a float32 dataset /frames (T, C, H, W)")
+        raise RecordingError(
+            p, "/frames", "missing", "write the frames as a float32 dataset /frames (T, C, H, W)"
+        )
     ds = f["frames"]
     if ds.ndim != 4:
-        raise RecordingError(p, "/frames",
-                             f"expected 4 dimensions (T, C, H, W); got shape {ds.shape}",
-                             "store one channel axis even for a single channel: shape "
-                             "(T, 1, H, W)")
+        raise RecordingError(
+            p,
+            "/frames",
+            f"expected 4 dimensions (T, C, H, W); got shape {ds.shape}",
+            "store one channel axis even for a single channel: shape (T, 1, H, W)",
+        )
     if not np.issubdtype(ds.dtype, np.floating):
-        raise RecordingError(p, "/frames",
-                             f"dtype {ds.dtype} is not floating point (expected float32)",
-                             "store band radiance or radiometric temperature as float32; "
-                             "raw camera counts must be calibrated first (e.g. qogi.io.read_flir)")
-    quantity = _attr(ds, "quantity", p, "/frames",
-                     fix=f'set /frames attr quantity to one of {sorted(QUANTITIES)}')
+        raise RecordingError(
+            p,
+            "/frames",
+            f"dtype {ds.dtype} is not floating point (expected float32)",
+            "store band radiance or radiometric temperature as float32; "
+            "raw camera counts must be calibrated first (e.g. qogi.io.read_flir)",
+        )
+    quantity = _attr(
+        ds,
+        "quantity",
+        p,
+        "/frames",
+        fix=f"set /frames attr quantity to one of {sorted(QUANTITIES)}",
+    )
     if quantity not in QUANTITIES:
-        raise RecordingError(p, "/frames attr quantity", f"unknown quantity {quantity!r}",
-                             f"use one of {sorted(QUANTITIES)} (band radiance in W/(m2 sr) "
-                             "or radiometric temperature in K)")
+        raise RecordingError(
+            p,
+            "/frames attr quantity",
+            f"unknown quantity {quantity!r}",
+            f"use one of {sorted(QUANTITIES)} (band radiance in W/(m2 sr) "
+            "or radiometric temperature in K)",
+        )
     t_frames = ds.shape[0]
     _check_declared_size(p, ds)
 
     if "time_s" not in f:
-        raise RecordingError(p, "/time_s", "missing",
-                             "write a float64 dataset /time_s with one time [s] per frame")
+        raise RecordingError(
+            p, "/time_s", "missing", "write a float64 dataset /time_s with one time [s] per frame"
+        )
     tds = f["time_s"]
     if not isinstance(tds, h5py.Dataset) or tds.shape != (t_frames,):
-        raise RecordingError(p, "/time_s",
-                             f"expected shape ({t_frames},) to match the {t_frames} frames; "
-                             f"got {getattr(tds, 'shape', None)}", "write one time [s] per frame")
+        raise RecordingError(
+            p,
+            "/time_s",
+            f"expected shape ({t_frames},) to match the {t_frames} frames; "
+            f"got {getattr(tds, 'shape', None)}",
+            "write one time [s] per frame",
+        )
     try:
         time_s = np.asarray(tds[()], dtype=np.float64)
     except (TypeError, ValueError):
-        raise RecordingError(p, "/time_s", f"dtype {tds.dtype} is not numeric",
-                             "store the times as float64 seconds") from None
+        raise RecordingError(
+            p, "/time_s", f"dtype {tds.dtype} is not numeric", "store the times as float64 seconds"
+        ) from None
     _validate_time(p, time_s, t_frames)
 
     if "camera" not in f:
-        raise RecordingError(p, "/camera", "missing",
-                             "write a group /camera with attrs name, ifov_rad, frame_rate_hz "
-                             "and the channel responses in /camera/channels/<k>")
+        raise RecordingError(
+            p,
+            "/camera",
+            "missing",
+            "write a group /camera with attrs name, ifov_rad, frame_rate_hz "
+            "and the channel responses in /camera/channels/<k>",
+        )
     cam = f["camera"]
     name = _attr(cam, "name", p, "/camera")
-    ifov = _attr(cam, "ifov_rad", p, "/camera",
-                 fix="add /camera attr ifov_rad (angular size of one pixel, rad)")
+    ifov = _attr(
+        cam,
+        "ifov_rad",
+        p,
+        "/camera",
+        fix="add /camera attr ifov_rad (angular size of one pixel, rad)",
+    )
     rate = _attr(cam, "frame_rate_hz", p, "/camera", fix="add /camera attr frame_rate_hz (Hz)")
     netd = _attr(cam, "netd_K", p, "/camera", required=False)
     channels = _read_channels(cam, p, ds.shape[1])
     camera = Camera(str(name), ifov, channels, rate, netd)
 
     if "scene" not in f:
-        raise RecordingError(p, "/scene", "missing",
-                             "write a group /scene with attrs distance_m, ambient_temperature_K, "
-                             "pressure_Pa")
+        raise RecordingError(
+            p,
+            "/scene",
+            "missing",
+            "write a group /scene with attrs distance_m, ambient_temperature_K, pressure_Pa",
+        )
     sc = f["scene"]
     scene = Scene(
-        distance_m=_attr(sc, "distance_m", p, "/scene",
-                         fix="add /scene attr distance_m (camera-to-plume distance, m)"),
-        ambient_temperature_K=_attr(sc, "ambient_temperature_K", p, "/scene",
-                                    fix="add /scene attr ambient_temperature_K (K)"),
-        pressure_Pa=_attr(sc, "pressure_Pa", p, "/scene",
-                          fix="add /scene attr pressure_Pa (ambient pressure, Pa)"),
+        distance_m=_attr(
+            sc,
+            "distance_m",
+            p,
+            "/scene",
+            fix="add /scene attr distance_m (camera-to-plume distance, m)",
+        ),
+        ambient_temperature_K=_attr(
+            sc,
+            "ambient_temperature_K",
+            p,
+            "/scene",
+            fix="add /scene attr ambient_temperature_K (K)",
+        ),
+        pressure_Pa=_attr(
+            sc, "pressure_Pa", p, "/scene", fix="add /scene attr pressure_Pa (ambient pressure, Pa)"
+        ),
         wind_speed_m_s=_attr(sc, "wind_speed_m_s", p, "/scene", required=False),
         gas_temperature_K=_attr(sc, "gas_temperature_K", p, "/scene", required=False),
-        background_temperature_K=_attr(sc, "background_temperature_K", p, "/scene",
-                                       required=False),
+        background_temperature_K=_attr(sc, "background_temperature_K", p, "/scene", required=False),
         species=_species(_attr(sc, "species", p, "/scene", required=False)),
     )
 
@@ -1047,7 +1301,7 @@ def _read(f, p: str, nonfinite: str) -> Recording:
         for k in g.attrs:
             v = _attr(g, k, p, "/truth")
             if k.startswith("emission_rate_kg_s_"):
-                rates[k[len("emission_rate_kg_s_"):]] = v
+                rates[k[len("emission_rate_kg_s_") :]] = v
             else:
                 extra[k] = v
         datasets = {k: g[k] for k in g if isinstance(g[k], h5py.Dataset)}
@@ -1056,9 +1310,18 @@ def _read(f, p: str, nonfinite: str) -> Recording:
                 datasets[k] = _small(d, p, f"/truth/{k}")
         truth = Truth(rates, datasets, extra)
 
-    rec = Recording(source=ds, time_s=time_s, quantity=quantity, camera=camera, scene=scene,
-                    truth=truth, path=p, nonfinite=nonfinite, h5file=f,
-                    attrs={k: _attr(f, k, p, "/") for k in f.attrs})
+    rec = Recording(
+        source=ds,
+        time_s=time_s,
+        quantity=quantity,
+        camera=camera,
+        scene=scene,
+        truth=truth,
+        path=p,
+        nonfinite=nonfinite,
+        h5file=f,
+        attrs={k: _attr(f, k, p, "/") for k in f.attrs},
+    )
     rec._validate_metadata()
     return rec
 
@@ -1071,51 +1334,68 @@ _WAVENUMBER_RANGE_CM1 = (100.0, 20000.0)
 def _read_channels(cam, p: str, n_channels: int) -> List[SpectralResponse]:
     h5py = _h5py()
     if "channels" not in cam or not isinstance(cam["channels"], h5py.Group):
-        raise RecordingError(p, "/camera/channels", "missing (no spectral response)",
-                             "write one group /camera/channels/<k> per frame channel with "
-                             "datasets wavenumber_cm1 and response; the band radiance and "
-                             "radiometric temperature depend on it")
+        raise RecordingError(
+            p,
+            "/camera/channels",
+            "missing (no spectral response)",
+            "write one group /camera/channels/<k> per frame channel with "
+            "datasets wavenumber_cm1 and response; the band radiance and "
+            "radiometric temperature depend on it",
+        )
     g = cam["channels"]
     keys = sorted(g.keys(), key=lambda k: (not k.isdigit(), int(k) if k.isdigit() else 0, k))
     expected = [str(k) for k in range(n_channels)]
     if keys != expected:
-        raise RecordingError(p, "/camera/channels",
-                             f"members {keys} do not match the {n_channels} frame channels "
-                             f"(expected {expected})",
-                             "name the channel groups 0 .. C-1 in frame channel order")
+        raise RecordingError(
+            p,
+            "/camera/channels",
+            f"members {keys} do not match the {n_channels} frame channels (expected {expected})",
+            "name the channel groups 0 .. C-1 in frame channel order",
+        )
     out = []
     for k in expected:
         loc = f"/camera/channels/{k}"
         ch = g[k]
         for d in ("wavenumber_cm1", "response"):
             if d not in ch:
-                raise RecordingError(p, f"{loc}/{d}", "missing",
-                                     "write the channel response as datasets wavenumber_cm1 "
-                                     "[cm-1] and response [dimensionless]")
-        nu = np.asarray(_small(ch["wavenumber_cm1"], p, f"{ch.name}/wavenumber_cm1"),
-                        dtype=np.float64)
+                raise RecordingError(
+                    p,
+                    f"{loc}/{d}",
+                    "missing",
+                    "write the channel response as datasets wavenumber_cm1 "
+                    "[cm-1] and response [dimensionless]",
+                )
+        nu = np.asarray(
+            _small(ch["wavenumber_cm1"], p, f"{ch.name}/wavenumber_cm1"), dtype=np.float64
+        )
         r = np.asarray(_small(ch["response"], p, f"{ch.name}/response"), dtype=np.float64)
         name = _attr(ch, "name", p, loc, required=False)
         lo_nu, hi_nu = _WAVENUMBER_RANGE_CM1
         if nu.size and not np.all((nu >= lo_nu) & (nu <= hi_nu)):
             bad = nu[~((nu >= lo_nu) & (nu <= hi_nu))][0]
-            raise RecordingError(p, f"{loc}/wavenumber_cm1",
-                                 f"{bad:g} cm-1 is outside the thermal infrared "
-                                 f"[{lo_nu:g}, {hi_nu:g}] cm-1",
-                                 "store the response over wavenumbers in cm-1 (1 um = 10000 cm-1)")
+            raise RecordingError(
+                p,
+                f"{loc}/wavenumber_cm1",
+                f"{bad:g} cm-1 is outside the thermal infrared [{lo_nu:g}, {hi_nu:g}] cm-1",
+                "store the response over wavenumbers in cm-1 (1 um = 10000 cm-1)",
+            )
         try:
-            out.append(SpectralResponse(np.ravel(nu), np.ravel(r),
-                                        "" if name is None else str(name)))
+            out.append(
+                SpectralResponse(np.ravel(nu), np.ravel(r), "" if name is None else str(name))
+            )
         except (ValueError, TypeError) as e:
-            raise RecordingError(p, loc, f"invalid spectral response: {e}",
-                                 "wavenumber_cm1 must be strictly increasing, finite, >= 0 "
-                                 "(at least 2 samples); response finite, >= 0, not all zero, "
-                                 "same length") from None
+            raise RecordingError(
+                p,
+                loc,
+                f"invalid spectral response: {e}",
+                "wavenumber_cm1 must be strictly increasing, finite, >= 0 "
+                "(at least 2 samples); response finite, >= 0, not all zero, "
+                "same length",
+            ) from None
     return out
 
 
-def _write_metadata(f, quantity: str, camera: Camera, scene: Scene,
-                    truth: Optional[Truth]) -> None:
+def _write_metadata(f, quantity: str, camera: Camera, scene: Scene, truth: Optional[Truth]) -> None:
     set_attr(f, "format", FORMAT)
     f.attrs["version"] = np.int64(VERSION)
     cam = f.require_group("camera")
@@ -1132,8 +1412,14 @@ def _write_metadata(f, quantity: str, camera: Camera, scene: Scene,
         g.create_dataset("response", data=np.asarray(ch.response, dtype=np.float64))
         set_attr(g, "name", ch.name)
     sc = f.require_group("scene")
-    for name in ("distance_m", "ambient_temperature_K", "pressure_Pa", "wind_speed_m_s",
-                 "gas_temperature_K", "background_temperature_K"):
+    for name in (
+        "distance_m",
+        "ambient_temperature_K",
+        "pressure_Pa",
+        "wind_speed_m_s",
+        "gas_temperature_K",
+        "background_temperature_K",
+    ):
         v = getattr(scene, name)
         if v is not None:
             sc.attrs[name] = float(v)
@@ -1159,16 +1445,25 @@ def _compression_args(compression: Optional[str], level: Optional[int]) -> dict:
     if compression is None:
         return {}
     if compression == "gzip":
-        return {"compression": "gzip", "compression_opts": 4 if level is None else int(level),
-                "shuffle": True}
+        return {
+            "compression": "gzip",
+            "compression_opts": 4 if level is None else int(level),
+            "shuffle": True,
+        }
     if compression == "lzf":
         return {"compression": "lzf", "shuffle": True}
     raise ValueError(f"compression must be None, 'gzip' or 'lzf'; got {compression!r}")
 
 
-def write_recording(path: Union[str, os.PathLike], recording: Recording, *,
-                    compression: Optional[str] = None, compression_level: Optional[int] = None,
-                    overwrite: bool = True, batch_frames: Optional[int] = None) -> None:
+def write_recording(
+    path: Union[str, os.PathLike],
+    recording: Recording,
+    *,
+    compression: Optional[str] = None,
+    compression_level: Optional[int] = None,
+    overwrite: bool = True,
+    batch_frames: Optional[int] = None,
+) -> None:
     """Write ``recording`` to an HDF5 file following the recording contract.
 
     Frames are chunked one frame per chunk (fast per-frame reads) and copied
@@ -1190,16 +1485,29 @@ def write_recording(path: Union[str, os.PathLike], recording: Recording, *,
     """
     if not isinstance(recording, Recording):
         raise TypeError(f"recording must be a qogi.Recording; got {type(recording).__name__}")
-    if (not recording.in_memory and os.path.exists(os.fspath(path))
-            and os.path.samefile(os.fspath(path), recording.path)):
-        raise ValueError(f"{os.fspath(path)}: cannot overwrite the file this recording is "
-                         "being read from; save to another path (or load() it first)")
+    if (
+        not recording.in_memory
+        and os.path.exists(os.fspath(path))
+        and os.path.samefile(os.fspath(path), recording.path)
+    ):
+        raise ValueError(
+            f"{os.fspath(path)}: cannot overwrite the file this recording is "
+            "being read from; save to another path (or load() it first)"
+        )
     t, c, h, w = recording.shape
-    with RecordingWriter(path, quantity=recording.quantity, camera=recording.camera,
-                         scene=recording.scene, frame_shape=(c, h, w), truth=recording.truth,
-                         compression=compression, compression_level=compression_level,
-                         overwrite=overwrite, expected_frames=t,
-                         allow_nonfinite=recording.nonfinite == "invalid") as wr:
+    with RecordingWriter(
+        path,
+        quantity=recording.quantity,
+        camera=recording.camera,
+        scene=recording.scene,
+        frame_shape=(c, h, w),
+        truth=recording.truth,
+        compression=compression,
+        compression_level=compression_level,
+        overwrite=overwrite,
+        expected_frames=t,
+        allow_nonfinite=recording.nonfinite == "invalid",
+    ) as wr:
         step = batch_frames or max(1, (64 << 20) // max(1, c * h * w * 4))
         for s in range(0, t, step):
             e = min(t, s + step)
@@ -1251,22 +1559,38 @@ class RecordingWriter:
     ...         w.append(frame, i / 15.0)
     """
 
-    def __init__(self, path: Union[str, os.PathLike], *, quantity: str, camera: Camera,
-                 scene: Scene, frame_shape: Sequence[int], truth: Optional[Truth] = None,
-                 compression: Optional[str] = None, compression_level: Optional[int] = None,
-                 overwrite: bool = True, expected_frames: Optional[int] = None,
-                 allow_nonfinite: bool = False, keep_partial: bool = False):
+    def __init__(
+        self,
+        path: Union[str, os.PathLike],
+        *,
+        quantity: str,
+        camera: Camera,
+        scene: Scene,
+        frame_shape: Sequence[int],
+        truth: Optional[Truth] = None,
+        compression: Optional[str] = None,
+        compression_level: Optional[int] = None,
+        overwrite: bool = True,
+        expected_frames: Optional[int] = None,
+        allow_nonfinite: bool = False,
+        keep_partial: bool = False,
+    ):
         h5py = _h5py()
         self.path = os.fspath(path)
         if quantity not in QUANTITIES:
-            raise RecordingError(self.path, "/frames attr quantity",
-                                 f"unknown quantity {quantity!r}",
-                                 f"use one of {sorted(QUANTITIES)}")
+            raise RecordingError(
+                self.path,
+                "/frames attr quantity",
+                f"unknown quantity {quantity!r}",
+                f"use one of {sorted(QUANTITIES)}",
+            )
         shape = tuple(int(s) for s in frame_shape)
         if len(shape) != 3 or min(shape) < 1:
-            raise RecordingError(self.path, "/frames",
-                                 f"frame_shape must be (C, H, W) with positive sizes; got "
-                                 f"{tuple(frame_shape)}")
+            raise RecordingError(
+                self.path,
+                "/frames",
+                f"frame_shape must be (C, H, W) with positive sizes; got {tuple(frame_shape)}",
+            )
         camera.validate(self.path)
         scene.validate(self.path)
         if truth is not None:
@@ -1281,6 +1605,7 @@ class RecordingWriter:
         self._last_t = -math.inf
         self.keep_partial = bool(keep_partial)
         from .files import atomic_path
+
         self._atomic = atomic_path(self.path)
         tmp = self._atomic.__enter__()
         try:
@@ -1293,12 +1618,18 @@ class RecordingWriter:
             self._f.attrs["complete"] = False  # set True by close()
             n0 = int(expected_frames or 0)
             self._frames = self._f.create_dataset(
-                "frames", shape=(n0,) + shape, maxshape=(None,) + shape, dtype=np.float32,
-                chunks=(1,) + shape, **_compression_args(compression, compression_level))
+                "frames",
+                shape=(n0,) + shape,
+                maxshape=(None,) + shape,
+                dtype=np.float32,
+                chunks=(1,) + shape,
+                **_compression_args(compression, compression_level),
+            )
             set_attr(self._frames, "quantity", quantity)
             set_attr(self._frames, "unit", QUANTITIES[quantity])
-            self._time = self._f.create_dataset("time_s", shape=(n0,), maxshape=(None,),
-                                                dtype=np.float64, chunks=(4096,))
+            self._time = self._f.create_dataset(
+                "time_s", shape=(n0,), maxshape=(None,), dtype=np.float64, chunks=(4096,)
+            )
             set_attr(self._time, "unit", "s")
         except BaseException as e:
             self._f.close()
@@ -1327,27 +1658,37 @@ class RecordingWriter:
         if a.shape == self.frame_shape:
             a = a[None]
         if a.ndim != 4 or a.shape[1:] != self.frame_shape:
-            raise RecordingError(self.path, "/frames",
-                                 f"appended frames have shape {np.shape(frames)}; expected "
-                                 f"{self.frame_shape} or (n,) + {self.frame_shape}")
+            raise RecordingError(
+                self.path,
+                "/frames",
+                f"appended frames have shape {np.shape(frames)}; expected "
+                f"{self.frame_shape} or (n,) + {self.frame_shape}",
+            )
         t = np.atleast_1d(np.asarray(time_s, dtype=np.float64))
         if t.shape != (a.shape[0],):
-            raise RecordingError(self.path, "/time_s",
-                                 f"{t.size} times for {a.shape[0]} appended frames")
+            raise RecordingError(
+                self.path, "/time_s", f"{t.size} times for {a.shape[0]} appended frames"
+            )
         if not np.all(np.isfinite(t)) or np.any(np.diff(np.concatenate([[self._last_t], t])) <= 0):
-            raise RecordingError(self.path, "/time_s",
-                                 f"appended times {t.tolist()[:5]} are not finite and strictly "
-                                 f"after the last written time {self._last_t!r}",
-                                 "append frames in time order")
+            raise RecordingError(
+                self.path,
+                "/time_s",
+                f"appended times {t.tolist()[:5]} are not finite and strictly "
+                f"after the last written time {self._last_t!r}",
+                "append frames in time order",
+            )
         if not self.allow_nonfinite:
             bad = ~np.isfinite(a)
             if bad.any():
                 loc = _first_nonfinite(a)
-                raise RecordingError(self.path, "/frames",
-                                     f"{int(bad.sum())} non-finite values in the appended "
-                                     f"frames (first at frame {self._n + loc[0]}, c={loc[1]}, "
-                                     f"y={loc[2]}, x={loc[3]})",
-                                     "pass allow_nonfinite=True to store invalid pixels")
+                raise RecordingError(
+                    self.path,
+                    "/frames",
+                    f"{int(bad.sum())} non-finite values in the appended "
+                    f"frames (first at frame {self._n + loc[0]}, c={loc[1]}, "
+                    f"y={loc[2]}, x={loc[3]})",
+                    "pass allow_nonfinite=True to store invalid pixels",
+                )
         n0, n1 = self._n, self._n + a.shape[0]
         if n1 > self._frames.shape[0]:
             self._frames.resize(n1, axis=0)
@@ -1379,9 +1720,12 @@ class RecordingWriter:
             rate = self.camera.frame_rate_hz
             if rate is None:
                 if self._n < 2:
-                    raise RecordingError(self.path, "/camera attr frame_rate_hz",
-                                         "cannot be inferred from a single frame",
-                                         "set camera.frame_rate_hz")
+                    raise RecordingError(
+                        self.path,
+                        "/camera attr frame_rate_hz",
+                        "cannot be inferred from a single frame",
+                        "set camera.frame_rate_hz",
+                    )
                 rate = 1.0 / typical_interval(t)
                 self._f["camera"].attrs["frame_rate_hz"] = rate
             _check_frame_rate(self.path, t, rate)
@@ -1417,7 +1761,7 @@ class RecordingWriter:
             else:
                 self._atomic.__exit__(type(exc), exc, exc.__traceback__)
 
-    def __enter__(self) -> "RecordingWriter":
+    def __enter__(self) -> RecordingWriter:
         return self
 
     def __exit__(self, exc_type, exc, tb) -> None:

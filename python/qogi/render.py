@@ -31,7 +31,7 @@ import dataclasses
 import logging
 import math
 import time
-from typing import Callable, Dict, List, Optional, Sequence
+from typing import Callable, List, Optional, Sequence
 
 import numpy as np
 
@@ -64,10 +64,13 @@ class Background:
     def __post_init__(self):
         if self.kind not in ("plate", "sky"):
             raise ValueError(f"Background kind must be 'plate' or 'sky'; got {self.kind!r}")
-        if self.kind == "plate" and (self.temperature_K is None
-                                     or not 150.0 <= self.temperature_K <= 600.0):
-            raise ValueError("a plate background needs temperature_K within [150, 600] K; "
-                             f"got {self.temperature_K}")
+        if self.kind == "plate" and (
+            self.temperature_K is None or not 150.0 <= self.temperature_K <= 600.0
+        ):
+            raise ValueError(
+                "a plate background needs temperature_K within [150, 600] K; "
+                f"got {self.temperature_K}"
+            )
         for name in ("sky_top_K", "sky_bottom_K"):
             v = getattr(self, name)
             if not (150.0 <= v <= 600.0):
@@ -85,8 +88,9 @@ class Background:
         return np.linspace(self.sky_top_K, self.sky_bottom_K, height)
 
     def representative_K(self) -> float:
-        return self._plate_K() if self.kind == "plate" else 0.5 * (
-            self.sky_top_K + self.sky_bottom_K)
+        return (
+            self._plate_K() if self.kind == "plate" else 0.5 * (self.sky_top_K + self.sky_bottom_K)
+        )
 
 
 def _lsq(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -128,8 +132,7 @@ def nnls(a: np.ndarray, b: np.ndarray, max_iter: int = 500) -> np.ndarray:
     return x
 
 
-def _paths_from_samples(samples: dict, species: Sequence[str], t_amb: float,
-                        pixels: np.ndarray):
+def _paths_from_samples(samples: dict, species: Sequence[str], t_amb: float, pixels: np.ndarray):
     """Yield (position, temperature, fractions) paths for the given pixel
     indices of a ray_samples dict, built exactly as the engine renderer does
     (an ambient node beyond each end, padded to an odd node count)."""
@@ -144,10 +147,10 @@ def _paths_from_samples(samples: dict, species: Sequence[str], t_amb: float,
             n += 1
         pos = np.arange(n) * float(path_m[i])
         t = np.full(n, t_amb)
-        t[1:1 + s1 - s0] = temp[s0:s1]
+        t[1 : 1 + s1 - s0] = temp[s0:s1]
         x = np.zeros((n, len(species)))
         for k, f in enumerate(fr):
-            x[1:1 + s1 - s0, k] = np.clip(f[s0:s1], 0.0, 1.0)
+            x[1 : 1 + s1 - s0, k] = np.clip(f[s0:s1], 0.0, 1.0)
         yield pos, t, x
 
 
@@ -174,24 +177,39 @@ class SceneRenderer:
     progress : callable(fraction, message), optional
     """
 
-    def __init__(self, simulation, camera, background: Background, *, max_bins: int = 48,
-                 training_rays: int = 3000,
-                 warm_filter_temperature_K: Optional[float] = None,
-                 camera_preset_name: Optional[str] = None,
-                 progress: Optional[Callable[[float, str], Optional[bool]]] = None,
-                 num_threads: int = 0, line_shape=None):
+    def __init__(
+        self,
+        simulation,
+        camera,
+        background: Background,
+        *,
+        max_bins: int = 48,
+        training_rays: int = 3000,
+        warm_filter_temperature_K: Optional[float] = None,
+        camera_preset_name: Optional[str] = None,
+        progress: Optional[Callable[[float, str], Optional[bool]]] = None,
+        num_threads: int = 0,
+        line_shape=None,
+    ):
         self.sim = simulation
         self.camera = camera
         self.background = background
         self.num_threads = num_threads
         self._progress = progress
         view = simulation.view
-        if camera.width is not None and (view.width_px, view.height_px) != (camera.width, camera.height):
-            raise ValueError(f"the simulation's view is {view.width_px}x{view.height_px} px but the "
-                             f"camera has {camera.width}x{camera.height}")
+        if camera.width is not None and (view.width_px, view.height_px) != (
+            camera.width,
+            camera.height,
+        ):
+            raise ValueError(
+                f"the simulation's view is {view.width_px}x{view.height_px} px but the "
+                f"camera has {camera.width}x{camera.height}"
+            )
         if not math.isclose(view.ifov_rad, camera.ifov_rad, rel_tol=1e-6):
-            raise ValueError(f"the simulation's view has ifov {view.ifov_rad} rad but the camera "
-                             f"{camera.ifov_rad} rad; build the view from the camera")
+            raise ValueError(
+                f"the simulation's view has ifov {view.ifov_rad} rad but the camera "
+                f"{camera.ifov_rad} rad; build the view from the camera"
+            )
         rel = simulation.release
         self.species = list(simulation.species)
         self.t_amb = float(rel.ambient_temperature_K)
@@ -202,29 +220,41 @@ class SceneRenderer:
         self.t_range = (max(200.0, min(t_all) - 2.0), min(600.0, max(t_all) + 2.0))
         keys = sorted({round(t, 1) for t in t_gas})
         self._say(0.0, "cross-section tables")
-        self.forward = ForwardModel(camera.channels, self.species, pressure_Pa=self.pressure,
-                                    line_shape=line_shape)
+        self.forward = ForwardModel(
+            camera.channels, self.species, pressure_Pa=self.pressure, line_shape=line_shape
+        )
         opts = _engine.BinnedModelOptions(key_temperatures_K=keys)
         self.full = _engine.BinnedModel(self.forward.channels, self.forward.tables, opts)
         self.optics: Optional[list] = None
         self.warm_filter_temperature_K = warm_filter_temperature_K
         if warm_filter_temperature_K is not None:
             from . import camera as camera_mod
+
             if camera_preset_name is None:
-                raise ValueError("warm filters need the camera preset's optics: give camera_preset_name")
+                raise ValueError(
+                    "warm filters need the camera preset's optics: give camera_preset_name"
+                )
             optics = camera_mod.camera_optics(camera_preset_name)
             # Interference filters block mostly by reflection: out of band,
             # take 95 % of what they do not transmit as reflected (emissivity
             # 5 % of (1 - tau)); the preset's curves are approximations anyway.
-            self.optics = [camera_mod.ChannelOptics(
-                o.nu_cm1, o.detector_response, o.filter_transmittance, o.lens_transmittance,
-                filter_reflectance=0.95 * (1.0 - np.asarray(o.filter_transmittance)), name=o.name)
-                for o in optics]
+            self.optics = [
+                camera_mod.ChannelOptics(
+                    o.nu_cm1,
+                    o.detector_response,
+                    o.filter_transmittance,
+                    o.lens_transmittance,
+                    filter_reflectance=0.95 * (1.0 - np.asarray(o.filter_transmittance)),
+                    name=o.name,
+                )
+                for o in optics
+            ]
         self._select_bins(max_bins, training_rays)
 
     # ------------------------------------------------------------------
     def _say(self, fraction: float, message: str) -> None:
         from .progress import report
+
         report(self._progress, fraction, message)  # qogi.Cancelled when told to stop
 
     def _training_pixels(self, frames: Sequence[int], n_rays: int, rng) -> List[tuple]:
@@ -254,8 +284,9 @@ class SceneRenderer:
             for b in range(8):
                 idx = keep[which == b]
                 if idx.size:
-                    chosen.extend(rng.choice(idx, size=min(idx.size, per_frame // 8 + 1),
-                                             replace=False))
+                    chosen.extend(
+                        rng.choice(idx, size=min(idx.size, per_frame // 8 + 1), replace=False)
+                    )
             out.append((int(f), s, np.array(chosen, dtype=np.int64)))
         return out
 
@@ -265,8 +296,9 @@ class SceneRenderer:
         for _f, s, pix in sets:
             r = s["row0"] + pix // (s["path_m"].shape[1])
             for (pos, t, x), row in zip(_paths_from_samples(s, self.species, self.t_amb, pix), r):
-                a = self.full.bin_contrasts(pos, t, x, self.pressure, channel,
-                                            float(self.rows_t_bg[row]))
+                a = self.full.bin_contrasts(
+                    pos, t, x, self.pressure, channel, float(self.rows_t_bg[row])
+                )
                 rows.append(a)
                 y.append(float(a @ w))
         return np.asarray(rows), np.asarray(y)
@@ -317,9 +349,13 @@ class SceneRenderer:
             st = 1.0 / np.maximum(np.abs(yt), 1e-3 * np.max(np.abs(yt)))
             err = np.abs(at[:, chosen] @ wsel - yt) * st
             name = self.forward.channels[c].name
-            self.render_error[name] = (float(np.max(err)), float(np.sqrt(np.mean(err ** 2))))
-            log.info("channel %s: %d bins, held-out contrast error max %.3g rms %.3g", name,
-                     len(chosen), *self.render_error[name])
+            self.render_error[name] = (float(np.max(err)), float(np.sqrt(np.mean(err**2))))
+            log.info(
+                "channel %s: %d bins, held-out contrast error max %.3g rms %.3g",
+                name,
+                len(chosen),
+                *self.render_error[name],
+            )
         self.model = self.full.subset(keep, weights)
         # 0.05 K steps: linear interpolation of Planck and cross-sections errs
         # by < 1e-6 relative, far below the bin selection's error.
@@ -330,8 +366,9 @@ class SceneRenderer:
     def background_radiance(self) -> np.ndarray:
         """Band radiance of the bare background, (C, H) per row [W/(m2 sr)]."""
         if getattr(self, "_bg_radiance", None) is None:
-            self._bg_radiance = np.stack([ch.band_radiance(self.rows_t_bg)
-                                          for ch in self.forward.channels])
+            self._bg_radiance = np.stack(
+                [ch.band_radiance(self.rows_t_bg) for ch in self.forward.channels]
+            )
         return self._bg_radiance
 
     def render_frame(self, frame: int, band_rows: int = 32) -> np.ndarray:
@@ -349,28 +386,50 @@ class SceneRenderer:
                 continue
             rr = np.repeat(np.arange(r0, r1), w)
             tb = np.ascontiguousarray(tbg_rows[rr], dtype=float).ravel()
-            fr = [np.ascontiguousarray(np.clip(s["mole_fraction"][sp], 0.0, 1.0), dtype=np.float32)
-                  for sp in self.species]
-            c = _engine.render_contrast(self.model, s["offset"], s["path_m"].ravel(),
-                                        s["temperature_K"], fr, self.t_amb, tb,
-                                        num_threads=self.num_threads)
+            fr = [
+                np.ascontiguousarray(np.clip(s["mole_fraction"][sp], 0.0, 1.0), dtype=np.float32)
+                for sp in self.species
+            ]
+            c = _engine.render_contrast(
+                self.model,
+                s["offset"],
+                s["path_m"].ravel(),
+                s["temperature_K"],
+                fr,
+                self.t_amb,
+                tb,
+                num_threads=self.num_threads,
+            )
             out[:, r0:r1, :] += c.reshape(r1 - r0, w, nc).transpose(2, 0, 1)
         return out
 
 
 def _camera_for(preset: dict):
     from .presets import camera_preset
+
     name = preset["camera"]["name"]
     key = "gf320" if "GF320" in name.upper() else name
     return key, camera_preset(key)
 
 
-def render_recording(sim, camera, background: Background, path, *, seed: int = 0,
-                     noise: bool = True, warm_filter_temperature_K: Optional[float] = None,
-                     camera_preset_name: Optional[str] = None, truth_maps: bool = False,
-                     truth_plane_heights_m: Optional[Sequence[float]] = None,
-                     compression: Optional[str] = "lzf", progress=None, num_threads: int = 0,
-                     max_bins: int = 48, line_shape=None):
+def render_recording(
+    sim,
+    camera,
+    background: Background,
+    path,
+    *,
+    seed: int = 0,
+    noise: bool = True,
+    warm_filter_temperature_K: Optional[float] = None,
+    camera_preset_name: Optional[str] = None,
+    truth_maps: bool = False,
+    truth_plane_heights_m: Optional[Sequence[float]] = None,
+    compression: Optional[str] = "lzf",
+    progress=None,
+    num_threads: int = 0,
+    max_bins: int = 48,
+    line_shape=None,
+):
     """Render a simulation into a recording file (docs/recording.md contract) with ``/truth``.
 
     ``/truth`` holds ``emission_rate_kg_s_<SPECIES>`` and datasets
@@ -381,82 +440,137 @@ def render_recording(sim, camera, background: Background, path, *, seed: int = 0
     (mass-weighted x right and z up components). Attrs record the renderer's
     measured error against the full fast model.
     """
-    from .recording import Camera, RecordingWriter, Scene, Truth, set_attr
     from . import synth
+    from .recording import Camera, RecordingWriter, Scene, Truth, set_attr
 
     t0 = time.perf_counter()
 
     def say(f, msg):
         from .progress import report
+
         report(progress, f, msg)  # qogi.Cancelled when told to stop
 
-    renderer = SceneRenderer(sim, camera, background, progress=lambda f, m: say(0.1 * f, m),
-                             warm_filter_temperature_K=warm_filter_temperature_K,
-                             camera_preset_name=camera_preset_name, num_threads=num_threads,
-                             max_bins=max_bins, line_shape=line_shape)
+    renderer = SceneRenderer(
+        sim,
+        camera,
+        background,
+        progress=lambda f, m: say(0.1 * f, m),
+        warm_filter_temperature_K=warm_filter_temperature_K,
+        camera_preset_name=camera_preset_name,
+        num_threads=num_threads,
+        max_bins=max_bins,
+        line_shape=line_shape,
+    )
     rel, view = sim.release, sim.view
     nc = len(renderer.forward.channels)
-    scene = Scene(distance_m=float(view.distance_m), ambient_temperature_K=float(rel.ambient_temperature_K),
-                  pressure_Pa=float(rel.pressure_Pa),
-                  wind_speed_m_s=float(rel.wind_speed_m_s),
-                  gas_temperature_K=float(rel.exit_temperature_K),
-                  background_temperature_K=background.representative_K(),
-                  species=tuple(renderer.species))
-    cam = Camera(name=camera.name, ifov_rad=float(camera.ifov_rad),
-                 channels=[SpectralResponse(c.nu_cm1, c.response, c.name) for c in renderer.forward.channels],
-                 frame_rate_hz=float(sim.frame_rate_hz), netd_K=camera.netd_K,
-                 width=view.width_px, height=view.height_px)
+    scene = Scene(
+        distance_m=float(view.distance_m),
+        ambient_temperature_K=float(rel.ambient_temperature_K),
+        pressure_Pa=float(rel.pressure_Pa),
+        wind_speed_m_s=float(rel.wind_speed_m_s),
+        gas_temperature_K=float(rel.exit_temperature_K),
+        background_temperature_K=background.representative_K(),
+        species=tuple(renderer.species),
+    )
+    cam = Camera(
+        name=camera.name,
+        ifov_rad=float(camera.ifov_rad),
+        channels=[
+            SpectralResponse(c.nu_cm1, c.response, c.name) for c in renderer.forward.channels
+        ],
+        frame_rate_hz=float(sim.frame_rate_hz),
+        netd_K=camera.netd_K,
+        width=view.width_px,
+        height=view.height_px,
+    )
     # Truth planes: horizontal planes at heights above the exit (world z), and their image rows.
     exit_z = float(rel.stack_height_m)
     if truth_plane_heights_m is None:
         span = view.height_px * view.ifov_rad * view.distance_m
-        truth_plane_heights_m = [h for h in (0.02, 0.04, 0.06, 0.08, 0.10, 0.12, 0.2, 0.3, 0.5, 1.0, 2.0)
-                                 if h < 0.9 * span]
+        truth_plane_heights_m = [
+            h
+            for h in (0.02, 0.04, 0.06, 0.08, 0.10, 0.12, 0.2, 0.3, 0.5, 1.0, 2.0)
+            if h < 0.9 * span
+        ]
     heights = np.asarray(truth_plane_heights_m, dtype=float)
     pix = view.ifov_rad * view.distance_m
     cy = (view.height_px - 1) / 2.0
     rows = cy - (exit_z + heights - view.center_z_m) / pix
     planes = synth.horizontal_planes(list(exit_z + heights))
     flux = sim.plane_flux(planes)
-    truth = Truth(emission_rate_kg_s=dict(sim.emission_rate_kg_s),
-                  datasets={"plane_height_m": heights, "plane_row": rows.astype(np.float64),
-                            **{f"plane_flux_kg_s_{sp}": np.asarray(flux[sp], dtype=np.float64)
-                               for sp in renderer.species}},
-                  attrs={"generator": "qogi.render", "seed": int(seed),
-                         "line_shape": str(renderer.forward.line_shape),
-                         "render_bins_per_channel": list(renderer.bins_per_channel),
-                         **{f"render_contrast_error_max_{k}": v[0] for k, v in renderer.render_error.items()},
-                         **{f"render_contrast_error_rms_{k}": v[1] for k, v in renderer.render_error.items()},
-                         "noise": bool(noise),
-                         "warm_filter_temperature_K": (-1.0 if warm_filter_temperature_K is None
-                                                       else float(warm_filter_temperature_K)),
-                         "spin_up_s": float(sim.spin_up_s)})
+    truth = Truth(
+        emission_rate_kg_s=dict(sim.emission_rate_kg_s),
+        datasets={
+            "plane_height_m": heights,
+            "plane_row": rows.astype(np.float64),
+            **{
+                f"plane_flux_kg_s_{sp}": np.asarray(flux[sp], dtype=np.float64)
+                for sp in renderer.species
+            },
+        },
+        attrs={
+            "generator": "qogi.render",
+            "seed": int(seed),
+            "line_shape": str(renderer.forward.line_shape),
+            "render_bins_per_channel": list(renderer.bins_per_channel),
+            **{f"render_contrast_error_max_{k}": v[0] for k, v in renderer.render_error.items()},
+            **{f"render_contrast_error_rms_{k}": v[1] for k, v in renderer.render_error.items()},
+            "noise": bool(noise),
+            "warm_filter_temperature_K": (
+                -1.0 if warm_filter_temperature_K is None else float(warm_filter_temperature_K)
+            ),
+            "spin_up_s": float(sim.spin_up_s),
+        },
+    )
     nf = sim.num_frames
     h, w = view.height_px, view.width_px
     tbg_per_channel = [float(background.representative_K())] * nc
     times = np.asarray(sim.times_s, dtype=float)
-    with RecordingWriter(path, quantity="radiance", camera=cam, scene=scene,
-                         frame_shape=(nc, h, w), truth=truth, compression=compression,
-                         expected_frames=nf) as writer:
+    with RecordingWriter(
+        path,
+        quantity="radiance",
+        camera=cam,
+        scene=scene,
+        frame_shape=(nc, h, w),
+        truth=truth,
+        compression=compression,
+        expected_frames=nf,
+    ) as writer:
         for f in range(nf):
             frame = renderer.render_frame(f)
             if renderer.optics is not None and warm_filter_temperature_K is not None:
                 from . import camera as camera_mod
+
                 t_f = float(warm_filter_temperature_K)
                 frame = camera_mod.add_warm_optics(frame, renderer.optics, t_f, t_f)
             if noise:
                 from . import camera as camera_mod
-                frame = camera_mod.add_netd_noise(frame, renderer.forward.channels, camera.netd_K,
-                                                  tbg_per_channel, seed=seed, offset=f * frame.size)
-            writer.append(frame[None].astype(np.float32), times[f:f + 1])
+
+                frame = camera_mod.add_netd_noise(
+                    frame,
+                    renderer.forward.channels,
+                    camera.netd_K,
+                    tbg_per_channel,
+                    seed=seed,
+                    offset=f * frame.size,
+                )
+            writer.append(frame[None].astype(np.float32), times[f : f + 1])
             say(0.1 + 0.85 * (f + 1) / nf, f"frame {f + 1}/{nf}")
         if truth_maps:
             g = writer.truth_group
-            cols = {sp: g.create_dataset(f"column_density_kg_m2_{sp}", (nf, h, w), np.float32,
-                                         chunks=(1, h, w), compression="lzf")
-                    for sp in renderer.species}
-            vel = g.create_dataset("velocity_m_s", (nf, 2, h, w), np.float32, chunks=(1, 2, h, w),
-                                   compression="lzf")
+            cols = {
+                sp: g.create_dataset(
+                    f"column_density_kg_m2_{sp}",
+                    (nf, h, w),
+                    np.float32,
+                    chunks=(1, h, w),
+                    compression="lzf",
+                )
+                for sp in renderer.species
+            }
+            vel = g.create_dataset(
+                "velocity_m_s", (nf, 2, h, w), np.float32, chunks=(1, 2, h, w), compression="lzf"
+            )
             set_attr(vel, "components", "x right, z up (mass-weighted along each line of sight)")
             for f in range(nf):
                 m = sim.truth_maps(f)
@@ -469,10 +583,20 @@ def render_recording(sim, camera, background: Background, path, *, seed: int = 0
     return path
 
 
-def synthesize(preset_name: str, path, *, duration_s: Optional[float] = None,
-               frame_rate_hz: Optional[float] = None, seed: int = 0, noise: bool = True,
-               truth_maps: bool = False, camera_name: Optional[str] = None, progress=None,
-               num_threads: int = 0, line_shape=None):
+def synthesize(
+    preset_name: str,
+    path,
+    *,
+    duration_s: Optional[float] = None,
+    frame_rate_hz: Optional[float] = None,
+    seed: int = 0,
+    noise: bool = True,
+    truth_maps: bool = False,
+    camera_name: Optional[str] = None,
+    progress=None,
+    num_threads: int = 0,
+    line_shape=None,
+):
     """Simulate and render a preset (``qogi synth``). Returns the path written.
 
     ``camera_name`` renders the release through another camera preset (e.g.
@@ -490,39 +614,68 @@ def synthesize(preset_name: str, path, *, duration_s: Optional[float] = None,
     if camera_name is not None and camera_name != cam_key:
         # Another camera at the same pixel footprint, framed on the same exit.
         from .presets import camera_preset
+
         base = synth.preset_view(preset_name)
         footprint = base.distance_m * base.ifov_rad
         camera = camera_preset(camera_name)
         cam_key = camera_name
         ex, ey = p["scene"]["exit_pixel"]
         exit_px = (ex / base.width_px * camera.width, camera.height - (base.height_px - ey))
-        view = synth.View.framing(synth.preset_release(preset_name), exit_px,
-                                  width_px=camera.width, height_px=camera.height,
-                                  ifov_rad=camera.ifov_rad, distance_m=footprint / camera.ifov_rad,
-                                  projection=base.projection)
+        view = synth.View.framing(
+            synth.preset_release(preset_name),
+            exit_px,
+            width_px=camera.width,
+            height_px=camera.height,
+            ifov_rad=camera.ifov_rad,
+            distance_m=footprint / camera.ifov_rad,
+            projection=base.projection,
+        )
     bgd = p["scene"]["background"]
-    background = (Background("plate", bgd["temperature_K"]) if bgd["kind"] == "plate"
-                  else Background("sky", None, **{k: float(bgd[k]) for k in
-                                                  ("sky_top_K", "sky_bottom_K") if k in bgd}))
+    background = (
+        Background("plate", bgd["temperature_K"])
+        if bgd["kind"] == "plate"
+        else Background(
+            "sky", None, **{k: float(bgd[k]) for k in ("sky_top_K", "sky_bottom_K") if k in bgd}
+        )
+    )
 
     def say(f, msg):
         from .progress import report
+
         report(progress, f, msg)  # qogi.Cancelled when told to stop
 
     say(0.0, "simulating the release")
     if view is None:
-        sim = synth.simulate_preset(preset_name, duration_s=duration_s,
-                                    frame_rate_hz=frame_rate_hz, seed=seed,
-                                    num_threads=num_threads)
+        sim = synth.simulate_preset(
+            preset_name,
+            duration_s=duration_s,
+            frame_rate_hz=frame_rate_hz,
+            seed=seed,
+            num_threads=num_threads,
+        )
     else:
-        sim = synth.simulate(synth.preset_release(preset_name), view,
-                             p["duration_s"] if duration_s is None else duration_s,
-                             camera.frame_rate_hz if frame_rate_hz is None else frame_rate_hz,
-                             seed=seed, num_threads=num_threads)
+        sim = synth.simulate(
+            synth.preset_release(preset_name),
+            view,
+            p["duration_s"] if duration_s is None else duration_s,
+            camera.frame_rate_hz if frame_rate_hz is None else frame_rate_hz,
+            seed=seed,
+            num_threads=num_threads,
+        )
     warm = p["camera"].get("warm_filter_temperature_K")
-    out = render_recording(sim, camera, background, path, seed=seed, noise=noise,
-                           warm_filter_temperature_K=warm, camera_preset_name=cam_key,
-                           truth_maps=truth_maps, progress=lambda f, m: say(0.05 + 0.95 * f, m),
-                           num_threads=num_threads, line_shape=line_shape)
+    out = render_recording(
+        sim,
+        camera,
+        background,
+        path,
+        seed=seed,
+        noise=noise,
+        warm_filter_temperature_K=warm,
+        camera_preset_name=cam_key,
+        truth_maps=truth_maps,
+        progress=lambda f, m: say(0.05 + 0.95 * f, m),
+        num_threads=num_threads,
+        line_shape=line_shape,
+    )
     say(1.0, "done")
     return out

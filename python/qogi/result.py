@@ -14,12 +14,12 @@ import numpy as np
 from .diagnostics import Diagnostic, Diagnostics
 from .files import PathLike, atomic_open
 from .surfaces import Surface
+
 # Standard conditions and conversions live in qogi.units (one implementation);
 # re-exported here for code that imported them from qogi.result.
 from .units import R_GAS, STANDARD_CONDITIONS, convert, kg_s_to_slpm, parse_unit  # noqa: F401
 
-__all__ = ["SpeciesRate", "SurfaceResult", "Result", "STANDARD_CONDITIONS",
-           "kg_s_to_slpm"]
+__all__ = ["SpeciesRate", "SurfaceResult", "Result", "STANDARD_CONDITIONS", "kg_s_to_slpm"]
 
 
 def _f(x):
@@ -137,10 +137,18 @@ class SurfaceResult:
 class Result:
     """What :func:`qogi.quantify` returns (see docs/pipeline_api.md)."""
 
-    def __init__(self, surfaces: List[SurfaceResult], *, config, recording_path: str,
-                 pixel_status: Dict[str, int], maps: Optional[dict] = None,
-                 info: Optional[dict] = None, complete: bool = True,
-                 warnings: Optional[List[Diagnostic]] = None):
+    def __init__(
+        self,
+        surfaces: List[SurfaceResult],
+        *,
+        config,
+        recording_path: str,
+        pixel_status: Dict[str, int],
+        maps: Optional[dict] = None,
+        info: Optional[dict] = None,
+        complete: bool = True,
+        warnings: Optional[List[Diagnostic]] = None,
+    ):
         self.surfaces = surfaces
         #: Machine-readable warnings (:class:`qogi.diagnostics.Diagnostic`):
         #: what in this result cannot be fully trusted, and why.
@@ -166,13 +174,18 @@ class Result:
         self._units = parse_unit(unit)
 
     def __repr__(self) -> str:
-        rates = "; ".join(f"{s.surface.name or k} {sp} {r.text(self.units)}"
-                          for k, s in enumerate(self.surfaces) for sp, r in s.species.items())
+        rates = "; ".join(
+            f"{s.surface.name or k} {sp} {r.text(self.units)}"
+            for k, s in enumerate(self.surfaces)
+            for sp, r in s.species.items()
+        )
         n = max((r.n_frames for s in self.surfaces for r in s.species.values()), default=0)
-        return (f"<qogi.Result {os.path.basename(str(self.recording_path))}: "
-                f"{len(self.surfaces)} surface(s), {n} frames"
-                f"{'' if self.complete else ', PARTIAL'}"
-                f"{f', {len(self.warnings)} warning(s)' if self.warnings else ''}: {rates}>")
+        return (
+            f"<qogi.Result {os.path.basename(str(self.recording_path))}: "
+            f"{len(self.surfaces)} surface(s), {n} frames"
+            f"{'' if self.complete else ', PARTIAL'}"
+            f"{f', {len(self.warnings)} warning(s)' if self.warnings else ''}: {rates}>"
+        )
 
     # -- access --------------------------------------------------------------
     def maps(self, frame: int) -> dict:
@@ -184,8 +197,10 @@ class Result:
         own columns come from the full inversion), ``velocity_px_per_frame``
         (u, v) and ``origin`` (x0, y0) of the maps in the frame."""
         if frame not in self._maps:
-            raise KeyError(f"no maps kept for frame {frame}; run quantify(..., keep_maps=True) "
-                           f"(frames with maps: {sorted(self._maps)[:5]}...)")
+            raise KeyError(
+                f"no maps kept for frame {frame}; run quantify(..., keep_maps=True) "
+                f"(frames with maps: {sorted(self._maps)[:5]}...)"
+            )
         return self._maps[frame]
 
     @property
@@ -199,7 +214,8 @@ class Result:
     def to_dict(self) -> dict:
         cfg = self.config.to_dict() if hasattr(self.config, "to_dict") else dict(self.config)
         return {
-            "format": "qogi-result", "version": 1,
+            "format": "qogi-result",
+            "version": 1,
             "recording": self.recording_path,
             "complete": bool(self.complete),
             "warnings": [w.to_dict() for w in self.warnings],
@@ -211,16 +227,22 @@ class Result:
             "surfaces": [self._surface_dict(s) for s in self.surfaces],
         }
 
-    def _surface_dict(self, s: "SurfaceResult") -> dict:
+    def _surface_dict(self, s: SurfaceResult) -> dict:
         d = s.to_dict()
         for sp, r in s.species.items():
             # The summary numbers again in the reporting unit.
-            d["species"][sp].update({
-                "mean": _f(r.in_units(r.mean_kg_h, self.units)),
-                "ci90": [_f(r.in_units(v, self.units)) for v in r.ci90_kg_h],
-                "detection_limit": (None if r.detection_limit_kg_h is None else
-                                    _f(r.in_units(r.detection_limit_kg_h, self.units))),
-                "text": r.text(self.units)})
+            d["species"][sp].update(
+                {
+                    "mean": _f(r.in_units(r.mean_kg_h, self.units)),
+                    "ci90": [_f(r.in_units(v, self.units)) for v in r.ci90_kg_h],
+                    "detection_limit": (
+                        None
+                        if r.detection_limit_kg_h is None
+                        else _f(r.in_units(r.detection_limit_kg_h, self.units))
+                    ),
+                    "text": r.text(self.units),
+                }
+            )
         return d
 
     def to_json(self, path: Optional[PathLike] = None, indent: int = 2) -> str:
@@ -242,17 +264,25 @@ class Result:
         import csv
 
         from .units import unit_slug
+
         extra = self.units != "kg/h"
         with atomic_open(path, "w", newline="") as fh:
             w = csv.writer(fh)
-            w.writerow(["surface", "species", "time_s", "rate_kg_h", "pixels_used"]
-                       + ([f"rate_{unit_slug(self.units)}"] if extra else []))
+            w.writerow(
+                ["surface", "species", "time_s", "rate_kg_h", "pixels_used"]
+                + ([f"rate_{unit_slug(self.units)}"] if extra else [])
+            )
             for s in self.surfaces:
                 for sp, r in s.species.items():
                     conv = r.in_units(r.rate_kg_h, self.units)
                     for t, v, n, c in zip(r.time_s, r.rate_kg_h, r.pixels_used, conv):
-                        row = [s.surface.name, sp, f"{t:.6f}",
-                               "" if not np.isfinite(v) else f"{v:.6g}", int(n)]
+                        row = [
+                            s.surface.name,
+                            sp,
+                            f"{t:.6f}",
+                            "" if not np.isfinite(v) else f"{v:.6g}",
+                            int(n),
+                        ]
                         if extra:
                             row.append("" if not np.isfinite(c) else f"{c:.6g}")
                         w.writerow(row)
@@ -271,8 +301,9 @@ class Result:
         uncertainty, truth (synthetic recordings), unit and standard conditions."""
         import csv
 
-        from .units import standard_conditions_text
         from .tables import summary_rows
+        from .units import standard_conditions_text
+
         rows = summary_rows(self)
         with atomic_open(path, "w", newline="") as fh:
             w = csv.writer(fh)
@@ -280,8 +311,13 @@ class Result:
             w.writerow(cols + ["standard_conditions"])
             std = standard_conditions_text(self.standard_conditions)
             for row in rows:
-                w.writerow(["" if v is None else (f"{v:.6g}" if isinstance(v, float) else v)
-                            for v in row.values()] + [std])
+                w.writerow(
+                    [
+                        "" if v is None else (f"{v:.6g}" if isinstance(v, float) else v)
+                        for v in row.values()
+                    ]
+                    + [std]
+                )
 
     def to_dataframe(self, summary: bool = False):
         """pandas DataFrame (needs pandas, ``pip install qogi[data]``): long
@@ -292,6 +328,7 @@ class Result:
         in kg/h, detected, n_frames, dominant_uncertainty, truth_kg_h).
         ``df.attrs`` holds the unit, standard conditions and recording."""
         from .tables import to_dataframe
+
         return to_dataframe(self, summary=summary)
 
     def to_xarray(self):
@@ -301,38 +338,51 @@ class Result:
         ``ci90_high_kg_h``, ``detection_limit_kg_h`` (surface, species);
         attributes: units, standard conditions, recording, qogi version."""
         from .tables import to_xarray
+
         return to_xarray(self)
 
     def summary(self) -> str:
         """A few lines for people."""
-        lines = [f"qogi result for {os.path.basename(str(self.recording_path))}"
-                 f"{'' if self.complete else ' (PARTIAL: cancelled or interrupted)'}"]
+        lines = [
+            f"qogi result for {os.path.basename(str(self.recording_path))}"
+            f"{'' if self.complete else ' (PARTIAL: cancelled or interrupted)'}"
+        ]
         for s in self.surfaces:
             for sp, r in s.species.items():
                 lo, hi = r.ci90_kg_h
                 if self.units != "kg/h" or r.detected is False:
                     line = f"  {s.surface.name:>12s} {sp:4s} {r.text(self.units)}"
                 else:
-                    line = (f"  {s.surface.name:>12s} {sp:4s} {r.mean_kg_h:9.4g} kg/h "
-                            f"[90% {lo:.4g} .. {hi:.4g}]  ({r.mean_g_h:.4g} g/h, "
-                            f"{r.mean_slpm:.4g} SLPM)")
+                    line = (
+                        f"  {s.surface.name:>12s} {sp:4s} {r.mean_kg_h:9.4g} kg/h "
+                        f"[90% {lo:.4g} .. {hi:.4g}]  ({r.mean_g_h:.4g} g/h, "
+                        f"{r.mean_slpm:.4g} SLPM)"
+                    )
                 line += f"  {r.n_frames} frames, dominant: {r.dominant_uncertainty}"
                 if r.detection_limit_kg_h is not None and r.detected is not False:
-                    line += (f", detection limit "
-                             f"{r.in_units(r.detection_limit_kg_h, self.units):.3g} {self.units}")
+                    line += (
+                        f", detection limit "
+                        f"{r.in_units(r.detection_limit_kg_h, self.units):.3g} {self.units}"
+                    )
                 if r.truth_kg_h is not None:
                     inside = lo <= r.truth_kg_h <= hi
                     err = r.error_vs_truth  # None for a zero truth (no relative error)
-                    line += (f"\n  {'':>12s}      truth {r.truth_kg_h:.4g} kg/h, error "
-                             + ("n/a" if err is None else f"{100 * err:+.1f} %") + ", truth "
-                             f"{'inside' if inside else 'OUTSIDE'} the 90 % interval")
+                    line += (
+                        f"\n  {'':>12s}      truth {r.truth_kg_h:.4g} kg/h, error "
+                        + ("n/a" if err is None else f"{100 * err:+.1f} %")
+                        + ", truth "
+                        f"{'inside' if inside else 'OUTSIDE'} the 90 % interval"
+                    )
                 lines.append(line)
         st = ", ".join(f"{k} {v}" for k, v in self.pixel_status.items())
         lines.append(f"  pixels: {st}")
         from .units import is_volumetric, standard_conditions_text
+
         if self.units == "kg/h" or is_volumetric(self.units):
-            lines.append(f"  volumes (SLPM, scfh, mcf/day) of the species at "
-                         f"{standard_conditions_text(self.standard_conditions)}")
+            lines.append(
+                f"  volumes (SLPM, scfh, mcf/day) of the species at "
+                f"{standard_conditions_text(self.standard_conditions)}"
+            )
         for w in self.warnings:
             lines.append(f"  warning {w}")
         return "\n".join(lines)
@@ -342,27 +392,41 @@ class Result:
         surface and species with the mean and its 90 % band (and the truth);
         ``kind="maps"`` the column density and velocity of a kept frame."""
         import matplotlib
+
         if path is not None:
             matplotlib.use("Agg", force=False)
         import matplotlib.pyplot as plt
 
         if kind == "rates":
             species = sorted({sp for s in self.surfaces for sp in s.species})
-            fig, axes = plt.subplots(len(species), 1, figsize=(9, 3.2 * len(species)),
-                                     squeeze=False, sharex=True)
+            fig, axes = plt.subplots(
+                len(species), 1, figsize=(9, 3.2 * len(species)), squeeze=False, sharex=True
+            )
             for ax, sp in zip(axes[:, 0], species):
                 for k, s in enumerate(self.surfaces):
                     if sp not in s.species:
                         continue
                     r = s.species[sp]
                     color = f"C{k % 10}"
-                    ax.plot(r.time_s, r.rate_kg_h, color=color, lw=0.8, alpha=0.8,
-                            label=f"{s.surface.name}: {r.mean_kg_h:.3g} kg/h")
+                    ax.plot(
+                        r.time_s,
+                        r.rate_kg_h,
+                        color=color,
+                        lw=0.8,
+                        alpha=0.8,
+                        label=f"{s.surface.name}: {r.mean_kg_h:.3g} kg/h",
+                    )
                     if r.time_s.size:
                         ax.axhline(r.mean_kg_h, color=color, lw=1.5)
                         ax.axhspan(r.ci90_kg_h[0], r.ci90_kg_h[1], color=color, alpha=0.12)
-                truth = next((s.species[sp].truth_kg_h for s in self.surfaces
-                              if sp in s.species and s.species[sp].truth_kg_h is not None), None)
+                truth = next(
+                    (
+                        s.species[sp].truth_kg_h
+                        for s in self.surfaces
+                        if sp in s.species and s.species[sp].truth_kg_h is not None
+                    ),
+                    None,
+                )
                 if truth is not None:
                     ax.axhline(truth, color="k", ls="--", lw=1.2, label=f"truth {truth:.3g} kg/h")
                 ax.set_ylabel(f"{sp} emission rate [kg/h]")
@@ -377,8 +441,9 @@ class Result:
             f = self.map_frames[len(self.map_frames) // 2]
             m = self._maps[f]
             cols = m["column_density_kg_m2"]
-            fig, axes = plt.subplots(1, len(cols) + 1, figsize=(5 * (len(cols) + 1), 4),
-                                     squeeze=False)
+            fig, axes = plt.subplots(
+                1, len(cols) + 1, figsize=(5 * (len(cols) + 1), 4), squeeze=False
+            )
             for ax, (sp, c) in zip(axes[0], cols.items()):
                 im = ax.imshow(c * 1e3, cmap="magma", vmin=0)
                 fig.colorbar(im, ax=ax, label=f"{sp} column density [g/m2]")
@@ -394,17 +459,19 @@ class Result:
             im = ax.imshow(speed, cmap="viridis")
             fig.colorbar(im, ax=ax, label="speed where there is gas [px/frame]")
             step = max(1, min(u.shape) // 24)
-            yy, xx = np.mgrid[0:u.shape[0]:step, 0:u.shape[1]:step]
+            yy, xx = np.mgrid[0 : u.shape[0] : step, 0 : u.shape[1] : step]
             g = gas[::step, ::step]
             # Image axes run y down, as v does: the arrows need no flip.
-            ax.quiver(xx[g], yy[g], u[::step, ::step][g], v[::step, ::step][g], color="k",
-                      angles="xy")
+            ax.quiver(
+                xx[g], yy[g], u[::step, ::step][g], v[::step, ::step][g], color="k", angles="xy"
+            )
             ax.set_title("velocity (arrows: gas pixels)")
             fig.tight_layout()
         else:
             raise ValueError(f"kind must be 'rates' or 'maps'; got {kind!r}")
         if path is not None:
             from .files import atomic_path
+
             with atomic_path(path) as tmp:
                 fig.savefig(tmp, dpi=110)
             plt.close(fig)

@@ -100,6 +100,7 @@ _LINE_EXTENSIONS = (".par", ".data", ".par.gz", ".data.gz")
 # ---------------------------------------------------------------------------
 # Where things live
 
+
 def bundled_hitran_dir() -> pathlib.Path:
     """The folder of line-list subsets shipped inside the package."""
     return pathlib.Path(__file__).resolve().parent / "data" / "hitran"
@@ -197,14 +198,15 @@ def find_line_lists(species: str, paths: Optional[Iterable[PathLike]] = None) ->
         f"no HITRAN line list for {species!r} (looked for {species}.par/.data[.gz] and "
         f"{species}_*.par/.data[.gz] in: {', '.join(searched)}). Pass line_list=<file or "
         "folder>, set QOGI_HITRAN_PATH to a folder of line lists, or download one with "
-        f"`qogi hitran fetch {species} --range MIN MAX`.")
+        f"`qogi hitran fetch {species} --range MIN MAX`."
+    )
 
 
 # ---------------------------------------------------------------------------
 # Line lists
 
 _cache_lock = threading.Lock()
-_loaded: Dict[tuple, "_Loaded"] = {}  # (file signature, molecule) -> lines read
+_loaded: Dict[tuple, _Loaded] = {}  # (file signature, molecule) -> lines read
 
 
 def _file_signature(files: Sequence[pathlib.Path]) -> tuple:
@@ -222,11 +224,22 @@ def _molecule(species: Union[str, int]) -> int:
     return _engine.molecule_id(str(species))
 
 
-def line_list_digest(lines: "LineList") -> str:
+def line_list_digest(lines: LineList) -> str:
     """SHA-256 of a line list's content (every array the physics uses)."""
     h = hashlib.sha256()
-    for name in ("molecule", "isotopologue", "nu_cm1", "intensity", "gamma_air",
-                 "gamma_self", "elower_cm1", "n_air", "n_self", "delta_air", "delta_self"):
+    for name in (
+        "molecule",
+        "isotopologue",
+        "nu_cm1",
+        "intensity",
+        "gamma_air",
+        "gamma_self",
+        "elower_cm1",
+        "n_air",
+        "n_self",
+        "delta_air",
+        "delta_self",
+    ):
         a = np.ascontiguousarray(getattr(lines, name))
         h.update(name.encode())
         h.update(str(a.dtype).encode())
@@ -237,7 +250,7 @@ def line_list_digest(lines: "LineList") -> str:
 class _Loaded:
     """A line list read from files, with its content digest computed on demand."""
 
-    def __init__(self, lines: "LineList", sources):
+    def __init__(self, lines: LineList, sources):
         self.lines = lines
         self.sources = sources
         self._digest: Optional[str] = None
@@ -285,15 +298,22 @@ def _resolve(species: Union[str, int, None], line_list: LineListArg) -> _Loaded:
         files = find_line_lists(formula, list(line_list))
     entry = _read(files, mol)
     if len(entry.lines) == 0:
-        raise ValueError(f"the line list for {formula} ({', '.join(map(str, files))}) has no "
-                         f"{formula} lines (molecule code {mol})")
+        raise ValueError(
+            f"the line list for {formula} ({', '.join(map(str, files))}) has no "
+            f"{formula} lines (molecule code {mol})"
+        )
     return entry
 
 
-def load_line_list(species: Union[str, int, None] = None, line_list: LineListArg = None, *,
-                   nu_min_cm1: float = 0.0, nu_max_cm1: float = np.inf,
-                   isotopologues: Optional[Sequence[int]] = None,
-                   min_intensity: float = 0.0) -> "LineList":
+def load_line_list(
+    species: Union[str, int, None] = None,
+    line_list: LineListArg = None,
+    *,
+    nu_min_cm1: float = 0.0,
+    nu_max_cm1: float = np.inf,
+    isotopologues: Optional[Sequence[int]] = None,
+    min_intensity: float = 0.0,
+) -> LineList:
     """Read (and merge) the HITRAN lines of a species.
 
     Parameters
@@ -328,14 +348,18 @@ def load_line_list(species: Union[str, int, None] = None, line_list: LineListArg
     """
     lines = _resolve(species, line_list).lines
     if nu_min_cm1 > 0 or np.isfinite(nu_max_cm1) or isotopologues or min_intensity > 0:
-        lines = lines.select(nu_min_cm1=float(nu_min_cm1), nu_max_cm1=float(nu_max_cm1),
-                             isotopologues=list(isotopologues or []),
-                             min_intensity=float(min_intensity))
+        lines = lines.select(
+            nu_min_cm1=float(nu_min_cm1),
+            nu_max_cm1=float(nu_max_cm1),
+            isotopologues=list(isotopologues or []),
+            min_intensity=float(min_intensity),
+        )
     return lines
 
 
 # ---------------------------------------------------------------------------
 # Small physics helpers
+
 
 def isotopologues() -> list[dict]:
     """Isotopologues qogi has data for: HITRAN molar mass [g/mol], natural
@@ -369,8 +393,9 @@ def voigt_profile(dnu_cm1, gamma_doppler_cm1: float, gamma_lorentz_cm1: float):
     """Area-normalised Voigt profile [cm] at ``dnu_cm1`` from the line centre,
     for Doppler and Lorentz half-widths at half maximum [cm-1]."""
     d = np.asarray(dnu_cm1, dtype=float)
-    out = _engine.voigt_profile(d.ravel(), float(gamma_doppler_cm1),
-                                float(gamma_lorentz_cm1)).reshape(d.shape)
+    out = _engine.voigt_profile(
+        d.ravel(), float(gamma_doppler_cm1), float(gamma_lorentz_cm1)
+    ).reshape(d.shape)
     return float(out) if out.ndim == 0 else out
 
 
@@ -378,25 +403,37 @@ def _options(cutoff: Cutoff, line_shift: bool, min_intensity: float):
     """CrossSectionOptions from the public ``cutoff`` argument."""
     if isinstance(cutoff, str):
         if cutoff.lower() != "hapi":
-            raise ValueError(f"cutoff must be 'hapi', a number of cm-1, or ('half_widths', k); "
-                             f"got {cutoff!r}")
-        return _engine.CrossSectionOptions(wing_half_widths=50.0, wing_cm1=0.0,
-                                           line_shift=line_shift, min_intensity=min_intensity)
+            raise ValueError(
+                f"cutoff must be 'hapi', a number of cm-1, or ('half_widths', k); got {cutoff!r}"
+            )
+        return _engine.CrossSectionOptions(
+            wing_half_widths=50.0, wing_cm1=0.0, line_shift=line_shift, min_intensity=min_intensity
+        )
     if isinstance(cutoff, tuple):
         if len(cutoff) != 2 or cutoff[0] != "half_widths":
             raise ValueError(f"cutoff tuple must be ('half_widths', k); got {cutoff!r}")
-        return _engine.CrossSectionOptions(wing_half_widths=float(cutoff[1]), wing_cm1=0.0,
-                                           line_shift=line_shift, min_intensity=min_intensity)
+        return _engine.CrossSectionOptions(
+            wing_half_widths=float(cutoff[1]),
+            wing_cm1=0.0,
+            line_shift=line_shift,
+            min_intensity=min_intensity,
+        )
     c = float(cutoff)
     if not (np.isfinite(c) and c > 0):
         raise ValueError(f"cutoff in cm-1 must be finite and > 0; got {cutoff!r}")
-    return _engine.CrossSectionOptions(wing_half_widths=0.0, wing_cm1=c,
-                                       line_shift=line_shift, min_intensity=min_intensity)
+    return _engine.CrossSectionOptions(
+        wing_half_widths=0.0, wing_cm1=c, line_shift=line_shift, min_intensity=min_intensity
+    )
 
 
-def line_parameters(species: Union[str, int, None], temperature_K: float,
-                    pressure_Pa: float = ATM_PA, self_fraction: float = 0.0,
-                    line_list: LineListArg = None, line_shift: bool = True) -> dict:
+def line_parameters(
+    species: Union[str, int, None],
+    temperature_K: float,
+    pressure_Pa: float = ATM_PA,
+    self_fraction: float = 0.0,
+    line_list: LineListArg = None,
+    line_shift: bool = True,
+) -> dict:
     """Per-line ``nu_cm1``, shifted ``center_cm1``, ``intensity`` S(T)
     [cm/molecule], ``gamma_lorentz`` and ``gamma_doppler`` HWHM [cm-1] at the
     given conditions (equations in the module docstring)."""
@@ -407,6 +444,7 @@ def line_parameters(species: Union[str, int, None], temperature_K: float,
 
 # ---------------------------------------------------------------------------
 # Cross-sections
+
 
 def _uniform(nu: np.ndarray) -> Optional[Tuple[float, float, int]]:
     """(nu0, step, n) when nu is a uniform grid to 1e-9 of its step."""
@@ -421,11 +459,20 @@ def _uniform(nu: np.ndarray) -> Optional[Tuple[float, float, int]]:
     return None
 
 
-def cross_section(species: Union[str, int, None], nu_cm1, temperature_K: float,
-                  pressure_Pa: float = ATM_PA, line_list: LineListArg = None,
-                  cutoff: Cutoff = "hapi", self_fraction: float = 0.0, *,
-                  line_shift: bool = True, min_intensity: float = 0.0, num_threads: int = 0,
-                  progress: Optional[Callable[[float], Optional[bool]]] = None):
+def cross_section(
+    species: Union[str, int, None],
+    nu_cm1,
+    temperature_K: float,
+    pressure_Pa: float = ATM_PA,
+    line_list: LineListArg = None,
+    cutoff: Cutoff = "hapi",
+    self_fraction: float = 0.0,
+    *,
+    line_shift: bool = True,
+    min_intensity: float = 0.0,
+    num_threads: int = 0,
+    progress: Optional[Callable[[float], Optional[bool]]] = None,
+):
     """Absorption cross-section sigma(nu) of a gas [cm2/molecule].
 
     A sum of Voigt lines (module docstring) with HITRAN line parameters scaled
@@ -479,30 +526,47 @@ def cross_section(species: Union[str, int, None], nu_cm1, temperature_K: float,
     uniform = _uniform(flat)
     if uniform is not None:
         nu0, step, size = uniform
-        out = _engine.cross_section_uniform(lines, cond, nu0, step, size, opt, num_threads,
-                                            progress)
+        out = _engine.cross_section_uniform(
+            lines, cond, nu0, step, size, opt, num_threads, progress
+        )
     else:
         out = _engine.cross_section_grid(lines, cond, flat, opt, num_threads, progress)
     out = out.reshape(nu.shape)
     return float(out) if out.ndim == 0 else out
 
 
-def absorption_coefficient(species: Union[str, int, None], nu_cm1, temperature_K: float,
-                           pressure_Pa: float = ATM_PA, mole_fraction: float = 1.0,
-                           line_list: LineListArg = None, cutoff: Cutoff = "hapi", **kwargs):
+def absorption_coefficient(
+    species: Union[str, int, None],
+    nu_cm1,
+    temperature_K: float,
+    pressure_Pa: float = ATM_PA,
+    mole_fraction: float = 1.0,
+    line_list: LineListArg = None,
+    cutoff: Cutoff = "hapi",
+    **kwargs,
+):
     """Absorption coefficient k(nu) = sigma(nu) x n [cm-1] of the gas at mole
     fraction ``mole_fraction`` in a mixture at ``pressure_Pa`` and
     ``temperature_K``; n = x p / (k_B T) is its number density [molecule/cm3].
     The mole fraction is also the self fraction of the broadening. Other
     keyword arguments as for :func:`cross_section`."""
-    sigma = cross_section(species, nu_cm1, temperature_K, pressure_Pa, line_list, cutoff,
-                          self_fraction=mole_fraction, **kwargs)
+    sigma = cross_section(
+        species,
+        nu_cm1,
+        temperature_K,
+        pressure_Pa,
+        line_list,
+        cutoff,
+        self_fraction=mole_fraction,
+        **kwargs,
+    )
     n = mole_fraction * _engine.number_density_cm3(float(pressure_Pa), float(temperature_K))
     return sigma * n
 
 
 # ---------------------------------------------------------------------------
 # Tables
+
 
 class CrossSectionTable:
     """sigma(nu, T) on a uniform wavenumber grid x an ascending temperature
@@ -531,7 +595,7 @@ class CrossSectionTable:
     for CH4 and CO2 and 4e-4 for H2O in the CH4 window (docs/spectroscopy.md).
     """
 
-    def __init__(self, engine_table: "_engine.XsecTable"):
+    def __init__(self, engine_table: _engine.XsecTable):
         self.engine = engine_table
 
     @property
@@ -575,7 +639,8 @@ class CrossSectionTable:
         if t.ndim == 0:
             return self.engine.spectrum(float(t))
         return np.stack([self.engine.spectrum(float(v)) for v in t.ravel()]).reshape(
-            t.shape + (self.engine.num_wavenumbers,))
+            t.shape + (self.engine.num_wavenumbers,)
+        )
 
     def derivative(self, temperature_K: float) -> np.ndarray:
         """d sigma / dT of the interpolant [cm2/(molecule K)] at one temperature."""
@@ -586,21 +651,30 @@ class CrossSectionTable:
         self.engine.save(os.fspath(path))
 
     @classmethod
-    def load(cls, path: PathLike) -> "CrossSectionTable":
+    def load(cls, path: PathLike) -> CrossSectionTable:
         """Read a table written by :meth:`save`."""
         return cls(_engine.XsecTable.load(os.fspath(path)))
 
     def __repr__(self) -> str:
         nu = self.nu_cm1
         m = self.metadata
-        return (f"CrossSectionTable({m.get('species', '?')}, {nu[0]:.2f}-{nu[-1]:.2f} cm-1 "
-                f"step {self.step_cm1:g}, T {self.temperatures_K[0]:g}-"
-                f"{self.temperatures_K[-1]:g} K ({len(self.temperatures_K)}), "
-                f"p {self.pressure_Pa:g} Pa, self fraction {self.self_fraction:g})")
+        return (
+            f"CrossSectionTable({m.get('species', '?')}, {nu[0]:.2f}-{nu[-1]:.2f} cm-1 "
+            f"step {self.step_cm1:g}, T {self.temperatures_K[0]:g}-"
+            f"{self.temperatures_K[-1]:g} K ({len(self.temperatures_K)}), "
+            f"p {self.pressure_Pa:g} Pa, self fraction {self.self_fraction:g})"
+        )
 
 
-def _table_key(digest: str, formula: str, grid: tuple, temps: np.ndarray, pressure: float,
-               self_fraction: float, opt) -> str:
+def _table_key(
+    digest: str,
+    formula: str,
+    grid: tuple,
+    temps: np.ndarray,
+    pressure: float,
+    self_fraction: float,
+    opt,
+) -> str:
     h = hashlib.sha256()
     settings = {
         "format": int(_engine.XSEC_TABLE_FORMAT_VERSION),
@@ -610,23 +684,30 @@ def _table_key(digest: str, formula: str, grid: tuple, temps: np.ndarray, pressu
         "grid": [repr(float(grid[0])), repr(float(grid[1])), int(grid[2])],
         "pressure_Pa": repr(float(pressure)),
         "self_fraction": repr(float(self_fraction)),
-        "options": {k: (repr(v) if isinstance(v, float) else v)
-                    for k, v in opt.to_dict().items()},
+        "options": {k: (repr(v) if isinstance(v, float) else v) for k, v in opt.to_dict().items()},
     }
     h.update(json.dumps(settings, sort_keys=True).encode())
     h.update(np.ascontiguousarray(temps, dtype=np.float64).tobytes())
     return h.hexdigest()
 
 
-def cross_section_table(species: Union[str, int, None], nu_min_cm1: float, nu_max_cm1: float,
-                        step_cm1: float = 0.01, temperatures_K=None,
-                        pressure_Pa: float = ATM_PA, self_fraction: float = 0.0,
-                        line_list: LineListArg = None, cache: bool = True,
-                        cutoff: Cutoff = DEFAULT_TABLE_CUTOFF_CM1, *,
-                        line_shift: bool = True, min_intensity: float = 0.0,
-                        num_threads: int = 0,
-                        progress: Optional[Callable[[float], Optional[bool]]] = None
-                        ) -> CrossSectionTable:
+def cross_section_table(
+    species: Union[str, int, None],
+    nu_min_cm1: float,
+    nu_max_cm1: float,
+    step_cm1: float = 0.01,
+    temperatures_K=None,
+    pressure_Pa: float = ATM_PA,
+    self_fraction: float = 0.0,
+    line_list: LineListArg = None,
+    cache: bool = True,
+    cutoff: Cutoff = DEFAULT_TABLE_CUTOFF_CM1,
+    *,
+    line_shift: bool = True,
+    min_intensity: float = 0.0,
+    num_threads: int = 0,
+    progress: Optional[Callable[[float], Optional[bool]]] = None,
+) -> CrossSectionTable:
     """Cross-section table sigma(nu, T) for the forward model (cached on disk).
 
     Parameters
@@ -666,8 +747,11 @@ def cross_section_table(species: Union[str, int, None], nu_min_cm1: float, nu_ma
     lines, digest, sources = entry.lines, entry.digest, entry.sources
     formula = _engine.molecule_formula(_molecule(species)) if species is not None else "mixed"
     grid = _engine.grid_from_range(float(nu_min_cm1), float(nu_max_cm1), float(step_cm1))
-    temps = (DEFAULT_TABLE_TEMPERATURES_K if temperatures_K is None
-             else np.asarray(temperatures_K, dtype=float).ravel())
+    temps = (
+        DEFAULT_TABLE_TEMPERATURES_K
+        if temperatures_K is None
+        else np.asarray(temperatures_K, dtype=float).ravel()
+    )
     opt = _options(cutoff, line_shift, float(min_intensity))
     key = _table_key(digest, formula, grid, temps, pressure_Pa, self_fraction, opt)
     stem = f"{formula}_{grid[0]:g}-{grid[0] + grid[1] * (grid[2] - 1):g}_{key[:20]}"
@@ -681,13 +765,30 @@ def cross_section_table(species: Union[str, int, None], nu_min_cm1: float, nu_ma
         except (RuntimeError, ValueError) as e:
             log.warning("cached table %s is unusable (%s); rebuilding", path, e)
     t0 = time.perf_counter()
-    table = _engine.XsecTable.build(lines, grid[0], grid[1], grid[2], temps, float(pressure_Pa),
-                                    float(self_fraction), opt, num_threads, progress)
-    meta = {"key": key, "species": formula, "line_list_sha256": digest, "sources": sources,
-            "lines": len(lines), "cutoff": cutoff if not isinstance(cutoff, tuple) else list(cutoff),
-            "options": opt.to_dict(), "qogi_version": __version__,
-            "model_version": SPECTRA_MODEL_VERSION,
-            "build_seconds": round(time.perf_counter() - t0, 3)}
+    table = _engine.XsecTable.build(
+        lines,
+        grid[0],
+        grid[1],
+        grid[2],
+        temps,
+        float(pressure_Pa),
+        float(self_fraction),
+        opt,
+        num_threads,
+        progress,
+    )
+    meta = {
+        "key": key,
+        "species": formula,
+        "line_list_sha256": digest,
+        "sources": sources,
+        "lines": len(lines),
+        "cutoff": cutoff if not isinstance(cutoff, tuple) else list(cutoff),
+        "options": opt.to_dict(),
+        "qogi_version": __version__,
+        "model_version": SPECTRA_MODEL_VERSION,
+        "build_seconds": round(time.perf_counter() - t0, 3),
+    }
     table.metadata = json.dumps(meta)
     if cache:
         store(path, lambda tmp: table.save(str(tmp)))
@@ -710,9 +811,14 @@ def _urlopen(url: str, timeout: float):
     return urllib.request.urlopen(url, timeout=timeout)
 
 
-def fetch_hitran(species: Union[str, int], nu_min_cm1: float, nu_max_cm1: float,
-                 isotopologues: Optional[Sequence[int]] = None,
-                 folder: Optional[PathLike] = None, timeout_s: float = 120.0) -> pathlib.Path:
+def fetch_hitran(
+    species: Union[str, int],
+    nu_min_cm1: float,
+    nu_max_cm1: float,
+    isotopologues: Optional[Sequence[int]] = None,
+    folder: Optional[PathLike] = None,
+    timeout_s: float = 120.0,
+) -> pathlib.Path:
     """Download HITRAN lines of a species and range from HITRANonline.
 
     Uses the HITRANonline line-by-line API that HAPI 1.3's ``fetch`` uses
@@ -738,16 +844,21 @@ def fetch_hitran(species: Union[str, int], nu_min_cm1: float, nu_max_cm1: float,
     formula = _engine.molecule_formula(mol)
     if not (0 <= nu_min_cm1 < nu_max_cm1):
         raise ValueError(f"need 0 <= nu_min_cm1 < nu_max_cm1; got {nu_min_cm1}, {nu_max_cm1}")
-    known = {i["local_id"]: i["global_id"] for i in _engine.isotopologues()
-             if i["molecule"] == mol}
+    known = {i["local_id"]: i["global_id"] for i in _engine.isotopologues() if i["molecule"] == mol}
     wanted = list(isotopologues) if isotopologues else sorted(known)
     missing = [i for i in wanted if i not in known]
     if missing or not wanted:
-        raise ValueError(f"{formula}: no data for isotopologues {missing or wanted}; "
-                         f"known: {sorted(known)}")
-    query = urllib.parse.urlencode({
-        "iso_ids_list": ",".join(str(known[i]) for i in wanted),
-        "numin": f"{nu_min_cm1:g}", "numax": f"{nu_max_cm1:g}"}, safe=",")
+        raise ValueError(
+            f"{formula}: no data for isotopologues {missing or wanted}; known: {sorted(known)}"
+        )
+    query = urllib.parse.urlencode(
+        {
+            "iso_ids_list": ",".join(str(known[i]) for i in wanted),
+            "numin": f"{nu_min_cm1:g}",
+            "numax": f"{nu_max_cm1:g}",
+        },
+        safe=",",
+    )
     url = f"{HITRAN_API_URL}?{query}"
     try:
         with _urlopen(url, timeout_s) as reply:
@@ -766,6 +877,8 @@ def fetch_hitran(species: Union[str, int], nu_min_cm1: float, nu_max_cm1: float,
         fh.flush()
         lines = _engine.read_line_files([fh.name])
         if len(lines) == 0:
-            raise ConnectionError(f"HITRANonline returned no {formula} lines for "
-                                  f"{nu_min_cm1:g}-{nu_max_cm1:g} cm-1 ({url})")
+            raise ConnectionError(
+                f"HITRANonline returned no {formula} lines for "
+                f"{nu_min_cm1:g}-{nu_max_cm1:g} cm-1 ({url})"
+            )
     return target

@@ -43,8 +43,9 @@ class Surface:
             raise ValueError(f"surface points must be finite; got {self.points!r}")
         seg = np.diff(pts, axis=0)
         if np.any(np.hypot(seg[:, 0], seg[:, 1]) == 0):
-            raise ValueError(f"surface {self.name!r} has two equal consecutive points; "
-                             "remove the duplicate")
+            raise ValueError(
+                f"surface {self.name!r} has two equal consecutive points; remove the duplicate"
+            )
         self.points = [(float(x), float(y)) for x, y in pts]
 
     @property
@@ -52,10 +53,10 @@ class Surface:
         d = np.diff(np.asarray(self.points), axis=0)
         return float(np.hypot(d[:, 0], d[:, 1]).sum())
 
-    def reversed(self) -> "Surface":
+    def reversed(self) -> Surface:
         return Surface(list(reversed(self.points)), self.name)
 
-    def oriented_away_from(self, source: Point) -> "Surface":
+    def oriented_away_from(self, source: Point) -> Surface:
         """This surface with its points reversed if needed, so that flow away
         from ``source`` (x, y) counts as positive."""
         xy, n, w = self.samples(step_px=1.0)
@@ -85,26 +86,32 @@ class Surface:
 
     def bounds(self, margin: float = 0.0) -> Tuple[float, float, float, float]:
         p = np.asarray(self.points)
-        return (float(p[:, 0].min() - margin), float(p[:, 1].min() - margin),
-                float(p[:, 0].max() + margin), float(p[:, 1].max() + margin))
+        return (
+            float(p[:, 0].min() - margin),
+            float(p[:, 1].min() - margin),
+            float(p[:, 0].max() + margin),
+            float(p[:, 1].max() + margin),
+        )
 
     def to_dict(self) -> dict:
         return {"name": self.name, "points": [list(p) for p in self.points]}
 
     @classmethod
-    def from_dict(cls, d: dict) -> "Surface":
+    def from_dict(cls, d: dict) -> Surface:
         return cls([tuple(p) for p in d["points"]], d.get("name", ""))
 
     @classmethod
-    def parse(cls, text: str, name: str = "") -> "Surface":
+    def parse(cls, text: str, name: str = "") -> Surface:
         """From ``"x0,y0,x1,y1[,x2,y2...]"`` (the CLI's ``--surface``)."""
         try:
             v = [float(s) for s in text.replace(";", ",").split(",") if s.strip()]
         except ValueError:
             raise ValueError(f"surface {text!r}: expected numbers x0,y0,x1,y1[,...]") from None
         if len(v) < 4 or len(v) % 2:
-            raise ValueError(f"surface {text!r}: expected an even number (>= 4) of coordinates "
-                             "x0,y0,x1,y1[,x2,y2...]")
+            raise ValueError(
+                f"surface {text!r}: expected an even number (>= 4) of coordinates "
+                "x0,y0,x1,y1[,x2,y2...]"
+            )
         return cls(list(zip(v[0::2], v[1::2])), name)
 
 
@@ -123,7 +130,7 @@ class Region:
         if self.x1 <= self.x0 or self.y1 <= self.y0:
             raise ValueError(f"region {self} is empty: need x0 < x1 and y0 < y1")
 
-    def clip(self, width: int, height: int) -> "Region":
+    def clip(self, width: int, height: int) -> Region:
         r = Region(max(0, self.x0), max(0, self.y0), min(width, self.x1), min(height, self.y1))
         return r
 
@@ -131,7 +138,7 @@ class Region:
         return slice(self.y0, self.y1), slice(self.x0, self.x1)
 
     @classmethod
-    def parse(cls, text: str) -> "Region":
+    def parse(cls, text: str) -> Region:
         v = [int(float(s)) for s in text.split(",")]
         if len(v) != 4:
             raise ValueError(f"region {text!r}: expected x0,y0,x1,y1")
@@ -175,7 +182,7 @@ def plume_image(recording, max_frames: int = 50) -> np.ndarray:
 
 def _plume_image(frames: np.ndarray) -> np.ndarray:
     """:func:`plume_image` of a (T, C, H, W) radiance stack."""
-    mean = frames.mean(axis=0)                                # (C, H, W)
+    mean = frames.mean(axis=0)  # (C, H, W)
     sd = frames.std(axis=0)
     out = np.zeros(mean.shape[1:])
     for c in range(mean.shape[0]):
@@ -247,12 +254,18 @@ def detect_source(image: np.ndarray, threshold: float = 0.1) -> Point:
     along, lo, hi, span, ends, _ = first_try
     across = (pts - c) @ perp
     h, wd = img.shape
-    border = [bool(np.any((pts[e, 0] <= 1) | (pts[e, 0] >= wd - 2) | (pts[e, 1] <= 1) |
-                          (pts[e, 1] >= h - 2))) for e in ends]
+    border = [
+        bool(
+            np.any(
+                (pts[e, 0] <= 1) | (pts[e, 0] >= wd - 2) | (pts[e, 1] <= 1) | (pts[e, 1] >= h - 2)
+            )
+        )
+        for e in ends
+    ]
     signal = [float(np.median(w[e])) for e in ends]
     width = [float(np.std(across[e])) for e in ends]
     if border[0] != border[1]:
-        first = border[1]            # the end that does not leave the frame
+        first = border[1]  # the end that does not leave the frame
     elif max(signal) > 1.2 * min(signal):
         first = signal[0] > signal[1]
     else:
@@ -264,9 +277,14 @@ def detect_source(image: np.ndarray, threshold: float = 0.1) -> Point:
     return float(x), float(y)
 
 
-def auto_surfaces(column_or_contrast: np.ndarray, distances_px: Sequence[float],
-                  source: Optional[Point] = None, threshold: float = 0.1,
-                  margin_px: float = 10.0, return_source: bool = False):
+def auto_surfaces(
+    column_or_contrast: np.ndarray,
+    distances_px: Sequence[float],
+    source: Optional[Point] = None,
+    threshold: float = 0.1,
+    margin_px: float = 10.0,
+    return_source: bool = False,
+):
     """Detect the plume in a (time-averaged) column-density or contrast image
     and place straight surfaces across it at the given distances from the source.
 
@@ -317,9 +335,12 @@ def auto_surfaces(column_or_contrast: np.ndarray, distances_px: Sequence[float],
     return out
 
 
-def truth_surfaces(recording, heights_m: Optional[Sequence[float]] = None,
-                   max_height_m: Optional[float] = None,
-                   half_width_px: Optional[float] = None):
+def truth_surfaces(
+    recording,
+    heights_m: Optional[Sequence[float]] = None,
+    max_height_m: Optional[float] = None,
+    half_width_px: Optional[float] = None,
+):
     """Horizontal control surfaces on a synthetic recording's truth planes.
 
     A recording written by ``qogi synth`` stores the image row of each
@@ -345,8 +366,10 @@ def truth_surfaces(recording, heights_m: Optional[Sequence[float]] = None,
     """
     truth = getattr(recording, "truth", None)
     if truth is None or "plane_row" not in truth.datasets or "plane_height_m" not in truth.datasets:
-        raise ValueError("truth_surfaces needs a synthetic recording with /truth plane_row and "
-                         "plane_height_m (written by qogi synth)")
+        raise ValueError(
+            "truth_surfaces needs a synthetic recording with /truth plane_row and "
+            "plane_height_m (written by qogi synth)"
+        )
     rows = np.asarray(truth.datasets["plane_row"][:], dtype=float)
     heights = np.asarray(truth.datasets["plane_height_m"][:], dtype=float)
     pixel_m = recording.scene.distance_m * recording.camera.ifov_rad
@@ -360,6 +383,10 @@ def truth_surfaces(recording, heights_m: Optional[Sequence[float]] = None,
         if heights_m is not None and not any(abs(h - x) < 1e-3 for x in heights_m):
             continue
         if 0 <= r < recording.height:
-            out.append(Surface([(exit_xy[0] - half, float(r)), (exit_xy[0] + half, float(r))],
-                               name=f"{h * 100:.0f} cm"))
+            out.append(
+                Surface(
+                    [(exit_xy[0] - half, float(r)), (exit_xy[0] + half, float(r))],
+                    name=f"{h * 100:.0f} cm",
+                )
+            )
     return out, exit_xy

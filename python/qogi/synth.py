@@ -53,8 +53,17 @@ __all__ = [
 ]
 
 #: Columns of :meth:`Simulation.puffs`.
-PUFF_FIELDS = ("x_m", "y_m", "z_m", "u_m_s", "v_m_s", "w_m_s", "sigma_m", "sigma_rate_m_s",
-               "mass_kg")
+PUFF_FIELDS = (
+    "x_m",
+    "y_m",
+    "z_m",
+    "u_m_s",
+    "v_m_s",
+    "w_m_s",
+    "sigma_m",
+    "sigma_rate_m_s",
+    "mass_kg",
+)
 
 
 class _Options:
@@ -69,8 +78,10 @@ class _Options:
     def __init__(self, **kwargs):
         unknown = [k for k in kwargs if k not in self.fields]
         if unknown:  # named after the Python class, not the engine's
-            raise TypeError(f"{type(self).__name__} has no field {unknown[0]!r}; "
-                            f"fields: {', '.join(self.fields)}")
+            raise TypeError(
+                f"{type(self).__name__} has no field {unknown[0]!r}; "
+                f"fields: {', '.join(self.fields)}"
+            )
         super().__init__(**kwargs)
 
     def replace(self, **kwargs):
@@ -154,7 +165,7 @@ class View(_Options, _engine.SynthView):
     """
 
     @classmethod
-    def framing(cls, release: Release, exit_pixel: Sequence[float], **kwargs) -> "View":
+    def framing(cls, release: Release, exit_pixel: Sequence[float], **kwargs) -> View:
         """A view whose image shows the stack exit at ``exit_pixel`` (column, row)."""
         v = cls(**kwargs)
         fp = v.distance_m * v.ifov_rad
@@ -198,8 +209,7 @@ def known_species() -> list:
     return list(_engine.synth_known_species())
 
 
-def mean_flow(release: Release, model: Optional[PlumeModel] = None,
-              extent_m: float = 1.0) -> dict:
+def mean_flow(release: Release, model: Optional[PlumeModel] = None, extent_m: float = 1.0) -> dict:
     """The integral-model mean plume until its axis leaves a box of half-size
     ``extent_m`` around the exit (dict of arrays along the axis).
 
@@ -290,9 +300,11 @@ class Simulation:
         return dict(self._sim.mean_flow())
 
     def __repr__(self) -> str:
-        return (f"Simulation({self.num_frames} frames at {self.frame_rate_hz:g} Hz, "
-                f"{self.mass_rate_kg_s * 3600:.4g} kg/h of {self.mole_fractions}, "
-                f"{self.view.width_px}x{self.view.height_px} px)")
+        return (
+            f"Simulation({self.num_frames} frames at {self.frame_rate_hz:g} Hz, "
+            f"{self.mass_rate_kg_s * 3600:.4g} kg/h of {self.mole_fractions}, "
+            f"{self.view.width_px}x{self.view.height_px} px)"
+        )
 
     # -- per frame ---------------------------------------------------------
     def _frame(self, frame: int) -> int:
@@ -365,7 +377,9 @@ class Simulation:
         planes = list(planes)
         if not planes:
             raise ValueError("planes must name at least one (point, normal) pair")
-        frames = list(range(self.num_frames)) if frames is None else [self._frame(f) for f in frames]
+        frames = (
+            list(range(self.num_frames)) if frames is None else [self._frame(f) for f in frames]
+        )
         pts = [tuple(float(c) for c in p[0]) for p in planes]
         nrm = [tuple(float(c) for c in p[1]) for p in planes]
         total = np.asarray(self._sim.plane_flux(pts, nrm, frames))
@@ -377,8 +391,9 @@ class Simulation:
         """The box at the pixel footprint: x0, y0, z0, dx, dy, dz (m), nx, ny, nz."""
         return dict(self._sim.default_grid())
 
-    def fields(self, frame: int, grid: Optional[dict] = None, velocity: bool = True,
-               num_threads: int = 0) -> dict:
+    def fields(
+        self, frame: int, grid: Optional[dict] = None, velocity: bool = True, num_threads: int = 0
+    ) -> dict:
         """3-D fields of one frame on a regular grid.
 
         Parameters
@@ -404,8 +419,13 @@ class Simulation:
         d["mole_fraction"] = {s: xr * np.float32(x) for s, x in self.mole_fractions.items()}
         return d
 
-    def ray_samples(self, frame: int, rows: Optional[tuple] = None,
-                    cols: Optional[tuple] = None, num_threads: int = 0) -> dict:
+    def ray_samples(
+        self,
+        frame: int,
+        rows: Optional[tuple] = None,
+        cols: Optional[tuple] = None,
+        num_threads: int = 0,
+    ) -> dict:
         """Samples along the pixel rays of an image rectangle, for a renderer.
 
         Samples lie on planes of constant depth ``y_m[p]``, p = 0 farthest
@@ -440,8 +460,11 @@ class Simulation:
         """
         r0, r1 = rows if rows is not None else (0, self.view.height_px)
         c0, c1 = cols if cols is not None else (0, self.view.width_px)
-        d = dict(self._sim.ray_samples(self._frame(frame), int(r0), int(r1), int(c0), int(c1),
-                                       num_threads))
+        d = dict(
+            self._sim.ray_samples(
+                self._frame(frame), int(r0), int(r1), int(c0), int(c1), num_threads
+            )
+        )
         d["mole_fraction"] = dict(zip(self.species, d["mole_fraction"]))
         d["ambient_temperature_K"] = self.release.ambient_temperature_K
         return d
@@ -462,10 +485,16 @@ def densify(samples: dict, values: np.ndarray, fill: float = 0.0) -> np.ndarray:
     return out.reshape(samples["planes"], rows, cols)
 
 
-def simulate(release: Release, view: View, duration_s: float, frame_rate_hz: float,
-             seed: int = 0, model: Optional[PlumeModel] = None,
-             progress: Optional[Callable[[float], Optional[bool]]] = None,
-             num_threads: int = 0) -> Simulation:
+def simulate(
+    release: Release,
+    view: View,
+    duration_s: float,
+    frame_rate_hz: float,
+    seed: int = 0,
+    model: Optional[PlumeModel] = None,
+    progress: Optional[Callable[[float], Optional[bool]]] = None,
+    num_threads: int = 0,
+) -> Simulation:
     """Simulate a release and keep every frame's puffs.
 
     Parameters
@@ -486,12 +515,14 @@ def simulate(release: Release, view: View, duration_s: float, frame_rate_hz: flo
     if not isinstance(release, Release) or not isinstance(view, View):
         raise TypeError("release and view must be qogi.synth.Release and qogi.synth.View")
     model = (model or PlumeModel()).replace(seed=int(seed))
-    sim = _engine.SynthSimulation(release, view, float(duration_s), float(frame_rate_hz), model,
-                                  int(num_threads), progress)
+    sim = _engine.SynthSimulation(
+        release, view, float(duration_s), float(frame_rate_hz), model, int(num_threads), progress
+    )
     return Simulation(sim, release, view, model)
 
 
 # -- presets -----------------------------------------------------------------
+
 
 def _preset_table() -> dict:
     text = resources.files("qogi").joinpath("data/synth_presets.json").read_text()
@@ -521,20 +552,36 @@ def preset_view(name: str, projection: Optional[str] = None) -> View:
     """The preset's :class:`View` (its camera framed on the exit)."""
     p = preset(name)
     cam, scene = p["camera"], p["scene"]
-    return View.framing(preset_release(name), scene["exit_pixel"], width_px=cam["width_px"],
-                        height_px=cam["height_px"], ifov_rad=cam["ifov_rad"],
-                        distance_m=scene["distance_m"],
-                        projection=projection or scene["projection"])
+    return View.framing(
+        preset_release(name),
+        scene["exit_pixel"],
+        width_px=cam["width_px"],
+        height_px=cam["height_px"],
+        ifov_rad=cam["ifov_rad"],
+        distance_m=scene["distance_m"],
+        projection=projection or scene["projection"],
+    )
 
 
-def simulate_preset(name: str, duration_s: Optional[float] = None,
-                    frame_rate_hz: Optional[float] = None, seed: int = 0,
-                    projection: Optional[str] = None, model: Optional[PlumeModel] = None,
-                    progress=None, num_threads: int = 0) -> Simulation:
+def simulate_preset(
+    name: str,
+    duration_s: Optional[float] = None,
+    frame_rate_hz: Optional[float] = None,
+    seed: int = 0,
+    projection: Optional[str] = None,
+    model: Optional[PlumeModel] = None,
+    progress=None,
+    num_threads: int = 0,
+) -> Simulation:
     """Simulate a preset (defaults: its duration and camera frame rate)."""
     p = preset(name)
-    return simulate(preset_release(name), preset_view(name, projection),
-                    p["duration_s"] if duration_s is None else duration_s,
-                    p["camera"]["frame_rate_hz"] if frame_rate_hz is None else frame_rate_hz,
-                    seed=seed, model=model, progress=progress, num_threads=num_threads)
-
+    return simulate(
+        preset_release(name),
+        preset_view(name, projection),
+        p["duration_s"] if duration_s is None else duration_s,
+        p["camera"]["frame_rate_hz"] if frame_rate_hz is None else frame_rate_hz,
+        seed=seed,
+        model=model,
+        progress=progress,
+        num_threads=num_threads,
+    )

@@ -22,8 +22,14 @@ from typing import List, Tuple
 
 import numpy as np
 
-__all__ = ["Timebase", "frame_timebase", "Block", "stream_blocks", "MAX_GAP_INTERVALS",
-           "DROP_THRESHOLD"]
+__all__ = [
+    "Timebase",
+    "frame_timebase",
+    "Block",
+    "stream_blocks",
+    "MAX_GAP_INTERVALS",
+    "DROP_THRESHOLD",
+]
 
 #: A pair whose interval exceeds this many nominal intervals is not used (the
 #: run is cut there): the plume's structures no longer carry from one frame to
@@ -70,12 +76,14 @@ class Timebase:
     @property
     def gaps(self) -> List[Tuple[int, float]]:
         """The cuts between segments: (index of the frame before, gap [s])."""
-        return [(b - 1, float(self.time_s[b] - self.time_s[b - 1]))
-                for (_, b) in self.segments[:-1]]
+        return [
+            (b - 1, float(self.time_s[b] - self.time_s[b - 1])) for (_, b) in self.segments[:-1]
+        ]
 
 
-def frame_timebase(time_s, frame_rate_hz: float,
-                   max_gap_intervals: float = MAX_GAP_INTERVALS) -> Timebase:
+def frame_timebase(
+    time_s, frame_rate_hz: float, max_gap_intervals: float = MAX_GAP_INTERVALS
+) -> Timebase:
     """The :class:`Timebase` of frames at ``time_s`` [s] from a camera at
     ``frame_rate_hz`` [Hz]."""
     t = np.asarray(time_s, dtype=np.float64)
@@ -109,8 +117,9 @@ class Block:
         return self.keep[1] - self.keep[0]
 
 
-def stream_blocks(segments: List[Tuple[int, int]], block_frames: int,
-                  overlap: int = 4) -> List[Block]:
+def stream_blocks(
+    segments: List[Tuple[int, int]], block_frames: int, overlap: int = 4
+) -> List[Block]:
     """Blocks of at most ``block_frames`` kept frames covering every segment
     (a segment is split into equal parts), each read with up to ``overlap``
     frames more on either side within its segment."""

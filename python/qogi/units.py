@@ -24,28 +24,56 @@ import numpy as np
 
 from .errors import UsageError
 
-__all__ = ["UNITS", "STANDARD_CONDITIONS", "R_GAS", "convert", "parse_unit", "is_volumetric",
-           "kg_s_to_slpm", "standard_conditions_text", "unit_slug"]
+__all__ = [
+    "UNITS",
+    "STANDARD_CONDITIONS",
+    "R_GAS",
+    "convert",
+    "parse_unit",
+    "is_volumetric",
+    "kg_s_to_slpm",
+    "standard_conditions_text",
+    "unit_slug",
+]
 
 #: Standard conditions of the volumetric units: 20 C and 1 atm.
 STANDARD_CONDITIONS = {"temperature_K": 293.15, "pressure_Pa": 101325.0}
 #: Molar gas constant [J/(mol K)] (CODATA 2018, exact).
 R_GAS = 8.314462618
 #: One cubic foot [m3] (exact: 0.3048^3).
-CUBIC_FOOT_M3 = 0.3048 ** 3
+CUBIC_FOOT_M3 = 0.3048**3
 HOURS_PER_YEAR = 8760.0
 
 # Mass units: factor from kg/h. Volumetric units: factor from m3/h at standard conditions.
-_MASS = {"kg/h": 1.0, "g/h": 1000.0, "kg/s": 1.0 / 3600.0, "kg/day": 24.0,
-         "t/year": HOURS_PER_YEAR / 1000.0}
-_VOLUME = {"SLPM": 1000.0 / 60.0, "scfh": 1.0 / CUBIC_FOOT_M3,
-           "mcf/day": 24.0 / CUBIC_FOOT_M3 / 1000.0}
+_MASS = {
+    "kg/h": 1.0,
+    "g/h": 1000.0,
+    "kg/s": 1.0 / 3600.0,
+    "kg/day": 24.0,
+    "t/year": HOURS_PER_YEAR / 1000.0,
+}
+_VOLUME = {
+    "SLPM": 1000.0 / 60.0,
+    "scfh": 1.0 / CUBIC_FOOT_M3,
+    "mcf/day": 24.0 / CUBIC_FOOT_M3 / 1000.0,
+}
 #: The units :func:`convert` accepts (canonical spellings).
 UNITS = tuple(_MASS) + tuple(_VOLUME)
 _ALIASES = {u.lower(): u for u in UNITS}
-_ALIASES.update({"kg/d": "kg/day", "t/y": "t/year", "t/yr": "t/year", "tpy": "t/year",
-                 "l/min": "SLPM", "slm": "SLPM", "scf/h": "scfh", "mscf/d": "mcf/day",
-                 "mcf/d": "mcf/day", "mcfd": "mcf/day"})
+_ALIASES.update(
+    {
+        "kg/d": "kg/day",
+        "t/y": "t/year",
+        "t/yr": "t/year",
+        "tpy": "t/year",
+        "l/min": "SLPM",
+        "slm": "SLPM",
+        "scf/h": "scfh",
+        "mscf/d": "mcf/day",
+        "mcf/d": "mcf/day",
+        "mcfd": "mcf/day",
+    }
+)
 
 
 def parse_unit(text: str) -> str:
@@ -68,8 +96,12 @@ def unit_slug(unit: str) -> str:
     return parse_unit(unit).replace("/", "_")
 
 
-def convert(rate_kg_h, unit: str, molar_mass_kg_mol: Optional[float] = None,
-            standard: Optional[Dict[str, float]] = None) -> Union[float, np.ndarray]:
+def convert(
+    rate_kg_h,
+    unit: str,
+    molar_mass_kg_mol: Optional[float] = None,
+    standard: Optional[Dict[str, float]] = None,
+) -> Union[float, np.ndarray]:
     """A mass rate [kg/h] (scalar or array; NaN passes through) in ``unit``.
 
     Volumetric units need the species' molar mass [kg/mol]; ``standard``
@@ -81,8 +113,9 @@ def convert(rate_kg_h, unit: str, molar_mass_kg_mol: Optional[float] = None,
         out = x * _MASS[u]
     else:
         if molar_mass_kg_mol is None or not molar_mass_kg_mol > 0:
-            raise UsageError(f"{u} is a gas volume: it needs the species' molar mass; got "
-                             f"{molar_mass_kg_mol!r}")
+            raise UsageError(
+                f"{u} is a gas volume: it needs the species' molar mass; got {molar_mass_kg_mol!r}"
+            )
         st = standard or STANDARD_CONDITIONS
         m3_per_kg = R_GAS * st["temperature_K"] / (molar_mass_kg_mol * st["pressure_Pa"])
         out = x * m3_per_kg * _VOLUME[u]
@@ -91,8 +124,9 @@ def convert(rate_kg_h, unit: str, molar_mass_kg_mol: Optional[float] = None,
     return out
 
 
-def kg_s_to_slpm(rate_kg_s: float, molar_mass_kg_mol: float,
-                 standard: Optional[Dict[str, float]] = None) -> float:
+def kg_s_to_slpm(
+    rate_kg_s: float, molar_mass_kg_mol: float, standard: Optional[Dict[str, float]] = None
+) -> float:
     """Mass rate [kg/s] to standard litres per minute at ``standard`` conditions."""
     return float(convert(rate_kg_s * 3600.0, "SLPM", molar_mass_kg_mol, standard))
 
@@ -101,5 +135,7 @@ def standard_conditions_text(standard: Optional[Dict[str, float]] = None) -> str
     """``"20 C (68 F), 101325 Pa (14.696 psia)"`` for the given conditions."""
     st = standard or STANDARD_CONDITIONS
     c = st["temperature_K"] - 273.15
-    return (f"{c:.4g} C ({c * 9 / 5 + 32:.4g} F), {st['pressure_Pa']:.6g} Pa "
-            f"({st['pressure_Pa'] / 6894.757293168:.5g} psia), ideal gas")
+    return (
+        f"{c:.4g} C ({c * 9 / 5 + 32:.4g} F), {st['pressure_Pa']:.6g} Pa "
+        f"({st['pressure_Pa'] / 6894.757293168:.5g} psia), ideal gas"
+    )

@@ -57,7 +57,7 @@ Post-processing (pure functions returning new arrays and masks):
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Iterable, Optional, Sequence, Tuple, Union, overload
+from typing import Callable, Optional, Sequence, Tuple, Union, overload
 
 import numpy as np
 
@@ -192,8 +192,9 @@ class Flow:
         """|(u, v)| [px/frame]."""
         return np.hypot(self.u, self.v)
 
-    def in_metres_per_second(self, distance_m: float, ifov_rad: float,
-                             frame_rate_hz: float) -> tuple[np.ndarray, np.ndarray]:
+    def in_metres_per_second(
+        self, distance_m: float, ifov_rad: float, frame_rate_hz: float
+    ) -> tuple[np.ndarray, np.ndarray]:
         """(u, v) in m/s; see :func:`to_metres_per_second`."""
         k = metres_per_second_per_pixel_per_frame(distance_m, ifov_rad, frame_rate_hz)
         return self.u * k, self.v * k
@@ -219,8 +220,10 @@ class FlowEstimator:
         if options is None:
             options = METHODS[method]()
         elif not isinstance(options, METHODS[method]):
-            raise TypeError(f"options for method {method!r} must be "
-                            f"{METHODS[method].__name__}; got {type(options).__name__}")
+            raise TypeError(
+                f"options for method {method!r} must be "
+                f"{METHODS[method].__name__}; got {type(options).__name__}"
+            )
         self.method = method
         self.options = options
         self._impl = _engine.FlowEstimator(options)
@@ -240,8 +243,13 @@ class FlowEstimator:
         self._impl.set_source_mask(np.ascontiguousarray(arr != 0, dtype=np.uint8))
         self._source_shape = arr.shape
 
-    def calc(self, prev: ArrayLike, next: ArrayLike, mask: Optional[ArrayLike] = None,
-             flow: Optional[Union[Flow, tuple]] = None) -> Flow:
+    def calc(
+        self,
+        prev: ArrayLike,
+        next: ArrayLike,
+        mask: Optional[ArrayLike] = None,
+        flow: Optional[Union[Flow, tuple]] = None,
+    ) -> Flow:
         """Displacement from ``prev`` to ``next``.
 
         Parameters
@@ -269,16 +277,23 @@ class FlowEstimator:
             u0 = np.ascontiguousarray(u0, dtype=np.float32)
             v0 = np.ascontiguousarray(v0, dtype=np.float32)
             if u0.shape != p.shape or v0.shape != p.shape:
-                raise ValueError(f"the warm-start flow must have the frames' shape {p.shape}; "
-                                 f"got {u0.shape} and {v0.shape}")
+                raise ValueError(
+                    f"the warm-start flow must have the frames' shape {p.shape}; "
+                    f"got {u0.shape} and {v0.shape}"
+                )
         u, v, q, valid, ratio = self._impl.calc(p, n, m, u0, v0)
         return Flow(u, v, q, valid.astype(bool), float(ratio), self.method)
 
 
-def optical_flow(prev: ArrayLike, next: ArrayLike, method: str = DEFAULT_METHOD,
-                 options=None, mask: Optional[ArrayLike] = None,
-                 flow: Optional[Union[Flow, tuple]] = None,
-                 source_mask: Optional[ArrayLike] = None) -> Flow:
+def optical_flow(
+    prev: ArrayLike,
+    next: ArrayLike,
+    method: str = DEFAULT_METHOD,
+    options=None,
+    mask: Optional[ArrayLike] = None,
+    flow: Optional[Union[Flow, tuple]] = None,
+    source_mask: Optional[ArrayLike] = None,
+) -> Flow:
     """Displacement [px/frame] of the gas from ``prev`` to ``next``.
 
     Parameters
@@ -336,16 +351,26 @@ class FlowSequence:
         return self.u.shape[0]
 
     def __getitem__(self, k: int) -> Flow:
-        return Flow(self.u[k], self.v[k], self.quality[k], self.valid[k],
-                    float(self.residual_ratio[k]), self.method)
+        return Flow(
+            self.u[k],
+            self.v[k],
+            self.quality[k],
+            self.valid[k],
+            float(self.residual_ratio[k]),
+            self.method,
+        )
 
 
-def optical_flow_sequence(frames: ArrayLike, method: str = DEFAULT_METHOD, options=None,
-                          masks: Optional[ArrayLike] = None,
-                          source_mask: Optional[ArrayLike] = None, warm_start: bool = True,
-                          workers: int = 1,
-                          progress: Optional[Callable[[float], Optional[bool]]] = None
-                          ) -> FlowSequence:
+def optical_flow_sequence(
+    frames: ArrayLike,
+    method: str = DEFAULT_METHOD,
+    options=None,
+    masks: Optional[ArrayLike] = None,
+    source_mask: Optional[ArrayLike] = None,
+    warm_start: bool = True,
+    workers: int = 1,
+    progress: Optional[Callable[[float], Optional[bool]]] = None,
+) -> FlowSequence:
     """Displacements of every consecutive pair of a frame stack.
 
     Each pair starts from the previous pair's result (``warm_start``), which
@@ -388,8 +413,9 @@ def optical_flow_sequence(frames: ArrayLike, method: str = DEFAULT_METHOD, optio
         if mask_stack.shape == (H, W):
             mask_stack = np.broadcast_to(mask_stack, (T, H, W))
         elif mask_stack.shape != (T, H, W):
-            raise ValueError(f"masks must have shape {(T, H, W)} or {(H, W)}; "
-                             f"got {mask_stack.shape}")
+            raise ValueError(
+                f"masks must have shape {(T, H, W)} or {(H, W)}; got {mask_stack.shape}"
+            )
     if workers < 0:
         raise ValueError(f"workers must be >= 0 (0 = one per core); got {workers}")
     n_pairs = T - 1
@@ -419,7 +445,12 @@ def optical_flow_sequence(frames: ArrayLike, method: str = DEFAULT_METHOD, optio
             if k < first:
                 continue
             out_u[k], out_v[k], out_q[k], out_valid[k], ratio[k] = (
-                f.u, f.v, f.quality, f.valid, f.residual_ratio)
+                f.u,
+                f.v,
+                f.quality,
+                f.valid,
+                f.residual_ratio,
+            )
             done[0] += 1
             if workers == 1 and progress is not None and progress(done[0] / n_pairs) is False:
                 cancelled[0] = True
@@ -428,6 +459,7 @@ def optical_flow_sequence(frames: ArrayLike, method: str = DEFAULT_METHOD, optio
         run(0)
     else:
         import concurrent.futures as cf
+
         threads = get_num_threads()
         set_num_threads(1)  # one engine thread per chunk
         try:
@@ -436,8 +468,11 @@ def optical_flow_sequence(frames: ArrayLike, method: str = DEFAULT_METHOD, optio
                 try:
                     while not all(f.done() for f in futures):
                         cf.wait(futures, timeout=0.1)
-                        if progress is not None and not cancelled[0] and \
-                                progress(done[0] / n_pairs) is False:
+                        if (
+                            progress is not None
+                            and not cancelled[0]
+                            and progress(done[0] / n_pairs) is False
+                        ):
                             cancelled[0] = True
                 except BaseException:  # Ctrl-C: let the workers stop early
                     cancelled[0] = True
@@ -448,6 +483,7 @@ def optical_flow_sequence(frames: ArrayLike, method: str = DEFAULT_METHOD, optio
             set_num_threads(threads)
     if cancelled[0]:
         from .errors import Cancelled
+
         raise Cancelled("optical_flow_sequence cancelled by the progress callback")
     return FlowSequence(out_u, out_v, out_q, out_valid, ratio, method)
 
@@ -456,8 +492,9 @@ def optical_flow_sequence(frames: ArrayLike, method: str = DEFAULT_METHOD, optio
 WARM_UP_PAIRS = 2
 
 
-def metres_per_second_per_pixel_per_frame(distance_m: float, ifov_rad: float,
-                                          frame_rate_hz: float) -> float:
+def metres_per_second_per_pixel_per_frame(
+    distance_m: float, ifov_rad: float, frame_rate_hz: float
+) -> float:
     """Factor from px/frame to m/s: ``distance_m * ifov_rad * frame_rate_hz``.
 
     One pixel spans ``distance_m * ifov_rad`` metres in the plume plane
@@ -466,12 +503,14 @@ def metres_per_second_per_pixel_per_frame(distance_m: float, ifov_rad: float,
     return _engine.metres_per_second_per_pixel_per_frame(distance_m, ifov_rad, frame_rate_hz)
 
 
-def to_metres_per_second(displacement, distance_m: float, ifov_rad: float,
-                         frame_rate_hz: float):
+def to_metres_per_second(displacement, distance_m: float, ifov_rad: float, frame_rate_hz: float):
     """Displacement [px/frame] (array or scalar) to speed [m/s]."""
     k = metres_per_second_per_pixel_per_frame(distance_m, ifov_rad, frame_rate_hz)
-    return np.asarray(displacement, dtype=float) * k if np.ndim(displacement) else \
-        float(displacement) * k
+    return (
+        np.asarray(displacement, dtype=float) * k
+        if np.ndim(displacement)
+        else float(displacement) * k
+    )
 
 
 def _field(a, name: str) -> np.ndarray:
@@ -481,9 +520,14 @@ def _field(a, name: str) -> np.ndarray:
     return np.ascontiguousarray(arr, dtype=np.float32)
 
 
-def normalised_median_test(u: ArrayLike, v: ArrayLike, valid: Optional[ArrayLike] = None,
-                           threshold: float = 2.0, epsilon: float = 0.1,
-                           radius: int = 1) -> np.ndarray:
+def normalised_median_test(
+    u: ArrayLike,
+    v: ArrayLike,
+    valid: Optional[ArrayLike] = None,
+    threshold: float = 2.0,
+    epsilon: float = 0.1,
+    radius: int = 1,
+) -> np.ndarray:
     """Outliers by the normalised median test (Westerweel & Scarano 2005).
 
     For each valid vector, ``|u0 - um| / (rm + epsilon) > threshold`` for u
@@ -510,8 +554,9 @@ def normalised_median_test(u: ArrayLike, v: ArrayLike, valid: Optional[ArrayLike
     return _engine.normalised_median_test(uu, vv, k, opts).astype(bool)
 
 
-def replace_vectors(u: ArrayLike, v: ArrayLike, keep: ArrayLike,
-                    max_distance: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def replace_vectors(
+    u: ArrayLike, v: ArrayLike, keep: ArrayLike, max_distance: int = 0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Replace the vectors not kept by the median of their kept neighbours.
 
     Grows inwards from the kept vectors, at most ``max_distance`` vectors
@@ -524,13 +569,15 @@ def replace_vectors(u: ArrayLike, v: ArrayLike, keep: ArrayLike,
     uu, vv = _field(u, "u"), _field(v, "v")
     if max_distance < 0:
         raise ValueError(f"max_distance must be >= 0 (0 = no limit); got {max_distance}")
-    ru, rv, filled = _engine.replace_vectors(uu, vv, _mask(keep, "keep", uu.shape),
-                                             int(max_distance))
+    ru, rv, filled = _engine.replace_vectors(
+        uu, vv, _mask(keep, "keep", uu.shape), int(max_distance)
+    )
     return ru, rv, filled.astype(bool)
 
 
-def validate(flow: Flow, threshold: float = 2.0, epsilon: float = 0.1, radius: int = 1,
-             max_distance: int = 3) -> tuple[Flow, np.ndarray]:
+def validate(
+    flow: Flow, threshold: float = 2.0, epsilon: float = 0.1, radius: int = 1, max_distance: int = 3
+) -> tuple[Flow, np.ndarray]:
     """Median test, then replacement of the outliers.
 
     Returns a new Flow whose outliers are replaced (within ``max_distance``
@@ -545,8 +592,14 @@ def validate(flow: Flow, threshold: float = 2.0, epsilon: float = 0.1, radius: i
     return Flow(u, v, flow.quality.copy(), keep, flow.residual_ratio, flow.method), out
 
 
-def temporal_filter(u, v=None, valid=None, window: int = 5, statistic: str = "median",
-                    min_valid_fraction: float = 0.5):
+def temporal_filter(
+    u,
+    v=None,
+    valid=None,
+    window: int = 5,
+    statistic: str = "median",
+    min_valid_fraction: float = 0.5,
+):
     """Filter vector fields over time, pixel by pixel.
 
     Vector t becomes the mean or median of the valid vectors at that pixel in
@@ -571,28 +624,36 @@ def temporal_filter(u, v=None, valid=None, window: int = 5, statistic: str = "me
     uu = np.ascontiguousarray(u, dtype=np.float32)
     vv = np.ascontiguousarray(v, dtype=np.float32)
     if uu.ndim != 3 or vv.shape != uu.shape:
-        raise ValueError(f"u and v must be (T, H, W) stacks of one shape; got {uu.shape} "
-                         f"and {vv.shape}")
-    kk = (np.ones(uu.shape, np.uint8) if valid is None
-          else np.ascontiguousarray(np.asarray(valid) != 0, dtype=np.uint8))
+        raise ValueError(
+            f"u and v must be (T, H, W) stacks of one shape; got {uu.shape} and {vv.shape}"
+        )
+    kk = (
+        np.ones(uu.shape, np.uint8)
+        if valid is None
+        else np.ascontiguousarray(np.asarray(valid) != 0, dtype=np.uint8)
+    )
     if kk.shape != uu.shape:
         raise ValueError(f"valid must have shape {uu.shape}; got {kk.shape}")
     try:
-        stat = {"median": _engine.TemporalStatistic.median,
-                "mean": _engine.TemporalStatistic.mean}[statistic]
+        stat = {"median": _engine.TemporalStatistic.median, "mean": _engine.TemporalStatistic.mean}[
+            statistic
+        ]
     except KeyError:
         raise ValueError(f"statistic must be 'median' or 'mean'; got {statistic!r}") from None
-    opts = TemporalFilterOptions(window=window, statistic=stat,
-                                 min_valid_fraction=min_valid_fraction)
+    opts = TemporalFilterOptions(
+        window=window, statistic=stat, min_valid_fraction=min_valid_fraction
+    )
     fu, fv, fk = _engine.temporal_filter(uu, vv, kk, opts)
     if seq is not None:
-        return FlowSequence(fu, fv, seq.quality.copy(), fk.astype(bool),
-                            seq.residual_ratio.copy(), seq.method)
+        return FlowSequence(
+            fu, fv, seq.quality.copy(), fk.astype(bool), seq.residual_ratio.copy(), seq.method
+        )
     return fu, fv, fk.astype(bool)
 
 
-def invert_displacement(u: ArrayLike, v: ArrayLike, iterations: int = 10
-                        ) -> tuple[np.ndarray, np.ndarray]:
+def invert_displacement(
+    u: ArrayLike, v: ArrayLike, iterations: int = 10
+) -> tuple[np.ndarray, np.ndarray]:
     """Backward displacement of a forward map ``x -> x + w(x)``.
 
     Returns ``b`` with ``y + w(y) = x`` for ``y = x + b(x)``, by the fixed-point
@@ -649,10 +710,11 @@ def frame_velocity(u, v=None) -> tuple[np.ndarray, np.ndarray]:
     uu = np.ascontiguousarray(u, dtype=np.float32)
     vv = np.ascontiguousarray(v, dtype=np.float32)
     if uu.ndim != 3 or vv.shape != uu.shape or uu.shape[0] < 1:
-        raise ValueError(f"u and v must be (T-1, H, W) stacks of one shape with T-1 >= 1; "
-                         f"got {uu.shape} and {vv.shape}")
+        raise ValueError(
+            f"u and v must be (T-1, H, W) stacks of one shape with T-1 >= 1; "
+            f"got {uu.shape} and {vv.shape}"
+        )
     return _engine.frame_velocity(uu, vv)
-
 
 
 # -- flux level from the transport of the line-integrated column -------------
@@ -663,8 +725,10 @@ AXES = ("up", "down", "left", "right")
 
 def _check_axis(axis: str) -> None:
     if axis not in AXES:
-        raise ValueError(f"axis must be one of {AXES} (the direction the plume leaves the "
-                         f"source in the image); got {axis!r}")
+        raise ValueError(
+            f"axis must be one of {AXES} (the direction the plume leaves the "
+            f"source in the image); got {axis!r}"
+        )
 
 
 @dataclass
@@ -699,17 +763,25 @@ class TransportFlux:
     displacement: np.ndarray
     axis: str
 
-    def lines(self, sl: slice, scale: float = 1.0) -> "TransportFlux":
+    def lines(self, sl: slice, scale: float = 1.0) -> TransportFlux:
         """The lines ``sl`` (rows for "up"/"down", columns otherwise) of this
         result, its flux and line column multiplied by ``scale`` (e.g. to the
         units of a rescaled field); velocities and displacements unchanged."""
-        return TransportFlux(self.flux[sl] * scale, self.line_column[sl] * scale,
-                             self.velocity[sl], self.displacement[sl], self.axis)
+        return TransportFlux(
+            self.flux[sl] * scale,
+            self.line_column[sl] * scale,
+            self.velocity[sl],
+            self.displacement[sl],
+            self.axis,
+        )
 
 
-def transport_flux(frames: ArrayLike, axis: str = "up",
-                   source_index: Optional[float] = None,
-                   intervals: Optional[ArrayLike] = None) -> TransportFlux:
+def transport_flux(
+    frames: ArrayLike,
+    axis: str = "up",
+    source_index: Optional[float] = None,
+    intervals: Optional[ArrayLike] = None,
+) -> TransportFlux:
     """Time-averaged flux of a plume along an image axis, from the transport
     of its line-integrated column (time of flight of its structures).
 
@@ -767,11 +839,11 @@ def transport_flux(frames: ArrayLike, axis: str = "up",
     T = stack.shape[0]
     r = None if intervals is None else np.asarray(intervals, dtype=float)
     if r is not None and (r.shape != (T - 1,) or not np.all(np.isfinite(r) & (r > 0))):
-        raise ValueError(f"intervals must be {T - 1} positive frame intervals; got shape "
-                         f"{r.shape}")
+        raise ValueError(f"intervals must be {T - 1} positive frame intervals; got shape {r.shape}")
     # The engine checks source_index (a row or column inside the frame).
     flux, line_column, velocity, displacement = _engine.transport_flux(
-        stack, axis, None if source_index is None else float(source_index), r)
+        stack, axis, None if source_index is None else float(source_index), r
+    )
     return TransportFlux(flux, line_column, velocity, displacement, axis)
 
 
@@ -794,8 +866,9 @@ def typical_displacement(frames: ArrayLike, axis: str = "up", max_px: int = 16) 
     return float(_engine.typical_displacement(np.ascontiguousarray(stack), axis, int(max_px)))
 
 
-def interpolate_frame_velocity(u: np.ndarray, v: np.ndarray, stride: int,
-                               frames: int) -> tuple[np.ndarray, np.ndarray]:
+def interpolate_frame_velocity(
+    u: np.ndarray, v: np.ndarray, stride: int, frames: int
+) -> tuple[np.ndarray, np.ndarray]:
     """Velocity [px/frame] at every one of ``frames`` frames from the velocity
     at every ``stride``-th (``u``, ``v``: (ceil(frames / stride), H, W) in px
     per ``stride`` frames, e.g. :func:`frame_velocity` of the sequence of
@@ -805,8 +878,10 @@ def interpolate_frame_velocity(u: np.ndarray, v: np.ndarray, stride: int,
         raise ValueError(f"stride must be >= 1; got {stride}")
     n = u.shape[0]
     if v.shape != u.shape or n != -(-frames // stride):
-        raise ValueError(f"u and v must hold ceil({frames} / {stride}) = {-(-frames // stride)} "
-                         f"frames of one shape; got {u.shape} and {v.shape}")
+        raise ValueError(
+            f"u and v must hold ceil({frames} / {stride}) = {-(-frames // stride)} "
+            f"frames of one shape; got {u.shape} and {v.shape}"
+        )
     inv = np.float32(1.0 / stride)
     out = []
     for src in (u, v):
@@ -823,12 +898,17 @@ def interpolate_frame_velocity(u: np.ndarray, v: np.ndarray, stride: int,
     return out[0], out[1]
 
 
-def calibrate_flux_level(seq: FlowSequence, frames: ArrayLike, axis: str = "up",
-                         source_index: Optional[float] = None, smooth_px: float = 2.0,
-                         min_fraction: float = 0.05, max_factor: float = 2.5,
-                         transport: Optional[TransportFlux] = None,
-                         frame_velocities: Optional[tuple] = None
-                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def calibrate_flux_level(
+    seq: FlowSequence,
+    frames: ArrayLike,
+    axis: str = "up",
+    source_index: Optional[float] = None,
+    smooth_px: float = 2.0,
+    min_fraction: float = 0.05,
+    max_factor: float = 2.5,
+    transport: Optional[TransportFlux] = None,
+    frame_velocities: Optional[tuple] = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Velocity at each frame time (:func:`frame_velocity`), rescaled line by
     line so that its time-averaged flux along ``axis`` equals the transport
     flux of the frames (:func:`transport_flux`).
@@ -899,12 +979,16 @@ def calibrate_flux_level(seq: FlowSequence, frames: ArrayLike, axis: str = "up",
     if frame_velocities is not None:
         fu, fv = frame_velocities
         if stack.ndim != 3 or fu.shape != stack.shape or fv.shape != stack.shape:
-            raise ValueError(f"frame_velocities must be two arrays of the frames' shape "
-                             f"{stack.shape}; got {np.shape(fu)} and {np.shape(fv)}")
+            raise ValueError(
+                f"frame_velocities must be two arrays of the frames' shape "
+                f"{stack.shape}; got {np.shape(fu)} and {np.shape(fv)}"
+            )
     elif stack.ndim != 3 or seq.u.shape != (T - 1,) + stack.shape[1:]:
-        raise ValueError(f"frames must be the (T, H, W) stack of the sequence's T - 1 = "
-                         f"{seq.u.shape[0]} pairs of {seq.u.shape[1:]} frames; got shape "
-                         f"{stack.shape}")
+        raise ValueError(
+            f"frames must be the (T, H, W) stack of the sequence's T - 1 = "
+            f"{seq.u.shape[0]} pairs of {seq.u.shape[1:]} frames; got shape "
+            f"{stack.shape}"
+        )
     if not smooth_px >= 0:
         raise ValueError(f"smooth_px must be >= 0; got {smooth_px}")
     if not 0 < min_fraction < 1:
@@ -914,18 +998,26 @@ def calibrate_flux_level(seq: FlowSequence, frames: ArrayLike, axis: str = "up",
     else:
         n_lines = stack.shape[1] if axis in ("up", "down") else stack.shape[2]
         if transport.axis != axis or len(transport.flux) != n_lines:
-            raise ValueError(f"transport must be along {axis!r} with one value per line of the "
-                             f"frames ({n_lines}); got {transport.axis!r} with "
-                             f"{len(transport.flux)}")
+            raise ValueError(
+                f"transport must be along {axis!r} with one value per line of the "
+                f"frames ({n_lines}); got {transport.axis!r} with "
+                f"{len(transport.flux)}"
+            )
         tf = transport
     if not max_factor > 1:
         raise ValueError(f"max_factor must be > 1; got {max_factor}")
     if frame_velocities is None:
         fu, fv = frame_velocity(seq)
     scale, flow_used = _engine.flux_level_scale(
-        np.ascontiguousarray(stack), np.ascontiguousarray(fu, dtype=np.float32),
-        np.ascontiguousarray(fv, dtype=np.float32), np.asarray(tf.flux, dtype=float), axis,
-        float(smooth_px), float(min_fraction), float(max_factor))
+        np.ascontiguousarray(stack),
+        np.ascontiguousarray(fu, dtype=np.float32),
+        np.ascontiguousarray(fv, dtype=np.float32),
+        np.asarray(tf.flux, dtype=float),
+        axis,
+        float(smooth_px),
+        float(min_fraction),
+        float(max_factor),
+    )
     if not flow_used:
         return _transport_velocity(tf, stack.shape) + (scale,)
     s = scale.reshape((1, -1, 1) if axis in ("up", "down") else (1, 1, -1))
@@ -939,18 +1031,28 @@ def _transport_velocity(tf: TransportFlux, shape: tuple) -> tuple[np.ndarray, np
     transport velocity along the axis (extended to lines without one from the
     nearest line that has one), the same at every pixel of the line and frame."""
     T, H, W = shape
-    return _engine.transport_velocity(np.asarray(tf.velocity, dtype=float),
-                                      np.asarray(tf.line_column, dtype=float), tf.axis, T, H, W)
+    return _engine.transport_velocity(
+        np.asarray(tf.velocity, dtype=float),
+        np.asarray(tf.line_column, dtype=float),
+        tf.axis,
+        T,
+        H,
+        W,
+    )
 
 
-def plume_frame_velocity(frames: ArrayLike, axis: str = "up",
-                         source_index: Optional[float] = None,
-                         method: str = DEFAULT_METHOD, options=None,
-                         masks: Optional[ArrayLike] = None,
-                         source_mask: Optional[ArrayLike] = None, flux_level: bool = True,
-                         workers: int = 1,
-                         progress: Optional[Callable[[float], Optional[bool]]] = None
-                         ) -> tuple[np.ndarray, np.ndarray]:
+def plume_frame_velocity(
+    frames: ArrayLike,
+    axis: str = "up",
+    source_index: Optional[float] = None,
+    method: str = DEFAULT_METHOD,
+    options=None,
+    masks: Optional[ArrayLike] = None,
+    source_mask: Optional[ArrayLike] = None,
+    flux_level: bool = True,
+    workers: int = 1,
+    progress: Optional[Callable[[float], Optional[bool]]] = None,
+) -> tuple[np.ndarray, np.ndarray]:
     """Velocity of a plume at each frame time, for the flux through a surface.
 
     The recommended chain on a recording's column-density frames:
@@ -978,18 +1080,31 @@ def plume_frame_velocity(frames: ArrayLike, axis: str = "up",
     -------
     (u, v) : ndarray (T, H, W) float32, px/frame
     """
-    seq = optical_flow_sequence(frames, method=method, options=options, masks=masks,
-                                source_mask=source_mask, warm_start=True, workers=workers,
-                                progress=progress)
+    seq = optical_flow_sequence(
+        frames,
+        method=method,
+        options=options,
+        masks=masks,
+        source_mask=source_mask,
+        warm_start=True,
+        workers=workers,
+        progress=progress,
+    )
     if not flux_level:
         return frame_velocity(seq)
     u, v, _ = calibrate_flux_level(seq, frames, axis, source_index)
     return u, v
 
 
-def plume_mask(density: ArrayLike, threshold: float = 0.0, relative_threshold: float = 0.1,
-               open_radius: int = 1, close_radius: int = 2, min_area: int = 20,
-               dilate_radius: int = 2) -> np.ndarray:
+def plume_mask(
+    density: ArrayLike,
+    threshold: float = 0.0,
+    relative_threshold: float = 0.1,
+    open_radius: int = 1,
+    close_radius: int = 2,
+    min_area: int = 20,
+    dilate_radius: int = 2,
+) -> np.ndarray:
     """Gas mask of a column-density (or contrast) map.
 
     Gas where ``density >= max(threshold, relative_threshold * p99)`` (p99 the
@@ -1002,9 +1117,14 @@ def plume_mask(density: ArrayLike, threshold: float = 0.0, relative_threshold: f
     ndarray (H, W) bool
     """
     d = _frame(density, "density")
-    opts = PlumeMaskOptions(threshold=threshold, relative_threshold=relative_threshold,
-                            open_radius=open_radius, close_radius=close_radius,
-                            min_area=min_area, dilate_radius=dilate_radius)
+    opts = PlumeMaskOptions(
+        threshold=threshold,
+        relative_threshold=relative_threshold,
+        open_radius=open_radius,
+        close_radius=close_radius,
+        min_area=min_area,
+        dilate_radius=dilate_radius,
+    )
     return _engine.plume_mask(d, opts).astype(bool)
 
 
@@ -1013,8 +1133,14 @@ def restrict_to_mask(flow: Flow, mask: ArrayLike) -> Flow:
     m = np.asarray(mask, dtype=bool)
     if m.shape != flow.valid.shape:
         raise ValueError(f"mask must have the flow's shape {flow.valid.shape}; got {m.shape}")
-    return Flow(flow.u.copy(), flow.v.copy(), flow.quality.copy(), flow.valid & m,
-                flow.residual_ratio, flow.method)
+    return Flow(
+        flow.u.copy(),
+        flow.v.copy(),
+        flow.quality.copy(),
+        flow.valid & m,
+        flow.residual_ratio,
+        flow.method,
+    )
 
 
 def set_num_threads(num_threads: int) -> None:

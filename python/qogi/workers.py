@@ -83,7 +83,7 @@ class Workers:
         def run() -> None:
             try:
                 task._value = fn()
-            except BaseException as e:  # re-raised by Task.result on the caller's thread
+            except BaseException as e:  # noqa: BLE001 - re-raised by Task.result on the caller's thread
                 task._error = e
             finally:
                 task._done.set()
@@ -109,7 +109,7 @@ class Workers:
             raise interrupted
 
 
-_current: "contextvars.ContextVar[Workers]" = contextvars.ContextVar("qogi_run_workers")
+_current: contextvars.ContextVar[Workers] = contextvars.ContextVar("qogi_run_workers")
 
 
 def current() -> Workers:

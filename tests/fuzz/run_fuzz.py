@@ -23,14 +23,13 @@ sys.path.insert(0, str(HERE.parent / "python"))
 os.environ["QOGI_FUZZ_KEEP"] = "1"  # findings go to tests/data/fuzz/crashes
 
 import atheris  # noqa: E402
-
 import h5py  # noqa: F401,E402  (libraries: not instrumented)
 import numpy  # noqa: F401,E402
 
 with atheris.instrument_imports(include=["qogi"]):
-    import qogi  # noqa: F401,E402
-    import qogi.io.flir  # noqa: F401,E402
-    import qogi.recording  # noqa: F401,E402
+    import qogi
+    import qogi.io.flir
+    import qogi.recording  # noqa: F401
 
 from fuzz_targets import SEEDS, read_flir_bytes, read_recording_bytes  # noqa: E402
 
@@ -46,23 +45,31 @@ def main() -> None:
         shutil.copy(p, corpus / p.name)
 
     if target == "flir":
+
         def one(data: bytes) -> None:
             # The first byte picks the file name's suffix (the reader's kind).
             if data:
                 read_flir_bytes(data[1:], SUFFIXES[data[0] % len(SUFFIXES)], folder=scratch)
+
         # Seeds get a suffix byte in front.
         for p in corpus.iterdir():
             k = SUFFIXES.index(p.suffix) if p.suffix in SUFFIXES else 0
             p.write_bytes(bytes([k]) + p.read_bytes())
     elif target == "recording":
+
         def one(data: bytes) -> None:
             read_recording_bytes(data, folder=scratch)
     else:
         raise SystemExit(f"unknown target {target!r}: flir or recording")
 
-    argv = [sys.argv[0], str(corpus), "-timeout=10", "-rss_limit_mb=4096",
-            f"-artifact_prefix={scratch}/",
-            "-print_final_stats=1"] + sys.argv[2:]
+    argv = [
+        sys.argv[0],
+        str(corpus),
+        "-timeout=10",
+        "-rss_limit_mb=4096",
+        f"-artifact_prefix={scratch}/",
+        "-print_final_stats=1",
+    ] + sys.argv[2:]
     try:
         atheris.Setup(argv, one)
         atheris.Fuzz()

@@ -12,8 +12,10 @@ W, H, T, RATE_HZ = 32, 24, 8, 10.0
 
 
 def channels():
-    return [qogi.SpectralResponse([2941.18, 3125.0], [1.0, 1.0], name="3.2-3.4 um"),
-            qogi.SpectralResponse([2000.0, 2200.0], [1.0, 1.0], name="4.5-5.0 um")]
+    return [
+        qogi.SpectralResponse([2941.18, 3125.0], [1.0, 1.0], name="3.2-3.4 um"),
+        qogi.SpectralResponse([2000.0, 2200.0], [1.0, 1.0], name="4.5-5.0 um"),
+    ]
 
 
 def temperature_field(n_frames=T, height=H, width=W):
@@ -32,11 +34,18 @@ def make_recording(n_channels=2, species=("CH4",), truth_kg_s=None, n_frames=T, 
     if nan:
         frames[3, 0, 5, 7] = np.nan
     cam = qogi.Camera("test camera", 1e-3, chs, frame_rate_hz=RATE_HZ, netd_K=0.02)
-    scene = qogi.Scene(distance_m=3.0, ambient_temperature_K=288.0, pressure_Pa=101325.0,
-                       species=tuple(species))
+    scene = qogi.Scene(
+        distance_m=3.0, ambient_temperature_K=288.0, pressure_Pa=101325.0, species=tuple(species)
+    )
     truth = qogi.Truth({"CH4": truth_kg_s}) if truth_kg_s else None
-    return qogi.Recording.from_arrays(frames, quantity="radiance", camera=cam, scene=scene,
-                                      truth=truth, nonfinite="invalid" if nan else "error")
+    return qogi.Recording.from_arrays(
+        frames,
+        quantity="radiance",
+        camera=cam,
+        scene=scene,
+        truth=truth,
+        nonfinite="invalid" if nan else "error",
+    )
 
 
 @pytest.fixture

@@ -6,14 +6,13 @@ form's bounds are the pipeline's, and the Results tab shows every budget term
 from __future__ import annotations
 
 import pytest
+from test_viewmodel import Clock, Instrumented, run_to_end
 
 import qogi
 from qogi.forward import LineShape
 from qogi_gui import results
 from qogi_gui.settings import AnalysisSettings
 from qogi_gui.viewmodel import ViewModel
-
-from test_viewmodel import Clock, Instrumented, run_to_end
 
 
 @pytest.fixture
@@ -25,8 +24,7 @@ def api():
 
 @pytest.fixture
 def opened(api, store, rec_path):
-    v = ViewModel(api=api, store=store, demo_provider=lambda progress: str(rec_path),
-                  clock=Clock())
+    v = ViewModel(api=api, store=store, demo_provider=lambda progress: str(rec_path), clock=Clock())
     assert v.open(rec_path), v.last_message
     assert v.add_surface([(4, 12), (28, 12)], name="A")
     yield v
@@ -56,8 +54,12 @@ def test_line_shape_and_exit_temperature_reach_the_run(opened, api):
     assert opened.result_settings["line_shape"] == "hapi+air"
     assert opened.result_settings["exit_temperature_K"] == 330.0
     # A fixed wing's width (not run: a new width means new cross-section tables).
-    opened.update_settings(line_shape_wing="fixed", line_shape_wing_cm1="40",
-                           line_shape_broadening="self", exit_temperature_K="")
+    opened.update_settings(
+        line_shape_wing="fixed",
+        line_shape_wing_cm1="40",
+        line_shape_broadening="self",
+        exit_temperature_K="",
+    )
     cfg = opened.settings.build_config(qogi, opened.recording)
     assert cfg.line_shape == "fixed:40+self" and cfg.exit_temperature_K is None
 
@@ -83,8 +85,9 @@ def test_bad_values_are_messages_beside_their_fields(opened, api):
     assert "self, air" in bad["line_shape"]
 
 
-@pytest.mark.parametrize("value, ok", [(150.0, True), (900.0, True), (149.9, False),
-                                       (900.1, False)])
+@pytest.mark.parametrize(
+    "value, ok", [(150.0, True), (900.0, True), (149.9, False), (900.1, False)]
+)
 def test_the_exit_temperature_bounds_are_the_configs(value, ok):
     form = AnalysisSettings(exit_temperature_K=f"{value:g}")
     assert (form.validate(None)["exit_temperature_K"] == "") is ok
@@ -95,8 +98,7 @@ def test_the_exit_temperature_bounds_are_the_configs(value, ok):
             qogi.QuantifyConfig(exit_temperature_K=value)
 
 
-@pytest.mark.parametrize("value, ok", [(1.0, True), (100.0, True), (0.99, False),
-                                       (100.5, False)])
+@pytest.mark.parametrize("value, ok", [(1.0, True), (100.0, True), (0.99, False), (100.5, False)])
 def test_the_wing_width_bounds_are_the_line_shapes(value, ok):
     form = AnalysisSettings(line_shape_wing_cm1=f"{value:g}")
     assert (form.validate(None)["line_shape_wing_cm1"] == "") is ok
@@ -115,16 +117,27 @@ def test_results_show_every_budget_term_and_the_warnings():
     from qogi.diagnostics import Diagnostics
 
     def rate(terms):
-        return NS(rate_kg_s=[1e-4, 2e-4], mean_kg_h=0.54, ci90_kg_h=(0.3, 0.8),
-                  uncertainty_terms_kg_h=terms, dominant_uncertainty=max(terms, key=terms.get))
+        return NS(
+            rate_kg_s=[1e-4, 2e-4],
+            mean_kg_h=0.54,
+            ci90_kg_h=(0.3, 0.8),
+            uncertainty_terms_kg_h=terms,
+            dominant_uncertainty=max(terms, key=terms.get),
+        )
 
-    res = NS(surfaces=[NS(surface=NS(name="A"), species={"CH4": rate(
-                          {"temporal": 0.05, "line shape": 0.12})}),
-                       NS(surface=NS(name="B"), species={"CH4": rate(
-                          {"temporal": 0.04, "line shape": 0.02, "background": 0.01})})],
-             warnings=Diagnostics())
-    res.warnings.add("gas-temperature-suspect", "the rate is likely too high by about x2.2",
-                     species="CH4")
+    res = NS(
+        surfaces=[
+            NS(surface=NS(name="A"), species={"CH4": rate({"temporal": 0.05, "line shape": 0.12})}),
+            NS(
+                surface=NS(name="B"),
+                species={"CH4": rate({"temporal": 0.04, "line shape": 0.02, "background": 0.01})},
+            ),
+        ],
+        warnings=Diagnostics(),
+    )
+    res.warnings.add(
+        "gas-temperature-suspect", "the rate is likely too high by about x2.2", species="CH4"
+    )
     res.warnings.add("flux-against-surface", "flux runs against the surface", surface="B")
     a, b = results.rate_rows(res)
     assert results.uncertainty_terms([a, b]) == ["temporal", "line shape", "background"]
@@ -132,5 +145,6 @@ def test_results_show_every_budget_term_and_the_warnings():
     assert a.dominant_uncertainty == "line shape" and b.dominant_uncertainty == "temporal"
     assert results.warning_lines(res) == [
         "[gas-temperature-suspect CH4] the rate is likely too high by about x2.2",
-        "[flux-against-surface B] flux runs against the surface"]
+        "[flux-against-surface B] flux runs against the surface",
+    ]
     assert results.warning_lines(NS(surfaces=[])) == []

@@ -40,8 +40,11 @@ class CancelAt:
 
 
 def engine_threads():
-    return [t.name for t in threading.enumerate() if t.name.startswith("qogi-")
-            and not t.name.startswith("qogi-gui")]
+    return [
+        t.name
+        for t in threading.enumerate()
+        if t.name.startswith("qogi-") and not t.name.startswith("qogi-gui")
+    ]
 
 
 @pytest.mark.parametrize("at", [1, 2, 3, 6, 10])
@@ -82,9 +85,21 @@ SCRIPT = textwrap.dedent("""
 
 @pytest.mark.parametrize("delay_s, cancel", [(0.0, True), (0.2, True), (0.5, False)])
 def test_closing_the_viewer_mid_run_exits_cleanly(rec_path, tmp_path, delay_s, cancel):
-    r = subprocess.run([sys.executable, "-c", SCRIPT, str(rec_path), str(tmp_path / "config"),
-                        str(delay_s), "1" if cancel else "0"],
-                       capture_output=True, check=False, text=True, timeout=120)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            SCRIPT,
+            str(rec_path),
+            str(tmp_path / "config"),
+            str(delay_s),
+            "1" if cancel else "0",
+        ],
+        capture_output=True,
+        check=False,
+        text=True,
+        timeout=120,
+    )
     assert r.returncode == 0, r.stderr
     assert "closed" in r.stdout
     assert "terminate called" not in r.stderr and "FATAL" not in r.stderr

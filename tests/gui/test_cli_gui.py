@@ -8,8 +8,9 @@ import sys
 
 
 def qogi(*args, env=None):
-    return subprocess.run([sys.executable, "-m", "qogi", *args], capture_output=True, check=False,
-                          text=True, env=env)
+    return subprocess.run(
+        [sys.executable, "-m", "qogi", *args], capture_output=True, check=False, text=True, env=env
+    )
 
 
 def test_help_lists_the_viewer():

@@ -9,14 +9,13 @@ import threading
 import h5py
 import numpy as np
 import pytest
+from conftest import RATE_HZ, H, T, W, channels, make_recording, temperature_field
 
 import qogi
 from qogi_gui import display, results
 from qogi_gui.store import UserStore
 from qogi_gui.surfaces import RegionDraft, flow_arrow, left_normal
 from qogi_gui.viewmodel import ViewModel
-
-from conftest import H, RATE_HZ, T, W, channels, make_recording, temperature_field
 
 
 class Clock:
@@ -37,8 +36,8 @@ class Instrumented:
 
     def __init__(self):
         self.calls = []
-        self.gate = None                 # a Semaphore: one permit per progress report
-        self.reports = []                # (fraction, message) of the reports let through
+        self.gate = None  # a Semaphore: one permit per progress report
+        self.reports = []  # (fraction, message) of the reports let through
         self.fail_at = None
         self.fail_with = RuntimeError("engine exploded")
 
@@ -87,8 +86,7 @@ def api():
 
 @pytest.fixture
 def vm(api, store, rec_path):
-    v = ViewModel(api=api, store=store, demo_provider=lambda progress: str(rec_path),
-                  clock=Clock())
+    v = ViewModel(api=api, store=store, demo_provider=lambda progress: str(rec_path), clock=Clock())
     yield v
     v.close()
 
@@ -109,6 +107,7 @@ def run_to_end(vm, timeout=10.0):
 
 
 # ---------------------------------------------------------------------- open
+
 
 def test_open_shows_metadata_and_remembers_the_file(opened, rec_path, store):
     rows = dict(opened.metadata_rows())
@@ -183,6 +182,7 @@ def test_open_empty_path(vm):
 
 # ---------------------------------------------------------------------- display
 
+
 def test_temperature_display_recovers_the_blackbody_temperatures(opened):
     # Frames hold band radiance of blackbodies at known temperatures: shown as
     # radiometric temperature they must come back (exact truth, independent
@@ -205,12 +205,21 @@ def test_radiance_display_is_the_stored_band_radiance(opened):
 
 def test_colour_mapping_ends_and_fixed_range(opened):
     lut = display.colormap_lut("gray")
-    opened.set_display(colormap="gray", range_mode="fixed", quantity="radiometric_temperature",
-                       fixed_min=290.0, fixed_max=300.0)
+    opened.set_display(
+        colormap="gray",
+        range_mode="fixed",
+        quantity="radiometric_temperature",
+        fixed_min=290.0,
+        fixed_max=300.0,
+    )
     rgba = opened.render()
     img = opened.channel_image()
-    np.testing.assert_array_equal(rgba[img <= 290.0], np.broadcast_to(lut[0], rgba[img <= 290].shape))
-    np.testing.assert_array_equal(rgba[img >= 300.0], np.broadcast_to(lut[-1], rgba[img >= 300].shape))
+    np.testing.assert_array_equal(
+        rgba[img <= 290.0], np.broadcast_to(lut[0], rgba[img <= 290].shape)
+    )
+    np.testing.assert_array_equal(
+        rgba[img >= 300.0], np.broadcast_to(lut[-1], rgba[img >= 300].shape)
+    )
     mid = (img > 294.0) & (img < 296.0)
     assert mid.any()
     assert np.all(np.abs(rgba[mid, 0] - (img[mid] - 290.0) / 10.0) < 2.0 / 255 + 1e-6)
@@ -246,16 +255,17 @@ def test_switching_quantity_resets_a_fixed_range_in_the_new_units(opened):
 
 # ---------------------------------------------------------------------- playback
 
+
 def test_playback_follows_the_recording_times_and_loops(opened):
     clock = opened.clock
     opened.play(True)
-    clock.t += 0.25          # 10 Hz: 2.5 frame intervals
+    clock.t += 0.25  # 10 Hz: 2.5 frame intervals
     assert opened.tick() and opened.frame == 2
     opened.set_speed(2.0)
-    clock.t += 0.2           # 0.4 s of recording at 2x
+    clock.t += 0.2  # 0.4 s of recording at 2x
     opened.tick()
     assert opened.frame == 6
-    clock.t += 0.15          # 0.95 s: past the end of 8 frames (0.8 s): loops
+    clock.t += 0.15  # 0.95 s: past the end of 8 frames (0.8 s): loops
     opened.tick()
     assert opened.frame == 1
     opened.play(False)
@@ -286,6 +296,7 @@ def test_pixel_readout(opened):
 
 
 # ---------------------------------------------------------------------- drawing
+
 
 def test_left_hand_normal_convention():
     # docs/pipeline_api.md: a horizontal line drawn left to right counts upward
@@ -391,13 +402,27 @@ def test_pick_source(opened):
 
 # ---------------------------------------------------------------------- settings
 
+
 def test_each_field_reports_its_own_problem(opened):
     bad = opened.update_settings(
-        species={"CH4": False, "CO2": False}, gas_temperature_mode="given",
-        gas_temperature_K="abc", velocity="wind", wind_speed_m_s="0",
-        background="percentile", background_percentile="100", distance_m="-2",
-        ambient_temperature_K="400", pressure_Pa="1e6", sigma_m="0", frame_start="7",
-        frame_stop="", num_threads="-1", use_source=True, source_x="5", source_y="99")
+        species={"CH4": False, "CO2": False},
+        gas_temperature_mode="given",
+        gas_temperature_K="abc",
+        velocity="wind",
+        wind_speed_m_s="0",
+        background="percentile",
+        background_percentile="100",
+        distance_m="-2",
+        ambient_temperature_K="400",
+        pressure_Pa="1e6",
+        sigma_m="0",
+        frame_start="7",
+        frame_stop="",
+        num_threads="-1",
+        use_source=True,
+        source_x="5",
+        source_y="99",
+    )
     assert "tick at least one" in bad["species"]
     assert "not a number" in bad["gas_temperature_K"]
     assert "> 0" in bad["wind_speed_m_s"]
@@ -425,11 +450,18 @@ def test_valid_form_builds_the_contract_config(opened):
     opened.set_mode("region")
     opened.click(0, 0)
     opened.click(5, 5)
-    ok = opened.update_settings(species={"CH4": True, "CO2": True},
-                                gas_temperature_mode="given", gas_temperature_K="310",
-                                velocity="exit", exit_velocity_m_s="0.3",
-                                averaging="time-averaged", sigma_m="0.05", frame_start="1",
-                                frame_stop="7", num_threads="1")
+    ok = opened.update_settings(
+        species={"CH4": True, "CO2": True},
+        gas_temperature_mode="given",
+        gas_temperature_K="310",
+        velocity="exit",
+        exit_velocity_m_s="0.3",
+        averaging="time-averaged",
+        sigma_m="0.05",
+        frame_start="1",
+        frame_stop="7",
+        num_threads="1",
+    )
     assert not any(ok.values()), ok
     cfg = opened.settings.build_config(qogi, opened.recording, opened.region)
     assert cfg.species == ["CH4", "CO2"] and cfg.gas_temperature == 310.0
@@ -442,6 +474,7 @@ def test_valid_form_builds_the_contract_config(opened):
 
 # ---------------------------------------------------------------------- run
 
+
 def test_run_passes_the_drawn_surfaces_and_shows_the_result(opened, api):
     opened.add_surface([(4, 12), (28, 12)], name="A")
     opened.add_surface([(4, 6), (16, 4), (28, 6)], name="B")
@@ -449,7 +482,9 @@ def test_run_passes_the_drawn_surfaces_and_shows_the_result(opened, api):
     run_to_end(opened)
     [(surfs, cfg, keep)] = api.calls
     assert [(s.name, s.points) for s in surfs] == [
-        ("A", [(4.0, 12.0), (28.0, 12.0)]), ("B", [(4.0, 6.0), (16.0, 4.0), (28.0, 6.0)])]
+        ("A", [(4.0, 12.0), (28.0, 12.0)]),
+        ("B", [(4.0, 6.0), (16.0, 4.0), (28.0, 6.0)]),
+    ]
     assert cfg.species == ["CH4"] and cfg.velocity == "fluid" and keep is True
     rows = results.rate_rows(opened.result)
     assert [(r.surface, r.species) for r in rows] == [("A", "CH4"), ("B", "CH4")]
@@ -498,7 +533,9 @@ def test_progress_is_visible_while_running_and_cancel_keeps_the_partial_result(o
         fraction, message = api.step()
         snap = opened.progress()
         assert snap["state"] == "running" and (snap["fraction"], snap["message"]) == (
-            pytest.approx(fraction), message)
+            pytest.approx(fraction),
+            message,
+        )
         seen.append((fraction, message))
     assert len(seen) >= 4 and [f for f, _ in seen] == sorted(f for f, _ in seen)
     assert opened.cancel_run()
@@ -563,6 +600,7 @@ def test_result_goes_stale_when_inputs_change(opened):
 
 # ---------------------------------------------------------------------- export
 
+
 @pytest.fixture
 def with_result(opened):
     opened.add_surface([(4, 12), (28, 12)], name="A")
@@ -577,12 +615,21 @@ def test_export_everything(with_result, tmp_path):
     out.mkdir()
     assert vm.export_all(out, stem="run")
     names = sorted(p.name for p in out.iterdir())
-    assert names == ["run.csv", "run.json", "run.summary.csv", "run_frame.png", "run_rates.png",
-                     "run_rates_maps.png", "run_report.md", "run_report.pdf"]
+    assert names == [
+        "run.csv",
+        "run.json",
+        "run.summary.csv",
+        "run_frame.png",
+        "run_rates.png",
+        "run_rates_maps.png",
+        "run_report.md",
+        "run_report.pdf",
+    ]
     assert (out / "run_report.pdf").read_bytes()[:5] == b"%PDF-"
     d = json.loads((out / "run.json").read_text())
     assert d["surfaces"][0]["species"]["CH4"]["mean_kg_h"] == pytest.approx(
-        vm.result.surfaces[0].species["CH4"].mean_kg_h)
+        vm.result.surfaces[0].species["CH4"].mean_kg_h
+    )
     import cv2
 
     img = cv2.imread(str(out / "run_frame.png"))
@@ -603,14 +650,14 @@ def test_export_errors(vm, with_result, tmp_path):
 
 
 def test_export_needs_a_result(opened, tmp_path):
-    for fn in (opened.export_csv, opened.export_json, opened.export_plots,
-               opened.export_report):
+    for fn in (opened.export_csv, opened.export_json, opened.export_plots, opened.export_report):
         assert not fn(tmp_path / "x.out")
         assert "run the quantification first" in errors(opened)[-1]
     assert opened.export_frame(tmp_path / "frame.png")  # the frame needs no result
 
 
 # ---------------------------------------------------------------------- demo
+
 
 def test_demo_is_made_in_the_background_then_opened(vm, rec_path):
     assert vm.open_demo()
@@ -630,6 +677,7 @@ def test_demo_failure_is_a_message(api, store):
 
 # ---------------------------------------------------------------------- helpers
 
+
 def test_finite_segments_split_at_gaps():
     segs = results.finite_segments([0, 1, 2, 3, 4, 5], [1, np.nan, 2, 3, np.nan, np.nan])
     assert [list(x) for x, _ in segs] == [[0.0], [2.0, 3.0]]
@@ -647,8 +695,9 @@ def test_vector_field_scale_and_mask():
 
 
 def test_arrow_segments_draw_shaft_and_head():
-    xs, ys = results.arrow_segments(np.array([[0.0, 0.0], [1.0, 1.0]]),
-                                    np.array([[0.0, -10.0], [1.0, 1.0]]), head_frac=0.3)
+    xs, ys = results.arrow_segments(
+        np.array([[0.0, 0.0], [1.0, 1.0]]), np.array([[0.0, -10.0], [1.0, 1.0]]), head_frac=0.3
+    )
     assert len(xs) == 6  # the zero-length arrow is skipped: 3 segments of 2 points
     assert (xs[0], ys[0], xs[1], ys[1]) == (0.0, 0.0, 0.0, -10.0)
     # Both head strokes start at the head, go back 3 px at +-25 deg.
@@ -665,6 +714,7 @@ def test_demo_file_name_names_its_definition(tmp_path):
     assert p.parent == tmp_path
     assert demo.DEMO["preset"] in p.name and f"seed{demo.DEMO['seed']}" in p.name
     from qogi.recording import VERSION
+
     assert p.name.endswith(f"qogi{qogi.__version__}.v{VERSION}.h5")  # qogi and format version
     x, y = demo.source_pixel()
     assert 0 <= x < 320 and 0 <= y < 256
@@ -687,8 +737,9 @@ def test_cancelling_the_demo_leaves_nothing_behind(api, store, tmp_path, monkeyp
         raise KeyboardInterrupt("cancelled")
 
     monkeypatch.setattr(render, "synthesize", fake_synthesize)
-    v = ViewModel(api=api, store=store,
-                  demo_provider=lambda progress: demo.ensure_demo(progress, tmp_path))
+    v = ViewModel(
+        api=api, store=store, demo_provider=lambda progress: demo.ensure_demo(progress, tmp_path)
+    )
     v.open_demo()
     assert started.wait(5)
     assert v.progress()["message"].startswith("demo scene: frame 1/2")
@@ -700,14 +751,19 @@ def test_cancelling_the_demo_leaves_nothing_behind(api, store, tmp_path, monkeyp
 
 
 def test_maps_of_part_of_the_frame_are_placed_by_their_origin():
-    maps = {"origin": (3, 2), "column_density_kg_m2": {"CH4": np.ones((2, 4), np.float32)},
-            "velocity_px_per_frame": (np.zeros((2, 4)), np.full((2, 4), -1.0)),
-            "status": np.zeros((2, 4), np.uint8)}
+    maps = {
+        "origin": (3, 2),
+        "column_density_kg_m2": {"CH4": np.ones((2, 4), np.float32)},
+        "velocity_px_per_frame": (np.zeros((2, 4)), np.full((2, 4), -1.0)),
+        "status": np.zeros((2, 4), np.uint8),
+    }
     full = results.full_frame_maps(maps, (6, 8))
     col = full["column_density_kg_m2"]["CH4"]
     assert col.shape == (6, 8)
     assert np.all(col[2:4, 3:7] == 1) and np.isnan(col[0, 0]) and np.isnan(col[4, 3])
-    assert full["velocity_px_per_frame"][1][3, 6] == -1 and np.isnan(full["velocity_px_per_frame"][1][3, 7])
+    assert full["velocity_px_per_frame"][1][3, 6] == -1 and np.isnan(
+        full["velocity_px_per_frame"][1][3, 7]
+    )
     assert full["status"][2, 3] == 0 and full["status"][0, 0] == -1
     # Maps that already cover the frame are left alone.
     same = results.full_frame_maps({"column_density_kg_m2": {"CH4": col}}, (6, 8))
@@ -719,13 +775,13 @@ def test_frame_picture_draws_the_surfaces_where_they_are(opened):
     opened.set_display(colormap="gray")
     img = opened.frame_picture(zoom=3)
     assert img.shape == (3 * H, 3 * W, 3) and img.dtype == np.uint8
-    cyan = (np.abs(img.astype(int) - np.array([0, 220, 255])).sum(axis=2) < 40)
+    cyan = np.abs(img.astype(int) - np.array([0, 220, 255])).sum(axis=2) < 40
     line_row = (12 + 0.5) * 3
     rows = np.flatnonzero(cyan[:, 3 * 16])  # the column through the line's middle
-    assert np.any(np.abs(rows - line_row) <= 2)           # the line
-    assert np.any(rows < line_row - 10)                   # its arrow points up ...
-    assert not np.any(rows > line_row + 3)                # ... not down
-    assert cyan[int(line_row), 3 * 5]                     # the line away from the arrow
+    assert np.any(np.abs(rows - line_row) <= 2)  # the line
+    assert np.any(rows < line_row - 10)  # its arrow points up ...
+    assert not np.any(rows > line_row + 3)  # ... not down
+    assert cyan[int(line_row), 3 * 5]  # the line away from the arrow
     # Away from the line, the surface colour does not appear (grey video only).
     assert not cyan[:, 3 * 2].any()
 
@@ -781,7 +837,7 @@ def test_automatic_surfaces_cross_the_rising_blob_and_set_the_source(opened):
     assert abs(sx - W / 2) < 3
     for s, d in zip(opened.surfaces, (3, 6)):
         (x0, y0), (x1, y1) = s.points[0], s.points[-1]
-        assert abs(y1 - y0) < abs(x1 - x0)          # across the rise
+        assert abs(y1 - y0) < abs(x1 - x0)  # across the rise
         assert min(x0, x1) < W / 2 < max(x0, x1)
         assert abs(abs(0.5 * (y0 + y1) - sy) - d) < 1.5
     # Again: new names, nothing replaced; bad input is an error message.

@@ -7,13 +7,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import H, W, make_recording
 
 from qogi.io.flir_writer import write_recording_as_seq
 from qogi.io.telops import write_hcc
 from qogi_gui.store import UserStore
 from qogi_gui.viewmodel import ViewModel
-
-from conftest import H, W, make_recording
 
 
 def _run_to_end(vm, timeout=60.0):
@@ -34,8 +33,7 @@ def seq_and_h5(tmp_path):
     return seq, h5
 
 
-def test_a_camera_file_asks_for_its_scene_facts_then_opens_and_remembers_them(tmp_path,
-                                                                              seq_and_h5):
+def test_a_camera_file_asks_for_its_scene_facts_then_opens_and_remembers_them(tmp_path, seq_and_h5):
     seq, _ = seq_and_h5
     store = UserStore(tmp_path / "config")
     vm = ViewModel(store=store)
@@ -92,8 +90,10 @@ def test_the_viewer_refuses_the_lwir_sample_through_a_gas_camera(tmp_path, share
 def test_quantifying_the_seq_in_the_viewer_reads_the_hdf5_rate(tmp_path, seq_and_h5):
     seq, h5 = seq_and_h5
     rates = []
-    for path, facts in ((h5, None), (seq, {"camera": "gf320", "distance_m": "3",
-                                            "ambient_temperature_K": "288"})):
+    for path, facts in (
+        (h5, None),
+        (seq, {"camera": "gf320", "distance_m": "3", "ambient_temperature_K": "288"}),
+    ):
         vm = ViewModel(store=UserStore(tmp_path / f"config-{path.suffix}"))
         if facts is None:
             assert vm.open(path)

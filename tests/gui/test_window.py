@@ -30,9 +30,12 @@ def xvfb():
     if exe is None:
         pytest.fail("Xvfb is not installed: run scripts/setup_system.sh (Debian package xvfb)")
     r, w = os.pipe()
-    proc = subprocess.Popen([exe, "-displayfd", str(w), "-screen", "0", "1600x1000x24",
-                             "-nolisten", "tcp", "-noreset"], pass_fds=(w,),
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    proc = subprocess.Popen(
+        [exe, "-displayfd", str(w), "-screen", "0", "1600x1000x24", "-nolisten", "tcp", "-noreset"],
+        pass_fds=(w,),
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+    )
     os.close(w)
     with os.fdopen(r) as f:
         number = f.readline().strip()
@@ -62,15 +65,26 @@ def _png(path: Path) -> np.ndarray:
 
 def test_window_end_to_end(xvfb, tmp_path):
     env = dict(os.environ, DISPLAY=xvfb, QOGI_CONFIG_DIR=str(tmp_path / "config"))
-    proc = subprocess.run([sys.executable, str(HERE / "window_driver.py"), str(tmp_path)],
-                          env=env, capture_output=True, check=False, text=True, timeout=1200)
+    proc = subprocess.run(
+        [sys.executable, str(HERE / "window_driver.py"), str(tmp_path)],
+        env=env,
+        capture_output=True,
+        check=False,
+        text=True,
+        timeout=1200,
+    )
     assert proc.returncode == 0, f"driver failed:\n{proc.stdout}\n{proc.stderr}"
     state = json.loads((tmp_path / "state.json").read_text())
     assert not [m for m in state["messages"] if m[0] == "error"], state["messages"]
 
     # Screenshots of every main state: the whole window, with content.
-    assert state["shots"] == ["viewer_demo.png", "viewer_surfaces.png", "viewer_analysis.png",
-                              "viewer_running.png", "viewer_results.png"]
+    assert state["shots"] == [
+        "viewer_demo.png",
+        "viewer_surfaces.png",
+        "viewer_analysis.png",
+        "viewer_running.png",
+        "viewer_results.png",
+    ]
     for name in state["shots"]:
         img = _png(tmp_path / name)
         assert img.shape[:2] == (900, 1440), (name, img.shape)

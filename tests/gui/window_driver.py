@@ -31,7 +31,7 @@ class XInput:
     """Real mouse and keyboard events through the X server's XTEST extension
     (what a user's hand produces), to drive the window's own input handlers."""
 
-    def __init__(self, driver: "Driver"):
+    def __init__(self, driver: Driver):
         import ctypes
         import os
 
@@ -45,12 +45,25 @@ class XInput:
         self.x11.XKeysymToKeycode.argtypes = [ctypes.c_void_p, ctypes.c_ulong]
         self.x11.XStringToKeysym.restype = ctypes.c_ulong
         self.x11.XStringToKeysym.argtypes = [ctypes.c_char_p]
-        self.xt.XTestFakeMotionEvent.argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.c_int,
-                                                 ctypes.c_int, ctypes.c_ulong]
-        self.xt.XTestFakeButtonEvent.argtypes = [ctypes.c_void_p, ctypes.c_uint, ctypes.c_int,
-                                                 ctypes.c_ulong]
-        self.xt.XTestFakeKeyEvent.argtypes = [ctypes.c_void_p, ctypes.c_uint, ctypes.c_int,
-                                              ctypes.c_ulong]
+        self.xt.XTestFakeMotionEvent.argtypes = [
+            ctypes.c_void_p,
+            ctypes.c_int,
+            ctypes.c_int,
+            ctypes.c_int,
+            ctypes.c_ulong,
+        ]
+        self.xt.XTestFakeButtonEvent.argtypes = [
+            ctypes.c_void_p,
+            ctypes.c_uint,
+            ctypes.c_int,
+            ctypes.c_ulong,
+        ]
+        self.xt.XTestFakeKeyEvent.argtypes = [
+            ctypes.c_void_p,
+            ctypes.c_uint,
+            ctypes.c_int,
+            ctypes.c_ulong,
+        ]
         self.dpy = self.x11.XOpenDisplay(os.environ["DISPLAY"].encode())
         if not self.dpy:
             raise RuntimeError("cannot open the X display for input events")
@@ -128,8 +141,10 @@ class Driver:
         n = 0
         while not cond():
             if time.monotonic() > end:
-                raise TimeoutError(f"timed out after {timeout_s:.0f} s waiting for {what}; "
-                                   f"last message: {self.vm.last_message}")
+                raise TimeoutError(
+                    f"timed out after {timeout_s:.0f} s waiting for {what}; "
+                    f"last message: {self.vm.last_message}"
+                )
             self._frame()
             n += 1
         return n
@@ -196,7 +211,7 @@ def run(out: Path, vm: ViewModel = None) -> dict:
     for x, y in ((sx - half, y3 + 6), (sx, y3), (sx + half, y3 + 6)):
         aimed.append(mouse.to_pixel(x, y))
         mouse.click(1)
-    mouse.click(3)                       # right button ends the polyline
+    mouse.click(3)  # right button ends the polyline
     # Edit: drag S3's middle point 5 px up with the mouse.
     app.press("mode", MODE_LABELS["edit"])
     d.frames(2)
@@ -216,8 +231,8 @@ def run(out: Path, vm: ViewModel = None) -> dict:
 
     # 3. The analysis form, then run in the background.
     app.select_tab("analysis")
-    app.press("f_velocity", "wind")        # shows the wind-speed field
-    app.press("f_gas_mode", "given")       # shows the gas-temperature field
+    app.press("f_velocity", "wind")  # shows the wind-speed field
+    app.press("f_gas_mode", "given")  # shows the gas-temperature field
     d.frames(2)
     app.press("f_line_shape_wing", "hapi")  # hides the wing-width field
     app.press("f_exit_temperature_K", "900.5")  # outside [150, 900] K: a message beside it
@@ -247,7 +262,7 @@ def run(out: Path, vm: ViewModel = None) -> dict:
     # 4. Results: overlay, vectors, rates; then export everything.
     app.select_tab("results")
     vm.seek(vm.n_frames // 2)
-    app.press("d_next_maps")             # a frame whose per-pixel maps were kept
+    app.press("d_next_maps")  # a frame whose per-pixel maps were kept
     d.frames(5)
     d.shot("viewer_results.png")
     export = out / "export"
@@ -263,19 +278,35 @@ def run(out: Path, vm: ViewModel = None) -> dict:
     app.show_messages()
     d.frames(2)
 
-    rows = [{"surface": r.surface, "species": r.species, "mean_kg_h": r.mean_kg_h,
-             "ci90_kg_h": list(r.ci90_kg_h), "truth_kg_h": r.truth_kg_h,
-             "n_frames": r.n_frames, "n_frames_valid": r.n_frames_valid}
-            for r in results.rate_rows(vm.result)]
+    rows = [
+        {
+            "surface": r.surface,
+            "species": r.species,
+            "mean_kg_h": r.mean_kg_h,
+            "ci90_kg_h": list(r.ci90_kg_h),
+            "truth_kg_h": r.truth_kg_h,
+            "n_frames": r.n_frames,
+            "n_frames_valid": r.n_frames_valid,
+        }
+        for r in results.rate_rows(vm.result)
+    ]
     state = {
-        "results_texts": _texts("results_group"), "field_message": field_message,
+        "results_texts": _texts("results_group"),
+        "field_message": field_message,
         "line_shape": vm.result_settings.get("line_shape"),
-        "shots": d.shots, "drawn": drawn, "aimed": aimed,
-        "drag": dragged, "rows": rows, "exported": exported,
-        "running_frames": running_frames, "distinct_progress": len(fractions),
-        "max_frame_s": max(d.frame_gaps), "fps": app.fps,
+        "shots": d.shots,
+        "drawn": drawn,
+        "aimed": aimed,
+        "drag": dragged,
+        "rows": rows,
+        "exported": exported,
+        "running_frames": running_frames,
+        "distinct_progress": len(fractions),
+        "max_frame_s": max(d.frame_gaps),
+        "fps": app.fps,
         "messages": [(m.level, m.text) for m in vm.messages],
-        "recording": vm.recording_path, "n_frames": vm.n_frames,
+        "recording": vm.recording_path,
+        "n_frames": vm.n_frames,
         "overlay_shown": vm.render_overlay() is not None,
         "vectors": int(len(vm.vectors()[0])),
     }

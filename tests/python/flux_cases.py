@@ -8,8 +8,9 @@ from __future__ import annotations
 import numpy as np
 
 
-def puffing_plume(seed: int, frames: int = 40, height: int = 64, width: int = 48,
-                  speed_px: float = 2.3) -> np.ndarray:
+def puffing_plume(
+    seed: int, frames: int = 40, height: int = 64, width: int = 48, speed_px: float = 2.3
+) -> np.ndarray:
     """(T, H, W) float32 column field of a plume rising from the bottom edge
     at ``speed_px`` px/frame with puffs of random strength and a random
     cross-profile wobble (not an exact transport: a comparison input)."""
@@ -20,13 +21,14 @@ def puffing_plume(seed: int, frames: int = 40, height: int = 64, width: int = 48
     periods = rng.uniform(6.0, 25.0, 4)
     out = np.empty((frames, height, width), np.float32)
     for t in range(frames):
-        s = t - (height - 1 - y) / speed_px            # release time of each row
+        s = t - (height - 1 - y) / speed_px  # release time of each row
         q = 1.0 + sum(0.25 * np.sin(2 * np.pi * s / p + ph) for p, ph in zip(periods, phases))
         sig = 3.0 + 0.08 * (height - 1 - y)
         xc = 0.5 * width + 1.5 * np.sin(0.3 * s)
         g = np.exp(-0.5 * ((x[None, :] - xc[:, None]) / sig[:, None]) ** 2) / sig[:, None]
-        out[t] = (q[:, None] * g * (1.0 + 0.02 * rng.standard_normal((height, width)))
-                  ).astype(np.float32)
+        out[t] = (q[:, None] * g * (1.0 + 0.02 * rng.standard_normal((height, width)))).astype(
+            np.float32
+        )
     return np.clip(out, 0.0, None)
 
 
@@ -37,8 +39,9 @@ def frame_velocities(seed: int, shape: tuple, axis: str, level: float) -> tuple:
     T, H, W = shape
     y = np.linspace(0, 1, H)[None, :, None]
     x = np.linspace(0, 1, W)[None, None, :]
-    base = level * (1.0 + 0.2 * np.sin(3 * y + 2 * x)) * (1.0 + 0.05 * rng.standard_normal(
-        (T, 1, 1)))
+    base = (
+        level * (1.0 + 0.2 * np.sin(3 * y + 2 * x)) * (1.0 + 0.05 * rng.standard_normal((T, 1, 1)))
+    )
     along = base + 0.1 * rng.standard_normal((T, H, W))
     across = 0.2 * rng.standard_normal((T, H, W))
     sign = -1.0 if axis in ("up", "left") else 1.0
@@ -97,5 +100,6 @@ def digest(a: np.ndarray) -> np.ndarray:
     and its last frame's middle row (float64): enough to compare two stacks
     whose lines are scaled by factors, without storing them."""
     a = np.asarray(a, np.float64)
-    return np.concatenate([a.sum(axis=(1, 2)), a.sum(axis=(0, 2)), a.sum(axis=(0, 1)),
-                           a[-1, a.shape[1] // 2]])
+    return np.concatenate(
+        [a.sum(axis=(1, 2)), a.sum(axis=(0, 2)), a.sum(axis=(0, 1)), a[-1, a.shape[1] // 2]]
+    )

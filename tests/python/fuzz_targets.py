@@ -37,9 +37,12 @@ def _checked(exc: BaseException, data: bytes, name: str) -> None:
     bad = isinstance(exc, MemoryError) or not isinstance(exc, ALLOWED)
     if not bad and str(exc).strip():
         return
-    what = f"raised {type(exc).__name__}: {exc}" if bad else f"{type(exc).__name__} without a message"
+    what = (
+        f"raised {type(exc).__name__}: {exc}" if bad else f"{type(exc).__name__} without a message"
+    )
     if os.environ.get("QOGI_FUZZ_KEEP"):  # make fuzz: keep the input for the regression test
         import hashlib
+
         CRASHES.mkdir(parents=True, exist_ok=True)
         kept = CRASHES / f"{name}-{hashlib.sha1(data).hexdigest()[:12]}"
         kept.write_bytes(data)

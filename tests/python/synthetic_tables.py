@@ -6,8 +6,16 @@ import numpy as np
 from qogi import _engine
 
 
-def lorentz_table(species="CH4", nu0=2940.0, nu1=3110.0, dnu=0.02, seed=1, with_self=True,
-                  temperatures=None, n_lines=200):
+def lorentz_table(
+    species="CH4",
+    nu0=2940.0,
+    nu1=3110.0,
+    dnu=0.02,
+    seed=1,
+    with_self=True,
+    temperatures=None,
+    n_lines=200,
+):
     if temperatures is None:
         temperatures = np.arange(200.0, 600.0 + 1e-9, 25.0)
     rng = np.random.default_rng(seed)
@@ -24,5 +32,12 @@ def lorentz_table(species="CH4", nu0=2940.0, nu1=3110.0, dnu=0.02, seed=1, with_
         d = nu[None, :] - centres[:, None]
         air[k] = (s[:, None] * ga / np.pi / (d * d + ga * ga)).sum(0)
         slf[k] = (s[:, None] * gs / np.pi / (d * d + gs * gs)).sum(0)
-    return _engine.AbsorberTable(species, 101325.0, nu0, dnu, np.asarray(temperatures, float), air,
-                                 slf if with_self else None)
+    return _engine.AbsorberTable(
+        species,
+        101325.0,
+        nu0,
+        dnu,
+        np.asarray(temperatures, float),
+        air,
+        slf if with_self else None,
+    )

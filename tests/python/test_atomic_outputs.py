@@ -30,9 +30,11 @@ def test_a_spectral_response_csv_replaces_the_old_file_only_when_complete(tmp_pa
             def writerow(self, row):
                 if row[0] != "wavenumber_cm1":
                     raise OSError(28, "No space left on device")
+
         return W()
 
     import csv
+
     monkeypatch.setattr(csv, "writer", broken_writer)
     try:
         ch.to_csv(p)

@@ -26,9 +26,12 @@ from qogi.presets import camera_preset
 # (same pixel footprint), 1.5 s at 15 Hz, the exit 6 px above the bottom row.
 W, H = 160, 128
 EXIT = (W / 2 - 0.5, H - 6.0)
-SURFACE = [EXIT[0] - 40, EXIT[1] - 20, EXIT[0] + 40, EXIT[1] - 20]   # 4 cm above the exit
-ROWS = [("a", "lab-ch4-5slpm-gf320", 1), ("b", "lab-ch4-10slpm-gf320", 2),
-        ("c", "lab-ch4-5slpm-gf320", 3)]
+SURFACE = [EXIT[0] - 40, EXIT[1] - 20, EXIT[0] + 40, EXIT[1] - 20]  # 4 cm above the exit
+ROWS = [
+    ("a", "lab-ch4-5slpm-gf320", 1),
+    ("b", "lab-ch4-10slpm-gf320", 2),
+    ("c", "lab-ch4-5slpm-gf320", 3),
+]
 
 
 def small_release(preset, path, seed, duration_s=1.5):
@@ -36,8 +39,15 @@ def small_release(preset, path, seed, duration_s=1.5):
     p = synth.preset(preset)
     rel = synth.preset_release(preset)
     cam = dataclasses.replace(camera_preset("gf320"), width=W, height=H)
-    view = synth.View.framing(rel, EXIT, width_px=W, height_px=H, ifov_rad=cam.ifov_rad,
-                              distance_m=p["scene"]["distance_m"], projection="orthographic")
+    view = synth.View.framing(
+        rel,
+        EXIT,
+        width_px=W,
+        height_px=H,
+        ifov_rad=cam.ifov_rad,
+        distance_m=p["scene"]["distance_m"],
+        projection="orthographic",
+    )
     sim = synth.simulate(rel, view, duration_s, 15.0, seed=seed, num_threads=1)
     bg = render.Background("plate", p["scene"]["background"]["temperature_K"])
     return render.render_recording(sim, cam, bg, path, seed=seed, num_threads=1)
@@ -87,12 +97,14 @@ path = "corrupt.h5"
 def write_csv(folder, name="survey.csv"):
     s = ",".join(f"{v:g}" for v in SURFACE)
     src = f"{EXIT[0]},{EXIT[1]}"
-    lines = ["path,name,surfaces,auto_distances_px,source,species",
-             f'a.h5,a,"{s}",,"{src}",CH4',
-             "b.h5,b,auto,20;30,,CH4",
-             "# a comment line",
-             f'c.h5,c,"{s}",,"{src}",CH4',
-             "corrupt.h5,corrupt,auto,20;30,,CH4"]
+    lines = [
+        "path,name,surfaces,auto_distances_px,source,species",
+        f'a.h5,a,"{s}",,"{src}",CH4',
+        "b.h5,b,auto,20;30,,CH4",
+        "# a comment line",
+        f'c.h5,c,"{s}",,"{src}",CH4',
+        "corrupt.h5,corrupt,auto,20;30,,CH4",
+    ]
     p = folder / name
     p.write_text("\n".join(lines) + "\n")
     return p
@@ -113,8 +125,13 @@ def reader_error(path):
 
 def rate_columns(df, name):
     row = df.set_index("name").loc[name]
-    keys = sorted({c.rsplit(" ", 1)[0] for c in df.columns if c.endswith(" mean_kg_h")
-                   and np.isfinite(row[c])})
+    keys = sorted(
+        {
+            c.rsplit(" ", 1)[0]
+            for c in df.columns
+            if c.endswith(" mean_kg_h") and np.isfinite(row[c])
+        }
+    )
     return row, keys
 
 
@@ -126,8 +143,11 @@ def check_three_ok_one_failed(df, clips):
         truth = truth_kg_h(clips / f"{name}.h5")
         assert keys, f"{name}: no rates in the summary"
         for key in keys:
-            lo, mean, hi = (row[f"{key} ci90_low_kg_h"], row[f"{key} mean_kg_h"],
-                            row[f"{key} ci90_high_kg_h"])
+            lo, mean, hi = (
+                row[f"{key} ci90_low_kg_h"],
+                row[f"{key} mean_kg_h"],
+                row[f"{key} ci90_high_kg_h"],
+            )
             assert row[f"{key} truth_kg_h"] == pytest.approx(truth)
             # The release's truth inside the row's 90 % interval, the mean
             # near it (1.5 s of a lab plume: the interval is ~+-30 %).
@@ -174,25 +194,49 @@ def test_four_recordings_on_two_workers_three_ok_one_failed(clips, first_batch):
 def test_a_row_gives_what_quantify_gives_on_its_own(clips, first_batch):
     # The row's settings reach the pipeline unchanged: the same call by hand.
     _, df = first_batch
-    res = qogi.quantify(clips / "a.h5", [qogi.Surface([tuple(SURFACE[:2]), tuple(SURFACE[2:])])],
-                        qogi.QuantifyConfig(species=["CH4"], source=EXIT, num_threads=1))
+    res = qogi.quantify(
+        clips / "a.h5",
+        [qogi.Surface([tuple(SURFACE[:2]), tuple(SURFACE[2:])])],
+        qogi.QuantifyConfig(species=["CH4"], source=EXIT, num_threads=1),
+    )
     row = df.set_index("name").loc["a"]
-    assert row["S1/CH4 mean_kg_h"] == pytest.approx(res.surfaces[0].species["CH4"].mean_kg_h,
-                                                    rel=1e-9)
+    assert row["S1/CH4 mean_kg_h"] == pytest.approx(
+        res.surfaces[0].species["CH4"].mean_kg_h, rel=1e-9
+    )
 
 
 def run_cli(*args, **kw):
-    return subprocess.run([sys.executable, "-m", "qogi", *map(str, args)], capture_output=True,
-                          check=False, text=True, timeout=300, **kw)
+    return subprocess.run(
+        [sys.executable, "-m", "qogi", *map(str, args)],
+        capture_output=True,
+        check=False,
+        text=True,
+        timeout=300,
+        **kw,
+    )
 
 
 @pytest.mark.slow
 def test_a_killed_batch_resumes_with_only_the_missing_rows(clips, tmp_path):
     manifest = write_csv(clips)
     out = tmp_path / "out"
-    proc = subprocess.Popen([sys.executable, "-m", "qogi", "batch", str(manifest), "-o", str(out),
-                             "--workers", "2", "-q"], start_new_session=True,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "qogi",
+            "batch",
+            str(manifest),
+            "-o",
+            str(out),
+            "--workers",
+            "2",
+            "-q",
+        ],
+        start_new_session=True,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+    )
     try:
         deadline = time.monotonic() + 180
         while not list(out.glob("*/result.json")) and time.monotonic() < deadline:
@@ -203,13 +247,14 @@ def test_a_killed_batch_resumes_with_only_the_missing_rows(clips, tmp_path):
         os.killpg(proc.pid, signal.SIGKILL)
         proc.wait(timeout=30)
         proc.stderr.close()
-    done = {p.parent.name: (p.stat().st_mtime_ns, p.stat().st_ino)
-            for p in out.glob("*/result.json")}
+    done = {
+        p.parent.name: (p.stat().st_mtime_ns, p.stat().st_ino) for p in out.glob("*/result.json")
+    }
     assert proc.returncode == -signal.SIGKILL
     assert 1 <= len(done) < 3, f"kill came too late to test resuming: {sorted(done)} done"
 
     r = run_cli("batch", manifest, "-o", out, "--workers", "2", "--resume")
-    assert r.returncode == 3, r.stderr        # the corrupt row fails again
+    assert r.returncode == 3, r.stderr  # the corrupt row fails again
     assert f"{len(done)} of 4 rows already done" in r.stderr
     # The progress line: done, failed, remaining, throughput; the dashboard line.
     assert "1 failed, 0 remaining" in r.stderr and "recordings/h" in r.stderr
@@ -243,15 +288,44 @@ def test_the_same_batch_on_a_scheduler_started_separately(clips, first_batch, tm
     log = open(tmp_path / "cluster.log", "w")  # closed after the processes  # noqa: SIM115
     try:
         # Port 0: the system picks free ports; the address is read from the file.
-        procs.append(subprocess.Popen(dask + ["scheduler", "--host", "127.0.0.1", "--port", "0",
-                                              "--no-dashboard", "--scheduler-file",
-                                              str(sched_file)], stdout=log, stderr=log))
+        procs.append(
+            subprocess.Popen(
+                dask
+                + [
+                    "scheduler",
+                    "--host",
+                    "127.0.0.1",
+                    "--port",
+                    "0",
+                    "--no-dashboard",
+                    "--scheduler-file",
+                    str(sched_file),
+                ],
+                stdout=log,
+                stderr=log,
+            )
+        )
         _wait_for(sched_file, procs[0])
         address = json.loads(sched_file.read_text())["address"]
         assert address.startswith("tcp://127.0.0.1:")
-        procs.append(subprocess.Popen(dask + ["worker", address, "--host", "127.0.0.1",
-                                              "--nworkers", "2", "--nthreads", "1",
-                                              "--no-dashboard"], stdout=log, stderr=log))
+        procs.append(
+            subprocess.Popen(
+                dask
+                + [
+                    "worker",
+                    address,
+                    "--host",
+                    "127.0.0.1",
+                    "--nworkers",
+                    "2",
+                    "--nthreads",
+                    "1",
+                    "--no-dashboard",
+                ],
+                stdout=log,
+                stderr=log,
+            )
+        )
         with Client(address, timeout=60) as c:
             c.wait_for_workers(2, timeout=120)
         out = tmp_path / "out"
@@ -270,7 +344,8 @@ def test_the_same_batch_on_a_scheduler_started_separately(clips, first_batch, tm
             _, keys = rate_columns(df, name)
             for key in keys:
                 assert got.loc[name, f"{key} mean_kg_h"] == pytest.approx(
-                    ref.loc[name, f"{key} mean_kg_h"], rel=1e-9)
+                    ref.loc[name, f"{key} mean_kg_h"], rel=1e-9
+                )
     finally:
         for p in reversed(procs):
             p.terminate()
@@ -285,6 +360,7 @@ def test_the_same_batch_on_a_scheduler_started_separately(clips, first_batch, tm
 
 # -- the manifest, validated before anything runs ---------------------------
 
+
 @pytest.fixture
 def folder(tmp_path):
     for n in ("x.h5", "y.h5"):
@@ -298,21 +374,28 @@ def manifest(folder, text, name="m.csv"):
     return p
 
 
-@pytest.mark.parametrize("text, words", [
-    ("path,surfaces,colour\nx.h5,auto,red\n", ["line 2", "unknown column 'colour'"]),
-    ("path,surfaces,gas_temperature\nx.h5,\"1,2,3,4\",900\n",
-     ["line 2", "gas_temperature", "[150, 600]"]),
-    ("path,surfaces,gas_temperature\nx.h5,\"1,2,3,4\",hot\n", ["line 2", "'gas_temperature'"]),
-    ("path,surfaces\nx.h5,\"1,2,3,4\"\n# comment\nmissing.h5,\"1,2,3,4\"\n",
-     ["line 4", "'path'", "does not exist"]),
-    ("path,surfaces\nx.h5,auto\n", ["line 2", "auto_distances_px"]),
-    ("path,surfaces\nx.h5,\"1,2,3\"\n", ["line 2", "'surfaces'", "even number"]),
-    ("path,surfaces\nx.h5,\"1,2,3,4\"\nx.h5,\"1,2,3,4\"\n", ["line 3", "'x'", "already used"]),
-    ("path,surfaces,num_threads\nx.h5,\"1,2,3,4\",4\n", ["num_threads", "--threads"]),
-    ("path,surfaces,camera\nx.h5,\"1,2,3,4\",nikon\n", ["'camera'", "gf320"]),
-    ("path,surfaces,velocity\nx.h5,\"1,2,3,4\",wind\n", ["line 2", "wind_speed_m_s"]),
-    ("path\nx.h5\n", ["line 2", "'surfaces' is missing"]),
-])
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        ("path,surfaces,colour\nx.h5,auto,red\n", ["line 2", "unknown column 'colour'"]),
+        (
+            'path,surfaces,gas_temperature\nx.h5,"1,2,3,4",900\n',
+            ["line 2", "gas_temperature", "[150, 600]"],
+        ),
+        ('path,surfaces,gas_temperature\nx.h5,"1,2,3,4",hot\n', ["line 2", "'gas_temperature'"]),
+        (
+            'path,surfaces\nx.h5,"1,2,3,4"\n# comment\nmissing.h5,"1,2,3,4"\n',
+            ["line 4", "'path'", "does not exist"],
+        ),
+        ("path,surfaces\nx.h5,auto\n", ["line 2", "auto_distances_px"]),
+        ('path,surfaces\nx.h5,"1,2,3"\n', ["line 2", "'surfaces'", "even number"]),
+        ('path,surfaces\nx.h5,"1,2,3,4"\nx.h5,"1,2,3,4"\n', ["line 3", "'x'", "already used"]),
+        ('path,surfaces,num_threads\nx.h5,"1,2,3,4",4\n', ["num_threads", "--threads"]),
+        ('path,surfaces,camera\nx.h5,"1,2,3,4",nikon\n', ["'camera'", "gf320"]),
+        ('path,surfaces,velocity\nx.h5,"1,2,3,4",wind\n', ["line 2", "wind_speed_m_s"]),
+        ("path\nx.h5\n", ["line 2", "'surfaces' is missing"]),
+    ],
+)
 def test_manifest_errors_name_the_row_and_column(folder, text, words):
     with pytest.raises(UsageError) as e:
         batch.load_manifest(manifest(folder, text))
@@ -322,7 +405,9 @@ def test_manifest_errors_name_the_row_and_column(folder, text, words):
 
 def test_toml_defaults_apply_to_every_row_and_rows_override_them(folder):
     (folder / "more.csv").write_text("path,name,species\ny.h5,why,CO2\n")
-    p = manifest(folder, """
+    p = manifest(
+        folder,
+        """
 rows = "more.csv"
 [defaults]
 surfaces = [[1, 2, 30, 2], [1, 9, 30, 9, 40, 12]]
@@ -335,7 +420,9 @@ gas_temperature = "infer"
 frames = "2:20"
 composition = {CH4 = 0.5, CO2 = 0.5}
 species = ["CH4", "CO2"]
-""", "m.toml")
+""",
+        "m.toml",
+    )
     rows = batch.load_manifest(p)
     assert [r.name for r in rows] == ["x", "why"]
     x, y = rows
@@ -345,36 +432,52 @@ species = ["CH4", "CO2"]
     assert y.config.species == ["CO2"] and x.config.distance_m == y.config.distance_m == 4.5
     assert x.timeout_s == y.timeout_s == 60 and x.path == str(folder / "x.h5")
     with pytest.raises(UsageError, match=r"\[\[recording\]\] #1.*'frames'"):
-        batch.load_manifest(manifest(folder, '[[recording]]\npath = "x.h5"\nsurfaces = "auto"\n'
-                                     'auto_distances_px = [5]\nframes = "9:3"\n', "n.toml"))
+        batch.load_manifest(
+            manifest(
+                folder,
+                '[[recording]]\npath = "x.h5"\nsurfaces = "auto"\n'
+                'auto_distances_px = [5]\nframes = "9:3"\n',
+                "n.toml",
+            )
+        )
 
 
 def test_config_hash_follows_the_analysis_not_the_output_options(folder):
-    base = "path,surfaces,plots,timeout_s{}\nx.h5,\"1,2,3,4\",{},{}{}\n"
-    h = [batch.load_manifest(manifest(folder, base.format(*v))).pop().config_hash()
-         for v in [("", "false", "10", ""), ("", "true", "99", ""),
-                   (",distance_m", "false", "10", ",3.0")]]
+    base = 'path,surfaces,plots,timeout_s{}\nx.h5,"1,2,3,4",{},{}{}\n'
+    h = [
+        batch.load_manifest(manifest(folder, base.format(*v))).pop().config_hash()
+        for v in [
+            ("", "false", "10", ""),
+            ("", "true", "99", ""),
+            (",distance_m", "false", "10", ",3.0"),
+        ]
+    ]
     assert h[0] == h[1] != h[2]
 
 
 def test_a_timeout_and_a_wrong_camera_fail_their_row_with_the_reason(clips, tmp_path):
-    rows = batch.load_manifest(manifest(clips, "path,surfaces,timeout_s,camera\n"
-                                        f"a.h5,\"{','.join(map(str, SURFACE))}\",1e-9,\n"
-                                        f"b.h5,\"{','.join(map(str, SURFACE))}\",,fast-m150\n",
-                                        "t.csv"))
-    slow = batch.run_row({"row": rows[0], "outdir": str(tmp_path), "config_hash": "h",
-                          "threads": 1})
+    rows = batch.load_manifest(
+        manifest(
+            clips,
+            "path,surfaces,timeout_s,camera\n"
+            f'a.h5,"{",".join(map(str, SURFACE))}",1e-9,\n'
+            f'b.h5,"{",".join(map(str, SURFACE))}",,fast-m150\n',
+            "t.csv",
+        )
+    )
+    slow = batch.run_row(
+        {"row": rows[0], "outdir": str(tmp_path), "config_hash": "h", "threads": 1}
+    )
     assert slow["status"] == "failed" and slow["error_type"] == "TimeoutError"
     assert "timed out after 1e-09 s" in slow["error"]
-    cam = batch.run_row({"row": rows[1], "outdir": str(tmp_path), "config_hash": "h",
-                         "threads": 1})
+    cam = batch.run_row({"row": rows[1], "outdir": str(tmp_path), "config_hash": "h", "threads": 1})
     assert cam["status"] == "failed" and "4 channel(s)" in cam["error"]
     assert not (tmp_path / "a" / "result.json").exists()
     assert json.loads((tmp_path / "a" / "failure.json").read_text())["batch"]["status"] == "failed"
 
 
 def test_the_command_line_refuses_a_bad_manifest_before_starting(folder):
-    m = manifest(folder, "path,surfaces,velocity\nx.h5,\"1,2,3,4\",telepathy\n")
+    m = manifest(folder, 'path,surfaces,velocity\nx.h5,"1,2,3,4",telepathy\n')
     r = run_cli("batch", m, "-o", folder / "out")
     assert r.returncode == 2
     assert "line 2" in r.stderr and "velocity" in r.stderr and "fluid" in r.stderr
@@ -389,7 +492,7 @@ def test_an_environment_error_is_retried_then_recorded(clips, tmp_path):
     out = tmp_path / "out"
     out.mkdir()
     (out / "a").write_text("in the way")
-    m = manifest(clips, f"path,surfaces\na.h5,\"{','.join(map(str, SURFACE))}\"\n", "one.csv")
+    m = manifest(clips, f'path,surfaces\na.h5,"{",".join(map(str, SURFACE))}"\n', "one.csv")
     df = batch.run(m, out, workers=1, retries=1, progress=False)
     row = df.iloc[0]
     assert (row["name"], row["status"], row["error_type"]) == ("a", "failed", "FileExistsError")

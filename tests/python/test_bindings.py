@@ -1,6 +1,7 @@
 """Every options class of the engine is bound by one pattern (cpp/bindings/common.h):
 keyword constructor with the struct's defaults, checked on entry, repr naming the
 class, to_dict, equality and pickling that carry every field."""
+
 import pickle
 import re
 
@@ -15,8 +16,14 @@ CHANGED = {
     "AtmosphericPath": dict(distance_m=120.0, relative_humidity=0.3),
     "BinnedModelOptions": dict(key_temperatures_K=[260.0, 400.0], num_nodes=65),
     "CalibrationOptions": dict(quadratic=True, saturation_counts=16383.0),
-    "CameraModel": dict(name="test", width=64, height=48, channels=[
-        _engine.SpectralResponse(np.array([2900.0, 3100.0]), np.array([1.0, 1.0]), "band")]),
+    "CameraModel": dict(
+        name="test",
+        width=64,
+        height=48,
+        channels=[
+            _engine.SpectralResponse(np.array([2900.0, 3100.0]), np.array([1.0, 1.0]), "band")
+        ],
+    ),
     "CountsFluxCurve": dict(gain=2.5, offset=-3.0, quadratic=1e-4),
     "CrossSectionOptions": dict(wing_half_widths=0.0, wing_cm1=25.0, line_shift=False),
     "DisOptions": dict(patch_size=12),
@@ -27,7 +34,9 @@ CHANGED = {
     "HornSchunckOptions": dict(alpha=0.7),
     "InversionOptions": dict(
         fractions=[_engine.ParameterSpec(_engine.ParameterMode.free, 1e-3, 0.0, 0.0, 1.0)],
-        netd_K=[0.02, 0.03], solver=_engine.SolverKind.table),
+        netd_K=[0.02, 0.03],
+        solver=_engine.SolverKind.table,
+    ),
     "LucasKanadeOptions": dict(window_sigma=2.0),
     "MedianTestOptions": dict(threshold=3.0),
     "ParameterSpec": dict(mode=_engine.ParameterMode.prior, value=400.0, prior_sigma=20.0),
@@ -42,8 +51,11 @@ CHANGED = {
 
 
 def _options_classes():
-    return sorted(name for name, obj in vars(_engine).items()
-                  if isinstance(obj, type) and isinstance(getattr(obj, "fields", None), tuple))
+    return sorted(
+        name
+        for name, obj in vars(_engine).items()
+        if isinstance(obj, type) and isinstance(getattr(obj, "fields", None), tuple)
+    )
 
 
 def _same(a, b) -> bool:
@@ -51,8 +63,11 @@ def _same(a, b) -> bool:
     if isinstance(a, list):
         return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
     if isinstance(a, _engine.SpectralResponse):
-        return (a.name == b.name and np.array_equal(a.nu_cm1, b.nu_cm1)
-                and np.array_equal(a.response, b.response))
+        return (
+            a.name == b.name
+            and np.array_equal(a.nu_cm1, b.nu_cm1)
+            and np.array_equal(a.response, b.response)
+        )
     return a == b
 
 
@@ -114,13 +129,16 @@ def test_options_reject_unknown_names_and_differ_in_any_field(name):
             assert other != o, key
 
 
-@pytest.mark.parametrize("name,bad,message", [
-    ("SceneTableOptions", dict(temperature_step_K=0.5), "temperature_step_K"),
-    ("ExactModelOptions", dict(num_nodes=2), "num_nodes"),
-    ("GasConditions", dict(temperature_K=-1.0), "temperature_K"),
-    ("CalibrationOptions", dict(blackbody_emissivity=1.5), "blackbody_emissivity"),
-    ("PivOptions", dict(window_size=15), "window_size"),
-])
+@pytest.mark.parametrize(
+    "name,bad,message",
+    [
+        ("SceneTableOptions", dict(temperature_step_K=0.5), "temperature_step_K"),
+        ("ExactModelOptions", dict(num_nodes=2), "num_nodes"),
+        ("GasConditions", dict(temperature_K=-1.0), "temperature_K"),
+        ("CalibrationOptions", dict(blackbody_emissivity=1.5), "blackbody_emissivity"),
+        ("PivOptions", dict(window_size=15), "window_size"),
+    ],
+)
 def test_options_out_of_range_raise_value_error_naming_the_field(name, bad, message):
     with pytest.raises(ValueError, match=message):
         getattr(_engine, name)(**bad)
@@ -131,7 +149,12 @@ def test_positional_arguments_keep_their_order_where_they_were_accepted():
     assert (c.temperature_K, c.pressure_Pa, c.self_fraction) == (350.0, 5e4, 0.25)
     p = _engine.ParameterSpec(_engine.ParameterMode.free, 1.0, 0.0, 0.5, 2.0)
     assert (p.mode, p.value, p.lower, p.upper, p.tied_to) == (
-        _engine.ParameterMode.free, 1.0, 0.5, 2.0, -1)
+        _engine.ParameterMode.free,
+        1.0,
+        0.5,
+        2.0,
+        -1,
+    )
     with pytest.raises(TypeError):
         _engine.CalibrationOptions(True)  # keyword-only, as before
 
@@ -139,4 +162,6 @@ def test_positional_arguments_keep_their_order_where_they_were_accepted():
 def test_defaults_are_the_engine_structs_and_shown_in_the_signature():
     o = _engine.SceneTableOptions()
     assert (o.ambient_temperature_K, o.temperature_step_K, o.nodes_per_decade) == (296.0, 5.0, 8)
-    assert re.search(r"temperature_step_K: [\w.]+ = 5\.0,", _engine.SceneTableOptions.__init__.__doc__)
+    assert re.search(
+        r"temperature_step_K: [\w.]+ = 5\.0,", _engine.SceneTableOptions.__init__.__doc__
+    )

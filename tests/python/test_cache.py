@@ -22,7 +22,7 @@ def test_the_cache_folder_honours_qogi_cache_dir_then_xdg_cache_home(monkeypatch
     monkeypatch.setenv("QOGI_CACHE_DIR", str(tmp_path / "mine"))
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
     assert cache.cache_dir() == tmp_path / "mine"
-    assert spectra.cache_dir() == tmp_path / "mine"        # the same function
+    assert spectra.cache_dir() == tmp_path / "mine"  # the same function
     monkeypatch.delenv("QOGI_CACHE_DIR")
     assert cache.cache_dir() == tmp_path / "xdg" / "qogi"
     monkeypatch.delenv("XDG_CACHE_HOME")
@@ -32,8 +32,10 @@ def test_the_cache_folder_honours_qogi_cache_dir_then_xdg_cache_home(monkeypatch
 
 def test_a_cache_name_carries_its_format_version(monkeypatch, tmp_path):
     monkeypatch.setenv("QOGI_CACHE_DIR", str(tmp_path))
-    assert cache.cache_path("xsec", "CH4_1-2_ab", "3-1", ".qxs") == \
-        tmp_path / "xsec" / "CH4_1-2_ab.v3-1.qxs"
+    assert (
+        cache.cache_path("xsec", "CH4_1-2_ab", "3-1", ".qxs")
+        == tmp_path / "xsec" / "CH4_1-2_ab.v3-1.qxs"
+    )
     assert cache.cache_path("xsec", "a", 2, ".qxs") != cache.cache_path("xsec", "a", 3, ".qxs")
     with pytest.raises(ValueError, match="stem"):
         cache.cache_path("xsec", "../escape", 1, ".qxs")
@@ -47,6 +49,7 @@ def test_store_is_atomic_and_a_cache_that_cannot_be_written_is_skipped(tmp_path)
     def boom(tmp):
         tmp.write_bytes(b"half")
         raise RuntimeError("writer failed")
+
     with pytest.raises(RuntimeError):
         cache.store(target, boom)
     assert target.read_bytes() == b"abc"
@@ -77,7 +80,7 @@ def test_a_cross_section_table_of_another_format_version_is_ignored_and_rebuilt(
     np.testing.assert_array_equal(t2.sigma, t1.sigma)
     new.write_bytes(b"QXS of a format this qogi does not know")
     np.testing.assert_array_equal(_small_table().sigma, t1.sigma)
-    assert new.stat().st_size > 1000                         # rebuilt and stored again
+    assert new.stat().st_size > 1000  # rebuilt and stored again
 
 
 def test_the_demo_recording_is_named_by_its_format_version(monkeypatch, tmp_path):

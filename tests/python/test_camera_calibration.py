@@ -16,8 +16,11 @@ def channels():
 
     def band(lo, hi):  # smooth band-pass between lo and hi cm-1
         return 1.0 / (1.0 + np.exp(-(nu - lo) / 6.0)) / (1.0 + np.exp((nu - hi) / 6.0))
-    return [qogi.SpectralResponse(nu, 0.8 * band(2950.0, 3150.0), "CH4"),
-            qogi.SpectralResponse(nu, 0.8 * band(2220.0, 2400.0), "CO2")]
+
+    return [
+        qogi.SpectralResponse(nu, 0.8 * band(2950.0, 3150.0), "CH4"),
+        qogi.SpectralResponse(nu, 0.8 * band(2220.0, 2400.0), "CO2"),
+    ]
 
 
 class Camera:
@@ -65,8 +68,8 @@ def test_raw_uint16_stacks_calibrate_to_the_true_radiance(fitted):
     # A stack of 3 frames at other temperatures, per-frame and per-channel times.
     temps = np.array([293.0, 313.0, 353.0])
     t_int = np.array([[1e-3, 5e-4], [2e-3, 1e-3], [5e-4, 5e-4]])
-    truth = np.stack([cam.radiance(t) for t in temps])            # (3, C)
-    raw = cam.frames(truth, t_int, 3)                              # (3, C, H, W) uint16
+    truth = np.stack([cam.radiance(t) for t in temps])  # (3, C)
+    raw = cam.frames(truth, t_int, 3)  # (3, C, H, W) uint16
     lum = cal.counts_to_radiance(raw, t_int)
     assert lum.dtype == np.float32 and lum.shape == raw.shape
     # Error budget per pixel, in counts at the test frame's time t: the NUC
@@ -81,8 +84,12 @@ def test_raw_uint16_stacks_calibrate_to_the_true_radiance(fitted):
     assert 0.5 < np.std(z) < 1.2
     # Radiometric temperature.
     temp = cal.apply(raw, t_int, quantity="radiometric_temperature")
-    sigma_t = sigma_l / np.stack([np.array([ch.band_radiance_derivative(t) for ch in cam.chans])
-                                  for t in temps])[..., None, None]
+    sigma_t = (
+        sigma_l
+        / np.stack([np.array([ch.band_radiance_derivative(t) for ch in cam.chans]) for t in temps])[
+            ..., None, None
+        ]
+    )
     assert np.max(np.abs(temp - temps[:, None, None, None]) / sigma_t) < 6
     assert cal.last_stats == {"out_of_range": 0, "replaced": 0, "unreplaced": 0}
 
@@ -90,7 +97,7 @@ def test_raw_uint16_stacks_calibrate_to_the_true_radiance(fitted):
 def test_counts_round_trip_and_single_frames(fitted):
     cam, cal = fitted
     lum = np.broadcast_to(cam.radiance(318.0)[:, None, None], (2, H, W)).astype(np.float32)
-    counts = cal.radiance_to_counts(lum, [1e-3, 2e-3])              # one (C, H, W) frame
+    counts = cal.radiance_to_counts(lum, [1e-3, 2e-3])  # one (C, H, W) frame
     assert counts.shape == (2, H, W)
     back = cal.counts_to_radiance(counts, [1e-3, 2e-3])
     np.testing.assert_allclose(back, lum, rtol=2e-6)
@@ -111,8 +118,9 @@ def test_fit_diagnostics(fitted):
     for c, ch in enumerate(cal.channels):
         p = ch.points
         np.testing.assert_allclose(p["blackbody_temperature_K"], TEMPS)
-        np.testing.assert_allclose(p["radiance"], [cam.chans[c].band_radiance(t) for t in TEMPS],
-                                   rtol=1e-12)
+        np.testing.assert_allclose(
+            p["radiance"], [cam.chans[c].band_radiance(t) for t in TEMPS], rtol=1e-12
+        )
         # Truth is linear: residuals are noise (scene means of 6 x 320 draws
         # of 2 counts, ~0.05 counts), far below 1 mK.
         assert ch.rms_residual_K < 1e-3
@@ -129,7 +137,7 @@ def test_single_channel_camera_and_per_frame_times():
     one = [CalibrationScene(t, cam.frames(cam.radiance(t), 1e-3, 4)[:, 0], 1e-3) for t in TEMPS]
     cal = fit_calibration(one, chans)
     truth = cam.radiance(330.0)[0]
-    raw = cam.frames(cam.radiance(330.0), [[1e-3, 1e-3], [2e-3, 2e-3]], 2)[:, 0]   # (2, H, W)
+    raw = cam.frames(cam.radiance(330.0), [[1e-3, 1e-3], [2e-3, 2e-3]], 2)[:, 0]  # (2, H, W)
     lum = cal.counts_to_radiance(raw, [1e-3, 2e-3])
     assert lum.shape == (2, H, W)
     # Noise-free frames: only count rounding (0.29 counts rms) remains.
@@ -139,6 +147,7 @@ def test_single_channel_camera_and_per_frame_times():
 @pytest.mark.parametrize("kind", ["npz", "h5", "group"])
 def test_save_and_load_round_trip(fitted, tmp_path, kind):
     import h5py
+
     cam, cal = fitted
     raw = cam.frames(cam.radiance(320.0), 1e-3, 2)
     if kind == "npz":
@@ -153,11 +162,13 @@ def test_save_and_load_round_trip(fitted, tmp_path, kind):
             cal.save(f.create_group("camera"), group="calibration")
         with h5py.File(tmp_path / "rec.h5", "r") as f:
             back = Calibration.load(f["camera"])
-    np.testing.assert_array_equal(back.counts_to_radiance(raw, 1e-3),
-                                  cal.counts_to_radiance(raw, 1e-3))
+    np.testing.assert_array_equal(
+        back.counts_to_radiance(raw, 1e-3), cal.counts_to_radiance(raw, 1e-3)
+    )
     assert [r.name for r in back.responses] == ["CH4", "CO2"]
-    np.testing.assert_array_equal(back.channels[1].points["residual_K"],
-                                  cal.channels[1].points["residual_K"])
+    np.testing.assert_array_equal(
+        back.channels[1].points["residual_K"], cal.channels[1].points["residual_K"]
+    )
 
 
 def test_loading_something_else_is_refused(tmp_path):
@@ -168,6 +179,7 @@ def test_loading_something_else_is_refused(tmp_path):
     with pytest.raises(ValueError, match="missing"):
         Calibration.load(tmp_path / "y.npz")
     import h5py
+
     with h5py.File(tmp_path / "z.h5", "w"):
         pass
     with pytest.raises(ValueError, match="no calibration group"):
@@ -177,8 +189,8 @@ def test_loading_something_else_is_refused(tmp_path):
 def test_bad_pixels_are_replaced():
     cam = Camera(channels(), seed=4)
     cam.noise = 1.0
-    cam.g[0, 3, 4] = 0.0           # dead in channel 0
-    cam.o[1, 10, 10] = 8e7         # saturating in channel 1
+    cam.g[0, 3, 4] = 0.0  # dead in channel 0
+    cam.o[1, 10, 10] = 8e7  # saturating in channel 1
     cal = fit_calibration(scenes(cam), cam.chans)
     assert np.argwhere(cal.channels[0].bad_pixels).tolist() == [[3, 4]]
     assert np.argwhere(cal.channels[1].bad_pixels).tolist() == [[10, 10]]
@@ -199,8 +211,10 @@ def test_bad_calibration_input_is_refused_clearly():
     with pytest.raises(ValueError, match="at least 4 distinct"):
         fit_calibration(good[:3], cam.chans, quadratic=True)
     swapped = list(good)
-    swapped[1], swapped[3] = (CalibrationScene(303.0, good[3].frames, 1e-3),
-                              CalibrationScene(343.0, good[1].frames, 1e-3))
+    swapped[1], swapped[3] = (
+        CalibrationScene(303.0, good[3].frames, 1e-3),
+        CalibrationScene(343.0, good[1].frames, 1e-3),
+    )
     with pytest.raises(ValueError, match="not monotonic"):
         fit_calibration(swapped, cam.chans)
     hot = Camera(channels())
@@ -208,11 +222,14 @@ def test_bad_calibration_input_is_refused_clearly():
     with pytest.raises(ValueError, match="saturated"):
         fit_calibration(scenes(hot, n=2), hot.chans)
     with pytest.raises(ValueError, match="share one frame size"):
-        fit_calibration(good[:4] + [CalibrationScene(363.0, good[4].frames[..., :-1], 1e-3)],
-                        cam.chans)
+        fit_calibration(
+            good[:4] + [CalibrationScene(363.0, good[4].frames[..., :-1], 1e-3)], cam.chans
+        )
     with pytest.raises(ValueError, match="C = 2 channels"):
-        fit_calibration([CalibrationScene(s.blackbody_temperature_K, s.frames[:, 0], 1e-3)
-                         for s in good], cam.chans)
+        fit_calibration(
+            [CalibrationScene(s.blackbody_temperature_K, s.frames[:, 0], 1e-3) for s in good],
+            cam.chans,
+        )
     with pytest.raises(ValueError, match="integration_time_s"):
         fit_calibration(good[:4] + [CalibrationScene(363.0, good[4].frames, 0.0)], cam.chans)
     with pytest.raises(ValueError, match="blackbody_emissivity"):
@@ -225,18 +242,19 @@ def test_bad_calibration_input_is_refused_clearly():
 
 def test_quadratic_detector_needs_the_quadratic_term():
     cam = Camera(channels(), seed=9)
-    kappa = 0.02                                 # 2 % nonlinearity at 360 K
+    kappa = 0.02  # 2 % nonlinearity at 360 K
     l360 = cam.radiance(360.0)
 
     def scene(t):
         lum = cam.radiance(t)
-        return CalibrationScene(t, cam.frames(lum + kappa * lum ** 2 / l360, 1e-3, 4), 1e-3)
+        return CalibrationScene(t, cam.frames(lum + kappa * lum**2 / l360, 1e-3, 4), 1e-3)
+
     sc = [scene(t) for t in TEMPS]
     lin = fit_calibration(sc, cam.chans)
     quad = fit_calibration(sc, cam.chans, quadratic=True)
     for c in range(2):
         assert lin.channels[c].rms_residual_K > 0.1
-        assert quad.channels[c].rms_residual_K < 1e-3       # count rounding only
+        assert quad.channels[c].rms_residual_K < 1e-3  # count rounding only
         q_true = np.mean(cam.g[c]) * kappa / l360[c]
         assert quad.channels[c].curve.quadratic == pytest.approx(q_true, rel=1e-2)
 
@@ -254,11 +272,13 @@ def test_options_mirror_the_engine_struct():
 
 def test_calibration_and_optics_pickle(fitted):
     import pickle
+
     cam, cal = fitted
     back = pickle.loads(pickle.dumps(cal))
     raw = cam.frames(cam.radiance(320.0), 1e-3, 1)
-    np.testing.assert_array_equal(back.counts_to_radiance(raw, 1e-3),
-                                  cal.counts_to_radiance(raw, 1e-3))
+    np.testing.assert_array_equal(
+        back.counts_to_radiance(raw, 1e-3), cal.counts_to_radiance(raw, 1e-3)
+    )
     o = qogi.camera_optics("fast-m150")[1]
     o2 = pickle.loads(pickle.dumps(o))
     assert isinstance(o2, qogi.ChannelOptics)

@@ -18,9 +18,13 @@ from qogi import render
 from qogi.cli import main
 from qogi.errors import UsageError
 from qogi.io.flir import FlirFile, flir_apparent_temperature
-from qogi.io.flir_writer import (flir_metadata, planck_calibration_for,
-                                 raw_from_apparent_temperature, write_flir_seq,
-                                 write_recording_as_seq)
+from qogi.io.flir_writer import (
+    flir_metadata,
+    planck_calibration_for,
+    raw_from_apparent_temperature,
+    write_flir_seq,
+    write_recording_as_seq,
+)
 from qogi.surfaces import truth_surfaces
 
 LAB = "lab-ch4-5slpm-gf320"
@@ -51,11 +55,19 @@ def _surface_args(h5):
 
 # ------------------------------------------------------------------ the writer
 
+
 def test_writer_lays_out_fff_blocks_at_the_documented_offsets(tmp_path):
     planck = planck_calibration_for(3030.0)
-    m = flir_metadata(width=4, height=3, timestamp_s=1700000000.25, planck=planck,
-                      field_of_view_deg=24.0, frame_rate_hz=15, object_distance_m=7.5,
-                      atmospheric_temperature_K=280.0)
+    m = flir_metadata(
+        width=4,
+        height=3,
+        timestamp_s=1700000000.25,
+        planck=planck,
+        field_of_view_deg=24.0,
+        frame_rate_hz=15,
+        object_distance_m=7.5,
+        atmospheric_temperature_K=280.0,
+    )
     raw = np.arange(12, dtype=np.uint16).reshape(3, 4) + 1000
     p = tmp_path / "one.seq"
     write_flir_seq(p, [raw], [m])
@@ -67,10 +79,9 @@ def test_writer_lays_out_fff_blocks_at_the_documented_offsets(tmp_path):
     ctype, _, _, _, cam_off, _ = struct.unpack(">HHIIII", b[0x60:0x74])
     assert (rtype, ctype) == (0x01, 0x20)
     # RawData: byte-order mark 2 (little-endian), width, height, then the words.
-    assert struct.unpack("<HHH", b[raw_off:raw_off + 6]) == (2, 4, 3)
+    assert struct.unpack("<HHH", b[raw_off : raw_off + 6]) == (2, 4, 3)
     assert raw_len == 32 + 2 * 12
-    np.testing.assert_array_equal(np.frombuffer(b[raw_off + 32:raw_off + 56], "<u2"),
-                                  raw.ravel())
+    np.testing.assert_array_equal(np.frombuffer(b[raw_off + 32 : raw_off + 56], "<u2"), raw.ravel())
     # CameraInfo: distance at 0x24, atmosphere at 0x2C, B at 0x5C, FOV at 0x1B4,
     # time stamp (s, ms) at 0x384.
     cam = b[cam_off:]
@@ -83,8 +94,14 @@ def test_writer_lays_out_fff_blocks_at_the_documented_offsets(tmp_path):
 
 @pytest.mark.parametrize("order", ["<", ">"])
 def test_little_and_big_endian_raw_data_read_the_same_counts(tmp_path, order):
-    m = flir_metadata(width=5, height=2, timestamp_s=1.7e9, planck=planck_calibration_for(3030.0),
-                      field_of_view_deg=20.0, frame_rate_hz=30)
+    m = flir_metadata(
+        width=5,
+        height=2,
+        timestamp_s=1.7e9,
+        planck=planck_calibration_for(3030.0),
+        field_of_view_deg=20.0,
+        frame_rate_hz=30,
+    )
     raw = np.array([[0, 1, 258, 40000, 65535], [7, 8, 9, 10, 11]], np.uint16)
     p = tmp_path / f"{'le' if order == '<' else 'be'}.seq"
     write_flir_seq(p, [raw], [m], byte_order=order, header_order=order)
@@ -96,20 +113,33 @@ def test_little_and_big_endian_raw_data_read_the_same_counts(tmp_path, order):
 
 
 def test_counts_invert_the_one_line_planck_law_to_the_count():
-    m = flir_metadata(width=1, height=1, timestamp_s=0.0, planck=planck_calibration_for(3030.0),
-                      field_of_view_deg=20.0, frame_rate_hz=15)
+    m = flir_metadata(
+        width=1,
+        height=1,
+        timestamp_s=0.0,
+        planck=planck_calibration_for(3030.0),
+        field_of_view_deg=20.0,
+        frame_rate_hz=15,
+    )
     t = np.linspace(270.0, 340.0, 701)
     raw = raw_from_apparent_temperature(t, m)
     back = flir_apparent_temperature(raw, m)
     # Half a count of the calibration's slope dT/draw = 1 / (raw B / T^2).
-    slope = 1.0 / ((raw.astype(float) + m.planck_o) * m.planck_b / t ** 2)
+    slope = 1.0 / ((raw.astype(float) + m.planck_o) * m.planck_b / t**2)
     assert np.all(np.abs(back - t) <= 0.5 * slope * 1.01)
 
 
 def test_a_block_without_camera_info_is_refused_by_name(tmp_path):
     from qogi.io.flir_writer import fff_block
-    m = flir_metadata(width=2, height=2, timestamp_s=0.0, planck=planck_calibration_for(3030.0),
-                      field_of_view_deg=20.0, frame_rate_hz=15)
+
+    m = flir_metadata(
+        width=2,
+        height=2,
+        timestamp_s=0.0,
+        planck=planck_calibration_for(3030.0),
+        field_of_view_deg=20.0,
+        frame_rate_hz=15,
+    )
     block = bytearray(fff_block(np.zeros((2, 2), np.uint16), m))
     struct.pack_into(">H", block, 0x60, 0x22)  # the CameraInfo entry becomes another type
     p = tmp_path / "nocal.seq"
@@ -119,6 +149,7 @@ def test_a_block_without_camera_info_is_refused_by_name(tmp_path):
 
 
 # ------------------------------------------------------------------ opening
+
 
 def test_seq_opens_lazily_with_per_frame_times_and_scene_origins(lab):
     h5, seq = lab
@@ -130,8 +161,9 @@ def test_seq_opens_lazily_with_per_frame_times_and_scene_origins(lab):
         # the release's radiance to the quantization of the counts: half a
         # count is up to 2.3 mK at the 285 K plate, where dL/L = B dT / T^2 is
         # 1.2e-4.
-        np.testing.assert_allclose(rec.frames(0, 5, quantity="radiance"), ref.frames(0, 5),
-                                   rtol=1.3e-4)
+        np.testing.assert_allclose(
+            rec.frames(0, 5, quantity="radiance"), ref.frames(0, 5), rtol=1.3e-4
+        )
         assert rec.camera.ifov_rad == pytest.approx(ref.camera.ifov_rad, rel=1e-6)
         assert rec.scene_origin["distance_m"] == "file (FLIR object distance)"
         assert rec.scene_origin["ambient_temperature_K"] == "file (FLIR atmospheric temperature)"
@@ -143,8 +175,13 @@ def test_seq_opens_lazily_with_per_frame_times_and_scene_origins(lab):
 
 
 def test_dropped_frames_are_seen_in_the_time_stamps(tmp_path):
-    m = dict(width=3, height=2, planck=planck_calibration_for(3030.0), field_of_view_deg=0.2,
-             frame_rate_hz=30)
+    m = dict(
+        width=3,
+        height=2,
+        planck=planck_calibration_for(3030.0),
+        field_of_view_deg=0.2,
+        frame_rate_hz=30,
+    )
     times = 1.7e9 + np.array([0, 1, 2, 4, 5, 8]) / 30.0
     metas = [flir_metadata(timestamp_s=t, **m) for t in times]
     p = tmp_path / "gaps.seq"
@@ -158,8 +195,11 @@ def test_dropped_frames_are_seen_in_the_time_stamps(tmp_path):
 
 def test_missing_camera_is_refused_naming_it_and_why(lab):
     _, seq = lab
-    with pytest.raises(UsageError, match=r"the camera \(spectral response\) is needed and the "
-                                         r"file does not hold it.*--camera"):
+    with pytest.raises(
+        UsageError,
+        match=r"the camera \(spectral response\) is needed and the "
+        r"file does not hold it.*--camera",
+    ):
         qogi.open_recording(seq)
 
 
@@ -194,19 +234,36 @@ def flir_samples(shared_dir):
 
 # ------------------------------------------------------------------ command line
 
+
 def test_quantify_seq_reads_the_same_rate_as_the_hdf5_release(lab, tmp_path, capsys):
     h5, seq = lab
     surf = _surface_args(h5)
     common = surf + ["--wind-speed", "0.5", "-q"]
     assert main(["quantify", str(h5), "--json", str(tmp_path / "a.json")] + common) == 0
-    assert main(["quantify", str(seq), "--camera", "gf320", "--distance", "1.5",
-                 "--json", str(tmp_path / "b.json")] + common) == 0
+    assert (
+        main(
+            [
+                "quantify",
+                str(seq),
+                "--camera",
+                "gf320",
+                "--distance",
+                "1.5",
+                "--json",
+                str(tmp_path / "b.json"),
+            ]
+            + common
+        )
+        == 0
+    )
     a = json.loads((tmp_path / "a.json").read_text())
     b = json.loads((tmp_path / "b.json").read_text())
     ra = a["surfaces"][0]["species"]["CH4"]["mean_kg_h"]
     rb = b["surfaces"][0]["species"]["CH4"]["mean_kg_h"]
-    print(f"CH4 at 8 cm, wind 0.5 m/s: HDF5 {ra:.5g} kg/h, FLIR .seq {rb:.5g} kg/h "
-          f"({rb / ra - 1:+.3%})")
+    print(
+        f"CH4 at 8 cm, wind 0.5 m/s: HDF5 {ra:.5g} kg/h, FLIR .seq {rb:.5g} kg/h "
+        f"({rb / ra - 1:+.3%})"
+    )
     assert ra > 0 and rb == pytest.approx(ra, rel=0.01)
     codes = [w["code"] for w in b["warnings"]]
     # The distance was given: no default flagged; the pressure was assumed.
@@ -222,8 +279,21 @@ def test_quantify_refuses_a_camera_file_without_camera(lab, capsys):
 
 
 def test_quantify_refuses_the_lwir_sample_with_the_gf320(flir_samples, capsys):
-    assert main(["quantify", str(flir_samples / "SampleCSQ.csq"), "--camera", "gf320",
-                 "--distance", "3", "--surface", "1,1,50,50"]) == 2
+    assert (
+        main(
+            [
+                "quantify",
+                str(flir_samples / "SampleCSQ.csq"),
+                "--camera",
+                "gf320",
+                "--distance",
+                "3",
+                "--surface",
+                "1,1,50,50",
+            ]
+        )
+        == 2
+    )
     err = capsys.readouterr().err
     assert "9.5 um" in err and "3.20-3.40 um" in err
 
@@ -231,10 +301,14 @@ def test_quantify_refuses_the_lwir_sample_with_the_gf320(flir_samples, capsys):
 def test_convert_streams_to_a_recording_that_quantifies_the_same(lab, tmp_path, capsys):
     h5, seq = lab
     out = tmp_path / "conv.h5"
-    assert main(["convert", str(seq), "-o", str(out), "--camera", "gf320", "--distance", "1.5",
-                 "-q"]) == 0
-    with qogi.open_recording(out) as conv, qogi.open_recording(seq, camera="gf320",
-                                                                distance_m=1.5) as rec:
+    assert (
+        main(["convert", str(seq), "-o", str(out), "--camera", "gf320", "--distance", "1.5", "-q"])
+        == 0
+    )
+    with (
+        qogi.open_recording(out) as conv,
+        qogi.open_recording(seq, camera="gf320", distance_m=1.5) as rec,
+    ):
         np.testing.assert_array_equal(conv.to_array(), rec.to_array())
         np.testing.assert_array_equal(conv.time_s, rec.time_s)
         assert conv.scene.distance_m == 1.5

@@ -26,9 +26,11 @@ def test_sigma_is_netd_times_band_slope(camera):
     sigma = netd_radiance_sigma(camera, background_temperature_K=t_bg)
     expected = [0.017 * slope(ch, t) for ch, t in zip(camera.channels, t_bg)]
     np.testing.assert_allclose(sigma, expected, rtol=1e-7)
-    np.testing.assert_allclose(netd_radiance_sigma(camera.channels, [0.01, 0.02, 0.03, 0.04], 300),
-                               [n * slope(ch, 300.0) for n, ch in
-                                zip([0.01, 0.02, 0.03, 0.04], camera.channels)], rtol=1e-7)
+    np.testing.assert_allclose(
+        netd_radiance_sigma(camera.channels, [0.01, 0.02, 0.03, 0.04], 300),
+        [n * slope(ch, 300.0) for n, ch in zip([0.01, 0.02, 0.03, 0.04], camera.channels)],
+        rtol=1e-7,
+    )
     with pytest.raises(ValueError, match="netd_K"):
         netd_radiance_sigma(camera.channels, None)
     with pytest.raises(ValueError, match="one per channel"):
@@ -38,7 +40,7 @@ def test_sigma_is_netd_times_band_slope(camera):
 def test_measured_noise_through_dl_dt_is_the_netd(camera):
     t_bg = np.array([288.15, 288.15, 295.0, 300.0])
     lum = np.array([ch.band_radiance(t) for ch, t in zip(camera.channels, t_bg)])
-    n_frames, h, w = 16, 256, 256          # 2**20 values per channel
+    n_frames, h, w = 16, 256, 256  # 2**20 values per channel
     frames = np.broadcast_to(lum[None, :, None, None], (n_frames, 4, h, w)).astype(np.float32)
     noisy = add_netd_noise(frames, camera, background_temperature_K=t_bg, seed=42)
     assert noisy.dtype == np.float32 and noisy.shape == frames.shape
@@ -61,11 +63,15 @@ def test_noise_is_seeded_and_reproducible(camera):
     b = add_netd_noise(frames, camera, seed=7, num_threads=1)
     c = add_netd_noise(frames, camera, seed=8)
     np.testing.assert_array_equal(a, b)
-    assert np.all(frames == 0)             # input untouched
+    assert np.all(frames == 0)  # input untouched
     assert abs(np.corrcoef(a.ravel(), c.ravel())[0, 1]) < 5 / np.sqrt(a.size)
     # Frame by frame with the stream offset: the same noise.
-    pieces = np.concatenate([add_netd_noise(frames[k:k + 1], camera, seed=7,
-                                            offset=k * frames[0].size) for k in range(3)])
+    pieces = np.concatenate(
+        [
+            add_netd_noise(frames[k : k + 1], camera, seed=7, offset=k * frames[0].size)
+            for k in range(3)
+        ]
+    )
     np.testing.assert_array_equal(pieces, a)
     # In place.
     inplace = frames.copy()
@@ -74,7 +80,7 @@ def test_noise_is_seeded_and_reproducible(camera):
     np.testing.assert_array_equal(inplace, a)
     # The draws are the public stream times sigma.
     sigma = netd_radiance_sigma(camera)
-    i = 5 * 17 * 23 + 11                   # frame 1, channel 1
+    i = 5 * 17 * 23 + 11  # frame 1, channel 1
     ch = (i // (17 * 23)) % 4
     assert ch == 1
     assert a.ravel()[i] == np.float32(sigma[ch] * qogi._engine.standard_normal_draw(7, i))

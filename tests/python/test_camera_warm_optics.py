@@ -6,8 +6,13 @@ import numpy as np
 import pytest
 
 import qogi
-from qogi.camera import (ChannelOptics, add_warm_optics, camera_optics, correct_warm_optics,
-                         warm_optics_radiance)
+from qogi.camera import (
+    ChannelOptics,
+    add_warm_optics,
+    camera_optics,
+    correct_warm_optics,
+    warm_optics_radiance,
+)
 
 NU = np.arange(1800.0, 6700.0 + 0.5, 1.0)
 
@@ -39,8 +44,9 @@ def planck(x, t):
 
 
 def optics(reflective=True):
-    return ChannelOptics(NU, det(NU), tau_f(NU), tau_l(NU),
-                         rho_f(NU) if reflective else None, name="test")
+    return ChannelOptics(
+        NU, det(NU), tau_f(NU), tau_l(NU), rho_f(NU) if reflective else None, name="test"
+    )
 
 
 def test_vanishes_for_a_perfectly_transmitting_filter_and_lens():
@@ -60,7 +66,7 @@ def test_opaque_filter_emits_the_blackbody_band_radiance_through_d_times_emissiv
     eps = 1.0 - 1e-9 - rho_f(NU)
     through = qogi.SpectralResponse(NU, det(NU) * eps).band_radiance(t_filter)
     ref = integral(lambda x: det(x) * (1 - rho_f(x)) * planck(x, t_filter))
-    for t_lens in (200.0, 350.0):          # (almost) nothing passes the filter:
+    for t_lens in (200.0, 350.0):  # (almost) nothing passes the filter:
         w = opaque.warm_radiance(t_lens, t_filter)
         # the lens adds 1e-9 x its band radiance (< 3 W/(m2 sr)) at most.
         assert w == pytest.approx(through, abs=3e-9)
@@ -77,9 +83,11 @@ def test_terms_against_independent_integrals():
     assert o.warm_radiance(tl, tf) == pytest.approx(lens + filt, rel=1e-5)
     h = 0.01
     assert o.warm_radiance_derivative_filter(tf) == pytest.approx(
-        (o.filter_term(tf + h) - o.filter_term(tf - h)) / (2 * h), rel=1e-6)
+        (o.filter_term(tf + h) - o.filter_term(tf - h)) / (2 * h), rel=1e-6
+    )
     assert o.warm_radiance_derivative_lens(tl) == pytest.approx(
-        (o.lens_term(tl + h) - o.lens_term(tl - h)) / (2 * h), rel=1e-6)
+        (o.lens_term(tl + h) - o.lens_term(tl - h)) / (2 * h), rel=1e-6
+    )
     # The response is d tau_f tau_l.
     np.testing.assert_allclose(o.response.response, det(NU) * tau_f(NU) * tau_l(NU), rtol=1e-15)
 
@@ -105,14 +113,15 @@ def test_correction_is_the_exact_inverse_on_frame_stacks():
     opt = camera_optics("fast-m150")
     rng = np.random.default_rng(0)
     lum = rng.uniform(0.05, 2.0, (5, 4, 6, 7))
-    t_lens = np.linspace(290.0, 300.0, 5)         # one per frame
+    t_lens = np.linspace(290.0, 300.0, 5)  # one per frame
     t_filter = t_lens + 1.0
     meas = add_warm_optics(lum, opt, t_lens, t_filter)
-    w = warm_optics_radiance(opt, t_lens, t_filter)             # (5, 4)
+    w = warm_optics_radiance(opt, t_lens, t_filter)  # (5, 4)
     assert w.shape == (5, 4)
     np.testing.assert_array_equal(meas, lum + w[:, :, None, None])
-    np.testing.assert_allclose(correct_warm_optics(meas, opt, t_lens, t_filter), lum,
-                               rtol=0, atol=1e-15)
+    np.testing.assert_allclose(
+        correct_warm_optics(meas, opt, t_lens, t_filter), lum, rtol=0, atol=1e-15
+    )
     # Band-radiance vectors (channel on the last axis), as a forward model returns them.
     vec = lum[0, :, 0, 0]
     out = add_warm_optics(vec, opt, 293.15, 293.15, axis=-1)
@@ -125,14 +134,21 @@ def test_correction_relative_to_the_calibration_temperature():
     opt = camera_optics("fast-m150")
     lum = np.array([2.0, 0.15, 0.1, 0.5])
     # Calibrated with the optics at 20 C: the offset holds W(293.15 K).
-    meas = add_warm_optics(lum, opt, 296.0, 297.0, axis=-1) \
-        - warm_optics_radiance(opt, 293.15, 293.15)
-    got = correct_warm_optics(meas, opt, 296.0, 297.0, reference_lens_temperature_K=293.15,
-                              reference_filter_temperature_K=293.15, axis=-1)
+    meas = add_warm_optics(lum, opt, 296.0, 297.0, axis=-1) - warm_optics_radiance(
+        opt, 293.15, 293.15
+    )
+    got = correct_warm_optics(
+        meas,
+        opt,
+        296.0,
+        297.0,
+        reference_lens_temperature_K=293.15,
+        reference_filter_temperature_K=293.15,
+        axis=-1,
+    )
     np.testing.assert_allclose(got, lum, rtol=1e-13)
     with pytest.raises(ValueError, match="reference"):
-        correct_warm_optics(meas, opt, 296.0, 297.0, reference_lens_temperature_K=293.15,
-                            axis=-1)
+        correct_warm_optics(meas, opt, 296.0, 297.0, reference_lens_temperature_K=293.15, axis=-1)
 
 
 def test_warm_optics_grow_with_temperature_and_the_open_channel_has_no_filter_term():
@@ -165,8 +181,7 @@ def test_preset_optics_reproduce_the_preset_channels(name):
     opt = camera_optics(name)
     assert [o.name for o in opt] == [ch.name for ch in cam.channels]
     for o, ch in zip(opt, cam.channels):
-        np.testing.assert_allclose(o.response.evaluate(ch.nu_cm1), ch.response, rtol=0,
-                                   atol=1e-14)
+        np.testing.assert_allclose(o.response.evaluate(ch.nu_cm1), ch.response, rtol=0, atol=1e-14)
 
 
 def test_composes_with_the_forward_model():
@@ -174,12 +189,17 @@ def test_composes_with_the_forward_model():
     lens, filter) is the detector-band blackbody; the warm term cancels in the
     plume contrast and the correction recovers the forward model's radiance."""
     from synthetic_tables import lorentz_table
+
     nu = np.arange(2950.0, 3100.0 + 0.25, 0.5)
     band = 0.85 / (1 + np.exp(-(nu - 2990.0) / 3.0)) / (1 + np.exp((nu - 3060.0) / 3.0))
-    opt = [ChannelOptics(nu, np.ones_like(nu), band, np.full_like(nu, 0.9),
-                         0.5 * (1 - band), name="CH4 test")]
-    model = qogi.ForwardModel([o.response for o in opt], ["CH4"],
-                              tables=[lorentz_table("CH4", seed=3)])
+    opt = [
+        ChannelOptics(
+            nu, np.ones_like(nu), band, np.full_like(nu, 0.9), 0.5 * (1 - band), name="CH4 test"
+        )
+    ]
+    model = qogi.ForwardModel(
+        [o.response for o in opt], ["CH4"], tables=[lorentz_table("CH4", seed=3)]
+    )
     for t in (280.0, 300.0):
         lum = model.band_radiance({"CH4": 0.3}, t, 0.05, t, t)
         total = add_warm_optics(lum, opt, t, t, t, axis=-1)
@@ -189,5 +209,6 @@ def test_composes_with_the_forward_model():
     meas = add_warm_optics(plume, opt, 296.0, 297.0, axis=-1)
     meas_bg = add_warm_optics(bg, opt, 296.0, 297.0, axis=-1)
     assert meas[0] - meas_bg[0] == pytest.approx(plume[0] - bg[0], rel=1e-9)
-    np.testing.assert_allclose(correct_warm_optics(meas, opt, 296.0, 297.0, axis=-1), plume,
-                               rtol=1e-13)
+    np.testing.assert_allclose(
+        correct_warm_optics(meas, opt, 296.0, 297.0, axis=-1), plume, rtol=1e-13
+    )

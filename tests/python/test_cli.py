@@ -4,8 +4,9 @@ import sys
 
 
 def run(*args):
-    return subprocess.run([sys.executable, "-m", "qogi", *args], capture_output=True,
-                          check=False, text=True)
+    return subprocess.run(
+        [sys.executable, "-m", "qogi", *args], capture_output=True, check=False, text=True
+    )
 
 
 def test_help_lists_commands():
@@ -16,11 +17,26 @@ def test_help_lists_commands():
 
 def test_synth_then_quantify_round_trip(tmp_path):
     rec = tmp_path / "lab.h5"
-    r = run("synth", "lab-ch4-5slpm-gf320", "-o", str(rec), "--duration", "1.5", "--seed", "2", "-q")
+    r = run(
+        "synth", "lab-ch4-5slpm-gf320", "-o", str(rec), "--duration", "1.5", "--seed", "2", "-q"
+    )
     assert r.returncode == 0, r.stderr
     out = tmp_path / "out.json"
-    r = run("quantify", str(rec), "--surface", "100,200,220,200", "--species", "CH4",
-            "--source", "159.5,227", "--json", str(out), "--csv", str(tmp_path / "out.csv"), "-q")
+    r = run(
+        "quantify",
+        str(rec),
+        "--surface",
+        "100,200,220,200",
+        "--species",
+        "CH4",
+        "--source",
+        "159.5,227",
+        "--json",
+        str(out),
+        "--csv",
+        str(tmp_path / "out.csv"),
+        "-q",
+    )
     assert r.returncode == 0, r.stderr
     d = json.loads(out.read_text())
     s = d["surfaces"][0]

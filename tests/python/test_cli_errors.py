@@ -10,11 +10,10 @@ import os
 import h5py
 import numpy as np
 import pytest
+from test_interrupt import SURFACE, small_recording
 
 from qogi import cli, errors
 from qogi.errors import EXIT_DATA, EXIT_INTERNAL, EXIT_USAGE
-
-from test_interrupt import SURFACE, small_recording
 
 
 def run(capsys, *argv):
@@ -56,21 +55,26 @@ def no_work(monkeypatch):
 
 # ----------------------------------------------------------------- xsec
 
-@pytest.mark.parametrize("args, needle", [
-    (["--range", "3000", "2900"], "MAX must be greater than MIN"),
-    (["--range", "2900"], "--range: expected 2 arguments"),
-    (["--range", "a", "b"], "not a number"),
-    (["--range", "2900", "3000", "--step", "-1"], "--step: must be > 0"),
-    (["--range", "2900", "3000", "--step", "nan"], "--step: must be a finite number"),
-    (["--range", "2900", "3000", "--temperature", "-5"], "--temperature: must be > 0"),
-    (["--range", "2900", "3000", "--pressure", "0"], "--pressure: must be > 0"),
-    (["--range", "2900", "3000", "--self-fraction", "2"], "within [0, 1]"),
-    (["--range", "2900", "3000", "--cutoff", "-3"], "--cutoff"),
-    (["--range", "0", "1e9", "--step", "1e-3"], "at most 5e7"),
-    (["--range", "2900", "3000", "--out", "x.txt"], "give a .npz or .csv"),
-])
-def test_xsec_argument_errors_are_usage_errors_before_any_work(capsys, no_work, tmp_path,
-                                                               monkeypatch, args, needle):
+
+@pytest.mark.parametrize(
+    "args, needle",
+    [
+        (["--range", "3000", "2900"], "MAX must be greater than MIN"),
+        (["--range", "2900"], "--range: expected 2 arguments"),
+        (["--range", "a", "b"], "not a number"),
+        (["--range", "2900", "3000", "--step", "-1"], "--step: must be > 0"),
+        (["--range", "2900", "3000", "--step", "nan"], "--step: must be a finite number"),
+        (["--range", "2900", "3000", "--temperature", "-5"], "--temperature: must be > 0"),
+        (["--range", "2900", "3000", "--pressure", "0"], "--pressure: must be > 0"),
+        (["--range", "2900", "3000", "--self-fraction", "2"], "within [0, 1]"),
+        (["--range", "2900", "3000", "--cutoff", "-3"], "--cutoff"),
+        (["--range", "0", "1e9", "--step", "1e-3"], "at most 5e7"),
+        (["--range", "2900", "3000", "--out", "x.txt"], "give a .npz or .csv"),
+    ],
+)
+def test_xsec_argument_errors_are_usage_errors_before_any_work(
+    capsys, no_work, tmp_path, monkeypatch, args, needle
+):
     monkeypatch.chdir(tmp_path)
     code, _, err = run(capsys, "xsec", "CH4", *args)
     assert code == EXIT_USAGE and needle in err and "Traceback" not in err, err
@@ -86,33 +90,41 @@ def test_xsec_unknown_species_and_missing_line_lists(capsys, tmp_path, monkeypat
     line = one_line_error(err, "xsec")
     assert code == EXIT_USAGE and "no HITRAN line list for 'N2O'" in line
     assert "qogi hitran fetch N2O" in line  # how to fix it
-    code, _, err = run(capsys, "xsec", "CH4", "--range", "2900", "3000", "--line-list",
-                       tmp_path / "nope.par")
+    code, _, err = run(
+        capsys, "xsec", "CH4", "--range", "2900", "3000", "--line-list", tmp_path / "nope.par"
+    )
     assert code == EXIT_USAGE and "nope.par" in one_line_error(err, "xsec")
 
 
 def test_xsec_unwritable_output_fails_before_computing(capsys, no_work, tmp_path):
-    code, _, err = run(capsys, "xsec", "CH4", "--range", "2900", "3000", "--out",
-                       tmp_path / "missing" / "x.npz")
+    code, _, err = run(
+        capsys, "xsec", "CH4", "--range", "2900", "3000", "--out", tmp_path / "missing" / "x.npz"
+    )
     assert code == EXIT_USAGE and "does not exist" in one_line_error(err, "xsec")
 
 
 # ----------------------------------------------------------------- synth
 
+
 def test_synth_into_a_missing_folder_fails_before_computing(capsys, no_work, tmp_path):
-    code, _, err = run(capsys, "synth", "lab-ch4-5slpm-gf320", "-o", tmp_path / "missing_dir" / "x.h5")
+    code, _, err = run(
+        capsys, "synth", "lab-ch4-5slpm-gf320", "-o", tmp_path / "missing_dir" / "x.h5"
+    )
     line = one_line_error(err, "synth")
     assert code == EXIT_USAGE and "missing_dir does not exist" in line and "mkdir" in line
 
 
-@pytest.mark.parametrize("args, needle", [
-    (["--seed=-1"], "--seed: must be >= 0"),
-    (["--seed", "1.5"], "--seed: not a whole number"),
-    (["--duration", "0"], "--duration: must be > 0"),
-    (["--frame-rate", "inf"], "--frame-rate: must be a finite number"),
-    (["--threads", "-2"], "--threads: must be >= 0"),
-    (["--camera", "no-such-camera"], "unknown camera preset"),
-])
+@pytest.mark.parametrize(
+    "args, needle",
+    [
+        (["--seed=-1"], "--seed: must be >= 0"),
+        (["--seed", "1.5"], "--seed: not a whole number"),
+        (["--duration", "0"], "--duration: must be > 0"),
+        (["--frame-rate", "inf"], "--frame-rate: must be a finite number"),
+        (["--threads", "-2"], "--threads: must be >= 0"),
+        (["--camera", "no-such-camera"], "unknown camera preset"),
+    ],
+)
 def test_synth_argument_errors(capsys, no_work, tmp_path, args, needle):
     code, _, err = run(capsys, "synth", "lab-ch4-5slpm-gf320", "-o", tmp_path / "x.h5", *args)
     assert code == EXIT_USAGE and needle in err and "Traceback" not in err, err
@@ -122,18 +134,22 @@ def test_synth_argument_errors(capsys, no_work, tmp_path, args, needle):
 
 # ----------------------------------------------------------------- quantify
 
-@pytest.mark.parametrize("args, needle", [
-    (["--source", "5"], "--source: expected X,Y"),
-    (["--source", "nan,nan"], "--source: X,Y must be finite"),
-    (["--source", "1,inf"], "--source: X,Y must be finite"),
-    (["--frames", "5"], "--frames: expected START:STOP"),
-    (["--frames", "5:2"], "need 0 <= START < STOP"),
-    (["--threads", "-3"], "--threads: must be >= 0"),
-    (["--wind-speed", "-1"], "--wind-speed: must be > 0"),
-    (["--distance", "nan"], "--distance: must be a finite number"),
-    (["--surface", "1,2"], "expected an even number"),
-    (["--auto-surfaces", "a,b"], "--auto-surfaces"),
-])
+
+@pytest.mark.parametrize(
+    "args, needle",
+    [
+        (["--source", "5"], "--source: expected X,Y"),
+        (["--source", "nan,nan"], "--source: X,Y must be finite"),
+        (["--source", "1,inf"], "--source: X,Y must be finite"),
+        (["--frames", "5"], "--frames: expected START:STOP"),
+        (["--frames", "5:2"], "need 0 <= START < STOP"),
+        (["--threads", "-3"], "--threads: must be >= 0"),
+        (["--wind-speed", "-1"], "--wind-speed: must be > 0"),
+        (["--distance", "nan"], "--distance: must be a finite number"),
+        (["--surface", "1,2"], "expected an even number"),
+        (["--auto-surfaces", "a,b"], "--auto-surfaces"),
+    ],
+)
 def test_quantify_argument_errors(capsys, rec, args, needle):
     surface = [] if "--surface" in args or "--auto-surfaces" in args else ["--surface", SURFACE]
     code, _, err = run(capsys, "quantify", rec, *surface, *args, "-q")
@@ -178,16 +194,18 @@ def test_missing_and_broken_recordings(capsys, tmp_path):
     assert code == EXIT_DATA and "bad.h5" in one_line_error(err, "quantify")
 
 
-@pytest.mark.parametrize("shape, needle", [
-    ((8, 1, 200000, 200000), "GiB per frame"),        # 149 GiB per frame
-    ((10_000_000, 2, 24, 32), "the file stores"),     # 57 GiB of frames never written
-])
+@pytest.mark.parametrize(
+    "shape, needle",
+    [
+        ((8, 1, 200000, 200000), "GiB per frame"),  # 149 GiB per frame
+        ((10_000_000, 2, 24, 32), "the file stores"),  # 57 GiB of frames never written
+    ],
+)
 def test_a_file_declaring_a_huge_shape_is_refused_before_reading(capsys, rec, shape, needle):
     with h5py.File(rec, "r+") as f:
         attrs = dict(f["frames"].attrs)
         del f["frames"]
-        d = f.create_dataset("frames", shape=shape, dtype=np.float32,
-                             chunks=(1, 1, 24, 32))
+        d = f.create_dataset("frames", shape=shape, dtype=np.float32, chunks=(1, 1, 24, 32))
         d.attrs.update(attrs)
         if shape[0] != 8:
             del f["time_s"]
@@ -210,8 +228,7 @@ def test_blank_frames_are_refused_with_exit_3(capsys, rec):
     assert code == EXIT_DATA and "physical band radiance" in one_line_error(err, "quantify")
 
 
-def test_a_nan_result_exits_3_and_says_incomplete_in_its_files(capsys, rec, tmp_path,
-                                                               monkeypatch):
+def test_a_nan_result_exits_3_and_says_incomplete_in_its_files(capsys, rec, tmp_path, monkeypatch):
     """Whatever makes a rate NaN (the pipeline flags it: test_pipeline_trust),
     the command line never prints it with exit 0: the files are written and
     say "complete": false, and the exit status is 3."""
@@ -227,8 +244,20 @@ def test_a_nan_result_exits_3_and_says_incomplete_in_its_files(capsys, rec, tmp_
 
     monkeypatch.setattr(qogi.pipeline, "quantify", nan_rate)
     out = tmp_path / "out.json"
-    code, stdout, err = run(capsys, "quantify", rec, "--surface", SURFACE, "--source", "16,22",
-                            "--json", out, "--csv", tmp_path / "out.csv", "-q")
+    code, stdout, err = run(
+        capsys,
+        "quantify",
+        rec,
+        "--surface",
+        SURFACE,
+        "--source",
+        "16,22",
+        "--json",
+        out,
+        "--csv",
+        tmp_path / "out.csv",
+        "-q",
+    )
     assert code == EXIT_DATA, err
     assert "cannot be trusted" in one_line_error(err, "quantify")
     d = json.loads(out.read_text())
@@ -238,14 +267,27 @@ def test_a_nan_result_exits_3_and_says_incomplete_in_its_files(capsys, rec, tmp_
 
 # ----------------------------------------------------------------- everything
 
+
 def test_every_command_documents_its_exit_codes(capsys):
-    for cmd in (["--help"], ["info", "--help"], ["quantify", "--help"], ["synth", "--help"],
-                ["xsec", "--help"], ["demo", "--help"], ["gui", "--help"],
-                ["hitran", "list", "--help"], ["hitran", "fetch", "--help"]):
+    for cmd in (
+        ["--help"],
+        ["info", "--help"],
+        ["quantify", "--help"],
+        ["synth", "--help"],
+        ["xsec", "--help"],
+        ["demo", "--help"],
+        ["gui", "--help"],
+        ["hitran", "list", "--help"],
+        ["hitran", "fetch", "--help"],
+    ):
         code, out, _ = run(capsys, *cmd)
         text = " ".join(out.split())
-        assert code == 0 and "exit status:" in text and "2 usage error" in text \
-            and "3 bad data" in text, cmd
+        assert (
+            code == 0
+            and "exit status:" in text
+            and "2 usage error" in text
+            and "3 bad data" in text
+        ), cmd
 
 
 def test_an_internal_error_shows_the_traceback_and_asks_for_a_report(capsys, monkeypatch):
@@ -262,5 +304,4 @@ def test_an_internal_error_shows_the_traceback_and_asks_for_a_report(capsys, mon
 
 
 def test_exit_codes_are_distinct():
-    assert len({errors.EXIT_OK, EXIT_INTERNAL, EXIT_USAGE, EXIT_DATA,
-                errors.EXIT_INTERRUPTED}) == 5
+    assert len({errors.EXIT_OK, EXIT_INTERNAL, EXIT_USAGE, EXIT_DATA, errors.EXIT_INTERRUPTED}) == 5

@@ -20,7 +20,8 @@ print("LOADED", loaded)
 
 
 def test_qogi_help_does_not_import_the_viewer():
-    out = subprocess.run([sys.executable, "-c", CHECK], capture_output=True, text=True,
-                         timeout=120, check=True).stdout
+    out = subprocess.run(
+        [sys.executable, "-c", CHECK], capture_output=True, text=True, timeout=120, check=True
+    ).stdout
     assert "LOADED []" in out, out
     assert "usage: qogi" in out

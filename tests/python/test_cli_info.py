@@ -13,21 +13,29 @@ import qogi
 
 
 def run(*args, check=True):
-    return subprocess.run([sys.executable, "-m", "qogi", "info", *map(str, args)],
-                          capture_output=True, text=True, check=check)
+    return subprocess.run(
+        [sys.executable, "-m", "qogi", "info", *map(str, args)],
+        capture_output=True,
+        text=True,
+        check=check,
+    )
 
 
 @pytest.fixture
 def rec_file(tmp_path):
     nu = np.linspace(2900.0, 3160.0, 27)
-    chs = [qogi.SpectralResponse(nu, np.exp(-((nu - 3030.0) / 80.0) ** 6), "CH4 filter"),
-           qogi.SpectralResponse([1852.0, 6667.0], [1.0, 1.0], "open InSb")]
+    chs = [
+        qogi.SpectralResponse(nu, np.exp(-(((nu - 3030.0) / 80.0) ** 6)), "CH4 filter"),
+        qogi.SpectralResponse([1852.0, 6667.0], [1.0, 1.0], "open InSb"),
+    ]
     f = np.random.default_rng(5).uniform(285.0, 310.0, (9, 2, 6, 7)).astype(np.float32)
     rec = qogi.Recording.from_arrays(
-        f, quantity="radiometric_temperature",
+        f,
+        quantity="radiometric_temperature",
         camera=qogi.Camera("GF-test", 2e-3, chs, 15.0, netd_K=0.015),
         scene=qogi.Scene(8.0, 291.0, 99000.0, wind_speed_m_s=1.5, species=("CH4",)),
-        truth=qogi.Truth({"CH4": 1e-4}))
+        truth=qogi.Truth({"CH4": 1e-4}),
+    )
     p = tmp_path / "rec.h5"
     rec.save(p)
     return p, f, chs
@@ -36,9 +44,20 @@ def rec_file(tmp_path):
 def test_text_output_lists_everything(rec_file):
     p, f, chs = rec_file
     out = run(p).stdout
-    for text in ("GF-test", "CH4 filter", "open InSb", "T=9 C=2 H=6 W=7",
-                 "radiometric_temperature [K]", "15 Hz", "distance 8 m", "pressure 99000 Pa",
-                 "species CH4", "CH4 0.0001 kg/s (0.36 kg/h)", "centroid", "half max"):
+    for text in (
+        "GF-test",
+        "CH4 filter",
+        "open InSb",
+        "T=9 C=2 H=6 W=7",
+        "radiometric_temperature [K]",
+        "15 Hz",
+        "distance 8 m",
+        "pressure 99000 Pa",
+        "species CH4",
+        "CH4 0.0001 kg/s (0.36 kg/h)",
+        "centroid",
+        "half max",
+    ):
         assert text in out, text
 
 
@@ -59,7 +78,9 @@ def test_json_statistics_match_the_exact_engine(rec_file):
     lo, hi = info["channels"][0]["half_max_cm1"]
     # exp(-(d/80)^6) = 1/2 at d = 80 ln(2)^(1/6); the samples are 10 cm-1 apart.
     half = 80.0 * np.log(2.0) ** (1 / 6)
-    assert lo == pytest.approx(3030.0 - half, abs=2.0) and hi == pytest.approx(3030.0 + half, abs=2.0)
+    assert lo == pytest.approx(3030.0 - half, abs=2.0) and hi == pytest.approx(
+        3030.0 + half, abs=2.0
+    )
 
 
 def test_bad_file_gives_a_clear_error_and_exit_code(tmp_path):

@@ -11,9 +11,15 @@ from typing import Dict, List, Set, Tuple
 import pytest
 
 REPO = Path(__file__).resolve().parents[2]
-PAGES = sorted([REPO / "README.md", *(REPO / "docs").rglob("*.md"),
-                REPO / "gui" / "README.md", REPO / "benchmarks" / "README.md",
-                REPO / "third_party_notes" / "README.md"])
+PAGES = sorted(
+    [
+        REPO / "README.md",
+        *(REPO / "docs").rglob("*.md"),
+        REPO / "gui" / "README.md",
+        REPO / "benchmarks" / "README.md",
+        REPO / "third_party_notes" / "README.md",
+    ]
+)
 
 # [text](target) and ![alt](target); the target ends at whitespace or ')'.
 _LINK = re.compile(r"!?\[[^\]]*\]\(([^)\s]+)(?:\s+\"[^\"]*\")?\)")
@@ -76,8 +82,9 @@ def test_every_relative_link_resolves(page: Path):
         if not dest.exists():
             broken.append(f"line {line}: {target} (no such file: {dest.relative_to(REPO)})")
         elif fragment and dest.suffix == ".md" and fragment not in _anchors(dest):
-            broken.append(f"line {line}: {target} (no heading #{fragment} in "
-                          f"{dest.relative_to(REPO)})")
+            broken.append(
+                f"line {line}: {target} (no heading #{fragment} in {dest.relative_to(REPO)})"
+            )
     assert not broken, f"{page.relative_to(REPO)}: broken links: " + "; ".join(broken)
 
 

@@ -35,6 +35,7 @@ def lwir():
 
 # ------------------------------------------------------------------ JPEG-LS
 
+
 @pytest.mark.parametrize("name", sorted(p.stem for p in (DATA / "jpegls").glob("*.jls")))
 def test_jpegls_matches_charls(name):
     code = (DATA / "jpegls" / f"{name}.jls").read_bytes()
@@ -50,6 +51,7 @@ def test_jpegls_rejects_garbage_with_a_clear_error():
 
 
 # ------------------------------------------------------------------ .seq
+
 
 def test_seq_frames_dimensions_and_raw_counts(flir_dir):
     frames = qio.read_flir(flir_dir / "SampleSEQ.seq")
@@ -93,23 +95,38 @@ def test_seq_temperatures_match_thermimage(flir_dir):
     expected_c = [22.46279, 22.24723, 22.10131, 22.22390, 22.22390, 22.41040]
     np.testing.assert_allclose(fr.temperature()[0, :6] - 273.15, expected_c, atol=1e-5)
     # ... and its lookup table entries templookup[c(17172, 18273, 24932) - 1].
-    np.testing.assert_allclose(qio.flir_temperature(np.array([17171, 18272, 24931]), fr.metadata)
-                               - 273.15, [18.30355, 24.77367, 57.07398], atol=1e-5)
+    np.testing.assert_allclose(
+        qio.flir_temperature(np.array([17171, 18272, 24931]), fr.metadata) - 273.15,
+        [18.30355, 24.77367, 57.07398],
+        atol=1e-5,
+    )
 
 
 def test_temp2raw_and_raw2temp_readme_example(flir_dir):
     m = qio.read_flir(flir_dir / "SampleSEQ.seq")[0].metadata
-    m = dataclasses.replace(m, planck_r1=21106.77, planck_b=1501.0, planck_f=1.0,
-                            planck_o=-7340.0, planck_r2=0.012545258)
-    common = dict(reflected_temperature_K=293.15, atmospheric_temperature_K=293.15,
-                  ir_window_temperature_K=293.15, relative_humidity=0.5)
+    m = dataclasses.replace(
+        m,
+        planck_r1=21106.77,
+        planck_b=1501.0,
+        planck_f=1.0,
+        planck_o=-7340.0,
+        planck_r2=0.012545258,
+    )
+    common = dict(
+        reflected_temperature_K=293.15,
+        atmospheric_temperature_K=293.15,
+        ir_window_temperature_K=293.15,
+        relative_humidity=0.5,
+    )
     # Thermimage README: temp2raw(23, E=1, OD=0, ...) = 17994.06 and
     # raw2temp(17994.06, E=0.95, OD=1, IRT=0.96, ...) = 23.31223.
-    raw = qio.flir_raw_from_temperature(296.15, m, emissivity=1.0, object_distance_m=0.0,
-                                        ir_window_transmission=1.0, **common)
+    raw = qio.flir_raw_from_temperature(
+        296.15, m, emissivity=1.0, object_distance_m=0.0, ir_window_transmission=1.0, **common
+    )
     assert raw == pytest.approx(17994.06, abs=0.005)
-    t = qio.flir_temperature(17994.06, m, emissivity=0.95, object_distance_m=1.0,
-                             ir_window_transmission=0.96, **common)
+    t = qio.flir_temperature(
+        17994.06, m, emissivity=0.95, object_distance_m=1.0, ir_window_transmission=0.96, **common
+    )
     assert t - 273.15 == pytest.approx(23.31223, abs=1e-5)
 
 
@@ -119,16 +136,24 @@ def test_blackbody_limit_is_the_planck_calibration(flir_dir):
     raw = m.planck_r1 / (m.planck_r2 * (np.exp(m.planck_b / t) - m.planck_f)) - m.planck_o
     np.testing.assert_allclose(qio.flir_apparent_temperature(raw, m), t, rtol=1e-12)
     # E = 1, no path, no window: object temperature = apparent temperature.
-    np.testing.assert_allclose(qio.flir_temperature(raw, m, emissivity=1.0, object_distance_m=0.0,
-                                                    ir_window_transmission=1.0), t, rtol=1e-12)
+    np.testing.assert_allclose(
+        qio.flir_temperature(
+            raw, m, emissivity=1.0, object_distance_m=0.0, ir_window_transmission=1.0
+        ),
+        t,
+        rtol=1e-12,
+    )
     # A surface at the reflected temperature reads that temperature at any emissivity.
-    raw_refl = qio.flir_raw_from_temperature(m.reflected_temperature_K, m, emissivity=1.0,
-                                             object_distance_m=0.0)
-    assert qio.flir_temperature(raw_refl, m, emissivity=0.3, object_distance_m=0.0) == \
-        pytest.approx(m.reflected_temperature_K, rel=1e-12)
+    raw_refl = qio.flir_raw_from_temperature(
+        m.reflected_temperature_K, m, emissivity=1.0, object_distance_m=0.0
+    )
+    assert qio.flir_temperature(
+        raw_refl, m, emissivity=0.3, object_distance_m=0.0
+    ) == pytest.approx(m.reflected_temperature_K, rel=1e-12)
 
 
 # ------------------------------------------------------------------ .csq
+
 
 def test_csq_frames_are_charls_bit_exact(flir_dir):
     ref = json.loads((DATA / "flir" / "csq_reference.json").read_text())["frames"]
@@ -137,7 +162,9 @@ def test_csq_frames_are_charls_bit_exact(flir_dir):
         for r in ref:
             fr = f.frame(r["index"])
             assert list(fr.raw.shape) == r["shape"] == [768, 1024]
-            assert hashlib.sha256(fr.raw.astype("<u2").tobytes()).hexdigest() == r["sha256_uint16_le"]
+            assert (
+                hashlib.sha256(fr.raw.astype("<u2").tobytes()).hexdigest() == r["sha256_uint16_le"]
+            )
             for y, x, v in r["pixels_yx"]:
                 assert fr.raw[y, x] == v
             assert fr.metadata.raw_format == "jpegls"
@@ -159,17 +186,20 @@ def test_csq_metadata_and_coding(flir_dir):
 
 # ------------------------------------------------------------------ radiometric JPEG
 
+
 def test_radiometric_jpeg(flir_dir):
     frames = qio.read_flir(flir_dir / "IR_2412.jpg")
     assert len(frames) == 1
     fr = frames[0]
     assert fr.raw.shape == (480, 640)
     # Thermimage README: str(img) lists the first column of the 480 x 640 image.
-    np.testing.assert_array_equal(fr.raw[:10, 0], [18090, 18074, 18064, 18061, 18081,
-                                                   18057, 18092, 18079, 18071, 18071])
+    np.testing.assert_array_equal(
+        fr.raw[:10, 0], [18090, 18074, 18064, 18061, 18081, 18057, 18092, 18079, 18071, 18071]
+    )
     # ... and str(temperature) the converted values, printed to 3 digits.
-    np.testing.assert_allclose(fr.temperature()[:5, 0] - 273.15, [23.7, 23.6, 23.6, 23.6, 23.7],
-                               atol=0.05)
+    np.testing.assert_allclose(
+        fr.temperature()[:5, 0] - 273.15, [23.7, 23.6, 23.6, 23.6, 23.7], atol=0.05
+    )
     m = fr.metadata
     assert m.planck_r1 == pytest.approx(21106.77, abs=0.01) and m.planck_o == -7340.0
     assert m.camera_model == "FLIR SC660"
@@ -184,6 +214,7 @@ def test_not_a_flir_file(tmp_path):
     with pytest.raises(ValueError, match=r"x.seq: not a FLIR radiometric file"):
         qio.read_flir(p)
     import cv2
+
     ok, jpg = cv2.imencode(".jpg", np.zeros((8, 8), np.uint8))
     q = tmp_path / "plain.jpg"
     q.write_bytes(jpg.tobytes())
@@ -193,10 +224,13 @@ def test_not_a_flir_file(tmp_path):
 
 # ------------------------------------------------------------------ -> Recording
 
+
 def test_flir_to_recording_needs_a_channel(flir_dir):
-    with pytest.raises(qogi.RecordingError,
-                       match=r"SampleSEQ.seq: channel: a FLIR file stores raw counts.*"
-                             r"spectral response.*Fix: pass channel="):
+    with pytest.raises(
+        qogi.RecordingError,
+        match=r"SampleSEQ.seq: channel: a FLIR file stores raw counts.*"
+        r"spectral response.*Fix: pass channel=",
+    ):
         qio.read_flir_recording(flir_dir / "SampleSEQ.seq", pressure_Pa=101325.0)
 
 
@@ -211,9 +245,10 @@ def test_flir_to_recording_warns_about_a_foreign_band(flir_dir):
         qio.read_flir_recording(flir_dir / "SampleSEQ.seq", channel=mwir, pressure_Pa=101325.0)
 
 
-@pytest.mark.parametrize("name,n,rate", [("SampleSEQ.seq", 2, 1 / 3.967),
-                                         ("SampleCSQ.csq", 8, 30.0),
-                                         ("IR_2412.jpg", 1, 30.0)])
+@pytest.mark.parametrize(
+    "name,n,rate",
+    [("SampleSEQ.seq", 2, 1 / 3.967), ("SampleCSQ.csq", 8, 30.0), ("IR_2412.jpg", 1, 30.0)],
+)
 def test_flir_to_recording(flir_dir, tmp_path, name, n, rate):
     csv = tmp_path / "lwir.csv"
     lwir().to_csv(csv)
@@ -226,8 +261,9 @@ def test_flir_to_recording(flir_dir, tmp_path, name, n, rate):
     fr = qio.read_flir(flir_dir / name)[-1]
     np.testing.assert_allclose(rec.frame(-1)[0], fr.apparent_temperature(), rtol=1e-6)
     # IFOV from the lens field of view.
-    assert rec.camera.ifov_rad == pytest.approx(np.deg2rad(fr.metadata.field_of_view_deg)
-                                                / fr.metadata.width)
+    assert rec.camera.ifov_rad == pytest.approx(
+        np.deg2rad(fr.metadata.field_of_view_deg) / fr.metadata.width
+    )
     # Band radiance through the named channel, checked against the exact engine.
     lum = rec.frame(0, quantity="radiance")[0]
     t0 = rec.frame(0)[0].astype(np.float64)
@@ -240,9 +276,12 @@ def test_flir_to_recording(flir_dir, tmp_path, name, n, rate):
 
 
 def test_object_parameters_option(flir_dir):
-    rec = qio.read_flir_recording(flir_dir / "SampleSEQ.seq", channel=lwir(),
-                                  pressure_Pa=101325.0, object_parameters=True)
+    rec = qio.read_flir_recording(
+        flir_dir / "SampleSEQ.seq", channel=lwir(), pressure_Pa=101325.0, object_parameters=True
+    )
     # float32 storage: half an ulp at 295 K is 1.5e-5 K.
-    np.testing.assert_allclose(rec.frame(0)[0, 0, :6].astype(np.float64) - 273.15,
-                               [22.46279, 22.24723, 22.10131, 22.22390, 22.22390, 22.41040],
-                               atol=2.5e-5)
+    np.testing.assert_allclose(
+        rec.frame(0)[0, 0, :6].astype(np.float64) - 273.15,
+        [22.46279, 22.24723, 22.10131, 22.22390, 22.22390, 22.41040],
+        atol=2.5e-5,
+    )

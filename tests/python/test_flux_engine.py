@@ -10,15 +10,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import flux_cases as fc
 import numpy as np
 import pytest
 
-from qogi import _engine
-from qogi import flux
+from qogi import _engine, flux
 from qogi import velocimetry as vel
 from qogi.pipeline.flux import _surface_flux
-
-import flux_cases as fc
 
 REFERENCE = Path(__file__).resolve().parents[1] / "data" / "flux_reference.npz"
 
@@ -46,34 +44,55 @@ def test_transport_flux_and_flux_level_agree_with_the_numpy_implementation(ref, 
         # Gauss-Newton to 1e-4 px from the same start: the solutions agree to
         # rounding (the sums' order differs).
         _close(getattr(tf, f), ref[f"tf_{name}_{f}"], f"{name} {f}", rtol=1e-7)
-    assert vel.typical_displacement(frames, axis) == pytest.approx(float(ref[f"td_{name}"]),
-                                                                   rel=1e-10)
+    assert vel.typical_displacement(frames, axis) == pytest.approx(
+        float(ref[f"td_{name}"]), rel=1e-10
+    )
     for level_name, level in (("slow", 1.6), ("backwards", -3.0)):
         fu, fv = fc.frame_velocities(seed, frames.shape, axis, level)
-        u, v, scale = vel.calibrate_flux_level(None, frames, axis, src,
-                                               frame_velocities=(fu, fv))
-        _close(scale, ref[f"cal_{name}_{level_name}_scale"], f"{name} {level_name} scale",
-               rtol=1e-6)
-        _close(fc.digest(u), ref[f"cal_{name}_{level_name}_u"], f"{name} {level_name} u",
-               rtol=1e-5, atol=1e-6)
-        _close(fc.digest(v), ref[f"cal_{name}_{level_name}_v"], f"{name} {level_name} v",
-               rtol=1e-5, atol=1e-6)
+        u, v, scale = vel.calibrate_flux_level(None, frames, axis, src, frame_velocities=(fu, fv))
+        _close(
+            scale, ref[f"cal_{name}_{level_name}_scale"], f"{name} {level_name} scale", rtol=1e-6
+        )
+        _close(
+            fc.digest(u),
+            ref[f"cal_{name}_{level_name}_u"],
+            f"{name} {level_name} u",
+            rtol=1e-5,
+            atol=1e-6,
+        )
+        _close(
+            fc.digest(v),
+            ref[f"cal_{name}_{level_name}_v"],
+            f"{name} {level_name} v",
+            rtol=1e-5,
+            atol=1e-6,
+        )
         assert u.dtype == np.float32 and v.dtype == np.float32 and scale.dtype == np.float32
 
 
 def test_flux_level_from_a_sequence_and_a_given_transport_agrees_with_numpy(ref):
     frames = fc.puffing_plume(7)
     fu, fv = fc.frame_velocities(7, frames.shape, "up", 1.8)
-    seq = vel.FlowSequence(fu[1:], fv[1:], np.ones_like(fu[1:]), np.ones(fu[1:].shape, bool),
-                           np.zeros(fu.shape[0] - 1), "exact")
+    seq = vel.FlowSequence(
+        fu[1:],
+        fv[1:],
+        np.ones_like(fu[1:]),
+        np.ones(fu[1:].shape, bool),
+        np.zeros(fu.shape[0] - 1),
+        "exact",
+    )
     u, v, scale = vel.calibrate_flux_level(seq, frames, "up", None, smooth_px=0.0)
     _close(scale, ref["cal_seq_scale"], "seq scale", rtol=1e-6)
     _close(fc.digest(u), ref["cal_seq_u"], "seq u", rtol=1e-5, atol=1e-6)
     _close(fc.digest(v), ref["cal_seq_v"], "seq v", rtol=1e-5, atol=1e-6)
     part = vel.transport_flux(frames, "up").lines(slice(20, 64), scale=1.3)
-    u, v, scale = vel.calibrate_flux_level(None, frames[:, 20:], "up", transport=part,
-                                           frame_velocities=(fu[:, 20:].copy(),
-                                                             fv[:, 20:].copy()))
+    u, v, scale = vel.calibrate_flux_level(
+        None,
+        frames[:, 20:],
+        "up",
+        transport=part,
+        frame_velocities=(fu[:, 20:].copy(), fv[:, 20:].copy()),
+    )
     _close(scale, ref["cal_part_scale"], "part scale", rtol=1e-6)
     _close(fc.digest(u), ref["cal_part_u"], "part u", rtol=1e-5, atol=1e-6)
     _close(fc.digest(v), ref["cal_part_v"], "part v", rtol=1e-5, atol=1e-6)
@@ -87,13 +106,12 @@ def test_surface_rate_agrees_with_the_pipelines_surface_flux(ref, seed):
     # (it calls qogi.flux after the merge).
     _close(got.rate, ref[f"sf_{seed}_rate"], "rate", rtol=1e-12, atol=0)
     np.testing.assert_array_equal(got.samples, ref[f"sf_{seed}_pixels"])
-    assert got.column_variance == pytest.approx(float(ref[f"sf_{seed}_column_variance"]),
-                                                rel=1e-12)
+    assert got.column_variance == pytest.approx(float(ref[f"sf_{seed}_column_variance"]), rel=1e-12)
     sf = _surface_flux(c, sig, vn, dl)
     _close(got.rate, sf.rate, "rate vs _surface_flux", rtol=1e-12, atol=0)
     np.testing.assert_array_equal(got.samples, sf.pixels)
     assert got.column_variance == pytest.approx(sf.column_variance, rel=1e-12)
-    assert np.isnan(got.rate[3])                       # the frame without any column
+    assert np.isnan(got.rate[3])  # the frame without any column
 
 
 def test_surface_rate_of_an_advected_gaussian_plume_is_its_release_rate():
@@ -108,8 +126,11 @@ def test_surface_rate_of_an_advected_gaussian_plume_is_its_release_rate():
     np.testing.assert_allclose(r.rate, Q, rtol=1e-8)
     assert r.column_variance == 0.0
     m = _engine.molar_mass("CH4")
-    np.testing.assert_allclose(flux.surface_rate(c / m, np.full(c.shape, 1e-3), u, dl,
-                                                 molar_mass_kg_mol=m).rate, Q, rtol=1e-8)
+    np.testing.assert_allclose(
+        flux.surface_rate(c / m, np.full(c.shape, 1e-3), u, dl, molar_mass_kg_mol=m).rate,
+        Q,
+        rtol=1e-8,
+    )
     np.testing.assert_allclose(flux.surface_rate(c, None, -u, dl).rate, -Q, rtol=1e-8)
     assert np.all(flux.surface_rate(c, None, 0.0, dl).rate == 0)
 
@@ -134,8 +155,9 @@ def test_max_difference_to_numpy_is_reported(ref):
     worst = 0.0
     for name, seed, axis, src, kind in fc.TRANSPORT_CASES:
         frames = fc.turned(fc.puffing_plume(seed), axis)
-        tf = vel.transport_flux(frames, axis, src,
-                                intervals=fc.intervals(kind, frames.shape[0], seed))
+        tf = vel.transport_flux(
+            frames, axis, src, intervals=fc.intervals(kind, frames.shape[0], seed)
+        )
         for f in ("flux", "velocity", "displacement"):
             a, b = getattr(tf, f), ref[f"tf_{name}_{f}"]
             ok = np.isfinite(b) & (b != 0)

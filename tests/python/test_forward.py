@@ -3,20 +3,26 @@ test_forward_hitran.py)."""
 
 import numpy as np
 import pytest
+from synthetic_tables import lorentz_table
 
 import qogi
-from synthetic_tables import lorentz_table
 
 KB, NA = 1.380649e-23, 6.02214076e23
 
 
 @pytest.fixture(scope="module")
 def model():
-    chans = [qogi.SpectralResponse([2950.0, 2960.0, 3090.0, 3100.0], [0, 0.8, 0.8, 0], "A"),
-             qogi.SpectralResponse([2985.0, 2990.0, 3030.0, 3035.0], [0, 0.8, 0.8, 0], "B")]
+    chans = [
+        qogi.SpectralResponse([2950.0, 2960.0, 3090.0, 3100.0], [0, 0.8, 0.8, 0], "A"),
+        qogi.SpectralResponse([2985.0, 2990.0, 3030.0, 3035.0], [0, 0.8, 0.8, 0], "B"),
+    ]
     tables = [lorentz_table("CH4", seed=1), lorentz_table("CO2", seed=2, with_self=False)]
-    return qogi.ForwardModel(chans, ["CH4", "CO2"], tables=tables,
-                             exact_options=qogi._engine.ExactModelOptions(num_nodes=201))
+    return qogi.ForwardModel(
+        chans,
+        ["CH4", "CO2"],
+        tables=tables,
+        exact_options=qogi._engine.ExactModelOptions(num_nodes=201),
+    )
 
 
 @pytest.mark.parametrize("exact", [False, True])
@@ -63,7 +69,9 @@ def test_fast_agrees_with_exact(model):
 def test_column_density_is_eq6():
     c = qogi.column_density({"CH4": 0.25, "CO2": 0.5}, 300.0, 0.04, 300.0)
     n = 101325.0 / (KB * 300.0)
-    assert c["CH4"] == pytest.approx(16.0425e-3 / NA * 0.25 * n * 0.04 * np.sqrt(2 * np.pi), rel=1e-12)
+    assert c["CH4"] == pytest.approx(
+        16.0425e-3 / NA * 0.25 * n * 0.04 * np.sqrt(2 * np.pi), rel=1e-12
+    )
     # Hotter core: fewer molecules for the same fractions.
     hot = qogi.column_density({"CH4": 0.25}, 400.0, 0.04, 300.0)
     assert hot["CH4"] < c["CH4"]
@@ -71,14 +79,18 @@ def test_column_density_is_eq6():
     np.testing.assert_allclose(arr["CH4"][1] / arr["CH4"][0], 2.0)
 
 
-@pytest.mark.parametrize("kwargs, words", [
-    (dict(species={"XYZ": 0.1}), ["unknown species", "XYZ"]),
-    (dict(sigma_m=-1.0), ["sigma_m", "> 0"]),
-    (dict(species={"CH4": 1.5}), ["[0, 1]"]),
-])
+@pytest.mark.parametrize(
+    "kwargs, words",
+    [
+        (dict(species={"XYZ": 0.1}), ["unknown species", "XYZ"]),
+        (dict(sigma_m=-1.0), ["sigma_m", "> 0"]),
+        (dict(species={"CH4": 1.5}), ["[0, 1]"]),
+    ],
+)
 def test_column_density_rejects_bad_input(kwargs, words):
-    args = dict(species={"CH4": 0.1}, peak_temperature_K=300.0, sigma_m=0.05,
-                ambient_temperature_K=300.0)
+    args = dict(
+        species={"CH4": 0.1}, peak_temperature_K=300.0, sigma_m=0.05, ambient_temperature_K=300.0
+    )
     args.update(kwargs)
     with pytest.raises(ValueError) as e:
         qogi.column_density(**args)
@@ -104,8 +116,9 @@ def test_camera_presets():
     assert len(m150.channels) == 4 and m150.frame_rate_hz == 100.0
     # Thesis Table 4: 288.7 K over 1852-6667 cm-1 = 2.09 W/(m2 sr) without the
     # lens, less through the open channel (lens x detector).
-    assert qogi.SpectralResponse([1852.0, 6667.0], [1.0, 1.0]).band_radiance(288.7) == \
-        pytest.approx(2.09, abs=0.005)
+    assert qogi.SpectralResponse([1852.0, 6667.0], [1.0, 1.0]).band_radiance(
+        288.7
+    ) == pytest.approx(2.09, abs=0.005)
     assert m150.channels[0].band_radiance(288.7) < 2.09
     with pytest.raises(ValueError, match="gf320"):
         qogi.camera_preset("nope")

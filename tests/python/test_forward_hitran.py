@@ -19,9 +19,11 @@ def channels():
 
 @pytest.fixture(scope="module")
 def model(channels, hitran_dir):
-    return qogi.ForwardModel(channels, ["CH4", "CO2"],
-                             line_lists={"CH4": hitran_dir / "CH4.par.gz",
-                                         "CO2": hitran_dir / "CO2.par.gz"})
+    return qogi.ForwardModel(
+        channels,
+        ["CH4", "CO2"],
+        line_lists={"CH4": hitran_dir / "CH4.par.gz", "CO2": hitran_dir / "CO2.par.gz"},
+    )
 
 
 def contrast_error(lf, le, bg):
@@ -83,9 +85,11 @@ def test_fast_model_agrees_with_exact_over_the_domain(model, capsys):
         worst_c = np.maximum(worst_c, contrast_error(lf, le, bg))
         worst_l = np.maximum(worst_l, np.abs(lf / le - 1))
     with capsys.disabled():
-        print(f"\nfast vs exact, {len(cases)} plumes, channels "
-              f"{[c.name for c in model.channels]}:\n  worst contrast error "
-              f"{np.array2string(worst_c, precision=4)}\n  worst L error "
-              f"{np.array2string(worst_l, precision=5)}")
+        print(
+            f"\nfast vs exact, {len(cases)} plumes, channels "
+            f"{[c.name for c in model.channels]}:\n  worst contrast error "
+            f"{np.array2string(worst_c, precision=4)}\n  worst L error "
+            f"{np.array2string(worst_l, precision=5)}"
+        )
     assert np.all(worst_c < 0.01)
     assert np.all(worst_l < 0.003)

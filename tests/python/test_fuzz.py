@@ -14,16 +14,22 @@ import struct
 import h5py
 import numpy as np
 import pytest
+from fuzz_targets import CRASHES, read_flir_bytes, read_recording_bytes, read_recording_file, seeds
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from fuzz_targets import CRASHES, read_flir_bytes, read_recording_bytes, read_recording_file, seeds
-
 FLIR_SEEDS = seeds("flir_")
 REC_SEEDS = seeds("recording_")
-FUZZ = settings(deadline=None, derandomize=True, database=None,
-                suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,
-                                       HealthCheck.function_scoped_fixture])
+FUZZ = settings(
+    deadline=None,
+    derandomize=True,
+    database=None,
+    suppress_health_check=[
+        HealthCheck.too_slow,
+        HealthCheck.data_too_large,
+        HealthCheck.function_scoped_fixture,
+    ],
+)
 
 
 @st.composite
@@ -44,17 +50,20 @@ def mutated(draw, corpus):
         elif op == "insert":
             b[i:i] = draw(st.binary(min_size=1, max_size=16))
         elif op == "delete":
-            del b[i:i + draw(st.integers(1, 64))]
+            del b[i : i + draw(st.integers(1, 64))]
         elif op == "truncate":
             del b[i:]
         else:
             n = 4 if op == "u32" else 2
-            v = draw(st.sampled_from([0, 1, 2 ** (8 * n) - 1, 2 ** (8 * n - 1), 0x7FFF, 0x10000,
-                                      len(b), len(b) + 1]))
+            v = draw(
+                st.sampled_from(
+                    [0, 1, 2 ** (8 * n) - 1, 2 ** (8 * n - 1), 0x7FFF, 0x10000, len(b), len(b) + 1]
+                )
+            )
             v &= 2 ** (8 * n) - 1
             for order in ("<", ">"):
                 if draw(st.booleans()):
-                    b[i:i + n] = struct.pack(order + ("I" if n == 4 else "H"), v)
+                    b[i : i + n] = struct.pack(order + ("I" if n == 4 else "H"), v)
                     break
     return name, bytes(b)
 
@@ -63,7 +72,7 @@ def mutated(draw, corpus):
 @given(mutated(FLIR_SEEDS))
 def test_flir_reader_on_mutated_files_raises_only_data_errors(tmp_path_factory, case):
     name, data = case
-    read_flir_bytes(data, suffix=name[name.rfind("."):])
+    read_flir_bytes(data, suffix=name[name.rfind(".") :])
 
 
 @settings(FUZZ, max_examples=200)
@@ -71,7 +80,7 @@ def test_flir_reader_on_mutated_files_raises_only_data_errors(tmp_path_factory, 
 def test_flir_reader_on_every_truncation(tmp_path_factory, seed, data):
     name, raw = seed
     cut = data.draw(st.integers(0, len(raw)))
-    read_flir_bytes(raw[:cut], suffix=name[name.rfind("."):])
+    read_flir_bytes(raw[:cut], suffix=name[name.rfind(".") :])
 
 
 @settings(FUZZ, max_examples=300)
@@ -81,16 +90,34 @@ def test_recording_reader_on_mutated_bytes_raises_only_data_errors(case):
 
 
 # Structural edits of a valid recording: what a careless converter writes.
-_VALUES = st.one_of(st.none(), st.booleans(), st.integers(-2 ** 63, 2 ** 63 - 1),
-                    st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=8),
-                    st.lists(st.floats(), max_size=4), st.binary(max_size=8))
+_VALUES = st.one_of(
+    st.none(),
+    st.booleans(),
+    st.integers(-(2**63), 2**63 - 1),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.text(max_size=8),
+    st.lists(st.floats(), max_size=4),
+    st.binary(max_size=8),
+)
 
 
 @st.composite
 def h5_edit(draw):
     kind = draw(st.sampled_from(["del", "attr", "delattr", "reshape", "dtype", "values"]))
-    path = draw(st.sampled_from(["frames", "time_s", "camera", "scene", "truth",
-                                 "camera/channels", "camera/channels/0", "/"]))
+    path = draw(
+        st.sampled_from(
+            [
+                "frames",
+                "time_s",
+                "camera",
+                "scene",
+                "truth",
+                "camera/channels",
+                "camera/channels/0",
+                "/",
+            ]
+        )
+    )
     return kind, path, draw(_VALUES), draw(st.integers(0, 5))
 
 
@@ -117,11 +144,15 @@ def _apply(f, kind, path, value, k):
         parent, leaf = obj.parent, obj.name.rsplit("/", 1)[1]
         attrs = dict(obj.attrs)
         if kind == "reshape":
-            data = np.asarray(data).reshape(-1)[:max(0, np.size(data) - k)]
+            data = np.asarray(data).reshape(-1)[: max(0, np.size(data) - k)]
         elif kind == "dtype":
-            data = np.asarray(data).astype([np.int8, np.uint16, np.float16, np.float64,
-                                            np.int64, "S4"][k], copy=False) \
-                if np.asarray(data).dtype.kind in "fiu" else data
+            data = (
+                np.asarray(data).astype(
+                    [np.int8, np.uint16, np.float16, np.float64, np.int64, "S4"][k], copy=False
+                )
+                if np.asarray(data).dtype.kind in "fiu"
+                else data
+            )
         else:
             a = np.array(data, dtype=np.float64) if np.asarray(data).dtype.kind in "fiu" else None
             if a is None or a.size == 0:
@@ -136,8 +167,9 @@ def _apply(f, kind, path, value, k):
 
 @settings(FUZZ, max_examples=150)
 @given(st.sampled_from(range(len(REC_SEEDS))), st.lists(h5_edit(), min_size=1, max_size=3))
-def test_recording_reader_on_edited_structure_raises_only_data_errors(tmp_path_factory, seed,
-                                                                      edits):
+def test_recording_reader_on_edited_structure_raises_only_data_errors(
+    tmp_path_factory, seed, edits
+):
     p = tmp_path_factory.mktemp("edit") / "r.h5"
     p.write_bytes(REC_SEEDS[seed][1])
     with h5py.File(p, "r+") as f:
@@ -146,8 +178,9 @@ def test_recording_reader_on_edited_structure_raises_only_data_errors(tmp_path_f
     read_recording_file(p)
 
 
-@pytest.mark.parametrize("path", sorted(CRASHES.glob("*")) if CRASHES.is_dir() else [],
-                         ids=lambda p: p.name)
+@pytest.mark.parametrize(
+    "path", sorted(CRASHES.glob("*")) if CRASHES.is_dir() else [], ids=lambda p: p.name
+)
 def test_inputs_that_once_crashed_a_reader(path):
     data = path.read_bytes()
     if path.name.startswith("recording"):
@@ -157,31 +190,85 @@ def test_inputs_that_once_crashed_a_reader(path):
         # with a RecordingError, in this process and without a memory limit.
         assert read_recording_bytes(data) == -1 or "vlen" not in path.name
     else:  # flir.<suffix>-<hash>
-        read_flir_bytes(data, suffix=path.name.split("-")[0][len("flir"):])
+        read_flir_bytes(data, suffix=path.name.split("-")[0][len("flir") :])
 
 
 def test_the_seeds_themselves_are_read():
-    assert [read_flir_bytes(b, n[n.rfind("."):]) for n, b in FLIR_SEEDS] == [2, 1, 1, 1, 1, 3]
+    assert [read_flir_bytes(b, n[n.rfind(".") :]) for n, b in FLIR_SEEDS] == [2, 1, 1, 1, 1, 3]
     assert [read_recording_bytes(b) for _, b in REC_SEEDS] == [4, 4, 4]
 
 
 # ---------------------------------------------------------------- the parsers
 
-_TOKENS = st.sampled_from([
-    "quantify", "synth", "xsec", "info", "demo", "hitran", "list", "fetch", "gui",
-    "--surface", "--source", "--frames", "--threads", "--json", "--csv", "--plot", "--seed",
-    "--duration", "--frame-rate", "--range", "--step", "--temperature", "--pressure",
-    "--self-fraction", "--cutoff", "--species", "--velocity", "--wind-speed", "--sigma",
-    "--distance", "--background", "--averaging", "-o", "-q", "--infer-temperature",
-    "--gas-temperature", "--auto-surfaces", "CH4", "rec.h5", "1,2", "5", "nan,nan", "-1",
-    "1e999", "0:0", "3:1", "inf", "nan", "", "=", "--", "-", "10:20", "1,2,3,4", "hapi"])
-_ARGV = st.lists(st.one_of(_TOKENS, st.text(max_size=12),
-                           st.floats().map(repr), st.integers().map(str)), max_size=10)
+_TOKENS = st.sampled_from(
+    [
+        "quantify",
+        "synth",
+        "xsec",
+        "info",
+        "demo",
+        "hitran",
+        "list",
+        "fetch",
+        "gui",
+        "--surface",
+        "--source",
+        "--frames",
+        "--threads",
+        "--json",
+        "--csv",
+        "--plot",
+        "--seed",
+        "--duration",
+        "--frame-rate",
+        "--range",
+        "--step",
+        "--temperature",
+        "--pressure",
+        "--self-fraction",
+        "--cutoff",
+        "--species",
+        "--velocity",
+        "--wind-speed",
+        "--sigma",
+        "--distance",
+        "--background",
+        "--averaging",
+        "-o",
+        "-q",
+        "--infer-temperature",
+        "--gas-temperature",
+        "--auto-surfaces",
+        "CH4",
+        "rec.h5",
+        "1,2",
+        "5",
+        "nan,nan",
+        "-1",
+        "1e999",
+        "0:0",
+        "3:1",
+        "inf",
+        "nan",
+        "",
+        "=",
+        "--",
+        "-",
+        "10:20",
+        "1,2,3,4",
+        "hapi",
+    ]
+)
+_ARGV = st.lists(
+    st.one_of(_TOKENS, st.text(max_size=12), st.floats().map(repr), st.integers().map(str)),
+    max_size=10,
+)
 
 
 @functools.lru_cache(maxsize=1)
 def _parser():
     from qogi.cli import build_parser
+
     return build_parser()
 
 
@@ -206,8 +293,7 @@ def test_the_argument_parser_accepts_or_refuses_with_a_usage_error(capsys, argv)
         v = getattr(args, name, None)
         if isinstance(v, int):
             assert v >= 0
-    for name in ("duration", "frame_rate", "step", "pressure", "wind_speed", "sigma",
-                 "distance"):
+    for name in ("duration", "frame_rate", "step", "pressure", "wind_speed", "sigma", "distance"):
         v = getattr(args, name, None)
         if v is not None:
             assert math.isfinite(v) and v > 0

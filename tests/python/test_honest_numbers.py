@@ -13,8 +13,8 @@ from qogi.forward import LineShape, forward_model
 from qogi.pipeline import QuantifyConfig, quantify
 from qogi.surfaces import Surface, detect_source, truth_surfaces
 
-
 # -- the line shape -----------------------------------------------------------
+
 
 def test_line_shape_text_round_trips_and_bad_text_is_a_clear_error():
     assert str(LineShape()) == "fixed:25+self"
@@ -31,16 +31,20 @@ def test_line_shape_text_round_trips_and_bad_text_is_a_clear_error():
 @pytest.fixture(scope="module")
 def gf320_models():
     cam = qogi.camera_preset("gf320")
-    return [forward_model(cam.channels, ["CH4"], line_shape=r)
-            for r in ("fixed:25+self", "hapi+self", "fixed:25+air", "hapi+air")]
+    return [
+        forward_model(cam.channels, ["CH4"], line_shape=r)
+        for r in ("fixed:25+self", "hapi+self", "fixed:25+air", "hapi+air")
+    ]
 
 
 def test_the_rules_differ_little_for_thin_plumes_and_much_for_thick_ones(gf320_models):
     used, *alts = gf320_models
 
     def contrast(m, x, sigma):
-        return float(m.band_radiance({"CH4": x}, 295.0, sigma, 295.0, 285.0)[0]
-                     - m.background_radiance(285.0)[0])
+        return float(
+            m.band_radiance({"CH4": x}, 295.0, sigma, 295.0, 285.0)[0]
+            - m.background_radiance(285.0)[0]
+        )
 
     thin = [abs(contrast(a, 0.01, 0.005) / contrast(used, 0.01, 0.005) - 1) for a in alts]
     thick = [abs(contrast(a, 0.5, 0.05) / contrast(used, 0.5, 0.05) - 1) for a in alts]
@@ -54,8 +58,16 @@ def test_the_rules_differ_little_for_thin_plumes_and_much_for_thick_ones(gf320_m
 def test_the_line_shape_term_is_large_where_the_plume_is_optically_thick(gf320_models):
     used, *alts = gf320_models
     grid, ratios = budget.line_shape_ratios(
-        used, alts, 0, lambda x: {"CH4": x}, lambda x: np.full_like(x, 295.0), 0.03, 295.0,
-        285.0, "CH4")
+        used,
+        alts,
+        0,
+        lambda x: {"CH4": x},
+        lambda x: np.full_like(x, 295.0),
+        0.03,
+        295.0,
+        285.0,
+        "CH4",
+    )
     # Columns of a thin plume edge (1 % over 3 cm) and of a thick core (60 %).
     thin_c = used.column_density({"CH4": 0.01}, 295.0, 0.03, 295.0)["CH4"]
     thick_c = used.column_density({"CH4": 0.6}, 295.0, 0.03, 295.0)["CH4"]
@@ -88,8 +100,10 @@ def test_cross_rule_the_line_shape_term_covers_the_rule_the_renderer_used(lab_ha
         r = a.species["CH4"]
         diff = abs(r.mean_kg_h / b.species["CH4"].mean_kg_h - 1)
         term = r.uncertainty_terms_kg_h["line shape"] / r.mean_kg_h
-        print(f"{a.surface.name}: rules differ by {100 * diff:.1f} %, line-shape term "
-              f"{100 * term:.1f} %")
+        print(
+            f"{a.surface.name}: rules differ by {100 * diff:.1f} %, line-shape term "
+            f"{100 * term:.1f} %"
+        )
         # The rule matters for this plume, and the term is as large as the
         # difference the renderer's rule actually makes.
         assert diff > 0.01
@@ -98,6 +112,7 @@ def test_cross_rule_the_line_shape_term_covers_the_rule_the_renderer_used(lab_ha
 
 # -- source detection and rates against the flow --------------------------------
 
+
 def _plume_image(width=50, height=100, source=(25.0, 92.0), neck=True):
     """A rising plume leaving through the top edge: the column falls along
     it (~z^(-2/3)) and it widens, except a wide, lazy exit that necks."""
@@ -105,7 +120,7 @@ def _plume_image(width=50, height=100, source=(25.0, 92.0), neck=True):
     z = np.clip(source[1] - yy, 0.5, None)
     width_px = 2.0 + 0.25 * z
     if neck:
-        width_px += 8.0 * np.exp(-z / 4.0)      # wider at the exit than just above
+        width_px += 8.0 * np.exp(-z / 4.0)  # wider at the exit than just above
     img = z ** (-2.0 / 3.0) * np.exp(-0.5 * ((xx - source[0]) / width_px) ** 2)
     img[yy > source[1] + 1] = 0.0
     return img
@@ -114,7 +129,7 @@ def _plume_image(width=50, height=100, source=(25.0, 92.0), neck=True):
 @pytest.mark.parametrize("neck", [False, True])
 def test_source_is_where_the_column_is_strongest_not_where_the_plume_leaves(neck):
     x, y = detect_source(_plume_image(neck=neck))
-    assert y > 80, (x, y)                       # the exit at row 92, not the top edge
+    assert y > 80, (x, y)  # the exit at row 92, not the top edge
     assert abs(x - 25) < 5
 
 
@@ -136,9 +151,15 @@ def small_view(tmp_path_factory):
     width and leaves through the top edge."""
     rel = synth.preset_release("lab-ch4-5slpm-gf320")
     base = synth.preset_view("lab-ch4-5slpm-gf320")
-    view = synth.View.framing(rel, (24.5, 95.0), width_px=50, height_px=100,
-                              ifov_rad=base.ifov_rad, distance_m=0.75,
-                              projection=base.projection)
+    view = synth.View.framing(
+        rel,
+        (24.5, 95.0),
+        width_px=50,
+        height_px=100,
+        ifov_rad=base.ifov_rad,
+        distance_m=0.75,
+        projection=base.projection,
+    )
     sim = synth.simulate(rel, view, 3.0, 15.0, seed=1)
     cam = qogi.camera_preset("gf320")
     cam.width, cam.height = 50, 100
@@ -154,20 +175,24 @@ def test_small_view_with_the_plume_leaving_through_the_top_never_reads_a_silent_
     truth = rec.truth.emission_rate_kg_s["CH4"] * 3600
     print(res.summary())
     sx, sy = res.info["source_xy"]
-    assert sy > 70, res.info["source"]            # the exit (row 95), not the top edge
+    assert sy > 70, res.info["source"]  # the exit (row 95), not the top edge
     for s in res.surfaces:
         r = s.species["CH4"]
         lo, hi = r.ci90_kg_h
-        assert hi > lo                             # never a zero-width interval
+        assert hi > lo  # never a zero-width interval
         # Either the interval holds the truth, or the result says why not.
         assert lo <= truth <= hi or res.warnings, (r.mean_kg_h, r.ci90_kg_h, truth)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "known gap (issue 18, open): with the patch-search start of the default flow (issue 20) "
-    "the flow's 90th-percentile speed in this reversed-source scene reads 0.16 m/s instead "
-    "of 0.29, so the widened interval at 4 cm reaches +0.079 kg/h, below half the 0.2 kg/h "
-    "truth; the flag itself still fires (asserted by the test below)"))
+@pytest.mark.xfail(
+    strict=True,
+    reason=(
+        "known gap (issue 18, open): with the patch-search start of the default flow (issue 20) "
+        "the flow's 90th-percentile speed in this reversed-source scene reads 0.16 m/s instead "
+        "of 0.29, so the widened interval at 4 cm reaches +0.079 kg/h, below half the 0.2 kg/h "
+        "truth; the flag itself still fires (asserted by the test below)"
+    ),
+)
 def test_a_reversed_source_is_flagged_and_its_interval_widened(ambient):
     rec = ambient
     surf, source = _lab_surfaces(rec)
@@ -197,6 +222,7 @@ def test_a_reversed_source_is_flagged(ambient):
 
 # -- the hot-gas warning ---------------------------------------------------------
 
+
 @pytest.fixture(scope="module")
 def heated(tmp_path_factory):
     p = tmp_path_factory.mktemp("hot") / "heated.h5"
@@ -218,8 +244,13 @@ def _lab_surfaces(rec):
 def test_hot_gas_warning_fires_on_the_heated_single_channel_preset(heated):
     surf, source = _lab_surfaces(heated)
     exit_K = synth.preset_release("lab-heated-ch4-55c-gf320").exit_temperature_K
-    res = quantify(heated, surf, QuantifyConfig(source=source, exit_temperature_K=exit_K,
-                                                velocity="exit", exit_velocity_m_s=0.3))
+    res = quantify(
+        heated,
+        surf,
+        QuantifyConfig(
+            source=source, exit_temperature_K=exit_K, velocity="exit", exit_velocity_m_s=0.3
+        ),
+    )
     print(res.warnings)
     w = [d for d in res.warnings if d.code == "gas-temperature-suspect"]
     assert w, res.warnings
@@ -257,6 +288,7 @@ def test_hot_gas_warning_is_silent_on_the_ambient_preset(ambient, with_exit):
 
 # -- the background ---------------------------------------------------------------
 
+
 def test_auto_background_leaves_strips_the_gas_visits():
     rng = np.random.default_rng(0)
     t, h, w = 40, 60, 60
@@ -278,10 +310,11 @@ def test_auto_background_leaves_strips_the_gas_visits():
 
 # -- record length ------------------------------------------------------------------
 
+
 def test_record_length_for_a_ten_percent_mean_of_white_noise():
     rng = np.random.default_rng(1)
     n, rate_hz = 400, 10.0
-    series = 1.0 + 1.0 * rng.standard_normal(n)      # sd / mean = 1, independent frames
+    series = 1.0 + 1.0 * rng.standard_normal(n)  # sd / mean = 1, independent frames
     a = budget.record_length_advice(series, rate_hz, float(n), speed_m_s=1e6, width_m=1.0)
     # sd/mean / sqrt(N) = 0.1 needs N = 100 frames = 10 s.
     assert a["needed_s"] == pytest.approx(10.0, rel=0.25)

@@ -6,7 +6,6 @@ because the interpreter exited while that thread was still in the engine."""
 
 from __future__ import annotations
 
-import os
 import signal
 import subprocess
 import sys
@@ -24,16 +23,19 @@ PREVIOUS = '{"previous": "a good result from an earlier run"}\n'
 
 def small_recording(path, n_frames=12):
     """A 32 x 24 two-channel recording: a warm blob drifting up (blackbody)."""
-    chs = [qogi.SpectralResponse([2941.18, 3125.0], [1.0, 1.0], name="3.2-3.4 um"),
-           qogi.SpectralResponse([2000.0, 2200.0], [1.0, 1.0], name="4.5-5.0 um")]
+    chs = [
+        qogi.SpectralResponse([2941.18, 3125.0], [1.0, 1.0], name="3.2-3.4 um"),
+        qogi.SpectralResponse([2000.0, 2200.0], [1.0, 1.0], name="4.5-5.0 um"),
+    ]
     t = np.arange(n_frames)[:, None, None]
     y = np.arange(24)[None, :, None]
     x = np.arange(32)[None, None, :]
     temp = 285.0 + 0.5 * x / 32 + 25.0 * np.exp(-((x - 16) ** 2 + (y - (20 - t)) ** 2) / 20.0)
     frames = np.stack([ch.band_radiance(temp.ravel()).reshape(temp.shape) for ch in chs], axis=1)
     cam = qogi.Camera("test camera", 1e-3, chs, frame_rate_hz=10.0, netd_K=0.02)
-    scene = qogi.Scene(distance_m=3.0, ambient_temperature_K=288.0, pressure_Pa=101325.0,
-                       species=("CH4",))
+    scene = qogi.Scene(
+        distance_m=3.0, ambient_temperature_K=288.0, pressure_Pa=101325.0, species=("CH4",)
+    )
     qogi.Recording.from_arrays(frames, quantity="radiance", camera=cam, scene=scene).save(path)
     return path
 
@@ -51,9 +53,22 @@ def _ctrl_c_on():
 
 def quantify_cmd(rec, out_dir):
     # -u: the progress lines reach the pipe as they are printed.
-    return [sys.executable, "-u", "-m", "qogi", "quantify", str(rec), "--surface", SURFACE,
-            "--source", "16,22", "--json", str(out_dir / "out.json"),
-            "--csv", str(out_dir / "out.csv")]
+    return [
+        sys.executable,
+        "-u",
+        "-m",
+        "qogi",
+        "quantify",
+        str(rec),
+        "--surface",
+        SURFACE,
+        "--source",
+        "16,22",
+        "--json",
+        str(out_dir / "out.json"),
+        "--csv",
+        str(out_dir / "out.csv"),
+    ]
 
 
 def interrupt_quantify(rec, out_dir, delay_s, after_table_starts):
@@ -61,8 +76,13 @@ def interrupt_quantify(rec, out_dir, delay_s, after_table_starts):
     it reports building the scene's table); returns (returncode, stderr)."""
     (out_dir / "out.json").write_text(PREVIOUS)
     (out_dir / "out.csv").write_text("previous\n")
-    p = subprocess.Popen(quantify_cmd(rec, out_dir), stdout=subprocess.PIPE,
-                         stderr=subprocess.PIPE, text=True, preexec_fn=_ctrl_c_on)
+    p = subprocess.Popen(
+        quantify_cmd(rec, out_dir),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=_ctrl_c_on,
+    )
     err_lines = []
     if after_table_starts:
         for line in p.stderr:  # the progress bar's first report names the table
@@ -85,10 +105,14 @@ def check_outcome(code, err, out_dir, label):
     # handler for it (start-up, or the interpreter's exit after the run):
     # harmless if the files are either untouched or the whole new result.
     # -SIGABRT / -SIGSEGV (the bug) or anything else fails.
-    startup = (code in (1, -signal.SIGINT) and err.rstrip().endswith("KeyboardInterrupt")
-               and "qogi/cli.py" not in err)
-    assert code in (0, 130, -signal.SIGINT) or startup, \
+    startup = (
+        code in (1, -signal.SIGINT)
+        and err.rstrip().endswith("KeyboardInterrupt")
+        and "qogi/cli.py" not in err
+    )
+    assert code in (0, 130, -signal.SIGINT) or startup, (
         f"{label}: exit {code} (negative: killed by a signal)\n{err}"
+    )
     if startup:  # Ctrl-C while Python imported qogi, before any of its code ran
         assert (out_dir / "out.json").read_text() == PREVIOUS, label
         return
@@ -97,20 +121,25 @@ def check_outcome(code, err, out_dir, label):
     assert not [p.name for p in out_dir.iterdir() if p.name.startswith(".qogi-tmp")], label
     if code == -signal.SIGINT:
         import json
+
         text = (out_dir / "out.json").read_text()
         assert text == PREVIOUS or json.loads(text)["complete"] is True, label
     elif code == 130:
         # Interrupted: the outputs of the earlier run are as they were, or
         # (Ctrl-C while they were being written) all of them are this run's.
         assert "interrupted" in err
-        old = [(out_dir / "out.json").read_text() == PREVIOUS,
-               (out_dir / "out.csv").read_text() == "previous\n"]
+        old = [
+            (out_dir / "out.json").read_text() == PREVIOUS,
+            (out_dir / "out.csv").read_text() == "previous\n",
+        ]
         assert old in ([True, True], [False, False]), f"{label}: a mix of old and new outputs"
         if old == [False, False]:
             import json
+
             assert json.loads((out_dir / "out.json").read_text())["complete"] is True, label
     else:  # finished before the signal: a whole result replaced them
         import json
+
         assert json.loads((out_dir / "out.json").read_text())["complete"] is True
 
 
@@ -137,7 +166,12 @@ def test_ctrl_c_at_many_moments_of_the_first_seconds(rec, tmp_path):
         out = tmp_path / f"run{k}"
         out.mkdir()
         code, err = interrupt_quantify(rec, out, d, after_table_starts=rel)
-        check_outcome(code, err, out, f"Ctrl-C at {d:.2f} s ({'after the table starts' if rel else 'after launch'})")
+        check_outcome(
+            code,
+            err,
+            out,
+            f"Ctrl-C at {d:.2f} s ({'after the table starts' if rel else 'after launch'})",
+        )
         codes.append(code)
     assert 130 in codes, codes  # not vacuous: signals landed inside the run
 
@@ -148,11 +182,17 @@ def test_quantify_in_process_leaves_no_engine_thread_behind(rec):
     # Stop at each stage of the first block: the table, the columns, the
     # inversion (the stages' reports of an uncancelled run).
     msgs: list = []
-    qogi.quantify(qogi.open_recording(rec), [qogi.Surface.parse(SURFACE)],
-                  qogi.QuantifyConfig(source=(16.0, 22.0)),
-                  progress=lambda f, m: msgs.append(m))
-    stages = [k + 1 for k, m in enumerate(msgs)
-              if m.startswith(("cross-section", "background and column", "inverting"))]
+    qogi.quantify(
+        qogi.open_recording(rec),
+        [qogi.Surface.parse(SURFACE)],
+        qogi.QuantifyConfig(source=(16.0, 22.0)),
+        progress=lambda f, m: msgs.append(m),
+    )
+    stages = [
+        k + 1
+        for k, m in enumerate(msgs)
+        if m.startswith(("cross-section", "background and column", "inverting"))
+    ]
     assert len(stages) >= 4, msgs
     for stop_at in sorted({stages[0], stages[1], stages[len(stages) // 2], stages[-1]}):
         seen = [0]
@@ -164,23 +204,42 @@ def test_quantify_in_process_leaves_no_engine_thread_behind(rec):
         # Also inside the first block, before any block is finished: the
         # partial result is empty and says so (it used to fail to assemble).
         with pytest.raises(qogi.Cancelled) as e:
-            qogi.quantify(qogi.open_recording(rec), [qogi.Surface.parse(SURFACE)],
-                          qogi.QuantifyConfig(source=(16.0, 22.0)), progress=progress)
+            qogi.quantify(
+                qogi.open_recording(rec),
+                [qogi.Surface.parse(SURFACE)],
+                qogi.QuantifyConfig(source=(16.0, 22.0)),
+                progress=progress,
+            )
         if e.value.partial is not None:
             assert e.value.partial.complete is False
         left = [t.name for t in threading.enumerate() if t.name.startswith("qogi-")]
         assert left == [], f"stopped at report {stop_at}: threads still running: {left}"
 
 
-@pytest.mark.parametrize("sig, code", [pytest.param(signal.SIGINT, 130, marks=pytest.mark.slow),
-                                       (signal.SIGTERM, 143)])
+@pytest.mark.parametrize(
+    "sig, code", [pytest.param(signal.SIGINT, 130, marks=pytest.mark.slow), (signal.SIGTERM, 143)]
+)
 def test_interrupted_synth_leaves_the_existing_recording_untouched(tmp_path, sig, code):
     target = small_recording(tmp_path / "existing.h5")
     before = target.read_bytes()
-    p = subprocess.Popen([sys.executable, "-u", "-m", "qogi", "synth", "lab-ch4-5slpm-gf320",
-                          "-o", str(target), "--duration", "4"],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                         preexec_fn=_ctrl_c_on)
+    p = subprocess.Popen(
+        [
+            sys.executable,
+            "-u",
+            "-m",
+            "qogi",
+            "synth",
+            "lab-ch4-5slpm-gf320",
+            "-o",
+            str(target),
+            "--duration",
+            "4",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=_ctrl_c_on,
+    )
     end = time.monotonic() + 60
     while not any(q.name.startswith(".qogi-tmp-existing.h5") for q in tmp_path.iterdir()):
         assert p.poll() is None and time.monotonic() < end, "synth never started writing"

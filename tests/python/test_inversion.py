@@ -5,11 +5,21 @@ thesis's gas-temperature finding are in test_inversion_hitran.py."""
 
 import numpy as np
 import pytest
+from synthetic_tables import lorentz_table
 
 import qogi
-from qogi.inversion import (AT_BOUND, BELOW_DETECTION, CONVERGED, FAILED, MASKED, fixed, free,
-                            plume_depth_from_width, prior, tied)
-from synthetic_tables import lorentz_table
+from qogi.inversion import (
+    AT_BOUND,
+    BELOW_DETECTION,
+    CONVERGED,
+    FAILED,
+    MASKED,
+    fixed,
+    free,
+    plume_depth_from_width,
+    prior,
+    tied,
+)
 
 T_AMB = 293.0
 NETD = 0.017
@@ -19,21 +29,35 @@ NETD = 0.017
 def model():
     # "CH4" lines at 2950-3100 cm-1, "CO2" lines at 2150-2300 cm-1: spectrally
     # separate, as the real bands are, seen by four channels.
-    chans = [qogi.SpectralResponse([2130.0, 2140.0, 3110.0, 3120.0], [0, 0.8, 0.8, 0], "open"),
-             qogi.SpectralResponse([2140.0, 2150.0, 2300.0, 2310.0], [0, 0.8, 0.8, 0], "co2"),
-             qogi.SpectralResponse([2950.0, 2960.0, 3090.0, 3100.0], [0, 0.8, 0.8, 0], "ch4"),
-             qogi.SpectralResponse([2980.0, 2990.0, 3030.0, 3040.0], [0, 0.8, 0.8, 0], "ch4 n")]
-    tables = [lorentz_table("CH4", 2930.0, 3120.0, seed=1, n_lines=80),
-              lorentz_table("CO2", 2130.0, 2320.0, seed=2, n_lines=80)]
-    return qogi.ForwardModel(chans, ["CH4", "CO2"], tables=tables,
-                             fast_options=qogi._engine.BinnedModelOptions(num_nodes=65))
+    chans = [
+        qogi.SpectralResponse([2130.0, 2140.0, 3110.0, 3120.0], [0, 0.8, 0.8, 0], "open"),
+        qogi.SpectralResponse([2140.0, 2150.0, 2300.0, 2310.0], [0, 0.8, 0.8, 0], "co2"),
+        qogi.SpectralResponse([2950.0, 2960.0, 3090.0, 3100.0], [0, 0.8, 0.8, 0], "ch4"),
+        qogi.SpectralResponse([2980.0, 2990.0, 3030.0, 3040.0], [0, 0.8, 0.8, 0], "ch4 n"),
+    ]
+    tables = [
+        lorentz_table("CH4", 2930.0, 3120.0, seed=1, n_lines=80),
+        lorentz_table("CO2", 2130.0, 2320.0, seed=2, n_lines=80),
+    ]
+    return qogi.ForwardModel(
+        chans,
+        ["CH4", "CO2"],
+        tables=tables,
+        fast_options=qogi._engine.BinnedModelOptions(num_nodes=65),
+    )
 
 
 @pytest.fixture(scope="module")
 def inversion(model):
     # Both fractions free, the gas temperature known per pixel, sigma given.
-    return qogi.Inversion(model, T_AMB, netd_K=NETD, temperature=fixed(320.0),
-                          temperature_range_K=(290.0, 360.0), max_sigma_m=1.0)
+    return qogi.Inversion(
+        model,
+        T_AMB,
+        netd_K=NETD,
+        temperature=fixed(320.0),
+        temperature_range_K=(290.0, 360.0),
+        max_sigma_m=1.0,
+    )
 
 
 def plumes(model, n, seed):
@@ -48,8 +72,9 @@ def plumes(model, n, seed):
 
 def test_recovers_known_plumes_and_reports_uncertainty(model, inversion):
     x, tp, sg, tb, rad = plumes(model, 30, 1)
-    res = inversion.invert(rad, background_temperature_K=np.repeat(tb[None], 4, 0), sigma_m=sg,
-                           peak_temperature_K=tp)
+    res = inversion.invert(
+        rad, background_temperature_K=np.repeat(tb[None], 4, 0), sigma_m=sg, peak_temperature_K=tp
+    )
     assert np.all(res.status == CONVERGED)
     col = model.column_density(x, tp, sg, T_AMB)
     for s in ("CH4", "CO2"):
@@ -57,8 +82,11 @@ def test_recovers_known_plumes_and_reports_uncertainty(model, inversion):
         np.testing.assert_allclose(res.column_density[s], col[s], rtol=5e-3)
         assert np.all(res.column_density_sigma[s] > 0)
         # ppm m = 1e6 sqrt(2 pi) x sigma.
-        np.testing.assert_allclose(res.path_concentration_ppm_m[s],
-                                   1e6 * np.sqrt(2 * np.pi) * res.peak_fraction[s] * sg, rtol=1e-12)
+        np.testing.assert_allclose(
+            res.path_concentration_ppm_m[s],
+            1e6 * np.sqrt(2 * np.pi) * res.peak_fraction[s] * sg,
+            rtol=1e-12,
+        )
     np.testing.assert_allclose(res.peak_temperature_K, tp)
     np.testing.assert_allclose(res.sigma_m, sg)
     assert np.all(res.chi2 < 1e-2)
@@ -73,8 +101,12 @@ def test_uncertainty_matches_the_scatter_of_noisy_repeats(model, inversion):
     rng = np.random.default_rng(3)
     n = 400
     rr = rad + rng.standard_normal((4, n)) * noise[:, None]
-    res = inversion.invert(rr, background_temperature_K=np.full((4, n), tb[0]),
-                           sigma_m=np.full(n, sg[0]), peak_temperature_K=np.full(n, tp[0]))
+    res = inversion.invert(
+        rr,
+        background_temperature_K=np.full((4, n), tb[0]),
+        sigma_m=np.full(n, sg[0]),
+        peak_temperature_K=np.full(n, tp[0]),
+    )
     assert np.all(res.valid)
     for s in ("CH4", "CO2"):
         spread = np.std(res.column_density[s])
@@ -92,23 +124,35 @@ def test_every_status(model, inversion):
     bgt = np.full((4, 6), tb)
     bgt[:, 5] = 100.0  # a background temperature outside the tables
     mask = np.array([True, True, True, True, True, True])
-    res = inversion.invert(rad, background_temperature_K=bgt, sigma_m=0.05,
-                           peak_temperature_K=320.0, mask=mask)
-    assert res.status[0] == BELOW_DETECTION          # no contrast: not inverted
+    res = inversion.invert(
+        rad, background_temperature_K=bgt, sigma_m=0.05, peak_temperature_K=320.0, mask=mask
+    )
+    assert res.status[0] == BELOW_DETECTION  # no contrast: not inverted
     assert res.column_density["CH4"][0] == 0.0
     assert res.column_density_sigma["CH4"][0] > 0.0  # the noise-equivalent column
     assert res.status[1] == CONVERGED
     assert res.status[2] == AT_BOUND and res.bound_mask[2] == 0b10  # x_CO2 held at 0
     assert res.peak_fraction["CO2"][2] == 0.0
-    assert res.status[3] == FAILED                   # NaN input
-    assert res.status[4] == AT_BOUND                 # darker than the background: x held at 0
-    assert res.status[5] == FAILED                   # background outside the tables
-    masked = inversion.invert(rad[:, :3], background_temperature_K=bgt[:, :3], sigma_m=0.05,
-                              peak_temperature_K=320.0, mask=np.array([True, False, True]))
+    assert res.status[3] == FAILED  # NaN input
+    assert res.status[4] == AT_BOUND  # darker than the background: x held at 0
+    assert res.status[5] == FAILED  # background outside the tables
+    masked = inversion.invert(
+        rad[:, :3],
+        background_temperature_K=bgt[:, :3],
+        sigma_m=0.05,
+        peak_temperature_K=320.0,
+        mask=np.array([True, False, True]),
+    )
     assert masked.status[1] == MASKED
     assert masked.status[2] == res.status[2]
-    for arr in (res.parameters, res.parameter_sigma, res.covariance, res.chi2,
-                res.column_density["CH4"], res.column_density_sigma["CO2"]):
+    for arr in (
+        res.parameters,
+        res.parameter_sigma,
+        res.covariance,
+        res.chi2,
+        res.column_density["CH4"],
+        res.column_density_sigma["CO2"],
+    ):
         assert np.all(np.isfinite(arr))
     counts = res.counts()
     assert counts["failed"] == 2 and counts["at_bound"] == 2
@@ -128,23 +172,38 @@ def test_images_with_radiance_backgrounds_and_warm_starts(model):
     bg = model.background_radiance(tb)
     results = []
     for guess in ("table", "neighbour"):
-        inv = qogi.Inversion(model, T_AMB, netd_K=NETD, temperature=fixed(330.0),
-                             max_sigma_m=1.0, sigma_m=0.04, initial_guess=guess)
+        inv = qogi.Inversion(
+            model,
+            T_AMB,
+            netd_K=NETD,
+            temperature=fixed(330.0),
+            max_sigma_m=1.0,
+            sigma_m=0.04,
+            initial_guess=guess,
+        )
         res = inv.invert(rad, background_radiance=bg)
         assert res.status.shape == (h, w) and res.parameters.shape == (h, w, 4)
         results.append(res)
     ok = results[0].valid
     assert ok.sum() > 0.8 * h * w
-    np.testing.assert_allclose(results[1].column_density["CH4"][ok],
-                               results[0].column_density["CH4"][ok], rtol=1e-5)
+    np.testing.assert_allclose(
+        results[1].column_density["CH4"][ok], results[0].column_density["CH4"][ok], rtol=1e-5
+    )
 
 
 def test_both_orders_of_averaging(model):
     # A column that fluctuates from frame to frame: the contrast is concave in
     # the column, so inverting the mean image reads low, while the mean of the
     # per-frame inversions is right (the thesis compares both orders).
-    inv = qogi.Inversion(model, T_AMB, netd_K=NETD, fractions={"CH4": "free"},
-                         temperature=fixed(T_AMB), sigma_m=0.05, max_sigma_m=1.0)
+    inv = qogi.Inversion(
+        model,
+        T_AMB,
+        netd_K=NETD,
+        fractions={"CH4": "free"},
+        temperature=fixed(T_AMB),
+        sigma_m=0.05,
+        max_sigma_m=1.0,
+    )
     rng = np.random.default_rng(4)
     t = 40
     x = 0.3 * rng.lognormal(0.0, 0.8, t)
@@ -169,8 +228,12 @@ def test_both_orders_of_averaging(model):
 
 
 def test_single_channel_newton_path(model):
-    one = qogi.ForwardModel([model.channels[2]], ["CH4"], tables=model.tables[:1],
-                            fast_options=qogi._engine.BinnedModelOptions(num_nodes=65))
+    one = qogi.ForwardModel(
+        [model.channels[2]],
+        ["CH4"],
+        tables=model.tables[:1],
+        fast_options=qogi._engine.BinnedModelOptions(num_nodes=65),
+    )
     inv = qogi.Inversion(one, T_AMB, netd_K=NETD, sigma_m=0.05, max_sigma_m=1.0)
     assert inv.temperature.mode == "fixed" and inv.temperature.value == T_AMB
     x = np.array([5e-3, 2e-2, 0.1, 0.5])
@@ -182,9 +245,15 @@ def test_single_channel_newton_path(model):
 
 
 def test_tied_composition_and_priors(model):
-    inv = qogi.Inversion(model, T_AMB, netd_K=NETD, max_sigma_m=1.0,
-                         fractions={"CH4": free(), "CO2": tied("CH4", 0.5)},
-                         temperature=fixed(330.0), sigma_m=prior(0.05, 0.01))
+    inv = qogi.Inversion(
+        model,
+        T_AMB,
+        netd_K=NETD,
+        max_sigma_m=1.0,
+        fractions={"CH4": free(), "CO2": tied("CH4", 0.5)},
+        temperature=fixed(330.0),
+        sigma_m=prior(0.05, 0.01),
+    )
     tb = T_AMB - 15.0
     rad = model.band_radiance({"CH4": 0.04, "CO2": 0.02}, 330.0, 0.05, T_AMB, tb)
     res = inv.invert(rad, background_temperature_K=tb)
@@ -203,8 +272,12 @@ def test_profile_cold_start_finds_the_minima_of_exhaustive_starts(model):
     same pixels ambiguous (two minima within chi2 + 4)."""
     x, tp, sg, tb, rad = plumes(model, 150, 5)
     rng = np.random.default_rng(6)
-    inv = {k: qogi.Inversion(model, T_AMB, netd_K=NETD, temperature=free(290.0, 360.0),
-                             max_sigma_m=1.0, cold_start=k) for k in ("profile", "starts")}
+    inv = {
+        k: qogi.Inversion(
+            model, T_AMB, netd_K=NETD, temperature=free(290.0, 360.0), max_sigma_m=1.0, cold_start=k
+        )
+        for k in ("profile", "starts")
+    }
     noise = inv["profile"].channel_noise(tb[0])[:, None]
     rad = rad + rng.standard_normal(rad.shape) * noise
     r = {k: v.invert(rad, background_temperature_K=tb, sigma_m=sg) for k, v in inv.items()}
@@ -217,10 +290,12 @@ def test_profile_cold_start_finds_the_minima_of_exhaustive_starts(model):
 
 
 def test_scene_tables_are_cached(model):
-    a = qogi.inversion.scene_table(model, T_AMB, min_peak_temperature_K=290.0,
-                                   max_peak_temperature_K=310.0, max_sigma_m=1.0)
-    b = qogi.inversion.scene_table(model, T_AMB, min_peak_temperature_K=290.0,
-                                   max_peak_temperature_K=310.0, max_sigma_m=1.0)
+    a = qogi.inversion.scene_table(
+        model, T_AMB, min_peak_temperature_K=290.0, max_peak_temperature_K=310.0, max_sigma_m=1.0
+    )
+    b = qogi.inversion.scene_table(
+        model, T_AMB, min_peak_temperature_K=290.0, max_peak_temperature_K=310.0, max_sigma_m=1.0
+    )
     assert a is b
     err = qogi._engine.measure_table_error(a, 40, 5)
     assert err["max_relative_error"] < 5e-3
@@ -229,12 +304,22 @@ def test_scene_tables_are_cached(model):
 def test_progress_and_cancel(model, inversion):
     x, tp, sg, tb, rad = plumes(model, 600, 5)
     seen = []
-    inversion.invert(rad, background_temperature_K=np.repeat(tb[None], 4, 0), sigma_m=sg,
-                     peak_temperature_K=tp, progress=seen.append)
+    inversion.invert(
+        rad,
+        background_temperature_K=np.repeat(tb[None], 4, 0),
+        sigma_m=sg,
+        peak_temperature_K=tp,
+        progress=seen.append,
+    )
     assert seen and seen[-1] == 1.0
     with pytest.raises(qogi.Cancelled):
-        inversion.invert(rad, background_temperature_K=np.repeat(tb[None], 4, 0), sigma_m=sg,
-                         peak_temperature_K=tp, progress=lambda f: False)
+        inversion.invert(
+            rad,
+            background_temperature_K=np.repeat(tb[None], 4, 0),
+            sigma_m=sg,
+            peak_temperature_K=tp,
+            progress=lambda f: False,
+        )
 
 
 def test_plume_depth_from_width_recovers_the_sigma_of_a_sampled_gaussian_cut_at_20_percent():
@@ -246,8 +331,13 @@ def test_plume_depth_from_width_recovers_the_sigma_of_a_sampled_gaussian_cut_at_
     plain moment of the kept samples (no truncation correction) is > 10 %
     low (17 % for a finely sampled Gaussian)."""
     s = np.arange(64.0)
-    for sigma_px, centre, tol in ((1.5, 30.0, 0.065), (3.0, 30.0, 0.045), (3.0, 6.0, 0.045),
-                                  (6.5, 30.0, 0.02), (12.0, 31.0, 0.015)):
+    for sigma_px, centre, tol in (
+        (1.5, 30.0, 0.065),
+        (3.0, 30.0, 0.045),
+        (3.0, 6.0, 0.045),
+        (6.5, 30.0, 0.02),
+        (12.0, 31.0, 0.015),
+    ):
         for d in np.linspace(0.0, 1.0, 41):
             prof = np.exp(-0.5 * ((s - centre - d) / sigma_px) ** 2)
             got = plume_depth_from_width(np.stack([prof, 2 * prof]), pixel_size_m=0.002)
@@ -280,18 +370,24 @@ def test_plume_depth_from_width_of_noisy_profiles_is_unbiased_within_the_noise()
     assert plume_depth_from_width(prof, pixel_size_m=1.0, cut=0.0).mean() / 6.5 > 1.1
 
 
-@pytest.mark.parametrize("kwargs, words", [
-    (dict(netd_K=-1.0), ["netd_K"]),
-    (dict(netd_K=[0.01, 0.02]), ["netd_K", "per channel"]),
-    (dict(fractions={"N2O": "free"}), ["N2O", "species"]),
-    (dict(fractions={"CH4": "free", "CO2": tied("H2O", 1.0)}), ["H2O"]),
-    (dict(fractions={"CH4": "wild"}), ["fractions['CH4']"]),
-    (dict(temperature=fixed(900.0)), ["range"]),
-    (dict(fractions={"CH4": 0.1, "CO2": 0.1}, temperature=fixed(300.0)), ["every parameter is fixed"]),
-    (dict(initial_guess="psychic"), ["initial_guess"]),
-    (dict(solver="magic"), ["solver"]),
-    (dict(cold_start="lucky"), ["cold_start"]),
-])
+@pytest.mark.parametrize(
+    "kwargs, words",
+    [
+        (dict(netd_K=-1.0), ["netd_K"]),
+        (dict(netd_K=[0.01, 0.02]), ["netd_K", "per channel"]),
+        (dict(fractions={"N2O": "free"}), ["N2O", "species"]),
+        (dict(fractions={"CH4": "free", "CO2": tied("H2O", 1.0)}), ["H2O"]),
+        (dict(fractions={"CH4": "wild"}), ["fractions['CH4']"]),
+        (dict(temperature=fixed(900.0)), ["range"]),
+        (
+            dict(fractions={"CH4": 0.1, "CO2": 0.1}, temperature=fixed(300.0)),
+            ["every parameter is fixed"],
+        ),
+        (dict(initial_guess="psychic"), ["initial_guess"]),
+        (dict(solver="magic"), ["solver"]),
+        (dict(cold_start="lucky"), ["cold_start"]),
+    ],
+)
 def test_bad_settings(model, kwargs, words):
     args = dict(netd_K=NETD, max_sigma_m=1.0)
     args.update(kwargs)

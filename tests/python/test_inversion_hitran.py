@@ -20,9 +20,12 @@ NETD_M150, NETD_GF320 = 0.017, 0.015
 @pytest.fixture(scope="module")
 def m150(hitran_dir):
     cam = qogi.camera_preset("fast-m150")
-    model = qogi.ForwardModel(cam, ["CH4", "CO2"],
-                              line_lists={"CH4": hitran_dir / "CH4.par.gz", "CO2": hitran_dir / "CO2.par.gz"},
-                              exact_options=qogi._engine.ExactModelOptions(num_nodes=101))
+    model = qogi.ForwardModel(
+        cam,
+        ["CH4", "CO2"],
+        line_lists={"CH4": hitran_dir / "CH4.par.gz", "CO2": hitran_dir / "CO2.par.gz"},
+        exact_options=qogi._engine.ExactModelOptions(num_nodes=101),
+    )
     return cam, model
 
 
@@ -48,16 +51,24 @@ def test_round_trip_through_the_exact_model(m150, capsys):
     sg = rng.uniform(0.02, 0.1, m)
     exact = model.band_radiance(x, tp, sg, T_AMB, tbg[:, None].repeat(4, 1), exact=True)
     noise = np.stack([qogi.netd_radiance_sigma(cam, NETD_M150, t) for t in tbg])
-    rad = np.repeat(exact, draws, 0) + rng.standard_normal((m * draws, 4)) * np.repeat(noise, draws, 0)
+    rad = np.repeat(exact, draws, 0) + rng.standard_normal((m * draws, 4)) * np.repeat(
+        noise, draws, 0
+    )
     bg = np.stack([c.band_radiance(tbg) for c in cam.channels], axis=1)
     snr = np.abs(np.repeat((exact - bg) / noise, draws, 0)).max(axis=1)
     TP, TB, SG = (np.repeat(a, draws) for a in (tp, tbg, sg))
     truth = model.column_density(np.repeat(x, draws, 0), TP, SG, T_AMB)
 
-    inv = qogi.Inversion(model, T_AMB, netd_K=NETD_M150, temperature=fixed(330.0),
-                         temperature_range_K=(298.15, 368.15))
-    res = inv.invert(rad.T, background_temperature_K=np.repeat(TB[None], 4, 0), sigma_m=SG,
-                     peak_temperature_K=TP)
+    inv = qogi.Inversion(
+        model,
+        T_AMB,
+        netd_K=NETD_M150,
+        temperature=fixed(330.0),
+        temperature_range_K=(298.15, 368.15),
+    )
+    res = inv.invert(
+        rad.T, background_temperature_K=np.repeat(TB[None], 4, 0), sigma_m=SG, peak_temperature_K=TP
+    )
     assert res.counts()["failed"] == 0 and res.counts()["below_detection"] == 0
     ok = res.valid & (snr > 10)
     assert ok.sum() > 900
@@ -66,8 +77,10 @@ def test_round_trip_through_the_exact_model(m150, capsys):
         err = res.column_density[s] - truth[s]
         med = np.median(np.abs(err[ok] / truth[s][ok]))
         z = err[res.valid] / res.column_density_sigma[s][res.valid]
-        lines.append(f"{s}: median |error| {100 * med:.2f} %, z std {z.std():.3f}, "
-                     f"z mean {z.mean():+.3f}, max |z| {np.abs(z).max():.2f}")
+        lines.append(
+            f"{s}: median |error| {100 * med:.2f} %, z std {z.std():.3f}, "
+            f"z mean {z.mean():+.3f}, max |z| {np.abs(z).max():.2f}"
+        )
         assert med < 0.02
         assert 0.7 <= z.std() <= 1.4
     with capsys.disabled():
@@ -85,7 +98,8 @@ def methane(m150):
 
 
 def test_gas_temperature_assumption_biases_single_channel_and_multichannel_removes_it(
-        methane, capsys):
+    methane, capsys
+):
     """Heated methane near a release (peak 60 C, ambient 20 C, background
     7 C): a single-channel (GF320) inversion assuming the gas is at ambient
     temperature overestimates the column (its contrast per molecule is
@@ -116,21 +130,25 @@ def test_gas_temperature_assumption_biases_single_channel_and_multichannel_remov
             inv = qogi.Inversion(single, T_AMB, netd_K=NETD_GF320, temperature=assumed)
             r = inv.invert(ls, background_temperature_K=t_bg, sigma_m=sg)
             out[(t, assumed)] = np.median(r.column_density["CH4"] / truth)
-        inv = qogi.Inversion(multi, T_AMB, netd_K=NETD_M150,
-                             temperature=free(T_AMB - 5.0, T_AMB + 50.0))
+        inv = qogi.Inversion(
+            multi, T_AMB, netd_K=NETD_M150, temperature=free(T_AMB - 5.0, T_AMB + 50.0)
+        )
         r = inv.invert(lm, background_temperature_K=t_bg, sigma_m=sg)
         ok = r.valid
         out[(t, "multi")] = np.median(r.column_density["CH4"][ok] / truth[ok])
         out[(t, "T")] = np.median(r.peak_temperature_K[ok])
-        out[(t, "z")] = np.median(np.abs((r.column_density["CH4"][ok] - truth[ok])
-                                         / r.column_density_sigma["CH4"][ok]))
+        out[(t, "z")] = np.median(
+            np.abs((r.column_density["CH4"][ok] - truth[ok]) / r.column_density_sigma["CH4"][ok])
+        )
     with capsys.disabled():
-        print(f"\nsingle channel, gas at 60 C assumed 20 C: column x {out[(t_gas, T_AMB)]:.2f}; "
-              f"gas at 20 C assumed 60 C: x {out[(T_AMB, t_gas)]:.3f}; right assumption: "
-              f"x {out[(t_gas, t_gas)]:.3f} / {out[(T_AMB, T_AMB)]:.3f}\n"
-              f"four channels, T free: x {out[(t_gas, 'multi')]:.3f} (T {out[(t_gas, 'T')]:.1f} K) "
-              f"/ x {out[(T_AMB, 'multi')]:.3f} (T {out[(T_AMB, 'T')]:.1f} K), median |z| "
-              f"{out[(t_gas, 'z')]:.2f} / {out[(T_AMB, 'z')]:.2f}")
+        print(
+            f"\nsingle channel, gas at 60 C assumed 20 C: column x {out[(t_gas, T_AMB)]:.2f}; "
+            f"gas at 20 C assumed 60 C: x {out[(T_AMB, t_gas)]:.3f}; right assumption: "
+            f"x {out[(t_gas, t_gas)]:.3f} / {out[(T_AMB, T_AMB)]:.3f}\n"
+            f"four channels, T free: x {out[(t_gas, 'multi')]:.3f} (T {out[(t_gas, 'T')]:.1f} K) "
+            f"/ x {out[(T_AMB, 'multi')]:.3f} (T {out[(T_AMB, 'T')]:.1f} K), median |z| "
+            f"{out[(t_gas, 'z')]:.2f} / {out[(T_AMB, 'z')]:.2f}"
+        )
     # Direction and size: assuming ambient for a hot gas overestimates several
     # times; the reverse underestimates several times; the right assumption is exact.
     assert out[(t_gas, T_AMB)] > 3.0
@@ -147,13 +165,16 @@ def test_gas_temperature_assumption_biases_single_channel_and_multichannel_remov
 def test_table_error_against_the_binned_model(m150, capsys):
     _, model = m150
     # The round trip's table (cached).
-    table = qogi.inversion.scene_table(model, T_AMB, min_peak_temperature_K=298.15,
-                                       max_peak_temperature_K=368.15)
+    table = qogi.inversion.scene_table(
+        model, T_AMB, min_peak_temperature_K=298.15, max_peak_temperature_K=368.15
+    )
     err = qogi._engine.measure_table_error(table, 25, 3, 1e-3, True)
     with capsys.disabled():
-        print(f"\nscene table vs binned model (25 plumes): max {err['max_relative_error']:.2e}, "
-              f"rms {err['rms_relative_error']:.2e}, derivatives {err['max_jacobian_error']:.2e}; "
-              f"built in {table.build_seconds:.1f} s, {table.memory_bytes / 1e6:.1f} MB")
+        print(
+            f"\nscene table vs binned model (25 plumes): max {err['max_relative_error']:.2e}, "
+            f"rms {err['rms_relative_error']:.2e}, derivatives {err['max_jacobian_error']:.2e}; "
+            f"built in {table.build_seconds:.1f} s, {table.memory_bytes / 1e6:.1f} MB"
+        )
     assert err["rms_relative_error"] < 1e-3
     assert err["max_relative_error"] < 2e-2
 
@@ -178,16 +199,24 @@ def test_mixing_line_round_trip_through_the_exact_model(m150, capsys):
     x = np.stack([big_x / 2, big_x / 2], axis=1)
     exact = model.band_radiance(x, tp, sg, T_AMB, tbg[:, None].repeat(4, 1), exact=True)
     noise = np.stack([qogi.netd_radiance_sigma(cam, NETD_M150, t) for t in tbg])
-    rad = np.repeat(exact, draws, 0) + rng.standard_normal((m * draws, 4)) * np.repeat(noise, draws, 0)
+    rad = np.repeat(exact, draws, 0) + rng.standard_normal((m * draws, 4)) * np.repeat(
+        noise, draws, 0
+    )
     bg = np.stack([c.band_radiance(tbg) for c in cam.channels], axis=1)
     snr = np.abs(np.repeat((exact - bg) / noise, draws, 0)).max(axis=1)
     TP, SG = np.repeat(tp, draws), np.repeat(sg, draws)
     truth = model.column_density(np.repeat(x, draws, 0), TP, SG, T_AMB)
-    table = inv.scene_table(model, T_AMB, min_peak_temperature_K=T_AMB - 10,
-                            max_peak_temperature_K=T_AMB + 150, temperature_step_K=10.0)
+    table = inv.scene_table(
+        model,
+        T_AMB,
+        min_peak_temperature_K=T_AMB - 10,
+        max_peak_temperature_K=T_AMB + 150,
+        temperature_step_K=10.0,
+    )
     bgr = np.repeat(bg, draws, 0)
-    res = inv.invert_on_mixing_line(model, table, k, rad.T, bgr.T, SG, netd_K=NETD_M150,
-                                    composition={"CH4": 0.5, "CO2": 0.5})
+    res = inv.invert_on_mixing_line(
+        model, table, k, rad.T, bgr.T, SG, netd_K=NETD_M150, composition={"CH4": 0.5, "CO2": 0.5}
+    )
     assert res.counts()["failed"] == 0
     ok = res.valid & (snr > 10)
     assert ok.sum() > 500
@@ -200,10 +229,21 @@ def test_mixing_line_round_trip_through_the_exact_model(m150, capsys):
         assert med < 0.02
         assert 0.7 <= z.std() <= 1.4
     # The temperature follows the line.
-    np.testing.assert_allclose(res.peak_temperature_K[ok], T_AMB + k * (
-        res.peak_fraction["CH4"][ok] + res.peak_fraction["CO2"][ok]), rtol=1e-9)
-    zero = inv.invert_on_mixing_line(model, table, k, bg[:2].T, bg[:2].T, sg[:2],
-                                     netd_K=NETD_M150, composition={"CH4": 0.5, "CO2": 0.5})
+    np.testing.assert_allclose(
+        res.peak_temperature_K[ok],
+        T_AMB + k * (res.peak_fraction["CH4"][ok] + res.peak_fraction["CO2"][ok]),
+        rtol=1e-9,
+    )
+    zero = inv.invert_on_mixing_line(
+        model,
+        table,
+        k,
+        bg[:2].T,
+        bg[:2].T,
+        sg[:2],
+        netd_K=NETD_M150,
+        composition={"CH4": 0.5, "CO2": 0.5},
+    )
     assert np.all(zero.status == inv.BELOW_DETECTION)
     assert np.all(zero.column_density["CH4"] == 0) and np.all(zero.column_density_sigma["CH4"] > 0)
     with pytest.raises(ValueError, match="composition"):
@@ -215,9 +255,10 @@ def test_mixing_line_round_trip_through_the_exact_model(m150, capsys):
 def test_mixing_line_slope_recovers_the_release_slope(m150):
     """The scene's mixing-line slope from its pixels (qogi.inversion.
     mixing_line_slope, the engine's profile likelihood): 8 plumes (the fast
-    binned model: the exact one is tested above) of 50/50 CH4/CO2 on T_peak = T_amb + 70 K x X x 60 draws of 17 mK noise
-    give k within 3 of its stated 1-sigma of 70 K; without any contrast the
-    result is flagged (found False), not a slope."""
+    binned model: the exact one is tested above) of 50/50 CH4/CO2 on
+    T_peak = T_amb + 70 K x X x 60 draws of 17 mK noise give k within 3 of
+    its stated 1-sigma of 70 K; without any contrast the result is flagged
+    (found False), not a slope."""
     from qogi import inversion as inv
 
     cam, model = m150
@@ -230,13 +271,21 @@ def test_mixing_line_slope_recovers_the_release_slope(m150):
     x = np.stack([big_x / 2, big_x / 2], axis=1)
     exact = model.band_radiance(x, tp, sg, T_AMB, tbg[:, None].repeat(4, 1))
     noise = np.stack([qogi.netd_radiance_sigma(cam, NETD_M150, t) for t in tbg])
-    rad = np.repeat(exact, draws, 0) + rng.standard_normal((m * draws, 4)) * np.repeat(noise, draws, 0)
+    rad = np.repeat(exact, draws, 0) + rng.standard_normal((m * draws, 4)) * np.repeat(
+        noise, draws, 0
+    )
     bg = np.repeat(np.stack([c.band_radiance(tbg) for c in cam.channels], axis=1), draws, 0)
-    table = inv.scene_table(model, T_AMB, min_peak_temperature_K=T_AMB - 10,
-                            max_peak_temperature_K=T_AMB + 150, temperature_step_K=10.0)
+    table = inv.scene_table(
+        model,
+        T_AMB,
+        min_peak_temperature_K=T_AMB - 10,
+        max_peak_temperature_K=T_AMB + 150,
+        temperature_step_K=10.0,
+    )
     comp = {"CH4": 0.5, "CO2": 0.5}
-    r = inv.mixing_line_slope(model, table, rad.T, bg.T, np.repeat(sg, draws),
-                              netd_K=NETD_M150, composition=comp)
+    r = inv.mixing_line_slope(
+        model, table, rad.T, bg.T, np.repeat(sg, draws), netd_K=NETD_M150, composition=comp
+    )
     assert r.found and r.num_samples == r.num_candidates > 100
     assert 0 < r.sigma_K_per_fraction < 15
     assert abs(r.slope_K_per_fraction - k) < 3 * r.sigma_K_per_fraction, r
@@ -245,14 +294,24 @@ def test_mixing_line_slope_recovers_the_release_slope(m150):
     # an unknown composition) give the same k.
     idx, count = inv.mixing_line_slope_sample(model, table, rad.T, bg.T, netd_K=NETD_M150)
     assert count == r.num_candidates and idx.size == r.num_samples
-    chi = [inv.invert_on_mixing_line(model, table, float(kk), rad.T[:, idx], bg.T[:, idx],
-                                     np.repeat(sg, draws)[idx], netd_K=NETD_M150,
-                                     composition=comp).chi2 for kk in r.grid_K_per_fraction]
+    chi = [
+        inv.invert_on_mixing_line(
+            model,
+            table,
+            float(kk),
+            rad.T[:, idx],
+            bg.T[:, idx],
+            np.repeat(sg, draws)[idx],
+            netd_K=NETD_M150,
+            composition=comp,
+        ).chi2
+        for kk in r.grid_K_per_fraction
+    ]
     again = inv.mixing_line_slope_from_profile(r.grid_K_per_fraction, np.asarray(chi))
     assert again.slope_K_per_fraction == pytest.approx(r.slope_K_per_fraction, abs=1e-9)
-    flat = inv.mixing_line_slope(model, table, bg.T, bg.T, 0.03, netd_K=NETD_M150,
-                                 composition=comp)
+    flat = inv.mixing_line_slope(model, table, bg.T, bg.T, 0.03, netd_K=NETD_M150, composition=comp)
     assert not flat.found and flat.num_candidates == 0 and flat.slope_K_per_fraction == 0.0
     with pytest.raises(ValueError, match="grid_step_K"):
-        inv.mixing_line_slope(model, table, rad.T, bg.T, 0.03, netd_K=NETD_M150,
-                              composition=comp, grid_step_K=0.0)
+        inv.mixing_line_slope(
+            model, table, rad.T, bg.T, 0.03, netd_K=NETD_M150, composition=comp, grid_step_K=0.0
+        )

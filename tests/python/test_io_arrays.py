@@ -22,8 +22,9 @@ def scene():
 def test_npy_round_trip(tmp_path):
     f = np.random.default_rng(1).uniform(280, 300, (6, 2, 5, 7)).astype(np.float32)
     np.save(tmp_path / "f.npy", f)
-    rec = qio.read_numpy(tmp_path / "f.npy", quantity="radiometric_temperature", camera=cam(2),
-                         scene=scene())
+    rec = qio.read_numpy(
+        tmp_path / "f.npy", quantity="radiometric_temperature", camera=cam(2), scene=scene()
+    )
     np.testing.assert_array_equal(rec.to_array(), f)
     np.testing.assert_allclose(rec.time_s, np.arange(6) / 10.0)
 
@@ -32,8 +33,9 @@ def test_npz_with_times_and_single_channel(tmp_path):
     f = np.random.default_rng(2).uniform(0.01, 0.02, (4, 5, 7))
     t = np.array([0.0, 0.05, 0.1, 0.15])
     np.savez(tmp_path / "f.npz", frames=f, time_s=t)
-    rec = qio.read_recording(tmp_path / "f.npz", quantity="radiance", camera=cam(1, rate=20.0),
-                             scene=scene())
+    rec = qio.read_recording(
+        tmp_path / "f.npz", quantity="radiance", camera=cam(1, rate=20.0), scene=scene()
+    )
     assert rec.shape == (4, 1, 5, 7)
     np.testing.assert_array_equal(rec.time_s, t)
     np.testing.assert_allclose(rec.frame(2)[0], f[2], rtol=1e-7)
@@ -41,8 +43,10 @@ def test_npz_with_times_and_single_channel(tmp_path):
 
 def test_numpy_needs_the_metadata(tmp_path):
     np.save(tmp_path / "f.npy", np.ones((2, 3, 3), np.float32))
-    with pytest.raises(qogi.RecordingError,
-                       match=r"f.npy: camera, scene: a numpy file holds only pixels.*Fix: pass"):
+    with pytest.raises(
+        qogi.RecordingError,
+        match=r"f.npy: camera, scene: a numpy file holds only pixels.*Fix: pass",
+    ):
         qio.read_numpy(tmp_path / "f.npy", quantity="radiance")
     np.savez(tmp_path / "g.npz", other=np.ones(3))
     with pytest.raises(qogi.RecordingError, match="no array 'frames'"):
@@ -60,8 +64,9 @@ def test_tiff_stack_float_and_counts(tmp_path):
     assert cv2.imwritemulti(str(q), list(counts))
     with pytest.raises(qogi.RecordingError, match=r"pages are integers \(uint16\).*scale="):
         qio.read_tiff(q, quantity="radiometric_temperature", camera=cam(), scene=scene())
-    rec3 = qio.read_tiff(q, quantity="radiometric_temperature", camera=cam(), scene=scene(),
-                         scale=0.04)
+    rec3 = qio.read_tiff(
+        q, quantity="radiometric_temperature", camera=cam(), scene=scene(), scale=0.04
+    )
     np.testing.assert_allclose(rec3.frame(1)[0], counts[1] * 0.04, rtol=1e-6)
 
 

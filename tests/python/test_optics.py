@@ -55,7 +55,10 @@ def test_wien_peak():
         (lambda: qogi.planck_radiance(3000.0, -5.0), ["temperature_K", "> 0", "-5"]),
         (lambda: qogi.planck_radiance(3000.0, float("nan")), ["temperature_K", "nan"]),
         (lambda: qogi.SpectralResponse([], []), ["at least 2"]),
-        (lambda: qogi.SpectralResponse([1.0, 3.0, 2.0], [1, 1, 1]), ["strictly increasing", "nu_cm1[2]"]),
+        (
+            lambda: qogi.SpectralResponse([1.0, 3.0, 2.0], [1, 1, 1]),
+            ["strictly increasing", "nu_cm1[2]"],
+        ),
         (lambda: qogi.SpectralResponse([1.0, 2.0, 3.0], [1, 1]), ["same length"]),
         (lambda: qogi.SpectralResponse([1.0, 2.0], [1, -1]), ["response", ">= 0"]),
     ],

@@ -23,8 +23,9 @@ HEIGHTS_CM = (4, 8, 12)
 
 
 def _surfaces(rec):
-    return truth_surfaces(rec, heights_m=[h / 100 for h in HEIGHTS_CM],
-                          half_width_px=50 if rec.height == 256 else 40)
+    return truth_surfaces(
+        rec, heights_m=[h / 100 for h in HEIGHTS_CM], half_width_px=50 if rec.height == 256 else 40
+    )
 
 
 def _column_ratio(rec, **cfg):
@@ -33,8 +34,13 @@ def _column_ratio(rec, **cfg):
     rates = {}
     for mode in ("truth", "inversion"):
         c = dict(cfg) if mode == "inversion" else dict(species=cfg["species"])
-        res = quantify(rec, surf, QuantifyConfig(column_density=mode, velocity="exit",
-                                                 exit_velocity_m_s=1.0, source=source, **c))
+        res = quantify(
+            rec,
+            surf,
+            QuantifyConfig(
+                column_density=mode, velocity="exit", exit_velocity_m_s=1.0, source=source, **c
+            ),
+        )
         rates[mode] = np.array([s.species["CH4"].mean_kg_h for s in res.surfaces])
     return rates["inversion"] / rates["truth"], res
 
@@ -49,8 +55,14 @@ def heated_gf320(tmp_path_factory):
 @pytest.fixture(scope="module")
 def heated_m150(tmp_path_factory):
     p = tmp_path_factory.mktemp("heated") / "m150.h5"
-    render.synthesize("lab-heated-ch4-55c-gf320", p, duration_s=0.2, seed=5, truth_maps=True,
-                      camera_name="fast-m150")
+    render.synthesize(
+        "lab-heated-ch4-55c-gf320",
+        p,
+        duration_s=0.2,
+        seed=5,
+        truth_maps=True,
+        camera_name="fast-m150",
+    )
     return qogi.open_recording(p)
 
 
@@ -65,8 +77,12 @@ def test_heated_methane_single_channel_assumed_ambient_overestimates(heated_gf32
 
 def test_heated_methane_multichannel_infers_the_temperature(heated_m150):
     ratio, res = _column_ratio(heated_m150, species=["CH4"], gas_temperature="infer")
-    print("four channels, temperature inferred: inverted / truth columns", np.round(ratio, 3),
-          "mixing line", res.info.get("mixing_line_K_per_fraction"))
+    print(
+        "four channels, temperature inferred: inverted / truth columns",
+        np.round(ratio, 3),
+        "mixing line",
+        res.info.get("mixing_line_K_per_fraction"),
+    )
     # Within the Gaussian line-of-sight model's profile error: the columns of
     # these lab plumes read 8-19 % low with the temperature known or inferred
     # (docs/validation.md), against x2-3 with it assumed.
@@ -81,10 +97,15 @@ def test_thesis_case_columns_with_the_temperature_inferred(tmp_path):
     p = tmp_path / "m150.h5"
     render.synthesize("lab-ch4co2-90c-m150", p, duration_s=0.2, seed=6, truth_maps=True)
     rec = qogi.open_recording(p)
-    ratio, res = _column_ratio(rec, species=["CH4", "CO2"], gas_temperature="infer",
-                               composition={"CH4": 0.5, "CO2": 0.5})
-    print("50/50 CH4/CO2 at 90 C, temperature inferred: inverted / truth columns",
-          np.round(ratio, 3), "mixing line", res.info.get("mixing_line_K_per_fraction"))
+    ratio, res = _column_ratio(
+        rec, species=["CH4", "CO2"], gas_temperature="infer", composition={"CH4": 0.5, "CO2": 0.5}
+    )
+    print(
+        "50/50 CH4/CO2 at 90 C, temperature inferred: inverted / truth columns",
+        np.round(ratio, 3),
+        "mixing line",
+        res.info.get("mixing_line_K_per_fraction"),
+    )
     assert np.all(np.abs(ratio - 1.0) < 0.25), ratio
 
 
@@ -104,8 +125,12 @@ def test_lab_release_at_15hz_end_to_end(tmp_path):
     assert res.info["flux_level"].startswith("on"), res.info["flux_level"]
     for s in res.surfaces:
         r = s.species["CH4"]
-        print(s.surface.name, f"{100 * r.error_vs_truth:+.1f} %", np.round(r.ci90_kg_h, 4),
-              r.truth_kg_h)
+        print(
+            s.surface.name,
+            f"{100 * r.error_vs_truth:+.1f} %",
+            np.round(r.ci90_kg_h, 4),
+            r.truth_kg_h,
+        )
         assert abs(r.error_vs_truth) < 0.25, (s.surface.name, r.error_vs_truth)
         assert r.ci90_kg_h[0] < r.mean_kg_h < r.ci90_kg_h[1]
 
@@ -170,9 +195,23 @@ def test_auto_surfaces_find_the_bent_plume_and_its_source(wind_rec, tmp_path):
         (x0, y0), (x1, y1) = s.points[0], s.points[-1]
         assert abs(x1 - x0) < 0.2 * abs(y1 - y0), s.points  # across the wind: vertical
     out = tmp_path / "auto.json"
-    r = subprocess.run([sys.executable, "-m", "qogi", "quantify", str(path), "--auto-surfaces",
-                        "50,100,150", "--json", str(out), "-q"], capture_output=True, check=False,
-                       text=True)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "qogi",
+            "quantify",
+            str(path),
+            "--auto-surfaces",
+            "50,100,150",
+            "--json",
+            str(out),
+            "-q",
+        ],
+        capture_output=True,
+        check=False,
+        text=True,
+    )
     assert r.returncode == 0, r.stderr
     d = json.loads(out.read_text())
     for s in d["surfaces"]:

@@ -13,15 +13,32 @@ from qogi.pipeline import Execution, Methods, QuantifyConfig, SceneConditions
 from qogi.surfaces import Region
 
 #: A result JSON's "config" as the flat dataclass wrote it (every key, its order).
-OLD_FLAT = {"species": ["CH4", "CO2"], "gas_temperature": "infer", "velocity": "fluid",
-            "wind_speed_m_s": None, "exit_velocity_m_s": None, "averaging": "per-frame",
-            "background": {"x0": 1, "y0": 2, "x1": 30, "y1": 40},
-            "background_percentile": 5.0, "source": [159.5, 227.0], "distance_m": 1.5,
-            "ambient_temperature_K": 293.0, "pressure_Pa": None, "sigma_m": None,
-            "frames": [0, 40], "num_threads": 2, "composition": {"CH4": 0.5, "CO2": 0.5},
-            "column_density": "inversion", "velocity_systematic": None,
-            "column_systematic": 0.1, "flux_level": True, "pair_stride": None,
-            "block_frames": 64, "line_shape": "fixed:25+self", "exit_temperature_K": 363.0}
+OLD_FLAT = {
+    "species": ["CH4", "CO2"],
+    "gas_temperature": "infer",
+    "velocity": "fluid",
+    "wind_speed_m_s": None,
+    "exit_velocity_m_s": None,
+    "averaging": "per-frame",
+    "background": {"x0": 1, "y0": 2, "x1": 30, "y1": 40},
+    "background_percentile": 5.0,
+    "source": [159.5, 227.0],
+    "distance_m": 1.5,
+    "ambient_temperature_K": 293.0,
+    "pressure_Pa": None,
+    "sigma_m": None,
+    "frames": [0, 40],
+    "num_threads": 2,
+    "composition": {"CH4": 0.5, "CO2": 0.5},
+    "column_density": "inversion",
+    "velocity_systematic": None,
+    "column_systematic": 0.1,
+    "flux_level": True,
+    "pair_stride": None,
+    "block_frames": 64,
+    "line_shape": "fixed:25+self",
+    "exit_temperature_K": 363.0,
+}
 
 
 def test_an_old_flat_dict_loads_and_writes_back_the_same_keys_in_the_same_order():
@@ -34,8 +51,14 @@ def test_an_old_flat_dict_loads_and_writes_back_the_same_keys_in_the_same_order(
 
 
 def test_flat_keys_land_in_their_role():
-    cfg = QuantifyConfig(species="CO2", velocity="wind", wind_speed_m_s=3.0, num_threads=2,
-                         background=Region(0, 0, 10, 10), distance_m=12.0)
+    cfg = QuantifyConfig(
+        species="CO2",
+        velocity="wind",
+        wind_speed_m_s=3.0,
+        num_threads=2,
+        background=Region(0, 0, 10, 10),
+        distance_m=12.0,
+    )
     assert isinstance(cfg.conditions, SceneConditions)
     assert cfg.conditions.species == ["CO2"] and cfg.conditions.wind_speed_m_s == 3.0
     assert cfg.conditions.distance_m == 12.0
@@ -48,11 +71,14 @@ def test_flat_keys_land_in_their_role():
 
 
 def test_parts_build_the_same_config_as_flat_keys():
-    flat = QuantifyConfig(species=["CH4"], gas_temperature=320.0, averaging="time-averaged",
-                          frames=(2, 9))
-    parts = QuantifyConfig.from_parts(SceneConditions(species=["CH4"], gas_temperature=320.0),
-                                      Methods(averaging="time-averaged"),
-                                      Execution(frames=(2, 9)))
+    flat = QuantifyConfig(
+        species=["CH4"], gas_temperature=320.0, averaging="time-averaged", frames=(2, 9)
+    )
+    parts = QuantifyConfig.from_parts(
+        SceneConditions(species=["CH4"], gas_temperature=320.0),
+        Methods(averaging="time-averaged"),
+        Execution(frames=(2, 9)),
+    )
     assert parts == flat and parts.to_dict() == flat.to_dict()
 
 

@@ -12,8 +12,19 @@ import qogi.pipeline
 
 PACKAGE = pathlib.Path(qogi.pipeline.__file__).parent
 #: The stages in data-flow order; a module may import only those before it.
-ORDER = ["config", "sampling", "state", "setup", "background", "columns", "velocity", "flux",
-         "budget", "run", "__init__"]
+ORDER = [
+    "config",
+    "sampling",
+    "state",
+    "setup",
+    "background",
+    "columns",
+    "velocity",
+    "flux",
+    "budget",
+    "run",
+    "__init__",
+]
 
 
 def imported_stages(path: pathlib.Path) -> set:

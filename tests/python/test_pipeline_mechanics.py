@@ -50,7 +50,7 @@ def test_sign_convention_left_hand_normal_and_source(lab):
     up = res.surfaces[0].species["CH4"].mean_kg_h
     down = res.surfaces[1].species["CH4"].mean_kg_h
     assert a > 0 and b > 0
-    assert up > 0 > down            # drawn left to right: upward flow counts positive
+    assert up > 0 > down  # drawn left to right: upward flow counts positive
     assert up == pytest.approx(-down, rel=1e-6)
     # --source orients both ways of drawing the same line alike.
     src = truth_cfg(velocity="fluid", source=(159.5, 227.0))
@@ -99,18 +99,21 @@ def test_cancel_keeps_the_frames_done(lab):
     assert 0 < n < lab.n_frames
 
 
-@pytest.mark.parametrize("kwargs, words", [
-    (dict(species=[]), ["species"]),
-    (dict(gas_temperature="hot"), ["gas_temperature"]),
-    (dict(gas_temperature=5000.0), ["gas_temperature", "[150, 600]"]),
-    (dict(velocity="magic"), ["velocity", "fluid"]),
-    (dict(velocity="wind"), ["wind_speed_m_s"]),
-    (dict(averaging="sometimes"), ["averaging"]),
-    (dict(background="guess"), ["background"]),
-    (dict(frames=(5, 2)), ["frames"]),
-    (dict(pair_stride=0), ["pair_stride", "[1, 100]"]),
-    (dict(pair_stride=2.5), ["pair_stride", "None (automatic)"]),
-])
+@pytest.mark.parametrize(
+    "kwargs, words",
+    [
+        (dict(species=[]), ["species"]),
+        (dict(gas_temperature="hot"), ["gas_temperature"]),
+        (dict(gas_temperature=5000.0), ["gas_temperature", "[150, 600]"]),
+        (dict(velocity="magic"), ["velocity", "fluid"]),
+        (dict(velocity="wind"), ["wind_speed_m_s"]),
+        (dict(averaging="sometimes"), ["averaging"]),
+        (dict(background="guess"), ["background"]),
+        (dict(frames=(5, 2)), ["frames"]),
+        (dict(pair_stride=0), ["pair_stride", "[1, 100]"]),
+        (dict(pair_stride=2.5), ["pair_stride", "None (automatic)"]),
+    ],
+)
 def test_config_rejects_bad_values(kwargs, words):
     with pytest.raises(ValueError) as e:
         QuantifyConfig(**kwargs)
@@ -124,8 +127,11 @@ def test_bad_surfaces_and_modes_are_clear_errors(lab):
     with pytest.raises(ValueError, match="no control surface"):
         quantify(lab, [], truth_cfg())
     with pytest.raises(ValueError, match=">= 2 channels"):
-        quantify(lab, [Surface([(100.0, 200.0), (220.0, 200.0)])],
-                 QuantifyConfig(gas_temperature="infer"))
+        quantify(
+            lab,
+            [Surface([(100.0, 200.0), (220.0, 200.0)])],
+            QuantifyConfig(gas_temperature="infer"),
+        )
     with pytest.raises(ValueError, match="expected an even number"):
         Surface.parse("1,2,3")
     with pytest.raises(ValueError, match="empty"):

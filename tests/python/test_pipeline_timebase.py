@@ -28,17 +28,25 @@ def cfg(**kw):
 
 def subset(rec, keep, time_s):
     """The frames ``keep`` of ``rec`` (and their truth maps) at ``time_s``."""
-    ds = {k: (np.asarray(v)[keep] if np.shape(v)[:1] == (rec.n_frames,) else np.asarray(v))
-          for k, v in rec.truth.datasets.items()}
+    ds = {
+        k: (np.asarray(v)[keep] if np.shape(v)[:1] == (rec.n_frames,) else np.asarray(v))
+        for k, v in rec.truth.datasets.items()
+    }
     truth = Truth(dict(rec.truth.emission_rate_kg_s), ds, dict(rec.truth.attrs))
-    return Recording.from_arrays(rec.to_array()[keep], time_s, quantity=rec.quantity,
-                                 camera=rec.camera, scene=rec.scene, truth=truth)
+    return Recording.from_arrays(
+        rec.to_array()[keep],
+        time_s,
+        quantity=rec.quantity,
+        camera=rec.camera,
+        scene=rec.scene,
+        truth=truth,
+    )
 
 
 def test_timebase_counts_dropped_frames_and_cuts_at_gaps():
     t = np.array([0, 1, 2, 4, 5, 6, 3606, 3607, 3608, 3609], float) / 10
     tb = frame_timebase(t, 10.0)
-    assert tb.dropped == [(2, 1), (5, 3600 - 1)]   # 360 s at 10 Hz
+    assert tb.dropped == [(2, 1), (5, 3600 - 1)]  # 360 s at 10 Hz
     assert tb.segments == [(0, 6), (6, 10)]
     np.testing.assert_allclose(tb.pair_intervals[:3], [1, 1, 2])
     blocks = stream_blocks([(0, 100)], 30, overlap=4)
@@ -60,8 +68,11 @@ def test_frames_dropped_at_random_read_the_full_rate_with_honest_times(lab):
     np.testing.assert_allclose(r.time_s, lab.time_s[keep])
     # The same frames taken as consecutive (what a 1/fps clock assumes) read
     # ~+45 %, outside the honest interval: the test can tell.
-    naive = quantify(subset(lab, keep, np.arange(len(keep)) / lab.camera.frame_rate_hz),
-                     SURFACE, cfg()).surfaces[0].species["CH4"]
+    naive = (
+        quantify(subset(lab, keep, np.arange(len(keep)) / lab.camera.frame_rate_hz), SURFACE, cfg())
+        .surfaces[0]
+        .species["CH4"]
+    )
     assert not r.ci90_kg_h[0] <= naive.mean_kg_h <= r.ci90_kg_h[1]
 
 

@@ -28,8 +28,14 @@ def cfg(**kw):
 
 
 def with_frames(rec, frames):
-    return Recording.from_arrays(frames, rec.time_s, quantity=rec.quantity, camera=rec.camera,
-                                 scene=rec.scene, truth=rec.truth)
+    return Recording.from_arrays(
+        frames,
+        rec.time_s,
+        quantity=rec.quantity,
+        camera=rec.camera,
+        scene=rec.scene,
+        truth=rec.truth,
+    )
 
 
 @pytest.mark.parametrize("n", [2, 3, 4])
@@ -61,10 +67,12 @@ def test_a_blank_or_negative_frame_is_refused_not_printed_as_nan(lab, value):
 
 def test_some_nonphysical_pixels_warn(lab):
     frames = lab.to_array().copy()
-    frames[:, :, 10:12, 10:13] = 0.0          # a dead 2x3 patch in every frame
-    res = quantify(with_frames(lab, frames), SURFACE,
-                   cfg(column_density="inversion", source=(159.5, 227.0),
-                       velocity="wind", wind_speed_m_s=1.0))
+    frames[:, :, 10:12, 10:13] = 0.0  # a dead 2x3 patch in every frame
+    res = quantify(
+        with_frames(lab, frames),
+        SURFACE,
+        cfg(column_density="inversion", source=(159.5, 227.0), velocity="wind", wind_speed_m_s=1.0),
+    )
     w = [d for d in res.warnings if d.code == "radiance-nonphysical"]
     assert w and w[0].data["pixels"] == 6 * lab.n_frames * lab.n_channels
     assert res.complete
@@ -97,10 +105,17 @@ def test_a_nan_result_is_flagged_and_incomplete(lab):
     ds = {k: np.array(v) for k, v in lab.truth.datasets.items()}
     ds["column_density_kg_m2_CH4"][:, 150, :] = np.nan
     truth = qogi.recording.Truth(dict(lab.truth.emission_rate_kg_s), ds, dict(lab.truth.attrs))
-    rec = Recording.from_arrays(lab.to_array(), lab.time_s, quantity=lab.quantity,
-                                camera=lab.camera, scene=lab.scene, truth=truth)
-    res = quantify(rec, [Surface([(100.0, 150.0), (220.0, 150.0)])],
-                   cfg(velocity="wind", wind_speed_m_s=1.0))
+    rec = Recording.from_arrays(
+        lab.to_array(),
+        lab.time_s,
+        quantity=lab.quantity,
+        camera=lab.camera,
+        scene=lab.scene,
+        truth=truth,
+    )
+    res = quantify(
+        rec, [Surface([(100.0, 150.0), (220.0, 150.0)])], cfg(velocity="wind", wind_speed_m_s=1.0)
+    )
     assert res.warnings.has("nan-in-result") and not res.complete
     assert '"complete": false' in res.to_json()
 
@@ -111,6 +126,8 @@ def test_a_sub_pixel_surface_shift_away_from_the_source_barely_changes_the_rate(
     # away from a source lying on the line is undefined: warned above); a
     # surface clear of the source reads the same to within a few per cent.
     src = cfg(source=(159.5, 227.0))
-    a, b = (quantify(lab, [Surface([(100.0, y), (220.0, y)])], src).surfaces[0]
-            .species["CH4"].mean_kg_h for y in (199.8, 200.1))
+    a, b = (
+        quantify(lab, [Surface([(100.0, y), (220.0, y)])], src).surfaces[0].species["CH4"].mean_kg_h
+        for y in (199.8, 200.1)
+    )
     assert a > 0 and abs(b / a - 1) < 0.03

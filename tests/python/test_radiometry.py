@@ -6,8 +6,7 @@ import numpy as np
 import pytest
 
 import qogi
-from qogi.radiometry import (BandTable, band_table, radiance_to_temperature,
-                             temperature_to_radiance)
+from qogi.radiometry import BandTable, band_table, radiance_to_temperature, temperature_to_radiance
 
 
 def bands():
@@ -16,7 +15,7 @@ def bands():
         qogi.SpectralResponse([2941.18, 3125.0], [1.0, 1.0], "3.2-3.4 um"),
         qogi.SpectralResponse([1852.0, 6667.0], [1.0, 1.0], "InSb 1.5-5.4 um"),
         qogi.SpectralResponse.from_wavelength_um([7.5, 13.0], [1.0, 1.0], "LWIR"),
-        qogi.SpectralResponse(nu, np.exp(-((nu - 3030.0) / 70.0) ** 8), "smooth filter"),
+        qogi.SpectralResponse(nu, np.exp(-(((nu - 3030.0) / 70.0) ** 8)), "smooth filter"),
     ]
 
 

@@ -15,13 +15,20 @@ from qogi import render, synth
 
 
 def small_scene(exit_K=294.0, ambient_K=294.0, rate_slpm=5.0):
-    release = synth.Release(rate=rate_slpm, rate_unit="SLPM", composition={"CH4": 1.0},
-                            exit_diameter_m=0.019, exit_temperature_K=exit_K,
-                            ambient_temperature_K=ambient_K, draft_m_s=0.02)
+    release = synth.Release(
+        rate=rate_slpm,
+        rate_unit="SLPM",
+        composition={"CH4": 1.0},
+        exit_diameter_m=0.019,
+        exit_temperature_K=exit_K,
+        ambient_temperature_K=ambient_K,
+        draft_m_s=0.02,
+    )
     cam = qogi.camera_preset("gf320")
     cam = dataclasses.replace(cam, width=64, height=48, ifov_rad=4 * cam.ifov_rad)
-    view = synth.View.framing(release, (31.5, 44.0), width_px=64, height_px=48,
-                              ifov_rad=cam.ifov_rad, distance_m=1.5)
+    view = synth.View.framing(
+        release, (31.5, 44.0), width_px=64, height_px=48, ifov_rad=cam.ifov_rad, distance_m=1.5
+    )
     sim = synth.simulate(release, view, duration_s=0.6, frame_rate_hz=15.0, seed=3)
     return sim, cam
 
@@ -37,10 +44,11 @@ def test_gas_at_the_background_temperature_renders_no_contrast(tmp_path):
 
 def test_outside_the_plume_the_background_and_the_stated_netd(tmp_path):
     sim, cam = small_scene()
-    path = render.render_recording(sim, cam, render.Background("plate", 285.15),
-                                   tmp_path / "r.h5", seed=7)
+    path = render.render_recording(
+        sim, cam, render.Background("plate", 285.15), tmp_path / "r.h5", seed=7
+    )
     rec = qogi.open_recording(path)
-    frames = rec.to_array()[:, 0]                      # (T, H, W) radiance
+    frames = rec.to_array()[:, 0]  # (T, H, W) radiance
     cols = np.stack([sim.column_density(f)["CH4"] for f in range(sim.num_frames)])
     clear = cols == 0
     assert clear.sum() > 10000
@@ -65,8 +73,13 @@ def test_fast_model_on_simulated_lines_of_sight_agrees_with_exact():
     s = sim.ray_samples(4)
     counts = np.diff(s["offset"])
     gas = np.flatnonzero(counts > 2)
-    col = np.array([s["mole_fraction"]["CH4"][s["offset"][i]:s["offset"][i + 1]].sum()
-                    * s["path_m"].ravel()[i] for i in gas])
+    col = np.array(
+        [
+            s["mole_fraction"]["CH4"][s["offset"][i] : s["offset"][i + 1]].sum()
+            * s["path_m"].ravel()[i]
+            for i in gas
+        ]
+    )
     picks = gas[np.argsort(col)[np.linspace(0, len(gas) - 1, 6).astype(int)]]
     worst = 0.0
     for pos, t, x in render._paths_from_samples(s, ["CH4"], 295.0, picks):
@@ -79,8 +92,23 @@ def test_fast_model_on_simulated_lines_of_sight_agrees_with_exact():
 
 def test_cli_recording_follows_the_contract_read_with_plain_h5py(tmp_path):
     out = tmp_path / "lab.h5"
-    subprocess.run([sys.executable, "-m", "qogi", "synth", "lab-ch4-5slpm-gf320", "-o", str(out),
-                    "--duration", "0.4", "--seed", "1", "-q"], check=True)
+    subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "qogi",
+            "synth",
+            "lab-ch4-5slpm-gf320",
+            "-o",
+            str(out),
+            "--duration",
+            "0.4",
+            "--seed",
+            "1",
+            "-q",
+        ],
+        check=True,
+    )
     with h5py.File(out, "r") as f:
         assert f.attrs["format"] == b"qogi-recording" and int(f.attrs["version"]) == 1
         frames = f["frames"]
@@ -99,6 +127,7 @@ def test_cli_recording_follows_the_contract_read_with_plain_h5py(tmp_path):
             assert key in f["scene"].attrs
         rate = f["truth"].attrs["emission_rate_kg_s_CH4"]
         # 5 SLPM of CH4 at 20 C, 1 atm: 5e-3/60 m3/s x 0.6669 kg/m3.
-        assert rate == pytest.approx(5e-3 / 60 * 101325 * 16.0425e-3 / (8.314462618 * 293.15),
-                                     rel=1e-4)
+        assert rate == pytest.approx(
+            5e-3 / 60 * 101325 * 16.0425e-3 / (8.314462618 * 293.15), rel=1e-4
+        )
         assert np.all(np.isfinite(frames[:]))

@@ -3,7 +3,6 @@ and the detection limit (issue 22)."""
 
 import hashlib
 import json
-import math
 import shutil
 import subprocess
 import sys
@@ -23,8 +22,9 @@ SURFACE = Surface([(100, 207), (220, 207)], name="S1")
 
 
 def run(*args):
-    return subprocess.run([sys.executable, "-m", "qogi", *args], capture_output=True,
-                          check=False, text=True)
+    return subprocess.run(
+        [sys.executable, "-m", "qogi", *args], capture_output=True, check=False, text=True
+    )
 
 
 @pytest.fixture(scope="module")
@@ -38,6 +38,7 @@ def lab(tmp_path_factory):
 
 
 # -- units --------------------------------------------------------------------
+
 
 def test_rate_units_against_hand_values():
     # 1 kg/h of CH4 is 1 / 0.0160425 = 62.3344 mol/h; an ideal gas at 20 C and
@@ -88,11 +89,21 @@ def test_result_reports_in_the_chosen_unit(lab):
 
 # -- settings -----------------------------------------------------------------
 
+
 def test_config_round_trips_through_dict_and_toml(tmp_path):
-    cfg = QuantifyConfig(species=["CH4", "CO2"], gas_temperature=330.25, velocity="wind",
-                         wind_speed_m_s=0.1 + 0.2, background=Region(3, 4, 30, 40),
-                         source=(159.5, 227.0), frames=(2, 9), composition={"CH4": 0.5, "CO2": 0.5},
-                         sigma_m=0.0123456789012345, pair_stride=2, flux_level=False)
+    cfg = QuantifyConfig(
+        species=["CH4", "CO2"],
+        gas_temperature=330.25,
+        velocity="wind",
+        wind_speed_m_s=0.1 + 0.2,
+        background=Region(3, 4, 30, 40),
+        source=(159.5, 227.0),
+        frames=(2, 9),
+        composition={"CH4": 0.5, "CO2": 0.5},
+        sigma_m=0.0123456789012345,
+        pair_stride=2,
+        flux_level=False,
+    )
     assert QuantifyConfig.from_dict(json.loads(json.dumps(cfg.to_dict()))) == cfg
     cfg.to_toml(tmp_path / "s.toml", [SURFACE], "scfh")
     back = load_settings(tmp_path / "s.toml")
@@ -120,6 +131,7 @@ def test_replayed_settings_give_bit_identical_rates(lab, tmp_path):
 
 # -- tables -------------------------------------------------------------------
 
+
 def test_dataframes_hold_the_series_and_the_summary(lab):
     pd = pytest.importorskip("pandas")
     _, res = lab
@@ -141,8 +153,9 @@ def test_xarray_dataset_has_surface_species_time(lab):
     _, res = lab
     ds = res.to_xarray()
     assert dict(ds["rate_kg_h"].sizes) == {"surface": 1, "species": 1, "time": 15}
-    np.testing.assert_array_equal(ds["rate_kg_h"].sel(surface="S1", species="CH4").values,
-                                  res.total("CH4").rate_kg_h)
+    np.testing.assert_array_equal(
+        ds["rate_kg_h"].sel(surface="S1", species="CH4").values, res.total("CH4").rate_kg_h
+    )
     assert float(ds["mean_kg_h"].sel(surface="S1", species="CH4")) == res.total("CH4").mean_kg_h
 
 
@@ -162,16 +175,33 @@ def test_repr_says_what_it_is(lab):
 
 # -- command line and report --------------------------------------------------
 
+
 @pytest.mark.slow  # five runs of the command line, each a new process and a quantify
 def test_cli_units_json_to_stdout_summary_csv_report_and_replay(lab, tmp_path):
     path, _ = lab
     out = tmp_path / "out"
-    r = run("quantify", str(path), "--surface", "100,207,220,207", "--source", "159.5,227",
-            "--units", "scfh", "--json", "-", "--csv", str(out) + ".csv",
-            "--save-config", str(tmp_path / "s.toml"), "--report", str(tmp_path / "leak.pdf"), "-q")
+    r = run(
+        "quantify",
+        str(path),
+        "--surface",
+        "100,207,220,207",
+        "--source",
+        "159.5,227",
+        "--units",
+        "scfh",
+        "--json",
+        "-",
+        "--csv",
+        str(out) + ".csv",
+        "--save-config",
+        str(tmp_path / "s.toml"),
+        "--report",
+        str(tmp_path / "leak.pdf"),
+        "-q",
+    )
     assert r.returncode == 0, r.stderr
-    d = json.loads(r.stdout)                      # standard output is the JSON alone
-    assert d["units"] == "scfh" and "scfh" in r.stderr   # the summary went to stderr
+    d = json.loads(r.stdout)  # standard output is the JSON alone
+    assert d["units"] == "scfh" and "scfh" in r.stderr  # the summary went to stderr
     sp = d["surfaces"][0]["species"]["CH4"]
     assert sp["mean"] == pytest.approx(units.convert(sp["mean_kg_h"], "scfh", M_CH4), rel=1e-5)
     rows = (tmp_path / "out.summary.csv").read_text().splitlines()
@@ -182,22 +212,48 @@ def test_cli_units_json_to_stdout_summary_csv_report_and_replay(lab, tmp_path):
     # a flag given explicitly overrides the file.
     (tmp_path / "r.json").write_text(r.stdout)
     for src in ("r.json", "s.toml"):
-        r2 = run("quantify", str(path), "--config", str(tmp_path / src), "--units", "g/h",
-                 "--json", str(tmp_path / f"again_{src}.json"), "-q")
+        r2 = run(
+            "quantify",
+            str(path),
+            "--config",
+            str(tmp_path / src),
+            "--units",
+            "g/h",
+            "--json",
+            str(tmp_path / f"again_{src}.json"),
+            "-q",
+        )
         assert r2.returncode == 0, r2.stderr
         d2 = json.loads((tmp_path / f"again_{src}.json").read_text())
         assert d2["units"] == "g/h" and d2["config"] == d["config"]
         assert d2["surfaces"][0]["species"]["CH4"]["rate_kg_h"] == sp["rate_kg_h"]
-    r3 = run("quantify", str(path), "--config", str(tmp_path / "s.toml"), "--background", "percentile",
-             "--frames", "0:5", "--json", str(tmp_path / "o.json"), "-q")
+    r3 = run(
+        "quantify",
+        str(path),
+        "--config",
+        str(tmp_path / "s.toml"),
+        "--background",
+        "percentile",
+        "--frames",
+        "0:5",
+        "--json",
+        str(tmp_path / "o.json"),
+        "-q",
+    )
     assert r3.returncode == 0, r3.stderr
     cfg3 = json.loads((tmp_path / "o.json").read_text())["config"]
-    assert cfg3["background"] == "percentile" and cfg3["frames"] == [0, 5] and cfg3["source"] == [159.5, 227.0]
+    assert (
+        cfg3["background"] == "percentile"
+        and cfg3["frames"] == [0, 5]
+        and cfg3["source"] == [159.5, 227.0]
+    )
 
 
-@pytest.mark.skipif(shutil.which("pdftotext") is None or shutil.which("pdftoppm") is None,
-                    reason="poppler-utils (pdftotext, pdftoppm) not installed: "
-                           "scripts/setup_system.sh installs them")
+@pytest.mark.skipif(
+    shutil.which("pdftotext") is None or shutil.which("pdftoppm") is None,
+    reason="poppler-utils (pdftotext, pdftoppm) not installed: "
+    "scripts/setup_system.sh installs them",
+)
 def test_pdf_report_pages_render_and_say_what_matters(lab, tmp_path):
     from qogi.report import write_report
 
@@ -210,26 +266,46 @@ def test_pdf_report_pages_render_and_say_what_matters(lab, tmp_path):
     finally:
         res.warnings.pop()
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".qogi-tmp-")]
-    text = subprocess.run(["pdftotext", "-layout", str(pdf), "-"], capture_output=True,
-                          text=True, check=True).stdout
+    text = subprocess.run(
+        ["pdftotext", "-layout", str(pdf), "-"], capture_output=True, text=True, check=True
+    ).stdout
     sha = hashlib.sha256(path.read_bytes()).hexdigest()
     r = res.total("CH4")
-    for needle in ("qogi emission-rate report", "lab.h5", sha, f"qogi {qogi.__version__}",
-                   "Scene", "Emission rate", "Surfaces and species", "Uncertainty budget",
-                   "velocity", "column density", "temporal", f"Warnings ({n_warnings})", "test-warning",
-                   "Settings", "gas_temperature = ambient", "source = (159.5, 227.0)",
-                   f"{r.mean_kg_h:.4g}", "Detection limit", "noise-equivalent", "20 C (68 F)"):
+    for needle in (
+        "qogi emission-rate report",
+        "lab.h5",
+        sha,
+        f"qogi {qogi.__version__}",
+        "Scene",
+        "Emission rate",
+        "Surfaces and species",
+        "Uncertainty budget",
+        "velocity",
+        "column density",
+        "temporal",
+        f"Warnings ({n_warnings})",
+        "test-warning",
+        "Settings",
+        "gas_temperature = ambient",
+        "source = (159.5, 227.0)",
+        f"{r.mean_kg_h:.4g}",
+        "Detection limit",
+        "noise-equivalent",
+        "20 C (68 F)",
+    ):
         assert needle in text, needle
     subprocess.run(["pdftoppm", "-r", "40", "-png", str(pdf), str(tmp_path / "page")], check=True)
     pages = sorted(tmp_path.glob("page-*.png"))
     assert len(pages) == 2
     import cv2
+
     img = cv2.imread(str(pages[0]))
-    assert img.shape[0] > img.shape[1]              # A4 portrait
-    assert (img < 128).mean() > 0.05                # the scene and plot are drawn
+    assert img.shape[0] > img.shape[1]  # A4 portrait
+    assert (img < 128).mean() > 0.05  # the scene and plot are drawn
 
 
 # -- detection limit ----------------------------------------------------------
+
 
 def test_noise_equivalent_column_is_the_thin_limit_signal():
     # One channel: NEC = NETD dB/dT(T_bg) / (dL/dc), with dL/dc from the
@@ -244,21 +320,33 @@ def test_noise_equivalent_column_is_the_thin_limit_signal():
     L = model.band_radiance(x, 294.45, 0.05, 294.45, 285.15)[:, 0]
     col = model.column_density(x, 294.45, 0.05, 294.45)["CH4"]
     slope = abs(L[1] - L[0]) / (col[1] - col[0])
-    assert nec == pytest.approx(0.015 * cam.channels[0].band_radiance_derivative(285.15) / slope,
-                                rel=0.01)
+    assert nec == pytest.approx(
+        0.015 * cam.channels[0].band_radiance_derivative(285.15) / slope, rel=0.01
+    )
     # No contrast (gas at the background's temperature): nothing is detectable.
     assert noise_equivalent_column(model, "CH4", 0.015, 294.45, 294.45, 294.45) > 1e3 * nec
 
 
 def test_zeng_morris_fit_values():
     from qogi.detection import zeng_morris_g_h
+
     # 18.41 x 10^-1.094 x 5^2 = 36.98 g/h at dT = 10 K, 5 m.
-    assert zeng_morris_g_h(10.0, 5.0) == pytest.approx(18.41 * 10 ** -1.094 * 25)
+    assert zeng_morris_g_h(10.0, 5.0) == pytest.approx(18.41 * 10**-1.094 * 25)
     assert zeng_morris_g_h(-10.0, 5.0) == zeng_morris_g_h(10.0, 5.0)
 
 
-def _band_recording(peak_fraction, *, bg_K=280.0, amb_K=295.0, dist=5.0, sigma_px=4.0,
-                    frames=15, width=120, height=60, seed=0):
+def _band_recording(
+    peak_fraction,
+    *,
+    bg_K=280.0,
+    amb_K=295.0,
+    dist=5.0,
+    sigma_px=4.0,
+    frames=15,
+    width=120,
+    height=60,
+    seed=0,
+):
     """An exact-truth scene: a static vertical band of CH4 (Gaussian across,
     depth = width) rendered by the forward model over a plate, with seeded
     NETD noise. Returns the recording and the truth per m/s of normal speed
@@ -278,12 +366,13 @@ def _band_recording(peak_fraction, *, bg_K=280.0, amb_K=295.0, dist=5.0, sigma_p
     col = np.asarray(model.column_density(frac[:, None], amb_K, sigma_px * pix, amb_K)["CH4"])
     t_img = radiance_to_temperature(L[None, None, None, :], cam.channels)[0, 0, 0]
     rng = np.random.default_rng(seed)
-    stack = np.broadcast_to(t_img, (frames, 1, height, width)) + \
-        rng.normal(0.0, cam.netd_K, (frames, 1, height, width))
-    scene = Scene(distance_m=dist, ambient_temperature_K=amb_K, pressure_Pa=101325.0,
-                  species=("CH4",))
-    rec = Recording.from_arrays(stack, quantity="radiometric_temperature", camera=cam,
-                                scene=scene)
+    stack = np.broadcast_to(t_img, (frames, 1, height, width)) + rng.normal(
+        0.0, cam.netd_K, (frames, 1, height, width)
+    )
+    scene = Scene(
+        distance_m=dist, ambient_temperature_K=amb_K, pressure_Pa=101325.0, species=("CH4",)
+    )
+    rec = Recording.from_arrays(stack, quantity="radiometric_temperature", camera=cam, scene=scene)
     return rec, float(col.sum()) * pix * 3600.0
 
 
@@ -307,9 +396,9 @@ def test_detection_limit_matches_the_lowest_rate_the_pipeline_detects():
         x = r.detection_limit_kg_h
         assert r.detection["width_from"] == "time-averaged contrast"
         assert lowest / 1.5 <= x <= 1.5 * lowest, (x, lowest)
-        if truth >= 1.5 * x:      # well above the limit: a number
+        if truth >= 1.5 * x:  # well above the limit: a number
             assert r.detected and "not detected" not in r.text()
-        if truth <= x / 1.5:      # well below: "not detected, < X", and X is above the truth
+        if truth <= x / 1.5:  # well below: "not detected, < X", and X is above the truth
             assert r.detected is False and r.text().startswith(f"not detected, < {x:.3g} kg/h")
     assert any(truth >= 1.5 * r.detection_limit_kg_h for truth, r in runs)
     assert any(truth <= r.detection_limit_kg_h / 1.5 for truth, r in runs)
@@ -319,8 +408,11 @@ def test_detection_limit_without_any_sign_of_gas_is_an_upper_bound():
     # No frame and not even the time average shows the band: the limit takes
     # the surface's whole length as the plume's width, a bound above the truth.
     rec, truth = _band_recording(2e-5)
-    r = quantify(rec, [Surface([(20, 30), (100, 30)])],
-                 QuantifyConfig(species=["CH4"], velocity="wind", wind_speed_m_s=1.0)).total("CH4")
+    r = quantify(
+        rec,
+        [Surface([(20, 30), (100, 30)])],
+        QuantifyConfig(species=["CH4"], velocity="wind", wind_speed_m_s=1.0),
+    ).total("CH4")
     assert r.detected is False and r.detection["width_from"].startswith("surface length")
     assert r.detection_limit_kg_h > truth
     d = r.to_dict()

@@ -41,6 +41,7 @@ def private_cache(tmp_path, monkeypatch):
 # ---------------------------------------------------------------------------
 # Agreement with HAPI 1.3 (reference arrays made by scripts/make_hapi_references.py)
 
+
 def _hapi_cases():
     ref = np.load(DATA / "hapi_reference.npz")
     meta = json.loads(str(ref["meta"]))
@@ -55,8 +56,9 @@ def test_matches_hapi(case, meta, hitran_dir):
     assert hashlib.sha256(records).hexdigest() == meta["line_files"][case["line_file"]]
     ref = np.load(DATA / "hapi_reference.npz")[case["key"]].astype(float)
     nu = case["nu0_cm1"] + case["step_cm1"] * np.arange(case["size"])
-    sigma = qogi.cross_section(case["species"], nu, case["temperature_K"], 101325.0,
-                               line_list=path, cutoff="hapi")
+    sigma = qogi.cross_section(
+        case["species"], nu, case["temperature_K"], 101325.0, line_list=path, cutoff="hapi"
+    )
     strong = ref > 0.01 * ref.max()
     max_rel = np.max(np.abs(sigma[strong] / ref[strong] - 1))
     integral = np.sum(sigma) / np.sum(ref) - 1
@@ -67,6 +69,7 @@ def test_matches_hapi(case, meta, hitran_dir):
 # ---------------------------------------------------------------------------
 # The Voigt function
 
+
 def test_faddeeva_real_part_against_scipy():
     y = np.logspace(-4, 3, 57)
     x = np.concatenate([-np.logspace(-4, 4, 161)[::-1], [0.0], np.logspace(-4, 4, 161)])
@@ -75,7 +78,9 @@ def test_faddeeva_real_part_against_scipy():
     ref = wofz(X + 1j * Y)
     w = spectra.faddeeva(X, Y)
     rel = np.abs(w.real / ref.real - 1)
-    assert rel.max() < 1e-4, f"worst {rel.max():.2e} at x={X.flat[rel.argmax()]}, y={Y.flat[rel.argmax()]}"
+    assert rel.max() < 1e-4, (
+        f"worst {rel.max():.2e} at x={X.flat[rel.argmax()]}, y={Y.flat[rel.argmax()]}"
+    )
     # The imaginary part too, relative to |w|.
     assert np.max(np.abs(w.imag - ref.imag) / np.abs(ref)) < 1e-4
 
@@ -84,7 +89,9 @@ def test_voigt_profile_limits():
     gd, gl = 0.005, 0.05
     d = np.linspace(-1, 1, 2001)
     v = qogi.voigt_profile(d, gd, gl)
-    ref = wofz((d + 1j * gl) / (gd / np.sqrt(np.log(2)))).real / (gd / np.sqrt(np.log(2)) * np.sqrt(np.pi))
+    ref = wofz((d + 1j * gl) / (gd / np.sqrt(np.log(2)))).real / (
+        gd / np.sqrt(np.log(2)) * np.sqrt(np.pi)
+    )
     assert np.max(np.abs(v / ref - 1)) < 1e-4
     with pytest.raises(ValueError, match="gamma_doppler_cm1"):
         qogi.voigt_profile(d, 0.0, gl)
@@ -92,6 +99,7 @@ def test_voigt_profile_limits():
 
 # ---------------------------------------------------------------------------
 # Partition sums, line parameters
+
 
 def test_partition_sum_and_errors():
     assert qogi.partition_sum("CH4", 296.0) == pytest.approx(590.48, rel=1e-3)  # HITRAN Q(296)
@@ -108,8 +116,9 @@ def test_partition_sum_and_errors():
 def test_absorption_coefficient_is_sigma_times_number_density(hitran_dir):
     nu = np.linspace(3050, 3060, 1001)
     s = qogi.cross_section("CH4", nu, 300.0, 90000.0, hitran_dir / "CH4.par.gz", self_fraction=0.1)
-    k = qogi.absorption_coefficient("CH4", nu, 300.0, 90000.0, mole_fraction=0.1,
-                                    line_list=hitran_dir / "CH4.par.gz")
+    k = qogi.absorption_coefficient(
+        "CH4", nu, 300.0, 90000.0, mole_fraction=0.1, line_list=hitran_dir / "CH4.par.gz"
+    )
     n = 0.1 * 90000.0 / (1.380649e-23 * 300.0) * 1e-6
     np.testing.assert_allclose(k, s * n, rtol=1e-12)
 
@@ -134,18 +143,23 @@ def test_irregular_grid_and_scalar(hitran_dir):
 # ---------------------------------------------------------------------------
 # Tables: interpolation error against direct computation
 
-@pytest.mark.parametrize("species,lo,hi,self_fraction", [
-    ("CH4", 3000.0, 3100.0, 0.0),
-    ("CO2", 2200.0, 2300.0, 0.0),
-    ("H2O", 3700.0, 3800.0, 1.0),
-])
+
+@pytest.mark.parametrize(
+    "species,lo,hi,self_fraction",
+    [
+        ("CH4", 3000.0, 3100.0, 0.0),
+        ("CO2", 2200.0, 2300.0, 0.0),
+        ("H2O", 3700.0, 3800.0, 1.0),
+    ],
+)
 def test_table_interpolation_error(species, lo, hi, self_fraction):
     table = qogi.cross_section_table(species, lo, hi, self_fraction=self_fraction, cache=False)
     assert table.sigma.shape == (61, table.nu_cm1.size)
     assert table.sigma.dtype == np.float32
     for t in (203.0, 296.0, 333.3, 517.0, 795.0):
-        direct = qogi.cross_section(species, table.nu_cm1, t, cutoff=table.metadata["cutoff"],
-                                    self_fraction=self_fraction)
+        direct = qogi.cross_section(
+            species, table.nu_cm1, t, cutoff=table.metadata["cutoff"], self_fraction=self_fraction
+        )
         interp = table.interpolate(t)
         strong = direct > 0.01 * direct.max()
         err = np.max(np.abs(interp[strong] / direct[strong] - 1))
@@ -169,9 +183,14 @@ def test_table_interpolation_error(species, lo, hi, self_fraction):
 # ---------------------------------------------------------------------------
 # The on-disk cache
 
+
 def _small_table(**kw):
-    args = dict(species="CH4", nu_min_cm1=3050.0, nu_max_cm1=3052.0,
-                temperatures_K=[250.0, 300.0, 350.0, 400.0])
+    args = dict(
+        species="CH4",
+        nu_min_cm1=3050.0,
+        nu_max_cm1=3052.0,
+        temperatures_K=[250.0, 300.0, 350.0, 400.0],
+    )
     args.update(kw)
     return qogi.cross_section_table(**args)
 
@@ -198,9 +217,20 @@ def test_table_cache_reuse_and_rebuild(tmp_path, hitran_dir):
 
     # Another line-list content (one intensity changed) is another key.
     lines = qogi.load_line_list("CH4")
-    arrays = {k: getattr(lines, k) for k in ("molecule", "isotopologue", "nu_cm1", "intensity",
-                                             "gamma_air", "gamma_self", "elower_cm1", "n_air",
-                                             "delta_air")}
+    arrays = {
+        k: getattr(lines, k)
+        for k in (
+            "molecule",
+            "isotopologue",
+            "nu_cm1",
+            "intensity",
+            "gamma_air",
+            "gamma_self",
+            "elower_cm1",
+            "n_air",
+            "delta_air",
+        )
+    }
     arrays["intensity"] = arrays["intensity"].copy()
     arrays["intensity"][12345] *= 1.01
     changed = _small_table(line_list=qogi.LineList(**arrays))
@@ -241,6 +271,7 @@ def test_table_save_load_and_engine_handle(tmp_path):
 
 # ---------------------------------------------------------------------------
 # Line lists and the finder
+
 
 def _write_par(folder: pathlib.Path, name: str, hitran_dir, lo: float, hi: float) -> pathlib.Path:
     folder.mkdir(parents=True, exist_ok=True)
@@ -286,7 +317,9 @@ def test_default_water_list_merges_both_bundled_files(hitran_dir):
     lines = qogi.load_line_list("H2O", nu_min_cm1=3600, nu_max_cm1=3900)
     newer = qogi.load_line_list("H2O", hitran_dir / "H2O.par.gz", nu_min_cm1=3600, nu_max_cm1=3900)
     main = lines.isotopologue == 1
-    np.testing.assert_array_equal(lines.nu_cm1[main], newer.nu_cm1)  # main isotopologue: newer file only
+    np.testing.assert_array_equal(
+        lines.nu_cm1[main], newer.nu_cm1
+    )  # main isotopologue: newer file only
     assert set(np.unique(lines.isotopologue)) == {1, 2, 3, 4, 5}  # + minor ones from 2012
 
 
@@ -306,26 +339,41 @@ def test_malformed_line_file_error(tmp_path, hitran_dir):
 
 
 def test_line_list_from_arrays_and_selection():
-    lines = qogi.LineList(molecule=[6, 6], isotopologue=[1, 1], nu_cm1=[3001.0, 3000.0],
-                          intensity=[1e-20, 2e-20], gamma_air=[0.05, 0.05],
-                          gamma_self=[0.07, 0.07], elower_cm1=[0.0, 10.0], n_air=[0.7, 0.7],
-                          delta_air=[0.0, 0.0])
+    lines = qogi.LineList(
+        molecule=[6, 6],
+        isotopologue=[1, 1],
+        nu_cm1=[3001.0, 3000.0],
+        intensity=[1e-20, 2e-20],
+        gamma_air=[0.05, 0.05],
+        gamma_self=[0.07, 0.07],
+        elower_cm1=[0.0, 10.0],
+        n_air=[0.7, 0.7],
+        delta_air=[0.0, 0.0],
+    )
     np.testing.assert_array_equal(lines.nu_cm1, [3000.0, 3001.0])  # sorted
     np.testing.assert_array_equal(lines.n_self, lines.n_air)
     assert len(lines.select(min_intensity=1.5e-20)) == 1
     # One line, wide window: the integral of sigma is its intensity.
     nu = np.arange(2500.0, 3500.0, 0.005)
-    s = qogi.cross_section(None, nu, 296.0, line_list=lines.select(nu_max_cm1=3000.5),
-                           cutoff=400.0)
+    s = qogi.cross_section(None, nu, 296.0, line_list=lines.select(nu_max_cm1=3000.5), cutoff=400.0)
     assert np.sum(s) * 0.005 == pytest.approx(2e-20 * 2 / np.pi * np.arctan(400 / 0.05), rel=1e-5)
     with pytest.raises(ValueError, match="gamma_air"):
-        qogi.LineList(molecule=[6], isotopologue=[1], nu_cm1=[3000.0], intensity=[1e-20],
-                      gamma_air=[-0.05], gamma_self=[0.07], elower_cm1=[0.0], n_air=[0.7],
-                      delta_air=[0.0])
+        qogi.LineList(
+            molecule=[6],
+            isotopologue=[1],
+            nu_cm1=[3000.0],
+            intensity=[1e-20],
+            gamma_air=[-0.05],
+            gamma_self=[0.07],
+            elower_cm1=[0.0],
+            n_air=[0.7],
+            delta_air=[0.0],
+        )
 
 
 # ---------------------------------------------------------------------------
 # HITRANonline fetch (no network: the HTTP call is replaced)
+
 
 def test_fetch_hitran_builds_the_query_and_validates(tmp_path, monkeypatch, hitran_dir):
     body = "".join(read_par_lines(hitran_dir / "CH4.par.gz")[:50]).encode()
@@ -369,29 +417,71 @@ def test_fetch_hitran_builds_the_query_and_validates(tmp_path, monkeypatch, hitr
 # ---------------------------------------------------------------------------
 # CLI
 
+
 def test_cli_xsec_and_hitran_list(tmp_path, hitran_dir):
     out = tmp_path / "x.npz"
     env = dict(os.environ, QOGI_CACHE_DIR=str(tmp_path / "cache"))
-    r = subprocess.run([sys.executable, "-m", "qogi", "xsec", "CH4", "--range", "3000", "3010",
-                        "--step", "0.01", "--temperature", "296", "--out", str(out)],
-                       capture_output=True, text=True, check=True, env=env)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "qogi",
+            "xsec",
+            "CH4",
+            "--range",
+            "3000",
+            "3010",
+            "--step",
+            "0.01",
+            "--temperature",
+            "296",
+            "--out",
+            str(out),
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+        env=env,
+    )
     assert "25126 lines" in r.stdout
     d = np.load(out)
     assert d["nu_cm1"].size == 1001
     expect = qogi.cross_section("CH4", d["nu_cm1"], 296.0)
     np.testing.assert_allclose(d["sigma_cm2_per_molecule"], expect, rtol=1e-12)
-    r = subprocess.run([sys.executable, "-m", "qogi", "hitran", "list", "CH4"],
-                       capture_output=True, text=True, check=True, env=env)
+    r = subprocess.run(
+        [sys.executable, "-m", "qogi", "hitran", "list", "CH4"],
+        capture_output=True,
+        text=True,
+        check=True,
+        env=env,
+    )
     assert "CH4.par" in r.stdout and "2832.8614-3246.3010" in r.stdout
     assert "shipped with qogi" in r.stdout and "HITRAN2020" in r.stdout
     assert "doi:10.1016/j.jqsrt.2021.107949" in r.stdout
-    r = subprocess.run([sys.executable, "-m", "qogi", "xsec", "CH4", "--range", "3000", "3010",
-                        "--cutoff", "wide"], capture_output=True, check=False, text=True, env=env)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "qogi",
+            "xsec",
+            "CH4",
+            "--range",
+            "3000",
+            "3010",
+            "--cutoff",
+            "wide",
+        ],
+        capture_output=True,
+        check=False,
+        text=True,
+        env=env,
+    )
     assert r.returncode != 0 and "--cutoff" in r.stderr
 
 
 # ---------------------------------------------------------------------------
 # What the package ships
+
 
 def test_bundled_line_lists_match_their_manifest():
     """Each shipped file holds exactly the records its provenance names: line
@@ -404,7 +494,9 @@ def test_bundled_line_lists_match_their_manifest():
         lines = records.decode().splitlines()
         assert len(lines) == e["lines"]
         nu = np.array([float(r[3:15]) for r in lines])
-        assert nu.min() == pytest.approx(e["nu_min_cm1"]) and nu.max() == pytest.approx(e["nu_max_cm1"])
+        assert nu.min() == pytest.approx(e["nu_min_cm1"]) and nu.max() == pytest.approx(
+            e["nu_max_cm1"]
+        )
         assert e["citation"] and e["edition"] and e["source"]
 
 
@@ -445,6 +537,8 @@ def test_nothing_in_the_package_reads_beside_the_checkout():
         for f in (repo / folder).rglob("*"):
             if f.suffix in (".py", ".cc", ".h", ".cmake", ".txt", ".in") and f.is_file():
                 text = f.read_text(errors="replace")
-                if any(w in text for w in ("../" + "shared", "shared/" + "hitran", "DESIGN" + ".md")):
+                if any(
+                    w in text for w in ("../" + "shared", "shared/" + "hitran", "DESIGN" + ".md")
+                ):
                     offenders.append(str(f.relative_to(repo)))
     assert not offenders, offenders

@@ -16,6 +16,7 @@ G = 9.80665
 
 # -- release description -------------------------------------------------------
 
+
 def test_release_rejects_bad_input_naming_the_field():
     with pytest.raises(ValueError, match="exit_diameter_m"):
         synth.Release(exit_diameter_m=0.0)
@@ -59,9 +60,15 @@ def test_options_round_trip():
 
 # -- presets ------------------------------------------------------------------------
 
-PRESETS = ["lab-ch4-5slpm-gf320", "lab-ch4-10slpm-gf320", "lab-heated-ch4-55c-gf320",
-           "lab-ch4co2-90c-m150", "lab-ch4co2-90c-m150-warm-filters", "stack-20kgh-wind6-gf320",
-           "stack-10kgh-wind4-sky-gf320"]
+PRESETS = [
+    "lab-ch4-5slpm-gf320",
+    "lab-ch4-10slpm-gf320",
+    "lab-heated-ch4-55c-gf320",
+    "lab-ch4co2-90c-m150",
+    "lab-ch4co2-90c-m150-warm-filters",
+    "stack-20kgh-wind6-gf320",
+    "stack-10kgh-wind4-sky-gf320",
+]
 
 
 def test_presets_record_the_thesis_scenes():
@@ -84,12 +91,14 @@ def test_presets_record_the_thesis_scenes():
     assert m150["camera"]["frame_rate_hz"] * m150["duration_s"] == pytest.approx(700)
     assert m150["scene"]["distance_m"] * m150["camera"]["ifov_rad"] == pytest.approx(0.002)
     assert synth.preset("lab-ch4co2-90c-m150-warm-filters")["camera"][
-        "warm_filter_temperature_K"] == pytest.approx(293.15)
+        "warm_filter_temperature_K"
+    ] == pytest.approx(293.15)
     with pytest.raises(ValueError, match="unknown preset"):
         synth.preset("nope")
 
 
 # -- mass conservation ------------------------------------------------------------
+
 
 def _control_planes(rel):
     if rel.wind_speed_m_s > 0:  # vertical planes across the bent-over plume
@@ -103,13 +112,16 @@ def _control_planes(rel):
 # docs/validation/synthetic.md); their flux changes slowly and 15-30 Hz samples it well.
 # The stack plume's flux fluctuates within tens of ms (blobs passing at
 # 6 m/s): it is averaged over 8 s sampled at 100 Hz.
-@pytest.mark.parametrize("name,duration,rate", [
-    ("lab-ch4-5slpm-gf320", None, None),
-    ("lab-ch4-10slpm-gf320", None, None),
-    ("lab-heated-ch4-55c-gf320", None, None),
-    ("lab-ch4co2-90c-m150", 20.8, 30.0),
-    ("stack-20kgh-wind6-gf320", 8.0, 100.0),
-])
+@pytest.mark.parametrize(
+    "name,duration,rate",
+    [
+        ("lab-ch4-5slpm-gf320", None, None),
+        ("lab-ch4-10slpm-gf320", None, None),
+        ("lab-heated-ch4-55c-gf320", None, None),
+        ("lab-ch4co2-90c-m150", 20.8, 30.0),
+        ("stack-20kgh-wind6-gf320", 8.0, 100.0),
+    ],
+)
 def test_time_averaged_flux_equals_release_rate(name, duration, rate):
     sim = synth.simulate_preset(name, duration_s=duration, frame_rate_hz=rate)
     flux = sim.plane_flux(_control_planes(sim.release))
@@ -149,6 +161,7 @@ def test_mass_budget_between_source_and_plane(name):
 
 # -- truth identities ---------------------------------------------------------------
 
+
 @pytest.fixture(scope="module")
 def lab_sim():
     return synth.simulate_preset("lab-ch4co2-90c-m150", duration_s=0.3, frame_rate_hz=100)
@@ -160,10 +173,18 @@ def test_velocity_map_is_flux_over_column(lab_sim):
         col = m["column_kg_m2"][s].astype(np.float64)
         gas = col > 0
         assert gas.sum() > 1000 and not np.isnan(m["velocity_z_m_s"][gas]).any()
-        np.testing.assert_allclose(m["flux_z_kg_m_s"][s][gas], (col * m["velocity_z_m_s"])[gas],
-                                   rtol=1e-5, atol=1e-7 * m["flux_z_kg_m_s"][s].max())
-        np.testing.assert_allclose(m["flux_x_kg_m_s"][s][gas], (col * m["velocity_x_m_s"])[gas],
-                                   rtol=1e-5, atol=1e-7 * np.abs(m["flux_x_kg_m_s"][s]).max())
+        np.testing.assert_allclose(
+            m["flux_z_kg_m_s"][s][gas],
+            (col * m["velocity_z_m_s"])[gas],
+            rtol=1e-5,
+            atol=1e-7 * m["flux_z_kg_m_s"][s].max(),
+        )
+        np.testing.assert_allclose(
+            m["flux_x_kg_m_s"][s][gas],
+            (col * m["velocity_x_m_s"])[gas],
+            rtol=1e-5,
+            atol=1e-7 * np.abs(m["flux_x_kg_m_s"][s]).max(),
+        )
     assert np.isnan(m["velocity_z_m_s"][~(m["column_kg_m2"]["CH4"] > 0)]).all()
 
 
@@ -190,8 +211,9 @@ def test_line_flux_equals_plane_flux(projection, tol):
 
 def test_far_from_the_plume_there_is_no_gas_and_ambient_temperature(lab_sim):
     rel = lab_sim.release
-    grid = dict(x0=0.2, y0=-0.05, z0=rel.stack_height_m, dx=0.005, dy=0.005, dz=0.01,
-                nx=10, ny=20, nz=30)  # a block 20-25 cm beside the axis
+    grid = dict(
+        x0=0.2, y0=-0.05, z0=rel.stack_height_m, dx=0.005, dy=0.005, dz=0.01, nx=10, ny=20, nz=30
+    )  # a block 20-25 cm beside the axis
     f = lab_sim.fields(10, grid)
     assert (f["partial_density_kg_m3"] == 0).all()
     assert (f["temperature_K"] == np.float32(rel.ambient_temperature_K)).all()
@@ -208,14 +230,17 @@ def test_exit_temperature_at_the_exit_and_relaxation_to_ambient():
     dt = rel.exit_temperature_K - rel.ambient_temperature_K
     excess = []
     for h in heights:
-        point = dict(x0=0.0, y0=0.0, z0=rel.stack_height_m + h, dx=1e-3, dy=1e-3, dz=1e-3,
-                     nx=1, ny=1, nz=1)
-        t = [sim.fields(f, point, velocity=False)["temperature_K"][0, 0, 0]
-             for f in range(0, sim.num_frames, 2)]
+        point = dict(
+            x0=0.0, y0=0.0, z0=rel.stack_height_m + h, dx=1e-3, dy=1e-3, dz=1e-3, nx=1, ny=1, nz=1
+        )
+        t = [
+            sim.fields(f, point, velocity=False)["temperature_K"][0, 0, 0]
+            for f in range(0, sim.num_frames, 2)
+        ]
         excess.append(np.mean(t) - rel.ambient_temperature_K)
     assert excess[0] == pytest.approx(dt, rel=0.01)  # a quarter diameter above the exit
-    assert np.all(np.diff(excess) < 0)               # cooling with height
-    assert excess[-1] < 0.1 * dt                     # 40 cm up: diluted > 10 times
+    assert np.all(np.diff(excess) < 0)  # cooling with height
+    assert excess[-1] < 0.1 * dt  # 40 cm up: diluted > 10 times
 
 
 def test_ray_samples_integrate_to_the_truth_columns(lab_sim):
@@ -244,6 +269,7 @@ def test_ray_samples_integrate_to_the_truth_columns(lab_sim):
 
 # -- similarity: the simulated plume follows the mean-flow model -------------------------
 
+
 def test_mass_weighted_velocity_and_width_follow_the_similarity_model():
     """Time-mean mass-weighted vertical speed (plane flux / linear density) and
     concentration width of the simulated lab plume against the integral model
@@ -269,7 +295,9 @@ def test_mass_weighted_velocity_and_width_follow_the_similarity_model():
         z = view.pixel_z(r)
         w_model = np.interp(z, mf["z_m"], mf["mass_weighted_speed_m_s"])
         assert num[k] / den[k] == pytest.approx(w_model, rel=0.15), z
-        width = np.sqrt(np.sum(prof[k] * x**2) / np.sum(prof[k]) - (np.sum(prof[k] * x) / np.sum(prof[k]))**2)
+        width = np.sqrt(
+            np.sum(prof[k] * x**2) / np.sum(prof[k]) - (np.sum(prof[k] * x) / np.sum(prof[k])) ** 2
+        )
         s_model = np.interp(z, mf["z_m"], mf["sigma_c_m"])
         assert width == pytest.approx(s_model, rel=0.25), z
     # A few cm above the exit the gas moves ~4 cm per 15 Hz frame (thesis LES).
@@ -300,16 +328,19 @@ def test_bent_over_plume_in_crosswind():
 
 # -- reproducibility, progress, cancel ----------------------------------------------------
 
+
 def test_seeded_runs_are_identical_and_seeds_differ():
     args = dict(duration_s=0.5, frame_rate_hz=20)
     a = synth.simulate_preset("lab-ch4-10slpm-gf320", seed=3, num_threads=1, **args)
     b = synth.simulate_preset("lab-ch4-10slpm-gf320", seed=3, num_threads=2, **args)
     c = synth.simulate_preset("lab-ch4-10slpm-gf320", seed=4, **args)
     np.testing.assert_array_equal(a.puffs(9), b.puffs(9))
-    np.testing.assert_array_equal(a.truth_maps(9)["column_kg_m2"]["CH4"],
-                                  b.truth_maps(9)["column_kg_m2"]["CH4"])
-    assert not np.array_equal(a.truth_maps(9)["column_kg_m2"]["CH4"],
-                              c.truth_maps(9)["column_kg_m2"]["CH4"])
+    np.testing.assert_array_equal(
+        a.truth_maps(9)["column_kg_m2"]["CH4"], b.truth_maps(9)["column_kg_m2"]["CH4"]
+    )
+    assert not np.array_equal(
+        a.truth_maps(9)["column_kg_m2"]["CH4"], c.truth_maps(9)["column_kg_m2"]["CH4"]
+    )
 
 
 def test_progress_and_cancel():
@@ -324,8 +355,13 @@ def test_fields_layout_and_units(lab_sim):
     grid = lab_sim.default_grid()
     small = dict(grid, nx=20, ny=15, nz=10)
     f = lab_sim.fields(3, small)
-    for key in ("partial_density_kg_m3", "temperature_K", "velocity_x_m_s", "velocity_y_m_s",
-                "velocity_z_m_s"):
+    for key in (
+        "partial_density_kg_m3",
+        "temperature_K",
+        "velocity_x_m_s",
+        "velocity_y_m_s",
+        "velocity_z_m_s",
+    ):
         assert f[key].shape == (10, 15, 20) and f[key].dtype == np.float32
     assert set(f["mole_fraction"]) == {"CH4", "CO2"}
     with pytest.raises(ValueError, match="grid"):

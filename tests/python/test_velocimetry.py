@@ -61,22 +61,75 @@ def epe(f, tu, tv, margin=16):
 
 # The C++ field names, as documented in the engine headers.
 FIELDS = {
-    "fluid": ("alpha", "alpha_div", "alpha_curl", "div_curl_scale", "smoothness_scale",
-              "patch_search_scale", "patch_size", "patch_stride", "patch_iterations",
-              "patch_search_warm", "levels", "min_level_size", "finest_level", "warm_levels", "warps",
-              "iterations", "tolerance"),
-    "horn_schunck": ("alpha", "levels", "min_level_size", "finest_level", "warm_levels",
-                     "warps", "iterations", "tolerance"),
-    "lucas_kanade": ("window_sigma", "levels", "min_level_size", "finest_level",
-                     "iterations", "min_eigenvalue"),
-    "farneback": ("pyr_scale", "levels", "winsize", "iterations", "poly_n", "poly_sigma",
-                  "gaussian_window"),
-    "dis": ("finest_scale", "patch_size", "patch_stride", "gradient_descent_iterations",
-            "variational_refinement_iterations", "variational_refinement_alpha",
-            "variational_refinement_delta", "variational_refinement_gamma",
-            "use_mean_normalization", "use_spatial_propagation"),
-    "piv": ("window_size", "initial_window_size", "overlap", "final_passes", "deform",
-            "median_threshold", "median_epsilon", "min_correlation", "min_mask_fraction"),
+    "fluid": (
+        "alpha",
+        "alpha_div",
+        "alpha_curl",
+        "div_curl_scale",
+        "smoothness_scale",
+        "patch_search_scale",
+        "patch_size",
+        "patch_stride",
+        "patch_iterations",
+        "patch_search_warm",
+        "levels",
+        "min_level_size",
+        "finest_level",
+        "warm_levels",
+        "warps",
+        "iterations",
+        "tolerance",
+    ),
+    "horn_schunck": (
+        "alpha",
+        "levels",
+        "min_level_size",
+        "finest_level",
+        "warm_levels",
+        "warps",
+        "iterations",
+        "tolerance",
+    ),
+    "lucas_kanade": (
+        "window_sigma",
+        "levels",
+        "min_level_size",
+        "finest_level",
+        "iterations",
+        "min_eigenvalue",
+    ),
+    "farneback": (
+        "pyr_scale",
+        "levels",
+        "winsize",
+        "iterations",
+        "poly_n",
+        "poly_sigma",
+        "gaussian_window",
+    ),
+    "dis": (
+        "finest_scale",
+        "patch_size",
+        "patch_stride",
+        "gradient_descent_iterations",
+        "variational_refinement_iterations",
+        "variational_refinement_alpha",
+        "variational_refinement_delta",
+        "variational_refinement_gamma",
+        "use_mean_normalization",
+        "use_spatial_propagation",
+    ),
+    "piv": (
+        "window_size",
+        "initial_window_size",
+        "overlap",
+        "final_passes",
+        "deform",
+        "median_threshold",
+        "median_epsilon",
+        "min_correlation",
+        "min_mask_fraction",
+    ),
 }
 
 
@@ -108,6 +161,7 @@ def test_options_keywords_are_checked():
 
 
 # --- moving textures ---------------------------------------------------------
+
 
 @pytest.mark.parametrize("method", list(vel.METHODS))
 def test_every_method_recovers_a_translation(method):
@@ -144,13 +198,13 @@ def test_continuity_spreading_fluid_unbiased_brightness_constancy_biased():
     cx, cy, rate = W / 2, H / 2, 0.02
 
     def rho(xx, yy):
-        env = np.exp(-((xx - cx) ** 2 + (yy - cy) ** 2) / (2 * 35.0 ** 2))
+        env = np.exp(-((xx - cx) ** 2 + (yy - cy) ** 2) / (2 * 35.0**2))
         return env * np.exp(0.2 * t(xx, yy))
 
     a = rho(x, y)
     b = rho(cx + (x - cx) / (1 + rate), cy + (y - cy) / (1 + rate)) / (1 + rate) ** 2
     tu, tv = rate * (x - cx), rate * (y - cy)
-    region = (x - cx) ** 2 + (y - cy) ** 2 <= 35.0 ** 2
+    region = (x - cx) ** 2 + (y - cy) ** 2 <= 35.0**2
     errs = {}
     for m in ("fluid", "horn_schunck"):
         f = qogi.optical_flow(a, b, method=m)
@@ -213,11 +267,18 @@ def test_progress_callback_can_cancel_a_sequence():
 
 # --- units -------------------------------------------------------------------
 
+
 def test_units_follow_the_camera_geometry():
     # 2 px/frame seen from 3 m with 1 mrad pixels at 15 Hz: 2 x 3 mm x 15 /s.
     assert vel.to_metres_per_second(2.0, 3.0, 1e-3, 15.0) == pytest.approx(0.09)
-    f = vel.Flow(np.full((2, 2), 2.0, np.float32), np.zeros((2, 2), np.float32),
-                 np.ones((2, 2), np.float32), np.ones((2, 2), bool), 0.0, "fluid")
+    f = vel.Flow(
+        np.full((2, 2), 2.0, np.float32),
+        np.zeros((2, 2), np.float32),
+        np.ones((2, 2), np.float32),
+        np.ones((2, 2), bool),
+        0.0,
+        "fluid",
+    )
     u, _ = f.in_metres_per_second(3.0, 1e-3, 15.0)
     np.testing.assert_allclose(u, 0.09, rtol=1e-6)
     with pytest.raises(ValueError, match="frame_rate_hz must be finite and > 0"):
@@ -225,6 +286,7 @@ def test_units_follow_the_camera_geometry():
 
 
 # --- post-processing ----------------------------------------------------------
+
 
 def smooth_field():
     y, x = np.mgrid[0:30, 0:40].astype(np.float32)
@@ -261,8 +323,9 @@ def test_temporal_filter_removes_a_spike_in_a_sequence():
     T = 5
     u = np.ones((T, 6, 7), np.float32)
     u[2, 3, 3] = 40.0
-    seq = vel.FlowSequence(u, np.zeros_like(u), np.ones_like(u), np.ones(u.shape, bool),
-                           np.zeros(T), "fluid")
+    seq = vel.FlowSequence(
+        u, np.zeros_like(u), np.ones_like(u), np.ones(u.shape, bool), np.zeros(T), "fluid"
+    )
     filt = vel.temporal_filter(seq, window=3)
     assert filt.u[2, 3, 3] == 1.0 and filt.valid.all()
     fu, _, _ = vel.temporal_filter(u, np.zeros_like(u), window=3, statistic="mean")
@@ -278,8 +341,9 @@ def test_frame_velocity_is_exact_for_accelerating_gas_where_pairs_lag():
     gas by a + g (k + 1/2); the velocity at frame t is a + g t."""
     T, a, g = 6, 2.0, 0.6
     v = np.stack([np.full((40, 48), -(a + g * (k + 0.5)), np.float32) for k in range(T - 1)])
-    seq = vel.FlowSequence(np.zeros_like(v), v, np.ones_like(v), np.ones(v.shape, bool),
-                           np.zeros(T - 1), "fluid")
+    seq = vel.FlowSequence(
+        np.zeros_like(v), v, np.ones_like(v), np.ones(v.shape, bool), np.zeros(T - 1), "fluid"
+    )
     fu, fv = vel.frame_velocity(seq)
     assert fv.shape == (T, 40, 48)
     assert fv[1:-1, 20, 24] == pytest.approx([-(a + g * t) for t in range(1, T - 1)], abs=1e-4)
@@ -304,10 +368,10 @@ def test_invert_displacement_undoes_a_rotation():
 
 def test_plume_mask_and_restrict_to_mask():
     x, y = grid()
-    blob = np.exp(-((x - 64) ** 2 + (y - 48) ** 2) / (2 * 10.0 ** 2))
+    blob = np.exp(-((x - 64) ** 2 + (y - 48) ** 2) / (2 * 10.0**2))
     m = vel.plume_mask(blob, threshold=0.5, dilate_radius=0)
     # exp(-r^2 / 200) >= 0.5 within r = 10 sqrt(2 ln 2) = 11.77 px
-    assert m.sum() == pytest.approx(np.pi * 11.77 ** 2, rel=0.05)
+    assert m.sum() == pytest.approx(np.pi * 11.77**2, rel=0.05)
     f = qogi.optical_flow(*translated_pair(1.0, 0.0), method="farneback")
     g = vel.restrict_to_mask(f, m)
     assert not g.valid[~m].any() and f.valid[~m].any()

@@ -26,8 +26,9 @@ HEIGHTS_M = (0.02, 0.04, 0.08, 0.12)
 
 
 def _case(rate_hz, frames, seed):
-    sim = synth.simulate_preset(PRESET, duration_s=frames / rate_hz, frame_rate_hz=rate_hz,
-                                seed=seed)
+    sim = synth.simulate_preset(
+        PRESET, duration_s=frames / rate_hz, frame_rate_hz=rate_hz, seed=seed
+    )
     view, rel = sim.view, sim.release
     fp = view.distance_m * view.ifov_rad
     exit_row = 0.5 * (view.height_px - 1) - (rel.stack_height_m - view.center_z_m) / fp
@@ -40,7 +41,9 @@ def _case(rate_hz, frames, seed):
         vz[t] = np.nan_to_num(m["velocity_z_m_s"])
     source = np.zeros(column.shape[1:], bool)
     half = 0.5 * rel.exit_diameter_m / fp + 1.0
-    source[int(round(exit_row)):, int(np.floor(exit_col - half)):int(np.ceil(exit_col + half)) + 1] = True
+    source[
+        int(round(exit_row)) :, int(np.floor(exit_col - half)) : int(np.ceil(exit_col + half)) + 1
+    ] = True
     rows = np.array([int(round(exit_row - h / fp)) for h in HEIGHTS_M])
     return column, vz, source, rows, fp
 
@@ -59,8 +62,9 @@ def _errors(case, rate_hz, method):
     """Error [%] of the time-averaged mass-weighted upward velocity per height."""
     column, vz, source, rows, fp = case
     masks = np.stack([vel.plume_mask(c) for c in column])
-    seq = qogi.optical_flow_sequence(column, method=method, masks=masks,
-                                     source_mask=source if method == "fluid" else None)
+    seq = qogi.optical_flow_sequence(
+        column, method=method, masks=masks, source_mask=source if method == "fluid" else None
+    )
     _, v = vel.frame_velocity(seq)
     frames = np.arange(3, column.shape[0] - 1)
     c = column[frames][:, rows].astype(np.float64)
@@ -97,6 +101,7 @@ def test_texture_tracking_misses_the_steady_plume_base(plume_100hz):
 
 # -- the flux level from the transport of the line-integrated column ----------
 
+
 def _fluctuating_column(v0_px, frames=150, height=120, width=40):
     """Exact 1-D transport through a decelerating steady velocity: gas enters
     across the bottom edge at a fluctuating rate q(t) and rises at
@@ -116,12 +121,12 @@ def _fluctuating_column(v0_px, frames=150, height=120, width=40):
 
     edges = np.arange(height + 1) - 0.5
     t = np.arange(frames)[:, None]
-    lines = Q(t - tau(edges[1:])) - Q(t - tau(edges[:-1]))           # (T, H)
+    lines = Q(t - tau(edges[1:])) - Q(t - tau(edges[:-1]))  # (T, H)
     x = np.arange(width)
     g = np.exp(-0.5 * ((x - 0.5 * width) / 6.0) ** 2)
     column = (lines[:, :, None] * (g / g.sum())[None, None, :]).astype(np.float32)
     y = np.arange(height, dtype=float)
-    up = ((a + b * y) * np.exp(-b) - a) / b - y                       # one frame later
+    up = ((a + b * y) * np.exp(-b) - a) / b - y  # one frame later
     disp = np.broadcast_to(up[None, :, None], (frames - 1, height, width)).astype(np.float32)
     return column, a + b * y, disp
 
@@ -174,8 +179,14 @@ def test_transport_flux_refuses_a_steady_plume():
 @pytest.mark.parametrize("v0", [1.5, 15.0])
 def test_calibrate_flux_level_restores_a_flow_that_reads_30_percent_low(v0):
     column, v_true, disp = _fluctuating_column(v0)
-    slow = vel.FlowSequence(np.zeros_like(disp), 0.7 * disp, np.ones_like(disp),
-                            np.ones(disp.shape, bool), np.zeros(disp.shape[0]), "exact")
+    slow = vel.FlowSequence(
+        np.zeros_like(disp),
+        0.7 * disp,
+        np.ones_like(disp),
+        np.ones(disp.shape, bool),
+        np.zeros(disp.shape[0]),
+        "exact",
+    )
     u, v, scale = vel.calibrate_flux_level(slow, column, axis="up")
     rows = np.arange(5, 120 - int(np.ceil(v0)) - 2)
     frames = slice(1, -1)
@@ -193,21 +204,32 @@ def test_calibrate_flux_level_takes_the_transport_of_a_longer_stretch():
     # those rows: the flow's level follows it.
     column, v_true, disp = _fluctuating_column(1.5)
     full = vel.transport_flux(column, axis="up")
-    part = vel.TransportFlux(*(np.asarray(a)[60:] for a in (full.flux, full.line_column,
-                                                            full.velocity, full.displacement)),
-                             "up")
+    part = vel.TransportFlux(
+        *(
+            np.asarray(a)[60:]
+            for a in (full.flux, full.line_column, full.velocity, full.displacement)
+        ),
+        "up",
+    )
     got = full.lines(slice(60, 120))
-    for a, b in zip((got.flux, got.line_column, got.velocity, got.displacement),
-                    (part.flux, part.line_column, part.velocity, part.displacement)):
+    for a, b in zip(
+        (got.flux, got.line_column, got.velocity, got.displacement),
+        (part.flux, part.line_column, part.velocity, part.displacement),
+    ):
         np.testing.assert_array_equal(a, b)
     more = full.lines(slice(60, 120), scale=1.5)
     np.testing.assert_allclose(more.flux, 1.5 * got.flux)
     np.testing.assert_allclose(more.line_column, 1.5 * got.line_column)
     np.testing.assert_array_equal(more.velocity, got.velocity)
     lower = column[:, 60:]
-    slow = vel.FlowSequence(np.zeros_like(disp[:, 60:]), 0.7 * disp[:, 60:],
-                            np.ones_like(disp[:, 60:]), np.ones(disp[:, 60:].shape, bool),
-                            np.zeros(disp.shape[0]), "exact")
+    slow = vel.FlowSequence(
+        np.zeros_like(disp[:, 60:]),
+        0.7 * disp[:, 60:],
+        np.ones_like(disp[:, 60:]),
+        np.ones(disp[:, 60:].shape, bool),
+        np.zeros(disp.shape[0]),
+        "exact",
+    )
     u, v, scale = vel.calibrate_flux_level(slow, lower, axis="up", transport=got)
     c = lower[1:-1].astype(np.float64)
     mass_weighted = (c * -v[1:-1]).sum(axis=(0, 2)) / c.sum(axis=(0, 2))
@@ -235,8 +257,9 @@ def _plume_frame_velocity_errors(case, rate_hz):
     column, vz, source, rows, fp = case
     exit_row = int(np.nonzero(source.any(axis=1))[0][0])
     masks = np.stack([vel.plume_mask(c) for c in column])
-    u, v = vel.plume_frame_velocity(column, axis="up", source_index=exit_row, masks=masks,
-                                    source_mask=source)
+    u, v = vel.plume_frame_velocity(
+        column, axis="up", source_index=exit_row, masks=masks, source_mask=source
+    )
     frames = np.arange(3, column.shape[0] - 1)
     c = column[frames][:, rows].astype(np.float64)
     est = (c * -v[frames][:, rows] * fp * rate_hz).sum(axis=(0, 2))
@@ -262,8 +285,9 @@ def test_plume_frame_velocity_has_the_flux_level_at_15_hz(plume_15hz_3s):
 def wind_15hz():
     """The stack in a 6 m/s crosswind seen at 10 m and 15 Hz: the gas crosses
     ~28 px per frame (left to right), beyond what the 2-D flows can follow."""
-    sim = synth.simulate_preset("stack-20kgh-wind6-gf320", duration_s=3.0, frame_rate_hz=15.0,
-                                seed=1)
+    sim = synth.simulate_preset(
+        "stack-20kgh-wind6-gf320", duration_s=3.0, frame_rate_hz=15.0, seed=1
+    )
     view, rel = sim.view, sim.release
     fp = view.distance_m * view.ifov_rad
     exit_col = 0.5 * (view.width_px - 1) + (rel.exit_x_m - view.center_x_m) / fp
@@ -281,11 +305,13 @@ def test_transport_flux_follows_a_plume_carried_by_wind(wind_15hz):
     column, flux_x, exit_col, fp = wind_15hz
     tf = vel.transport_flux(column, axis="right", source_index=exit_col)
     cols = (np.array([50, 100, 150]) + exit_col).astype(int)
-    true = flux_x[:, :, cols].sum(axis=1).mean(axis=0) * fp           # kg/s through the column
-    est = tf.flux[cols] * fp * fp * 15.0                               # kg/m2 px px/frame -> kg/s
+    true = flux_x[:, :, cols].sum(axis=1).mean(axis=0) * fp  # kg/s through the column
+    est = tf.flux[cols] * fp * fp * 15.0  # kg/m2 px px/frame -> kg/s
     err = est / true - 1.0
     assert np.all(np.abs(err) < 0.15), err
-    assert np.all((tf.displacement[cols] > 24) & (tf.displacement[cols] < 31)), tf.displacement[cols]
+    assert np.all((tf.displacement[cols] > 24) & (tf.displacement[cols] < 31)), tf.displacement[
+        cols
+    ]
 
 
 def test_calibrate_flux_level_falls_back_to_the_transport_velocity(wind_15hz):
@@ -294,8 +320,14 @@ def test_calibrate_flux_level_falls_back_to_the_transport_velocity(wind_15hz):
     # velocity replaces it, and the factor is reported as NaN.
     column, flux_x, exit_col, fp = wind_15hz
     backwards = np.full((column.shape[0] - 1,) + column.shape[1:], -5.0, np.float32)
-    seq = vel.FlowSequence(backwards, np.zeros_like(backwards), np.ones_like(backwards),
-                           np.ones(backwards.shape, bool), np.zeros(backwards.shape[0]), "exact")
+    seq = vel.FlowSequence(
+        backwards,
+        np.zeros_like(backwards),
+        np.ones_like(backwards),
+        np.ones(backwards.shape, bool),
+        np.zeros(backwards.shape[0]),
+        "exact",
+    )
     u, v, scale = vel.calibrate_flux_level(seq, column, axis="right", source_index=exit_col)
     tf = vel.transport_flux(column, axis="right", source_index=exit_col)
     assert np.all(np.isnan(scale))
@@ -303,9 +335,14 @@ def test_calibrate_flux_level_falls_back_to_the_transport_velocity(wind_15hz):
     cols = (np.array([50, 100, 150]) + exit_col).astype(int)
     np.testing.assert_allclose(u[0, 120, cols], tf.velocity[cols], rtol=1e-6)
     # A flow that follows the transport (30 % slow) is rescaled as before.
-    slow = vel.FlowSequence(np.broadcast_to(0.7 * u[:1], backwards.shape).copy(),
-                            np.zeros_like(backwards), np.ones_like(backwards),
-                            np.ones(backwards.shape, bool), np.zeros(backwards.shape[0]), "exact")
+    slow = vel.FlowSequence(
+        np.broadcast_to(0.7 * u[:1], backwards.shape).copy(),
+        np.zeros_like(backwards),
+        np.ones_like(backwards),
+        np.ones(backwards.shape, bool),
+        np.zeros(backwards.shape[0]),
+        "exact",
+    )
     _, _, scale = vel.calibrate_flux_level(slow, column, axis="right", source_index=exit_col)
     np.testing.assert_allclose(scale[cols], 1 / 0.7, rtol=0.05)
     with pytest.raises(ValueError, match="max_factor"):
@@ -313,6 +350,7 @@ def test_calibrate_flux_level_falls_back_to_the_transport_velocity(wind_15hz):
 
 
 # -- pairs several frames apart at high frame rates ----------------------------
+
 
 def test_typical_displacement_reads_the_structures_speed():
     # The decelerating 1-D plume moves 0.5 v0 ... v0 px per frame.
@@ -327,11 +365,11 @@ def test_typical_displacement_reads_the_structures_speed():
 
 
 def test_interpolate_frame_velocity_is_linear_between_the_sampled_frames():
-    t = np.arange(0, 10, 3, dtype=np.float32)            # frames 0, 3, 6, 9
+    t = np.arange(0, 10, 3, dtype=np.float32)  # frames 0, 3, 6, 9
     u = np.broadcast_to((3.0 * (1.0 + 0.5 * t))[:, None, None], (4, 2, 2)).astype(np.float32)
     v = -u
     fu, fv = vel.interpolate_frame_velocity(u, v, 3, 10)
-    want = 1.0 + 0.5 * np.arange(10)                      # px per frame at every frame
+    want = 1.0 + 0.5 * np.arange(10)  # px per frame at every frame
     np.testing.assert_allclose(fu[:, 0, 0], want, rtol=1e-6)
     np.testing.assert_allclose(fv[:, 1, 1], -want, rtol=1e-6)
     with pytest.raises(ValueError, match="ceil"):
@@ -352,8 +390,9 @@ def test_pairs_three_frames_apart_keep_the_flux_level_at_100_hz(plume_100hz_1s):
         fvel = None
         if stride > 1:
             fvel = vel.interpolate_frame_velocity(*vel.frame_velocity(seq), stride, len(norm))
-        u, v, _ = vel.calibrate_flux_level(seq, norm, "up", exit_row, transport=tf,
-                                           frame_velocities=fvel)
+        u, v, _ = vel.calibrate_flux_level(
+            seq, norm, "up", exit_row, transport=tf, frame_velocities=fvel
+        )
         frames = np.arange(3, column.shape[0] - 3)
         c = column[frames][:, rows].astype(np.float64)
         est[stride] = (c * -v[frames][:, rows] * fp * 100.0).sum(axis=(0, 2))

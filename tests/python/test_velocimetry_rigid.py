@@ -34,8 +34,13 @@ def rigid(frame, theta, dx, dy):
     c, s = np.cos(theta), np.sin(theta)
     bx = cx + c * (x - cx - dx) + s * (y - cy - dy)
     by = cy - s * (x - cx - dx) + c * (y - cy - dy)
-    nxt = cv2.remap(frame.astype(np.float32), bx.astype(np.float32), by.astype(np.float32),
-                    cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT)
+    nxt = cv2.remap(
+        frame.astype(np.float32),
+        bx.astype(np.float32),
+        by.astype(np.float32),
+        cv2.INTER_CUBIC,
+        borderMode=cv2.BORDER_REFLECT,
+    )
     tu = cx + c * (x - cx) - s * (y - cy) + dx - x
     tv = cy + s * (x - cx) + c * (y - cy) + dy - y
     return nxt, tu, tv
@@ -63,7 +68,7 @@ def ir_column(shared_dir):
         pytest.skip(f"FLIR sample not found at {path}")
     temp = np.asarray(qio.read_flir(path)[0].temperature(), np.float64)
     y0, x0 = (temp.shape[0] - H) // 2, (temp.shape[1] - W) // 2
-    crop = temp[y0:y0 + H, x0:x0 + W]
+    crop = temp[y0 : y0 + H, x0 : x0 + W]
     return np.clip(crop - np.percentile(crop, 1), 0, None).astype(np.float32)
 
 
@@ -79,7 +84,7 @@ def synthetic_column(seed=11, n=48):
     for i in range(n):
         k = 2 * np.pi / lam[i]
         t += np.cos(k * np.cos(ang[i]) * x + k * np.sin(ang[i]) * y + ph[i])
-    env = 0.3 + np.exp(-((x - W / 2) ** 2 / (2 * 120.0 ** 2) + (y - H / 2) ** 2 / (2 * 100.0 ** 2)))
+    env = 0.3 + np.exp(-((x - W / 2) ** 2 / (2 * 120.0**2) + (y - H / 2) ** 2 / (2 * 100.0**2)))
     return (env * np.exp(0.3 * t * np.sqrt(2.0 / n))).astype(np.float32)
 
 
@@ -113,7 +118,7 @@ def vortex_velocity(x, y, peak=2.5, core=24.0, separation=70.0, drift=(0.6, -0.4
     for cx, sign in ((W / 2 - separation / 2, 1.0), (W / 2 + separation / 2, -1.0)):
         dx, dy = x - cx, y - H / 2
         r2 = dx * dx + dy * dy + 1e-12
-        f = sign * gamma / (2 * np.pi * r2) * (1 - np.exp(-r2 / core ** 2))
+        f = sign * gamma / (2 * np.pi * r2) * (1 - np.exp(-r2 / core**2))
         u = u - f * dy
         v = v + f * dx
     return u, v
@@ -148,7 +153,9 @@ def vortex_pair():
         t = np.zeros(px.shape)
         for i in range(n):
             t += np.cos(kx[i] * px + ky[i] * py + ph[i])
-        env = 0.2 + np.exp(-((px - W / 2) ** 2 / (2 * 110.0 ** 2) + (py - H / 2) ** 2 / (2 * 90.0 ** 2)))
+        env = 0.2 + np.exp(
+            -((px - W / 2) ** 2 / (2 * 110.0**2) + (py - H / 2) ** 2 / (2 * 90.0**2))
+        )
         return env * np.exp(0.4 * t * np.sqrt(2.0 / n))
 
     y, x = np.mgrid[0:H, 0:W].astype(np.float64)
@@ -178,5 +185,5 @@ def test_default_flow_resolves_a_rotating_vortex_pair(vortex_pair):
     curl = np.gradient(f.v, axis=1) - np.gradient(f.u, axis=0)
     true_curl = np.gradient(tv, axis=1) - np.gradient(tu, axis=0)
     for cx in (W / 2 - 35, W / 2 + 35):
-        core = (xx - cx) ** 2 + (yy - H / 2) ** 2 <= 12 ** 2
+        core = (xx - cx) ** 2 + (yy - H / 2) ** 2 <= 12**2
         assert curl[core].mean() == pytest.approx(true_curl[core].mean(), rel=0.2)

@@ -47,45 +47,49 @@ SceneStats ComputeStats(const CalibrationScene& s, std::size_t k, std::size_t np
   st.saturated.assign(npix, 0);
   st.under.assign(npix, 0);
   const std::size_t nf = s.num_frames;
-  ParallelFor(npix, 4096, [&](std::size_t b, std::size_t e) {
-    const std::size_t n = e - b;
-    // Branch-free accumulation (shifted by the first frame against
-    // cancellation); a non-finite count shows up in the sums.
-    std::vector<double> shift(n), sum(n, 0.0), sum2(n, 0.0);
-    std::vector<float> lo(n), hi(n);
-    for (std::size_t i = 0; i < n; ++i) {
-      shift[i] = s.frames[b + i];
-      lo[i] = hi[i] = s.frames[b + i];
-    }
-    for (std::size_t j = 0; j < nf; ++j) {
-      const float* row = s.frames + j * npix + b;
-      for (std::size_t i = 0; i < n; ++i) {
-        const double d = row[i] - shift[i];
-        sum[i] += d;
-        sum2[i] += d * d;
-        lo[i] = std::min(lo[i], row[i]);
-        hi[i] = std::max(hi[i], row[i]);
-      }
-    }
-    for (std::size_t i = 0; i < n; ++i) {
-      if (!std::isfinite(sum2[i])) {
-        for (std::size_t j = 0; j < nf; ++j) {
-          const float c = s.frames[j * npix + b + i];
-          if (!std::isfinite(c))
-            throw std::invalid_argument(
-                "calibration scene " + std::to_string(k) + ": frame " + std::to_string(j) +
-                " has a non-finite count at pixel " + std::to_string(b + i) + "; got " +
-                FormatNumber(c));
+  ParallelFor(
+      npix, 4096,
+      [&](std::size_t b, std::size_t e) {
+        const std::size_t n = e - b;
+        // Branch-free accumulation (shifted by the first frame against
+        // cancellation); a non-finite count shows up in the sums.
+        std::vector<double> shift(n), sum(n, 0.0), sum2(n, 0.0);
+        std::vector<float> lo(n), hi(n);
+        for (std::size_t i = 0; i < n; ++i) {
+          shift[i] = s.frames[b + i];
+          lo[i] = hi[i] = s.frames[b + i];
         }
-      }
-      const std::size_t p = b + i;
-      st.saturated[p] = hi[i] >= opt.saturation_counts;
-      st.under[p] = lo[i] <= opt.min_valid_counts;
-      const double m = sum[i] / nf;
-      st.mean_counts[p] = shift[i] + m;
-      st.std_counts[p] = nf > 1 ? std::sqrt(std::max(0.0, (sum2[i] - nf * m * m) / (nf - 1))) : 0.0;
-    }
-  }, opt.num_threads, control);
+        for (std::size_t j = 0; j < nf; ++j) {
+          const float* row = s.frames + j * npix + b;
+          for (std::size_t i = 0; i < n; ++i) {
+            const double d = row[i] - shift[i];
+            sum[i] += d;
+            sum2[i] += d * d;
+            lo[i] = std::min(lo[i], row[i]);
+            hi[i] = std::max(hi[i], row[i]);
+          }
+        }
+        for (std::size_t i = 0; i < n; ++i) {
+          if (!std::isfinite(sum2[i])) {
+            for (std::size_t j = 0; j < nf; ++j) {
+              const float c = s.frames[j * npix + b + i];
+              if (!std::isfinite(c))
+                throw std::invalid_argument("calibration scene " + std::to_string(k) + ": frame " +
+                                            std::to_string(j) +
+                                            " has a non-finite count at pixel " +
+                                            std::to_string(b + i) + "; got " + FormatNumber(c));
+            }
+          }
+          const std::size_t p = b + i;
+          st.saturated[p] = hi[i] >= opt.saturation_counts;
+          st.under[p] = lo[i] <= opt.min_valid_counts;
+          const double m = sum[i] / nf;
+          st.mean_counts[p] = shift[i] + m;
+          st.std_counts[p] =
+              nf > 1 ? std::sqrt(std::max(0.0, (sum2[i] - nf * m * m) / (nf - 1))) : 0.0;
+        }
+      },
+      opt.num_threads, control);
   for (std::size_t p = 0; p < npix; ++p) {
     st.num_saturated += st.saturated[p];
     st.num_under += st.under[p];
@@ -143,10 +147,10 @@ void CalibrationOptions::Check() const {
               saturation_counts > min_valid_counts,
           "saturation_counts must be finite and above min_valid_counts; got " +
               FormatNumber(saturation_counts) + " and " + FormatNumber(min_valid_counts));
-  Require(std::isfinite(bad_response_tolerance) && bad_response_tolerance > 0 &&
-              bad_response_tolerance < 1,
-          "bad_response_tolerance must be within (0, 1); got " +
-              FormatNumber(bad_response_tolerance));
+  Require(
+      std::isfinite(bad_response_tolerance) && bad_response_tolerance > 0 &&
+          bad_response_tolerance < 1,
+      "bad_response_tolerance must be within (0, 1); got " + FormatNumber(bad_response_tolerance));
   Require(std::isfinite(bad_noise_factor) && bad_noise_factor >= 1,
           "bad_noise_factor must be finite and >= 1; got " + FormatNumber(bad_noise_factor));
   Require(std::isfinite(max_bad_fraction) && max_bad_fraction >= 0 && max_bad_fraction < 1,
@@ -154,16 +158,16 @@ void CalibrationOptions::Check() const {
   Require(nuc_cold_scene >= -1 && nuc_hot_scene >= -1,
           "nuc_cold_scene and nuc_hot_scene must be scene indices or -1 (automatic); got " +
               std::to_string(nuc_cold_scene) + " and " + std::to_string(nuc_hot_scene));
-  Require(std::isfinite(blackbody_emissivity) && blackbody_emissivity > 0 &&
-              blackbody_emissivity <= 1,
-          "blackbody_emissivity must be within (0, 1]; got " +
-              FormatNumber(blackbody_emissivity));
+  Require(
+      std::isfinite(blackbody_emissivity) && blackbody_emissivity > 0 && blackbody_emissivity <= 1,
+      "blackbody_emissivity must be within (0, 1]; got " + FormatNumber(blackbody_emissivity));
   CheckNonNegative(ambient_temperature_K, "ambient_temperature_K", "K");
   Require(blackbody_emissivity == 1.0 || ambient_temperature_K > 0,
           "ambient_temperature_K must be given (> 0 K) when blackbody_emissivity < 1: the "
-          "source reflects its surroundings; got " + FormatNumber(ambient_temperature_K));
-  Require(num_threads >= 0, "num_threads must be >= 0 (0 = all cores); got " +
-                                std::to_string(num_threads));
+          "source reflects its surroundings; got " +
+              FormatNumber(ambient_temperature_K));
+  Require(num_threads >= 0,
+          "num_threads must be >= 0 (0 = all cores); got " + std::to_string(num_threads));
 }
 
 double CountsFluxCurve::Radiance(double flux) const {
@@ -175,15 +179,18 @@ double CountsFluxCurve::Radiance(double flux) const {
 }
 
 ChannelCalibration::ChannelCalibration(SpectralResponse channel, int height, int width,
-                                       std::vector<double> nuc_gain,
-                                       std::vector<double> nuc_offset,
-                                       std::vector<std::uint8_t> bad_pixels,
-                                       CountsFluxCurve curve,
+                                       std::vector<double> nuc_gain, std::vector<double> nuc_offset,
+                                       std::vector<std::uint8_t> bad_pixels, CountsFluxCurve curve,
                                        std::vector<CalibrationPoint> points,
                                        double saturation_counts, double min_valid_counts)
-    : height_(height), width_(width), gain_(std::move(nuc_gain)),
-      offset_(std::move(nuc_offset)), bad_(std::move(bad_pixels)), curve_(curve),
-      points_(std::move(points)), saturation_(saturation_counts),
+    : height_(height),
+      width_(width),
+      gain_(std::move(nuc_gain)),
+      offset_(std::move(nuc_offset)),
+      bad_(std::move(bad_pixels)),
+      curve_(curve),
+      points_(std::move(points)),
+      saturation_(saturation_counts),
       min_valid_(min_valid_counts) {
   channel_.push_back(std::move(channel));
   Require(height > 0 && width > 0, "calibration frame size must be positive; got " +
@@ -201,22 +208,20 @@ ChannelCalibration::ChannelCalibration(SpectralResponse channel, int height, int
   }
   Require(std::isfinite(curve_.gain) && std::isfinite(curve_.offset) &&
               std::isfinite(curve_.quadratic) && curve_.gain > 0,
-          "counts-flux curve gain must be finite and > 0; got G = " +
-              FormatNumber(curve_.gain) + ", O = " + FormatNumber(curve_.offset) +
-              ", Q = " + FormatNumber(curve_.quadratic));
+          "counts-flux curve gain must be finite and > 0; got G = " + FormatNumber(curve_.gain) +
+              ", O = " + FormatNumber(curve_.offset) + ", Q = " + FormatNumber(curve_.quadratic));
   Require(std::isfinite(saturation_) && std::isfinite(min_valid_) && saturation_ > min_valid_,
           "saturation_counts must be finite and above min_valid_counts; got " +
               FormatNumber(saturation_) + " and " + FormatNumber(min_valid_));
   if (!points_.empty())
     Require(curve_.Slope(min_radiance()) > 0 && curve_.Slope(max_radiance()) > 0,
             "counts-flux curve must increase over the calibrated radiances " +
-                FormatNumber(min_radiance()) + "-" + FormatNumber(max_radiance()) +
-                " W/(m2 sr)");
+                FormatNumber(min_radiance()) + "-" + FormatNumber(max_radiance()) + " W/(m2 sr)");
 }
 
 std::size_t ChannelCalibration::num_bad_pixels() const {
-  return static_cast<std::size_t>(std::count_if(bad_.begin(), bad_.end(),
-                                                [](std::uint8_t b) { return b != 0; }));
+  return static_cast<std::size_t>(
+      std::count_if(bad_.begin(), bad_.end(), [](std::uint8_t b) { return b != 0; }));
 }
 
 double ChannelCalibration::rms_residual_K() const {
@@ -241,12 +246,12 @@ double ChannelCalibration::max_radiance() const {
 namespace {
 std::vector<double> FrameTimes(const std::vector<double>& t, std::size_t num_frames) {
   Require(t.size() == 1 || t.size() == num_frames,
-          "integration_time_s must have one value or one per frame (" +
-              std::to_string(num_frames) + "); got " + std::to_string(t.size()));
+          "integration_time_s must have one value or one per frame (" + std::to_string(num_frames) +
+              "); got " + std::to_string(t.size()));
   for (std::size_t j = 0; j < t.size(); ++j)
     Require(std::isfinite(t[j]) && t[j] > 0,
-            "integration_time_s must be finite and > 0 s; integration_time_s[" +
-                std::to_string(j) + "] = " + FormatNumber(t[j]));
+            "integration_time_s must be finite and > 0 s; integration_time_s[" + std::to_string(j) +
+                "] = " + FormatNumber(t[j]));
   return t.size() == 1 ? std::vector<double>(num_frames, t[0]) : t;
 }
 }  // namespace
@@ -267,87 +272,95 @@ ApplyStats ChannelCalibration::CountsToRadiance(const float* raw, std::size_t nu
     if (bad_[p]) bad_list.push_back(p);
   // Rows of all frames, then bad pixels frame by frame (they read good
   // neighbours' radiances written by the first pass).
-  ParallelFor(num_frames * h, 8, [&](std::size_t b, std::size_t e) {
-    std::size_t local = 0;
-    for (std::size_t r = b; r < e; ++r) {
-      const std::size_t j = r / h;
-      const double inv_t = 1.0 / times[j];
-      const std::size_t pix0 = (r % h) * w, base = j * stride + pix0;
-      for (std::size_t x = 0; x < w; ++x) {
-        const std::size_t p = pix0 + x;
-        if (bad_[p]) continue;
-        const double c = raw[base + x];
-        if (!(c < saturation_ && c > min_valid_)) {
-          out[base + x] = std::numeric_limits<float>::quiet_NaN();
-          ++local;
-          continue;
-        }
-        out[base + x] =
-            static_cast<float>(curve_.Radiance(gain_[p] * c * inv_t + offset_[p]));
-      }
-    }
-    out_of_range += local;
-  }, num_threads, control);
-  if (bad_list.empty()) return {out_of_range.load(), 0, 0};
-  ParallelFor(num_frames, 1, [&](std::size_t b, std::size_t e) {
-    std::size_t rep = 0, unrep = 0;
-    for (std::size_t j = b; j < e; ++j) {
-      float* frame = out + j * stride;
-      for (std::size_t p : bad_list) {
-        if (!replace_bad_pixels) {
-          frame[p] = std::numeric_limits<float>::quiet_NaN();
-          ++unrep;
-          continue;
-        }
-        const std::ptrdiff_t y = p / w, x = p % w;
-        double sum = 0;
-        int n = 0;
-        for (std::ptrdiff_t dy = -1; dy <= 1; ++dy)
-          for (std::ptrdiff_t dx = -1; dx <= 1; ++dx) {
-            const std::ptrdiff_t yy = y + dy, xx = x + dx;
-            if ((dy == 0 && dx == 0) || yy < 0 || xx < 0 || yy >= static_cast<std::ptrdiff_t>(h) ||
-                xx >= static_cast<std::ptrdiff_t>(w))
+  ParallelFor(
+      num_frames * h, 8,
+      [&](std::size_t b, std::size_t e) {
+        std::size_t local = 0;
+        for (std::size_t r = b; r < e; ++r) {
+          const std::size_t j = r / h;
+          const double inv_t = 1.0 / times[j];
+          const std::size_t pix0 = (r % h) * w, base = j * stride + pix0;
+          for (std::size_t x = 0; x < w; ++x) {
+            const std::size_t p = pix0 + x;
+            if (bad_[p]) continue;
+            const double c = raw[base + x];
+            if (!(c < saturation_ && c > min_valid_)) {
+              out[base + x] = std::numeric_limits<float>::quiet_NaN();
+              ++local;
               continue;
-            const std::size_t q = yy * w + xx;
-            if (bad_[q] || !std::isfinite(frame[q])) continue;
-            sum += frame[q];
-            ++n;
+            }
+            out[base + x] = static_cast<float>(curve_.Radiance(gain_[p] * c * inv_t + offset_[p]));
           }
-        if (n > 0) {
-          frame[p] = static_cast<float>(sum / n);
-          ++rep;
-        } else {
-          frame[p] = std::numeric_limits<float>::quiet_NaN();
-          ++unrep;
         }
-      }
-    }
-    replaced += rep;
-    unreplaced += unrep;
-  }, num_threads, control);
+        out_of_range += local;
+      },
+      num_threads, control);
+  if (bad_list.empty()) return {out_of_range.load(), 0, 0};
+  ParallelFor(
+      num_frames, 1,
+      [&](std::size_t b, std::size_t e) {
+        std::size_t rep = 0, unrep = 0;
+        for (std::size_t j = b; j < e; ++j) {
+          float* frame = out + j * stride;
+          for (std::size_t p : bad_list) {
+            if (!replace_bad_pixels) {
+              frame[p] = std::numeric_limits<float>::quiet_NaN();
+              ++unrep;
+              continue;
+            }
+            const std::ptrdiff_t y = p / w, x = p % w;
+            double sum = 0;
+            int n = 0;
+            for (std::ptrdiff_t dy = -1; dy <= 1; ++dy)
+              for (std::ptrdiff_t dx = -1; dx <= 1; ++dx) {
+                const std::ptrdiff_t yy = y + dy, xx = x + dx;
+                if ((dy == 0 && dx == 0) || yy < 0 || xx < 0 ||
+                    yy >= static_cast<std::ptrdiff_t>(h) || xx >= static_cast<std::ptrdiff_t>(w))
+                  continue;
+                const std::size_t q = yy * w + xx;
+                if (bad_[q] || !std::isfinite(frame[q])) continue;
+                sum += frame[q];
+                ++n;
+              }
+            if (n > 0) {
+              frame[p] = static_cast<float>(sum / n);
+              ++rep;
+            } else {
+              frame[p] = std::numeric_limits<float>::quiet_NaN();
+              ++unrep;
+            }
+          }
+        }
+        replaced += rep;
+        unreplaced += unrep;
+      },
+      num_threads, control);
   return {out_of_range.load(), replaced.load(), unreplaced.load()};
 }
 
 void ChannelCalibration::RadianceToCounts(const float* radiance, std::size_t num_frames,
-                                          const std::vector<double>& integration_time_s,
-                                          float* out, std::size_t frame_stride, int num_threads,
+                                          const std::vector<double>& integration_time_s, float* out,
+                                          std::size_t frame_stride, int num_threads,
                                           const RunControl* control) const {
   const std::vector<double> times = FrameTimes(integration_time_s, num_frames);
   const std::size_t npix = static_cast<std::size_t>(height_) * width_;
   const std::size_t stride = frame_stride == 0 ? npix : frame_stride;
   Require(stride >= npix, "frame_stride must be >= height x width (" + std::to_string(npix) +
                               "); got " + std::to_string(stride));
-  ParallelFor(num_frames * npix, 16384, [&](std::size_t b, std::size_t e) {
-    for (std::size_t k = b; k < e; ++k) {
-      const std::size_t j = k / npix, p = k % npix, i = j * stride + p;
-      if (bad_[p]) {
-        out[i] = std::numeric_limits<float>::quiet_NaN();
-        continue;
-      }
-      const double f = (curve_.Flux(radiance[i]) - offset_[p]) / gain_[p];
-      out[i] = static_cast<float>(f * times[j]);
-    }
-  }, num_threads, control);
+  ParallelFor(
+      num_frames * npix, 16384,
+      [&](std::size_t b, std::size_t e) {
+        for (std::size_t k = b; k < e; ++k) {
+          const std::size_t j = k / npix, p = k % npix, i = j * stride + p;
+          if (bad_[p]) {
+            out[i] = std::numeric_limits<float>::quiet_NaN();
+            continue;
+          }
+          const double f = (curve_.Flux(radiance[i]) - offset_[p]) / gain_[p];
+          out[i] = static_cast<float>(f * times[j]);
+        }
+      },
+      num_threads, control);
 }
 
 ApplyStats CountsToRadiance(const std::vector<ChannelCalibration>& channels, const float* raw,
@@ -358,12 +371,12 @@ ApplyStats CountsToRadiance(const std::vector<ChannelCalibration>& channels, con
   const std::size_t nc = channels.size();
   const std::size_t npix = static_cast<std::size_t>(channels[0].height()) * channels[0].width();
   for (std::size_t c = 1; c < nc; ++c)
-    Require(channels[c].height() == channels[0].height() &&
-                channels[c].width() == channels[0].width(),
-            "channel calibrations must share one frame size; channel " + std::to_string(c) +
-                " is " + std::to_string(channels[c].height()) + "x" +
-                std::to_string(channels[c].width()) + ", channel 0 " +
-                std::to_string(channels[0].height()) + "x" + std::to_string(channels[0].width()));
+    Require(
+        channels[c].height() == channels[0].height() && channels[c].width() == channels[0].width(),
+        "channel calibrations must share one frame size; channel " + std::to_string(c) + " is " +
+            std::to_string(channels[c].height()) + "x" + std::to_string(channels[c].width()) +
+            ", channel 0 " + std::to_string(channels[0].height()) + "x" +
+            std::to_string(channels[0].width()));
   Require(integration_time_s.size() == nc || integration_time_s.size() == num_frames * nc,
           "integration_time_s must have one value per channel (" + std::to_string(nc) +
               ") or per frame and channel (" + std::to_string(num_frames * nc) + "); got " +
@@ -376,9 +389,9 @@ ApplyStats CountsToRadiance(const std::vector<ChannelCalibration>& channels, con
     } else {
       for (std::size_t j = 0; j < num_frames; ++j) times.push_back(integration_time_s[j * nc + c]);
     }
-    const ApplyStats s = channels[c].CountsToRadiance(raw + c * npix, num_frames, times,
-                                                      out + c * npix, replace_bad_pixels,
-                                                      nc * npix, num_threads, control);
+    const ApplyStats s =
+        channels[c].CountsToRadiance(raw + c * npix, num_frames, times, out + c * npix,
+                                     replace_bad_pixels, nc * npix, num_threads, control);
     total.out_of_range += s.out_of_range;
     total.replaced += s.replaced;
     total.unreplaced += s.unreplaced;
@@ -388,8 +401,7 @@ ApplyStats CountsToRadiance(const std::vector<ChannelCalibration>& channels, con
 
 ChannelCalibration FitChannelCalibration(const SpectralResponse& channel, int height, int width,
                                          const std::vector<CalibrationScene>& scenes,
-                                         const CalibrationOptions& opt,
-                                         const RunControl* control) {
+                                         const CalibrationOptions& opt, const RunControl* control) {
   opt.Check();
   Require(height > 0 && width > 0, "calibration frame size must be positive; got " +
                                        std::to_string(height) + "x" + std::to_string(width));
@@ -430,10 +442,10 @@ ChannelCalibration FitChannelCalibration(const SpectralResponse& channel, int he
   }
   if (opt.nuc_cold_scene >= 0) cold = opt.nuc_cold_scene;
   if (opt.nuc_hot_scene >= 0) hot = opt.nuc_hot_scene;
-  Require(cold < ns && hot < ns,
-          "nuc_cold_scene and nuc_hot_scene must index the " + std::to_string(ns) +
-              " scenes; got " + std::to_string(opt.nuc_cold_scene) + " and " +
-              std::to_string(opt.nuc_hot_scene));
+  Require(cold < ns && hot < ns, "nuc_cold_scene and nuc_hot_scene must index the " +
+                                     std::to_string(ns) + " scenes; got " +
+                                     std::to_string(opt.nuc_cold_scene) + " and " +
+                                     std::to_string(opt.nuc_hot_scene));
   Require(scenes[hot].blackbody_temperature_K > scenes[cold].blackbody_temperature_K,
           "the hot NUC scene must be warmer than the cold one; got " + SceneName(scenes, hot) +
               " and " + SceneName(scenes, cold));
@@ -479,11 +491,12 @@ ChannelCalibration FitChannelCalibration(const SpectralResponse& channel, int he
   }
   Require(!resp_ok.empty(), "every pixel is out of range in some calibration scene");
   const double med_resp = Median(resp_ok);
-  Require(med_resp > 0,
-          "the hot NUC " + SceneName(scenes, hot) + " does not read more counts/s than the "
-          "cold NUC " + SceneName(scenes, cold) + " (median responsivity " +
-              FormatNumber(med_resp) +
-              " counts/s); check the blackbody temperatures and the scene order");
+  Require(med_resp > 0, "the hot NUC " + SceneName(scenes, hot) +
+                            " does not read more counts/s than the "
+                            "cold NUC " +
+                            SceneName(scenes, cold) + " (median responsivity " +
+                            FormatNumber(med_resp) +
+                            " counts/s); check the blackbody temperatures and the scene order");
   const bool noise_test = scenes[hot].num_frames > 1 && scenes[cold].num_frames > 1;
   const double med_noise = noise_test ? Median(noise_ok) : 0.0;
   std::size_t n_resp = 0, n_noise = 0, n_range = 0;
@@ -502,13 +515,12 @@ ChannelCalibration FitChannelCalibration(const SpectralResponse& channel, int he
   }
   const std::size_t n_bad = n_resp + n_noise + n_range;
   Require(static_cast<double>(n_bad) <= opt.max_bad_fraction * npix,
-          "too many bad pixels: " + std::to_string(n_bad) + " of " + std::to_string(npix) +
-              " (" + Percent(static_cast<double>(n_bad) / npix) + "; at most " +
+          "too many bad pixels: " + std::to_string(n_bad) + " of " + std::to_string(npix) + " (" +
+              Percent(static_cast<double>(n_bad) / npix) + "; at most " +
               Percent(opt.max_bad_fraction) + "): " + std::to_string(n_resp) +
-              " with responsivity off the median by > " +
-              Percent(opt.bad_response_tolerance) + ", " + std::to_string(n_noise) +
-              " with temporal noise > " + FormatNumber(opt.bad_noise_factor) +
-              " x the median, " + std::to_string(n_range) +
+              " with responsivity off the median by > " + Percent(opt.bad_response_tolerance) +
+              ", " + std::to_string(n_noise) + " with temporal noise > " +
+              FormatNumber(opt.bad_noise_factor) + " x the median, " + std::to_string(n_range) +
               " out of range; check the NUC scenes are uniform and unsaturated");
 
   // Two-point NUC onto the mean good pixel.
@@ -532,9 +544,9 @@ ChannelCalibration FitChannelCalibration(const SpectralResponse& channel, int he
   // Corrected array-mean flux and residual fixed pattern of each scene.
   std::vector<double> mean_flux(ns), spread(ns), radiance(ns), slope_t(ns);
   const double eps = opt.blackbody_emissivity;
-  const double l_amb =
-      (eps < 1.0 && opt.ambient_temperature_K > 0) ? channel.BandRadiance(opt.ambient_temperature_K)
-                                                   : 0.0;
+  const double l_amb = (eps < 1.0 && opt.ambient_temperature_K > 0)
+                           ? channel.BandRadiance(opt.ambient_temperature_K)
+                           : 0.0;
   for (std::size_t k = 0; k < ns; ++k) {
     double s = 0, s2 = 0;
     for (std::size_t p = 0; p < npix; ++p) {
@@ -553,29 +565,26 @@ ChannelCalibration FitChannelCalibration(const SpectralResponse& channel, int he
   // Monotonic: a warmer source must read more counts/s.
   std::vector<std::size_t> order(ns);
   std::iota(order.begin(), order.end(), 0);
-  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-    return radiance[a] < radiance[b];
-  });
+  std::sort(order.begin(), order.end(),
+            [&](std::size_t a, std::size_t b) { return radiance[a] < radiance[b]; });
   for (std::size_t i = 1; i < ns; ++i) {
     const std::size_t lo = order[i - 1], hi = order[i];
     if (radiance[hi] <= radiance[lo] * (1.0 + 1e-12)) continue;  // same temperature
     Require(mean_flux[hi] > mean_flux[lo],
             "counts-flux data are not monotonic: " + SceneName(scenes, hi) + " reads " +
-                FormatNumber(mean_flux[hi]) + " counts/s, not more than " +
-                SceneName(scenes, lo) + " with " + FormatNumber(mean_flux[lo]) +
+                FormatNumber(mean_flux[hi]) + " counts/s, not more than " + SceneName(scenes, lo) +
+                " with " + FormatNumber(mean_flux[lo]) +
                 " counts/s; check the blackbody temperatures, integration times and "
                 "saturation");
   }
 
   CountsFluxCurve curve;
-  FitPolynomial(radiance, mean_flux, opt.quadratic, &curve.offset, &curve.gain,
-                &curve.quadratic);
+  FitPolynomial(radiance, mean_flux, opt.quadratic, &curve.offset, &curve.gain, &curve.quadratic);
   const double l_lo = radiance[order.front()], l_hi = radiance[order.back()];
   Require(curve.Slope(l_lo) > 0 && curve.Slope(l_hi) > 0,
           "the fitted counts-flux curve does not increase over the calibrated radiances " +
-              FormatNumber(l_lo) + "-" + FormatNumber(l_hi) +
-              " W/(m2 sr) (G = " + FormatNumber(curve.gain) + ", Q = " +
-              FormatNumber(curve.quadratic) +
+              FormatNumber(l_lo) + "-" + FormatNumber(l_hi) + " W/(m2 sr) (G = " +
+              FormatNumber(curve.gain) + ", Q = " + FormatNumber(curve.quadratic) +
               "); use the linear fit or add calibration temperatures");
 
   std::vector<CalibrationPoint> points(ns);

@@ -66,9 +66,10 @@ struct CalibrationOptions {
   // this multiple of the median is bad [-]; default 6, >= 1. Needs >= 2
   // frames per NUC scene (otherwise not applied).
   double bad_noise_factor = 6.0;
-  double max_bad_fraction = 0.05;  // more bad pixels than this fraction is an error [-]; default 0.05
+  double max_bad_fraction =
+      0.05;  // more bad pixels than this fraction is an error [-]; default 0.05
   int nuc_cold_scene = -1;  // index of the cold NUC scene; default -1 = the coldest
-  int nuc_hot_scene = -1;   // index of the hot NUC scene; default -1 = the hottest
+  int nuc_hot_scene = -1;  // index of the hot NUC scene; default -1 = the hottest
   double blackbody_emissivity = 1.0;  // emissivity of the calibration source [-]; default 1, (0, 1]
   // Temperature of the surroundings reflected by the source [K]; default 0 =
   // none (only needed when blackbody_emissivity < 1).
@@ -81,15 +82,15 @@ struct CalibrationOptions {
 // (row-major, frame after frame) at one integration time.
 struct CalibrationScene {
   double blackbody_temperature_K = 0;  // source temperature [K]
-  double integration_time_s = 0;       // integration (exposure) time [s]
-  const float* frames = nullptr;       // raw counts, num_frames x height x width
+  double integration_time_s = 0;  // integration (exposure) time [s]
+  const float* frames = nullptr;  // raw counts, num_frames x height x width
   std::size_t num_frames = 0;
 };
 
 // F(L) = G L + O + Q L^2 [counts/s] of band radiance L [W/(m2 sr)].
 struct CountsFluxCurve {
-  double gain = 0;       // G [counts/s per W/(m2 sr)]
-  double offset = 0;     // O [counts/s]
+  double gain = 0;  // G [counts/s per W/(m2 sr)]
+  double offset = 0;  // O [counts/s]
   double quadratic = 0;  // Q [counts/s per (W/(m2 sr))^2]
   double Flux(double radiance) const { return (quadratic * radiance + gain) * radiance + offset; }
   double Slope(double radiance) const { return 2.0 * quadratic * radiance + gain; }
@@ -100,19 +101,19 @@ struct CountsFluxCurve {
 // Per-scene fit diagnostics.
 struct CalibrationPoint {
   double blackbody_temperature_K = 0;  // [K]
-  double integration_time_s = 0;       // [s]
-  double radiance = 0;                 // L_k of the source [W/(m2 sr)]
-  double mean_flux = 0;                // F_k, corrected, over good pixels [counts/s]
-  double residual_flux = 0;            // F_k - F(L_k) [counts/s]
-  double residual_K = 0;               // the residual as a temperature [K]
-  double spatial_noise_K = 0;          // std over good pixels of the corrected flux [K]
+  double integration_time_s = 0;  // [s]
+  double radiance = 0;  // L_k of the source [W/(m2 sr)]
+  double mean_flux = 0;  // F_k, corrected, over good pixels [counts/s]
+  double residual_flux = 0;  // F_k - F(L_k) [counts/s]
+  double residual_K = 0;  // the residual as a temperature [K]
+  double spatial_noise_K = 0;  // std over good pixels of the corrected flux [K]
 };
 
 // Counts of pixels affected by one conversion.
 struct ApplyStats {
   std::size_t out_of_range = 0;  // values saturated or under range: NaN
-  std::size_t replaced = 0;      // bad-pixel values replaced by neighbours
-  std::size_t unreplaced = 0;    // bad-pixel values without a good neighbour: NaN
+  std::size_t replaced = 0;  // bad-pixel values replaced by neighbours
+  std::size_t unreplaced = 0;  // bad-pixel values without a good neighbour: NaN
 };
 
 class ChannelCalibration {
@@ -120,11 +121,10 @@ class ChannelCalibration {
   // From stored parts (e.g. a saved calibration). Maps are height x width,
   // row-major; bad_pixels nonzero = bad. Throws std::invalid_argument for
   // inconsistent parts.
-  ChannelCalibration(SpectralResponse channel, int height, int width,
-                     std::vector<double> nuc_gain, std::vector<double> nuc_offset,
-                     std::vector<std::uint8_t> bad_pixels, CountsFluxCurve curve,
-                     std::vector<CalibrationPoint> points, double saturation_counts,
-                     double min_valid_counts);
+  ChannelCalibration(SpectralResponse channel, int height, int width, std::vector<double> nuc_gain,
+                     std::vector<double> nuc_offset, std::vector<std::uint8_t> bad_pixels,
+                     CountsFluxCurve curve, std::vector<CalibrationPoint> points,
+                     double saturation_counts, double min_valid_counts);
 
   const SpectralResponse& channel() const { return channel_[0]; }
   int height() const { return height_; }

@@ -70,8 +70,8 @@ Data MakeScenes(const SyntheticCamera& cam, const std::vector<double>& temps,
                 const std::vector<double>& t_int, int n_frames = 8) {
   Data d;
   for (std::size_t k = 0; k < temps.size(); ++k)
-    d.frames.push_back(cam.Frames(cam.Radiance(temps[k]), t_int[k % t_int.size()], n_frames,
-                                  100 + k));
+    d.frames.push_back(
+        cam.Frames(cam.Radiance(temps[k]), t_int[k % t_int.size()], n_frames, 100 + k));
   for (std::size_t k = 0; k < temps.size(); ++k)
     d.scenes.push_back({temps[k], t_int[k % t_int.size()], d.frames[k].data(),
                         static_cast<std::size_t>(n_frames)});
@@ -156,8 +156,7 @@ TEST(Calibration, QuadraticResponseNeedsTheQuadraticTerm) {
   const ChannelCalibration lin = FitChannelCalibration(cam.channel, cam.h, cam.w, d.scenes);
   CalibrationOptions opt;
   opt.quadratic = true;
-  const ChannelCalibration quad =
-      FitChannelCalibration(cam.channel, cam.h, cam.w, d.scenes, opt);
+  const ChannelCalibration quad = FitChannelCalibration(cam.channel, cam.h, cam.w, d.scenes, opt);
   EXPECT_GT(lin.rms_residual_K(), 0.05);  // the linear model misses the curvature
   EXPECT_LT(quad.rms_residual_K(), 1e-4);
   double mg = 0;
@@ -281,8 +280,7 @@ TEST(Calibration, CameraStacksAreConvertedChannelByChannel) {
   for (int j = 0; j < 2; ++j)
     for (std::size_t p = 0; p < npix; ++p) {
       EXPECT_NEAR(out[(2 * j) * npix + p], a.Radiance(300.0 + j), 2e-6 * a.Radiance(300.0 + j));
-      EXPECT_NEAR(out[(2 * j + 1) * npix + p], b.Radiance(300.0 + j),
-                  2e-6 * b.Radiance(300.0 + j));
+      EXPECT_NEAR(out[(2 * j + 1) * npix + p], b.Radiance(300.0 + j), 2e-6 * b.Radiance(300.0 + j));
     }
   // In place, with one time per channel.
   std::vector<float> f0(stack.begin(), stack.begin() + 2 * npix);

@@ -25,8 +25,8 @@ double Step(double x, double x0, double w) {
 }
 }  // namespace
 
-std::vector<double> BandpassTransmittance(const std::vector<double>& nu, double lo_um,
-                                          double hi_um, double peak, double edge_um) {
+std::vector<double> BandpassTransmittance(const std::vector<double>& nu, double lo_um, double hi_um,
+                                          double peak, double edge_um) {
   Require(lo_um > 0 && hi_um > lo_um, "band-pass edges must satisfy 0 < lo < hi um");
   std::vector<double> out(nu.size());
   for (std::size_t i = 0; i < nu.size(); ++i) {

@@ -51,8 +51,8 @@ double StandardNormalDraw(std::uint64_t seed, std::uint64_t index) {
 }
 
 void AddGaussianNoise(float* frames, std::size_t num_frames, std::size_t pixels_per_frame,
-                      const std::vector<double>& sigma_L, std::uint64_t seed,
-                      std::uint64_t offset, int num_threads, const RunControl* control) {
+                      const std::vector<double>& sigma_L, std::uint64_t seed, std::uint64_t offset,
+                      int num_threads, const RunControl* control) {
   Require(!sigma_L.empty(), "sigma_L must have one value per channel; got none");
   Require(pixels_per_frame > 0, "pixels_per_frame must be > 0");
   for (std::size_t c = 0; c < sigma_L.size(); ++c)
@@ -66,31 +66,33 @@ void AddGaussianNoise(float* frames, std::size_t num_frames, std::size_t pixels_
   // Chunks start on even global indices so that pairs never straddle chunks.
   const std::size_t chunk = 1 << 15;
   const std::size_t lead = offset % 2;  // first element is the sine of its pair
-  ParallelFor((n + lead + chunk - 1) / chunk, 1, [&](std::size_t cb, std::size_t ce) {
-    for (std::size_t ck = cb; ck < ce; ++ck) {
-      // Local indices [b, e) of this chunk in the caller's array.
-      const std::size_t gb = ck * chunk, ge = std::min(n + lead, gb + chunk);
-      std::size_t i = gb > lead ? gb - lead : 0;
-      const std::size_t e = ge - lead;
-      while (i < e) {
-        const std::uint64_t g = offset + i;  // global draw index
-        double z0, z1;
-        NormalPair(key, g / 2, &z0, &z1);
-        const std::size_t c = (i / pixels_per_frame) % nc;
-        if (g % 2 == 0) {
-          frames[i] += static_cast<float>(sigma_L[c] * z0);
-          if (i + 1 < e) {
-            const std::size_t c1 = ((i + 1) / pixels_per_frame) % nc;
-            frames[i + 1] += static_cast<float>(sigma_L[c1] * z1);
-          }
-          i += 2;
-        } else {
-          frames[i] += static_cast<float>(sigma_L[c] * z1);
-          i += 1;
-        }
-      }
-    }
-  }, num_threads, control);
+  ParallelFor((n + lead + chunk - 1) / chunk, 1,
+              [&](std::size_t cb, std::size_t ce) {
+                for (std::size_t ck = cb; ck < ce; ++ck) {
+                  // Local indices [b, e) of this chunk in the caller's array.
+                  const std::size_t gb = ck * chunk, ge = std::min(n + lead, gb + chunk);
+                  std::size_t i = gb > lead ? gb - lead : 0;
+                  const std::size_t e = ge - lead;
+                  while (i < e) {
+                    const std::uint64_t g = offset + i;  // global draw index
+                    double z0, z1;
+                    NormalPair(key, g / 2, &z0, &z1);
+                    const std::size_t c = (i / pixels_per_frame) % nc;
+                    if (g % 2 == 0) {
+                      frames[i] += static_cast<float>(sigma_L[c] * z0);
+                      if (i + 1 < e) {
+                        const std::size_t c1 = ((i + 1) / pixels_per_frame) % nc;
+                        frames[i + 1] += static_cast<float>(sigma_L[c1] * z1);
+                      }
+                      i += 2;
+                    } else {
+                      frames[i] += static_cast<float>(sigma_L[c] * z1);
+                      i += 1;
+                    }
+                  }
+                }
+              },
+              num_threads, control);
 }
 
 }  // namespace qogi

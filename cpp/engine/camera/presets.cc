@@ -62,7 +62,8 @@ CameraModel FastM150() {
       "4 CH4 + H2O band-pass 2.70-3.45 um, adding the wing of the H2O 2.7 um band. "
       "Approximated: the filter curves are not public; each is a flat-topped band-pass "
       "(0.80 peak, 0.03 um edges) times an AR-coated MWIR lens; the detector is flat over "
-      "1.5-5.4 um. IFOV assumed 0.6 mrad (30 um pitch behind a 50 mm lens; 2 mm pixels at 3.3 m, like the thesis's synthetic scenes). Note: the HITRAN CO2 "
+      "1.5-5.4 um. IFOV assumed 0.6 mrad (30 um pitch behind a 50 mm lens; 2 mm pixels at 3.3 m, "
+      "like the thesis's synthetic scenes). Note: the HITRAN CO2 "
       "list shipped for tests covers 2100-2300 cm-1 only, so with it the CO2 channel sees "
       "only the low-wavenumber edge of the nu3 band.";
   c.width = 320;
@@ -84,7 +85,7 @@ CameraModel FastM150() {
 
 const std::map<std::string, CameraModel (*)()>& Registry() {
   static const std::map<std::string, CameraModel (*)()> r = {{"gf320", &Gf320},
-                                                               {"fast-m150", &FastM150}};
+                                                             {"fast-m150", &FastM150}};
   return r;
 }
 

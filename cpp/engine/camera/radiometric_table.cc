@@ -74,22 +74,26 @@ RadiometricTable::RadiometricTable(SpectralResponse channel, double t_min_K, dou
               t_min_K > SpectralResponse::kMinTemperature_K && t_max_K > t_min_K &&
               t_max_K < SpectralResponse::kMaxTemperature_K,
           "RadiometricTable: t_min_K and t_max_K must satisfy 10 < t_min_K < t_max_K < 1e5 K; "
-          "got " + FormatNumber(t_min_K) + " and " + FormatNumber(t_max_K));
+          "got " +
+              FormatNumber(t_min_K) + " and " + FormatNumber(t_max_K));
   Require(nodes >= 16, "RadiometricTable: nodes must be >= 16; got " + std::to_string(nodes));
   const std::size_t n = static_cast<std::size_t>(nodes);
 
   // Forward: y = ln L on a uniform grid in u = 1/T (u0 = 1/t_max).
   const double u0 = 1.0 / t_max_, du = (1.0 / t_min_ - u0) / (n - 1);
   std::vector<double> y(n), dy(n);
-  ParallelFor(n, 16, [&](std::size_t b, std::size_t e) {
-    for (std::size_t i = b; i < e; ++i) {
-      const double u = u0 + i * du, t = 1.0 / u;
-      double l, dl;
-      BandRadianceAndSlope(channel_, t, &l, &dl);
-      y[i] = std::log(l);
-      dy[i] = -(dl / l) * t * t;  // d ln L / du
-    }
-  }, num_threads);
+  ParallelFor(
+      n, 16,
+      [&](std::size_t b, std::size_t e) {
+        for (std::size_t i = b; i < e; ++i) {
+          const double u = u0 + i * du, t = 1.0 / u;
+          double l, dl;
+          BandRadianceAndSlope(channel_, t, &l, &dl);
+          y[i] = std::log(l);
+          dy[i] = -(dl / l) * t * t;  // d ln L / du
+        }
+      },
+      num_threads);
   forward_ = Hermite(u0, du, y, dy);
   l_max_ = std::exp(y.front());
   l_min_ = std::exp(y.back());
@@ -100,25 +104,31 @@ RadiometricTable::RadiometricTable(SpectralResponse channel, double t_min_K, dou
   // the forward table, polished by Newton steps on the exact L(T).
   const double x0 = std::log(l_min_), dx = (std::log(l_max_) - x0) / (n - 1);
   std::vector<double> u(n), du_dx(n);
-  ParallelFor(n, 16, [&](std::size_t b, std::size_t e) {
-    for (std::size_t i = b; i < e; ++i) {
-      const double x = x0 + i * dx;
-      // Invert the forward cubic by bisection on u (monotone), then Newton.
-      double lo = u0, hi = u0 + (n - 1) * du;
-      for (int k = 0; k < 60; ++k) {
-        const double mid = 0.5 * (lo + hi);
-        if (forward_.Eval(mid) > x) lo = mid; else hi = mid;
-      }
-      double t = 2.0 / (lo + hi), l = 0, dl = 1;
-      for (int k = 0; k < 3; ++k) {
-        BandRadianceAndSlope(channel_, t, &l, &dl);
-        t -= (std::log(l) - x) * l / dl;
-      }
-      BandRadianceAndSlope(channel_, t, &l, &dl);
-      u[i] = 1.0 / t;
-      du_dx[i] = -(l / dl) / (t * t);  // du/dx = (dT/d ln L) (du/dT)
-    }
-  }, num_threads);
+  ParallelFor(
+      n, 16,
+      [&](std::size_t b, std::size_t e) {
+        for (std::size_t i = b; i < e; ++i) {
+          const double x = x0 + i * dx;
+          // Invert the forward cubic by bisection on u (monotone), then Newton.
+          double lo = u0, hi = u0 + (n - 1) * du;
+          for (int k = 0; k < 60; ++k) {
+            const double mid = 0.5 * (lo + hi);
+            if (forward_.Eval(mid) > x)
+              lo = mid;
+            else
+              hi = mid;
+          }
+          double t = 2.0 / (lo + hi), l = 0, dl = 1;
+          for (int k = 0; k < 3; ++k) {
+            BandRadianceAndSlope(channel_, t, &l, &dl);
+            t -= (std::log(l) - x) * l / dl;
+          }
+          BandRadianceAndSlope(channel_, t, &l, &dl);
+          u[i] = 1.0 / t;
+          du_dx[i] = -(l / dl) / (t * t);  // du/dx = (dT/d ln L) (du/dT)
+        }
+      },
+      num_threads);
   inverse_ = Hermite(x0, dx, u, du_dx);
 }
 
@@ -158,16 +168,22 @@ double RadiometricTable::Temperature(double l) const {
 
 void RadiometricTable::Radiance(const float* in, float* out, std::size_t n, int num_threads,
                                 const RunControl* control) const {
-  ParallelFor(n, 16384, [&](std::size_t b, std::size_t e) {
-    for (std::size_t i = b; i < e; ++i) out[i] = static_cast<float>(Radiance(in[i]));
-  }, num_threads, control);
+  ParallelFor(
+      n, 16384,
+      [&](std::size_t b, std::size_t e) {
+        for (std::size_t i = b; i < e; ++i) out[i] = static_cast<float>(Radiance(in[i]));
+      },
+      num_threads, control);
 }
 
-void RadiometricTable::Temperature(const float* in, float* out, std::size_t n,
-                                   int num_threads, const RunControl* control) const {
-  ParallelFor(n, 16384, [&](std::size_t b, std::size_t e) {
-    for (std::size_t i = b; i < e; ++i) out[i] = static_cast<float>(Temperature(in[i]));
-  }, num_threads, control);
+void RadiometricTable::Temperature(const float* in, float* out, std::size_t n, int num_threads,
+                                   const RunControl* control) const {
+  ParallelFor(
+      n, 16384,
+      [&](std::size_t b, std::size_t e) {
+        for (std::size_t i = b; i < e; ++i) out[i] = static_cast<float>(Temperature(in[i]));
+      },
+      num_threads, control);
 }
 
 }  // namespace qogi

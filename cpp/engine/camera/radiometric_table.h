@@ -26,8 +26,7 @@ class RadiometricTable {
   // (10 < t_min_K < t_max_K < 1e5 K); nodes per direction (>= 16).
   // Building costs ~3 nodes x the channel's quadrature size exponentials.
   explicit RadiometricTable(SpectralResponse channel, double t_min_K = 150.0,
-                            double t_max_K = 1500.0, int nodes = 512,
-                            int num_threads = 0);
+                            double t_max_K = 1500.0, int nodes = 512, int num_threads = 0);
 
   const SpectralResponse& channel() const { return channel_; }
   double t_min_K() const { return t_min_; }
@@ -49,10 +48,10 @@ class RadiometricTable {
   double Temperature(double band_radiance) const;
 
   // Elementwise over n float32 values, in parallel (in and out may alias).
-  void Radiance(const float* temperature_K, float* out, std::size_t n,
-                int num_threads = 0, const RunControl* control = nullptr) const;
-  void Temperature(const float* band_radiance, float* out, std::size_t n,
-                   int num_threads = 0, const RunControl* control = nullptr) const;
+  void Radiance(const float* temperature_K, float* out, std::size_t n, int num_threads = 0,
+                const RunControl* control = nullptr) const;
+  void Temperature(const float* band_radiance, float* out, std::size_t n, int num_threads = 0,
+                   const RunControl* control = nullptr) const;
 
  private:
   struct Cubic {

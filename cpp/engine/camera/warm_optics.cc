@@ -33,8 +33,8 @@ void CheckTemperature(double t, const char* name) {
 // The response r = d tau_f tau_l, validated first so that its errors name
 // the components rather than the product.
 SpectralResponse MakeResponse(const std::vector<double>& nu, const std::vector<double>& d,
-                              const std::vector<double>& tau_f,
-                              const std::vector<double>& tau_l, const std::string& name) {
+                              const std::vector<double>& tau_f, const std::vector<double>& tau_l,
+                              const std::string& name) {
   const std::string who = "ChannelOptics" + (name.empty() ? "" : " '" + name + "'");
   CheckSameLength(nu.size(), d.size(), "nu_cm1", "detector_response");
   CheckSameLength(nu.size(), tau_f.size(), "nu_cm1", "filter_transmittance");
@@ -50,8 +50,7 @@ SpectralResponse MakeResponse(const std::vector<double>& nu, const std::vector<d
 
 }  // namespace
 
-ChannelOptics::Term ChannelOptics::MakeTerm(const std::vector<double>& nu,
-                                            std::vector<double> w) {
+ChannelOptics::Term ChannelOptics::MakeTerm(const std::vector<double>& nu, std::vector<double> w) {
   Term t;
   for (double& x : w)
     if (x < 0) x = 0;  // rounding of 1 - tau_f - rho_f at tau_f + rho_f = 1
@@ -154,8 +153,8 @@ std::vector<double> Grid(double lo_cm1, double hi_cm1, double step_cm1) {
 
 ChannelOptics Optics(const std::string& name, const std::vector<double>& nu,
                      std::vector<double> filter) {
-  return ChannelOptics(nu, InSbDetectorResponse(nu), std::move(filter),
-                       MwirLensTransmittance(nu), {}, name);
+  return ChannelOptics(nu, InSbDetectorResponse(nu), std::move(filter), MwirLensTransmittance(nu),
+                       {}, name);
 }
 
 }  // namespace
@@ -167,17 +166,17 @@ std::vector<ChannelOptics> CameraPresetOptics(const std::string& name) {
     // The preset samples 2800-3300 cm-1 every 0.5 cm-1; the same step over
     // the whole InSb range contains those samples exactly.
     const std::vector<double> nu = Grid(1800.0, 6700.0, 0.5);
-    out.push_back(Optics(preset.channels[0].name(), nu,
-                         BandpassTransmittance(nu, 3.20, 3.40, 0.85, 0.02)));
+    out.push_back(
+        Optics(preset.channels[0].name(), nu, BandpassTransmittance(nu, 3.20, 3.40, 0.85, 0.02)));
   } else if (name == "fast-m150") {
     const std::vector<double> nu = Grid(1800.0, 6700.0, 1.0);
     out.push_back(Optics(preset.channels[0].name(), nu, std::vector<double>(nu.size(), 1.0)));
-    out.push_back(Optics(preset.channels[1].name(), nu,
-                         BandpassTransmittance(nu, 4.17, 4.45, 0.80, 0.03)));
-    out.push_back(Optics(preset.channels[2].name(), nu,
-                         BandpassTransmittance(nu, 3.15, 3.45, 0.80, 0.03)));
-    out.push_back(Optics(preset.channels[3].name(), nu,
-                         BandpassTransmittance(nu, 2.70, 3.45, 0.80, 0.03)));
+    out.push_back(
+        Optics(preset.channels[1].name(), nu, BandpassTransmittance(nu, 4.17, 4.45, 0.80, 0.03)));
+    out.push_back(
+        Optics(preset.channels[2].name(), nu, BandpassTransmittance(nu, 3.15, 3.45, 0.80, 0.03)));
+    out.push_back(
+        Optics(preset.channels[3].name(), nu, BandpassTransmittance(nu, 2.70, 3.45, 0.80, 0.03)));
   } else {
     throw std::invalid_argument("camera preset '" + name +
                                 "' has no optics breakdown (filter, lens, detector)");

@@ -41,8 +41,7 @@ class ChannelOptics {
   // transmittance (in [0, 1]), and optionally the filter reflectance (in
   // [0, 1], empty = 0) with tau_f + rho_f <= 1 everywhere.
   ChannelOptics(std::vector<double> nu_cm1, std::vector<double> detector_response,
-                std::vector<double> filter_transmittance,
-                std::vector<double> lens_transmittance,
+                std::vector<double> filter_transmittance, std::vector<double> lens_transmittance,
                 std::vector<double> filter_reflectance = {}, std::string name = "");
 
   const std::string& name() const { return name_; }
@@ -72,13 +71,13 @@ class ChannelOptics {
   double DetectorBandRadiance(double temperature_K) const;
 
   // Forward: channel band radiance -> measured; correction: the inverse.
-  double Measured(double channel_radiance, double lens_temperature_K,
-                  double filter_temperature_K, double reflected_temperature_K = 0.0) const {
+  double Measured(double channel_radiance, double lens_temperature_K, double filter_temperature_K,
+                  double reflected_temperature_K = 0.0) const {
     return channel_radiance +
            WarmRadiance(lens_temperature_K, filter_temperature_K, reflected_temperature_K);
   }
-  double Corrected(double measured_radiance, double lens_temperature_K,
-                   double filter_temperature_K, double reflected_temperature_K = 0.0) const {
+  double Corrected(double measured_radiance, double lens_temperature_K, double filter_temperature_K,
+                   double reflected_temperature_K = 0.0) const {
     return measured_radiance -
            WarmRadiance(lens_temperature_K, filter_temperature_K, reflected_temperature_K);
   }

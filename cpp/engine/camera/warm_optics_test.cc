@@ -89,8 +89,8 @@ TEST(WarmOptics, EachTermMatchesAnIndependentIntegral) {
   const double tl = 296.0, tf = 303.0, tr = 280.0;
   const double lens =
       Integral([&](double x) { return Det(x) * TauF(x) * (1 - TauL(x)) * PlanckRadiance(x, tl); });
-  const double filt = Integral(
-      [&](double x) { return Det(x) * (1 - TauF(x) - RhoF(x)) * PlanckRadiance(x, tf); });
+  const double filt =
+      Integral([&](double x) { return Det(x) * (1 - TauF(x) - RhoF(x)) * PlanckRadiance(x, tf); });
   const double refl = Integral([&](double x) { return Det(x) * RhoF(x) * PlanckRadiance(x, tr); });
   EXPECT_NEAR(o.LensTerm(tl), lens, 1e-5 * lens);
   EXPECT_NEAR(o.FilterTerm(tf), filt, 1e-5 * filt);
@@ -99,8 +99,7 @@ TEST(WarmOptics, EachTermMatchesAnIndependentIntegral) {
   EXPECT_EQ(o.WarmRadiance(tl, tf), o.LensTerm(tl) + o.FilterTerm(tf));  // 0 K: cold
   // Derivatives against central differences.
   const double h = 0.01;
-  EXPECT_NEAR(o.WarmRadianceDerivativeLens(tl),
-              (o.LensTerm(tl + h) - o.LensTerm(tl - h)) / (2 * h),
+  EXPECT_NEAR(o.WarmRadianceDerivativeLens(tl), (o.LensTerm(tl + h) - o.LensTerm(tl - h)) / (2 * h),
               1e-6 * o.WarmRadianceDerivativeLens(tl));
   EXPECT_NEAR(o.WarmRadianceDerivativeFilter(tf),
               (o.FilterTerm(tf + h) - o.FilterTerm(tf - h)) / (2 * h),
@@ -142,10 +141,8 @@ TEST(WarmOptics, PresetOpticsReproduceThePresetChannels) {
       const SpectralResponse& ch = cam.channels[c];
       EXPECT_EQ(optics[c].name(), ch.name());
       for (std::size_t i = 0; i < ch.nu_cm1().size(); ++i)
-        EXPECT_NEAR(optics[c].response().Evaluate(ch.nu_cm1()[i]), ch.response()[i],
-                    1e-14);
-      EXPECT_NEAR(optics[c].response().BandRadiance(293.15) / ch.BandRadiance(293.15), 1.0,
-                  1e-9);
+        EXPECT_NEAR(optics[c].response().Evaluate(ch.nu_cm1()[i]), ch.response()[i], 1e-14);
+      EXPECT_NEAR(optics[c].response().BandRadiance(293.15) / ch.BandRadiance(293.15), 1.0, 1e-9);
     }
   }
   EXPECT_THROW(CameraPresetOptics("gf999"), std::invalid_argument);

@@ -66,21 +66,24 @@ FluxLevel FlowFluxLevel(const float* frames, const float* u, const float* v, std
   const float* comp = rows ? v : u;
   const double sign = axis == FluxAxis::kUp || axis == FluxAxis::kLeft ? -1.0 : 1.0;
   std::vector<double> flow(n, 0.0);
-  ParallelFor(n, 8, [&](std::size_t l0, std::size_t l1) {
-    for (std::size_t t = 0; t < T; ++t) {
-      const float* f = frames + t * H * W;
-      const float* c = comp + t * H * W;
-      for (std::size_t l = l0; l < l1; ++l) {
-        double s = 0.0;
-        if (rows) {
-          for (std::size_t x = 0; x < W; ++x) s += double(f[l * W + x] * c[l * W + x]);
-        } else {
-          for (std::size_t y = 0; y < H; ++y) s += double(f[y * W + l] * c[y * W + l]);
+  ParallelFor(
+      n, 8,
+      [&](std::size_t l0, std::size_t l1) {
+        for (std::size_t t = 0; t < T; ++t) {
+          const float* f = frames + t * H * W;
+          const float* c = comp + t * H * W;
+          for (std::size_t l = l0; l < l1; ++l) {
+            double s = 0.0;
+            if (rows) {
+              for (std::size_t x = 0; x < W; ++x) s += double(f[l * W + x] * c[l * W + x]);
+            } else {
+              for (std::size_t y = 0; y < H; ++y) s += double(f[y * W + l] * c[y * W + l]);
+            }
+            flow[l] += s;
+          }
         }
-        flow[l] += s;
-      }
-    }
-  }, options.num_threads, control);
+      },
+      options.num_threads, control);
   for (double& x : flow) x *= sign / double(T);
 
   const std::vector<double>& tf = transport.flux;
@@ -139,16 +142,19 @@ FluxLevel FlowFluxLevel(const float* frames, const float* u, const float* v, std
   return out;
 }
 
-void ScaleLines(float* u, float* v, std::size_t T, std::size_t H, std::size_t W,
-                FluxAxis axis, const std::vector<float>& scale, int num_threads) {
+void ScaleLines(float* u, float* v, std::size_t T, std::size_t H, std::size_t W, FluxAxis axis,
+                const std::vector<float>& scale, int num_threads) {
   const bool rows = AlongRows(axis);
   Require(scale.size() == (rows ? H : W), "scale must hold one factor per line");
-  ParallelFor(T, 1, [&](std::size_t t0, std::size_t t1) {
-    for (std::size_t t = t0; t < t1; ++t)
-      for (float* a : {u + t * H * W, v + t * H * W})
-        for (std::size_t y = 0; y < H; ++y)
-          for (std::size_t x = 0; x < W; ++x) a[y * W + x] *= scale[rows ? y : x];
-  }, num_threads);
+  ParallelFor(
+      T, 1,
+      [&](std::size_t t0, std::size_t t1) {
+        for (std::size_t t = t0; t < t1; ++t)
+          for (float* a : {u + t * H * W, v + t * H * W})
+            for (std::size_t y = 0; y < H; ++y)
+              for (std::size_t x = 0; x < W; ++x) a[y * W + x] *= scale[rows ? y : x];
+      },
+      num_threads);
 }
 
 void TransportVelocity(const TransportFluxResult& transport, std::size_t T, std::size_t H,
@@ -178,9 +184,8 @@ void TransportVelocity(const TransportFluxResult& transport, std::size_t T, std:
       }
 }
 
-FluxLevel CalibrateFluxLevel(const float* frames, float* u, float* v, std::size_t T,
-                             std::size_t H, std::size_t W,
-                             const TransportFluxResult& transport,
+FluxLevel CalibrateFluxLevel(const float* frames, float* u, float* v, std::size_t T, std::size_t H,
+                             std::size_t W, const TransportFluxResult& transport,
                              const FluxLevelOptions& options, const RunControl* control) {
   FluxLevel level = FlowFluxLevel(frames, u, v, T, H, W, transport, options, control);
   if (level.flow_used)

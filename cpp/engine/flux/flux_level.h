@@ -46,13 +46,12 @@ struct FluxLevel {
 // flux along the axis.
 FluxLevel FlowFluxLevel(const float* frames, const float* u, const float* v, std::size_t T,
                         std::size_t H, std::size_t W, const TransportFluxResult& transport,
-                        const FluxLevelOptions& options = {},
-                        const RunControl* control = nullptr);
+                        const FluxLevelOptions& options = {}, const RunControl* control = nullptr);
 
 // Multiplies u and v (T, H, W) line by line by `scale` (one per line along
 // `axis`).
-void ScaleLines(float* u, float* v, std::size_t T, std::size_t H, std::size_t W,
-                FluxAxis axis, const std::vector<float>& scale, int num_threads = 0);
+void ScaleLines(float* u, float* v, std::size_t T, std::size_t H, std::size_t W, FluxAxis axis,
+                const std::vector<float>& scale, int num_threads = 0);
 
 // Writes the transport's time-averaged line velocity along its axis into
 // (u, v) (T, H, W) at every pixel and frame [px/frame], extended to lines
@@ -61,9 +60,8 @@ void TransportVelocity(const TransportFluxResult& transport, std::size_t T, std:
                        std::size_t W, float* u, float* v);
 
 // FlowFluxLevel, then ScaleLines or TransportVelocity on u and v in place.
-FluxLevel CalibrateFluxLevel(const float* frames, float* u, float* v, std::size_t T,
-                             std::size_t H, std::size_t W,
-                             const TransportFluxResult& transport,
+FluxLevel CalibrateFluxLevel(const float* frames, float* u, float* v, std::size_t T, std::size_t H,
+                             std::size_t W, const TransportFluxResult& transport,
                              const FluxLevelOptions& options = {},
                              const RunControl* control = nullptr);
 

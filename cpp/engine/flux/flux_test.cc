@@ -40,8 +40,7 @@ struct GaussianSurface {
       }
   }
   SurfaceRate Rate(const SurfaceFluxOptions& options = {}) const {
-    return SurfaceFluxRate(c.data(), sigma.data(), vn.data(), dl.data(), frames, samples,
-                           options);
+    return SurfaceFluxRate(c.data(), sigma.data(), vn.data(), dl.data(), frames, samples, options);
   }
 };
 
@@ -126,7 +125,8 @@ std::vector<float> TranslatingColumn(double v, std::size_t T, std::size_t H, std
   std::vector<float> out(T * H * W);
   for (std::size_t t = 0; t < T; ++t)
     for (std::size_t y = 0; y < H; ++y) {
-      const double line = Qint(double(t) - tau(double(y) + 0.5)) - Qint(double(t) - tau(double(y) - 0.5));
+      const double line =
+          Qint(double(t) - tau(double(y) + 0.5)) - Qint(double(t) - tau(double(y) - 0.5));
       for (std::size_t x = 0; x < W; ++x) out[(t * H + y) * W + x] = float(line * g[x] / gs);
     }
   return out;

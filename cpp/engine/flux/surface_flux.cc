@@ -39,8 +39,8 @@ SurfaceRate SurfaceFluxRate(const double* column, const double* column_sigma,
       // 0 x a non-finite velocity is NaN: such a frame's rate is unknown.
       rate += (finite ? c[i] * m : 0.0) * v[i] * length_m[i];
       if (column_sigma) {
-        const double vs = (std::isfinite(v[i]) ? v[i] : 0.0) * column_sigma[t * samples + i] *
-                          m * length_m[i];
+        const double vs =
+            (std::isfinite(v[i]) ? v[i] : 0.0) * column_sigma[t * samples + i] * m * length_m[i];
         var += vs * vs;
       }
     }

@@ -24,9 +24,9 @@ void CheckCancelled(const RunControl* control) {
 std::size_t Lines(FluxAxis axis, std::size_t H, std::size_t W) { return AlongRows(axis) ? H : W; }
 
 void CheckFrames(const float* frames, std::size_t T, std::size_t H, std::size_t W) {
-  Require(T >= 3 && H >= 1 && W >= 1,
-          "frames must be a (T, H, W) stack with T >= 3; got (" + std::to_string(T) + ", " +
-              std::to_string(H) + ", " + std::to_string(W) + ")");
+  Require(T >= 3 && H >= 1 && W >= 1, "frames must be a (T, H, W) stack with T >= 3; got (" +
+                                          std::to_string(T) + ", " + std::to_string(H) + ", " +
+                                          std::to_string(W) + ")");
   Require(frames != nullptr, "frames must not be null");
 }
 
@@ -37,8 +37,8 @@ std::size_t SourceLine(double index, FluxAxis axis, std::size_t n) {
   if (!(i >= 0 && i < double(n))) {
     const char* what = AlongRows(axis) ? "row" : "column";
     throw std::invalid_argument(std::string("source_index must be a ") + what +
-                                " inside the frame, 0 ... " + std::to_string(n - 1) +
-                                "; got " + FormatNumber(index));
+                                " inside the frame, 0 ... " + std::to_string(n - 1) + "; got " +
+                                FormatNumber(index));
   }
   const auto k = std::size_t(i);
   return axis == FluxAxis::kUp || axis == FluxAxis::kLeft ? k : n - 1 - k;
@@ -97,24 +97,27 @@ Eigen::VectorXd CoarseDisplacements(const Matrix& I, const std::vector<std::size
   // Correlation per shift and level (-inf where not allowed), then the
   // first best shift per level.
   Matrix r(d_max + 1, n);
-  ParallelFor(d_max + 1, 4, [&](std::size_t d0, std::size_t d1) {
-    Eigen::VectorXd ab, aa, bb;
-    for (std::size_t d = d0; d < d1; ++d) {
-      ShiftProducts(A, d, ab, aa, bb);
-      const Eigen::VectorXd wab = BoxSum(ab, 2 * half_window + 1);
-      const Eigen::VectorXd waa = BoxSum(aa, 2 * half_window + 1);
-      const Eigen::VectorXd wbb = BoxSum(bb, 2 * half_window + 1);
-      for (std::size_t i = 0; i < n; ++i) {
-        const std::size_t k = K[i];
-        double v = -kInf;
-        if (k < H - d && k + d <= k_end) {
-          const double x = wab[k] / std::sqrt(waa[k] * wbb[k]);
-          if (std::isfinite(x)) v = x;
+  ParallelFor(
+      d_max + 1, 4,
+      [&](std::size_t d0, std::size_t d1) {
+        Eigen::VectorXd ab, aa, bb;
+        for (std::size_t d = d0; d < d1; ++d) {
+          ShiftProducts(A, d, ab, aa, bb);
+          const Eigen::VectorXd wab = BoxSum(ab, 2 * half_window + 1);
+          const Eigen::VectorXd waa = BoxSum(aa, 2 * half_window + 1);
+          const Eigen::VectorXd wbb = BoxSum(bb, 2 * half_window + 1);
+          for (std::size_t i = 0; i < n; ++i) {
+            const std::size_t k = K[i];
+            double v = -kInf;
+            if (k < H - d && k + d <= k_end) {
+              const double x = wab[k] / std::sqrt(waa[k] * wbb[k]);
+              if (std::isfinite(x)) v = x;
+            }
+            r(d, i) = v;
+          }
         }
-        r(d, i) = v;
-      }
-    }
-  }, num_threads, control);
+      },
+      num_threads, control);
   Eigen::VectorXd best = Eigen::VectorXd::Constant(n, -kInf), out = Eigen::VectorXd::Ones(n);
   for (std::size_t d = 0; d <= d_max; ++d)
     for (std::size_t i = 0; i < n; ++i)
@@ -161,9 +164,9 @@ Eigen::VectorXd SolveLevels(const Matrix& C, const Matrix& I, const std::vector<
   Matrix target(P, n);
   for (Eigen::Index t = 0; t < P; ++t)
     for (Eigen::Index i = 0; i < n; ++i) target(t, i) = Cs(t + 1, K[i]);
-  Eigen::VectorXd d = CoarseDisplacements(I, K, k_end, std::size_t(opt.half_window),
-                                          opt.num_threads, control) /
-                      Median(r);
+  Eigen::VectorXd d =
+      CoarseDisplacements(I, K, k_end, std::size_t(opt.half_window), opt.num_threads, control) /
+      Median(r);
   ok.assign(n, 1);
   Matrix y(P, n), g(P, n), e(P, n);
   Eigen::VectorXd okv(n);
@@ -210,7 +213,8 @@ FluxAxis ParseFluxAxis(const std::string& name) {
   if (name == "right") return FluxAxis::kRight;
   throw std::invalid_argument(
       "axis must be one of ('up', 'down', 'left', 'right') (the direction the plume leaves "
-      "the source in the image); got '" + name + "'");
+      "the source in the image); got '" +
+      name + "'");
 }
 
 const char* FluxAxisName(FluxAxis axis) {
@@ -227,9 +231,8 @@ void TransportFluxOptions::Check(std::size_t T, std::size_t H, std::size_t W) co
   if (!intervals.empty()) {
     bool good = intervals.size() + 1 == T;
     for (double x : intervals) good = good && std::isfinite(x) && x > 0;
-    Require(good, "intervals must be " + std::to_string(T - 1) +
-                      " positive frame intervals; got " + std::to_string(intervals.size()) +
-                      " values");
+    Require(good, "intervals must be " + std::to_string(T - 1) + " positive frame intervals; got " +
+                      std::to_string(intervals.size()) + " values");
   }
   Require(iterations >= 1, "iterations must be >= 1; got " + std::to_string(iterations));
   Require(half_window >= 0, "half_window must be >= 0; got " + std::to_string(half_window));
@@ -241,31 +244,33 @@ std::vector<double> LineSums(const float* frames, std::size_t T, std::size_t H, 
   const std::size_t n = Lines(axis, H, W);
   const bool reversed = axis == FluxAxis::kDown || axis == FluxAxis::kRight;
   std::vector<double> out(T * n, 0.0);
-  ParallelFor(T, 1, [&](std::size_t t0, std::size_t t1) {
-    std::vector<double> acc(n);
-    for (std::size_t t = t0; t < t1; ++t) {
-      const float* f = frames + t * H * W;
-      std::fill(acc.begin(), acc.end(), 0.0);
-      if (AlongRows(axis)) {
-        for (std::size_t y = 0; y < H; ++y) {
-          double s = 0.0;
-          for (std::size_t x = 0; x < W; ++x) s += double(f[y * W + x]);
-          acc[y] = s;
+  ParallelFor(
+      T, 1,
+      [&](std::size_t t0, std::size_t t1) {
+        std::vector<double> acc(n);
+        for (std::size_t t = t0; t < t1; ++t) {
+          const float* f = frames + t * H * W;
+          std::fill(acc.begin(), acc.end(), 0.0);
+          if (AlongRows(axis)) {
+            for (std::size_t y = 0; y < H; ++y) {
+              double s = 0.0;
+              for (std::size_t x = 0; x < W; ++x) s += double(f[y * W + x]);
+              acc[y] = s;
+            }
+          } else {
+            for (std::size_t y = 0; y < H; ++y)
+              for (std::size_t x = 0; x < W; ++x) acc[x] += double(f[y * W + x]);
+          }
+          double* o = out.data() + t * n;
+          for (std::size_t i = 0; i < n; ++i) o[i] = acc[reversed ? n - 1 - i : i];
         }
-      } else {
-        for (std::size_t y = 0; y < H; ++y)
-          for (std::size_t x = 0; x < W; ++x) acc[x] += double(f[y * W + x]);
-      }
-      double* o = out.data() + t * n;
-      for (std::size_t i = 0; i < n; ++i) o[i] = acc[reversed ? n - 1 - i : i];
-    }
-  }, num_threads, control);
+      },
+      num_threads, control);
   return out;
 }
 
-TransportFluxResult TransportFlux(const float* frames, std::size_t T, std::size_t H,
-                                  std::size_t W, const TransportFluxOptions& options,
-                                  const RunControl* control) {
+TransportFluxResult TransportFlux(const float* frames, std::size_t T, std::size_t H, std::size_t W,
+                                  const TransportFluxOptions& options, const RunControl* control) {
   CheckFrames(frames, T, H, W);
   options.Check(T, H, W);
   const FluxAxis axis = options.axis;

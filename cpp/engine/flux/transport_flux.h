@@ -79,8 +79,8 @@ std::vector<double> LineSums(const float* frames, std::size_t T, std::size_t H, 
 // The transport flux of T >= 3 finite frames. Throws std::invalid_argument
 // for bad input and for frames that do not change over time (a steady plume
 // does not fix its flux level); qogi::Cancelled when `control` asks.
-TransportFluxResult TransportFlux(const float* frames, std::size_t T, std::size_t H,
-                                  std::size_t W, const TransportFluxOptions& options = {},
+TransportFluxResult TransportFlux(const float* frames, std::size_t T, std::size_t H, std::size_t W,
+                                  const TransportFluxOptions& options = {},
                                   const RunControl* control = nullptr);
 
 // Typical displacement [px/frame] of the structures along `axis`: where the
@@ -89,7 +89,6 @@ TransportFluxResult TransportFlux(const float* frames, std::size_t T, std::size_
 // through the peak. NaN when the peak is at max_px or the frames do not
 // change. T >= 3, max_px >= 2.
 double TypicalDisplacement(const float* frames, std::size_t T, std::size_t H, std::size_t W,
-                           FluxAxis axis = FluxAxis::kUp, int max_px = 16,
-                           int num_threads = 0);
+                           FluxAxis axis = FluxAxis::kUp, int max_px = 16, int num_threads = 0);
 
 }  // namespace qogi

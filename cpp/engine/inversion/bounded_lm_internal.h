@@ -16,7 +16,6 @@
 namespace qogi {
 namespace inversion_detail {
 
-
 constexpr std::size_t kMaxRows = kMaxChannels + kMaxParams;  // channels and priors
 
 // Solver coordinates of parameter p (S = number of species): ln(theta + kLogEps)
@@ -74,7 +73,8 @@ inline double SolveScaled(const double* a, const double* b, int n, double extra,
 
 // chi2 decrease predicted by a Gauss-Newton step over the parameters in
 // set[0..n) (g = J^T r, h = J^T J over all np parameters, row-major).
-inline double PredictedDecrease(const double* g, const double* h, std::size_t np, const int* set, int n) {
+inline double PredictedDecrease(const double* g, const double* h, std::size_t np, const int* set,
+                                int n) {
   if (n == 0) return 0.0;
   double hs[kMaxParams * kMaxParams], gs[kMaxParams], step[kMaxParams];
   for (int a = 0; a < n; ++a) {
@@ -88,7 +88,7 @@ struct LmSettings {
   std::uint8_t estimate = 0;  // bit p: parameter p is varied
   int max_iterations = 100;
   double tolerance = 0.01;    // converged: the Gauss-Newton step would lower chi2 by less
-  double stop = 1e-5;         // iterate on while it would lower chi2 by more than this (<= tolerance)
+  double stop = 1e-5;  // iterate on while it would lower chi2 by more than this (<= tolerance)
   // Stop at the first failed or slow Gauss-Newton step below the tolerance
   // (false: iterate on to `stop`, however slowly).
   bool stop_when_slow = true;
@@ -190,7 +190,8 @@ bool BoundedLm(const Inverter::Pixel& px, const LmSettings& set, std::size_t nr,
         ++changes;
         // Released from a bound: the one-dimensional Newton step (a fraction at
         // 0 has no leverage in log coordinates).
-        const double step = h[release * np + release] > 0 ? -g[release] / h[release * np + release] : 0.0;
+        const double step =
+            h[release * np + release] > 0 ? -g[release] / h[release * np + release] : 0.0;
         double v = theta[release] + step;
         v = std::min(std::max(v, px.lower[release]), px.upper[release]);
         std::copy(theta, theta + np, trial);
@@ -300,7 +301,8 @@ bool BoundedLm(const Inverter::Pixel& px, const LmSettings& set, std::size_t nr,
     // A trust region in log coordinates: at most a factor e^5 per step.
     double alpha = 1.0, hit_value = 0;
     for (int a = 0; a < na; ++a)
-      if (act[a] != static_cast<int>(ns) && std::abs(dv[a]) * alpha > 5.0) alpha = 5.0 / std::abs(dv[a]);
+      if (act[a] != static_cast<int>(ns) && std::abs(dv[a]) * alpha > 5.0)
+        alpha = 5.0 / std::abs(dv[a]);
     int hit = -1;
     for (int a = 0; a < na; ++a) {
       const int p = act[a];
@@ -331,9 +333,9 @@ bool BoundedLm(const Inverter::Pixel& px, const LmSettings& set, std::size_t nr,
     std::copy(theta, theta + np, trial);
     for (int a = 0; a < na; ++a) {
       const int p = act[a];
-      trial[p] = std::min(std::max(ToTheta(p, ns, ToParam(p, ns, theta[p]) + alpha * dv[a]),
-                                   px.lower[p]),
-                          px.upper[p]);
+      trial[p] =
+          std::min(std::max(ToTheta(p, ns, ToParam(p, ns, theta[p]) + alpha * dv[a]), px.lower[p]),
+                   px.upper[p]);
     }
     if (hit >= 0) trial[hit] = hit_value;
     if (hit >= 0 && alpha < 1e-12) {
@@ -494,7 +496,8 @@ bool ProfileLm(const Inverter::Pixel& px, const LmSettings& set, std::size_t nr,
     const bool at_bound = (t <= lo && g >= 0) || (t >= hi && g <= 0);
     const double dec_t = s > 0 ? g * g / s : std::numeric_limits<double>::infinity();
     const bool crosses = s > 0 && (t - g / s < lo || t - g / s > hi);
-    if (at_bound || (!crosses && (dec_t < set.stop || (set.stop_when_slow && dec_t < set.tolerance)))) {
+    if (at_bound ||
+        (!crosses && (dec_t < set.stop || (set.stop_when_slow && dec_t < set.tolerance)))) {
       if (inner.stop > set.stop && !set.stop_when_slow) {
         dec = 0;
         continue;

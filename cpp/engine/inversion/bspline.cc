@@ -15,8 +15,8 @@ struct CubicSplineAxis::Factor {
 };
 
 CubicSplineAxis::CubicSplineAxis(int n) : n_(n) {
-  Require(n == 1 || n >= 4, "a cubic spline axis needs 1 or at least 4 nodes; got " +
-                                std::to_string(n));
+  Require(n == 1 || n >= 4,
+          "a cubic spline axis needs 1 or at least 4 nodes; got " + std::to_string(n));
   if (n == 1) return;
   const int m = n + 2;
   std::vector<Eigen::Triplet<double>> t;
@@ -133,14 +133,16 @@ void UniformSpline::Evaluate(double x, double* value, double* slope) const {
 double UniformSpline::Value(double x, int v) const {
   const SplineWeights sw = axis_.Weights((x - x0_) / h_, below_, above_);
   double s = 0;
-  for (int k = 0; k < sw.count; ++k) s += sw.w[k] * coef_[static_cast<std::size_t>(sw.first + k) * width_ + v];
+  for (int k = 0; k < sw.count; ++k)
+    s += sw.w[k] * coef_[static_cast<std::size_t>(sw.first + k) * width_ + v];
   return s;
 }
 
 double UniformSpline::Slope(double x, int v) const {
   const SplineWeights sw = axis_.Weights((x - x0_) / h_, below_, above_);
   double s = 0;
-  for (int k = 0; k < sw.count; ++k) s += sw.dw[k] * coef_[static_cast<std::size_t>(sw.first + k) * width_ + v];
+  for (int k = 0; k < sw.count; ++k)
+    s += sw.dw[k] * coef_[static_cast<std::size_t>(sw.first + k) * width_ + v];
   return s / h_;
 }
 

@@ -66,8 +66,8 @@ bool SolveFullModel(const FullModelProblem& p, double* theta, int* iterations) {
   ceres::Problem::Options po;
   po.cost_function_ownership = ceres::TAKE_OWNERSHIP;
   ceres::Problem problem(po);
-  auto* cost = new ceres::DynamicAutoDiffCostFunction<ContrastResidual, kStride>(
-      new ContrastResidual{&p});
+  auto* cost =
+      new ceres::DynamicAutoDiffCostFunction<ContrastResidual, kStride>(new ContrastResidual{&p});
   std::vector<double*> blocks(np);
   for (std::size_t k = 0; k < np; ++k) {
     cost->AddParameterBlock(1);

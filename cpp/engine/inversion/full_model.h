@@ -31,9 +31,8 @@ struct FullModelProblem {
 
 // Contrast of every channel and its Jacobian [c * P + p] at theta (Jet<8>;
 // P = S + 2 <= 8).
-void FullModelContrast(const BinnedModel& model, double ambient_temperature_K,
-                       const double* theta, const double* background_temperature_K,
-                       double* contrast, double* jacobian);
+void FullModelContrast(const BinnedModel& model, double ambient_temperature_K, const double* theta,
+                       const double* background_temperature_K, double* contrast, double* jacobian);
 
 // Solves from theta (in: start, inside the bounds; out: solution). Returns
 // true when Ceres reports convergence; *iterations receives its count.

@@ -28,9 +28,10 @@ namespace {
 void CheckSpec(const ParameterSpec& p, const std::string& name, const char* unit, double lo_limit,
                double hi_limit) {
   const int mode = static_cast<int>(p.mode);
-  Require(mode >= 0 && mode <= 2, name + ": mode must be fixed (0), free (1) or prior (2)" +
-                                      std::string(mode == 3 ? " (only fractions can be tied)" : "") +
-                                      "; got " + std::to_string(mode));
+  Require(mode >= 0 && mode <= 2,
+          name + ": mode must be fixed (0), free (1) or prior (2)" +
+              std::string(mode == 3 ? " (only fractions can be tied)" : "") + "; got " +
+              std::to_string(mode));
   CheckFinite(p.value, (name + " value").c_str());
   CheckFinite(p.lower, (name + " lower").c_str());
   CheckFinite(p.upper, (name + " upper").c_str());
@@ -47,7 +48,6 @@ void CheckSpec(const ParameterSpec& p, const std::string& name, const char* unit
 
 }  // namespace
 
-
 const char* PixelStatusName(PixelStatus s) {
   switch (s) {
     case PixelStatus::kConverged: return "converged";
@@ -59,20 +59,21 @@ const char* PixelStatusName(PixelStatus s) {
 }
 
 void InversionOptions::Check(std::size_t ns, std::size_t nc) const {
-  Require(ns >= 1 && ns + 2 <= kMaxParams,
-          "the inversion handles 1 to " + std::to_string(kMaxParams - 2) + " species; got " +
-              std::to_string(ns));
+  Require(ns >= 1 && ns + 2 <= kMaxParams, "the inversion handles 1 to " +
+                                               std::to_string(kMaxParams - 2) + " species; got " +
+                                               std::to_string(ns));
   Require(nc >= 1 && nc <= kMaxChannels, "the inversion handles 1 to " +
                                              std::to_string(kMaxChannels) + " channels; got " +
                                              std::to_string(nc));
-  Require(fractions.empty() || fractions.size() == ns,
-          "fractions needs one spec per species (" + std::to_string(ns) + ") or none; got " +
-              std::to_string(fractions.size()));
+  Require(fractions.empty() || fractions.size() == ns, "fractions needs one spec per species (" +
+                                                           std::to_string(ns) + ") or none; got " +
+                                                           std::to_string(fractions.size()));
   for (std::size_t s = 0; s < fractions.size(); ++s) {
     const ParameterSpec& f = fractions[s];
     const std::string name = "fractions[" + std::to_string(s) + "]";
     if (f.mode == ParameterMode::kTied) {
-      Require(f.tied_to >= 0 && static_cast<std::size_t>(f.tied_to) < ns && f.tied_to != static_cast<int>(s),
+      Require(f.tied_to >= 0 && static_cast<std::size_t>(f.tied_to) < ns &&
+                  f.tied_to != static_cast<int>(s),
               name + ": tied_to must be the index of another species (0-" + std::to_string(ns - 1) +
                   "); got " + std::to_string(f.tied_to));
       const ParameterMode m = fractions[f.tied_to].mode;
@@ -91,9 +92,9 @@ void InversionOptions::Check(std::size_t ns, std::size_t nc) const {
               FormatNumber(temperature.value));
   CheckSpec(sigma, "sigma", "m", 1e-6, 1e3);
   CheckInRange(sigma.value, 1e-6, 1e3, "sigma value", "m");
-  Require(netd_K.size() == 1 || netd_K.size() == nc,
-          "netd_K needs 1 value or one per channel (" + std::to_string(nc) + "); got " +
-              std::to_string(netd_K.size()));
+  Require(netd_K.size() == 1 || netd_K.size() == nc, "netd_K needs 1 value or one per channel (" +
+                                                         std::to_string(nc) + "); got " +
+                                                         std::to_string(netd_K.size()));
   for (double v : netd_K) CheckInRange(v, 1e-6, 10.0, "netd_K", "K");
   CheckInRange(detection_sigma, 0.0, 1e3, "detection_sigma");
   CheckInRange(model_error_fraction, 0.0, 1.0, "model_error_fraction");
@@ -101,28 +102,33 @@ void InversionOptions::Check(std::size_t ns, std::size_t nc) const {
   Require(max_iterations >= 1 && max_iterations <= 10000,
           "max_iterations must be within [1, 10000]; got " + std::to_string(max_iterations));
   const int ig = static_cast<int>(initial_guess);
-  Require(ig >= 0 && ig <= 3, "initial_guess must be table (0), neighbour (1), previous (2) or "
-                              "given (3); got " + std::to_string(ig));
-  Require(num_starts >= 0 && num_starts <= 50,
-          "num_starts must be within [0, 50] (0 = every candidate); got " + std::to_string(num_starts));
+  Require(ig >= 0 && ig <= 3,
+          "initial_guess must be table (0), neighbour (1), previous (2) or "
+          "given (3); got " +
+              std::to_string(ig));
+  Require(
+      num_starts >= 0 && num_starts <= 50,
+      "num_starts must be within [0, 50] (0 = every candidate); got " + std::to_string(num_starts));
   Require(guess_iterations >= 0 && guess_iterations <= 100,
           "guess_iterations must be within [0, 100]; got " + std::to_string(guess_iterations));
   Require(temperature_candidates >= 1 && temperature_candidates <= 50,
           "temperature_candidates must be within [1, 50]; got " +
               std::to_string(temperature_candidates));
   const int cs = static_cast<int>(cold_start);
-  Require(cs >= 0 && cs <= 1, "cold_start must be profile (0) or starts (1); got " + std::to_string(cs));
+  Require(cs >= 0 && cs <= 1,
+          "cold_start must be profile (0) or starts (1); got " + std::to_string(cs));
   const int sk = static_cast<int>(solver);
-  Require(sk >= 0 && sk <= 2, "solver must be auto (0), table (1) or full_model (2); got " +
-                                  std::to_string(sk));
-  Require(num_threads >= 0, "num_threads must be >= 0 (0 = all cores); got " +
-                                std::to_string(num_threads));
+  Require(sk >= 0 && sk <= 2,
+          "solver must be auto (0), table (1) or full_model (2); got " + std::to_string(sk));
+  Require(num_threads >= 0,
+          "num_threads must be >= 0 (0 = all cores); got " + std::to_string(num_threads));
   bool any = temperature.mode != ParameterMode::kFixed || sigma.mode != ParameterMode::kFixed;
   if (fractions.empty()) any = true;
   for (const auto& f : fractions)
     any = any || f.mode == ParameterMode::kFree || f.mode == ParameterMode::kPrior;
-  Require(any, "every parameter is fixed: make at least one species' fraction, the "
-               "temperature or sigma free");
+  Require(any,
+          "every parameter is fixed: make at least one species' fraction, the "
+          "temperature or sigma free");
 }
 
 void InversionResult::Allocate(std::size_t n, std::size_t f, std::size_t ns) {

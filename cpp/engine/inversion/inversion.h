@@ -63,33 +63,33 @@ namespace qogi {
 
 enum class PixelStatus : std::uint8_t {
   kConverged = 0,       // the solver converged with every estimated parameter inside its bounds
-  kAtBound = 1,         // converged with one or more parameters held on a bound (bound_mask says which)
+  kAtBound = 1,  // converged with one or more parameters held on a bound (bound_mask says which)
   kBelowDetection = 2,  // |L - L_bg| < k x noise in every channel: not inverted
-  kFailed = 3,          // invalid pixel input (non-finite, background outside the tables) or no convergence
+  kFailed = 3,  // invalid pixel input (non-finite, background outside the tables) or no convergence
 };
 const char* PixelStatusName(PixelStatus s);
 
 enum class ParameterMode : int {
   kFixed = 0,  // held at `value` (or the per-pixel array)
-  kFree = 1,   // estimated within [lower, upper]
+  kFree = 1,  // estimated within [lower, upper]
   kPrior = 2,  // estimated within [lower, upper] with a Gaussian prior N(value, prior_sigma^2)
-  kTied = 3,   // fractions only: x = value * x[tied_to] (a known composition ratio)
+  kTied = 3,  // fractions only: x = value * x[tied_to] (a known composition ratio)
 };
 
 struct ParameterSpec {
   ParameterMode mode = ParameterMode::kFixed;
-  double value = 0.0;        // fixed value, prior mean, start value when free, or the ratio when tied
+  double value = 0.0;  // fixed value, prior mean, start value when free, or the ratio when tied
   double prior_sigma = 0.0;  // 1-sigma width of the prior (kPrior; > 0), same unit
-  double lower = 0.0;        // lower bound (same unit)
-  double upper = 0.0;        // upper bound (> lower)
-  int tied_to = -1;          // kTied: index of the (estimated) species this fraction follows
+  double lower = 0.0;  // lower bound (same unit)
+  double upper = 0.0;  // upper bound (> lower)
+  int tied_to = -1;  // kTied: index of the (estimated) species this fraction follows
 };
 
 enum class InitialGuess : int {
-  kTable = 0,      // coarse lookup: optically thin least squares over candidate temperatures
+  kTable = 0,  // coarse lookup: optically thin least squares over candidate temperatures
   kNeighbour = 1,  // the previous pixel of the same row (same frame) when it converged, else kTable
-  kPrevious = 2,   // the same pixel in the previous frame when it converged, else kTable
-  kGiven = 3,      // the caller's per-pixel start parameters (PixelBatch::initial)
+  kPrevious = 2,  // the same pixel in the previous frame when it converged, else kTable
+  kGiven = 3,  // the caller's per-pixel start parameters (PixelBatch::initial)
 };
 
 enum class ColdStart : int {
@@ -107,8 +107,8 @@ enum class ColdStart : int {
 };
 
 enum class SolverKind : int {
-  kAuto = 0,       // the per-scene table when the species are spectrally separate, else the full model
-  kTable = 1,      // the per-scene table (Levenberg-Marquardt / Newton); fails if species overlap
+  kAuto = 0,  // the per-scene table when the species are spectrally separate, else the full model
+  kTable = 1,  // the per-scene table (Levenberg-Marquardt / Newton); fails if species overlap
   kFullModel = 2,  // ceres::Solve on the full BinnedModel (automatic differentiation); slow
 };
 
@@ -166,7 +166,7 @@ struct PixelBatch {
   std::size_t row_length = 0;
   const double* radiance = nullptr;  // [F][C][N] measured band radiance L [W/(m2 sr)]
   // The background, one of the two ([C][N], or [F][C][N] when background_per_frame):
-  const double* background_radiance = nullptr;       // L_bg [W/(m2 sr)]
+  const double* background_radiance = nullptr;  // L_bg [W/(m2 sr)]
   const double* background_temperature_K = nullptr;  // blackbody T_bg per channel [K]
   bool background_per_frame = false;
   // Optional per-pixel values [N] overriding the spec's `value` (fixed value,
@@ -187,18 +187,18 @@ struct PixelBatch {
 // uncertainties at the column of the bounds' corner) when the data do not
 // constrain a parameter at all.
 struct InversionOutput {
-  std::uint8_t* status = nullptr;            // PixelStatus
-  std::uint8_t* bound_mask = nullptr;        // bit p: parameter p held on a bound
-  double* parameters = nullptr;              // x_0 .. x_{S-1}, T_peak [K], sigma [m]
-  double* parameter_sigma = nullptr;         // 1-sigma (0 for fixed parameters)
-  double* covariance = nullptr;              // of the parameters (rows/cols of fixed ones 0)
-  double* column_density = nullptr;          // [kg/m2] (eq. 6)
-  double* column_density_sigma = nullptr;    // [kg/m2]
-  double* path_concentration = nullptr;      // 1e6 integral x_i ds [ppm m]
+  std::uint8_t* status = nullptr;  // PixelStatus
+  std::uint8_t* bound_mask = nullptr;  // bit p: parameter p held on a bound
+  double* parameters = nullptr;  // x_0 .. x_{S-1}, T_peak [K], sigma [m]
+  double* parameter_sigma = nullptr;  // 1-sigma (0 for fixed parameters)
+  double* covariance = nullptr;  // of the parameters (rows/cols of fixed ones 0)
+  double* column_density = nullptr;  // [kg/m2] (eq. 6)
+  double* column_density_sigma = nullptr;  // [kg/m2]
+  double* path_concentration = nullptr;  // 1e6 integral x_i ds [ppm m]
   double* path_concentration_sigma = nullptr;
-  double* chi2 = nullptr;                    // sum of squared normalised channel residuals
-  double* condition_number = nullptr;        // of the column-normalised residual Jacobian
-  std::int32_t* iterations = nullptr;        // solver iterations (all solves)
+  double* chi2 = nullptr;  // sum of squared normalised channel residuals
+  double* condition_number = nullptr;  // of the column-normalised residual Jacobian
+  std::int32_t* iterations = nullptr;  // solver iterations (all solves)
   // Bit 0 (kFlagAmbiguous): a second, distinct solution fits the pixel within
   // chi2 + 4 of the reported one; the reported uncertainties then include the
   // spread between the solutions (see Inverter::MergeModes).
@@ -210,8 +210,8 @@ constexpr std::uint8_t kFlagAmbiguous = 1;
 struct InversionResult {
   std::size_t num_pixels = 0, num_frames = 1, num_species = 0;
   std::vector<std::uint8_t> status, bound_mask, flags;
-  std::vector<double> parameters, parameter_sigma, covariance, column_density,
-      column_density_sigma, path_concentration, path_concentration_sigma, chi2, condition_number;
+  std::vector<double> parameters, parameter_sigma, covariance, column_density, column_density_sigma,
+      path_concentration, path_concentration_sigma, chi2, condition_number;
   std::vector<std::int32_t> iterations;
   void Allocate(std::size_t num_pixels, std::size_t num_frames, std::size_t num_species);
   InversionOutput Output();
@@ -256,8 +256,7 @@ class Inverter {
  private:
   void InvertRow(const PixelBatch& batch, const InversionOutput& out, std::size_t begin,
                  std::size_t end, Workspace* ws) const;
-  bool PreparePixel(const PixelBatch& batch, std::size_t frame, std::size_t pixel,
-                    Pixel* px) const;
+  bool PreparePixel(const PixelBatch& batch, std::size_t frame, std::size_t pixel, Pixel* px) const;
   // precise: converge far below the tolerance (see LmSettings in the .cc).
   // With T_peak estimated the solve is a variable projection over T_peak
   // (ProfileLm in the .cc); curvature is a first estimate of the chi2
@@ -267,9 +266,9 @@ class Inverter {
   void SolveNewton(Pixel* px, Workspace* ws) const;
   void SolveFull(Pixel* px, const double* start, Workspace* ws) const;
   struct GuessCandidate {
-    double cost;              // chi2 (with priors) of the candidate
-    double th[8];             // parameters (species + 2 <= 8)
-    double curvature = 0;     // of the chi2 profile over T_peak there (see SolveTable; 0 = unknown)
+    double cost;  // chi2 (with priors) of the candidate
+    double th[8];  // parameters (species + 2 <= 8)
+    double curvature = 0;  // of the chi2 profile over T_peak there (see SolveTable; 0 = unknown)
   };
   // Coarse lookup: per candidate peak temperature, the optically thin least
   // squares for the fractions, refined by a few iterations; sorted by cost.
@@ -299,7 +298,8 @@ class Inverter {
   std::shared_ptr<const SceneTable> table_;
   double t_amb_ = 0;
   InversionOptions options_;
-  std::vector<ParameterSpec> specs_;  // per parameter (S fractions, T_peak, sigma), defaults resolved
+  std::vector<ParameterSpec>
+      specs_;  // per parameter (S fractions, T_peak, sigma), defaults resolved
   std::vector<RadiometricTable> bands_;
   std::vector<double> netd_;  // per channel
   std::vector<double> column_factor_;  // K_s = M_s p / (N_A k_B)

@@ -34,7 +34,8 @@ void Inverter::SolveFull(Pixel* px, const double* start, Workspace* ws) const {
       continue;
     }
     // Strictly inside: a fraction at exactly 0 has no derivative in the full model.
-    const double lo = p < ns ? std::max(px->lower[p], std::min(1e-7, 0.5 * px->upper[p])) : px->lower[p];
+    const double lo =
+        p < ns ? std::max(px->lower[p], std::min(1e-7, 0.5 * px->upper[p])) : px->lower[p];
     theta[p] = std::min(std::max(theta[p], lo), px->upper[p]);
   }
   FullModelProblem fp;

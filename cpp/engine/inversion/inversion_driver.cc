@@ -21,9 +21,12 @@ namespace qogi {
 
 using namespace inversion_detail;  // NOLINT: the module's own internals
 
-Inverter::Inverter(std::shared_ptr<const BinnedModel> model, std::shared_ptr<const SceneTable> table,
-                   double t_amb, InversionOptions options)
-    : model_(std::move(model)), table_(std::move(table)), t_amb_(t_amb), options_(std::move(options)) {
+Inverter::Inverter(std::shared_ptr<const BinnedModel> model,
+                   std::shared_ptr<const SceneTable> table, double t_amb, InversionOptions options)
+    : model_(std::move(model)),
+      table_(std::move(table)),
+      t_amb_(t_amb),
+      options_(std::move(options)) {
   Require(model_ != nullptr, "the inversion needs a forward model");
   const std::size_t ns = model_->num_species(), nc = model_->num_channels();
   options_.Check(ns, nc);
@@ -39,8 +42,9 @@ Inverter::Inverter(std::shared_ptr<const BinnedModel> model, std::shared_ptr<con
   switch (options_.solver) {
     case SolverKind::kAuto: use_table_ = table_ != nullptr; break;
     case SolverKind::kTable:
-      Require(table_ != nullptr, "solver 'table' needs a scene table (the species overlap "
-                                 "spectrally or none was built); use solver 'full_model'");
+      Require(table_ != nullptr,
+              "solver 'table' needs a scene table (the species overlap "
+              "spectrally or none was built); use solver 'full_model'");
       use_table_ = true;
       break;
     case SolverKind::kFullModel: use_table_ = false; break;
@@ -80,9 +84,9 @@ Inverter::Inverter(std::shared_ptr<const BinnedModel> model, std::shared_ptr<con
   Require(sg.upper <= s_hi * (1 + 1e-12),
           "sigma upper bound " + FormatNumber(sg.upper) + " m exceeds the table's max_sigma_m " +
               FormatNumber(s_hi) + " m; build the table with a larger max_sigma_m");
-  Require(sg.value <= s_hi * (1 + 1e-12),
-          "sigma value " + FormatNumber(sg.value) + " m exceeds the table's max_sigma_m " +
-              FormatNumber(s_hi) + " m");
+  Require(sg.value <= s_hi * (1 + 1e-12), "sigma value " + FormatNumber(sg.value) +
+                                              " m exceeds the table's max_sigma_m " +
+                                              FormatNumber(s_hi) + " m");
 
   // Per-channel band tables and noise.
   const double bg_lo = table_ ? table_->options().min_background_K : 150.0;
@@ -260,7 +264,8 @@ void Inverter::WritePixel(const Pixel& px, const InversionOutput& o, std::size_t
   if (o.parameter_sigma) std::copy(px.psig, px.psig + np, o.parameter_sigma + idx * np);
   if (o.covariance) std::copy(px.cov, px.cov + np * np, o.covariance + idx * np * np);
   if (o.column_density) std::copy(px.col, px.col + ns, o.column_density + idx * ns);
-  if (o.column_density_sigma) std::copy(px.col_sig, px.col_sig + ns, o.column_density_sigma + idx * ns);
+  if (o.column_density_sigma)
+    std::copy(px.col_sig, px.col_sig + ns, o.column_density_sigma + idx * ns);
   if (o.path_concentration) std::copy(px.ppm, px.ppm + ns, o.path_concentration + idx * ns);
   if (o.path_concentration_sigma)
     std::copy(px.ppm_sig, px.ppm_sig + ns, o.path_concentration_sigma + idx * ns);
@@ -365,8 +370,9 @@ void Inverter::InvertRow(const PixelBatch& b, const InversionOutput& out, std::s
           }
           std::size_t best = 0;
           for (std::size_t k = 1; k < starts; ++k)
-            if (sol[k].solved() && (!sol[best].solved() || sol[k].chi2 + sol[k].prior_chi2 <
-                                                           sol[best].chi2 + sol[best].prior_chi2))
+            if (sol[k].solved() &&
+                (!sol[best].solved() ||
+                 sol[k].chi2 + sol[k].prior_chi2 < sol[best].chi2 + sol[best].prior_chi2))
               best = k;
           if (starts > 1 && sol[best].solved()) {
             // The best minimum converged to full precision, and so is any
@@ -376,8 +382,9 @@ void Inverter::InvertRow(const PixelBatch& b, const InversionOutput& out, std::s
             std::size_t chosen = best;
             for (std::size_t k = 0; k < starts; ++k) {
               if (!sol[k].solved()) continue;
-              if (k != best && !(sol[k].chi2 + sol[k].prior_chi2 < best_cost + options_.tolerance_chi2 &&
-                                 Distinct(sol[k], sol[best])))
+              if (k != best &&
+                  !(sol[k].chi2 + sol[k].prior_chi2 < best_cost + options_.tolerance_chi2 &&
+                    Distinct(sol[k], sol[best])))
                 continue;
               Pixel precise = base;
               SolveTable(&precise, sol[k].theta, ws, true, sol[k].curvature);
@@ -408,8 +415,10 @@ void Inverter::InvertRow(const PixelBatch& b, const InversionOutput& out, std::s
             Pixel alt = fresh;
             cold(&alt);
             alt.iterations += px.iterations;
-            if (alt.solved() && (!px.solved() || alt.chi2 < px.chi2)) px = alt;
-            else px.iterations = alt.iterations;
+            if (alt.solved() && (!px.solved() || alt.chi2 < px.chi2))
+              px = alt;
+            else
+              px.iterations = alt.iterations;
           }
         } else {
           cold(&px);
@@ -430,7 +439,8 @@ void Inverter::InvertRow(const PixelBatch& b, const InversionOutput& out, std::s
   }
 }
 
-void Inverter::Invert(const PixelBatch& b, const InversionOutput& out, const RunControl* control) const {
+void Inverter::Invert(const PixelBatch& b, const InversionOutput& out,
+                      const RunControl* control) const {
   Require(b.num_pixels > 0, "the batch has no pixels");
   Require(b.num_frames >= 1, "num_frames must be >= 1");
   Require(b.radiance != nullptr, "radiance is missing");

@@ -200,7 +200,8 @@ void Inverter::ProfileGuess(const Pixel& px, std::vector<GuessCandidate>* out, i
       const double w = (th[ns] - p1[ns]) / (p1[ns] - p2[ns]);
       for (std::size_t s = 0; s < ns; ++s) {
         if (!px.est[s] || (held >> s & 1)) continue;
-        if (!(p1[s] > px.lower[s] && p2[s] > px.lower[s] && p1[s] < px.upper[s] && p2[s] < px.upper[s]))
+        if (!(p1[s] > px.lower[s] && p2[s] > px.lower[s] && p1[s] < px.upper[s] &&
+              p2[s] < px.upper[s]))
           continue;
         const double l1 = std::log(p1[s] + kLogEps), l2 = std::log(p2[s] + kLogEps);
         const double dl = std::min(std::max(w * (l1 - l2), -1.0), 1.0);
@@ -229,7 +230,8 @@ void Inverter::ProfileGuess(const Pixel& px, std::vector<GuessCandidate>* out, i
     GuessCandidate k;
     std::copy(ws->profile_theta[j].begin(), ws->profile_theta[j].end(), k.th);
     k.cost = f[j];
-    double predicted = f[j];  // the parabola's minimum (a poor guess on steep profiles: only a filter)
+    double predicted =
+        f[j];  // the parabola's minimum (a poor guess on steep profiles: only a filter)
     if (j > 0 && j + 1 < m) {
       const double a = slices_[j - 1].peak_temperature_K, b = slices_[j].peak_temperature_K,
                    c = slices_[j + 1].peak_temperature_K;
@@ -255,14 +257,17 @@ void Inverter::ProfileGuess(const Pixel& px, std::vector<GuessCandidate>* out, i
           return mask;
         };
         if (on_bound(j - 1) == on_bound(j) && on_bound(j) == on_bound(j + 1))
-          k.curvature = fa / ((a - b) * (a - c)) + fb / ((b - a) * (b - c)) + fc / ((c - a) * (c - b));
+          k.curvature =
+              fa / ((a - b) * (a - c)) + fb / ((b - a) * (b - c)) + fc / ((c - a) * (c - b));
         // Fractions interpolated (in log) towards the neighbour on tm's side.
         const std::size_t o = tm < b ? j - 1 : j + 1;
         const double w = (tm - b) / (slices_[o].peak_temperature_K - b);
         for (std::size_t s = 0; s < ns; ++s) {
           if (!px.est[s]) continue;
-          const double l0 = std::log(k.th[s] + kLogEps), l1 = std::log(ws->profile_theta[o][s] + kLogEps);
-          k.th[s] = std::min(std::max(std::exp(l0 + w * (l1 - l0)) - kLogEps, px.lower[s]), px.upper[s]);
+          const double l0 = std::log(k.th[s] + kLogEps),
+                       l1 = std::log(ws->profile_theta[o][s] + kLogEps);
+          k.th[s] =
+              std::min(std::max(std::exp(l0 + w * (l1 - l0)) - kLogEps, px.lower[s]), px.upper[s]);
         }
         k.th[ns] = tm;
         px.ApplyTies(k.th);

@@ -28,9 +28,11 @@ const double kSqrt2Pi = std::sqrt(2.0 * constants::kPi);
 
 struct Inverter::Pixel {
   std::size_t nc = 0, ns = 0, np = 0;
-  double y[inversion_detail::kMaxChannels], noise[inversion_detail::kMaxChannels], tbg[inversion_detail::kMaxChannels];
+  double y[inversion_detail::kMaxChannels], noise[inversion_detail::kMaxChannels],
+      tbg[inversion_detail::kMaxChannels];
   const double* phi = nullptr;
-  double nominal[inversion_detail::kMaxParams], lower[inversion_detail::kMaxParams], upper[inversion_detail::kMaxParams], prior_sigma[inversion_detail::kMaxParams];
+  double nominal[inversion_detail::kMaxParams], lower[inversion_detail::kMaxParams],
+      upper[inversion_detail::kMaxParams], prior_sigma[inversion_detail::kMaxParams];
   bool est[inversion_detail::kMaxParams];
   double scale[inversion_detail::kMaxParams];
   int tie_ref[inversion_detail::kMaxParams];      // species index this fraction follows, or -1
@@ -64,7 +66,8 @@ struct Inverter::Pixel {
   double chi2 = 0, cond = 0;
   double cov[inversion_detail::kMaxParams * inversion_detail::kMaxParams];
   double psig[inversion_detail::kMaxParams];
-  double col[inversion_detail::kMaxParams], col_sig[inversion_detail::kMaxParams], ppm[inversion_detail::kMaxParams], ppm_sig[inversion_detail::kMaxParams];
+  double col[inversion_detail::kMaxParams], col_sig[inversion_detail::kMaxParams],
+      ppm[inversion_detail::kMaxParams], ppm_sig[inversion_detail::kMaxParams];
   bool solved() const {
     return status == PixelStatus::kConverged || status == PixelStatus::kAtBound;
   }

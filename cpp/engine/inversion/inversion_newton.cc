@@ -34,7 +34,8 @@ void Inverter::SolveNewton(Pixel* px, Workspace* ws) const {
     for (int i = 0; i < nu; ++i) {
       const double lu = lu0 + i * h;
       ws->curve_u[i] = std::exp(lu);
-      t.RawValues(c, s, lu, std::exp(lu) / sg, tp, &ws->curve_nodes[static_cast<std::size_t>(i) * r1]);
+      t.RawValues(c, s, lu, std::exp(lu) / sg, tp,
+                  &ws->curve_nodes[static_cast<std::size_t>(i) * r1]);
     }
     ws->curve = UniformSpline(lu0, h, nu, r1, ws->curve_nodes, Extrapolation::kHold,
                               Extrapolation::kLinear);
@@ -126,7 +127,10 @@ void Inverter::SolveNewton(Pixel* px, Workspace* ws) const {
       const double u = std::exp(lu);
       eval_lu(u, lu, &f, &df);
       f -= target;
-      if ((f > 0) == (fa > 0)) la = lu; else lb = lu;
+      if ((f > 0) == (fa > 0))
+        la = lu;
+      else
+        lb = lu;
       const double dfl = u * df;
       double next = dfl != 0 ? lu - f / dfl : 0.5 * (la + lb);
       if (!(next > la && next < lb)) next = 0.5 * (la + lb);

@@ -28,7 +28,8 @@ void Inverter::SolveTable(Pixel* px, const double* start, Workspace* ws, bool pr
   double theta[kMaxParams];
   LmSettings set;
   for (std::size_t p = 0; p < np; ++p) {
-    theta[p] = px->est[p] ? std::min(std::max(start[p], px->lower[p]), px->upper[p]) : px->nominal[p];
+    theta[p] =
+        px->est[p] ? std::min(std::max(start[p], px->lower[p]), px->upper[p]) : px->nominal[p];
     if (px->est[p]) set.estimate |= static_cast<std::uint8_t>(1u << p);
   }
   px->ApplyTies(theta);
@@ -62,9 +63,9 @@ void Inverter::SolveTable(Pixel* px, const double* start, Workspace* ws, bool pr
   std::uint8_t held = 0;
   double r[kMaxRows], jac[kMaxRows * kMaxParams], cost = 0;
   int iters = 0;
-  const bool ok = px->est[ns] ? ProfileLm(*px, set, nr, eval, theta, &held, r, jac, &cost, &iters,
-                                          &curvature)
-                              : BoundedLm(*px, set, nr, eval, theta, &held, r, jac, &cost, &iters);
+  const bool ok =
+      px->est[ns] ? ProfileLm(*px, set, nr, eval, theta, &held, r, jac, &cost, &iters, &curvature)
+                  : BoundedLm(*px, set, nr, eval, theta, &held, r, jac, &cost, &iters);
   px->curvature = curvature;
   for (std::size_t p = 0; p < np; ++p) px->theta[p] = theta[p];
   px->iterations += iters;
@@ -81,7 +82,6 @@ void Inverter::SolveTable(Pixel* px, const double* start, Workspace* ws, bool pr
   }
   FinishWith(px, con, jac, ws);
 }
-
 
 void Inverter::Columns(Pixel* px, Workspace* ws) const {
   const std::size_t ns = px->ns, np = px->np;
@@ -139,8 +139,10 @@ void Inverter::FinishWith(Pixel* px, const double* con, const double* jac_in, Wo
   if (ne > 0) {
     const int nr = static_cast<int>(nc) + npr;
     // Fixed largest sizes: no heap allocations per pixel.
-    using Matrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor, kMaxRows, kMaxParams>;
-    using Square = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor, kMaxParams, kMaxParams>;
+    using Matrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor, kMaxRows,
+                                 kMaxParams>;
+    using Square = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor,
+                                 kMaxParams, kMaxParams>;
     using Vector = Eigen::Matrix<double, Eigen::Dynamic, 1, Eigen::ColMajor, kMaxParams, 1>;
     Matrix j = Matrix::Zero(nr, ne);
     int row = static_cast<int>(nc);
@@ -171,11 +173,11 @@ void Inverter::FinishWith(Pixel* px, const double* con, const double* jac_in, Wo
     px->log_det = 0;
     for (int k = 0; k < ne; ++k) px->log_det += std::log(inv2[k]) - 2.0 * std::log(d[k]);
     for (int a = 0; a < ne; ++a)
-      for (int b = 0; b < ne; ++b)
-        px->cov[est[a] * np + est[b]] = covn(a, b) / (d[a] * d[b]);
+      for (int b = 0; b < ne; ++b) px->cov[est[a] * np + est[b]] = covn(a, b) / (d[a] * d[b]);
     for (int a = 0; a < ne; ++a) {
       const int p = est[a];
-      px->psig[p] = std::min(std::sqrt(std::max(px->cov[p * np + p], 0.0)), px->upper[p] - px->lower[p]);
+      px->psig[p] =
+          std::min(std::sqrt(std::max(px->cov[p * np + p], 0.0)), px->upper[p] - px->lower[p]);
     }
     // Tied fractions: x_s = ratio x_ref.
     for (std::size_t s = 0; s < ns; ++s) {
@@ -200,7 +202,8 @@ void Inverter::FillFailed(Pixel* px) const {
     px->psig[p] = 0;
   }
   std::fill(px->cov, px->cov + np * np, 0.0);
-  for (std::size_t s = 0; s < ns; ++s) px->col[s] = px->col_sig[s] = px->ppm[s] = px->ppm_sig[s] = 0;
+  for (std::size_t s = 0; s < ns; ++s)
+    px->col[s] = px->col_sig[s] = px->ppm[s] = px->ppm_sig[s] = 0;
   px->chi2 = 0;
   px->cond = 0;
   px->bound_mask = 0;
@@ -214,7 +217,8 @@ void Inverter::FillBelowDetection(Pixel* px, Workspace* ws) const {
   std::fill(px->cov, px->cov + np * np, 0.0);
   std::fill(px->psig, px->psig + np, 0.0);
   px->chi2 = 0;
-  for (std::size_t c = 0; c < nc; ++c) px->chi2 += (px->y[c] / px->noise[c]) * (px->y[c] / px->noise[c]);
+  for (std::size_t c = 0; c < nc; ++c)
+    px->chi2 += (px->y[c] / px->noise[c]) * (px->y[c] / px->noise[c]);
   px->cond = 0;
   px->bound_mask = 0;
   Columns(px, ws);

@@ -17,12 +17,12 @@
 #include "engine/inversion/bspline.h"
 #include "engine/inversion/full_model.h"
 #include "engine/inversion/inversion.h"
-#include "engine/inversion/mixing_line.h"
 #include "engine/inversion/march_kernel.h"
-#include "engine/rte/march.h"
+#include "engine/inversion/mixing_line.h"
 #include "engine/inversion/scene_fixture_test.h"
 #include "engine/inversion/scene_table.h"
 #include "engine/optics/planck.h"
+#include "engine/rte/march.h"
 #include "engine/rte/synthetic_spectra_test.h"
 
 namespace qogi {
@@ -126,8 +126,8 @@ TEST(MarchKernel, SymmetricHalfEqualsTheWholePath) {
     std::vector<double> de(n, 0.0), da(n, 0.0), he(n, 0.0), ha(n, 0.0), p(n, 1.0), eb(n, 0.0),
         ab(n, 0.0);
     for (int i = 0; i + 1 < nodes; ++i)
-      MarchLayerPair(n, &k[i * n], &k[(i + 1) * n], &d[i * n], &d[(i + 1) * n], u, 0.05,
-                     de.data(), da.data());
+      MarchLayerPair(n, &k[i * n], &k[(i + 1) * n], &d[i * n], &d[(i + 1) * n], u, 0.05, de.data(),
+                     da.data());
     for (int i = 0; i < half; ++i)
       MarchLayerPairSymmetric(n, &k[i * n], &k[(i + 1) * n], &d[i * n], &d[(i + 1) * n], u, 0.05,
                               he.data(), ha.data(), p.data(), eb.data(), ab.data());
@@ -189,8 +189,8 @@ TEST(SceneTable, SeesNoOverlapAndBuildsOneTablePerAbsorbingPair) {
 double WorstNodeError(const SceneTable& t, const BinnedModel& m, double t_amb) {
   const double lu0 = t.min_log_u(), h = t.log_u_step();
   const double hx = 1.0 / (t.num_fraction_nodes() - 1);
-  const double ht = (t.max_peak_temperature_K() - t.min_peak_temperature_K()) /
-                    (t.num_temperature_nodes() - 1);
+  const double ht =
+      (t.max_peak_temperature_K() - t.min_peak_temperature_K()) / (t.num_temperature_nodes() - 1);
   std::vector<double> phi(t.background_size());
   double worst = 0;
   for (int iu : {3, 17, 30, t.num_u_nodes() - 8}) {
@@ -274,10 +274,10 @@ TEST(SceneTable, SlicesEqualTheTableAtTheirTemperature) {
   std::vector<double> phi(t.background_size());
   const double tbg[4] = {281, 279, 283, 276};
   t.Background(tbg, phi.data());
-  for (double tp : {t.min_peak_temperature_K() + 3 * (t.max_peak_temperature_K() -
-                                                      t.min_peak_temperature_K()) /
-                                                     (t.num_temperature_nodes() - 1),
-                    331.7}) {
+  for (double tp :
+       {t.min_peak_temperature_K() + 3 * (t.max_peak_temperature_K() - t.min_peak_temperature_K()) /
+                                         (t.num_temperature_nodes() - 1),
+        331.7}) {
     const SceneTable::Slice sl = t.MakeSlice(tp);
     for (double scale : {1e-4, 1e-2, 0.3}) {
       const double x[2] = {scale, 0.6 * scale}, sigma = 0.07;
@@ -484,7 +484,8 @@ TEST(Inverter, FastPathAgreesWithCeresOnTheFullModel) {
   for (std::size_t i = 0; i < b.n; ++i) {
     if (at.status[i] != 0) continue;
     ASSERT_EQ(ct.status[i], 0) << "pixel " << i;
-    EXPECT_NEAR(at.parameters[i * 4 + 2], ct.parameters[i * 4 + 2], 0.1 * ct.parameter_sigma[i * 4 + 2] + 0.05);
+    EXPECT_NEAR(at.parameters[i * 4 + 2], ct.parameters[i * 4 + 2],
+                0.1 * ct.parameter_sigma[i * 4 + 2] + 0.05);
     for (int s = 0; s < 2; ++s)
       EXPECT_NEAR(at.column_density[i * 2 + s], ct.column_density[i * 2 + s],
                   0.1 * ct.column_density_sigma[i * 2 + s] + 2e-3 * ct.column_density[i * 2 + s]);
@@ -741,10 +742,10 @@ TEST(MixingLineInverter, RecoversTheLineFractionExactlyWithoutNoise) {
   EXPECT_GT(xsig[n - 1], 0.0);  // the thin-limit 1-sigma
   MixingLineOptions bad = o;
   bad.composition = {1.0};
-  EXPECT_THROW(inv.Invert(bad, n, rad.data(), bg.data(), sg.data(),
-                          {x.data(), xsig.data(), tp.data(), chi2.data(), status.data(),
-                           iters.data()}),
-               std::invalid_argument);
+  EXPECT_THROW(
+      inv.Invert(bad, n, rad.data(), bg.data(), sg.data(),
+                 {x.data(), xsig.data(), tp.data(), chi2.data(), status.data(), iters.data()}),
+      std::invalid_argument);
   bad = o;
   bad.netd_K = {0.0};
   EXPECT_THROW(bad.Check(2, nc), std::invalid_argument);
@@ -845,8 +846,10 @@ TEST(MixingLineInverter, LineTablesAgreeWithTheTable) {
   EXPECT_GT(compared, 3000);
   EXPECT_EQ(same_status, static_cast<int>(n));
   EXPECT_LT(worst, 0.01) << "largest |X_line - X_table| / max(sigma_X, 1e-3 X)";
-  std::printf("line tables vs table: %d converged pixels compared, %d of %zu same status, "
-              "largest |dX| / max(sigma_X, 1e-3 X) %.2e\n", compared, same_status, n, worst);
+  std::printf(
+      "line tables vs table: %d converged pixels compared, %d of %zu same status, "
+      "largest |dX| / max(sigma_X, 1e-3 X) %.2e\n",
+      compared, same_status, n, worst);
   bool bad = false;
   MixingLineOptions b = o;
   b.line_nodes_per_unit = -1;

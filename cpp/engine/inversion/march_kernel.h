@@ -21,9 +21,8 @@ double ExpNegative(double x);
 //   da <- da t + tau f,
 // with f = (1 - e^-tau) / tau (its series below tau = 1e-4) and t = 1 - tau f,
 // exactly the arithmetic of MarchLayer (march.h) with kappa = u k.
-void MarchLayerPair(std::size_t n, const double* k_far, const double* k_near,
-                    const double* d_far, const double* d_near, double u, double ds, double* de,
-                    double* da);
+void MarchLayerPair(std::size_t n, const double* k_far, const double* k_near, const double* d_far,
+                    const double* d_near, double u, double ds, double* de, double* da);
 
 // The same layer, marched over the first half of a path that is symmetric
 // about its middle (a Gaussian plume's line of sight), also accumulating

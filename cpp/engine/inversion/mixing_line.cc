@@ -13,8 +13,8 @@ namespace qogi {
 void MixingLineOptions::Check(std::size_t num_species, std::size_t num_channels) const {
   Require(std::isfinite(slope_K_per_fraction), "slope_K_per_fraction must be finite");
   Require(composition.size() == num_species,
-          "composition needs one weight per species of the table (" +
-              std::to_string(num_species) + "); got " + std::to_string(composition.size()));
+          "composition needs one weight per species of the table (" + std::to_string(num_species) +
+              "); got " + std::to_string(composition.size()));
   double sum = 0;
   for (double w : composition) {
     Require(std::isfinite(w) && w >= 0, "composition weights must be finite and >= 0");
@@ -28,9 +28,9 @@ void MixingLineOptions::Check(std::size_t num_species, std::size_t num_channels)
   Require(min_fraction > 0 && max_fraction > min_fraction && max_fraction <= 1.0,
           "fraction bounds must satisfy 0 < min_fraction < max_fraction <= 1");
   Require(max_iterations >= 1, "max_iterations must be >= 1");
-  Require(line_nodes_per_unit >= 0 && line_nodes_per_unit <= 256,
-          "line_nodes_per_unit must be within [0, 256]; got " +
-              std::to_string(line_nodes_per_unit));
+  Require(
+      line_nodes_per_unit >= 0 && line_nodes_per_unit <= 256,
+      "line_nodes_per_unit must be within [0, 256]; got " + std::to_string(line_nodes_per_unit));
 }
 
 namespace {
@@ -46,9 +46,16 @@ struct LinePixel {
 class LineModel {
  public:
   LineModel(const SceneTable& table, const MixingLineOptions& o)
-      : table_(table), o_(o), nc_(table.num_channels()), ns_(table.num_species()),
-        t_amb_(table.ambient_temperature_K()), t_lo_(table.min_peak_temperature_K()),
-        t_hi_(table.max_peak_temperature_K()), x_(ns_), m_(nc_), jac_(nc_ * (ns_ + 2)) {}
+      : table_(table),
+        o_(o),
+        nc_(table.num_channels()),
+        ns_(table.num_species()),
+        t_amb_(table.ambient_temperature_K()),
+        t_lo_(table.min_peak_temperature_K()),
+        t_hi_(table.max_peak_temperature_K()),
+        x_(ns_),
+        m_(nc_),
+        jac_(nc_ * (ns_ + 2)) {}
 
   double Temperature(double big_x, bool* on_line) const {
     const double t = t_amb_ + o_.slope_K_per_fraction * big_x;
@@ -101,9 +108,11 @@ class LineModel {
 // interpolated by cubic Hermite polynomials.
 class LineTable {
  public:
-  LineTable(std::size_t nc, std::size_t nphi, double sigma, double v_lo, double v_hi,
-            int per_unit)
-      : nc_(nc), ne_(1 + nphi), sigma_(sigma), v_lo_(v_lo),
+  LineTable(std::size_t nc, std::size_t nphi, double sigma, double v_lo, double v_hi, int per_unit)
+      : nc_(nc),
+        ne_(1 + nphi),
+        sigma_(sigma),
+        v_lo_(v_lo),
         n_(std::max(4, static_cast<int>(std::ceil((v_hi - v_lo) * per_unit)) + 1)),
         h_((v_hi - v_lo) / (n_ - 1)),
         val_(static_cast<std::size_t>(n_) * nc_ * ne_),
@@ -162,8 +171,8 @@ class LineTable {
     const double s = (v - v_lo_) / h_;
     const int k = std::clamp(static_cast<int>(std::floor(s)), 0, n_ - 2);
     const double t = std::clamp(s - k, 0.0, 1.0), t2 = t * t, t3 = t2 * t;
-    const double h00 = 2 * t3 - 3 * t2 + 1, h10 = (t3 - 2 * t2 + t) * h_,
-                 h01 = -2 * t3 + 3 * t2, h11 = (t3 - t2) * h_;
+    const double h00 = 2 * t3 - 3 * t2 + 1, h10 = (t3 - 2 * t2 + t) * h_, h01 = -2 * t3 + 3 * t2,
+                 h11 = (t3 - t2) * h_;
     const double g00 = (6 * t2 - 6 * t) / h_, g10 = 3 * t2 - 4 * t + 1,
                  g01 = (-6 * t2 + 6 * t) / h_, g11 = 3 * t2 - 2 * t;
     const double* v0 = &val_[static_cast<std::size_t>(k) * nc_ * ne_];
@@ -227,8 +236,8 @@ void MixingLineInverter::Invert(const MixingLineOptions& options, std::size_t n,
   const std::vector<RadiometricTable>& bands = bands_;
   const std::size_t nc = table.num_channels(), ns = table.num_species();
   options.Check(ns, nc);
-  Require(out.fraction && out.fraction_sigma && out.peak_temperature_K && out.chi2 &&
-              out.status && out.iterations,
+  Require(out.fraction && out.fraction_sigma && out.peak_temperature_K && out.chi2 && out.status &&
+              out.iterations,
           "InvertOnMixingLine needs every output array");
   // Every x_s = w_s X must stay <= 1 too.
   double w_max = 0;
@@ -262,7 +271,8 @@ void MixingLineInverter::Invert(const MixingLineOptions& options, std::size_t n,
     std::size_t num_tables = 0;
     for (std::size_t c = 0; c < nc; ++c)
       for (std::size_t s = 0; s < ns; ++s) num_tables += table.has_table(c, s);
-    const double per_node = static_cast<double>(ne - 1 + num_tables) / std::max<std::size_t>(1, num_tables);
+    const double per_node =
+        static_cast<double>(ne - 1 + num_tables) / std::max<std::size_t>(1, num_tables);
     if (depths.empty() ||
         static_cast<double>(depths.size()) * nodes * per_node > 0.5 * n * (scan_nodes + 10.0))
       depths.clear();
@@ -354,8 +364,8 @@ void MixingLineInverter::Invert(const MixingLineOptions& options, std::size_t n,
           // Gauss-Newton from the best node.
           double best_u = u_hi, best = std::numeric_limits<double>::infinity();
           if (line) {
-            const int stride = std::max(
-                1, static_cast<int>((line->num_nodes() - 1) / (scan_nodes - 1)));
+            const int stride =
+                std::max(1, static_cast<int>((line->num_nodes() - 1) / (scan_nodes - 1)));
             for (int k = 0;; k = std::min(k + stride, line->num_nodes() - 1)) {
               line->AtNode(k, e.data(), mm.data());
               double c2 = 0;
@@ -436,9 +446,9 @@ void MixingLineInverter::Invert(const MixingLineOptions& options, std::size_t n,
           // d(ln X) has variance 1 / jj: sigma_X = X / sqrt(jj).
           out.fraction_sigma[i] = jj > 0 ? big_x / std::sqrt(jj) : 0.0;
           const bool at_bound = u <= u_lo + 1e-12 || u >= u_hi - 1e-12;
-          out.status[i] = static_cast<std::int32_t>(
-              !converged ? PixelStatus::kFailed
-                         : at_bound ? PixelStatus::kAtBound : PixelStatus::kConverged);
+          out.status[i] = static_cast<std::int32_t>(!converged ? PixelStatus::kFailed
+                                                    : at_bound ? PixelStatus::kAtBound
+                                                               : PixelStatus::kConverged);
         }
       },
       options.num_threads, control);

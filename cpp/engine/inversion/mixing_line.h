@@ -29,17 +29,17 @@ struct MixingLineOptions {
   double slope_K_per_fraction = 0.0;  // k: T_peak = T_amb + k X [K per unit volume fraction]
   std::vector<double> composition;    // w_s >= 0 per species of the table (x_s = w_s X), sum > 0
   std::vector<double> netd_K;         // per channel (or one value for all) [K]
-  double detection_sigma = 3.0;       // below detection: |y_c| < detection_sigma n_c in every channel
-  double min_fraction = 1e-9;         // lower bound of X
-  double max_fraction = 1.0;          // upper bound of X (every x_s <= 1 as well)
-  int max_iterations = 50;            // Gauss-Newton iterations per pixel (>= 1)
+  double detection_sigma = 3.0;  // below detection: |y_c| < detection_sigma n_c in every channel
+  double min_fraction = 1e-9;  // lower bound of X
+  double max_fraction = 1.0;  // upper bound of X (every x_s <= 1 as well)
+  int max_iterations = 50;  // Gauss-Newton iterations per pixel (>= 1)
   // Pixels sharing a plume depth (e.g. one control surface) are solved on a
   // tabulation of the line's contrast in ln X with this many nodes per unit
   // (cubic Hermite from the table's values and slopes; the table's contrast
   // is affine in the background), when that is cheaper than evaluating the
   // table per pixel. 0 = always evaluate the table. [0, 256].
   int line_nodes_per_unit = 16;
-  int num_threads = 0;                // 0 = all hardware threads
+  int num_threads = 0;  // 0 = all hardware threads
 
   // Throws std::invalid_argument naming the field.
   void Check(std::size_t num_species, std::size_t num_channels) const;
@@ -70,8 +70,8 @@ class MixingLineInverter {
   // Each channel's band table (radiance <-> temperature) [W/(m2 sr)], [K].
   const std::vector<RadiometricTable>& bands() const { return bands_; }
   void Invert(const MixingLineOptions& options, std::size_t num_pixels, const double* radiance,
-              const double* background_radiance, const double* sigma_m,
-              const MixingLineOutput& out, const RunControl* control = nullptr) const;
+              const double* background_radiance, const double* sigma_m, const MixingLineOutput& out,
+              const RunControl* control = nullptr) const;
 
  private:
   std::shared_ptr<const SceneTable> table_;

@@ -1,8 +1,8 @@
 #include "engine/inversion/mixing_line_slope.h"
 
 #include <algorithm>
-#include <cstdint>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <string>
 
@@ -26,8 +26,8 @@ void MixingLineSlopeOptions::Check(std::size_t num_species, std::size_t num_chan
 }
 
 std::vector<std::size_t> MixingLineSlopeSample(const MixingLineInverter& inverter,
-                                               const MixingLineSlopeOptions& options,
-                                               std::size_t n, const double* radiance,
+                                               const MixingLineSlopeOptions& options, std::size_t n,
+                                               const double* radiance,
                                                const double* background_radiance,
                                                std::size_t* num_candidates) {
   const std::size_t nc = inverter.table().num_channels();
@@ -44,8 +44,8 @@ std::vector<std::size_t> MixingLineSlopeSample(const MixingLineInverter& inverte
       const std::size_t h = n / 2;
       std::nth_element(column.begin(), column.begin() + h, column.end());
       median = column[h];
-      if (n % 2 == 0) median = 0.5 * (median + *std::max_element(column.begin(),
-                                                                   column.begin() + h));
+      if (n % 2 == 0)
+        median = 0.5 * (median + *std::max_element(column.begin(), column.begin() + h));
     }
     const RadiometricTable& band = inverter.bands()[c];
     const double t_bg = band.Temperature(median);
@@ -98,9 +98,9 @@ MixingLineSlope MixingLineSlopeFromProfile(const std::vector<double>& grid, std:
   Require(nk >= 2, "the k grid needs at least 2 values; got " + std::to_string(nk));
   const double step = grid[1] - grid[0];
   for (std::size_t k = 1; k < nk; ++k)
-    Require(std::abs(grid[k] - grid[k - 1] - step) <= 1e-9 * std::max(1.0, std::abs(step)) &&
-                step > 0,
-            "the k grid must be increasing and evenly spaced");
+    Require(
+        std::abs(grid[k] - grid[k - 1] - step) <= 1e-9 * std::max(1.0, std::abs(step)) && step > 0,
+        "the k grid must be increasing and evenly spaced");
   Require(chi2_cap > 0, "chi2_cap must be > 0; got " + FormatNumber(chi2_cap));
   MixingLineSlope r;
   r.grid_K_per_fraction = grid;
@@ -115,8 +115,8 @@ MixingLineSlope MixingLineSlopeFromProfile(const std::vector<double>& grid, std:
   }
   if (r.num_fitted == 0) return r;
   const std::vector<double>& total = r.total_chi2;
-  const std::size_t i = static_cast<std::size_t>(
-      std::min_element(total.begin(), total.end()) - total.begin());
+  const std::size_t i =
+      static_cast<std::size_t>(std::min_element(total.begin(), total.end()) - total.begin());
   double k = grid[i];
   const double dof = static_cast<double>(std::max<std::size_t>(1, r.num_fitted - 1));
   const double scale = std::max(1.0, total[i] / dof);  // model error widens Delta chi2 = 1
@@ -143,8 +143,7 @@ MixingLineSlope MixingLineSlopeFromProfile(const std::vector<double>& grid, std:
   }
   r.found = true;
   r.slope_K_per_fraction = k;
-  r.sigma_K_per_fraction =
-      in_lo <= in_hi ? std::max({k - in_lo, in_hi - k, 0.5 * step}) : step;
+  r.sigma_K_per_fraction = in_lo <= in_hi ? std::max({k - in_lo, in_hi - k, 0.5 * step}) : step;
   return r;
 }
 
@@ -169,8 +168,8 @@ MixingLineSlope FindMixingLineSlope(const MixingLineInverter& inverter,
   for (std::size_t k = 0; k < nk; ++k) grid[k] = k_lo + options.grid_step_K * k;
 
   std::size_t num_candidates = 0;
-  const std::vector<std::size_t> sample = MixingLineSlopeSample(
-      inverter, options, n, radiance, background_radiance, &num_candidates);
+  const std::vector<std::size_t> sample =
+      MixingLineSlopeSample(inverter, options, n, radiance, background_radiance, &num_candidates);
   const std::size_t np = sample.size();
   if (np < options.min_samples) {
     MixingLineSlope r;
@@ -194,8 +193,7 @@ MixingLineSlope FindMixingLineSlope(const MixingLineInverter& inverter,
     RunControl step;
     if (control) {
       step.cancelled = control->cancelled;
-      if (control->progress)
-        step.progress = [&, k](double f) { control->progress((k + f) / nk); };
+      if (control->progress) step.progress = [&, k](double f) { control->progress((k + f) / nk); };
     }
     line.slope_K_per_fraction = grid[k];
     double* row = &chi2[k * np];

@@ -33,7 +33,8 @@ struct MixingLineSlopeOptions {
   // composition, netd_K, detection_sigma, ... are used as given).
   MixingLineOptions line;
   double min_snr = 10.0;          // sampled: max_c |L_c - L_bg,c| / n_c >= min_snr [1], >= 0
-  std::size_t max_samples = 3000; // at most this many pixel-frames: a seeded random subset of the candidates (>= 1)
+  std::size_t max_samples =
+      3000; // at most this many pixel-frames: a seeded random subset of the candidates (>= 1)
   std::uint64_t seed = 0;         // of that subset (splitmix64; the same on every platform)
   std::size_t min_samples = 5;    // fewer candidates: no search, k = 0 (found = false) (>= 1)
   double grid_step_K = 10.0;      // step of the k grid [K per unit fraction], > 0
@@ -44,14 +45,14 @@ struct MixingLineSlopeOptions {
 };
 
 struct MixingLineSlope {
-  bool found = false;                   // false: fewer than min_samples candidates (k = 0, sigma 0)
-  double slope_K_per_fraction = 0.0;    // k [K per unit volume fraction]
-  double sigma_K_per_fraction = 0.0;    // its 1-sigma [K per unit volume fraction]
-  std::size_t num_candidates = 0;       // pixel-frames at or above min_snr
-  std::size_t num_samples = 0;          // of them, solved on the line for each k
-  std::size_t num_fitted = 0;           // samples with a finite chi2 at every k (in the total)
+  bool found = false;  // false: fewer than min_samples candidates (k = 0, sigma 0)
+  double slope_K_per_fraction = 0.0;  // k [K per unit volume fraction]
+  double sigma_K_per_fraction = 0.0;  // its 1-sigma [K per unit volume fraction]
+  std::size_t num_candidates = 0;  // pixel-frames at or above min_snr
+  std::size_t num_samples = 0;  // of them, solved on the line for each k
+  std::size_t num_fitted = 0;  // samples with a finite chi2 at every k (in the total)
   std::vector<double> grid_K_per_fraction;  // the k grid
-  std::vector<double> total_chi2;           // the capped chi2 summed over the fitted samples, per k
+  std::vector<double> total_chi2;  // the capped chi2 summed over the fitted samples, per k
 };
 
 // The pixel-frames (rows of radiance and background_radiance [W/(m2 sr)],

@@ -50,8 +50,8 @@ Pixels OnTheLine(const Fixture& f, double k, std::size_t n, double netd_K, unsig
     std::vector<double> tbg(nc, t_bg), phi(t.background_size()), m(nc, 0.0);
     t.Background(tbg.data(), phi.data());
     const double x[2] = {0.5 * big_x, 0.5 * big_x};
-    const double tp = std::clamp(f.t_amb + k * big_x, t.min_peak_temperature_K(),
-                                 t.max_peak_temperature_K());
+    const double tp =
+        std::clamp(f.t_amb + k * big_x, t.min_peak_temperature_K(), t.max_peak_temperature_K());
     if (big_x > 0) t.Contrast(x, tp, p.sigma[i], phi.data(), m.data(), nullptr);
     for (std::size_t c = 0; c < nc; ++c) {
       const SpectralResponse& channel = t.model().channels()[c];
@@ -147,9 +147,8 @@ TEST(MixingLineSlope, SamplesAtRandomReportsProgressAndCancels) {
 
   RunControl stop;
   stop.cancelled = [] { return true; };
-  EXPECT_THROW(
-      FindMixingLineSlope(inv, o, p.n, p.rad.data(), p.bg.data(), p.sigma.data(), &stop),
-      Cancelled);
+  EXPECT_THROW(FindMixingLineSlope(inv, o, p.n, p.rad.data(), p.bg.data(), p.sigma.data(), &stop),
+               Cancelled);
 }
 
 // No gas anywhere: no candidate, no search, a flagged result (not a k).
@@ -158,8 +157,8 @@ TEST(MixingLineSlope, FlatInputIsFlaggedNotFitted) {
   MixingLineInverter inv(f.table);
   Pixels p = OnTheLine(f, 72.0, 200, 0.0, 13);
   p.rad = p.bg;
-  const MixingLineSlope r = FindMixingLineSlope(inv, SlopeOptions(0.03), p.n, p.rad.data(),
-                                                p.bg.data(), p.sigma.data());
+  const MixingLineSlope r =
+      FindMixingLineSlope(inv, SlopeOptions(0.03), p.n, p.rad.data(), p.bg.data(), p.sigma.data());
   EXPECT_FALSE(r.found);
   EXPECT_EQ(r.num_candidates, 0u);
   EXPECT_EQ(r.slope_K_per_fraction, 0.0);

@@ -16,13 +16,12 @@
 namespace qogi {
 namespace testing_support {
 
-
 // ---------------------------------------------------------------------------
 // Synthetic spectroscopy: "CH4" lines at 2950-3100 cm-1 and "CO2" lines at
 // 2150-2300 cm-1 (spectrally separate, as the real bands are).
 
 inline AbsorberTable LorentzTable(const std::string& species, double nu0, double nu1, double lo,
-                           double hi, unsigned seed, bool with_self, int n_lines = 150) {
+                                  double hi, unsigned seed, bool with_self, int n_lines = 150) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> u01(0, 1);
   std::vector<testing_support::TestLine> lines;
@@ -44,7 +43,8 @@ inline SpectralResponse Bandpass(double lo, double hi, const std::string& name) 
 
 inline BinnedModelOptions CoarseOptions() {
   BinnedModelOptions o;
-  o.num_nodes = 65;  // fewer nodes keep the tests fast; the table reproduces whatever the model does
+  o.num_nodes =
+      65;  // fewer nodes keep the tests fast; the table reproduces whatever the model does
   return o;
 }
 
@@ -62,7 +62,8 @@ struct Fixture {
     so.ambient_temperature_K = t_amb;
     so.min_peak_temperature_K = 250;
     so.max_peak_temperature_K = 450;
-    so.negligible_fraction = 0;  // every bin: the table must reproduce the model exactly on its nodes
+    so.negligible_fraction =
+        0;  // every bin: the table must reproduce the model exactly on its nodes
     so.linear_optical_depth = 1e-7;  // and every bin marched wherever it is not linear to 5e-8
     so.max_sigma_m = 2.0;
     so.num_threads = 2;

@@ -32,8 +32,8 @@ void SceneTableOptions::Check() const {
   Require(num_nodes == 0 || (num_nodes >= 5 && num_nodes <= 10001 && num_nodes % 2 == 1),
           "num_nodes must be 0 (the model's) or odd within [5, 10001]; got " +
               std::to_string(num_nodes));
-  Require(num_threads >= 0, "num_threads must be >= 0 (0 = all cores); got " +
-                                std::to_string(num_threads));
+  Require(num_threads >= 0,
+          "num_threads must be >= 0 (0 = all cores); got " + std::to_string(num_threads));
 }
 
 std::vector<std::string> SceneTable::SpectralOverlaps(const BinnedModel& model) {
@@ -135,13 +135,12 @@ SceneTable::SceneTable(std::shared_ptr<const BinnedModel> model, SceneTableOptio
   t_hi_ = options_.max_peak_temperature_K > 0 ? options_.max_peak_temperature_K : tmax;
   Require(t_lo_ >= tmin - 1e-9 && t_hi_ <= tmax + 1e-9,
           "peak temperature range [" + FormatNumber(t_lo_) + ", " + FormatNumber(t_hi_) +
-              "] K must lie inside the cross-section tables' range [" + FormatNumber(tmin) +
-              ", " + FormatNumber(tmax) + "] K");
-  Require(t_hi_ - t_lo_ >= 3 * 1.0,
-          "peak temperature range [" + FormatNumber(t_lo_) + ", " + FormatNumber(t_hi_) +
-              "] K is too narrow (needs >= 3 K)");
-  nt_ = std::max(4, static_cast<int>(std::ceil((t_hi_ - t_lo_) / options_.temperature_step_K -
-                                               1e-9)) + 1);
+              "] K must lie inside the cross-section tables' range [" + FormatNumber(tmin) + ", " +
+              FormatNumber(tmax) + "] K");
+  Require(t_hi_ - t_lo_ >= 3 * 1.0, "peak temperature range [" + FormatNumber(t_lo_) + ", " +
+                                        FormatNumber(t_hi_) + "] K is too narrow (needs >= 3 K)");
+  nt_ = std::max(
+      4, static_cast<int>(std::ceil((t_hi_ - t_lo_) / options_.temperature_step_K - 1e-9)) + 1);
   h_t_ = (t_hi_ - t_lo_) / (nt_ - 1);
 
   bool any_self = false;
@@ -189,16 +188,18 @@ SceneTable::SceneTable(std::shared_ptr<const BinnedModel> model, SceneTableOptio
     }
     negligible_bound_ = std::max(negligible_bound_, dropped_c);
   }
-  Require(kmax > 0, "no channel sees any absorption of the model's species; "
-                    "check the channels' spectral ranges against the tables");
+  Require(kmax > 0,
+          "no channel sees any absorption of the model's species; "
+          "check the channels' spectral ranges against the tables");
   // Peak optical depth of a plume: u * n * sigma_abs * sqrt(2 pi).
   const double u_min = options_.thin_optical_depth / (kmax * n_lo * std::sqrt(2 * constants::kPi));
   const double u_max = options_.max_sigma_m;
   Require(u_max > 10 * u_min, "max_sigma_m is too small for the table");
   lu_lo_ = std::log(u_min);
   lu_hi_ = std::log(u_max);
-  nu_ = std::max(4, static_cast<int>(std::ceil(std::log10(u_max / u_min) *
-                                               options_.nodes_per_decade - 1e-9)) + 1);
+  nu_ = std::max(
+      4, static_cast<int>(std::ceil(std::log10(u_max / u_min) * options_.nodes_per_decade - 1e-9)) +
+             1);
   h_lu_ = (lu_hi_ - lu_lo_) / (nu_ - 1);
   axis_u_ = CubicSplineAxis(nu_);
   axis_x_ = CubicSplineAxis(nx_);
@@ -208,8 +209,10 @@ SceneTable::SceneTable(std::shared_ptr<const BinnedModel> model, SceneTableOptio
 
   // Tables and their Planck bases.
   index_.assign(nc_ * ns_, -1);
-  const int n_bg = std::max(4, static_cast<int>(std::ceil(
-                                   (options_.max_background_K - options_.min_background_K) / 0.5)) + 1);
+  const int n_bg = std::max(
+      4,
+      static_cast<int>(std::ceil((options_.max_background_K - options_.min_background_K) / 0.5)) +
+          1);
   const double h_bg = (options_.max_background_K - options_.min_background_K) / (n_bg - 1);
   h_bg_ = h_bg;
   for (std::size_t c = 0; c < nc_; ++c) {
@@ -232,12 +235,13 @@ SceneTable::SceneTable(std::shared_ptr<const BinnedModel> model, SceneTableOptio
         for (int k = 0; k < nm; ++k) t.moment_nu_cm1.push_back(bv.segment_nodes[g * nm + k]);
       const int mm = static_cast<int>(t.moment_nu_cm1.size());
       // Normalised moment vectors over the background range; SVD.
-      const int n_svd = std::max(50, static_cast<int>((options_.max_background_K -
-                                                       options_.min_background_K) / 2.0));
+      const int n_svd = std::max(
+          50, static_cast<int>((options_.max_background_K - options_.min_background_K) / 2.0));
       Eigen::MatrixXd bm(mm, n_svd);
       for (int j = 0; j < n_svd; ++j) {
-        const double temp = options_.min_background_K +
-                            (options_.max_background_K - options_.min_background_K) * j / (n_svd - 1);
+        const double temp =
+            options_.min_background_K +
+            (options_.max_background_K - options_.min_background_K) * j / (n_svd - 1);
         for (int k = 0; k < mm; ++k) bm(k, j) = PlanckUnchecked(t.moment_nu_cm1[k], temp);
         bm.col(j) /= bm.col(j).norm();
       }
@@ -250,8 +254,9 @@ SceneTable::SceneTable(std::shared_ptr<const BinnedModel> model, SceneTableOptio
         if (resid.colwise().norm().maxCoeff() <= options_.planck_tolerance || rank == mm) break;
       }
       Require(rank <= kMaxRank, "the background Planck basis needs rank " + std::to_string(rank) +
-                              " (> " + std::to_string(kMaxRank) + ") for planck_tolerance " + FormatNumber(options_.planck_tolerance) +
-                              "; raise planck_tolerance or narrow the background range");
+                                    " (> " + std::to_string(kMaxRank) + ") for planck_tolerance " +
+                                    FormatNumber(options_.planck_tolerance) +
+                                    "; raise planck_tolerance or narrow the background range");
       t.rank = rank;
       t.basis.resize(static_cast<std::size_t>(mm) * rank);
       for (int k = 0; k < mm; ++k)
@@ -280,7 +285,8 @@ SceneTable::SceneTable(std::shared_ptr<const BinnedModel> model, SceneTableOptio
   // Node values, in parallel over peak temperatures.
   std::vector<std::vector<double>> values(tables_.size());
   for (std::size_t i = 0; i < tables_.size(); ++i)
-    values[i].assign(static_cast<std::size_t>(nt_) * tables_[i].nx * nu_ * (tables_[i].rank + 1), 0.0);
+    values[i].assign(static_cast<std::size_t>(nt_) * tables_[i].nx * nu_ * (tables_[i].rank + 1),
+                     0.0);
   ParallelFor(
       static_cast<std::size_t>(nt_), 1,
       [&](std::size_t b, std::size_t e) {
@@ -305,7 +311,8 @@ SceneTable::SceneTable(std::shared_ptr<const BinnedModel> model, SceneTableOptio
     a = PrefilterAxis(a, dims, 1, t.nx > 1 ? axis_x_ : axis_one_);
     t.coef = PrefilterAxis(a, dims, 0, axis_t_);
   }
-  build_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  build_seconds_ =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
 }
 
 void SceneTable::BuildTable(Table* t, const std::vector<std::size_t>& bins, double t_peak, int it,
@@ -422,8 +429,8 @@ void SceneTable::BuildTable(Table* t, const std::vector<std::size_t>& bins, doub
     for (int k = 0; k < layers; ++k) {
       if (symmetric)
         MarchLayerPairSymmetric(m, &kap[k * nb + j0], &kap[(k + 1) * nb + j0], &bbar[k * nb + j0],
-                                &bbar[(k + 1) * nb + j0], u, dz, dle.data(), dla.data(),
-                                pf.data(), ebf.data(), abf.data());
+                                &bbar[(k + 1) * nb + j0], u, dz, dle.data(), dla.data(), pf.data(),
+                                ebf.data(), abf.data());
       else
         MarchLayerPair(m, &kap[k * nb + j0], &kap[(k + 1) * nb + j0], &bbar[k * nb + j0],
                        &bbar[(k + 1) * nb + j0], u, dz, dle.data(), dla.data());
@@ -434,8 +441,8 @@ void SceneTable::BuildTable(Table* t, const std::vector<std::size_t>& bins, doub
                                   dlec.data(), dlac.data(), pc.data(), ebc.data(), abc.data());
         else
           MarchLayerPair(m, &kap[(k - 1) * nb + j0], &kap[(k + 1) * nb + j0],
-                         &bbar[(k - 1) * nb + j0], &bbar[(k + 1) * nb + j0], u, 2 * dz,
-                         dlec.data(), dlac.data());
+                         &bbar[(k - 1) * nb + j0], &bbar[(k + 1) * nb + j0], u, 2 * dz, dlec.data(),
+                         dlac.data());
       }
     }
     if (symmetric)
@@ -527,7 +534,8 @@ void SceneTable::BuildTable(Table* t, const std::vector<std::size_t>& bins, doub
 void SceneTable::Export(std::size_t c, std::size_t s, std::vector<double>* coef,
                         std::vector<double>* psi, double* nu_ref) const {
   const int i = index_[c * ns_ + s];
-  Require(i >= 0, "species " + std::to_string(s) + " does not absorb in channel " + std::to_string(c));
+  Require(i >= 0,
+          "species " + std::to_string(s) + " does not absorb in channel " + std::to_string(c));
   *coef = tables_[i].coef;
   *psi = tables_[i].psi.coefficients();
   *nu_ref = tables_[i].nu_ref_cm1;
@@ -636,9 +644,17 @@ void SumCellAnyRank(const double* base, std::size_t a_stride, std::size_t b_stri
   switch (r1) {
 #define QOGI_SUM_CELL_CASE(n) \
   case n: return SumCell<n, WithT>(base, a_stride, b_stride, n, wu, wx, wt, dphi, dphi_dt, out);
-    QOGI_SUM_CELL_CASE(2) QOGI_SUM_CELL_CASE(3) QOGI_SUM_CELL_CASE(4) QOGI_SUM_CELL_CASE(5)
-    QOGI_SUM_CELL_CASE(6) QOGI_SUM_CELL_CASE(7) QOGI_SUM_CELL_CASE(8) QOGI_SUM_CELL_CASE(9)
-    QOGI_SUM_CELL_CASE(10) QOGI_SUM_CELL_CASE(11) QOGI_SUM_CELL_CASE(12)
+    QOGI_SUM_CELL_CASE(2)
+    QOGI_SUM_CELL_CASE(3)
+    QOGI_SUM_CELL_CASE(4)
+    QOGI_SUM_CELL_CASE(5)
+    QOGI_SUM_CELL_CASE(6)
+    QOGI_SUM_CELL_CASE(7)
+    QOGI_SUM_CELL_CASE(8)
+    QOGI_SUM_CELL_CASE(9)
+    QOGI_SUM_CELL_CASE(10)
+    QOGI_SUM_CELL_CASE(11)
+    QOGI_SUM_CELL_CASE(12)
 #undef QOGI_SUM_CELL_CASE
     default: return SumCell<0, WithT>(base, a_stride, b_stride, r1, wu, wx, wt, dphi, dphi_dt, out);
   }
@@ -732,7 +748,8 @@ int SceneTable::RawValues(std::size_t c, std::size_t s, double lu, double x, dou
   for (int a = 0; a < wt.count; ++a)
     for (int b = 0; b < wx.count; ++b) {
       const double* row =
-          &t.coef[((static_cast<std::size_t>(wt.first + a) * nxc + wx.first + b) * nuc + wu.first) * r1];
+          &t.coef[((static_cast<std::size_t>(wt.first + a) * nxc + wx.first + b) * nuc + wu.first) *
+                  r1];
       const double wab = wt.w[a] * wx.w[b];
       for (int k = 0; k < wu.count; ++k) {
         const double w = wab * wu.w[k];
@@ -805,26 +822,27 @@ void SceneTable::SliceContrast(const Slice& sl, const double* x, double sigma, c
   if (d_dx)
     for (std::size_t k = 0; k < nc_ * ns_; ++k) d_dx[k] = 0;
   const int nuc = nu_ + 2;
-  ForEachTable(x, sigma, [&](std::size_t s, std::size_t c, std::size_t i, const Table& t,
-                             double u, bool thin, const SplineWeights& wu,
-                             const SplineWeights& wx) {
-    const int r1 = t.rank + 1;
-    double dphi[kMaxRank];
-    const double* pt = &sl.phi[i * kMaxRank];
-    const double* pb = phi + t.phi_offset;
-    for (int r = 0; r < t.rank; ++r) dphi[r] = pt[r] - pb[r];
-    const double* base =
-        &sl.coef[sl.offset[i] + (static_cast<std::size_t>(wx.first) * nuc + wu.first) * r1];
-    double sums[5];
-    SumCellAnyRank<false>(base, 0, static_cast<std::size_t>(nuc) * r1, r1, wu, wx, one, dphi,
-                          nullptr, sums);
-    const double g = sums[0], g_u = sums[1], g_x = sums[2];
-    contrast[c] += u * g;
-    if (d_dx) {
-      const double d_du = thin ? g : g + g_u / h_lu_;
-      d_dx[c * ns_ + s] += d_du * sigma + (t.nx > 1 ? u * g_x / h_x_ : 0.0);
-    }
-  });
+  ForEachTable(
+      x, sigma,
+      [&](std::size_t s, std::size_t c, std::size_t i, const Table& t, double u, bool thin,
+          const SplineWeights& wu, const SplineWeights& wx) {
+        const int r1 = t.rank + 1;
+        double dphi[kMaxRank];
+        const double* pt = &sl.phi[i * kMaxRank];
+        const double* pb = phi + t.phi_offset;
+        for (int r = 0; r < t.rank; ++r) dphi[r] = pt[r] - pb[r];
+        const double* base =
+            &sl.coef[sl.offset[i] + (static_cast<std::size_t>(wx.first) * nuc + wu.first) * r1];
+        double sums[5];
+        SumCellAnyRank<false>(base, 0, static_cast<std::size_t>(nuc) * r1, r1, wu, wx, one, dphi,
+                              nullptr, sums);
+        const double g = sums[0], g_u = sums[1], g_x = sums[2];
+        contrast[c] += u * g;
+        if (d_dx) {
+          const double d_du = thin ? g : g + g_u / h_lu_;
+          d_dx[c * ns_ + s] += d_du * sigma + (t.nx > 1 ? u * g_x / h_x_ : 0.0);
+        }
+      });
 }
 
 void SceneTable::Contrast(const double* x, double tp, double sigma, const double* phi,
@@ -853,22 +871,22 @@ void SceneTable::ContrastAt(const double* x, const SplineWeights& wt, double tp,
   for (std::size_t c = 0; c < nc_; ++c) contrast[c] = 0;
   if (jac)
     for (std::size_t k = 0; k < nc_ * np; ++k) jac[k] = 0;
-  ForEachTable(x, sigma, [&](std::size_t s, std::size_t c, std::size_t i, const Table& t,
-                             double u, bool thin, const SplineWeights& wu,
-                             const SplineWeights& wx) {
-    double g, g_lu, g_x, g_t;
-    const double* pt = terms ? &terms->phi[i * kMaxRank] : nullptr;
-    const double* dpt = terms ? &terms->dphi[i * kMaxRank] : nullptr;
-    Accumulate(t, wu, wx, wt, tp, phi, &g, &g_lu, &g_x, jac ? &g_t : nullptr, pt, dpt);
-    contrast[c] += u * g;
-    if (jac) {
-      const double d_du = thin ? g : g + g_lu;
-      double* row = jac + c * np;
-      row[s] += d_du * sigma + u * g_x;
-      row[ns_] += u * g_t;
-      row[ns_ + 1] += d_du * x[s];
-    }
-  });
+  ForEachTable(x, sigma,
+               [&](std::size_t s, std::size_t c, std::size_t i, const Table& t, double u, bool thin,
+                   const SplineWeights& wu, const SplineWeights& wx) {
+                 double g, g_lu, g_x, g_t;
+                 const double* pt = terms ? &terms->phi[i * kMaxRank] : nullptr;
+                 const double* dpt = terms ? &terms->dphi[i * kMaxRank] : nullptr;
+                 Accumulate(t, wu, wx, wt, tp, phi, &g, &g_lu, &g_x, jac ? &g_t : nullptr, pt, dpt);
+                 contrast[c] += u * g;
+                 if (jac) {
+                   const double d_du = thin ? g : g + g_lu;
+                   double* row = jac + c * np;
+                   row[s] += d_du * sigma + u * g_x;
+                   row[ns_] += u * g_t;
+                   row[ns_ + 1] += d_du * x[s];
+                 }
+               });
 }
 
 TableErrorReport MeasureTableError(const SceneTable& table, int num_samples, unsigned seed,
@@ -904,7 +922,8 @@ TableErrorReport MeasureTableError(const SceneTable& table, int num_samples, uns
       tbg[c] = std::min(std::max(tp - 40.0 + 50.0 * u01(rng), opt.min_background_K + 1),
                         opt.max_background_K - 1);
     table.Background(tbg.data(), phi.data());
-    table.Contrast(x.data(), tp, sigma, phi.data(), tab.data(), check_jacobian ? jac.data() : nullptr);
+    table.Contrast(x.data(), tp, sigma, phi.data(), tab.data(),
+                   check_jacobian ? jac.data() : nullptr);
     const Path path = m.GaussianPath<double>(x.data(), tp, t_amb, sigma);
     m.Contrast<double>(path, tbg.data(), ref.data());
     for (std::size_t c = 0; c < nc; ++c) {

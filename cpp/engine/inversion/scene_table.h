@@ -55,13 +55,14 @@ struct SceneTableOptions {
   double min_peak_temperature_K = 0.0;   // lowest T_peak tabulated [K]; 0 = the model's lowest
   double max_peak_temperature_K = 0.0;   // highest T_peak tabulated [K]; 0 = the model's highest
   double temperature_step_K = 5.0;       // T_peak grid step [K], within [1, 50]
-  double max_sigma_m = 2.0;              // largest plume depth sigma served [m] (u = x sigma <= it)
-  int nodes_per_decade = 8;              // grid density in u = x sigma [nodes per factor 10], 2-40
-  int fraction_nodes = 4;                // self-broadening grid over x in [0, 1], 4-21
-  double thin_optical_depth = 1e-5;      // strongest bin's peak optical depth at the smallest u, 1e-8-1e-3
-  double min_background_K = 150.0;       // background temperatures served [K], >= 50
-  double max_background_K = 700.0;       // [K], <= 2000
-  double planck_tolerance = 1e-8;        // relative truncation of the background Planck basis, 1e-14-1e-4
+  double max_sigma_m = 2.0;  // largest plume depth sigma served [m] (u = x sigma <= it)
+  int nodes_per_decade = 8;  // grid density in u = x sigma [nodes per factor 10], 2-40
+  int fraction_nodes = 4;  // self-broadening grid over x in [0, 1], 4-21
+  double thin_optical_depth =
+      1e-5;  // strongest bin's peak optical depth at the smallest u, 1e-8-1e-3
+  double min_background_K = 150.0;  // background temperatures served [K], >= 50
+  double max_background_K = 700.0;  // [K], <= 2000
+  double planck_tolerance = 1e-8;  // relative truncation of the background Planck basis, 1e-14-1e-4
   // Line-of-sight nodes of the table's march (odd, >= 5; 0 = the model's own
   // num_nodes). Fewer nodes build faster; the difference is part of the
   // measured table error.
@@ -78,7 +79,7 @@ struct SceneTableOptions {
   // binned model by at most ~this / 2 of a contrast (measured 1.3e-5 at
   // 1e-4), for ~30 % less build time than 1e-7. Within [1e-9, 1e-3].
   double linear_optical_depth = 1e-4;
-  int num_threads = 0;                   // build threads; 0 = all cores
+  int num_threads = 0;  // build threads; 0 = all cores
   void Check() const;
 };
 
@@ -157,8 +158,8 @@ class SceneTable {
   struct Slice {
     double peak_temperature_K = 0;
     std::vector<std::size_t> offset;  // per table: start of its block in coef and phi
-    std::vector<double> coef;         // per table [(ix * NU + iu) * (R + 1) + r]
-    std::vector<double> phi;          // per table phi_r(T_peak), R values
+    std::vector<double> coef;  // per table [(ix * NU + iu) * (R + 1) + r]
+    std::vector<double> phi;  // per table phi_r(T_peak), R values
   };
   Slice MakeSlice(double peak_temperature_K) const;
   // Contrast [W/(m2 sr)] of every channel at the slice's T_peak, fractions
@@ -171,8 +172,8 @@ class SceneTable {
   // One species' contribution to one channel as u g(ln u, x, T_peak), with
   // d/du, d/dx (self-broadening axis at fixed u) and d/dT_peak.
   void SpeciesContrast(std::size_t channel, std::size_t species, double u, double x,
-                       double peak_temperature_K, const double* phi, double* value,
-                       double* d_du, double* d_dx, double* d_dt) const;
+                       double peak_temperature_K, const double* phi, double* value, double* d_du,
+                       double* d_dx, double* d_dt) const;
 
   // The optically thin limit of SpeciesContrast: d(Delta L)/du at u -> 0, x = 0.
   double ThinSlope(std::size_t channel, std::size_t species, double peak_temperature_K,
@@ -201,14 +202,14 @@ class SceneTable {
   struct Table {
     std::size_t channel = 0, species = 0;
     int rank = 0;  // R: number of Planck basis vectors
-    int nx = 1;    // fraction nodes (1 without a self table)
+    int nx = 1;  // fraction nodes (1 without a self table)
     std::size_t phi_offset = 0;
     std::vector<double> coef;  // [((iT * NX + ix) * NU + iu) * (R + 1) + r], padded sizes
     std::vector<double> moment_nu_cm1;  // wavenumbers of the moments
-    std::vector<double> basis;          // [m * R + r] orthonormal basis U
-    double nu_ref_cm1 = 0;              // phi_r(T) = psi_r(T) B(nu_ref, T)
-    UniformSpline psi;                  // width R over background temperature
-    UniformSpline thin;                 // node values at the smallest u and x = 0, over T_peak
+    std::vector<double> basis;  // [m * R + r] orthonormal basis U
+    double nu_ref_cm1 = 0;  // phi_r(T) = psi_r(T) B(nu_ref, T)
+    UniformSpline psi;  // width R over background temperature
+    UniformSpline thin;  // node values at the smallest u and x = 0, over T_peak
     std::size_t num_bins = 0;
   };
   // Planck basis coefficients phi_r(T) of table t and their T-derivatives.
@@ -217,9 +218,9 @@ class SceneTable {
                   std::vector<double>* values) const;
   // phi_tp, dphi_tp: phi_r(T_peak) and d/dT of table t (computed when null).
   void Accumulate(const Table& t, const SplineWeights& wu, const SplineWeights& wx,
-                  const SplineWeights& wt, double peak_temperature_K, const double* phi,
-                  double* g, double* g_lu, double* g_x, double* g_t,
-                  const double* phi_tp = nullptr, const double* dphi_tp = nullptr) const;
+                  const SplineWeights& wt, double peak_temperature_K, const double* phi, double* g,
+                  double* g_lu, double* g_x, double* g_t, const double* phi_tp = nullptr,
+                  const double* dphi_tp = nullptr) const;
   // Calls f(s, c, i, table, u, thin, wu, wx) for every (species, channel)
   // table of a plume with fractions x and depth sigma: u = x_s sigma, thin
   // when u is below the table's range, wu and wx the spline weights in ln u

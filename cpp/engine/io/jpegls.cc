@@ -13,14 +13,12 @@ namespace qogi {
 namespace {
 
 [[noreturn]] void Fail(const std::string& what, std::size_t offset) {
-  throw std::invalid_argument("JPEG-LS: " + what + " (at byte " +
-                              std::to_string(offset) + ")");
+  throw std::invalid_argument("JPEG-LS: " + what + " (at byte " + std::to_string(offset) + ")");
 }
 
 // Run-length order table J (A.7.1.2).
-constexpr std::array<int, 32> kJ = {0, 0, 0, 0, 1, 1, 1, 1, 2,  2,  2,
-                                    2, 3, 3, 3, 3, 4, 4, 5, 5,  6,  6,
-                                    7, 7, 8, 9, 10, 11, 12, 13, 14, 15};
+constexpr std::array<int, 32> kJ = {0, 0, 0, 0, 1, 1, 1, 1, 2, 2, 2,  2,  3,  3,  3,  3,
+                                    4, 4, 5, 5, 6, 6, 7, 7, 8, 9, 10, 11, 12, 13, 14, 15};
 
 // Reads the entropy-coded segment of a scan, MSB first, removing the stuffed
 // zero bit that follows every 0xFF data byte (A.1).
@@ -113,8 +111,7 @@ int BitsFor(int n) {  // ceil(log2(n)) for n >= 1
 int StdClamp(int i, int j, int maxval) { return (i > maxval || i < j) ? j : i; }
 
 CodingParameters MakeParameters(int bits, int preset_maxval, int preset_t1, int preset_t2,
-                                int preset_t3, int preset_reset, int near,
-                                std::size_t offset) {
+                                int preset_t3, int preset_reset, int near, std::size_t offset) {
   CodingParameters p;
   p.maxval = preset_maxval > 0 ? preset_maxval : (1 << bits) - 1;
   p.near = near;
@@ -359,14 +356,12 @@ class Parser {
         any_scan = true;
         continue;  // pos_ is now after the entropy-coded data
       } else if (marker == 0xDD) {  // DRI
-        if (len >= 4 && Peek16(pos_) != 0)
-          Fail("restart intervals are not supported", at);
+        if (len >= 4 && Peek16(pos_) != 0) Fail("restart intervals are not supported", at);
       } else if ((marker >= 0xE0 && marker <= 0xEF) || marker == 0xFE) {
         // APPn, COM: skipped.
       } else if (marker >= 0xC0 && marker <= 0xCF && marker != 0xC4 && marker != 0xC8 &&
                  marker != 0xCC) {
-        Fail("this is a JPEG (T.81) stream, not JPEG-LS (frame marker 0xFF" + Hex(marker) +
-                 ")",
+        Fail("this is a JPEG (T.81) stream, not JPEG-LS (frame marker 0xFF" + Hex(marker) + ")",
              at);
       } else {
         Fail("unexpected marker 0xFF" + Hex(marker), at);
@@ -445,9 +440,7 @@ class Parser {
         if (img_.width == 0) img_.width = oversize_width_;
       }
     } else {
-      Fail("LSE segment id " + std::to_string(id) +
-               " (mapping tables) is not supported",
-           at);
+      Fail("LSE segment id " + std::to_string(id) + " (mapping tables) is not supported", at);
     }
     (void)end;
   }
@@ -476,12 +469,11 @@ class Parser {
     if (ilv == 0 && ns != 1) Fail("ILV = 0 requires one component per scan", at);
     pos_ = header_end;
 
-    const CodingParameters params =
-        MakeParameters(img_.bits_per_sample, preset_maxval_, preset_t1_, preset_t2_,
-                       preset_t3_, preset_reset_, near, at);
+    const CodingParameters params = MakeParameters(img_.bits_per_sample, preset_maxval_, preset_t1_,
+                                                   preset_t2_, preset_t3_, preset_reset_, near, at);
     if (params.maxval >= (1 << img_.bits_per_sample))
-      Fail("MAXVAL " + std::to_string(params.maxval) + " does not fit in P=" +
-               std::to_string(img_.bits_per_sample) + " bits",
+      Fail("MAXVAL " + std::to_string(params.maxval) +
+               " does not fit in P=" + std::to_string(img_.bits_per_sample) + " bits",
            at);
     img_.max_value = params.maxval;
     img_.near = near;
@@ -490,8 +482,7 @@ class Parser {
     // The entropy-coded segment ends at the first 0xFF followed by a byte
     // with its high bit set (a stuffed 0xFF is followed by a byte < 0x80).
     std::size_t data_end = pos_;
-    while (data_end + 1 < size_ && !(d_[data_end] == 0xFF && d_[data_end + 1] >= 0x80))
-      ++data_end;
+    while (data_end + 1 < size_ && !(d_[data_end] == 0xFF && d_[data_end + 1] >= 0x80)) ++data_end;
     if (data_end + 1 >= size_) data_end = size_;
 
     BitReader bits(d_ + pos_, d_ + data_end, pos_);
@@ -507,8 +498,7 @@ class Parser {
         pv[w] = pv[w - 1];  // Rd of the last sample
         cv[-1] = pv[0];     // Ra of the first sample; pv[-1] holds Rc
         decoder.DecodeLine(pv, cv, w, run_index[i]);
-        std::uint16_t* out =
-            img_.samples.data() + (static_cast<std::size_t>(comps[i]) * h + y) * w;
+        std::uint16_t* out = img_.samples.data() + (static_cast<std::size_t>(comps[i]) * h + y) * w;
         for (int x = 0; x < w; ++x) out[x] = static_cast<std::uint16_t>(cv[x]);
         std::swap(prev[i], cur[i]);
       }

@@ -27,8 +27,8 @@ std::vector<std::uint8_t> ReadFile(const std::string& path) {
 std::uint64_t Fnv1a64(const std::vector<std::uint16_t>& samples) {
   std::uint64_t h = 0xCBF29CE484222325ull;
   for (std::uint16_t v : samples)
-    for (std::uint8_t byte : {static_cast<std::uint8_t>(v & 0xFF),
-                              static_cast<std::uint8_t>(v >> 8)}) {
+    for (std::uint8_t byte :
+         {static_cast<std::uint8_t>(v & 0xFF), static_cast<std::uint8_t>(v >> 8)}) {
       h ^= byte;
       h *= 0x100000001B3ull;
     }
@@ -72,16 +72,15 @@ TEST(JpegLs, MatchesCharLsOnEveryReferenceCase) {
 TEST(JpegLs, RejectsStreamsThatAreNotJpegLs) {
   EXPECT_NE(DecodeError({0x00, 0x01, 0x02, 0x03}).find("no SOI"), std::string::npos);
   // A baseline JPEG header (SOF0).
-  const std::vector<std::uint8_t> jpeg = {0xFF, 0xD8, 0xFF, 0xC0, 0x00, 0x0B, 8, 0, 8,
-                                          0,    8,    1,    1,    0x11, 0};
+  const std::vector<std::uint8_t> jpeg = {0xFF, 0xD8, 0xFF, 0xC0, 0x00, 0x0B, 8, 0,
+                                          8,    0,    8,    1,    1,    0x11, 0};
   EXPECT_NE(DecodeError(jpeg).find("not JPEG-LS"), std::string::npos);
 }
 
 TEST(JpegLs, TruncatedScanDataIsAnError) {
   auto code = ReadFile(kDir + "gray16_sensor.jls");
   code.resize(code.size() / 2);
-  EXPECT_NE(DecodeError(code).find("ended before the image was complete"),
-            std::string::npos);
+  EXPECT_NE(DecodeError(code).find("ended before the image was complete"), std::string::npos);
 }
 
 TEST(JpegLs, SampleInterleavingIsReportedAsUnsupported) {

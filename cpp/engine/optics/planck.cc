@@ -28,8 +28,7 @@ double PlanckRadianceDerivative(double nu_cm1, double temperature_K) {
   return b * x / (temperature_K * -std::expm1(-x));
 }
 
-void PlanckRadiance(const double* nu_cm1, const double* temperature_K,
-                    double* out, std::size_t n) {
+void PlanckRadiance(const double* nu_cm1, const double* temperature_K, double* out, std::size_t n) {
   for (std::size_t i = 0; i < n; ++i) {
     CheckPlanckArgs(nu_cm1[i], temperature_K[i]);
     out[i] = PlanckUnchecked(nu_cm1[i], temperature_K[i]);

@@ -41,8 +41,7 @@ double PlanckRadianceDerivative(double nu_cm1, double temperature_K);
 inline double PlanckUnchecked(double nu_cm1, double temperature_K);
 
 // Elementwise over equal-length arrays: out[i] = B(nu[i], T[i]).
-void PlanckRadiance(const double* nu_cm1, const double* temperature_K,
-                    double* out, std::size_t n);
+void PlanckRadiance(const double* nu_cm1, const double* temperature_K, double* out, std::size_t n);
 
 }  // namespace qogi
 

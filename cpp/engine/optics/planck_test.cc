@@ -16,8 +16,7 @@ TEST(Planck, ConstantsMatchTextbookValues) {
   EXPECT_NEAR(constants::kC1, 1.191042972e-8, 1e-16);
   EXPECT_NEAR(kC2, 1.438776877, 1e-9);
   // sigma = 2 pi^5 k^4 / (15 h^3 c^2)
-  const double k = constants::kBoltzmann, h = constants::kPlanck,
-               c = constants::kSpeedOfLight;
+  const double k = constants::kBoltzmann, h = constants::kPlanck, c = constants::kSpeedOfLight;
   EXPECT_NEAR(2 * std::pow(constants::kPi, 5) * std::pow(k, 4) / (15 * h * h * h * c * c),
               constants::kStefanBoltzmann, 1e-16);
 }
@@ -36,7 +35,10 @@ TEST(Planck, WienPeakWhereWienLawPutsIt) {
     const double g = 0.5 * (std::sqrt(5.0) - 1);
     for (int i = 0; i < 200; ++i) {
       const double c = b - g * (b - a), d = a + g * (b - a);
-      if (PlanckRadiance(c, t) > PlanckRadiance(d, t)) b = d; else a = c;
+      if (PlanckRadiance(c, t) > PlanckRadiance(d, t))
+        b = d;
+      else
+        a = c;
     }
     EXPECT_NEAR(0.5 * (a + b) / expected, 1.0, 1e-7) << "T = " << t;
   }
@@ -62,8 +64,7 @@ TEST(Planck, RejectsBadArguments) {
   EXPECT_THROW(PlanckRadiance(3000, 0), std::invalid_argument);
   EXPECT_THROW(PlanckRadiance(3000, std::nan("")), std::invalid_argument);
   EXPECT_THROW(PlanckRadiance(-1, 300), std::invalid_argument);
-  EXPECT_THROW(PlanckRadiance(std::numeric_limits<double>::infinity(), 300),
-               std::invalid_argument);
+  EXPECT_THROW(PlanckRadiance(std::numeric_limits<double>::infinity(), 300), std::invalid_argument);
   try {
     PlanckRadiance(3000, -5);
   } catch (const std::invalid_argument& e) {

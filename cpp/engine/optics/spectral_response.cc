@@ -13,8 +13,7 @@ namespace {
 
 // 3-point Gauss-Legendre on [-1, 1].
 constexpr double kGLx[3] = {-0.7745966692414834, 0.0, 0.7745966692414834};
-constexpr double kGLw[3] = {0.5555555555555556, 0.8888888888888888,
-                            0.5555555555555556};
+constexpr double kGLw[3] = {0.5555555555555556, 0.8888888888888888, 0.5555555555555556};
 
 std::string At(const char* what, std::size_t i, double v) {
   return std::string(what) + "[" + std::to_string(i) + "] = " + FormatNumber(v);
@@ -22,24 +21,21 @@ std::string At(const char* what, std::size_t i, double v) {
 
 }  // namespace
 
-SpectralResponse::SpectralResponse(std::vector<double> nu_cm1,
-                                   std::vector<double> response,
+SpectralResponse::SpectralResponse(std::vector<double> nu_cm1, std::vector<double> response,
                                    std::string name)
-    : name_(std::move(name)), nu_(std::move(nu_cm1)),
-      response_(std::move(response)) {
+    : name_(std::move(name)), nu_(std::move(nu_cm1)), response_(std::move(response)) {
   const std::string who = "SpectralResponse" + (name_.empty() ? "" : " '" + name_ + "'");
   CheckSameLength(nu_.size(), response_.size(), "nu_cm1", "response");
-  Require(nu_.size() >= 2, who + ": needs at least 2 samples; got " +
-                               std::to_string(nu_.size()));
+  Require(nu_.size() >= 2, who + ": needs at least 2 samples; got " + std::to_string(nu_.size()));
   for (std::size_t i = 0; i < nu_.size(); ++i) {
     Require(std::isfinite(nu_[i]) && nu_[i] >= 0,
             who + ": wavenumbers must be finite and >= 0 cm-1; " + At("nu_cm1", i, nu_[i]));
     Require(std::isfinite(response_[i]) && response_[i] >= 0,
             who + ": response must be finite and >= 0; " + At("response", i, response_[i]));
     if (i > 0)
-      Require(nu_[i] > nu_[i - 1],
-              who + ": nu_cm1 must be strictly increasing; " + At("nu_cm1", i, nu_[i]) +
-                  " is not above " + At("nu_cm1", i - 1, nu_[i - 1]));
+      Require(nu_[i] > nu_[i - 1], who + ": nu_cm1 must be strictly increasing; " +
+                                       At("nu_cm1", i, nu_[i]) + " is not above " +
+                                       At("nu_cm1", i - 1, nu_[i - 1]));
   }
   // Quadrature: each linear piece split into sub-pieces of <= kMaxPiece_cm1.
   double moment1 = 0;
@@ -63,8 +59,9 @@ SpectralResponse::SpectralResponse(std::vector<double> nu_cm1,
       }
     }
   }
-  Require(integral_ > 0, who + ": response is zero everywhere; a channel must "
-                               "transmit somewhere");
+  Require(integral_ > 0, who +
+                             ": response is zero everywhere; a channel must "
+                             "transmit somewhere");
   centroid_ = moment1 / integral_;
 }
 
@@ -79,8 +76,7 @@ double SpectralResponse::Evaluate(double nu_cm1) const {
 
 double SpectralResponse::BandRadianceUnchecked(double t) const {
   double sum = 0;
-  for (std::size_t k = 0; k < q_nu_.size(); ++k)
-    sum += q_w_[k] * PlanckUnchecked(q_nu_[k], t);
+  for (std::size_t k = 0; k < q_nu_.size(); ++k) sum += q_w_[k] * PlanckUnchecked(q_nu_[k], t);
   return sum;
 }
 
@@ -107,8 +103,7 @@ double SpectralResponse::BandRadianceDerivative(double temperature_K) const {
 double SpectralResponse::RadiometricTemperature(double band_radiance) const {
   const double l_min = BandRadianceUnchecked(kMinTemperature_K);
   const double l_max = BandRadianceUnchecked(kMaxTemperature_K);
-  if (!(std::isfinite(band_radiance) && band_radiance > l_min &&
-        band_radiance < l_max))
+  if (!(std::isfinite(band_radiance) && band_radiance > l_min && band_radiance < l_max))
     throw std::invalid_argument(
         "band_radiance must be finite and within (" + FormatNumber(l_min) + ", " +
         FormatNumber(l_max) + ") W/(m2 sr), the radiances of blackbodies at " +
@@ -130,7 +125,10 @@ double SpectralResponse::RadiometricTemperature(double band_radiance) const {
   for (int iter = 0; iter < 200; ++iter) {
     const double l = BandRadianceUnchecked(t);
     const double ft = std::log(l) - log_target;
-    if (ft > 0) hi = std::min(hi, t); else lo = std::max(lo, t);
+    if (ft > 0)
+      hi = std::min(hi, t);
+    else
+      lo = std::max(lo, t);
     const double dl = BandRadianceDerivativeUnchecked(t);
     double next = (l > 0 && dl > 0) ? t - ft * l / dl : 0.5 * (lo + hi);
     if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);

@@ -20,8 +20,7 @@ class SpectralResponse {
   // nu_cm1: strictly increasing, finite, >= 0 wavenumbers [cm-1], at least 2.
   // response: same length, finite, >= 0, not all zero [dimensionless].
   // Throws std::invalid_argument naming the first offending element.
-  SpectralResponse(std::vector<double> nu_cm1, std::vector<double> response,
-                   std::string name = "");
+  SpectralResponse(std::vector<double> nu_cm1, std::vector<double> response, std::string name = "");
 
   const std::string& name() const { return name_; }
   const std::vector<double>& nu_cm1() const { return nu_; }

@@ -12,9 +12,8 @@ namespace qogi {
 double MolarMass(const std::string& species) {
   // IUPAC standard atomic weights (C 12.011, H 1.008, O 15.999, N 14.007).
   static const std::map<std::string, double> kMass = {
-      {"CH4", 16.0425e-3}, {"CO2", 44.0095e-3}, {"H2O", 18.0153e-3},
-      {"N2O", 44.0128e-3}, {"CO", 28.0101e-3},  {"NH3", 17.0305e-3},
-      {"C2H6", 30.0690e-3}, {"C3H8", 44.0956e-3}};
+      {"CH4", 16.0425e-3}, {"CO2", 44.0095e-3}, {"H2O", 18.0153e-3},  {"N2O", 44.0128e-3},
+      {"CO", 28.0101e-3},  {"NH3", 17.0305e-3}, {"C2H6", 30.0690e-3}, {"C3H8", 44.0956e-3}};
   const auto it = kMass.find(species);
   if (it == kMass.end()) {
     std::string known;
@@ -68,8 +67,8 @@ TemperatureStencil MakeTemperatureStencil(const std::vector<double>& grid, doubl
   TemperatureStencil st;
   const std::size_t n = grid.size();
   t = std::min(std::max(t, grid.front()), grid.back());
-  std::size_t i = static_cast<std::size_t>(
-      std::upper_bound(grid.begin(), grid.end(), t) - grid.begin());
+  std::size_t i =
+      static_cast<std::size_t>(std::upper_bound(grid.begin(), grid.end(), t) - grid.begin());
   i = (i == 0) ? 0 : i - 1;
   if (i + 1 >= n) i = n - 2;
   st.lower = i;

@@ -56,8 +56,7 @@ struct TemperatureStencil {
   double frac = 0;        // position of T in that interval, in [0, 1]
   double dfrac = 0;       // d(frac)/dT [1/K]
 };
-TemperatureStencil MakeTemperatureStencil(const std::vector<double>& grid,
-                                          double temperature_K);
+TemperatureStencil MakeTemperatureStencil(const std::vector<double>& grid, double temperature_K);
 
 // Interpolated value from the stencil: `value(k)` and `log_value(k)` return
 // the table's sigma and ln sigma at grid temperature index k (ln of 0 may be

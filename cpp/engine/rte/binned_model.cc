@@ -127,7 +127,8 @@ void BinnedModel::BuildChannel(std::size_t c, const std::vector<AbsorberTable>& 
     }
     if (!absorbs) continue;  // transparent at every key temperature: zero contrast
     auto it = bin_of_key.find(key);
-    if (it == bin_of_key.end()) it = bin_of_key.emplace(key, static_cast<int>(bin_of_key.size())).first;
+    if (it == bin_of_key.end())
+      it = bin_of_key.emplace(key, static_cast<int>(bin_of_key.size())).first;
     bin_of_point[i] = it->second;
   }
   const std::size_t nq = bin_of_key.size();
@@ -225,7 +226,8 @@ void BinnedModel::BuildChannel(std::size_t c, const std::vector<AbsorberTable>& 
   // Measure the Planck interpolation error on the grid points.
   for (double temp : {200.0, 300.0, 600.0}) {
     std::vector<double> node_b(b.num_segments * nm);
-    for (std::size_t k = 0; k < node_b.size(); ++k) node_b[k] = PlanckUnchecked(b.segment_nodes[k], temp);
+    for (std::size_t k = 0; k < node_b.size(); ++k)
+      node_b[k] = PlanckUnchecked(b.segment_nodes[k], temp);
     for (std::size_t i = 0; i < np; i += 7) {
       const std::size_t sg = segment_of(g.nu_cm1[i]);
       lagrange(sg, g.nu_cm1[i]);
@@ -248,8 +250,8 @@ void BinnedModel::BinContrasts(const Path& path, std::size_t channel, double t_b
 BinnedModel BinnedModel::Subset(const std::vector<std::vector<int>>& keep,
                                 const std::vector<std::vector<double>>& weights) const {
   Require(keep.size() == bins_.size() && weights.size() == bins_.size(),
-          "Subset needs one list of bins and weights per channel (" +
-              std::to_string(bins_.size()) + ")");
+          "Subset needs one list of bins and weights per channel (" + std::to_string(bins_.size()) +
+              ")");
   BinnedModel out = *this;
   const std::size_t ns = species_.size();
   const int nm = options_.chebyshev_nodes;
@@ -330,10 +332,12 @@ void BinnedModel::UseFineTemperatureGrid(double t_lo, double t_hi, double step) 
       std::vector<double> node_b(b.num_segments * nm);
       for (std::size_t k = 0; k < n; ++k) {
         const double t = t_lo + k * step;
-        for (std::size_t i = 0; i < node_b.size(); ++i) node_b[i] = PlanckUnchecked(b.segment_nodes[i], t);
+        for (std::size_t i = 0; i < node_b.size(); ++i)
+          node_b[i] = PlanckUnchecked(b.segment_nodes[i], t);
         for (std::size_t q = 0; q < nq; ++q) {
           double v = 0;
-          for (int m = 0; m < nm; ++m) v += b.planck_map[q * nm + m] * node_b[b.segment[q] * nm + m];
+          for (int m = 0; m < nm; ++m)
+            v += b.planck_map[q * nm + m] * node_b[b.segment[q] * nm + m];
           b.fine_planck[k * nq + q] = v;
         }
       }
@@ -355,7 +359,8 @@ void BinnedModel::UseFineTemperatureGrid(double t_lo, double t_hi, double step) 
                 [&](std::size_t i) { return lv[i * nq + q]; });
           };
           b.fine_air[s][k * nq + q] = interp(b.sigma_air[s], b.log_sigma_air[s]);
-          if (has_self_[s]) b.fine_self[s][k * nq + q] = interp(b.sigma_self[s], b.log_sigma_self[s]);
+          if (has_self_[s])
+            b.fine_self[s][k * nq + q] = interp(b.sigma_self[s], b.log_sigma_self[s]);
         }
       }
     }
@@ -375,7 +380,8 @@ inline void RenderLayer(std::size_t nq, const double* kf, const double* kn, cons
     const double f = tau < 1e-4 ? 1.0 - tau * (0.5 - tau * (1.0 / 6.0)) : (1.0 - t) / tau;
     const double tt = 1.0 - tau * f;
     const double dd = df[q] - dn[q];
-    dl[q] = dl[q] * tt + dn[q] * (tau * f) + dd * (f - tt) + 0.25 * dd * (kf[q] - kn[q]) * ds * (f * f);
+    dl[q] =
+        dl[q] * tt + dn[q] * (tau * f) + dd * (f - tt) + 0.25 * dd * (kf[q] - kn[q]) * ds * (f * f);
   }
 }
 
@@ -433,8 +439,9 @@ void BinnedModel::RenderRays(std::size_t r0, std::size_t r1, const std::int64_t*
       if (!is_gas) continue;
       const double n_tot = NumberDensityCm3(pressure_Pa_, t) * 100.0;
       for (std::size_t s = 0; s < ns; ++s) {
-        const double xs = std::min(1.0, std::max(0.0, static_cast<double>(
-                                                        fractions[s][s0 + static_cast<std::int64_t>(k) - 1])));
+        const double xs =
+            std::min(1.0, std::max(0.0, static_cast<double>(
+                                            fractions[s][s0 + static_cast<std::int64_t>(k) - 1])));
         na[k * ns + s] = has_self_[s] ? n_tot * xs * (1.0 - xs) : n_tot * xs;
         nsf[k * ns + s] = has_self_[s] ? n_tot * xs * xs : 0.0;
       }
@@ -446,9 +453,20 @@ void BinnedModel::RenderRays(std::size_t r0, std::size_t r1, const std::int64_t*
         o[c] = 0.f;
         continue;
       }
-      kf.assign(nq, 0.0); kn.assign(nq, 0.0); ef.assign(nq, 1.0); en.assign(nq, 1.0);
-      df.assign(nq, 0.0); dn.assign(nq, 0.0); dl.assign(nq, 0.0); bbg.assign(nq, 0.0);
-      if (rich) { kc.assign(nq, 0.0); ec.assign(nq, 1.0); dc.assign(nq, 0.0); dlc.assign(nq, 0.0); }
+      kf.assign(nq, 0.0);
+      kn.assign(nq, 0.0);
+      ef.assign(nq, 1.0);
+      en.assign(nq, 1.0);
+      df.assign(nq, 0.0);
+      dn.assign(nq, 0.0);
+      dl.assign(nq, 0.0);
+      bbg.assign(nq, 0.0);
+      if (rich) {
+        kc.assign(nq, 0.0);
+        ec.assign(nq, 1.0);
+        dc.assign(nq, 0.0);
+        dlc.assign(nq, 0.0);
+      }
       std::size_t kb;
       double wb;
       position(t_bg[r * bg_stride + c], &kb, &wb);
@@ -476,10 +494,15 @@ void BinnedModel::RenderRays(std::size_t r0, std::size_t r1, const std::int64_t*
             for (int q : b.active[s]) kap[q] += cs * (w0 * e0[q] + w1 * e1[q]);
           }
         }
-        for (std::size_t q = 0; q < nq; ++q) e[q] = kap[q] > 0.0 ? std::exp(-0.5 * kap[q] * ds) : 1.0;
+        for (std::size_t q = 0; q < nq; ++q)
+          e[q] = kap[q] > 0.0 ? std::exp(-0.5 * kap[q] * ds) : 1.0;
       };
       fill(0, kf, ef, df);
-      if (rich) { kc = kf; ec = ef; dc = df; }
+      if (rich) {
+        kc = kf;
+        ec = ef;
+        dc = df;
+      }
       for (std::size_t k = 0; k + 1 < n; ++k) {
         fill(k + 1, kn, en, dn);
         RenderLayer(nq, kf.data(), kn.data(), ef.data(), en.data(), df.data(), dn.data(), ds,
@@ -515,9 +538,9 @@ void BinnedModel::RenderRays(std::size_t r0, std::size_t r1, const std::int64_t*
 
 void BinnedModel::CheckPath(const Path& path) const {
   qogi::CheckPath(path);
-  Require(path.num_species == species_.size(),
-          "the path has " + std::to_string(path.num_species) + " species; the model has " +
-              std::to_string(species_.size()));
+  Require(path.num_species == species_.size(), "the path has " + std::to_string(path.num_species) +
+                                                   " species; the model has " +
+                                                   std::to_string(species_.size()));
   Require(std::abs(path.pressure_Pa - pressure_Pa_) <= 1e-6 * pressure_Pa_,
           "path pressure " + FormatNumber(path.pressure_Pa) +
               " Pa differs from the tables' pressure " + FormatNumber(pressure_Pa_) +
@@ -561,8 +584,9 @@ std::vector<double> BinnedModel::BandRadiance(const Path& path,
 }
 
 BinnedModel::BinView BinnedModel::bins(std::size_t c) const {
-  Require(c < bins_.size(), "channel index " + std::to_string(c) + " is out of range; the model has " +
-                                std::to_string(bins_.size()) + " channels");
+  Require(c < bins_.size(), "channel index " + std::to_string(c) +
+                                " is out of range; the model has " + std::to_string(bins_.size()) +
+                                " channels");
   const Bins& b = bins_[c];
   BinView v;
   v.num_bins = b.weight.size();

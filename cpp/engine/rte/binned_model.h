@@ -33,13 +33,16 @@ namespace qogi {
 
 struct BinnedModelOptions {
   double bin_ratio = 1.5;  // max ratio of cross-sections within a bin at each key temperature (> 1)
-  std::vector<double> key_temperatures_K = {250.0, 350.0, 500.0};  // binning temperatures [K], within the tables
-  double floor_fraction = 1e-8;  // cross-sections below this fraction of a species' maximum count as zero
-  bool self_key = false;  // also bin by the self-broadened cross-section (at the first key temperature); off: within 0.5 % without it, at half the bins
-  int chebyshev_nodes = 12;      // Planck interpolation nodes per segment (4-32)
+  std::vector<double> key_temperatures_K = {250.0, 350.0,
+                                            500.0};  // binning temperatures [K], within the tables
+  double floor_fraction =
+      1e-8;  // cross-sections below this fraction of a species' maximum count as zero
+  bool self_key =
+      false;  // also bin by the self-broadened cross-section (at the first key temperature); off: within 0.5 % without it, at half the bins
+  int chebyshev_nodes = 12;  // Planck interpolation nodes per segment (4-32)
   double segment_width_cm1 = 300.0;  // max width of a Chebyshev segment [cm-1]
   int num_nodes = 129;  // line-of-sight nodes for Gaussian plumes (>= 3; odd for Richardson)
-  double z_max = 5.5;   // Gaussian plume sampled over [-z_max, z_max] sigma
+  double z_max = 5.5;  // Gaussian plume sampled over [-z_max, z_max] sigma
   // Combine the march on all nodes with the march on every other node,
   // (4 fine - coarse) / 3, cancelling the scheme's second-order error
   // (used when the path has an odd number of nodes).
@@ -88,8 +91,8 @@ class BinnedModel {
   PathT<S> GaussianPath(const S* peak_fractions, const S& peak_temperature_K,
                         double ambient_temperature_K, const S& sigma_m) const {
     return SampleGaussianPlume<S>(peak_fractions, species_.size(), peak_temperature_K,
-                                  ambient_temperature_K, sigma_m, pressure_Pa_,
-                                  options_.num_nodes, options_.z_max);
+                                  ambient_temperature_K, sigma_m, pressure_Pa_, options_.num_nodes,
+                                  options_.z_max);
   }
   void CheckPath(const Path& path) const;
 
@@ -152,22 +155,24 @@ class BinnedModel {
   // air-broadened into air[q] and, when the species has a self table,
   // self-broadened into self[q] (self may be null otherwise); 0 where the
   // species does not absorb.
-  void BinCrossSections(std::size_t channel, std::size_t species, double temperature_K,
-                        double* air, double* self) const;
+  void BinCrossSections(std::size_t channel, std::size_t species, double temperature_K, double* air,
+                        double* self) const;
 
  private:
   struct Bins {
     std::vector<double> weight;  // [bin] sum of response * dnu [cm-1]
     // sigma_air[(s * n_T + j) * n_bins + q], sigma_self likewise (empty if no self table)
     std::vector<std::vector<double>> sigma_air, sigma_self;  // per species
-    std::vector<std::vector<double>> log_sigma_air, log_sigma_self;  // ln of the above (-1e300 for 0)
-    std::vector<std::vector<int>> active;     // per species: bins where it absorbs at some T
-    std::vector<std::vector<char>> positive_air, positive_self;  // per species, per bin: > 0 at every T
+    std::vector<std::vector<double>> log_sigma_air,
+        log_sigma_self;  // ln of the above (-1e300 for 0)
+    std::vector<std::vector<int>> active;  // per species: bins where it absorbs at some T
+    std::vector<std::vector<char>> positive_air,
+        positive_self;  // per species, per bin: > 0 at every T
     // Optional fine temperature grid (UseFineTemperatureGrid): per species
     // [n_fine * n_bins] cross-sections at fine_t0 + k fine_dt.
     std::vector<std::vector<double>> fine_air, fine_self;
     std::vector<double> fine_planck;  // [n_fine * n_bins] bin-mean Planck, when small enough
-    std::vector<int> segment;    // [bin]
+    std::vector<int> segment;  // [bin]
     // planck_map[q * n_cheb + m]: bin q's mean Planck from the segment's node values
     std::vector<double> planck_map;
     std::vector<double> segment_nodes;  // [segment * n_cheb] Chebyshev wavenumbers
@@ -217,7 +222,8 @@ void BinnedModel::Contrast(const PathT<S>& path, const S* t_bg, S* out) const {
   // nn-1-k: the first half is computed once and reused.
   bool symmetric = true;
   for (std::size_t k = 0; k < nn / 2 && symmetric; ++k) {
-    symmetric = ValueOfScalar(path.temperature_K[k]) == ValueOfScalar(path.temperature_K[nn - 1 - k]);
+    symmetric =
+        ValueOfScalar(path.temperature_K[k]) == ValueOfScalar(path.temperature_K[nn - 1 - k]);
     for (std::size_t s = 0; s < ns && symmetric; ++s)
       symmetric = ValueOfScalar(path.fraction[k * ns + s]) ==
                   ValueOfScalar(path.fraction[(nn - 1 - k) * ns + s]);
@@ -227,8 +233,8 @@ void BinnedModel::Contrast(const PathT<S>& path, const S* t_bg, S* out) const {
 }
 
 template <typename S>
-S BinnedModel::ChannelContrast(const PathT<S>& path, bool symmetric, std::size_t c,
-                               const S& t_bg_c, std::vector<S>* per_bin) const {
+S BinnedModel::ChannelContrast(const PathT<S>& path, bool symmetric, std::size_t c, const S& t_bg_c,
+                               std::vector<S>* per_bin) const {
   using std::exp;
   const std::size_t ns = species_.size();
   const std::size_t nn = path.size();
@@ -243,8 +249,7 @@ S BinnedModel::ChannelContrast(const PathT<S>& path, bool symmetric, std::size_t
     std::vector<S> node_b(b.num_segments * nm);
     auto mean_planck = [&](const S& t, S* dst) {
       for (std::size_t g = 0; g < b.num_segments; ++g)
-        for (int m = 0; m < nm; ++m)
-          node_b[g * nm + m] = PlanckT(b.segment_nodes[g * nm + m], t);
+        for (int m = 0; m < nm; ++m) node_b[g * nm + m] = PlanckT(b.segment_nodes[g * nm + m], t);
       for (std::size_t q = 0; q < nq; ++q) {
         const double* row = &b.planck_map[q * nm];
         const S* nb = &node_b[b.segment[q] * nm];
@@ -307,7 +312,8 @@ S BinnedModel::ChannelContrast(const PathT<S>& path, bool symmetric, std::size_t
           }
         }
         // Temperature stencil with derivative-carrying weights.
-        const TemperatureStencil st = MakeTemperatureStencil(table_temperatures_[s], ValueOfScalar(t));
+        const TemperatureStencil st =
+            MakeTemperatureStencil(table_temperatures_[s], ValueOfScalar(t));
         S wt[4];
         const S dt = t - ValueOfScalar(t);
         for (int a = 0; a < st.count; ++a) wt[a] = st.weight[a] + st.dweight[a] * dt;
@@ -350,8 +356,8 @@ S BinnedModel::ChannelContrast(const PathT<S>& path, bool symmetric, std::size_t
       if (rich && (k + 1) % 2 == 0) {
         const S ds2 = path.position_m[k + 1] - path.position_m[k - 1];
         for (std::size_t q = 0; q < nq; ++q)
-          dl_coarse[q] = MarchLayer(dl_coarse[q], kappa_coarse[q], kappa_near[q], d_coarse[q],
-                                    d_near[q], ds2);
+          dl_coarse[q] =
+              MarchLayer(dl_coarse[q], kappa_coarse[q], kappa_near[q], d_coarse[q], d_near[q], ds2);
         kappa_coarse = kappa_near;
         d_coarse = d_near;
       }

@@ -96,8 +96,7 @@ ChannelGrid MakeChannelGrid(const SpectralResponse& channel,
   return g;
 }
 
-void PlanckOnGrid(const ChannelGrid& g, std::size_t begin, std::size_t end, double t,
-                  double* out) {
+void PlanckOnGrid(const ChannelGrid& g, std::size_t begin, std::size_t end, double t, double* out) {
   // exp(c2 nu / T) along runs of adjacent grid points by a multiplicative
   // recurrence (relative rounding error ~1e-12 over 1e5 steps), exp elsewhere.
   const double a = constants::kC2 / t;
@@ -152,9 +151,9 @@ std::vector<double> ExactModel::BackgroundTemperatures(const std::vector<double>
 
 void ExactModel::CheckPathAgainstTables(const Path& path) const {
   CheckPath(path);
-  Require(path.num_species == tables_.size(),
-          "the path has " + std::to_string(path.num_species) + " species; the model has " +
-              std::to_string(tables_.size()));
+  Require(path.num_species == tables_.size(), "the path has " + std::to_string(path.num_species) +
+                                                  " species; the model has " +
+                                                  std::to_string(tables_.size()));
   Require(std::abs(path.pressure_Pa - tables_[0].pressure_Pa) <= 1e-6 * tables_[0].pressure_Pa,
           "path pressure " + FormatNumber(path.pressure_Pa) +
               " Pa differs from the tables' pressure " + FormatNumber(tables_[0].pressure_Pa) +
@@ -210,7 +209,8 @@ double ExactModel::ContrastSum(std::size_t c, const Path& path, double t_bg, std
           return w > 0 ? lo + w * (SigmaAt(v, lv, tab.n_nu, st, j + 1) - lo) : lo;
         };
         const double sa = sigma(tab.sigma_air, log_air_[s]);
-        const double sig = tab.has_self() ? (1 - x) * sa + x * sigma(tab.sigma_self, log_self_[s]) : sa;
+        const double sig =
+            tab.has_self() ? (1 - x) * sa + x * sigma(tab.sigma_self, log_self_[s]) : sa;
         kappa[i] += nx * sig;
       }
     }
@@ -319,22 +319,27 @@ std::vector<double> ExactModel::BandRadiance(const Path& path, const std::vector
           if (j < 0) continue;
           const double w = g.frac[s][i];
           const double lo = SigmaAt(tab.sigma_air, log_air_[s], tab.n_nu, st, j);
-          const double sa = w > 0 ? lo + w * (SigmaAt(tab.sigma_air, log_air_[s], tab.n_nu, st, j + 1) - lo) : lo;
+          const double sa =
+              w > 0 ? lo + w * (SigmaAt(tab.sigma_air, log_air_[s], tab.n_nu, st, j + 1) - lo) : lo;
           atm_t[i] *= std::exp(-n_air * x * sa * atmosphere.distance_m);
         }
       }
       for (std::size_t i = 0; i < n; ++i)
-        atm_term += g.weight[i] * (PlanckUnchecked(g.nu_cm1[i], ta) -
-                                   PlanckUnchecked(g.nu_cm1[i], t_bg[c])) * (1 - atm_t[i]);
+        atm_term += g.weight[i] *
+                    (PlanckUnchecked(g.nu_cm1[i], ta) - PlanckUnchecked(g.nu_cm1[i], t_bg[c])) *
+                    (1 - atm_t[i]);
     }
     const std::size_t chunk = 2048;
     const std::size_t num_chunks = (n + chunk - 1) / chunk;
     std::vector<double> partial(num_chunks, 0.0);
-    ParallelFor(num_chunks, 1, [&](std::size_t b, std::size_t e) {
-      for (std::size_t q = b; q < e; ++q)
-        partial[q] = ContrastSum(c, path, t_bg[c], q * chunk, std::min(n, (q + 1) * chunk),
-                                 atm_t.empty() ? nullptr : &atm_t, nullptr);
-    }, options_.num_threads, control);
+    ParallelFor(
+        num_chunks, 1,
+        [&](std::size_t b, std::size_t e) {
+          for (std::size_t q = b; q < e; ++q)
+            partial[q] = ContrastSum(c, path, t_bg[c], q * chunk, std::min(n, (q + 1) * chunk),
+                                     atm_t.empty() ? nullptr : &atm_t, nullptr);
+        },
+        options_.num_threads, control);
     double contrast = atm_term;
     for (double p : partial) contrast += p;
     out[c] = channels_[c].BandRadiance(t_bg[c]) + contrast;
@@ -346,8 +351,8 @@ void ExactModel::SpectralContrast(std::size_t channel, const Path& path, double 
                                   std::vector<double>* nu_cm1,
                                   std::vector<double>* contrast) const {
   Require(channel < channels_.size(), "channel index " + std::to_string(channel) +
-                                          " out of range [0, " +
-                                          std::to_string(channels_.size()) + ")");
+                                          " out of range [0, " + std::to_string(channels_.size()) +
+                                          ")");
   CheckPathAgainstTables(path);
   CheckInRange(t_bg, 100.0, 2000.0, "background_temperature_K", "K");
   const ChannelGrid& g = grids_[channel];

@@ -26,22 +26,22 @@ namespace qogi {
 
 struct ExactModelOptions {
   int num_nodes = 401;   // line-of-sight nodes for a Gaussian plume, >= 3, odd keeps the centre
-  double z_max = 6.5;    // Gaussian plume sampled over [-z_max, z_max] sigma (column beyond: 8e-11)
+  double z_max = 6.5;  // Gaussian plume sampled over [-z_max, z_max] sigma (column beyond: 8e-11)
   // Combine the march on all nodes with the march on every other node,
   // (4 fine - coarse) / 3, cancelling the layer scheme's second-order error
   // (applied when the path has an odd number of nodes).
   bool richardson = true;
-  int num_threads = 0;   // 0 = all cores
+  int num_threads = 0;  // 0 = all cores
   void Check() const;
 };
 
 // An optional homogeneous atmospheric layer between the plume and the camera.
 struct AtmosphericPath {
-  double distance_m = 0;            // path length [m]; 0 = no atmosphere
-  double temperature_K = 288.15;    // air temperature [K]
-  double relative_humidity = 0.5;   // [0, 1]; H2O from the saturation pressure (needs an H2O table)
-  double co2_ppm = 420;             // ambient CO2 [ppm] (used if the model has a CO2 table)
-  double ch4_ppm = 1.9;             // ambient CH4 [ppm] (used if the model has a CH4 table)
+  double distance_m = 0;  // path length [m]; 0 = no atmosphere
+  double temperature_K = 288.15;  // air temperature [K]
+  double relative_humidity = 0.5;  // [0, 1]; H2O from the saturation pressure (needs an H2O table)
+  double co2_ppm = 420;  // ambient CO2 [ppm] (used if the model has a CO2 table)
+  double ch4_ppm = 1.9;  // ambient CH4 [ppm] (used if the model has a CH4 table)
   void Check() const;
 };
 
@@ -51,10 +51,10 @@ double SaturationVaporPressure(double temperature_K);
 // Per channel: the fine-grid points where some table has data and the
 // response is non-zero, with the interpolation into each species' table.
 struct ChannelGrid {
-  std::vector<double> nu_cm1;   // grid wavenumbers [cm-1]
-  std::vector<long> grid_index; // index on the common uniform grid (consecutive = adjacent)
-  double dnu_cm1 = 0;           // the common grid step [cm-1]
-  std::vector<double> weight;   // response(nu) * dnu [cm-1]
+  std::vector<double> nu_cm1;  // grid wavenumbers [cm-1]
+  std::vector<long> grid_index;  // index on the common uniform grid (consecutive = adjacent)
+  double dnu_cm1 = 0;  // the common grid step [cm-1]
+  std::vector<double> weight;  // response(nu) * dnu [cm-1]
   // Per species: lower table index (or -1 outside the table) and weight of the
   // upper neighbour, for linear interpolation in wavenumber.
   std::vector<std::vector<long>> index;
@@ -65,8 +65,8 @@ ChannelGrid MakeChannelGrid(const SpectralResponse& channel,
                             const std::vector<AbsorberTable>& tables);
 
 // Planck radiance B(nu_i, T) [W/(m2 sr cm-1)] at grid points [begin, end).
-void PlanckOnGrid(const ChannelGrid& grid, std::size_t begin, std::size_t end,
-                  double temperature_K, double* out);
+void PlanckOnGrid(const ChannelGrid& grid, std::size_t begin, std::size_t end, double temperature_K,
+                  double* out);
 
 class ExactModel {
  public:

@@ -33,8 +33,8 @@ inline S LayerEscapeFactor(const S& tau) {
 
 // One layer for one spectral point.
 template <typename S>
-inline S MarchLayer(const S& dl, const S& k_far, const S& k_near, const S& d_far,
-                    const S& d_near, const S& ds) {
+inline S MarchLayer(const S& dl, const S& k_far, const S& k_near, const S& d_far, const S& d_near,
+                    const S& ds) {
   const S tau = 0.5 * (k_far + k_near) * ds;
   const S f = LayerEscapeFactor(tau);
   const S t = 1.0 - tau * f;

@@ -29,8 +29,8 @@ void CheckPath(const Path& path) {
       CheckInRange(x, 0.0, 1.0, "path volume fraction");
       sum += x;
     }
-    Require(sum <= 1.0 + 1e-9, "path volume fractions at node " + std::to_string(k) +
-                                   " sum to " + FormatNumber(sum) + " > 1");
+    Require(sum <= 1.0 + 1e-9, "path volume fractions at node " + std::to_string(k) + " sum to " +
+                                   FormatNumber(sum) + " > 1");
   }
 }
 
@@ -59,14 +59,14 @@ std::vector<double> GaussianColumnDensity(const GaussianPlume& plume,
   for (int k = 0; k < n; ++k) {
     const double z = -z_max + k * dz;
     const double g = std::exp(-0.5 * z * z);
-    const double t = plume.ambient_temperature_K +
-                     (plume.peak_temperature_K - plume.ambient_temperature_K) * g;
+    const double t =
+        plume.ambient_temperature_K + (plume.peak_temperature_K - plume.ambient_temperature_K) * g;
     integral += g / t * dz;
   }
   std::vector<double> out(molar_masses.size());
   for (std::size_t i = 0; i < out.size(); ++i)
-    out[i] = molar_masses[i] / constants::kAvogadro * plume.peak_fractions[i] *
-             plume.pressure_Pa / constants::kBoltzmann * plume.sigma_m * integral;
+    out[i] = molar_masses[i] / constants::kAvogadro * plume.peak_fractions[i] * plume.pressure_Pa /
+             constants::kBoltzmann * plume.sigma_m * integral;
   return out;
 }
 

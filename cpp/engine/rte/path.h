@@ -60,8 +60,7 @@ struct GaussianPlume {
 template <typename S>
 PathT<S> SampleGaussianPlume(const S* peak_fractions, std::size_t num_species,
                              const S& peak_temperature_K, double ambient_temperature_K,
-                             const S& sigma_m, double pressure_Pa, int num_nodes,
-                             double z_max) {
+                             const S& sigma_m, double pressure_Pa, int num_nodes, double z_max) {
   PathT<S> path;
   path.num_species = num_species;
   path.pressure_Pa = pressure_Pa;

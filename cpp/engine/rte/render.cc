@@ -13,10 +13,13 @@ void RenderContrast(const BinnedModel& model, const RayBatch& rays, double t_amb
   Require(rays.fraction.size() == ns, "RenderContrast: the rays carry " +
                                           std::to_string(rays.fraction.size()) +
                                           " species; the model has " + std::to_string(ns));
-  ParallelFor(rays.num_rays, 256, [&](std::size_t b, std::size_t e) {
-    model.RenderRays(b, e, rays.offset, rays.step_m, rays.temperature_K, rays.fraction, t_amb,
-                     t_bg, bg_stride, out);
-  }, num_threads, control);
+  ParallelFor(
+      rays.num_rays, 256,
+      [&](std::size_t b, std::size_t e) {
+        model.RenderRays(b, e, rays.offset, rays.step_m, rays.temperature_K, rays.fraction, t_amb,
+                         t_bg, bg_stride, out);
+      },
+      num_threads, control);
 }
 
 }  // namespace qogi

@@ -20,14 +20,14 @@ namespace {
 
 // Lorentz lines between 2950 and 3100 cm-1, strengths S296 up to 2e-19
 // cm/molecule, lower-state energies 0-2000 cm-1 (hot lines grow with T).
-AbsorberTable SyntheticTable(const std::string& species, double nu0, double nu1,
-                             unsigned seed, bool with_self) {
+AbsorberTable SyntheticTable(const std::string& species, double nu0, double nu1, unsigned seed,
+                             bool with_self) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> u01(0, 1);
   std::vector<testing_support::TestLine> lines;
   for (int l = 0; l < 300; ++l)
-    lines.push_back({nu0 + 5 + (nu1 - nu0 - 10) * u01(rng),
-                     2e-19 * std::pow(10.0, -4 * u01(rng)), 2000 * u01(rng)});
+    lines.push_back({nu0 + 5 + (nu1 - nu0 - 10) * u01(rng), 2e-19 * std::pow(10.0, -4 * u01(rng)),
+                     2000 * u01(rng)});
   return testing_support::LorentzAbsorberTable(species, nu0, nu1, 800, lines, with_self);
 }
 
@@ -92,7 +92,8 @@ TEST(ExactModel, IsothermalPlumeIsBeerLambertAtEveryWavenumber) {
   const AbsorberTable& t = F().tables[0];
   const TemperatureStencil st = MakeTemperatureStencil(t.temperatures_K, tg);
   const std::vector<double> log_air = LogValues(t.sigma_air), log_self = LogValues(t.sigma_self);
-  const double col = NumberDensityCm3(constants::kAtm, tg) * 100 * x * sigma * std::sqrt(2 * constants::kPi);
+  const double col =
+      NumberDensityCm3(constants::kAtm, tg) * 100 * x * sigma * std::sqrt(2 * constants::kPi);
   double worst = 0;
   for (std::size_t i = 0; i < nu.size(); i += 37) {
     const std::size_t j = static_cast<std::size_t>(std::round((nu[i] - t.nu0_cm1) / t.dnu_cm1));
@@ -102,9 +103,9 @@ TEST(ExactModel, IsothermalPlumeIsBeerLambertAtEveryWavenumber) {
     // weighted by g: int g (1 - x g) / int g = 1 - x / sqrt(2).
     const double xs = x / std::sqrt(2.0);
     const double tau = col * ((1 - xs) * sa + xs * ss);
-    const double expect = (PlanckRadiance(nu[i], tg) - PlanckRadiance(nu[i], tb)) * -std::expm1(-tau);
-    if (std::abs(expect) > 1e-12)
-      worst = std::max(worst, std::abs(dl[i] / expect - 1));
+    const double expect =
+        (PlanckRadiance(nu[i], tg) - PlanckRadiance(nu[i], tb)) * -std::expm1(-tau);
+    if (std::abs(expect) > 1e-12) worst = std::max(worst, std::abs(dl[i] / expect - 1));
   }
   EXPECT_LT(worst, 1e-9);
 }
@@ -132,7 +133,8 @@ TEST(ExactModel, OpticallyThinLimitIsTheLinearisedBeerLambert) {
         const TemperatureStencil st = MakeTemperatureStencil(t.temperatures_K, temp);
         const double sa = SigmaAt(t.sigma_air, logs, t.n_nu, st, j);
         const double kappa = NumberDensityCm3(constants::kAtm, temp) * 100 * x * g * sa;
-        lin += (PlanckRadiance(nu[i], temp) - PlanckRadiance(nu[i], tb)) * kappa * 0.02 * 16.0 / (n - 1);
+        lin += (PlanckRadiance(nu[i], temp) - PlanckRadiance(nu[i], tb)) * kappa * 0.02 * 16.0 /
+               (n - 1);
       }
       worst = std::max(worst, std::abs(dl[i] / lin - 1));
     }
@@ -148,8 +150,8 @@ TEST(ExactModel, ContrastSaturatesMonotonically) {
   const double tg = 320, tb = 290;
   double prev = 0;
   for (double x = 1e-6; x <= 1.0; x *= 3) {
-    const double dl = m.BandRadiance(Plume(x, 0, tg, tg, 0.1), {tb})[0] -
-                      F().channels[0].BandRadiance(tb);
+    const double dl =
+        m.BandRadiance(Plume(x, 0, tg, tg, 0.1), {tb})[0] - F().channels[0].BandRadiance(tb);
     EXPECT_GT(dl, prev);
     prev = dl;
   }
@@ -176,7 +178,8 @@ TEST(ExactModel, ConvergesUnderLineOfSightRefinement) {
         for (std::size_t c = 0; c < l.size(); ++c) {
           const double contrast = l[c] - F().channels[c].BandRadiance(270);
           change = std::max(change, std::abs(l[c] / prev[c] - 1));
-          change_contrast = std::max(change_contrast, std::abs(l[c] - prev[c]) / std::abs(contrast));
+          change_contrast =
+              std::max(change_contrast, std::abs(l[c] - prev[c]) / std::abs(contrast));
         }
       }
       prev = l;
@@ -192,8 +195,9 @@ TEST(ColumnDensity, IsothermalGaussianIsAnalytic) {
   GaussianPlume p = Plume(0.25, 0.5, 300, 300, 0.04);
   const auto c = GaussianColumnDensity(p, {16.0425e-3, 44.0095e-3});
   const double n = constants::kAtm / (constants::kBoltzmann * 300);
-  EXPECT_NEAR(c[0] / (16.0425e-3 / constants::kAvogadro * 0.25 * n * 0.04 * std::sqrt(2 * constants::kPi)),
-              1.0, 1e-12);
+  EXPECT_NEAR(
+      c[0] / (16.0425e-3 / constants::kAvogadro * 0.25 * n * 0.04 * std::sqrt(2 * constants::kPi)),
+      1.0, 1e-12);
   EXPECT_NEAR(c[1] / c[0], 2 * 44.0095 / 16.0425, 1e-12);
 }
 
@@ -265,7 +269,8 @@ TEST(Models, RejectBadInput) {
   EXPECT_THROW(m.BandRadiance(Plume(0.5, 0.7, 300, 300, 0.1), {290}), std::invalid_argument);
   EXPECT_THROW(m.BandRadiance(Plume(0.1, 0, 300, 300, -1), {290}), std::invalid_argument);
   EXPECT_THROW(m.BandRadiance(Plume(0.1, 0, 900, 300, 0.1), {290}), std::invalid_argument);
-  EXPECT_THROW(m.BandRadiance(Plume(0.1, 0, 300, 300, 0.1), {290, 280, 270}), std::invalid_argument);
+  EXPECT_THROW(m.BandRadiance(Plume(0.1, 0, 300, 300, 0.1), {290, 280, 270}),
+               std::invalid_argument);
   AbsorberTable bad = F().tables[0];
   bad.sigma_air.pop_back();
   EXPECT_THROW(ExactModel({F().channels[0]}, {bad}), std::invalid_argument);

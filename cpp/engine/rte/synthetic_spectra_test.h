@@ -52,9 +52,11 @@ inline AbsorberTable LorentzAbsorberTable(const std::string& species, double nu0
                                      static_cast<long>((l.nu + 10 - nu0) / t.dnu_cm1));
       for (long j = j0; j <= j1; ++j) {
         const double dx = nu0 + j * t.dnu_cm1 - l.nu;
-        t.sigma_air[it * t.n_nu + j] += static_cast<float>(s * ga / constants::kPi / (dx * dx + ga * ga));
+        t.sigma_air[it * t.n_nu + j] +=
+            static_cast<float>(s * ga / constants::kPi / (dx * dx + ga * ga));
         if (with_self)
-          t.sigma_self[it * t.n_nu + j] += static_cast<float>(s * gs / constants::kPi / (dx * dx + gs * gs));
+          t.sigma_self[it * t.n_nu + j] +=
+              static_cast<float>(s * gs / constants::kPi / (dx * dx + gs * gs));
       }
     }
   }

@@ -23,8 +23,8 @@ WavenumberGrid WavenumberGrid::FromRange(double nu_min_cm1, double nu_max_cm1, d
                                         FormatNumber(nu_max_cm1) + " < " +
                                         FormatNumber(nu_min_cm1));
   const double span = (nu_max_cm1 - nu_min_cm1) / step_cm1;
-  Require(span < 1e9, "the grid would have more than 1e9 points (range / step = " +
-                          FormatNumber(span) + ")");
+  Require(span < 1e9,
+          "the grid would have more than 1e9 points (range / step = " + FormatNumber(span) + ")");
   std::size_t n = static_cast<std::size_t>(std::floor(span)) + 1;
   const double last = nu_min_cm1 + step_cm1 * static_cast<double>(n - 1);
   if (std::abs((nu_max_cm1 - last) - step_cm1) < 1e-10) ++n;
@@ -134,10 +134,9 @@ void Accumulate(const PreparedLines& prep, const View& grid, double* out,
         std::vector<double> nu(m), acc(m, 0.0);
         for (std::size_t j = 0; j < m; ++j) nu[j] = grid.at(b + j);
         const double lo = nu.front() - prep.max_half, hi = nu.back() + prep.max_half;
-        auto first = std::lower_bound(lines.begin(), lines.end(), lo,
-                                      [](const PreparedLine& l, double v) {
-                                        return l.window_center < v;
-                                      });
+        auto first =
+            std::lower_bound(lines.begin(), lines.end(), lo,
+                             [](const PreparedLine& l, double v) { return l.window_center < v; });
         for (auto it = first; it != lines.end() && it->window_center <= hi; ++it) {
           const PreparedLine& l = *it;
           const std::size_t jlo = std::max(b, grid.FirstAbove(l.window_center - l.window_half));
@@ -167,20 +166,20 @@ void Accumulate(const PreparedLines& prep, const View& grid, double* out,
           const double* x = nu.data() - b;
           double* o = acc.data() - b;
           if (a1 > jlo)
-            AddVoigtFarWing(x + jlo, a1 - jlo, l.center, l.alpha, l.gamma_lorentz,
-                            l.intensity, o + jlo);
+            AddVoigtFarWing(x + jlo, a1 - jlo, l.center, l.alpha, l.gamma_lorentz, l.intensity,
+                            o + jlo);
           if (a2 > a1)
             AddVoigtContinuedFraction4(x + a1, a2 - a1, l.center, l.alpha, l.gamma_lorentz,
                                        l.intensity, o + a1);
           if (a3 > a2)
-            AddVoigtWeideman(x + a2, a3 - a2, l.center, l.alpha, l.gamma_lorentz,
-                             l.intensity, o + a2);
+            AddVoigtWeideman(x + a2, a3 - a2, l.center, l.alpha, l.gamma_lorentz, l.intensity,
+                             o + a2);
           if (a4 > a3)
             AddVoigtContinuedFraction4(x + a3, a4 - a3, l.center, l.alpha, l.gamma_lorentz,
                                        l.intensity, o + a3);
           if (jhi > a4)
-            AddVoigtFarWing(x + a4, jhi - a4, l.center, l.alpha, l.gamma_lorentz,
-                            l.intensity, o + a4);
+            AddVoigtFarWing(x + a4, jhi - a4, l.center, l.alpha, l.gamma_lorentz, l.intensity,
+                            o + a4);
         }
         std::copy(acc.begin(), acc.end(), out + b);
       },
@@ -191,22 +190,19 @@ void Accumulate(const PreparedLines& prep, const View& grid, double* out,
 
 void ComputeCrossSection(const LineList& lines, const GasConditions& conditions,
                          const WavenumberGrid& grid, const CrossSectionOptions& options,
-                         double* out, const ComputeSettings& settings,
-                         const RunControl* control) {
+                         double* out, const ComputeSettings& settings, const RunControl* control) {
   grid.Check();
   const PreparedLines prep = Prepare(lines, conditions, options);
   Accumulate(prep, UniformView{grid}, out, settings, control);
 }
 
 void ComputeCrossSection(const LineList& lines, const GasConditions& conditions,
-                         const double* nu_cm1, std::size_t n,
-                         const CrossSectionOptions& options, double* out,
-                         const ComputeSettings& settings, const RunControl* control) {
+                         const double* nu_cm1, std::size_t n, const CrossSectionOptions& options,
+                         double* out, const ComputeSettings& settings, const RunControl* control) {
   for (std::size_t j = 0; j < n; ++j) {
     if (!std::isfinite(nu_cm1[j]) || nu_cm1[j] < 0)
       throw std::invalid_argument("nu_cm1[" + std::to_string(j) +
-                                  "] must be finite and >= 0 cm-1; got " +
-                                  FormatNumber(nu_cm1[j]));
+                                  "] must be finite and >= 0 cm-1; got " + FormatNumber(nu_cm1[j]));
     if (j > 0 && !(nu_cm1[j] > nu_cm1[j - 1]))
       throw std::invalid_argument("nu_cm1 must be strictly increasing; nu_cm1[" +
                                   std::to_string(j) + "] = " + FormatNumber(nu_cm1[j]) +

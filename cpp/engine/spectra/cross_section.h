@@ -73,9 +73,8 @@ void ComputeCrossSection(const LineList& lines, const GasConditions& conditions,
                          const RunControl* control = nullptr);
 // sigma at arbitrary strictly increasing wavenumbers nu_cm1[0 .. n).
 void ComputeCrossSection(const LineList& lines, const GasConditions& conditions,
-                         const double* nu_cm1, std::size_t n,
-                         const CrossSectionOptions& options, double* out,
-                         const ComputeSettings& settings = ComputeSettings(),
+                         const double* nu_cm1, std::size_t n, const CrossSectionOptions& options,
+                         double* out, const ComputeSettings& settings = ComputeSettings(),
                          const RunControl* control = nullptr);
 
 // Convenience forms returning a vector.
@@ -92,10 +91,9 @@ std::vector<double> CrossSection(const LineList& lines, const GasConditions& con
 
 // Absorption coefficient k(nu) = sigma(nu) x n [cm-1] of the absorber at mole
 // fraction conditions.self_fraction, n = x p / (k_B T) its number density.
-std::vector<double> AbsorptionCoefficient(const LineList& lines, const GasConditions& conditions,
-                                          const WavenumberGrid& grid,
-                                          const CrossSectionOptions& options = CrossSectionOptions(),
-                                          const ComputeSettings& settings = ComputeSettings(),
-                                          const RunControl* control = nullptr);
+std::vector<double> AbsorptionCoefficient(
+    const LineList& lines, const GasConditions& conditions, const WavenumberGrid& grid,
+    const CrossSectionOptions& options = CrossSectionOptions(),
+    const ComputeSettings& settings = ComputeSettings(), const RunControl* control = nullptr);
 
 }  // namespace qogi

@@ -46,8 +46,8 @@ std::vector<double> BruteForce(const LineList& lines, const GasConditions& c,
   const LineParameters p = ComputeLineParameters(lines, c, o.line_shift);
   std::vector<double> out(nu.size(), 0.0);
   for (std::size_t i = 0; i < p.size(); ++i) {
-    const double w = std::max(o.wing_cm1,
-                              o.wing_half_widths * std::max(p.gamma_lorentz[i], p.gamma_doppler[i]));
+    const double w =
+        std::max(o.wing_cm1, o.wing_half_widths * std::max(p.gamma_lorentz[i], p.gamma_doppler[i]));
     for (std::size_t j = 0; j < nu.size(); ++j)
       if (nu[j] > p.nu_cm1[i] - w && nu[j] <= p.nu_cm1[i] + w)
         out[j] += p.intensity[i] *
@@ -194,8 +194,8 @@ TEST(CrossSection, AbsorptionCoefficientAndControl) {
   for (std::size_t j = 0; j < g.size; ++j) EXPECT_NEAR(k[j], s[j] * n, 1e-12 * k[j]);
   RunControl stop;
   stop.cancelled = [] { return true; };
-  EXPECT_THROW(CrossSection(Ch4(), GasConditions{}, WavenumberGrid::FromRange(2900, 3100, 0.01),
-                            {}, {}, &stop),
+  EXPECT_THROW(CrossSection(Ch4(), GasConditions{}, WavenumberGrid::FromRange(2900, 3100, 0.01), {},
+                            {}, &stop),
                Cancelled);
   CrossSectionOptions bad;
   bad.wing_half_widths = 0;

@@ -130,17 +130,18 @@ int MoleculeId(const std::string& formula) {
   const std::string want = Upper(formula);
   for (const auto& kv : Db().molecules)
     if (Upper(kv.second) == want) return kv.first;
-  throw std::invalid_argument("species must be a HITRAN molecule formula such as "
-                              "H2O, CO2 or CH4 (qogi has partition sums for " +
-                              ShippedMolecules() + "); got '" + formula + "'");
+  throw std::invalid_argument(
+      "species must be a HITRAN molecule formula such as "
+      "H2O, CO2 or CH4 (qogi has partition sums for " +
+      ShippedMolecules() + "); got '" + formula + "'");
 }
 
 const std::string& MoleculeFormula(int molecule) {
   const auto it = Db().molecules.find(molecule);
   if (it == Db().molecules.end())
     throw std::invalid_argument("molecule must be a HITRAN molecule code (1-" +
-                                std::to_string(Db().molecules.rbegin()->first) +
-                                "); got " + std::to_string(molecule));
+                                std::to_string(Db().molecules.rbegin()->first) + "); got " +
+                                std::to_string(molecule));
   return it->second;
 }
 
@@ -156,24 +157,25 @@ const Isotopologue* FindIsotopologue(int molecule, int local_id) {
 const Isotopologue& GetIsotopologue(int molecule, int local_id) {
   const Isotopologue* iso = FindIsotopologue(molecule, local_id);
   if (iso) return *iso;
-  const std::string name = IsKnownMolecule(molecule)
-                               ? MoleculeFormula(molecule)
-                               : "unknown molecule";
+  const std::string name =
+      IsKnownMolecule(molecule) ? MoleculeFormula(molecule) : "unknown molecule";
   throw std::invalid_argument(
-      "isotopologue (molecule " + std::to_string(molecule) + " " + name +
-      ", isotopologue " + std::to_string(local_id) +
+      "isotopologue (molecule " + std::to_string(molecule) + " " + name + ", isotopologue " +
+      std::to_string(local_id) +
       ") has no partition-sum (TIPS) data in qogi; qogi ships TIPS-2025 for all "
-      "HITRAN isotopologues of " + ShippedMolecules() +
+      "HITRAN isotopologues of " +
+      ShippedMolecules() +
       ". Select the isotopologues you need (e.g. isotopologues=[1]) or add the "
       "molecule in scripts/make_spectra_data.py");
 }
 
 double PartitionSum(int molecule, int local_id, double temperature_K) {
   const Isotopologue& iso = GetIsotopologue(molecule, local_id);
-  CheckInRange(temperature_K, iso.t_min_K, iso.t_max_K,
-               ("temperature_K (TIPS range of " + MoleculeFormula(molecule) + " " +
-                iso.formula + ")").c_str(),
-               "K");
+  CheckInRange(
+      temperature_K, iso.t_min_K, iso.t_max_K,
+      ("temperature_K (TIPS range of " + MoleculeFormula(molecule) + " " + iso.formula + ")")
+          .c_str(),
+      "K");
   return TipsInterpolate(Db().tips.at({molecule, local_id}), temperature_K);
 }
 

@@ -26,12 +26,10 @@ class Parser {
 
  private:
   [[noreturn]] void Fail(const std::string& msg) const {
-    throw std::runtime_error(what_ + ": invalid JSON at byte " + std::to_string(i_) +
-                             ": " + msg);
+    throw std::runtime_error(what_ + ": invalid JSON at byte " + std::to_string(i_) + ": " + msg);
   }
   void Space() {
-    while (i_ < s_.size() && (s_[i_] == ' ' || s_[i_] == '\n' || s_[i_] == '\r' ||
-                              s_[i_] == '\t'))
+    while (i_ < s_.size() && (s_[i_] == ' ' || s_[i_] == '\n' || s_[i_] == '\r' || s_[i_] == '\t'))
       ++i_;
   }
   bool Eat(char c) {

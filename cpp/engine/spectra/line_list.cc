@@ -32,8 +32,7 @@ void LineSelection::Check() const {
           "line selection: molecule must be 0 (any) or a HITRAN molecule code; got " +
               std::to_string(molecule));
   for (int iso : isotopologues)
-    Require(iso >= 1, "line selection: isotopologues must be >= 1; got " +
-                          std::to_string(iso));
+    Require(iso >= 1, "line selection: isotopologues must be >= 1; got " + std::to_string(iso));
   CheckNonNegative(min_intensity, "line selection: min_intensity", "cm/molecule");
 }
 
@@ -71,9 +70,7 @@ void LineList::Append(const LineList& o, std::size_t i) {
 
 void LineList::Check() const {
   const std::size_t n = nu_cm1.size();
-  auto same = [&](std::size_t m, const char* name) {
-    CheckSameLength(n, m, "nu_cm1", name);
-  };
+  auto same = [&](std::size_t m, const char* name) { CheckSameLength(n, m, "nu_cm1", name); };
   same(molecule.size(), "molecule");
   same(isotopologue.size(), "isotopologue");
   same(intensity.size(), "intensity");
@@ -86,13 +83,11 @@ void LineList::Check() const {
   same(delta_air.size(), "delta_air");
   same(delta_self.size(), "delta_self");
   auto bad = [](const char* name, std::size_t i, const std::string& rule, double v) {
-    throw std::invalid_argument(std::string("line list: ") + name + "[" +
-                                std::to_string(i) + "] must be " + rule + "; got " +
-                                FormatNumber(v));
+    throw std::invalid_argument(std::string("line list: ") + name + "[" + std::to_string(i) +
+                                "] must be " + rule + "; got " + FormatNumber(v));
   };
   for (std::size_t i = 0; i < n; ++i) {
-    if (!IsKnownMolecule(molecule[i]))
-      bad("molecule", i, "a HITRAN molecule code", molecule[i]);
+    if (!IsKnownMolecule(molecule[i])) bad("molecule", i, "a HITRAN molecule code", molecule[i]);
     if (isotopologue[i] < 1) bad("isotopologue", i, ">= 1", isotopologue[i]);
     if (!(std::isfinite(nu_cm1[i]) && nu_cm1[i] > 0)) bad("nu_cm1", i, "finite and > 0", nu_cm1[i]);
     if (!(std::isfinite(intensity[i]) && intensity[i] >= 0))
@@ -143,8 +138,7 @@ void LineList::ComputeCoverage() {
     if (it == span.end())
       span[key] = {nu_cm1[i], nu_cm1[i]};
     else
-      it->second = {std::min(it->second.first, nu_cm1[i]),
-                    std::max(it->second.second, nu_cm1[i])};
+      it->second = {std::min(it->second.first, nu_cm1[i]), std::max(it->second.second, nu_cm1[i])};
   }
   coverage.clear();
   for (const auto& kv : span)
@@ -157,14 +151,25 @@ void LineList::ComputeCoverage() {
 namespace {
 
 enum Slot {
-  kMol, kIso, kNu, kSw, kA, kGammaAir, kGammaSelf, kElower, kNAir, kDeltaAir,
-  kNSelf, kDeltaSelf, kNumSlots
+  kMol,
+  kIso,
+  kNu,
+  kSw,
+  kA,
+  kGammaAir,
+  kGammaSelf,
+  kElower,
+  kNAir,
+  kDeltaAir,
+  kNSelf,
+  kDeltaSelf,
+  kNumSlots
 };
-const char* const kSlotNames[kNumSlots] = {
-    "molec_id", "local_iso_id", "nu", "sw", "a", "gamma_air", "gamma_self",
-    "elower", "n_air", "delta_air", "n_self", "delta_self"};
-const bool kRequired[kNumSlots] = {true, true, true,  true,  false, true,
-                                   true, true, true,  false, false, false};
+const char* const kSlotNames[kNumSlots] = {"molec_id", "local_iso_id", "nu",         "sw",
+                                           "a",        "gamma_air",    "gamma_self", "elower",
+                                           "n_air",    "delta_air",    "n_self",     "delta_self"};
+const bool kRequired[kNumSlots] = {true, true, true, true,  false, true,
+                                   true, true, true, false, false, false};
 
 struct Column {
   std::string name;
@@ -208,12 +213,25 @@ void IndexSlots(Layout& lay) {
 
 // The HITRAN2004+ 160-character record.
 Layout HitranLayout() {
-  static const std::pair<const char*, std::size_t> cols[] = {
-      {"molec_id", 2}, {"local_iso_id", 1}, {"nu", 12}, {"sw", 10}, {"a", 10},
-      {"gamma_air", 5}, {"gamma_self", 5}, {"elower", 10}, {"n_air", 4},
-      {"delta_air", 8}, {"global_upper_quanta", 15}, {"global_lower_quanta", 15},
-      {"local_upper_quanta", 15}, {"local_lower_quanta", 15}, {"ierr", 6},
-      {"iref", 12}, {"line_mixing_flag", 1}, {"gp", 7}, {"gpp", 7}};
+  static const std::pair<const char*, std::size_t> cols[] = {{"molec_id", 2},
+                                                             {"local_iso_id", 1},
+                                                             {"nu", 12},
+                                                             {"sw", 10},
+                                                             {"a", 10},
+                                                             {"gamma_air", 5},
+                                                             {"gamma_self", 5},
+                                                             {"elower", 10},
+                                                             {"n_air", 4},
+                                                             {"delta_air", 8},
+                                                             {"global_upper_quanta", 15},
+                                                             {"global_lower_quanta", 15},
+                                                             {"local_upper_quanta", 15},
+                                                             {"local_lower_quanta", 15},
+                                                             {"ierr", 6},
+                                                             {"iref", 12},
+                                                             {"line_mixing_flag", 1},
+                                                             {"gp", 7},
+                                                             {"gpp", 7}};
   Layout lay;
   std::size_t pos = 0;
   for (const auto& c : cols) {
@@ -263,7 +281,8 @@ Layout HeaderLayout(const std::string& header_path, const std::string& text) {
       const JsonValue* f = format->Find(name.string);
       if (!f || f->kind != JsonValue::Kind::kString)
         throw std::runtime_error(header_path + ": no format for column '" + name.string + "'");
-      const std::size_t width = FormatWidth(f->string, header_path + " column '" + name.string + "'");
+      const std::size_t width =
+          FormatWidth(f->string, header_path + " column '" + name.string + "'");
       std::size_t start = pos;
       if (position) {
         const JsonValue* p = position->Find(name.string);
@@ -297,8 +316,7 @@ Layout HeaderLayout(const std::string& header_path, const std::string& text) {
 // files unchanged).
 std::string ReadAll(const std::string& path) {
   gzFile f = gzopen(path.c_str(), "rb");
-  if (!f)
-    throw std::runtime_error("cannot open line file '" + path + "': " + std::strerror(errno));
+  if (!f) throw std::runtime_error("cannot open line file '" + path + "': " + std::strerror(errno));
   gzbuffer(f, 1 << 17);
   std::string data;
   std::vector<char> buf(1 << 20);
@@ -387,8 +405,7 @@ double ParseDouble(std::string_view field, const char* name, const Column* col,
   return v;
 }
 
-int ParseInt(std::string_view field, const char* name, const Column* col,
-             const RecordError& err) {
+int ParseInt(std::string_view field, const char* name, const Column* col, const RecordError& err) {
   const std::string_view t = Trim(field);
   int v = 0;
   const auto r = std::from_chars(t.data(), t.data() + t.size(), v);
@@ -439,32 +456,29 @@ LineList ParseRecords(const std::string& path, const std::string& data, const La
           cut = &c;
           break;
         }
-      err.Record("truncated record: " + std::to_string(rec.size()) +
-                 " characters where the " +
+      err.Record("truncated record: " + std::to_string(rec.size()) + " characters where the " +
                  (lay.header_path.empty() ? std::string("HITRAN .par format")
                                           : "header " + lay.header_path) +
                  " needs " + std::to_string(lay.fixed_length) +
-                 (cut ? " (field '" + cut->name + "' at columns " +
-                            std::to_string(cut->start + 1) + "-" +
-                            std::to_string(cut->start + cut->width) + " is cut off)"
+                 (cut ? " (field '" + cut->name + "' at columns " + std::to_string(cut->start + 1) +
+                            "-" + std::to_string(cut->start + cut->width) + " is cut off)"
                       : std::string()));
     }
     std::string_view rest = rec.substr(lay.fixed_length);
     extra_fields.clear();
     if (lay.extras.empty()) {
       if (!IsBlank(rest))
-        err.Record("record has " + std::to_string(rec.size()) + " characters; " +
-                   (lay.header_path.empty()
-                        ? std::string("a HITRAN .par record has 160 (for a HAPI .data "
-                                      "file with extra parameters, put its .header beside it)")
-                        : "header " + lay.header_path + " describes " +
-                              std::to_string(lay.fixed_length)));
+        err.Record(
+            "record has " + std::to_string(rec.size()) + " characters; " +
+            (lay.header_path.empty()
+                 ? std::string("a HITRAN .par record has 160 (for a HAPI .data "
+                               "file with extra parameters, put its .header beside it)")
+                 : "header " + lay.header_path + " describes " + std::to_string(lay.fixed_length)));
     } else {
       if (lay.fixed_length > 0) {
         if (rest.empty() || rest.front() != lay.separator)
           err.Record(std::string("expected '") + lay.separator +
-                     "' and the extra parameters after column " +
-                     std::to_string(lay.fixed_length));
+                     "' and the extra parameters after column " + std::to_string(lay.fixed_length));
         rest.remove_prefix(1);
       }
       while (true) {
@@ -564,8 +578,7 @@ LineList ParseRecords(const std::string& path, const std::string& data, const La
   }
   for (const auto& kv : span)
     if (sel.molecule == 0 || kv.first.first == sel.molecule)
-      out.coverage.push_back(
-          {kv.first.first, kv.first.second, kv.second.first, kv.second.second});
+      out.coverage.push_back({kv.first.first, kv.first.second, kv.second.first, kv.second.second});
   out.sources.push_back(path);
   return out;
 }

@@ -92,8 +92,7 @@ struct LineList {
 // otherwise the 160-character HITRAN layout. Blank lines are skipped; any
 // malformed record throws std::runtime_error naming the file, the line
 // number, the field and its columns.
-LineList ReadLineFile(const std::string& path,
-                      const LineSelection& selection = LineSelection());
+LineList ReadLineFile(const std::string& path, const LineSelection& selection = LineSelection());
 
 // Reads several files and merges them with MergeLineLists (the first file has
 // the highest priority).

@@ -34,9 +34,15 @@ std::string Par(const std::string& mol, const std::string& iso, const std::strin
 }
 
 std::string ThreeRecords(const std::string& eol) {
-  return Par("6", "1", "3000.100000", "1.000E-20", ".0500", "0.070", "100.0000", "0.75", "-.005000") + eol +
-         Par("6", "2", "3000.200000", "2.000E-21", ".0400", "0.060", "200.0000", "0.70", "-.004000") + eol +
-         Par("2", "A", "2300.000000", "3.000E-22", ".0700", "0.090", "300.0000", "0.65", "0.001000") + eol;
+  return Par("6", "1", "3000.100000", "1.000E-20", ".0500", "0.070", "100.0000", "0.75",
+             "-.005000") +
+         eol +
+         Par("6", "2", "3000.200000", "2.000E-21", ".0400", "0.060", "200.0000", "0.70",
+             "-.004000") +
+         eol +
+         Par("2", "A", "2300.000000", "3.000E-22", ".0700", "0.090", "300.0000", "0.65",
+             "0.001000") +
+         eol;
 }
 
 void ExpectThreeRecords(const LineList& l) {
@@ -119,8 +125,8 @@ TEST(LineList, SelectsByRangeIsotopologueMoleculeAndIntensity) {
 
 TEST(LineList, MalformedRecordsNameFileLineAndField) {
   ScratchDir dir;
-  const std::string good = Par("6", "1", "3000.100000", "1.000E-20", ".0500", "0.070",
-                               "100.0000", "0.75", "-.005000");
+  const std::string good =
+      Par("6", "1", "3000.100000", "1.000E-20", ".0500", "0.070", "100.0000", "0.75", "-.005000");
   // Truncated record on line 2.
   std::string m = ErrorOf(dir.Write("trunc.par", good + "\n" + good.substr(0, 42) + "\n"));
   EXPECT_NE(m.find("trunc.par:2:"), std::string::npos) << m;
@@ -175,10 +181,10 @@ const char* kHeader = R"({
 
 TEST(LineList, ReadsHapiDataWithHeaderAndExtraParameters) {
   ScratchDir dir;
-  const std::string a = Par("6", "1", "3000.100000", "1.000E-20", ".0500", "0.070",
-                            "100.0000", "0.75", "-.005000");
-  const std::string b = Par("6", "1", "3000.200000", "1.000E-20", ".0500", "0.070",
-                            "100.0000", "0.75", "-.005000");
+  const std::string a =
+      Par("6", "1", "3000.100000", "1.000E-20", ".0500", "0.070", "100.0000", "0.75", "-.005000");
+  const std::string b =
+      Par("6", "1", "3000.200000", "1.000E-20", ".0500", "0.070", "100.0000", "0.75", "-.005000");
   dir.Write("CH4.header", kHeader);
   const std::string p = dir.Write("CH4.data", a + ",0.6000,-0.009000\r\n" + b + ",#,#\r\n");
   const LineList l = ReadLineFile(p);
@@ -220,8 +226,8 @@ LineList Lines(std::initializer_list<std::tuple<int, int, double>> spec) {
 
 TEST(LineList, MergeKeepsHigherPriorityAndNeverCountsALineTwice) {
   const LineList newer = Lines({{1, 1, 100.0}, {1, 1, 150.0}, {1, 1, 200.0}});
-  const LineList older = Lines({{1, 1, 50.0}, {1, 1, 100.0}, {1, 1, 120.0}, {1, 1, 200.0},
-                                {1, 1, 250.0}, {1, 2, 150.0}});
+  const LineList older = Lines(
+      {{1, 1, 50.0}, {1, 1, 100.0}, {1, 1, 120.0}, {1, 1, 200.0}, {1, 1, 250.0}, {1, 2, 150.0}});
   const LineList m = MergeLineLists({newer, older});
   ASSERT_EQ(m.size(), 6u);  // newer's 3 + older's 50, 250 (iso 1) + 150 (iso 2)
   const double want[] = {50, 100, 150, 150, 200, 250};

@@ -71,8 +71,7 @@ TEST(LineParameters, IntensityRatioFollowsTheBoltzmannFactor) {
   const double c2 = 1.4387768775039337;  // h c / k_B [cm K] (CODATA 2018, exact)
   for (double t : {200.0, 250.0, 350.0, 500.0, 800.0}) {
     const LineParameters p = ComputeLineParameters(l, GasConditions{t, 101325.0, 0.0});
-    EXPECT_NEAR(p.intensity[1] / p.intensity[0] /
-                    std::exp(-c2 * 1000.0 * (1.0 / t - 1.0 / 296.0)),
+    EXPECT_NEAR(p.intensity[1] / p.intensity[0] / std::exp(-c2 * 1000.0 * (1.0 / t - 1.0 / 296.0)),
                 1.0, 1e-12)
         << t;
     // A line from the ground state weakens as Q(T) grows.
@@ -88,8 +87,10 @@ TEST(LineParameters, ClearErrors) {
   LineList l = TwoCh4Lines();
   EXPECT_THROW(ComputeLineParameters(l, GasConditions{-1.0, 101325.0, 0.0}), std::invalid_argument);
   EXPECT_THROW(ComputeLineParameters(l, GasConditions{296.0, -1.0, 0.0}), std::invalid_argument);
-  EXPECT_THROW(ComputeLineParameters(l, GasConditions{296.0, 101325.0, 1.5}), std::invalid_argument);
-  EXPECT_THROW(ComputeLineParameters(l, GasConditions{3000.0, 101325.0, 0.0}), std::invalid_argument);
+  EXPECT_THROW(ComputeLineParameters(l, GasConditions{296.0, 101325.0, 1.5}),
+               std::invalid_argument);
+  EXPECT_THROW(ComputeLineParameters(l, GasConditions{3000.0, 101325.0, 0.0}),
+               std::invalid_argument);
   l.molecule[1] = 3;  // O3: no partition sums shipped
   try {
     ComputeLineParameters(l, GasConditions{});

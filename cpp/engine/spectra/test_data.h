@@ -21,8 +21,8 @@ class ScratchDir {
   ScratchDir() {
     const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
     path_ = std::filesystem::temp_directory_path() /
-            (std::string("qogi_spectra_") + info->test_suite_name() + "_" + info->name() +
-             "_" + std::to_string(std::rand()));
+            (std::string("qogi_spectra_") + info->test_suite_name() + "_" + info->name() + "_" +
+             std::to_string(std::rand()));
     std::filesystem::remove_all(path_);
     std::filesystem::create_directories(path_);
   }

@@ -137,9 +137,8 @@ void AddVoigtWeideman(const double* nu, std::size_t n, double centre, double alp
 }
 
 QOGI_KERNEL
-void AddVoigtContinuedFraction4(const double* nu, std::size_t n, double centre,
-                                double alpha, double gamma_lorentz, double scale,
-                                double* out) {
+void AddVoigtContinuedFraction4(const double* nu, std::size_t n, double centre, double alpha,
+                                double gamma_lorentz, double scale, double* out) {
   const double inv_alpha = 1.0 / alpha;
   const double y = gamma_lorentz * inv_alpha;
   const double k = scale * kInvSqrtPi * inv_alpha;

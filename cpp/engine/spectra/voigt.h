@@ -50,9 +50,8 @@ double VoigtProfile(double dnu_cm1, double gamma_doppler_cm1, double gamma_loren
 void AddVoigtWeideman(const double* nu, std::size_t n, double centre, double alpha,
                       double gamma_lorentz, double scale, double* out);
 // Continued-fraction (4th convergent) region:
-void AddVoigtContinuedFraction4(const double* nu, std::size_t n, double centre,
-                                double alpha, double gamma_lorentz, double scale,
-                                double* out);
+void AddVoigtContinuedFraction4(const double* nu, std::size_t n, double centre, double alpha,
+                                double gamma_lorentz, double scale, double* out);
 // Far wings (2nd convergent, closed form):
 void AddVoigtFarWing(const double* nu, std::size_t n, double centre, double alpha,
                      double gamma_lorentz, double scale, double* out);

@@ -35,8 +35,8 @@ TEST(Faddeeva, FarFieldMatchesAsymptoticSeries) {
   for (double x : {-1e4, -300.0, 100.0, 250.0, 1e4})
     for (double y : {1e-4, 1e-2, 1.0, 30.0, 1e3}) {
       const std::complex<double> z(x, y);
-      const std::complex<double> s = 1.0 / z + 0.5 / std::pow(z, 3) + 0.75 / std::pow(z, 5) +
-                                     1.875 / std::pow(z, 7);
+      const std::complex<double> s =
+          1.0 / z + 0.5 / std::pow(z, 3) + 0.75 / std::pow(z, 5) + 1.875 / std::pow(z, 7);
       const std::complex<double> ref = std::complex<double>(0, 1) * s / std::sqrt(kPi);
       EXPECT_LT(RelErr(Faddeeva(x, y).real(), ref.real()), 1e-6) << x << " " << y;
     }
@@ -46,15 +46,18 @@ TEST(Faddeeva, RegionsAgreeOnTheirBoundaries) {
   // Either side of s = |x| + y = 6 and s = 20 the approximations agree.
   for (double y : {1e-4, 1e-2, 0.5, 2.0, 5.0}) {
     const double x6 = kVoigtCentreLimit - y;
-    EXPECT_LT(RelErr(FaddeevaContinuedFraction4(x6, y).real(),
-                     FaddeevaWeideman32(x6, y).real()), 5e-5) << y;
+    EXPECT_LT(RelErr(FaddeevaContinuedFraction4(x6, y).real(), FaddeevaWeideman32(x6, y).real()),
+              5e-5)
+        << y;
   }
   for (double y : {1e-4, 1e-2, 1.0, 10.0, 19.0}) {
     const double x20 = kVoigtFarLimit - y;
-    EXPECT_LT(RelErr(FaddeevaContinuedFraction2(x20, y).real(),
-                     FaddeevaWeideman32(x20, y).real()), 5e-5) << y;
-    EXPECT_LT(RelErr(FaddeevaContinuedFraction4(x20, y).real(),
-                     FaddeevaWeideman32(x20, y).real()), 1e-6) << y;
+    EXPECT_LT(RelErr(FaddeevaContinuedFraction2(x20, y).real(), FaddeevaWeideman32(x20, y).real()),
+              5e-5)
+        << y;
+    EXPECT_LT(RelErr(FaddeevaContinuedFraction4(x20, y).real(), FaddeevaWeideman32(x20, y).real()),
+              1e-6)
+        << y;
   }
   EXPECT_THROW(Faddeeva(1.0, -1e-3), std::invalid_argument);
   EXPECT_THROW(Faddeeva(std::nan(""), 1.0), std::invalid_argument);
@@ -63,7 +66,8 @@ TEST(Faddeeva, RegionsAgreeOnTheirBoundaries) {
 TEST(VoigtProfile, DopplerAndLorentzLimits) {
   const double gd = 0.005, gl_small = gd * 1e-7;
   for (double d = -2 * gd; d <= 2 * gd; d += gd / 20) {
-    const double gauss = std::sqrt(std::log(2.0) / kPi) / gd * std::exp(-std::log(2.0) * d * d / (gd * gd));
+    const double gauss =
+        std::sqrt(std::log(2.0) / kPi) / gd * std::exp(-std::log(2.0) * d * d / (gd * gd));
     EXPECT_LT(RelErr(VoigtProfile(d, gd, gl_small), gauss), 1e-5) << d;
   }
   const double gl = 0.1, gd_small = gl * 1e-4;

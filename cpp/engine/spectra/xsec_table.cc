@@ -14,9 +14,8 @@
 namespace qogi {
 
 XsecTable::XsecTable(const WavenumberGrid& grid, std::vector<double> temperatures_K,
-                     double pressure_Pa, double self_fraction,
-                     const CrossSectionOptions& options, std::vector<float> sigma,
-                     std::string metadata)
+                     double pressure_Pa, double self_fraction, const CrossSectionOptions& options,
+                     std::vector<float> sigma, std::string metadata)
     : grid_(grid),
       temperatures_(std::move(temperatures_K)),
       pressure_Pa_(pressure_Pa),
@@ -46,8 +45,7 @@ XsecTable::XsecTable(const WavenumberGrid& grid, std::vector<double> temperature
     const float s = sigma_[i];
     if (!(std::isfinite(s) && s >= 0))
       throw std::invalid_argument("sigma[" + std::to_string(i) +
-                                  "] must be finite and >= 0 cm2/molecule; got " +
-                                  FormatNumber(s));
+                                  "] must be finite and >= 0 cm2/molecule; got " + FormatNumber(s));
   }
   for (std::size_t j = 0; j < n; ++j) {
     float top = 0.0f;
@@ -56,10 +54,10 @@ XsecTable::XsecTable(const WavenumberGrid& grid, std::vector<double> temperature
   }
   log_sigma_.resize(sigma_.size());
   for (std::size_t i = 0; i < sigma_.size(); ++i)
-    log_sigma_[i] = sigma_[i] > 0
-                        ? static_cast<float>(std::log(static_cast<double>(sigma_[i])) -
-                                             log_offset_[i % n])
-                        : -std::numeric_limits<float>::infinity();
+    log_sigma_[i] =
+        sigma_[i] > 0
+            ? static_cast<float>(std::log(static_cast<double>(sigma_[i])) - log_offset_[i % n])
+            : -std::numeric_limits<float>::infinity();
 }
 
 XsecTable XsecTable::Build(const LineList& lines, const WavenumberGrid& grid,
@@ -90,13 +88,11 @@ XsecTable XsecTable::Build(const LineList& lines, const WavenumberGrid& grid,
           control->progress((static_cast<double>(k) + f) / static_cast<double>(nt));
         };
     }
-    ComputeCrossSection(lines, cond, grid, options, row.data(), settings,
-                        control ? &sub : nullptr);
+    ComputeCrossSection(lines, cond, grid, options, row.data(), settings, control ? &sub : nullptr);
     for (std::size_t j = 0; j < grid.size; ++j)
       sigma[k * grid.size + j] = static_cast<float>(row[j]);
   }
-  return XsecTable(grid, temperatures_K, pressure_Pa, self_fraction, options,
-                   std::move(sigma));
+  return XsecTable(grid, temperatures_K, pressure_Pa, self_fraction, options, std::move(sigma));
 }
 
 XsecTable::Stencil XsecTable::StencilAt(double temperature_K) const {
@@ -106,8 +102,8 @@ XsecTable::Stencil XsecTable::StencilAt(double temperature_K) const {
   const std::size_t nt = t.size();
   s.count = static_cast<int>(std::min<std::size_t>(4, nt));
   // Interval i with t[i] <= T <= t[i+1].
-  std::size_t i = static_cast<std::size_t>(std::upper_bound(t.begin(), t.end(), temperature_K) -
-                                           t.begin());
+  std::size_t i =
+      static_cast<std::size_t>(std::upper_bound(t.begin(), t.end(), temperature_K) - t.begin());
   i = i == 0 ? 0 : i - 1;
   if (i + 1 >= nt && nt >= 2) i = nt - 2;
   s.temperature_K = temperature_K;
@@ -320,8 +316,8 @@ XsecTable XsecTable::Load(const std::string& path) {
     return XsecTable(grid, std::move(temps), pressure, self_fraction, opt, std::move(sigma),
                      std::move(meta));
   } catch (const std::invalid_argument& e) {
-    throw std::runtime_error("cross-section table '" + path + "' holds invalid values: " +
-                             e.what());
+    throw std::runtime_error("cross-section table '" + path +
+                             "' holds invalid values: " + e.what());
   }
 }
 

@@ -49,9 +49,9 @@ class XsecTable {
   // A table from its values. temperatures_K: strictly increasing, > 0, at
   // least one; sigma: temperatures_K.size() x grid.size values [cm2/molecule],
   // finite and >= 0, row k at temperatures_K[k]. Throws std::invalid_argument.
-  XsecTable(const WavenumberGrid& grid, std::vector<double> temperatures_K,
-            double pressure_Pa, double self_fraction, const CrossSectionOptions& options,
-            std::vector<float> sigma, std::string metadata = "");
+  XsecTable(const WavenumberGrid& grid, std::vector<double> temperatures_K, double pressure_Pa,
+            double self_fraction, const CrossSectionOptions& options, std::vector<float> sigma,
+            std::string metadata = "");
 
   // Computes a table: one ComputeCrossSection per temperature.
   static XsecTable Build(const LineList& lines, const WavenumberGrid& grid,

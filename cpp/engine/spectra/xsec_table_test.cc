@@ -98,7 +98,7 @@ TEST(XsecTable, TemperatureDerivative) {
 TEST(XsecTable, ZerosFallBackToLinearInterpolation) {
   const WavenumberGrid g{100.0, 1.0, 3};
   // Point 0: all positive; point 1: a zero at 200 K; point 2: all zero.
-  const std::vector<float> sigma = {1e-20f, 0.0f, 0.0f, 2e-20f, 1e-20f, 0.0f,
+  const std::vector<float> sigma = {1e-20f, 0.0f,   0.0f, 2e-20f, 1e-20f, 0.0f,
                                     4e-20f, 2e-20f, 0.0f, 8e-20f, 3e-20f, 0.0f};
   const XsecTable t(g, {200, 300, 400, 500}, 101325.0, 0.0, Fixed25(), sigma);
   // ln sigma is linear in T for point 0, so the cubic returns 2^(T/100 - 2) e-20.
@@ -155,8 +155,9 @@ TEST(XsecTable, SaveLoadAndCorruption) {
   std::string flipped = bytes;
   flipped[bytes.size() / 2] ^= 0x10;
   EXPECT_NE(LoadError(dir.Write("flip.qxs", flipped)).find("checksum"), std::string::npos);
-  EXPECT_NE(LoadError(dir.Write("short.qxs", bytes.substr(0, bytes.size() - 100))).find("truncated"),
-            std::string::npos);
+  EXPECT_NE(
+      LoadError(dir.Write("short.qxs", bytes.substr(0, bytes.size() - 100))).find("truncated"),
+      std::string::npos);
   EXPECT_NE(LoadError(dir.Write("tiny.qxs", bytes.substr(0, 30))).find("truncated"),
             std::string::npos);
   std::string version = bytes;

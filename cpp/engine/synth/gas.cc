@@ -11,8 +11,8 @@ namespace {
 
 // Shomate-form coefficients of the quadratic cp(t) through three tabulated
 // points at t = 0.3, 0.4, 0.5 (T = 300, 400, 500 K).
-Species QuadraticThrough(const char* name, double molar_mass, double cp300,
-                         double cp400, double cp500) {
+Species QuadraticThrough(const char* name, double molar_mass, double cp300, double cp400,
+                         double cp500) {
   const double c = (cp500 - 2 * cp400 + cp300) / (2 * 0.01);
   const double b = (cp500 - cp300) / 0.2 - 2 * c * 0.4;
   const double a = cp400 - b * 0.4 - c * 0.16;
@@ -36,8 +36,8 @@ const std::vector<Species>& Table() {
 
 double ShomateEnthalpy(const Species& s, double t) {
   // Integral of cp over T = 1000 t, in J/mol.
-  return 1000.0 * (s.a * t + s.b * t * t / 2 + s.c * t * t * t / 3 +
-                   s.d * t * t * t * t / 4 - s.e / t);
+  return 1000.0 *
+         (s.a * t + s.b * t * t / 2 + s.c * t * t * t / 3 + s.d * t * t * t * t / 4 - s.e / t);
 }
 
 }  // namespace
@@ -48,8 +48,7 @@ double Species::HeatCapacity(double temperature_K) const {
 }
 
 double Species::Enthalpy(double temperature_K) const {
-  return ShomateEnthalpy(*this, temperature_K / 1000.0) -
-         ShomateEnthalpy(*this, 298.15 / 1000.0);
+  return ShomateEnthalpy(*this, temperature_K / 1000.0) - ShomateEnthalpy(*this, 298.15 / 1000.0);
 }
 
 const Species& FindSpecies(const std::string& name) {
@@ -57,8 +56,7 @@ const Species& FindSpecies(const std::string& name) {
     if (s.name == name) return s;
   std::string known;
   for (const Species& s : Table()) known += (known.empty() ? "" : ", ") + s.name;
-  throw std::invalid_argument("unknown gas species \"" + name + "\"; known species: " +
-                              known);
+  throw std::invalid_argument("unknown gas species \"" + name + "\"; known species: " + known);
 }
 
 std::vector<std::string> KnownSpecies() {
@@ -84,12 +82,10 @@ GasMixture::GasMixture(const std::map<std::string, double>& mole_fractions) {
     sum += x;
   }
   if (!(std::abs(sum - 1.0) <= 1e-3))
-    throw std::invalid_argument(
-        "composition volume fractions must sum to 1 (within 1e-3); got " +
-        FormatNumber(sum));
+    throw std::invalid_argument("composition volume fractions must sum to 1 (within 1e-3); got " +
+                                FormatNumber(sum));
   for (double& x : x_) x /= sum;
-  for (std::size_t i = 0; i < x_.size(); ++i)
-    molar_mass_ += x_[i] * species_[i]->molar_mass_kg_mol;
+  for (std::size_t i = 0; i < x_.size(); ++i) molar_mass_ += x_[i] * species_[i]->molar_mass_kg_mol;
   for (std::size_t i = 0; i < x_.size(); ++i)
     w_.push_back(x_[i] * species_[i]->molar_mass_kg_mol / molar_mass_);
 }
@@ -107,8 +103,7 @@ double GasMixture::SpecificHeatCapacity(double temperature_K) const {
 
 double GasMixture::SpecificEnthalpy(double temperature_K) const {
   double h = 0;
-  for (std::size_t i = 0; i < x_.size(); ++i)
-    h += x_[i] * species_[i]->Enthalpy(temperature_K);
+  for (std::size_t i = 0; i < x_.size(); ++i) h += x_[i] * species_[i]->Enthalpy(temperature_K);
   return h / molar_mass_;
 }
 
@@ -116,9 +111,8 @@ double GasMixture::Density(double temperature_K, double pressure_Pa) const {
   return pressure_Pa * molar_mass_ / (kGasConstant * temperature_K);
 }
 
-MixingModel::MixingModel(GasMixture released, double exit_temperature_K,
-                         GasMixture ambient, double ambient_temperature_K,
-                         double pressure_Pa)
+MixingModel::MixingModel(GasMixture released, double exit_temperature_K, GasMixture ambient,
+                         double ambient_temperature_K, double pressure_Pa)
     : released_(std::move(released)),
       ambient_(std::move(ambient)),
       t_exit_(exit_temperature_K),
@@ -172,8 +166,8 @@ double MixingModel::TemperatureAtMassFraction(double y) const {
   double t = (y * cpr * t_exit_ + (1 - y) * cpa * t_amb_) / (y * cpr + (1 - y) * cpa);
   for (int it = 0; it < 30; ++it) {
     const double h = y * released_.SpecificEnthalpy(t) + (1 - y) * ambient_.SpecificEnthalpy(t);
-    const double cp = y * released_.SpecificHeatCapacity(t) +
-                      (1 - y) * ambient_.SpecificHeatCapacity(t);
+    const double cp =
+        y * released_.SpecificHeatCapacity(t) + (1 - y) * ambient_.SpecificHeatCapacity(t);
     const double dt = (target - h) / cp;
     t += dt;
     if (std::abs(dt) < 1e-10) break;
@@ -184,8 +178,7 @@ double MixingModel::TemperatureAtMassFraction(double y) const {
 double MixingModel::DensityAtMassFraction(double y) const {
   y = std::clamp(y, 0.0, 1.0);
   const double t = TemperatureAtMassFraction(y);
-  const double inv_m = y / released_.molar_mass_kg_mol() +
-                       (1 - y) / ambient_.molar_mass_kg_mol();
+  const double inv_m = y / released_.molar_mass_kg_mol() + (1 - y) / ambient_.molar_mass_kg_mol();
   return p_ / (kGasConstant * t * inv_m);
 }
 

@@ -13,10 +13,13 @@ namespace {
 // NIST Chemistry WebBook tabulated ideal-gas cp [J/(mol K)] (Gurvich et al.
 // 1989 for CH4; JANAF for CO2, N2, O2).
 TEST(Species, HeatCapacityMatchesTabulatedValues) {
-  struct Ref { const char* name; double t, cp; };
+  struct Ref {
+    const char* name;
+    double t, cp;
+  };
   const Ref refs[] = {{"CH4", 300, 35.76}, {"CH4", 400, 40.63}, {"CH4", 500, 46.63},
                       {"CO2", 300, 37.22}, {"CO2", 400, 41.33}, {"N2", 300, 29.12},
-                      {"N2", 400, 29.25}, {"O2", 300, 29.39}, {"O2", 400, 30.11},
+                      {"N2", 400, 29.25},  {"O2", 300, 29.39},  {"O2", 400, 30.11},
                       {"Ar", 300, 20.79}};
   for (const Ref& r : refs)
     EXPECT_NEAR(FindSpecies(r.name).HeatCapacity(r.t), r.cp, 0.007 * r.cp) << r.name << " " << r.t;
@@ -101,11 +104,11 @@ TEST(MixingModel, StateFromPartialDensityInvertsTheMixture) {
 TEST(Release, StandardLitresPerMinute) {
   // 1 SLPM of CH4 at 20 C and 1 atm: 1e-3/60 m3/s x p M / (R T).
   const double rho = 101325.0 * 16.0425e-3 / (8.314462618 * 293.15);
-  EXPECT_NEAR(ToKgPerS(1.0, RateUnit::kSlpm, 16.0425e-3, 293.15, 101325.0),
-              1e-3 / 60 * rho, 1e-15);
+  EXPECT_NEAR(ToKgPerS(1.0, RateUnit::kSlpm, 16.0425e-3, 293.15, 101325.0), 1e-3 / 60 * rho, 1e-15);
   EXPECT_NEAR(ToKgPerS(20.0, RateUnit::kKgPerH, 0.016, 293.15, 101325.0), 20.0 / 3600, 1e-15);
-  EXPECT_NEAR(FromKgPerS(ToKgPerS(7.2, RateUnit::kSlpm, 0.030, 273.15, 1e5), RateUnit::kSlpm,
-                         0.030, 273.15, 1e5), 7.2, 1e-12);
+  EXPECT_NEAR(FromKgPerS(ToKgPerS(7.2, RateUnit::kSlpm, 0.030, 273.15, 1e5), RateUnit::kSlpm, 0.030,
+                         273.15, 1e5),
+              7.2, 1e-12);
   Release r;  // 5 SLPM CH4 through 1.9 cm at 21.3 C: ~0.295 m/s
   r.exit_temperature_K = r.ambient_temperature_K = 294.45;
   EXPECT_NEAR(r.ExitVelocity(), 0.2952, 0.0005);

@@ -99,8 +99,7 @@ struct AxisModel {
     const Top o = TopHat(st);
     const double on = SmoothStep((s_here - l_lam) / (onset * d));
     const double dv = o.excess;
-    const double ri = kGravity * std::abs(rho_a - o.rho) * o.b /
-                      (rho_a * std::max(dv * dv, 1e-30));
+    const double ri = kGravity * std::abs(rho_a - o.rho) * o.b / (rho_a * std::max(dv * dv, 1e-30));
     const double alpha =
         opt.alpha_jet + (opt.alpha_plume - opt.alpha_jet) * std::min(1.0, ri / ri_p);
     const double e = on * 2 * kPi * o.b *
@@ -128,7 +127,8 @@ struct Fine {
 };
 
 // Distance of p outside the box [lo, hi] (0 inside).
-double Outside(const double p[3], const std::array<double, 3>& lo, const std::array<double, 3>& hi) {
+double Outside(const double p[3], const std::array<double, 3>& lo,
+               const std::array<double, 3>& hi) {
   double s2 = 0;
   for (int k = 0; k < 3; ++k) {
     const double e = std::max({lo[k] - p[k], 0.0, p[k] - hi[k]});
@@ -163,9 +163,12 @@ std::vector<Fine> MarchAxis(const AxisModel& m, const double ew[3], double x0, d
     // A state gone non-finite (a release no plume model can carry) would
     // never reach the box's edge or the cap: stop with an error instead.
     if (!std::isfinite(s) || !std::isfinite(st.z) || !std::isfinite(st.h) || steps > 2000000)
-      throw std::invalid_argument("the plume model did not converge for this release (exit "
-                                  "diameter " + FormatNumber(d_) + " m): its state became "
-                                  "non-finite or it took more than 2e6 steps");
+      throw std::invalid_argument(
+          "the plume model did not converge for this release (exit "
+          "diameter " +
+          FormatNumber(d_) +
+          " m): its state became "
+          "non-finite or it took more than 2e6 steps");
     Fine f;
     f.s = s;
     f.top = top(st);
@@ -211,8 +214,7 @@ struct ProfileInputs {
 // integrated along s.
 std::vector<Station> SimilarityProfiles(const std::vector<Fine>& fine, const Release& release,
                                         const PlumeModelOptions& opt, const ProfileInputs& in) {
-  const double q_ = in.q, rho_e = in.rho_e, l_lam_ = in.l_lam, l_dev_ = in.l_dev,
-               c_psi_ = in.c_psi;
+  const double q_ = in.q, rho_e = in.rho_e, l_lam_ = in.l_lam, l_dev_ = in.l_dev, c_psi_ = in.c_psi;
   const double* ep = in.ep;
   const double lambda = opt.concentration_width_ratio;
   const double f_inf = opt.puff_size_fraction;
@@ -246,8 +248,8 @@ std::vector<Station> SimilarityProfiles(const std::vector<Fine>& fine, const Rel
     // Mean-speed weights for the concentration-weighted speed W_m below.
     auto mean_speed = [&](double sc) {
       const double bg2q = t.b * t.b / 4;
-      return std::max(0.0, t.ambient_axial) + std::max(0.0, t.excess) *
-             ((1 - phi) + phi * 2 * bg2q / (bg2q + sc * sc));
+      return std::max(0.0, t.ambient_axial) +
+             std::max(0.0, t.excess) * ((1 - phi) + phi * 2 * bg2q / (bg2q + sc * sc));
     };
     // The Gaussian profile's centreline Q / (2 pi sigma_c^2 W_m) may not exceed
     // the pure gas's density (it would while the top-hat Y is still near 1 and
@@ -263,13 +265,13 @@ std::vector<Station> SimilarityProfiles(const std::vector<Fine>& fine, const Rel
     // cluster of puffs holding a whole cross-section's gas at twice the mean
     // linear density must stay below the pure gas's density, so
     // (sigma_puff / sigma_c)^2 >= 2 rho_c / rho_exit.
-    const double rho_c = q_ / (2 * kPi * o.sigma_c * o.sigma_c *
-                               (o.ambient_axial_m_s + o.excess_m_s *
-                                ((1 - phi) + phi * 2 * (t.b * t.b / 4) /
-                                 (t.b * t.b / 4 + o.sigma_c * o.sigma_c))));
-    const double frac = std::clamp(std::max(1 - phi * (1 - f_inf),
-                                            std::sqrt(kClusterDensity * rho_c / rho_e)),
-                                   0.0, 1.0);
+    const double rho_c =
+        q_ / (2 * kPi * o.sigma_c * o.sigma_c *
+              (o.ambient_axial_m_s +
+               o.excess_m_s * ((1 - phi) + phi * 2 * (t.b * t.b / 4) /
+                                               (t.b * t.b / 4 + o.sigma_c * o.sigma_c))));
+    const double frac = std::clamp(
+        std::max(1 - phi * (1 - f_inf), std::sqrt(kClusterDensity * rho_c / rho_e)), 0.0, 1.0);
     // Offsets start smoothly where the puffs first become smaller than the
     // plume: g = 1 - f^2 -> g smoothstep(g / 0.3)^2 keeps the offset scale's
     // first and second derivatives finite there.
@@ -291,8 +293,7 @@ std::vector<Station> SimilarityProfiles(const std::vector<Fine>& fine, const Rel
     if (s2 > 0) {
       // Flux-weighted offsets: the concentration-space offsets N(0, s2) times
       // the puff speed, a two-Gaussian mixture matched by its second moment.
-      const double a1 =
-          o.ambient_axial_m_s + o.excess_m_s * ((1 - phi) + phi * o.profile_k * eps);
+      const double a1 = o.ambient_axial_m_s + o.excess_m_s * ((1 - phi) + phi * o.profile_k * eps);
       const double a2 = phi * o.excess_m_s * o.profile_k * (1 - eps) * 2 * o.profile_beta *
                         o.profile_b2 / (o.profile_b2 + 2 * s2);
       const double v2 = 1.0 / (1.0 / s2 + 2.0 / o.profile_b2);
@@ -375,19 +376,20 @@ std::vector<Station> PlaceStations(const std::vector<Station>& fs, int* exit_sta
       double h2 = pair_step(a);
       // A zero or non-finite step (a width or axis-speed scale of zero)
       // would never reach the end.
-      if (!(h2 > 1e-9 * std::max(1.0, s_end)) || !std::isfinite(h2) ||
-          stations_.size() > 4000000)
-        throw std::invalid_argument("the plume model cannot place its puff stations for this "
-                                    "release (a zero-width or stalled plume at s = " +
-                                    FormatNumber(s_here) + " m)");
+      if (!(h2 > 1e-9 * std::max(1.0, s_end)) || !std::isfinite(h2) || stations_.size() > 4000000)
+        throw std::invalid_argument(
+            "the plume model cannot place its puff stations for this "
+            "release (a zero-width or stalled plume at s = " +
+            FormatNumber(s_here) + " m)");
       if (s_here + h2 > s_end - 0.25 * h2) h2 = s_end - s_here;
       stations_.push_back(at_s_fine(s_here + 0.5 * h2));
       s_here = s_here + h2 >= s_end ? s_end : s_here + h2;
     }
   }
   if (stations_.size() < 9)
-    throw std::invalid_argument("the view is too small for the plume model: enlarge "
-                                "the view or the distance");
+    throw std::invalid_argument(
+        "the view is too small for the plume model: enlarge "
+        "the view or the distance");
 
   return stations_;
 }
@@ -444,7 +446,6 @@ void CorrectPuffWidths(std::vector<Station>* stations, double q_, double rho_e) 
       a.sigma_c = a.sigma_puff = sig[j];
     }
   }
-
 }
 
 // Step 5: the structure scale bands (log-spaced time scales over the view)
@@ -464,12 +465,10 @@ int AssignScaleBands(std::vector<Station>* stations, const PlumeModelOptions& op
     t_min = std::min(t_min, tt);
     t_max = std::max(t_max, tt);
   }
-  if (!(t_max > 0)) t_min = t_max = c_tau * stations_.back().sigma_c /
-                                    stations_.back().mass_weighted_speed;
-  num_bands_ = std::clamp(1 + static_cast<int>(std::ceil(std::log2(t_max / t_min))), 1,
-                          kMaxBands);
-  const double ratio =
-      num_bands_ > 1 ? std::pow(t_max / t_min, 1.0 / (num_bands_ - 1)) : 2.0;
+  if (!(t_max > 0))
+    t_min = t_max = c_tau * stations_.back().sigma_c / stations_.back().mass_weighted_speed;
+  num_bands_ = std::clamp(1 + static_cast<int>(std::ceil(std::log2(t_max / t_min))), 1, kMaxBands);
+  const double ratio = num_bands_ > 1 ? std::pow(t_max / t_min, 1.0 / (num_bands_ - 1)) : 2.0;
   const double log_ratio = std::log(std::max(ratio, 1.0 + 1e-9));
   for (int b = 0; b < num_bands_; ++b) band_time_[b] = t_min * std::pow(ratio, b);
   for (Station& a : stations_) {
@@ -502,9 +501,9 @@ void BandWeightSlopes(std::vector<Station>* stations, int num_bands_) {
 
 }  // namespace
 
-MeanFlow::MeanFlow(const Release& release, const PlumeModelOptions& opt,
-                   const MixingModel& mixing, const std::array<double, 3>& lo,
-                   const std::array<double, 3>& hi, double stop_distance_m) {
+MeanFlow::MeanFlow(const Release& release, const PlumeModelOptions& opt, const MixingModel& mixing,
+                   const std::array<double, 3>& lo, const std::array<double, 3>& hi,
+                   double stop_distance_m) {
   release.Check();
   opt.Check();
   q_ = release.MassRateKgS();
@@ -513,9 +512,9 @@ MeanFlow::MeanFlow(const Release& release, const PlumeModelOptions& opt,
   const double rho_e = mixing.exit_density();
   const double rho_a = mixing.ambient_density();
   v0_ = q_ / (rho_e * area);
-  l_lam_ = (opt.laminar_length_diameters >= 0
-                ? opt.laminar_length_diameters
-                : (release.ExitReynoldsNumber() < 2000 ? 1.0 : 0.0)) * d_;
+  l_lam_ = (opt.laminar_length_diameters >= 0 ? opt.laminar_length_diameters
+                                              : (release.ExitReynoldsNumber() < 2000 ? 1.0 : 0.0)) *
+           d_;
   l_dev_ = opt.development_length_diameters * d_;
   c_psi_ = opt.structure_persistence;
   const double u_wind = release.wind_speed_m_s;
@@ -526,19 +525,18 @@ MeanFlow::MeanFlow(const Release& release, const PlumeModelOptions& opt,
   // turbulently; entrainment switches on over kEntrainmentOnset diameters
   // after it (half a diameter above a turbulent exit).
   const double onset = l_lam_ > 0 ? kEntrainmentOnset : 0.5;
-  const AxisModel axis{opt, mixing, q_, d_, v0_, l_lam_, rho_a, u_wind, 0.8 * opt.alpha_plume,
+  const AxisModel axis{opt,  mixing, q_, d_, v0_, l_lam_, rho_a, u_wind, 0.8 * opt.alpha_plume,
                        onset};
 
   double s_view_end = -1;
-  const std::vector<Fine> fine =
-      MarchAxis(axis, ew, x0, z0, lo, hi, stop_distance_m, &s_view_end);
-  const ProfileInputs in{q_, rho_e, l_lam_, l_dev_, c_psi_,
-                         {-std::sin(theta), std::cos(theta), 0.0}};
+  const std::vector<Fine> fine = MarchAxis(axis, ew, x0, z0, lo, hi, stop_distance_m, &s_view_end);
+  const ProfileInputs in{q_,     rho_e,  l_lam_,
+                         l_dev_, c_psi_, {-std::sin(theta), std::cos(theta), 0.0}};
   const std::vector<Station> fs = SimilarityProfiles(fine, release, opt, in);
   stations_ = PlaceStations(fs, &exit_station_);
   CorrectPuffWidths(&stations_, q_, rho_e);
-  num_bands_ = AssignScaleBands(&stations_, opt, l_lam_, l_dev_, s_view_end, fs.back().s,
-                                &band_time_);
+  num_bands_ =
+      AssignScaleBands(&stations_, opt, l_lam_, l_dev_, s_view_end, fs.back().s, &band_time_);
   BandWeightSlopes(&stations_, num_bands_);
 }
 

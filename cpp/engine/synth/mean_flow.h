@@ -80,9 +80,9 @@ class MeanFlow {
   // `stop_distance_m` outside the axis-aligned box lo..hi (or 100 box sizes
   // along). Throws std::invalid_argument if the plume stalls (a fountain of a
   // release heavier than air in still air is not modelled).
-  MeanFlow(const Release& release, const PlumeModelOptions& options,
-           const MixingModel& mixing, const std::array<double, 3>& lo,
-           const std::array<double, 3>& hi, double stop_distance_m);
+  MeanFlow(const Release& release, const PlumeModelOptions& options, const MixingModel& mixing,
+           const std::array<double, 3>& lo, const std::array<double, 3>& hi,
+           double stop_distance_m);
 
   // Stations in pairs along s: stations 2p, 2p+1, 2p+2 are a pair's start,
   // midpoint and end. Steps keep psi changes <= 0.1 and s changes <=

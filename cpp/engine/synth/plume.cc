@@ -96,7 +96,10 @@ double HermiteDu(double y0, double d0, double y1, double d1, double u, double h)
 class Engine {
  public:
   Engine(const MeanFlow& mf, const Modes& modes, const Meander& meander, const Box& box)
-      : st_(mf.stations()), modes_(modes), meander_(meander), box_(box),
+      : st_(mf.stations()),
+        modes_(modes),
+        meander_(meander),
+        box_(box),
         exit_node_(mf.exit_station()) {}
 
   // Initialises a track released at tau with labels zeta, phasors in re/im.
@@ -109,8 +112,8 @@ class Engine {
     tr.t_exit = std::numeric_limits<double>::quiet_NaN();
     const double psi0 = st_[0].psi;
     for (int i = 0; i < modes_.total; ++i) {
-      const double ph = modes_.kappa[i] * tau + modes_.k1[i] * zeta[0] +
-                        modes_.k2[i] * zeta[1] + modes_.theta[i] + modes_.omega[i] * psi0;
+      const double ph = modes_.kappa[i] * tau + modes_.k1[i] * zeta[0] + modes_.k2[i] * zeta[1] +
+                        modes_.theta[i] + modes_.omega[i] * psi0;
       re[i] = std::cos(ph);
       im[i] = std::sin(ph);
     }
@@ -144,11 +147,17 @@ class Engine {
     double u = std::clamp((t - a.t) / (b.t - a.t), 0.0, 1.0);
     for (int it = 0; it < 50; ++it) {
       const double f = Hermite(a.t, a.g, b.t, b.g, u, h) - t;
-      if (f > 0) hi = u; else lo = u;
+      if (f > 0)
+        hi = u;
+      else
+        lo = u;
       const double df = HermiteDu(a.t, a.g, b.t, b.g, u, h);
       double next = df > 0 ? u - f / df : 0.5 * (lo + hi);
       if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
-      if (std::abs(next - u) < 1e-14) { u = next; break; }
+      if (std::abs(next - u) < 1e-14) {
+        u = next;
+        break;
+      }
       u = next;
     }
     const Station& sa = st_[j];
@@ -170,10 +179,10 @@ class Engine {
     for (int c = 0; c < 3; ++c) {
       const double dir = xi[0] * s.n1[c] + xi[1] * s.n2[c];
       pos[c] = s.pos[c] + s.offset_scale * dir;
-      const double dp = (sb.pos[c] - sa.pos[c]) / h + off_ds * dir +
-                        s.offset_scale * (dxi[0] * s.n1[c] + dxi[1] * s.n2[c] +
-                                          xi[0] * (sb.n1[c] - sa.n1[c]) / h +
-                                          xi[1] * (sb.n2[c] - sa.n2[c]) / h);
+      const double dp =
+          (sb.pos[c] - sa.pos[c]) / h + off_ds * dir +
+          s.offset_scale * (dxi[0] * s.n1[c] + dxi[1] * s.n2[c] +
+                            xi[0] * (sb.n1[c] - sa.n1[c]) / h + xi[1] * (sb.n2[c] - sa.n2[c]) / h);
       vel[c] = dp * speed;
     }
     if (s.psi > 0 && std::isfinite(tr.t_exit) && s.turbulence > 0) {
@@ -215,8 +224,7 @@ class Engine {
  private:
   double Speed(const Station& s, const double xi[kComponents]) const {
     const double r2 = s.offset_scale * s.offset_scale * (xi[0] * xi[0] + xi[1] * xi[1]);
-    return MeanFlow::PuffSpeed(s, r2) *
-           (1 + s.axial_turbulence * 3 * std::tanh(xi[2] / 3));
+    return MeanFlow::PuffSpeed(s, r2) * (1 + s.axial_turbulence * 3 * std::tanh(xi[2] / 3));
   }
 
   // Node values at station j from the phasors (time not set).
@@ -286,10 +294,9 @@ const std::vector<PuffState>& PlumeSimulation::puffs(int frame) const {
   return frames_[frame];
 }
 
-PlumeSimulation::PlumeSimulation(const Release& release, const View& view,
-                                 double duration_s, double frame_rate_hz,
-                                 const PlumeModelOptions& options, int num_threads,
-                                 const RunControl* control)
+PlumeSimulation::PlumeSimulation(const Release& release, const View& view, double duration_s,
+                                 double frame_rate_hz, const PlumeModelOptions& options,
+                                 int num_threads, const RunControl* control)
     : release_(release), view_(view), options_(options), frame_rate_hz_(frame_rate_hz) {
   release_.Check();
   view_.Check();
@@ -365,8 +372,7 @@ PlumeSimulation::PlumeSimulation(const Release& release, const View& view,
   for (const Station& s : st) {
     if (s.s <= 0) continue;
     bool out = false;
-    for (int k = 0; k < 3; ++k)
-      out = out || s.pos[k] < box_.lo[k] || s.pos[k] > box_.hi[k];
+    for (int k = 0; k < 3; ++k) out = out || s.pos[k] < box_.lo[k] || s.pos[k] > box_.hi[k];
     if (out) {
       t_leave = s.time_s;
       break;
@@ -456,27 +462,30 @@ PlumeSimulation::PlumeSimulation(const Release& release, const View& view,
     states.assign(tracks.size(), PuffState{});
     keep.assign(tracks.size(), 0);
     std::vector<char> lost(tracks.size(), 0);
-    ParallelFor(tracks.size(), 16, [&](std::size_t b, std::size_t e) {
-      for (std::size_t i = b; i < e; ++i) {
-        Track& tr = tracks[i];
-        if (!tr.alive) continue;
-        double* pr = &re[i * modes.total];
-        double* pi = &im[i * modes.total];
-        if (!engine.AdvanceTo(tr, pr, pi, t)) {
-          tr.alive = false;
-          // Its last known state decides whether that loses visible gas.
-          const PuffState last = engine.State(tr, tr.nv[2].t, mass);
-          lost[i] = engine.Outside(last) ? 0 : 1;
-          continue;
-        }
-        states[i] = engine.State(tr, t, mass);
-        if (engine.Outside(states[i])) {
-          tr.alive = false;
-          continue;
-        }
-        keep[i] = 1;
-      }
-    }, threads);
+    ParallelFor(
+        tracks.size(), 16,
+        [&](std::size_t b, std::size_t e) {
+          for (std::size_t i = b; i < e; ++i) {
+            Track& tr = tracks[i];
+            if (!tr.alive) continue;
+            double* pr = &re[i * modes.total];
+            double* pi = &im[i * modes.total];
+            if (!engine.AdvanceTo(tr, pr, pi, t)) {
+              tr.alive = false;
+              // Its last known state decides whether that loses visible gas.
+              const PuffState last = engine.State(tr, tr.nv[2].t, mass);
+              lost[i] = engine.Outside(last) ? 0 : 1;
+              continue;
+            }
+            states[i] = engine.State(tr, t, mass);
+            if (engine.Outside(states[i])) {
+              tr.alive = false;
+              continue;
+            }
+            keep[i] = 1;
+          }
+        },
+        threads);
     std::vector<PuffState>& out = frames_[n];
     out.clear();
     std::uint64_t live = 0;
@@ -485,8 +494,7 @@ PlumeSimulation::PlumeSimulation(const Release& release, const View& view,
       if (keep[i]) {
         out.push_back(states[i]);
         ++live;
-      } else if (tracks[i].id != std::numeric_limits<std::uint64_t>::max() &&
-                 !tracks[i].alive) {
+      } else if (tracks[i].id != std::numeric_limits<std::uint64_t>::max() && !tracks[i].alive) {
         tracks[i].id = std::numeric_limits<std::uint64_t>::max();  // mark slot free
         free_slots.push_back(static_cast<int>(i));
       }

@@ -70,9 +70,9 @@ class PlumeSimulation {
   // n / frame_rate_hz [s], n = 0 .. round(duration_s * frame_rate_hz) - 1.
   // num_threads: 0 = all cores. control: progress over frames and cancellation
   // (throws qogi::Cancelled).
-  PlumeSimulation(const Release& release, const View& view, double duration_s,
-                  double frame_rate_hz, const PlumeModelOptions& options = {},
-                  int num_threads = 0, const RunControl* control = nullptr);
+  PlumeSimulation(const Release& release, const View& view, double duration_s, double frame_rate_hz,
+                  const PlumeModelOptions& options = {}, int num_threads = 0,
+                  const RunControl* control = nullptr);
   ~PlumeSimulation();
   PlumeSimulation(PlumeSimulation&&) noexcept;
 

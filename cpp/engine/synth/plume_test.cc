@@ -40,7 +40,8 @@ TEST(PlaneMassFlux, EqualsTheRateOfChangeOfMassAcrossThePlane) {
     auto mass_beyond = [&](double t) {
       const PuffState p = puff_at(t);
       const double d = (nrm[0] * (p.x - plane.point[0]) + nrm[1] * (p.y - plane.point[1]) +
-                        nrm[2] * (p.z - plane.point[2])) / norm;
+                        nrm[2] * (p.z - plane.point[2])) /
+                       norm;
       return p.mass * 0.5 * std::erfc(-d / (std::sqrt(2.0) * p.sigma));
     };
     for (double t : {0.0, 0.01, 0.03}) {

@@ -22,8 +22,7 @@ inline std::uint64_t Mix64(std::uint64_t z) {
 }
 
 // 64 random bits for (seed, stream, index).
-inline std::uint64_t RandomBits(std::uint64_t seed, std::uint64_t stream,
-                                std::uint64_t index) {
+inline std::uint64_t RandomBits(std::uint64_t seed, std::uint64_t stream, std::uint64_t index) {
   return Mix64(Mix64(Mix64(seed) ^ stream) ^ index);
 }
 

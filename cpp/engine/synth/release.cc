@@ -38,8 +38,10 @@ RateUnit ParseRateUnit(const std::string& text) {
   if (t == "kg/h") return RateUnit::kKgPerH;
   if (t == "g/h") return RateUnit::kGPerH;
   if (t == "slpm") return RateUnit::kSlpm;
-  throw std::invalid_argument("rate_unit must be one of \"kg/s\", \"kg/h\", \"g/h\", "
-                              "\"SLPM\"; got \"" + text + "\"");
+  throw std::invalid_argument(
+      "rate_unit must be one of \"kg/s\", \"kg/h\", \"g/h\", "
+      "\"SLPM\"; got \"" +
+      text + "\"");
 }
 
 std::string RateUnitName(RateUnit unit) {
@@ -59,8 +61,8 @@ double ToKgPerS(double value, RateUnit unit, double molar_mass_kg_mol,
     case RateUnit::kKgPerH: return value / 3600.0;
     case RateUnit::kGPerH: return value / 3.6e6;
     case RateUnit::kSlpm: {
-      const double rho_std = standard_pressure_Pa * molar_mass_kg_mol /
-                             (kGasConstant * standard_temperature_K);
+      const double rho_std =
+          standard_pressure_Pa * molar_mass_kg_mol / (kGasConstant * standard_temperature_K);
       return value * 1e-3 / 60.0 * rho_std;
     }
   }
@@ -69,8 +71,8 @@ double ToKgPerS(double value, RateUnit unit, double molar_mass_kg_mol,
 
 double FromKgPerS(double kg_s, RateUnit unit, double molar_mass_kg_mol,
                   double standard_temperature_K, double standard_pressure_Pa) {
-  return kg_s / ToKgPerS(1.0, unit, molar_mass_kg_mol, standard_temperature_K,
-                         standard_pressure_Pa);
+  return kg_s /
+         ToKgPerS(1.0, unit, molar_mass_kg_mol, standard_temperature_K, standard_pressure_Pa);
 }
 
 void Release::Check() const {
@@ -98,8 +100,8 @@ void Release::Check() const {
 }
 
 double Release::MassRateKgS() const {
-  return ToKgPerS(rate, rate_unit, ReleasedGas().molar_mass_kg_mol(),
-                  standard_temperature_K, standard_pressure_Pa);
+  return ToKgPerS(rate, rate_unit, ReleasedGas().molar_mass_kg_mol(), standard_temperature_K,
+                  standard_pressure_Pa);
 }
 
 double Release::ExitDensity() const {

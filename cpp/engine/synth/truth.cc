@@ -41,8 +41,7 @@ TruthMaps ComputeTruthMaps(const PlumeSimulation& sim, int frame, int num_thread
   return ComputeTruthMaps(sim.puffs(frame), sim.view(), num_threads);
 }
 
-TruthMaps ComputeTruthMaps(const std::vector<PuffState>& puffs, const View& v,
-                           int num_threads) {
+TruthMaps ComputeTruthMaps(const std::vector<PuffState>& puffs, const View& v, int num_threads) {
   v.Check();
   const int w = v.width_px, h = v.height_px;
   TruthMaps m;
@@ -57,78 +56,81 @@ TruthMaps ComputeTruthMaps(const std::vector<PuffState>& puffs, const View& v,
 
   constexpr int kRows = 4;
   const std::size_t chunks = (h + kRows - 1) / kRows;
-  ParallelFor(chunks, 1, [&](std::size_t cb, std::size_t ce) {
-    std::vector<double> gx, gz;
-    for (std::size_t chunk = cb; chunk < ce; ++chunk) {
-      const int r_begin = static_cast<int>(chunk) * kRows;
-      const int r_end = std::min(h, r_begin + kRows);
-      for (const PuffState& p : puffs) {
-        const double sigma = p.sigma;
-        const double cut = kTruthCut * sigma;
-        const double scale = v.Scale(p.y);
-        const double col_c = v.Column(p.x, p.y), row_c = v.Row(p.z, p.y);
-        const double rad = cut / scale * (ortho ? 1.0 : 1.1) + 1.0;
-        const int c0 = std::max(0, static_cast<int>(std::ceil(col_c - rad)));
-        const int c1 = std::min(w - 1, static_cast<int>(std::floor(col_c + rad)));
-        const int q0 = std::max(r_begin, static_cast<int>(std::ceil(row_c - rad)));
-        const int q1 = std::min(r_end - 1, static_cast<int>(std::floor(row_c + rad)));
-        if (c0 > c1 || q0 > q1) continue;
-        const double amp = p.mass / (2 * kPi * sigma * sigma);
-        const double a = p.sigma_rate / sigma;
-        const double inv2s2 = 0.5 / (sigma * sigma);
-        const double cut2 = cut * cut;
-        if (ortho) {
-          // Separable: g(x) g(z), over the disc of radius `cut` row by row.
-          const double fp = v.footprint_m(), x_first = v.PixelX(c0, 0);
-          gx.resize(c1 - c0 + 1);
-          gz.resize(c1 - c0 + 1);  // here: g(x) (u + a dx)
-          for (int i = c0; i <= c1; ++i) {
-            const double dx = x_first + (i - c0) * fp - p.x;
-            gx[i - c0] = std::exp(-dx * dx * inv2s2);
-            gz[i - c0] = gx[i - c0] * (p.u + a * dx);
-          }
-          for (int r = q0; r <= q1; ++r) {
-            const double dz = v.PixelZ(r, 0) - p.z;
-            if (dz * dz > cut2) continue;
-            const double half = std::sqrt(cut2 - dz * dz);
-            const int ia = std::max(c0, static_cast<int>(std::ceil(v.Column(p.x - half, 0))));
-            const int ib = std::min(c1, static_cast<int>(std::floor(v.Column(p.x + half, 0))));
-            const double gzr = amp * std::exp(-dz * dz * inv2s2);
-            const double wz = gzr * (p.w + a * dz);
-            double* col = &m.column[static_cast<std::size_t>(r) * w];
-            double* fx = &m.flux_x[static_cast<std::size_t>(r) * w];
-            double* fz = &m.flux_z[static_cast<std::size_t>(r) * w];
-            for (int i = ia; i <= ib; ++i) {
-              col[i] += gzr * gx[i - c0];
-              fx[i] += gzr * gz[i - c0];
-              fz[i] += wz * gx[i - c0];
-            }
-          }
-        } else {
-          const double vx = p.x - cam[0], vy = p.y - cam[1], vz = p.z - cam[2];
-          const double v2 = vx * vx + vy * vy + vz * vz;
-          for (int r = q0; r <= q1; ++r) {
-            const double b = -(r - v.cy()) * v.ifov_rad;
-            const std::size_t row = static_cast<std::size_t>(r) * w;
-            for (int i = c0; i <= c1; ++i) {
-              const double aa = (i - v.cx()) * v.ifov_rad;
-              const double inv = 1.0 / std::sqrt(1 + aa * aa + b * b);
-              const double dx = aa * inv, dy = inv, dz = b * inv;
-              const double l = vx * dx + vy * dy + vz * dz;
-              const double perp2 = v2 - l * l;
-              if (perp2 > cut2) continue;
-              const double c = amp * std::exp(-perp2 * inv2s2);
-              // Closest point of the ray to the puff centre, minus the centre.
-              const double qx = cam[0] + l * dx - p.x, qz = cam[2] + l * dz - p.z;
-              m.column[row + i] += c;
-              m.flux_x[row + i] += c * (p.u + a * qx);
-              m.flux_z[row + i] += c * (p.w + a * qz);
+  ParallelFor(
+      chunks, 1,
+      [&](std::size_t cb, std::size_t ce) {
+        std::vector<double> gx, gz;
+        for (std::size_t chunk = cb; chunk < ce; ++chunk) {
+          const int r_begin = static_cast<int>(chunk) * kRows;
+          const int r_end = std::min(h, r_begin + kRows);
+          for (const PuffState& p : puffs) {
+            const double sigma = p.sigma;
+            const double cut = kTruthCut * sigma;
+            const double scale = v.Scale(p.y);
+            const double col_c = v.Column(p.x, p.y), row_c = v.Row(p.z, p.y);
+            const double rad = cut / scale * (ortho ? 1.0 : 1.1) + 1.0;
+            const int c0 = std::max(0, static_cast<int>(std::ceil(col_c - rad)));
+            const int c1 = std::min(w - 1, static_cast<int>(std::floor(col_c + rad)));
+            const int q0 = std::max(r_begin, static_cast<int>(std::ceil(row_c - rad)));
+            const int q1 = std::min(r_end - 1, static_cast<int>(std::floor(row_c + rad)));
+            if (c0 > c1 || q0 > q1) continue;
+            const double amp = p.mass / (2 * kPi * sigma * sigma);
+            const double a = p.sigma_rate / sigma;
+            const double inv2s2 = 0.5 / (sigma * sigma);
+            const double cut2 = cut * cut;
+            if (ortho) {
+              // Separable: g(x) g(z), over the disc of radius `cut` row by row.
+              const double fp = v.footprint_m(), x_first = v.PixelX(c0, 0);
+              gx.resize(c1 - c0 + 1);
+              gz.resize(c1 - c0 + 1);  // here: g(x) (u + a dx)
+              for (int i = c0; i <= c1; ++i) {
+                const double dx = x_first + (i - c0) * fp - p.x;
+                gx[i - c0] = std::exp(-dx * dx * inv2s2);
+                gz[i - c0] = gx[i - c0] * (p.u + a * dx);
+              }
+              for (int r = q0; r <= q1; ++r) {
+                const double dz = v.PixelZ(r, 0) - p.z;
+                if (dz * dz > cut2) continue;
+                const double half = std::sqrt(cut2 - dz * dz);
+                const int ia = std::max(c0, static_cast<int>(std::ceil(v.Column(p.x - half, 0))));
+                const int ib = std::min(c1, static_cast<int>(std::floor(v.Column(p.x + half, 0))));
+                const double gzr = amp * std::exp(-dz * dz * inv2s2);
+                const double wz = gzr * (p.w + a * dz);
+                double* col = &m.column[static_cast<std::size_t>(r) * w];
+                double* fx = &m.flux_x[static_cast<std::size_t>(r) * w];
+                double* fz = &m.flux_z[static_cast<std::size_t>(r) * w];
+                for (int i = ia; i <= ib; ++i) {
+                  col[i] += gzr * gx[i - c0];
+                  fx[i] += gzr * gz[i - c0];
+                  fz[i] += wz * gx[i - c0];
+                }
+              }
+            } else {
+              const double vx = p.x - cam[0], vy = p.y - cam[1], vz = p.z - cam[2];
+              const double v2 = vx * vx + vy * vy + vz * vz;
+              for (int r = q0; r <= q1; ++r) {
+                const double b = -(r - v.cy()) * v.ifov_rad;
+                const std::size_t row = static_cast<std::size_t>(r) * w;
+                for (int i = c0; i <= c1; ++i) {
+                  const double aa = (i - v.cx()) * v.ifov_rad;
+                  const double inv = 1.0 / std::sqrt(1 + aa * aa + b * b);
+                  const double dx = aa * inv, dy = inv, dz = b * inv;
+                  const double l = vx * dx + vy * dy + vz * dz;
+                  const double perp2 = v2 - l * l;
+                  if (perp2 > cut2) continue;
+                  const double c = amp * std::exp(-perp2 * inv2s2);
+                  // Closest point of the ray to the puff centre, minus the centre.
+                  const double qx = cam[0] + l * dx - p.x, qz = cam[2] + l * dz - p.z;
+                  m.column[row + i] += c;
+                  m.flux_x[row + i] += c * (p.u + a * qx);
+                  m.flux_z[row + i] += c * (p.w + a * qz);
+                }
+              }
             }
           }
         }
-      }
-    }
-  }, num_threads);
+      },
+      num_threads);
   m.velocity_x.resize(n);
   m.velocity_z.resize(n);
   const double nan = std::numeric_limits<double>::quiet_NaN();
@@ -186,85 +188,88 @@ void Splat(const std::vector<PuffState>& puffs, int np, int ni, int nk,
            const std::vector<double>& bz, float* rho, float* jx, float* jy, float* jz,
            int num_threads) {
   const std::size_t plane_size = static_cast<std::size_t>(ni) * nk;
-  ParallelFor(np, 1, [&](std::size_t pb, std::size_t pe) {
-    std::vector<double> gx, gz, dxs;
-    std::vector<double> acc, ax_, ay_, az_;
-    for (std::size_t p = pb; p < pe; ++p) {
-      acc.assign(plane_size, 0.0);
-      if (jx) {
-        ax_.assign(plane_size, 0.0);
-        ay_.assign(plane_size, 0.0);
-        az_.assign(plane_size, 0.0);
-      }
-      const double y = ys[p];
-      for (const PuffState& q : puffs) {
-        const double sigma = q.sigma;
-        const double cut = kSplatCut * sigma;
-        const double dy = y - q.y;
-        if (std::abs(dy) > cut) continue;
-        // The puff's cut-off sphere cuts this plane in a disc of radius rc.
-        const double rc = std::sqrt(cut * cut - dy * dy);
-        const double i_lo = (q.x - rc - ax[p]) / bx[p], i_hi = (q.x + rc - ax[p]) / bx[p];
-        const double k_lo = (q.z - rc - az[p]) / bz[p], k_hi = (q.z + rc - az[p]) / bz[p];
-        const int i0 = std::max(0, static_cast<int>(std::ceil(std::min(i_lo, i_hi))));
-        const int i1 = std::min(ni - 1, static_cast<int>(std::floor(std::max(i_lo, i_hi))));
-        const int k0 = std::max(0, static_cast<int>(std::ceil(std::min(k_lo, k_hi))));
-        const int k1 = std::min(nk - 1, static_cast<int>(std::floor(std::max(k_lo, k_hi))));
-        if (i0 > i1 || k0 > k1) continue;
-        const double inv2s2 = 0.5 / (sigma * sigma);
-        const double amp = q.mass * std::pow(2 * kPi * sigma * sigma, -1.5) *
-                           std::exp(-dy * dy * inv2s2);
-        const double a = q.sigma_rate / sigma;
-        gx.resize(i1 - i0 + 1);
-        dxs.resize(i1 - i0 + 1);
-        for (int i = i0; i <= i1; ++i) {
-          const double dx = ax[p] + bx[p] * i - q.x;
-          dxs[i - i0] = dx;
-          gx[i - i0] = std::exp(-dx * dx * inv2s2);
-        }
-        for (int k = k0; k <= k1; ++k) {
-          const double dz = az[p] + bz[p] * k - q.z;
-          if (dz * dz > rc * rc) continue;
-          // Columns of this row inside the disc.
-          const double half = std::sqrt(rc * rc - dz * dz);
-          const double c_lo = (q.x - half - ax[p]) / bx[p], c_hi = (q.x + half - ax[p]) / bx[p];
-          const int ia = std::max(i0, static_cast<int>(std::ceil(std::min(c_lo, c_hi))));
-          const int ib = std::min(i1, static_cast<int>(std::floor(std::max(c_lo, c_hi))));
-          const double gk = amp * std::exp(-dz * dz * inv2s2);
-          const std::size_t row = static_cast<std::size_t>(k) * ni;
-          if (!jx) {
-            for (int i = ia; i <= ib; ++i) acc[row + i] += gk * gx[i - i0];
-            continue;
+  ParallelFor(
+      np, 1,
+      [&](std::size_t pb, std::size_t pe) {
+        std::vector<double> gx, gz, dxs;
+        std::vector<double> acc, ax_, ay_, az_;
+        for (std::size_t p = pb; p < pe; ++p) {
+          acc.assign(plane_size, 0.0);
+          if (jx) {
+            ax_.assign(plane_size, 0.0);
+            ay_.assign(plane_size, 0.0);
+            az_.assign(plane_size, 0.0);
           }
-          const double fy = q.v + a * dy, fz = q.w + a * dz;
-          for (int i = ia; i <= ib; ++i) {
-            const double c = gk * gx[i - i0];
-            acc[row + i] += c;
-            ax_[row + i] += c * (q.u + a * dxs[i - i0]);
-            ay_[row + i] += c * fy;
-            az_[row + i] += c * fz;
+          const double y = ys[p];
+          for (const PuffState& q : puffs) {
+            const double sigma = q.sigma;
+            const double cut = kSplatCut * sigma;
+            const double dy = y - q.y;
+            if (std::abs(dy) > cut) continue;
+            // The puff's cut-off sphere cuts this plane in a disc of radius rc.
+            const double rc = std::sqrt(cut * cut - dy * dy);
+            const double i_lo = (q.x - rc - ax[p]) / bx[p], i_hi = (q.x + rc - ax[p]) / bx[p];
+            const double k_lo = (q.z - rc - az[p]) / bz[p], k_hi = (q.z + rc - az[p]) / bz[p];
+            const int i0 = std::max(0, static_cast<int>(std::ceil(std::min(i_lo, i_hi))));
+            const int i1 = std::min(ni - 1, static_cast<int>(std::floor(std::max(i_lo, i_hi))));
+            const int k0 = std::max(0, static_cast<int>(std::ceil(std::min(k_lo, k_hi))));
+            const int k1 = std::min(nk - 1, static_cast<int>(std::floor(std::max(k_lo, k_hi))));
+            if (i0 > i1 || k0 > k1) continue;
+            const double inv2s2 = 0.5 / (sigma * sigma);
+            const double amp =
+                q.mass * std::pow(2 * kPi * sigma * sigma, -1.5) * std::exp(-dy * dy * inv2s2);
+            const double a = q.sigma_rate / sigma;
+            gx.resize(i1 - i0 + 1);
+            dxs.resize(i1 - i0 + 1);
+            for (int i = i0; i <= i1; ++i) {
+              const double dx = ax[p] + bx[p] * i - q.x;
+              dxs[i - i0] = dx;
+              gx[i - i0] = std::exp(-dx * dx * inv2s2);
+            }
+            for (int k = k0; k <= k1; ++k) {
+              const double dz = az[p] + bz[p] * k - q.z;
+              if (dz * dz > rc * rc) continue;
+              // Columns of this row inside the disc.
+              const double half = std::sqrt(rc * rc - dz * dz);
+              const double c_lo = (q.x - half - ax[p]) / bx[p], c_hi = (q.x + half - ax[p]) / bx[p];
+              const int ia = std::max(i0, static_cast<int>(std::ceil(std::min(c_lo, c_hi))));
+              const int ib = std::min(i1, static_cast<int>(std::floor(std::max(c_lo, c_hi))));
+              const double gk = amp * std::exp(-dz * dz * inv2s2);
+              const std::size_t row = static_cast<std::size_t>(k) * ni;
+              if (!jx) {
+                for (int i = ia; i <= ib; ++i) acc[row + i] += gk * gx[i - i0];
+                continue;
+              }
+              const double fy = q.v + a * dy, fz = q.w + a * dz;
+              for (int i = ia; i <= ib; ++i) {
+                const double c = gk * gx[i - i0];
+                acc[row + i] += c;
+                ax_[row + i] += c * (q.u + a * dxs[i - i0]);
+                ay_[row + i] += c * fy;
+                az_[row + i] += c * fz;
+              }
+            }
+          }
+          float* out = rho + p * plane_size;
+          for (std::size_t i = 0; i < plane_size; ++i) out[i] = static_cast<float>(acc[i]);
+          if (jx) {
+            float *ox = jx + p * plane_size, *oy = jy + p * plane_size, *oz = jz + p * plane_size;
+            for (std::size_t i = 0; i < plane_size; ++i) {
+              // Velocity = J / rho (mean wind where there is no gas; set by caller).
+              ox[i] = acc[i] > 0 ? static_cast<float>(ax_[i] / acc[i]) : std::nanf("");
+              oy[i] = acc[i] > 0 ? static_cast<float>(ay_[i] / acc[i]) : std::nanf("");
+              oz[i] = acc[i] > 0 ? static_cast<float>(az_[i] / acc[i]) : std::nanf("");
+            }
           }
         }
-      }
-      float* out = rho + p * plane_size;
-      for (std::size_t i = 0; i < plane_size; ++i) out[i] = static_cast<float>(acc[i]);
-      if (jx) {
-        float *ox = jx + p * plane_size, *oy = jy + p * plane_size, *oz = jz + p * plane_size;
-        for (std::size_t i = 0; i < plane_size; ++i) {
-          // Velocity = J / rho (mean wind where there is no gas; set by caller).
-          ox[i] = acc[i] > 0 ? static_cast<float>(ax_[i] / acc[i]) : std::nanf("");
-          oy[i] = acc[i] > 0 ? static_cast<float>(ay_[i] / acc[i]) : std::nanf("");
-          oz[i] = acc[i] > 0 ? static_cast<float>(az_[i] / acc[i]) : std::nanf("");
-        }
-      }
-    }
-  }, num_threads);
+      },
+      num_threads);
 }
 
 }  // namespace
 
-Fields ComputeFields(const PlumeSimulation& sim, int frame, const Grid& grid,
-                     bool with_velocity, int num_threads) {
+Fields ComputeFields(const PlumeSimulation& sim, int frame, const Grid& grid, bool with_velocity,
+                     int num_threads) {
   const Release& rel = sim.release();
   const double th = rel.wind_direction_deg * kPi / 180;
   const std::array<double, 3> wind = {rel.wind_speed_m_s * std::cos(th),
@@ -281,8 +286,8 @@ Fields ComputeFields(const std::vector<PuffState>& puffs, const MixingModel& mix
   const std::size_t n = grid.size();
   // Planes of constant z would also do; the splat works on planes of constant
   // y, so lay the grid out as [j][k][i] first and transpose to [k][j][i].
-  std::vector<double> ys(grid.ny), ax(grid.ny, grid.x0), bx(grid.ny, grid.dx),
-      az(grid.ny, grid.z0), bz(grid.ny, grid.dz);
+  std::vector<double> ys(grid.ny), ax(grid.ny, grid.x0), bx(grid.ny, grid.dx), az(grid.ny, grid.z0),
+      bz(grid.ny, grid.dz);
   for (int j = 0; j < grid.ny; ++j) ys[j] = grid.y0 + j * grid.dy;
   std::vector<float> rho(n), vx, vy, vz;
   if (with_velocity) {
@@ -303,34 +308,37 @@ Fields ComputeFields(const std::vector<PuffState>& puffs, const MixingModel& mix
   }
   std::atomic<std::uint64_t> over{0};
   const std::size_t nx = grid.nx, ny = grid.ny, nz = grid.nz;
-  ParallelFor(nz, 1, [&](std::size_t kb, std::size_t ke) {
-    std::uint64_t local = 0;
-    for (std::size_t k = kb; k < ke; ++k)
-      for (std::size_t j = 0; j < ny; ++j)
-        for (std::size_t i = 0; i < nx; ++i) {
-          const std::size_t src = (j * nz + k) * nx + i;
-          const std::size_t dst = (k * ny + j) * nx + i;
-          const double r = rho[src];
-          double t, x;
-          if (!mix.StateFromPartialDensity(r, &t, &x)) ++local;
-          f.partial_density[dst] = static_cast<float>(r);
-          f.temperature[dst] = static_cast<float>(t);
-          f.mole_fraction[dst] = static_cast<float>(x);
-          if (with_velocity) {
-            const bool gas = r > 0;
-            f.velocity_x[dst] = gas ? vx[src] : static_cast<float>(wind[0]);
-            f.velocity_y[dst] = gas ? vy[src] : static_cast<float>(wind[1]);
-            f.velocity_z[dst] = gas ? vz[src] : static_cast<float>(wind[2]);
-          }
-        }
-    over += local;
-  }, num_threads);
+  ParallelFor(
+      nz, 1,
+      [&](std::size_t kb, std::size_t ke) {
+        std::uint64_t local = 0;
+        for (std::size_t k = kb; k < ke; ++k)
+          for (std::size_t j = 0; j < ny; ++j)
+            for (std::size_t i = 0; i < nx; ++i) {
+              const std::size_t src = (j * nz + k) * nx + i;
+              const std::size_t dst = (k * ny + j) * nx + i;
+              const double r = rho[src];
+              double t, x;
+              if (!mix.StateFromPartialDensity(r, &t, &x)) ++local;
+              f.partial_density[dst] = static_cast<float>(r);
+              f.temperature[dst] = static_cast<float>(t);
+              f.mole_fraction[dst] = static_cast<float>(x);
+              if (with_velocity) {
+                const bool gas = r > 0;
+                f.velocity_x[dst] = gas ? vx[src] : static_cast<float>(wind[0]);
+                f.velocity_y[dst] = gas ? vy[src] : static_cast<float>(wind[1]);
+                f.velocity_z[dst] = gas ? vz[src] : static_cast<float>(wind[2]);
+              }
+            }
+        over += local;
+      },
+      num_threads);
   f.over_pure = over;
   return f;
 }
 
-RaySamples SampleRays(const PlumeSimulation& sim, int frame, int row0, int row1, int col0,
-                      int col1, int num_threads) {
+RaySamples SampleRays(const PlumeSimulation& sim, int frame, int row0, int row1, int col0, int col1,
+                      int num_threads) {
   return SampleRays(sim.puffs(frame), sim.view(), sim.mixing(), row0, row1, col0, col1,
                     num_threads);
 }
@@ -339,13 +347,13 @@ RaySamples SampleRays(const std::vector<PuffState>& all, const View& v, const Mi
                       int row0, int row1, int col0, int col1, int num_threads) {
   v.Check();
   if (!(0 <= row0 && row0 < row1 && row1 <= v.height_px))
-    throw std::invalid_argument("rows must satisfy 0 <= row0 < row1 <= " +
-                                std::to_string(v.height_px) + "; got " + std::to_string(row0) +
-                                ", " + std::to_string(row1));
+    throw std::invalid_argument(
+        "rows must satisfy 0 <= row0 < row1 <= " + std::to_string(v.height_px) + "; got " +
+        std::to_string(row0) + ", " + std::to_string(row1));
   if (!(0 <= col0 && col0 < col1 && col1 <= v.width_px))
-    throw std::invalid_argument("columns must satisfy 0 <= col0 < col1 <= " +
-                                std::to_string(v.width_px) + "; got " + std::to_string(col0) +
-                                ", " + std::to_string(col1));
+    throw std::invalid_argument(
+        "columns must satisfy 0 <= col0 < col1 <= " + std::to_string(v.width_px) + "; got " +
+        std::to_string(col0) + ", " + std::to_string(col1));
   RaySamples rs;
   rs.row0 = row0;
   rs.col0 = col0;
@@ -415,8 +423,8 @@ RaySamples SampleRays(const std::vector<PuffState>& all, const View& v, const Mi
       continue;
     }
     // Planes of this band: those within its puffs' depth range.
-    const int p0 = std::clamp(static_cast<int>(std::floor((rs.y_m[0] - by_hi) / rs.step_m)), 0,
-                              rs.planes - 1);
+    const int p0 =
+        std::clamp(static_cast<int>(std::floor((rs.y_m[0] - by_hi) / rs.step_m)), 0, rs.planes - 1);
     const int p1 = std::clamp(static_cast<int>(std::ceil((rs.y_m[0] - by_lo) / rs.step_m)) + 1,
                               p0 + 1, rs.planes);
     const int np = p1 - p0;
@@ -454,16 +462,19 @@ RaySamples SampleRays(const std::vector<PuffState>& all, const View& v, const Mi
   rs.temperature.resize(n);
   std::vector<float> xr(n);
   std::atomic<std::uint64_t> over{0};
-  ParallelFor(n, 65536, [&](std::size_t b, std::size_t e) {
-    std::uint64_t local = 0;
-    for (std::size_t i = b; i < e; ++i) {
-      double t, x;
-      if (!mix.StateFromPartialDensity(rs.partial_density[i], &t, &x)) ++local;
-      rs.temperature[i] = static_cast<float>(t);
-      xr[i] = static_cast<float>(x);
-    }
-    over += local;
-  }, num_threads);
+  ParallelFor(
+      n, 65536,
+      [&](std::size_t b, std::size_t e) {
+        std::uint64_t local = 0;
+        for (std::size_t i = b; i < e; ++i) {
+          double t, x;
+          if (!mix.StateFromPartialDensity(rs.partial_density[i], &t, &x)) ++local;
+          rs.temperature[i] = static_cast<float>(t);
+          xr[i] = static_cast<float>(x);
+        }
+        over += local;
+      },
+      num_threads);
   rs.over_pure = over;
   for (std::size_t sp = 0; sp < n_species; ++sp) {
     const float xs = static_cast<float>(mix.released().mole_fractions()[sp]);

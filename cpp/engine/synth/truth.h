@@ -55,9 +55,7 @@ struct Grid {
   double dx = 1e-3, dy = 1e-3, dz = 1e-3;
   int nx = 1, ny = 1, nz = 1;
   void Check() const;
-  std::size_t size() const {
-    return static_cast<std::size_t>(nx) * ny * nz;
-  }
+  std::size_t size() const { return static_cast<std::size_t>(nx) * ny * nz; }
 };
 
 // The default grid of a simulation: its box at the view's pixel footprint
@@ -79,8 +77,8 @@ Fields ComputeFields(const PlumeSimulation& sim, int frame, const Grid& grid,
 // The same for any set of puffs; `wind` [m/s] fills the velocity where there
 // is no released gas.
 Fields ComputeFields(const std::vector<PuffState>& puffs, const MixingModel& mixing,
-                     const std::array<double, 3>& wind, const Grid& grid,
-                     bool with_velocity = true, int num_threads = 0);
+                     const std::array<double, 3>& wind, const Grid& grid, bool with_velocity = true,
+                     int num_threads = 0);
 
 // Samples along the pixel rays of a rectangle of the image at one frame, for a
 // renderer. Samples lie on planes y = y_m[p] (p = 0 farthest from the camera,
@@ -110,8 +108,8 @@ struct RaySamples {
   std::vector<std::vector<float>> mole_fraction;
   std::uint64_t over_pure = 0;  // samples denser than the pure released gas
 };
-RaySamples SampleRays(const PlumeSimulation& sim, int frame, int row0, int row1, int col0,
-                      int col1, int num_threads = 0);
+RaySamples SampleRays(const PlumeSimulation& sim, int frame, int row0, int row1, int col0, int col1,
+                      int num_threads = 0);
 // The same for any set of puffs seen through `view`.
 RaySamples SampleRays(const std::vector<PuffState>& puffs, const View& view,
                       const MixingModel& mixing, int row0, int row1, int col0, int col1,

@@ -47,10 +47,10 @@ TEST(TruthMaps, OrthographicPuffIsItsClosedForm) {
       const double dx = v.PixelX(c, 0) - p.x, dz = v.PixelZ(r, 0) - p.z;
       // Closed form, cut off 6 widths from the puff (relative tail 1.5e-8).
       const double d2 = dx * dx + dz * dz;
-      const double col = d2 > 36.0 * p.sigma * p.sigma
-                             ? 0.0
-                             : p.mass / (2 * kPi * p.sigma * p.sigma) *
-                                   std::exp(-d2 / (2.0 * p.sigma * p.sigma));
+      const double col =
+          d2 > 36.0 * p.sigma * p.sigma
+              ? 0.0
+              : p.mass / (2 * kPi * p.sigma * p.sigma) * std::exp(-d2 / (2.0 * p.sigma * p.sigma));
       ASSERT_NEAR(m.column[i], col, 1e-9 * col + 1e-300);
       if (col > 0) {
         EXPECT_NEAR(m.velocity_x[i], p.u + a * dx, 1e-9);

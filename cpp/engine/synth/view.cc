@@ -34,9 +34,10 @@ void View::Check() const {
   if (projection == Projection::kPerspective) {
     const double half = 0.5 * std::max(width_px, height_px) * ifov_rad;
     if (!(half < 1.2))
-      throw std::invalid_argument("the perspective field of view is too wide (half-angle "
-                                  "tangent " + FormatNumber(half) +
-                                  " must be < 1.2); reduce ifov_rad or the image size");
+      throw std::invalid_argument(
+          "the perspective field of view is too wide (half-angle "
+          "tangent " +
+          FormatNumber(half) + " must be < 1.2); reduce ifov_rad or the image size");
   }
 }
 

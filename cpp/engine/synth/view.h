@@ -48,16 +48,11 @@ struct View {
   double footprint_m() const { return distance_m * ifov_rad; }
   // Pixel spacing on the plane at depth y [m].
   double Scale(double y) const {
-    return projection == Projection::kOrthographic ? footprint_m()
-                                                   : ifov_rad * (y + distance_m);
+    return projection == Projection::kOrthographic ? footprint_m() : ifov_rad * (y + distance_m);
   }
   // World x and z of the pixel ray (column, row may be fractional) at depth y.
-  double PixelX(double column, double y) const {
-    return center_x_m + (column - cx()) * Scale(y);
-  }
-  double PixelZ(double row, double y) const {
-    return center_z_m - (row - cy()) * Scale(y);
-  }
+  double PixelX(double column, double y) const { return center_x_m + (column - cx()) * Scale(y); }
+  double PixelZ(double row, double y) const { return center_z_m - (row - cy()) * Scale(y); }
   // Column and row of the ray through world point (x, y, z).
   double Column(double x, double y) const { return cx() + (x - center_x_m) / Scale(y); }
   double Row(double z, double y) const { return cy() - (z - center_z_m) / Scale(y); }

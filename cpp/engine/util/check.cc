@@ -21,39 +21,35 @@ std::string WithUnit(double v, const char* unit) {
 
 void CheckFinite(double v, const char* name) {
   if (!std::isfinite(v))
-    throw std::invalid_argument(std::string(name) + " must be finite; got " +
-                                FormatNumber(v));
+    throw std::invalid_argument(std::string(name) + " must be finite; got " + FormatNumber(v));
 }
 
 void CheckPositive(double v, const char* name, const char* unit) {
   if (!(std::isfinite(v) && v > 0))
     throw std::invalid_argument(std::string(name) + " must be finite and > 0" +
-                                (unit && *unit ? std::string(" ") + unit : "") +
-                                "; got " + WithUnit(v, unit));
+                                (unit && *unit ? std::string(" ") + unit : "") + "; got " +
+                                WithUnit(v, unit));
 }
 
 void CheckNonNegative(double v, const char* name, const char* unit) {
   if (!(std::isfinite(v) && v >= 0))
     throw std::invalid_argument(std::string(name) + " must be finite and >= 0" +
-                                (unit && *unit ? std::string(" ") + unit : "") +
-                                "; got " + WithUnit(v, unit));
+                                (unit && *unit ? std::string(" ") + unit : "") + "; got " +
+                                WithUnit(v, unit));
 }
 
-void CheckInRange(double v, double lo, double hi, const char* name,
-                  const char* unit) {
+void CheckInRange(double v, double lo, double hi, const char* name, const char* unit) {
   if (!(std::isfinite(v) && v >= lo && v <= hi))
-    throw std::invalid_argument(std::string(name) + " must be within [" +
-                                FormatNumber(lo) + ", " + FormatNumber(hi) +
-                                "]" + (unit && *unit ? std::string(" ") + unit : "") +
-                                "; got " + WithUnit(v, unit));
+    throw std::invalid_argument(
+        std::string(name) + " must be within [" + FormatNumber(lo) + ", " + FormatNumber(hi) + "]" +
+        (unit && *unit ? std::string(" ") + unit : "") + "; got " + WithUnit(v, unit));
 }
 
-void CheckSameLength(std::size_t a, std::size_t b, const char* name_a,
-                     const char* name_b) {
+void CheckSameLength(std::size_t a, std::size_t b, const char* name_a, const char* name_b) {
   if (a != b)
     throw std::invalid_argument(std::string(name_a) + " and " + name_b +
-                                " must have the same length; got " +
-                                std::to_string(a) + " and " + std::to_string(b));
+                                " must have the same length; got " + std::to_string(a) + " and " +
+                                std::to_string(b));
 }
 
 }  // namespace qogi

@@ -34,10 +34,8 @@ void CheckPositive(double v, const char* name, const char* unit = "");
 // `name` must be finite and >= 0.
 void CheckNonNegative(double v, const char* name, const char* unit = "");
 // `name` must be finite and within [lo, hi].
-void CheckInRange(double v, double lo, double hi, const char* name,
-                  const char* unit = "");
+void CheckInRange(double v, double lo, double hi, const char* name, const char* unit = "");
 // Two arrays must have equal lengths.
-void CheckSameLength(std::size_t a, std::size_t b, const char* name_a,
-                     const char* name_b);
+void CheckSameLength(std::size_t a, std::size_t b, const char* name_a, const char* name_b);
 
 }  // namespace qogi

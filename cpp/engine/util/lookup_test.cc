@@ -67,7 +67,8 @@ TEST(LookupLines, EqualsABinarySearchInterpolationExactly) {
   std::vector<float> s(w);
   for (std::size_t c = 0; c < w; ++c) {
     const double r = u01(rng);
-    s[c] = static_cast<float>(c % 7 == 0 ? x[c % n] : (c % 2 ? -1 : 1) * std::pow(10.0, -10 + 11 * r));
+    s[c] =
+        static_cast<float>(c % 7 == 0 ? x[c % n] : (c % 2 ? -1 : 1) * std::pow(10.0, -10 + 11 * r));
   }
   const std::vector<float> in = s;
   const std::vector<int> node{0};
@@ -86,16 +87,16 @@ TEST(LookupLines, RejectsBadLinesAndNodes) {
   const std::vector<int> bad_node{1, 0};
   const std::vector<double> w{0.0, 0.0}, bad_w{0.0, 1.5};
   const std::vector<int> node{0, 0};
-  EXPECT_THROW(LookupLines(s.data(), 1, 2, 2, true, x.data(), y.data(), 2, 2, bad_node.data(),
-                           w.data()),
-               std::invalid_argument);
-  EXPECT_THROW(LookupLines(s.data(), 1, 2, 2, true, x.data(), y.data(), 2, 2, node.data(),
-                           bad_w.data()),
-               std::invalid_argument);
+  EXPECT_THROW(
+      LookupLines(s.data(), 1, 2, 2, true, x.data(), y.data(), 2, 2, bad_node.data(), w.data()),
+      std::invalid_argument);
+  EXPECT_THROW(
+      LookupLines(s.data(), 1, 2, 2, true, x.data(), y.data(), 2, 2, node.data(), bad_w.data()),
+      std::invalid_argument);
   const std::vector<double> down{1.0, 0.0, 0.0, 1.0};
-  EXPECT_THROW(LookupLines(s.data(), 1, 2, 2, true, down.data(), y.data(), 2, 2, node.data(),
-                           w.data()),
-               std::invalid_argument);
+  EXPECT_THROW(
+      LookupLines(s.data(), 1, 2, 2, true, down.data(), y.data(), 2, 2, node.data(), w.data()),
+      std::invalid_argument);
 }
 
 }  // namespace

@@ -1,9 +1,9 @@
 #include "engine/util/parallel.h"
 
+#include <cxxabi.h>
 #include <algorithm>
 #include <atomic>
 #include <chrono>
-#include <cxxabi.h>
 #include <exception>
 #include <mutex>
 #include <thread>
@@ -23,13 +23,13 @@ int ResolveThreads(int requested) {
 }
 
 void ParallelFor(std::size_t n, std::size_t chunk,
-                 const std::function<void(std::size_t, std::size_t)>& body,
-                 int num_threads, const RunControl* control) {
+                 const std::function<void(std::size_t, std::size_t)>& body, int num_threads,
+                 const RunControl* control) {
   if (n == 0) return;
   chunk = std::max<std::size_t>(1, chunk);
   const std::size_t num_chunks = (n + chunk - 1) / chunk;
-  const int threads = static_cast<int>(
-      std::min<std::size_t>(num_chunks, ResolveThreads(num_threads)));
+  const int threads =
+      static_cast<int>(std::min<std::size_t>(num_chunks, ResolveThreads(num_threads)));
 
   std::atomic<std::size_t> next{0};
   std::atomic<std::size_t> done{0};
@@ -64,14 +64,11 @@ void ParallelFor(std::size_t n, std::size_t chunk,
       const std::size_t finished = done.fetch_add(1) + 1;
       if (is_caller && control) {
         const auto now = std::chrono::steady_clock::now();
-        if (now - last_hook < std::chrono::milliseconds(50) &&
-            finished < num_chunks)
-          continue;
+        if (now - last_hook < std::chrono::milliseconds(50) && finished < num_chunks) continue;
         last_hook = now;
         try {
           if (control->cancelled && control->cancelled()) throw Cancelled();
-          if (control->progress)
-            control->progress(static_cast<double>(finished) / num_chunks);
+          if (control->progress) control->progress(static_cast<double>(finished) / num_chunks);
         } catch (abi::__forced_unwind&) {
           stop = true;
           throw;

@@ -24,7 +24,7 @@ int ResolveThreads(int requested);
 // Calls body(begin, end) over [0, n) in chunks of at most `chunk` indices.
 // Exceptions thrown by `body` stop the loop and are rethrown on the caller.
 void ParallelFor(std::size_t n, std::size_t chunk,
-                 const std::function<void(std::size_t, std::size_t)>& body,
-                 int num_threads = 0, const RunControl* control = nullptr);
+                 const std::function<void(std::size_t, std::size_t)>& body, int num_threads = 0,
+                 const RunControl* control = nullptr);
 
 }  // namespace qogi

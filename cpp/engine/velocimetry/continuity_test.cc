@@ -32,8 +32,7 @@ const double kCx = 96, kCy = 80;
 // A plume-like blob: Gaussian envelope (sigma 50 px) times a texture of
 // +-20 % contrast, 0.5 % noise (of the peak).
 Scene Blob(const Motion& m) {
-  return testing_scenes::RenderDensity(kSize, Texture::Make(7), m, kCx, kCy, 50, 0.005, 3,
-                                       0.2);
+  return testing_scenes::RenderDensity(kSize, Texture::Make(7), m, kCx, kCy, 50, 0.005, 3, 0.2);
 }
 
 cv::Mat Disc(double radius) {
@@ -47,8 +46,7 @@ double Epe(OpticalFlow& method, const Scene& s, const cv::Mat& region, FlowField
   FlowField f;
   method.Calc(s.prev, s.next, f);
   double fraction = 0;
-  const double e =
-      testing_scenes::MeanEndPointError(f.u, f.v, f.valid, s, 0, &fraction, region);
+  const double e = testing_scenes::MeanEndPointError(f.u, f.v, f.valid, s, 0, &fraction, region);
   EXPECT_GT(fraction, 0.99);
   if (out) *out = f;
   return e;
@@ -100,8 +98,8 @@ class SteadyColumn : public ::testing::Test {
   static constexpr double kExit = 180;
   const cv::Size size_{128, 192};
   Scene Pair(double t0) const {
-    return testing_scenes::RenderSteadyColumn(size_, Texture::Make(11), kExit, 64, 12, 3.0,
-                                              0.008, 25, 0.3, 0.005, 5 + int(t0), t0);
+    return testing_scenes::RenderSteadyColumn(size_, Texture::Make(11), kExit, 64, 12, 3.0, 0.008,
+                                              25, 0.3, 0.005, 5 + int(t0), t0);
   }
   cv::Mat Base() const {  // 5-55 px above the exit, within +-1 sigma
     cv::Mat m = cv::Mat::zeros(size_, CV_8U);
@@ -110,8 +108,7 @@ class SteadyColumn : public ::testing::Test {
   }
   cv::Mat Source() const {  // the exit rows
     cv::Mat m = cv::Mat::zeros(size_, CV_8U);
-    cv::rectangle(m, cv::Rect(0, static_cast<int>(kExit) - 1, size_.width, 3),
-                  cv::Scalar(1), -1);
+    cv::rectangle(m, cv::Rect(0, static_cast<int>(kExit) - 1, size_.width, 3), cv::Scalar(1), -1);
     return m;
   }
 };

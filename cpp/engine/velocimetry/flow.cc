@@ -29,18 +29,17 @@ const char* FlowMethodName(FlowMethod method) {
 }
 
 FlowMethod ParseFlowMethod(const std::string& name) {
-  for (FlowMethod m : {FlowMethod::kHornSchunck, FlowMethod::kLucasKanade,
-                       FlowMethod::kFarneback, FlowMethod::kDis, FlowMethod::kPiv,
-                       FlowMethod::kFluid})
+  for (FlowMethod m : {FlowMethod::kHornSchunck, FlowMethod::kLucasKanade, FlowMethod::kFarneback,
+                       FlowMethod::kDis, FlowMethod::kPiv, FlowMethod::kFluid})
     if (name == FlowMethodName(m)) return m;
   throw std::invalid_argument(
       "method must be one of horn_schunck, lucas_kanade, farneback, dis, piv, "
-      "fluid; got '" + name + "'");
+      "fluid; got '" +
+      name + "'");
 }
 
 bool FlowField::HasSize(cv::Size size) const {
-  return u.type() == CV_32FC1 && v.type() == CV_32FC1 && u.size() == size &&
-         v.size() == size;
+  return u.type() == CV_32FC1 && v.type() == CV_32FC1 && u.size() == size && v.size() == size;
 }
 
 void FlowField::Reset(cv::Size size) {
@@ -57,10 +56,8 @@ void FlowField::Reset(cv::Size size) {
 
 void OpticalFlow::Calc(const cv::Mat& prev, const cv::Mat& next, FlowField& flow,
                        const cv::Mat& mask) {
-  Require(prev.type() == CV_32FC1,
-          "prev must be a float32 single-channel image (CV_32FC1)");
-  Require(next.type() == CV_32FC1,
-          "next must be a float32 single-channel image (CV_32FC1)");
+  Require(prev.type() == CV_32FC1, "prev must be a float32 single-channel image (CV_32FC1)");
+  Require(next.type() == CV_32FC1, "next must be a float32 single-channel image (CV_32FC1)");
   Require(prev.size() == next.size(), "prev and next must have the same size; got " +
                                           SizeText(prev) + " and " + SizeText(next));
   Require(prev.cols >= kMinFrameSide && prev.rows >= kMinFrameSide,
@@ -68,18 +65,18 @@ void OpticalFlow::Calc(const cv::Mat& prev, const cv::Mat& next, FlowField& flow
               std::to_string(kMinFrameSide) + " px; got " + SizeText(prev));
   // One pass: the sum of a frame is finite exactly when all its values are
   // (barring overflow, which the checkRange fallback then tells apart).
-  auto finite = [](const cv::Mat& m) {
-    return std::isfinite(cv::sum(m)[0]) || cv::checkRange(m);
-  };
-  Require(finite(prev), "prev contains NaN or infinite values; replace "
-                        "them (e.g. by the background) before velocimetry");
-  Require(finite(next), "next contains NaN or infinite values; replace "
-                        "them (e.g. by the background) before velocimetry");
+  auto finite = [](const cv::Mat& m) { return std::isfinite(cv::sum(m)[0]) || cv::checkRange(m); };
+  Require(finite(prev),
+          "prev contains NaN or infinite values; replace "
+          "them (e.g. by the background) before velocimetry");
+  Require(finite(next),
+          "next contains NaN or infinite values; replace "
+          "them (e.g. by the background) before velocimetry");
   if (!mask.empty()) {
     Require(mask.type() == CV_8UC1,
             "mask must be empty or an 8-bit single-channel image (CV_8UC1)");
-    Require(mask.size() == prev.size(), "mask must have the frames' size " +
-                                            SizeText(prev) + "; got " + SizeText(mask));
+    Require(mask.size() == prev.size(),
+            "mask must have the frames' size " + SizeText(prev) + "; got " + SizeText(mask));
   }
   const bool warm = flow.HasSize(prev.size()) && finite(flow.u) && finite(flow.v);
   if (!warm) {
@@ -92,8 +89,7 @@ void OpticalFlow::Calc(const cv::Mat& prev, const cv::Mat& next, FlowField& flow
   CalcChecked(prev, next, mask, warm, flow);
 }
 
-double MetresPerSecondPerPixelPerFrame(double distance_m, double ifov_rad,
-                                       double frame_rate_hz) {
+double MetresPerSecondPerPixelPerFrame(double distance_m, double ifov_rad, double frame_rate_hz) {
   CheckPositive(distance_m, "distance_m", "m");
   CheckPositive(ifov_rad, "ifov_rad", "rad");
   CheckPositive(frame_rate_hz, "frame_rate_hz", "Hz");

@@ -84,8 +84,8 @@ class OpticalFlow {
  protected:
   // Called by Calc with checked input; `warm` tells whether flow.u/v hold a
   // warm start (otherwise they are allocated and zero).
-  virtual void CalcChecked(const cv::Mat& prev, const cv::Mat& next,
-                           const cv::Mat& mask, bool warm, FlowField& flow) = 0;
+  virtual void CalcChecked(const cv::Mat& prev, const cv::Mat& next, const cv::Mat& mask, bool warm,
+                           FlowField& flow) = 0;
 };
 
 // Factor from px/frame to m/s for a camera at `distance_m` from the plume with
@@ -93,7 +93,6 @@ class OpticalFlow {
 //   speed [m/s] = displacement [px/frame] * distance_m * ifov_rad * frame_rate_hz
 // (thesis eq. 7-11: the projected velocity in the plume plane). Checks that
 // every argument is finite and > 0.
-double MetresPerSecondPerPixelPerFrame(double distance_m, double ifov_rad,
-                                       double frame_rate_hz);
+double MetresPerSecondPerPixelPerFrame(double distance_m, double ifov_rad, double frame_rate_hz);
 
 }  // namespace qogi

@@ -49,8 +49,7 @@ void ExpectInvalidArgument(const std::function<void()>& f, const std::string& wo
 }
 
 TEST(FlowMethod, NamesRoundTrip) {
-  for (auto& m : AllMethods())
-    EXPECT_EQ(ParseFlowMethod(FlowMethodName(m->method())), m->method());
+  for (auto& m : AllMethods()) EXPECT_EQ(ParseFlowMethod(FlowMethodName(m->method())), m->method());
   ExpectInvalidArgument([] { ParseFlowMethod("tvl1"); }, "horn_schunck, lucas_kanade");
 }
 
@@ -59,10 +58,9 @@ TEST(Units, PixelsPerFrameToMetresPerSecond) {
   EXPECT_DOUBLE_EQ(MetresPerSecondPerPixelPerFrame(3.0, 1e-3, 15.0), 0.045);
   ExpectInvalidArgument([] { MetresPerSecondPerPixelPerFrame(0.0, 1e-3, 15.0); },
                         "distance_m must be finite and > 0 m; got 0 m");
-  ExpectInvalidArgument([] { MetresPerSecondPerPixelPerFrame(3.0, -1e-3, 15.0); },
-                        "ifov_rad");
-  ExpectInvalidArgument(
-      [] { MetresPerSecondPerPixelPerFrame(3.0, 1e-3, std::nan("")); }, "frame_rate_hz");
+  ExpectInvalidArgument([] { MetresPerSecondPerPixelPerFrame(3.0, -1e-3, 15.0); }, "ifov_rad");
+  ExpectInvalidArgument([] { MetresPerSecondPerPixelPerFrame(3.0, 1e-3, std::nan("")); },
+                        "frame_rate_hz");
 }
 
 TEST(Calc, RejectsBadFramesAndMasksWithClearMessages) {
@@ -73,9 +71,9 @@ TEST(Calc, RejectsBadFramesAndMasksWithClearMessages) {
                         "prev must be a float32 single-channel image");
   ExpectInvalidArgument([&] { flow.Calc(a, cv::Mat::ones(32, 41, CV_32F), f); },
                         "same size; got 40 x 32 and 41 x 32");
-  ExpectInvalidArgument([&] { flow.Calc(cv::Mat::ones(8, 8, CV_32F),
-                                        cv::Mat::ones(8, 8, CV_32F), f); },
-                        "at least 16 x 16 px; got 8 x 8");
+  ExpectInvalidArgument(
+      [&] { flow.Calc(cv::Mat::ones(8, 8, CV_32F), cv::Mat::ones(8, 8, CV_32F), f); },
+      "at least 16 x 16 px; got 8 x 8");
   cv::Mat nan = a.clone();
   nan.at<float>(3, 3) = std::numeric_limits<float>::quiet_NaN();
   ExpectInvalidArgument([&] { flow.Calc(a, nan, f); }, "next contains NaN");
@@ -88,24 +86,68 @@ TEST(Calc, RejectsBadFramesAndMasksWithClearMessages) {
 }
 
 TEST(Options, OutOfRangeFieldsAreNamed) {
-  ExpectInvalidArgument([] { HornSchunckOptions o; o.alpha = 0; o.Check(); },
-                        "HornSchunckOptions.alpha");
-  ExpectInvalidArgument([] { FluidFlowOptions o; o.levels = 0; o.Check(); },
-                        "FluidFlowOptions.levels must be within [1, 12]; got 0");
-  ExpectInvalidArgument([] { FluidFlowOptions o; o.alpha_div = -1; o.Check(); },
-                        "FluidFlowOptions.alpha_div");
-  ExpectInvalidArgument([] { LucasKanadeOptions o; o.window_sigma = 0.1; o.Check(); },
-                        "LucasKanadeOptions.window_sigma");
-  ExpectInvalidArgument([] { FarnebackOptions o; o.poly_n = 6; o.Check(); },
-                        "FarnebackOptions.poly_n must be 5 or 7; got 6");
-  ExpectInvalidArgument([] { DisOptions o; o.patch_stride = 8; o.Check(); },
-                        "DisOptions.patch_stride must be < patch_size");
-  ExpectInvalidArgument([] { PivOptions o; o.window_size = 15; o.Check(); },
-                        "PivOptions.window_size must be even; got 15");
-  ExpectInvalidArgument([] { PivOptions o; o.initial_window_size = 8; o.Check(); },
-                        "PivOptions.initial_window_size must be >= window_size");
+  ExpectInvalidArgument(
+      [] {
+        HornSchunckOptions o;
+        o.alpha = 0;
+        o.Check();
+      },
+      "HornSchunckOptions.alpha");
+  ExpectInvalidArgument(
+      [] {
+        FluidFlowOptions o;
+        o.levels = 0;
+        o.Check();
+      },
+      "FluidFlowOptions.levels must be within [1, 12]; got 0");
+  ExpectInvalidArgument(
+      [] {
+        FluidFlowOptions o;
+        o.alpha_div = -1;
+        o.Check();
+      },
+      "FluidFlowOptions.alpha_div");
+  ExpectInvalidArgument(
+      [] {
+        LucasKanadeOptions o;
+        o.window_sigma = 0.1;
+        o.Check();
+      },
+      "LucasKanadeOptions.window_sigma");
+  ExpectInvalidArgument(
+      [] {
+        FarnebackOptions o;
+        o.poly_n = 6;
+        o.Check();
+      },
+      "FarnebackOptions.poly_n must be 5 or 7; got 6");
+  ExpectInvalidArgument(
+      [] {
+        DisOptions o;
+        o.patch_stride = 8;
+        o.Check();
+      },
+      "DisOptions.patch_stride must be < patch_size");
+  ExpectInvalidArgument(
+      [] {
+        PivOptions o;
+        o.window_size = 15;
+        o.Check();
+      },
+      "PivOptions.window_size must be even; got 15");
+  ExpectInvalidArgument(
+      [] {
+        PivOptions o;
+        o.initial_window_size = 8;
+        o.Check();
+      },
+      "PivOptions.initial_window_size must be >= window_size");
   // Constructors check too.
-  EXPECT_THROW(PivFlow([] { PivOptions o; o.overlap = 0.95; return o; }()),
+  EXPECT_THROW(PivFlow([] {
+                 PivOptions o;
+                 o.overlap = 0.95;
+                 return o;
+               }()),
                std::invalid_argument);
 }
 
@@ -177,8 +219,8 @@ TEST(Calc, LucasKanadeWarmStartsStayBoundedOnAFaintlyTexturedRidge) {
     for (int y = 0; y < H; ++y)
       for (int x = 0; x < W; ++x) {
         const double ridge = std::exp(-0.5 * std::pow((x - 48.0) / 4.0, 2));
-        out.at<float>(y, x) = static_cast<float>(
-            ridge * (1.0 + 0.02 * tex(x, y + 2.0 * t)) + rng.gaussian(1e-4));
+        out.at<float>(y, x) =
+            static_cast<float>(ridge * (1.0 + 0.02 * tex(x, y + 2.0 * t)) + rng.gaussian(1e-4));
       }
   };
   LucasKanadeFlow lk;

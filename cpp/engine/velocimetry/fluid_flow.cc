@@ -16,9 +16,9 @@ void FluidFlowOptions::Check() const {
   CheckInRange(patch_search_scale, -1, 10, "FluidFlowOptions.patch_search_scale");
   CheckInRange(patch_size, 4, 64, "FluidFlowOptions.patch_size", "px");
   CheckInRange(patch_stride, 1, 63, "FluidFlowOptions.patch_stride", "px");
-  Require(patch_stride < patch_size,
-          "FluidFlowOptions.patch_stride must be < patch_size; got " +
-              std::to_string(patch_stride) + " >= " + std::to_string(patch_size));
+  Require(patch_stride < patch_size, "FluidFlowOptions.patch_stride must be < patch_size; got " +
+                                         std::to_string(patch_stride) +
+                                         " >= " + std::to_string(patch_size));
   CheckInRange(patch_iterations, 1, 1000, "FluidFlowOptions.patch_iterations");
   CheckInRange(levels, 1, 12, "FluidFlowOptions.levels");
   CheckInRange(min_level_size, 4, 4096, "FluidFlowOptions.min_level_size", "px");
@@ -49,12 +49,12 @@ void FluidFlow::set_source_mask(const cv::Mat& source_mask) {
   source_mask_ = source_mask.clone();
 }
 
-void FluidFlow::CalcChecked(const cv::Mat& prev, const cv::Mat& next,
-                            const cv::Mat& mask, bool warm, FlowField& flow) {
+void FluidFlow::CalcChecked(const cv::Mat& prev, const cv::Mat& next, const cv::Mat& mask,
+                            bool warm, FlowField& flow) {
   Require(source_mask_.empty() || source_mask_.size() == prev.size(),
           "source_mask must have the frames' size " + std::to_string(prev.cols) + " x " +
-              std::to_string(prev.rows) + "; got " + std::to_string(source_mask_.cols) +
-              " x " + std::to_string(source_mask_.rows));
+              std::to_string(prev.rows) + "; got " + std::to_string(source_mask_.cols) + " x " +
+              std::to_string(source_mask_.rows));
   flow_ops::VariationalSettings s;
   s.data = flow_ops::DataModel::kContinuity;
   s.alpha = options_.alpha;

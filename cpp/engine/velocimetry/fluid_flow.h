@@ -162,8 +162,8 @@ class FluidFlow : public OpticalFlow {
   const cv::Mat& source_mask() const { return source_mask_; }
 
  protected:
-  void CalcChecked(const cv::Mat& prev, const cv::Mat& next, const cv::Mat& mask,
-                   bool warm, FlowField& flow) override;
+  void CalcChecked(const cv::Mat& prev, const cv::Mat& next, const cv::Mat& mask, bool warm,
+                   FlowField& flow) override;
 
  private:
   // Dense inverse search starting from flow.u/v, into flow.u/v; false (flow

@@ -18,8 +18,8 @@ using testing_scenes::Texture;
 // A plume-like column (Gaussian envelope of 50 px, texture +-20 %, 0.5 %
 // noise) on 192 x 160, moved by an exact mass-conserving map.
 Scene Blob(const Motion& m) {
-  return testing_scenes::RenderDensity(cv::Size(192, 160), Texture::Make(11), m, 96, 80, 50,
-                                       0.005, 5, 0.2);
+  return testing_scenes::RenderDensity(cv::Size(192, 160), Texture::Make(11), m, 96, 80, 50, 0.005,
+                                       5, 0.2);
 }
 
 double Epe(OpticalFlow& method, const Scene& s) {

@@ -15,13 +15,12 @@ void HornSchunckOptions::Check() const {
   CheckInRange(tolerance, 0, 0.999999, "HornSchunckOptions.tolerance");
 }
 
-HornSchunckFlow::HornSchunckFlow(const HornSchunckOptions& options)
-    : options_(options) {
+HornSchunckFlow::HornSchunckFlow(const HornSchunckOptions& options) : options_(options) {
   options_.Check();
 }
 
-void HornSchunckFlow::CalcChecked(const cv::Mat& prev, const cv::Mat& next,
-                                  const cv::Mat& mask, bool warm, FlowField& flow) {
+void HornSchunckFlow::CalcChecked(const cv::Mat& prev, const cv::Mat& next, const cv::Mat& mask,
+                                  bool warm, FlowField& flow) {
   flow_ops::VariationalSettings s;
   s.data = flow_ops::DataModel::kBrightness;
   s.alpha = options_.alpha;

@@ -68,8 +68,8 @@ class HornSchunckFlow : public OpticalFlow {
   const HornSchunckOptions& options() const { return options_; }
 
  protected:
-  void CalcChecked(const cv::Mat& prev, const cv::Mat& next, const cv::Mat& mask,
-                   bool warm, FlowField& flow) override;
+  void CalcChecked(const cv::Mat& prev, const cv::Mat& next, const cv::Mat& mask, bool warm,
+                   FlowField& flow) override;
 
  private:
   HornSchunckOptions options_;

@@ -25,11 +25,14 @@ void ParallelRows(int rows, int cols, const std::function<void(int, int)>& body)
     return;
   }
   const int stripes = std::min(rows, threads * 4);
-  cv::parallel_for_(cv::Range(0, stripes), [&](const cv::Range& r) {
-    const int b = static_cast<int>(static_cast<long long>(r.start) * rows / stripes);
-    const int e = static_cast<int>(static_cast<long long>(r.end) * rows / stripes);
-    if (e > b) body(b, e);
-  }, stripes);
+  cv::parallel_for_(
+      cv::Range(0, stripes),
+      [&](const cv::Range& r) {
+        const int b = static_cast<int>(static_cast<long long>(r.start) * rows / stripes);
+        const int e = static_cast<int>(static_cast<long long>(r.end) * rows / stripes);
+        if (e > b) body(b, e);
+      },
+      stripes);
 }
 
 int NumStripes(int rows, int cols) {
@@ -39,8 +42,7 @@ int NumStripes(int rows, int cols) {
       1, std::min<long long>({by_size, static_cast<long long>(rows), kMaxStripes})));
 }
 
-void ParallelStripes(int rows, int cols,
-                     const std::function<void(int, int, int)>& body) {
+void ParallelStripes(int rows, int cols, const std::function<void(int, int, int)>& body) {
   if (rows <= 0) return;
   const int stripes = NumStripes(rows, cols);
   if (stripes == 1) {
@@ -57,9 +59,12 @@ void ParallelStripes(int rows, int cols,
     for (int s = 0; s < stripes; ++s) run(s);
     return;
   }
-  cv::parallel_for_(cv::Range(0, stripes), [&](const cv::Range& r) {
-    for (int s = r.start; s < r.end; ++s) run(s);
-  }, stripes);
+  cv::parallel_for_(
+      cv::Range(0, stripes),
+      [&](const cv::Range& r) {
+        for (int s = r.start; s < r.end; ++s) run(s);
+      },
+      stripes);
 }
 
 double PairStdDev(const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask) {
@@ -138,9 +143,9 @@ constexpr int kWarpPad = 4;
 // replicates the border) and with int offsets, so that it vectorises with
 // gathers.
 QOGI_VELOCIMETRY_KERNEL
-void WarpRow(int W, int y, const float* QOGI_RESTRICT base, int step,
-             const float* QOGI_RESTRICT pu, const float* QOGI_RESTRICT pv, float wmax,
-             float hmax, float* QOGI_RESTRICT pd, uchar* QOGI_RESTRICT pin) {
+void WarpRow(int W, int y, const float* QOGI_RESTRICT base, int step, const float* QOGI_RESTRICT pu,
+             const float* QOGI_RESTRICT pv, float wmax, float hmax, float* QOGI_RESTRICT pd,
+             uchar* QOGI_RESTRICT pin) {
   const float fy = static_cast<float>(y);
   for (int x = 0; x < W; ++x) {
     float px = static_cast<float>(x) + pu[x], py = fy + pv[x];
@@ -168,8 +173,7 @@ void WarpRow(int W, int y, const float* QOGI_RESTRICT base, int step,
 
 }  // namespace
 
-void Warp(const cv::Mat& src, const cv::Mat& u, const cv::Mat& v, cv::Mat& dst,
-          cv::Mat* inside) {
+void Warp(const cv::Mat& src, const cv::Mat& u, const cv::Mat& v, cv::Mat& dst, cv::Mat* inside) {
   CV_Assert(src.type() == CV_32FC1 && u.size() == src.size() && v.size() == src.size());
   dst.create(src.size(), CV_32FC1);
   // The kernel always writes the inside flags (no branch in its loop).
@@ -181,15 +185,14 @@ void Warp(const cv::Mat& src, const cv::Mat& u, const cv::Mat& v, cv::Mat& dst,
   // The source with its border replicated kWarpPad px out (the same samples
   // as clamping each tap's index), kept between calls.
   thread_local cv::Mat padded;
-  cv::copyMakeBorder(src, padded, kWarpPad, kWarpPad, kWarpPad, kWarpPad,
-                     cv::BORDER_REPLICATE);
+  cv::copyMakeBorder(src, padded, kWarpPad, kWarpPad, kWarpPad, kWarpPad, cv::BORDER_REPLICATE);
   CV_Assert(padded.isContinuous() && padded.total() < (1u << 31));
   const float* base = padded.ptr<float>(0);
   const int step = padded.cols;
   ParallelRows(H, W, [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y)
-      WarpRow(W, y, base, step, u.ptr<float>(y), v.ptr<float>(y), wmax, hmax,
-              dst.ptr<float>(y), in.ptr<uchar>(y));
+      WarpRow(W, y, base, step, u.ptr<float>(y), v.ptr<float>(y), wmax, hmax, dst.ptr<float>(y),
+              in.ptr<uchar>(y));
   });
 }
 
@@ -237,8 +240,8 @@ void FivePointGradient(const cv::Mat& src, cv::Mat& gx, cv::Mat& gy) {
   });
 }
 
-void ResampleFlow(const cv::Mat& u, const cv::Mat& v, cv::Size size, double scale,
-                  cv::Mat& u_out, cv::Mat& v_out) {
+void ResampleFlow(const cv::Mat& u, const cv::Mat& v, cv::Size size, double scale, cv::Mat& u_out,
+                  cv::Mat& v_out) {
   CV_Assert(u.type() == CV_32FC1 && v.type() == CV_32FC1 && u.size() == v.size());
   CV_Assert(&u != &u_out && &v != &v_out);
   u_out.create(size, CV_32FC1);
@@ -287,8 +290,7 @@ void ResampleFlow(const cv::Mat& u, const cv::Mat& v, cv::Size size, double scal
         int ix = std::min(static_cast<int>(sx), std::max(Ws - 2, 0));
         float tx = sx - ix;
         const int ix1 = std::min(ix + 1, Ws - 1);
-        const float a = (1 - tx) * (1 - ty), b = tx * (1 - ty), c = (1 - tx) * ty,
-                    d = tx * ty;
+        const float a = (1 - tx) * (1 - ty), b = tx * (1 - ty), c = (1 - tx) * ty, d = tx * ty;
         ou[x] = s * (a * u0[ix] + b * u0[ix1] + c * u1[ix] + d * u1[ix1]);
         ov[x] = s * (a * v0[ix] + b * v0[ix1] + c * v1[ix] + d * v1[ix1]);
       }
@@ -336,8 +338,7 @@ float KthSmallest(std::vector<float>& values, std::size_t k) {
 
 }  // namespace
 
-void QualityFromResidual(const cv::Mat& residual, const cv::Mat& valid,
-                         cv::Mat& quality) {
+void QualityFromResidual(const cv::Mat& residual, const cv::Mat& valid, cv::Mat& quality) {
   CV_Assert(residual.type() == CV_32FC1);
   cv::Mat r = cv::abs(residual);
   cv::blur(r, r, cv::Size(3, 3), cv::Point(-1, -1), cv::BORDER_REPLICATE);
@@ -365,14 +366,15 @@ void QualityFromResidual(const cv::Mat& residual, const cv::Mat& valid,
     const float* pr = r.ptr<float>(y);
     float* pq = quality.ptr<float>(y);
     for (int x = 0; x < r.cols; ++x) {
-      if (perfect) pq[x] = pr[x] > 0 ? 0.f : 1.f;
-      else pq[x] = std::exp(-pr[x] * pr[x] * inv2s2);
+      if (perfect)
+        pq[x] = pr[x] > 0 ? 0.f : 1.f;
+      else
+        pq[x] = std::exp(-pr[x] * pr[x] * inv2s2);
     }
   }
 }
 
-void FinishWithBrightnessResidual(const cv::Mat& i0, const cv::Mat& i1,
-                                  FlowField& flow) {
+void FinishWithBrightnessResidual(const cv::Mat& i0, const cv::Mat& i1, FlowField& flow) {
   cv::Mat warped, inside;
   Warp(i1, flow.u, flow.v, warped, &inside);
   cv::Mat residual = warped - i0;
@@ -391,8 +393,7 @@ void FinishWithBrightnessResidual(const cv::Mat& i0, const cv::Mat& i1,
       }
     }
   }
-  flow.residual_ratio =
-      before > 0 ? after / before : std::numeric_limits<double>::quiet_NaN();
+  flow.residual_ratio = before > 0 ? after / before : std::numeric_limits<double>::quiet_NaN();
   QualityFromResidual(residual, flow.valid, flow.quality);
 }
 
@@ -400,14 +401,14 @@ namespace {
 
 // valid &= mask (when kMask) and u, v finite, on one row.
 template <bool kMask>
-QOGI_ALWAYS_INLINE void ApplyMaskRowBody(int n, const uchar* QOGI_RESTRICT pm, const float* QOGI_RESTRICT pu,
-                  const float* QOGI_RESTRICT pw, uchar* QOGI_RESTRICT pv) {
+QOGI_ALWAYS_INLINE void ApplyMaskRowBody(int n, const uchar* QOGI_RESTRICT pm,
+                                         const float* QOGI_RESTRICT pu,
+                                         const float* QOGI_RESTRICT pw, uchar* QOGI_RESTRICT pv) {
   constexpr float kMax = std::numeric_limits<float>::max();
   for (int x = 0; x < n; ++x) {
     // |u| <= max is false for NaN and the infinities (std::isfinite does
     // not vectorise).
-    const bool keep = (!kMask || pm[x] != 0) && std::abs(pu[x]) <= kMax &&
-                      std::abs(pw[x]) <= kMax;
+    const bool keep = (!kMask || pm[x] != 0) && std::abs(pu[x]) <= kMax && std::abs(pw[x]) <= kMax;
     pv[x] = (pv[x] != 0 && keep) ? 1 : 0;
   }
 }
@@ -426,8 +427,7 @@ void ApplyMaskRow(bool use_mask, int n, const uchar* QOGI_RESTRICT pm,
 
 }  // namespace
 
-void ApplyMask(const cv::Mat& mask, const cv::Mat& u, const cv::Mat& v,
-               cv::Mat& valid) {
+void ApplyMask(const cv::Mat& mask, const cv::Mat& u, const cv::Mat& v, cv::Mat& valid) {
   for (int y = 0; y < valid.rows; ++y)
     ApplyMaskRow(!mask.empty(), valid.cols, mask.empty() ? nullptr : mask.ptr<uchar>(y),
                  u.ptr<float>(y), v.ptr<float>(y), valid.ptr<uchar>(y));

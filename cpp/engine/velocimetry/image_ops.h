@@ -31,8 +31,7 @@ void ParallelRows(int rows, int cols, const std::function<void(int, int)>& body)
 // partials are reproducible).
 constexpr int kMaxStripes = 16;
 int NumStripes(int rows, int cols);
-void ParallelStripes(int rows, int cols,
-                     const std::function<void(int, int, int)>& body);
+void ParallelStripes(int rows, int cols, const std::function<void(int, int, int)>& body);
 
 // Standard deviation of the pixels of `a` and `b` together, over the mask's
 // nonzero pixels when `mask` is non-empty and covers >= 16 pixels, else over
@@ -62,26 +61,23 @@ void FivePointGradient(const cv::Mat& src, cv::Mat& gx, cv::Mat& gy);
 // Resamples a flow field given on a pyramid level to another level's size,
 // bilinearly under the pyramid's pixel-centre convention (x_dst = x_src *
 // scale), and multiplies the vectors by scale = 2^(level_src - level_dst).
-void ResampleFlow(const cv::Mat& u, const cv::Mat& v, cv::Size size, double scale,
-                  cv::Mat& u_out, cv::Mat& v_out);
+void ResampleFlow(const cv::Mat& u, const cv::Mat& v, cv::Size size, double scale, cv::Mat& u_out,
+                  cv::Mat& v_out);
 
 // Per-pixel quality from a data residual: q = exp(-r^2 / (2 s^2)) with r the
 // 3x3 mean of |residual| and s = 1.4826 x the median of r over the valid
 // pixels (a robust scale, so q is an inlier weight relative to the frame).
-void QualityFromResidual(const cv::Mat& residual, const cv::Mat& valid,
-                         cv::Mat& quality);
+void QualityFromResidual(const cv::Mat& residual, const cv::Mat& valid, cv::Mat& quality);
 
 // For methods without a data term of their own: the brightness residual
 // next(x + w) - prev(x) of the result sets flow.quality (as in
 // QualityFromResidual) and flow.residual_ratio, and flow.valid is ANDed with
 // "x + w inside the frame". i0, i1 are the frames (any common scale).
-void FinishWithBrightnessResidual(const cv::Mat& i0, const cv::Mat& i1,
-                                  FlowField& flow);
+void FinishWithBrightnessResidual(const cv::Mat& i0, const cv::Mat& i1, FlowField& flow);
 
 // AND of `valid` (CV_8U 0/1) with `mask` (nonzero = keep) and with the
 // finiteness of u and v. Empty mask = no restriction.
-void ApplyMask(const cv::Mat& mask, const cv::Mat& u, const cv::Mat& v,
-               cv::Mat& valid);
+void ApplyMask(const cv::Mat& mask, const cv::Mat& u, const cv::Mat& v, cv::Mat& valid);
 
 }  // namespace flow_ops
 }  // namespace qogi

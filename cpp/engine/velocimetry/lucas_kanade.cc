@@ -21,8 +21,7 @@ void LucasKanadeOptions::Check() const {
   CheckPositive(min_eigenvalue, "LucasKanadeOptions.min_eigenvalue");
 }
 
-LucasKanadeFlow::LucasKanadeFlow(const LucasKanadeOptions& options)
-    : options_(options) {
+LucasKanadeFlow::LucasKanadeFlow(const LucasKanadeOptions& options) : options_(options) {
   options_.Check();
 }
 
@@ -37,8 +36,8 @@ inline float MinEigen(float a, float b, float c) {
 }
 }  // namespace
 
-void LucasKanadeFlow::CalcChecked(const cv::Mat& prev, const cv::Mat& next,
-                                  const cv::Mat& mask, bool warm, FlowField& flow) {
+void LucasKanadeFlow::CalcChecked(const cv::Mat& prev, const cv::Mat& next, const cv::Mat& mask,
+                                  bool warm, FlowField& flow) {
   const LucasKanadeOptions& o = options_;
   const double sd = PairStdDev(prev, next, mask);
   if (!(sd > 0)) {

@@ -57,8 +57,8 @@ class LucasKanadeFlow : public OpticalFlow {
   const LucasKanadeOptions& options() const { return options_; }
 
  protected:
-  void CalcChecked(const cv::Mat& prev, const cv::Mat& next, const cv::Mat& mask,
-                   bool warm, FlowField& flow) override;
+  void CalcChecked(const cv::Mat& prev, const cv::Mat& next, const cv::Mat& mask, bool warm,
+                   FlowField& flow) override;
 
  private:
   LucasKanadeOptions options_;

@@ -44,8 +44,7 @@ struct Texture {
   }
   double operator()(double x, double y) const {
     double s = 0;
-    for (std::size_t i = 0; i < kx.size(); ++i)
-      s += std::cos(kx[i] * x + ky[i] * y + phase[i]);
+    for (std::size_t i = 0; i < kx.size(); ++i) s += std::cos(kx[i] * x + ky[i] * y + phase[i]);
     return amp * s;
   }
 };
@@ -96,7 +95,10 @@ struct Motion {
   }
 
   static Motion Translation(double tx, double ty) {
-    return {[=](double, double, double& u, double& v) { u = tx; v = ty; }};
+    return {[=](double, double, double& u, double& v) {
+      u = tx;
+      v = ty;
+    }};
   }
   // Rotation by `angle` rad (positive = clockwise on screen, y down) about c.
   static Motion Rotation(double angle, double cx, double cy) {
@@ -123,8 +125,8 @@ struct Motion {
   }
   // A localised source: w = rate (x - c) exp(-|x - c|^2 / 2 sigma^2) plus a
   // uniform drift (dx, dy): compressible, with divergence varying in space.
-  static Motion DriftingSource(double rate, double cx, double cy, double sigma,
-                               double dx, double dy) {
+  static Motion DriftingSource(double rate, double cx, double cy, double sigma, double dx,
+                               double dy) {
     return {[=](double x, double y, double& u, double& v) {
       const double rx = x - cx, ry = y - cy;
       const double g = std::exp(-(rx * rx + ry * ry) / (2 * sigma * sigma));
@@ -134,8 +136,8 @@ struct Motion {
   }
   // A divergence-free field from the stream function
   // psi = peak sigma exp(-|x - c|^2 / 2 sigma^2) (a vortex) plus a drift.
-  static Motion DriftingVortex(double peak, double cx, double cy, double sigma,
-                               double dx, double dy) {
+  static Motion DriftingVortex(double peak, double cx, double cy, double sigma, double dx,
+                               double dy) {
     return {[=](double x, double y, double& u, double& v) {
       const double rx = x - cx, ry = y - cy;
       const double g = std::exp(-(rx * rx + ry * ry) / (2 * sigma * sigma));
@@ -154,8 +156,8 @@ struct Scene {
 // Brightness-constancy pair: I = offset + gain * f(T) with f = exp(0.4 T)
 // (positive, skewed like plume intermittency), plus seeded white noise of
 // standard deviation noise * std(I).
-inline Scene RenderTexture(cv::Size size, const Texture& t, const Motion& m,
-                           double noise = 0.0, unsigned noise_seed = 1) {
+inline Scene RenderTexture(cv::Size size, const Texture& t, const Motion& m, double noise = 0.0,
+                           unsigned noise_seed = 1) {
   Scene s;
   s.prev.create(size, CV_32F);
   s.next.create(size, CV_32F);
@@ -188,15 +190,13 @@ inline Scene RenderTexture(cv::Size size, const Texture& t, const Motion& m,
 // Column-density pair advected by the continuity equation: rho0 = envelope x
 // exp(contrast T) with a Gaussian envelope (centre c, width sigma_env; sigma_env
 // <= 0 = uniform), rho1 by exact mass conservation through the map.
-inline Scene RenderDensity(cv::Size size, const Texture& t, const Motion& m,
-                           double cx, double cy, double sigma_env,
-                           double noise = 0.0, unsigned noise_seed = 1,
+inline Scene RenderDensity(cv::Size size, const Texture& t, const Motion& m, double cx, double cy,
+                           double sigma_env, double noise = 0.0, unsigned noise_seed = 1,
                            double contrast = 0.4) {
   auto rho0 = [&](double x, double y) {
     double env = 1.0;
     if (sigma_env > 0)
-      env = std::exp(-((x - cx) * (x - cx) + (y - cy) * (y - cy)) /
-                     (2 * sigma_env * sigma_env));
+      env = std::exp(-((x - cx) * (x - cx) + (y - cy) * (y - cy)) / (2 * sigma_env * sigma_env));
     return env * std::exp(contrast * t(x, y));
   };
   Scene s;
@@ -239,10 +239,9 @@ inline Scene RenderDensity(cv::Size size, const Texture& t, const Motion& m,
 // displacement over one frame is Delta z = (u0/decel - z)(1 - exp(-decel)).
 // Renders frames t0 and t0 + 1 (the flow is steady: the truth does not
 // depend on t0).
-inline Scene RenderSteadyColumn(cv::Size size, const Texture& t, double exit_y,
-                                double cx, double sigma_x, double u0, double decel,
-                                double texture_age, double contrast,
-                                double noise = 0.0, unsigned noise_seed = 1,
+inline Scene RenderSteadyColumn(cv::Size size, const Texture& t, double exit_y, double cx,
+                                double sigma_x, double u0, double decel, double texture_age,
+                                double contrast, double noise = 0.0, unsigned noise_seed = 1,
                                 double t0 = 0.0) {
   auto tau = [&](double z) { return -std::log(1.0 - decel * z / u0) / decel; };
   auto rho = [&](double x, double y, double time) {
@@ -269,8 +268,7 @@ inline Scene RenderSteadyColumn(cv::Size size, const Texture& t, double exit_y,
       s.next.at<float>(y, x) = static_cast<float>(rho(x, y, t0 + 1.0));
       const double z = exit_y - y;
       if (z >= 0)
-        s.true_v.at<float>(y, x) =
-            static_cast<float>(-(u0 / decel - z) * (1.0 - std::exp(-decel)));
+        s.true_v.at<float>(y, x) = static_cast<float>(-(u0 / decel - z) * (1.0 - std::exp(-decel)));
     }
   if (noise > 0) {
     double peak;
@@ -289,8 +287,7 @@ inline Scene RenderSteadyColumn(cv::Size size, const Texture& t, double exit_y,
 // px from the border where `region` (optional, CV_8U) and flow.valid are set;
 // *valid_fraction receives the share of those pixels that are valid.
 inline double MeanEndPointError(const cv::Mat& u, const cv::Mat& v, const cv::Mat& valid,
-                                const Scene& s, int margin,
-                                double* valid_fraction = nullptr,
+                                const Scene& s, int margin, double* valid_fraction = nullptr,
                                 const cv::Mat& region = cv::Mat()) {
   double sum = 0;
   long long n = 0, total = 0;

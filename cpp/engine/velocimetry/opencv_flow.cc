@@ -12,8 +12,8 @@ using namespace flow_ops;
 namespace {
 
 // Normalises the pair by its standard deviation; false for constant frames.
-bool Normalise(const cv::Mat& prev, const cv::Mat& next, const cv::Mat& mask,
-               cv::Mat& i0, cv::Mat& i1, double* mean_out = nullptr) {
+bool Normalise(const cv::Mat& prev, const cv::Mat& next, const cv::Mat& mask, cv::Mat& i0,
+               cv::Mat& i1, double* mean_out = nullptr) {
   const double sd = PairStdDev(prev, next, mask);
   if (!(sd > 0)) return false;
   prev.convertTo(i0, CV_32F, 1.0 / sd);
@@ -34,8 +34,7 @@ void Split(const cv::Mat& uv, FlowField& flow) {
   flow.v = parts[1];
 }
 
-void Finish(const cv::Mat& i0, const cv::Mat& i1, const cv::Mat& mask,
-            FlowField& flow) {
+void Finish(const cv::Mat& i0, const cv::Mat& i1, const cv::Mat& mask, FlowField& flow) {
   flow.valid.setTo(1);
   ApplyMask(mask, flow.u, flow.v, flow.valid);
   FinishWithBrightnessResidual(i0, i1, flow);
@@ -57,8 +56,8 @@ FarnebackFlow::FarnebackFlow(const FarnebackOptions& options) : options_(options
   options_.Check();
 }
 
-void FarnebackFlow::CalcChecked(const cv::Mat& prev, const cv::Mat& next,
-                                const cv::Mat& mask, bool warm, FlowField& flow) {
+void FarnebackFlow::CalcChecked(const cv::Mat& prev, const cv::Mat& next, const cv::Mat& mask,
+                                bool warm, FlowField& flow) {
   if (!Normalise(prev, next, mask, i0n_, i1n_)) {
     flow.quality.setTo(0);
     flow.valid.setTo(0);
@@ -74,8 +73,8 @@ void FarnebackFlow::CalcChecked(const cv::Mat& prev, const cv::Mat& next,
   // 8-bit intensities: feed it the frames at 40 grey levels per std.
   i0n_.convertTo(i08_, CV_32F, 40.0);
   i1n_.convertTo(i18_, CV_32F, 40.0);
-  cv::calcOpticalFlowFarneback(i08_, i18_, flow2_, o.pyr_scale, o.levels, o.winsize,
-                               o.iterations, o.poly_n, o.poly_sigma, flags);
+  cv::calcOpticalFlowFarneback(i08_, i18_, flow2_, o.pyr_scale, o.levels, o.winsize, o.iterations,
+                               o.poly_n, o.poly_sigma, flags);
   Split(flow2_, flow);
   Finish(i0n_, i1n_, mask, flow);
 }
@@ -84,17 +83,15 @@ void DisOptions::Check() const {
   CheckInRange(finest_scale, 0, 10, "DisOptions.finest_scale");
   CheckInRange(patch_size, 4, 64, "DisOptions.patch_size", "px");
   CheckInRange(patch_stride, 1, 63, "DisOptions.patch_stride", "px");
-  Require(patch_stride < patch_size,
-          "DisOptions.patch_stride must be < patch_size; got " +
-              std::to_string(patch_stride) + " >= " + std::to_string(patch_size));
-  CheckInRange(gradient_descent_iterations, 1, 1000,
-               "DisOptions.gradient_descent_iterations");
+  Require(patch_stride < patch_size, "DisOptions.patch_stride must be < patch_size; got " +
+                                         std::to_string(patch_stride) +
+                                         " >= " + std::to_string(patch_size));
+  CheckInRange(gradient_descent_iterations, 1, 1000, "DisOptions.gradient_descent_iterations");
   CheckInRange(variational_refinement_iterations, 0, 1000,
                "DisOptions.variational_refinement_iterations");
   CheckPositive(variational_refinement_alpha, "DisOptions.variational_refinement_alpha");
   CheckPositive(variational_refinement_delta, "DisOptions.variational_refinement_delta");
-  CheckNonNegative(variational_refinement_gamma,
-                   "DisOptions.variational_refinement_gamma");
+  CheckNonNegative(variational_refinement_gamma, "DisOptions.variational_refinement_gamma");
 }
 
 DisFlow::DisFlow(const DisOptions& options) : options_(options) {
@@ -112,8 +109,8 @@ DisFlow::DisFlow(const DisOptions& options) : options_(options) {
   dis_->setUseSpatialPropagation(options_.use_spatial_propagation);
 }
 
-void DisFlow::CalcChecked(const cv::Mat& prev, const cv::Mat& next,
-                          const cv::Mat& mask, bool warm, FlowField& flow) {
+void DisFlow::CalcChecked(const cv::Mat& prev, const cv::Mat& next, const cv::Mat& mask, bool warm,
+                          FlowField& flow) {
   double mean = 0;
   if (!Normalise(prev, next, mask, i0n_, i1n_, &mean)) {
     flow.quality.setTo(0);

@@ -48,8 +48,8 @@ class FarnebackFlow : public OpticalFlow {
   const FarnebackOptions& options() const { return options_; }
 
  protected:
-  void CalcChecked(const cv::Mat& prev, const cv::Mat& next, const cv::Mat& mask,
-                   bool warm, FlowField& flow) override;
+  void CalcChecked(const cv::Mat& prev, const cv::Mat& next, const cv::Mat& mask, bool warm,
+                   FlowField& flow) override;
 
  private:
   FarnebackOptions options_;
@@ -90,8 +90,8 @@ class DisFlow : public OpticalFlow {
   const DisOptions& options() const { return options_; }
 
  protected:
-  void CalcChecked(const cv::Mat& prev, const cv::Mat& next, const cv::Mat& mask,
-                   bool warm, FlowField& flow) override;
+  void CalcChecked(const cv::Mat& prev, const cv::Mat& next, const cv::Mat& mask, bool warm,
+                   FlowField& flow) override;
 
  private:
   DisOptions options_;

@@ -22,8 +22,8 @@ void PivOptions::Check() const {
   Require(initial_window_size % 2 == 0, "PivOptions.initial_window_size must be even; got " +
                                             std::to_string(initial_window_size));
   Require(initial_window_size >= window_size,
-          "PivOptions.initial_window_size must be >= window_size (" +
-              std::to_string(window_size) + "); got " + std::to_string(initial_window_size));
+          "PivOptions.initial_window_size must be >= window_size (" + std::to_string(window_size) +
+              "); got " + std::to_string(initial_window_size));
   CheckInRange(overlap, 0, 0.9, "PivOptions.overlap");
   CheckInRange(final_passes, 1, 20, "PivOptions.final_passes");
   CheckPositive(median_threshold, "PivOptions.median_threshold");
@@ -46,8 +46,7 @@ inline float Sample(const cv::Mat& m, float x, float y) {
   const float tx = x - ix, ty = y - iy;
   const float* r0 = m.ptr<float>(iy);
   const float* r1 = m.ptr<float>(iy1);
-  return (1 - ty) * ((1 - tx) * r0[ix] + tx * r0[ix1]) +
-         ty * ((1 - tx) * r1[ix] + tx * r1[ix1]);
+  return (1 - ty) * ((1 - tx) * r0[ix] + tx * r0[ix1]) + ty * ((1 - tx) * r1[ix] + tx * r1[ix1]);
 }
 
 // Sub-pixel offset of a peak from three samples (left, centre, right):
@@ -145,9 +144,7 @@ void PivFlow::Pass(int n, bool deform, const cv::Mat& mask) {
         g.v.at<float>(j, i) = base_v;
         g.corr.at<float>(j, i) = 0.f;
         g.ok.at<uchar>(j, i) = 0;
-        if (has_mask &&
-            cv::sum(mask(cv::Rect(left, top, n, n)))[0] < min_mask)
-          continue;
+        if (has_mask && cv::sum(mask(cv::Rect(left, top, n, n)))[0] < min_mask) continue;
         f0(cv::Rect(left + sx0, top + sy0, n, n)).copyTo(a);
         f1(cv::Rect(left + sx1, top + sy1, n, n)).copyTo(b);
         const double ma = cv::mean(a)[0], mb = cv::mean(b)[0];
@@ -164,9 +161,7 @@ void PivFlow::Pass(int n, bool deform, const cv::Mat& mask) {
         double peak_value;
         cv::minMaxLoc(corr, nullptr, &peak_value, nullptr, &peak);
         const float norm = static_cast<float>(1.0 / std::sqrt(ea * eb));
-        auto at = [&](int x, int y) {
-          return corr.at<float>((y + n) % n, (x + n) % n) * norm;
-        };
+        auto at = [&](int x, int y) { return corr.at<float>((y + n) % n, (x + n) % n) * norm; };
         const float c0 = at(peak.x, peak.y);
         const float dx = PeakOffset(at(peak.x - 1, peak.y), c0, at(peak.x + 1, peak.y));
         const float dy = PeakOffset(at(peak.x, peak.y - 1), c0, at(peak.x, peak.y + 1));
@@ -192,14 +187,14 @@ void PivFlow::Pass(int n, bool deform, const cv::Mat& mask) {
   g.v = rv;
 }
 
-void PivFlow::CalcChecked(const cv::Mat& prev, const cv::Mat& next, const cv::Mat& mask,
-                          bool warm, FlowField& flow) {
+void PivFlow::CalcChecked(const cv::Mat& prev, const cv::Mat& next, const cv::Mat& mask, bool warm,
+                          FlowField& flow) {
   const PivOptions& o = options_;
   const int W = prev.cols, H = prev.rows;
-  Require(o.window_size <= std::min(W, H),
-          "PivOptions.window_size (" + std::to_string(o.window_size) +
-              " px) must not exceed the frame's smaller side (" +
-              std::to_string(std::min(W, H)) + " px)");
+  Require(o.window_size <= std::min(W, H), "PivOptions.window_size (" +
+                                               std::to_string(o.window_size) +
+                                               " px) must not exceed the frame's smaller side (" +
+                                               std::to_string(std::min(W, H)) + " px)");
   const double sd = PairStdDev(prev, next, mask);
   if (!(sd > 0)) {
     flow.quality.setTo(0);
@@ -256,8 +251,7 @@ void PivFlow::CalcChecked(const cv::Mat& prev, const cv::Mat& next, const cv::Ma
     uchar* pv = flow.valid.ptr<uchar>(y);
     for (int x = 0; x < W; ++x) {
       const float gx = static_cast<float>((x - g.x0) * inv);
-      if (gx < -1e-3f || gy < -1e-3f || gx > g.nx - 1 + 1e-3f || gy > g.ny - 1 + 1e-3f)
-        continue;
+      if (gx < -1e-3f || gy < -1e-3f || gx > g.nx - 1 + 1e-3f || gy > g.ny - 1 + 1e-3f) continue;
       const int ix = std::min(g.nx - 1, std::max(0, static_cast<int>(std::lround(gx))));
       const int iy = std::min(g.ny - 1, std::max(0, static_cast<int>(std::lround(gy))));
       pv[x] = g.ok.at<uchar>(iy, ix) ? 1 : 0;
@@ -268,8 +262,7 @@ void PivFlow::CalcChecked(const cv::Mat& prev, const cv::Mat& next, const cv::Ma
   for (int y = 0; y < H; ++y) {
     const float gy = static_cast<float>((y - g.y0) * inv);
     float* pq = flow.quality.ptr<float>(y);
-    for (int x = 0; x < W; ++x)
-      pq[x] = Sample(g.corr, static_cast<float>((x - g.x0) * inv), gy);
+    for (int x = 0; x < W; ++x) pq[x] = Sample(g.corr, static_cast<float>((x - g.x0) * inv), gy);
   }
 }
 

@@ -72,8 +72,8 @@ class PivFlow : public OpticalFlow {
   const PivOptions& options() const { return options_; }
 
  protected:
-  void CalcChecked(const cv::Mat& prev, const cv::Mat& next, const cv::Mat& mask,
-                   bool warm, FlowField& flow) override;
+  void CalcChecked(const cv::Mat& prev, const cv::Mat& next, const cv::Mat& mask, bool warm,
+                   FlowField& flow) override;
 
  private:
   struct Grid {

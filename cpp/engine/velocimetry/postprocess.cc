@@ -21,15 +21,14 @@ std::string SizeText(const cv::Mat& m) {
   return std::to_string(m.cols) + " x " + std::to_string(m.rows);
 }
 
-void CheckField(const cv::Mat& u, const cv::Mat& v, const cv::Mat& mask,
-                const char* mask_name) {
+void CheckField(const cv::Mat& u, const cv::Mat& v, const cv::Mat& mask, const char* mask_name) {
   Require(u.type() == CV_32FC1 && v.type() == CV_32FC1,
           "u and v must be float32 single-channel maps (CV_32FC1)");
-  Require(u.size() == v.size(), "u and v must have the same size; got " +
-                                    SizeText(u) + " and " + SizeText(v));
+  Require(u.size() == v.size(),
+          "u and v must have the same size; got " + SizeText(u) + " and " + SizeText(v));
   Require(!u.empty(), "u and v must not be empty");
-  Require(mask.type() == CV_8UC1, std::string(mask_name) +
-                                      " must be an 8-bit single-channel mask (CV_8UC1)");
+  Require(mask.type() == CV_8UC1,
+          std::string(mask_name) + " must be an 8-bit single-channel mask (CV_8UC1)");
   Require(mask.size() == u.size(), std::string(mask_name) + " must have the size of u, " +
                                        SizeText(u) + "; got " + SizeText(mask));
 }
@@ -86,11 +85,11 @@ cv::Mat NormalisedMedianTest(const cv::Mat& u, const cv::Mat& v, const cv::Mat& 
   return outliers;
 }
 
-void ReplaceVectors(const cv::Mat& u, const cv::Mat& v, const cv::Mat& keep,
-                    int max_distance, cv::Mat& u_out, cv::Mat& v_out, cv::Mat& filled) {
+void ReplaceVectors(const cv::Mat& u, const cv::Mat& v, const cv::Mat& keep, int max_distance,
+                    cv::Mat& u_out, cv::Mat& v_out, cv::Mat& filled) {
   CheckField(u, v, keep, "keep");
-  Require(max_distance >= 0, "max_distance must be >= 0 (0 = no limit); got " +
-                                 std::to_string(max_distance));
+  Require(max_distance >= 0,
+          "max_distance must be >= 0 (0 = no limit); got " + std::to_string(max_distance));
   const int W = u.cols, H = u.rows;
   cv::Mat cu = u.clone(), cv_ = v.clone();
   cv::Mat known = keep != 0;  // 255 where known
@@ -192,8 +191,7 @@ void InvertDisplacement(const cv::Mat& u, const cv::Mat& v, int iterations, cv::
   Require(u.type() == CV_32FC1 && v.type() == CV_32FC1,
           "u and v must be float32 single-channel maps (CV_32FC1)");
   Require(!u.empty() && u.size() == v.size(),
-          "u and v must be non-empty and of one size; got " + SizeText(u) + " and " +
-              SizeText(v));
+          "u and v must be non-empty and of one size; got " + SizeText(u) + " and " + SizeText(v));
   Require(iterations >= 1, "iterations must be >= 1; got " + std::to_string(iterations));
   InvertDisplacementSerial(u, v, iterations, bu, bv);
 }
@@ -258,27 +256,26 @@ void FrameVelocity(const std::vector<cv::Mat>& u, const std::vector<cv::Mat>& v,
 
 void TemporalFilterOptions::Check() const {
   CheckInRange(window, 1, 1001, "TemporalFilterOptions.window", "frames");
-  Require(window % 2 == 1, "TemporalFilterOptions.window must be odd; got " +
-                               std::to_string(window));
+  Require(window % 2 == 1,
+          "TemporalFilterOptions.window must be odd; got " + std::to_string(window));
   CheckInRange(min_valid_fraction, 0, 1, "TemporalFilterOptions.min_valid_fraction");
 }
 
 void TemporalFilter(const std::vector<cv::Mat>& u, const std::vector<cv::Mat>& v,
-                    const std::vector<cv::Mat>& valid,
-                    const TemporalFilterOptions& options, std::vector<cv::Mat>& u_out,
-                    std::vector<cv::Mat>& v_out, std::vector<cv::Mat>& valid_out) {
+                    const std::vector<cv::Mat>& valid, const TemporalFilterOptions& options,
+                    std::vector<cv::Mat>& u_out, std::vector<cv::Mat>& v_out,
+                    std::vector<cv::Mat>& valid_out) {
   options.Check();
   const int T = static_cast<int>(u.size());
   Require(T > 0, "the sequence must hold at least one frame");
   Require(v.size() == u.size() && valid.size() == u.size(),
-          "u, v and valid must hold the same number of frames; got " +
-              std::to_string(u.size()) + ", " + std::to_string(v.size()) + " and " +
-              std::to_string(valid.size()));
+          "u, v and valid must hold the same number of frames; got " + std::to_string(u.size()) +
+              ", " + std::to_string(v.size()) + " and " + std::to_string(valid.size()));
   for (int t = 0; t < T; ++t) {
     CheckField(u[t], v[t], valid[t], "valid");
     Require(u[t].size() == u[0].size(), "every frame must have the size of frame 0, " +
-                                            SizeText(u[0]) + "; frame " +
-                                            std::to_string(t) + " is " + SizeText(u[t]));
+                                            SizeText(u[0]) + "; frame " + std::to_string(t) +
+                                            " is " + SizeText(u[t]));
   }
   const int W = u[0].cols, H = u[0].rows, h = options.window / 2;
   const bool median = options.statistic == TemporalStatistic::kMedian;
@@ -295,8 +292,8 @@ void TemporalFilter(const std::vector<cv::Mat>& u, const std::vector<cv::Mat>& v
     for (int y = y0; y < y1; ++y)
       for (int t = 0; t < T; ++t) {
         const int a = std::max(0, t - h), b = std::min(T - 1, t + h);
-        const int need = static_cast<int>(
-            std::ceil(options.min_valid_fraction * (b - a + 1) - 1e-9));
+        const int need =
+            static_cast<int>(std::ceil(options.min_valid_fraction * (b - a + 1) - 1e-9));
         for (int x = 0; x < W; ++x) {
           int n = 0;
           for (int s = a; s <= b; ++s) {
@@ -337,8 +334,8 @@ void PlumeMaskOptions::Check() const {
   CheckInRange(relative_threshold, 0, 1, "PlumeMaskOptions.relative_threshold");
   CheckInRange(open_radius, 0, 50, "PlumeMaskOptions.open_radius", "px");
   CheckInRange(close_radius, 0, 50, "PlumeMaskOptions.close_radius", "px");
-  Require(min_area >= 0, "PlumeMaskOptions.min_area must be >= 0 px; got " +
-                             std::to_string(min_area));
+  Require(min_area >= 0,
+          "PlumeMaskOptions.min_area must be >= 0 px; got " + std::to_string(min_area));
   CheckInRange(dilate_radius, 0, 50, "PlumeMaskOptions.dilate_radius", "px");
 }
 
@@ -352,8 +349,8 @@ cv::Mat PlumeMask(const cv::Mat& density, const PlumeMaskOptions& options) {
   const long long step = std::max<long long>(1, n / 20000);
   std::vector<float> samples;
   for (long long i = 0; i < n; i += step)
-    samples.push_back(density.at<float>(static_cast<int>(i / density.cols),
-                                        static_cast<int>(i % density.cols)));
+    samples.push_back(
+        density.at<float>(static_cast<int>(i / density.cols), static_cast<int>(i % density.cols)));
   auto p99 = samples.begin() + static_cast<long>(0.99 * (samples.size() - 1));
   std::nth_element(samples.begin(), p99, samples.end());
   const double thr = std::max(options.threshold, options.relative_threshold * *p99);
@@ -368,14 +365,12 @@ cv::Mat PlumeMask(const cv::Mat& density, const PlumeMaskOptions& options) {
     cv::morphologyEx(mask, mask, cv::MORPH_CLOSE, disk(options.close_radius));
   if (options.min_area > 0) {
     cv::Mat labels, stats, centroids;
-    const int count = cv::connectedComponentsWithStats(mask, labels, stats, centroids, 8,
-                                                       CV_32S);
+    const int count = cv::connectedComponentsWithStats(mask, labels, stats, centroids, 8, CV_32S);
     std::vector<uchar> keep(count, 0);
     for (int i = 1; i < count; ++i)
       keep[i] = stats.at<int>(i, cv::CC_STAT_AREA) >= options.min_area ? 255 : 0;
     for (int y = 0; y < mask.rows; ++y)
-      for (int x = 0; x < mask.cols; ++x)
-        mask.at<uchar>(y, x) = keep[labels.at<int>(y, x)];
+      for (int x = 0; x < mask.cols; ++x) mask.at<uchar>(y, x) = keep[labels.at<int>(y, x)];
   }
   if (options.dilate_radius > 0) cv::dilate(mask, mask, disk(options.dilate_radius));
   return mask / 255;

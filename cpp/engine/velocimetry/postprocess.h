@@ -40,8 +40,8 @@ cv::Mat NormalisedMedianTest(const cv::Mat& u, const cv::Mat& v, const cv::Mat& 
 // most max_distance sweeps (0 = until every vector is replaced). Writes the
 // new fields and `filled` (CV_8U, 1 = vector replaced by this call). Vectors
 // that could not be reached keep their value and are not marked filled.
-void ReplaceVectors(const cv::Mat& u, const cv::Mat& v, const cv::Mat& keep,
-                    int max_distance, cv::Mat& u_out, cv::Mat& v_out, cv::Mat& filled);
+void ReplaceVectors(const cv::Mat& u, const cv::Mat& v, const cv::Mat& keep, int max_distance,
+                    cv::Mat& u_out, cv::Mat& v_out, cv::Mat& filled);
 
 enum class TemporalStatistic { kMean, kMedian };
 
@@ -64,9 +64,9 @@ struct TemporalFilterOptions {
 // one size. Pixels without enough valid vectors keep their input value and
 // are invalid in valid_out.
 void TemporalFilter(const std::vector<cv::Mat>& u, const std::vector<cv::Mat>& v,
-                    const std::vector<cv::Mat>& valid,
-                    const TemporalFilterOptions& options, std::vector<cv::Mat>& u_out,
-                    std::vector<cv::Mat>& v_out, std::vector<cv::Mat>& valid_out);
+                    const std::vector<cv::Mat>& valid, const TemporalFilterOptions& options,
+                    std::vector<cv::Mat>& u_out, std::vector<cv::Mat>& v_out,
+                    std::vector<cv::Mat>& valid_out);
 
 // Backward displacement of a forward map x -> x + w(x): b(x) = y - x where
 // y + w(y) = x, by the fixed-point iteration y = x - w(y) (w sampled
@@ -95,8 +95,7 @@ void InvertDisplacement(const cv::Mat& u, const cv::Mat& v, int iterations, cv::
 // of the right size and type (e.g. views of a caller's array) are written in
 // place.
 void FrameVelocity(const std::vector<cv::Mat>& u, const std::vector<cv::Mat>& v,
-                   std::vector<cv::Mat>& u_out, std::vector<cv::Mat>& v_out,
-                   int num_threads = 0);
+                   std::vector<cv::Mat>& u_out, std::vector<cv::Mat>& v_out, int num_threads = 0);
 
 struct PlumeMaskOptions {
   // Absolute threshold in the input's unit (e.g. kg/m2): gas where the value

@@ -189,8 +189,8 @@ TEST(InvertDisplacement, MapsBackARotationAndDrift) {
       const double rx = x - cx - dx, ry = y - cy - dy;
       const double ex = cx + std::cos(th) * rx + std::sin(th) * ry - x;
       const double ey = cy - std::sin(th) * rx + std::cos(th) * ry - y;
-      worst = std::max({worst, std::abs(bu.at<float>(y, x) - ex),
-                        std::abs(bv.at<float>(y, x) - ey)});
+      worst =
+          std::max({worst, std::abs(bu.at<float>(y, x) - ex), std::abs(bv.at<float>(y, x) - ey)});
     }
   EXPECT_LT(worst, 2e-3);
   EXPECT_THROW(InvertDisplacement(u, v, 0, bu, bv), std::invalid_argument);

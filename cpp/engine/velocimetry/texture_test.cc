@@ -85,8 +85,8 @@ TEST_P(MovingTexture, MeanEndPointErrorBelowATenthOfAPixel) {
 INSTANTIATE_TEST_SUITE_P(
     AllMethods, MovingTexture,
     ::testing::Combine(::testing::Values(FlowMethod::kHornSchunck, FlowMethod::kLucasKanade,
-                                         FlowMethod::kFarneback, FlowMethod::kDis,
-                                         FlowMethod::kPiv, FlowMethod::kFluid),
+                                         FlowMethod::kFarneback, FlowMethod::kDis, FlowMethod::kPiv,
+                                         FlowMethod::kFluid),
                        ::testing::Range(0, 4)),
     [](const ::testing::TestParamInfo<std::tuple<FlowMethod, int>>& info) {
       return std::string(FlowMethodName(std::get<0>(info.param))) + "_" +

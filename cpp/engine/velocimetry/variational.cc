@@ -39,33 +39,28 @@ void ForwardContRow(int n, const float* QOGI_RESTRICT c, const float* QOGI_RESTR
                     const float* QOGI_RESTRICT pv_dn, float* QOGI_RESTRICT g) {
   for (int i = 1; i < n - 1; ++i)
     g[i] = 0.5f * c[i] *
-           (a[i + 1] * pu[i + 1] - a[i - 1] * pu[i - 1] + a_dn[i] * pv_dn[i] -
-            a_up[i] * pv_up[i]);
+           (a[i + 1] * pu[i + 1] - a[i - 1] * pu[i - 1] + a_dn[i] * pv_dn[i] - a_up[i] * pv_up[i]);
 }
 
 // del = ad div p, kap = ac curl p (kap skipped when null).
 QOGI_VELOCIMETRY_KERNEL
 void DivCurlRow(int n, float ad, float ac, const float* QOGI_RESTRICT pu,
-                const float* QOGI_RESTRICT pu_up,
-                const float* QOGI_RESTRICT pu_dn, const float* QOGI_RESTRICT pv,
-                const float* QOGI_RESTRICT pv_up, const float* QOGI_RESTRICT pv_dn,
-                float* QOGI_RESTRICT del, float* QOGI_RESTRICT kap) {
+                const float* QOGI_RESTRICT pu_up, const float* QOGI_RESTRICT pu_dn,
+                const float* QOGI_RESTRICT pv, const float* QOGI_RESTRICT pv_up,
+                const float* QOGI_RESTRICT pv_dn, float* QOGI_RESTRICT del,
+                float* QOGI_RESTRICT kap) {
   const float hd = 0.5f * ad, hc = 0.5f * ac;
-  for (int i = 1; i < n - 1; ++i)
-    del[i] = hd * (pu[i + 1] - pu[i - 1] + pv_dn[i] - pv_up[i]);
+  for (int i = 1; i < n - 1; ++i) del[i] = hd * (pu[i + 1] - pu[i - 1] + pv_dn[i] - pv_up[i]);
   if (kap)
-    for (int i = 1; i < n - 1; ++i)
-      kap[i] = hc * (pv[i + 1] - pv[i - 1] - pu_dn[i] + pu_up[i]);
+    for (int i = 1; i < n - 1; ++i) kap[i] = hc * (pv[i + 1] - pv[i - 1] - pu_dn[i] + pu_up[i]);
 }
 
 // (ou, ov) = D^T del + C^T kap on the row interior (kap may be null).
 QOGI_VELOCIMETRY_KERNEL
-void DivCurlAdjointRow(int n, const float* QOGI_RESTRICT del,
-                       const float* QOGI_RESTRICT del_up,
+void DivCurlAdjointRow(int n, const float* QOGI_RESTRICT del, const float* QOGI_RESTRICT del_up,
                        const float* QOGI_RESTRICT del_dn, const float* QOGI_RESTRICT kap,
-                       const float* QOGI_RESTRICT kap_up,
-                       const float* QOGI_RESTRICT kap_dn, float* QOGI_RESTRICT ou,
-                       float* QOGI_RESTRICT ov) {
+                       const float* QOGI_RESTRICT kap_up, const float* QOGI_RESTRICT kap_dn,
+                       float* QOGI_RESTRICT ou, float* QOGI_RESTRICT ov) {
   for (int i = 1; i < n - 1; ++i) {
     ou[i] = 0.5f * (del[i - 1] - del[i + 1]);
     ov[i] = 0.5f * (del_up[i] - del_dn[i]);
@@ -79,13 +74,13 @@ void DivCurlAdjointRow(int n, const float* QOGI_RESTRICT del,
 
 // (ou, ov) (+)= A^T g + alpha L p on the row interior; returns <p, o> there.
 template <bool kContinuity, bool kAccumulate>
-QOGI_ALWAYS_INLINE float AdjointRowBody(int n, float alpha, const float* QOGI_RESTRICT a,
-                 const float* QOGI_RESTRICT b, const float* QOGI_RESTRICT g,
-                 const float* QOGI_RESTRICT g_up, const float* QOGI_RESTRICT g_dn,
-                 const float* QOGI_RESTRICT pu, const float* QOGI_RESTRICT pu_up,
-                 const float* QOGI_RESTRICT pu_dn, const float* QOGI_RESTRICT pv,
-                 const float* QOGI_RESTRICT pv_up, const float* QOGI_RESTRICT pv_dn,
-                 float* QOGI_RESTRICT ou, float* QOGI_RESTRICT ov) {
+QOGI_ALWAYS_INLINE float AdjointRowBody(
+    int n, float alpha, const float* QOGI_RESTRICT a, const float* QOGI_RESTRICT b,
+    const float* QOGI_RESTRICT g, const float* QOGI_RESTRICT g_up, const float* QOGI_RESTRICT g_dn,
+    const float* QOGI_RESTRICT pu, const float* QOGI_RESTRICT pu_up,
+    const float* QOGI_RESTRICT pu_dn, const float* QOGI_RESTRICT pv,
+    const float* QOGI_RESTRICT pv_up, const float* QOGI_RESTRICT pv_dn, float* QOGI_RESTRICT ou,
+    float* QOGI_RESTRICT ov) {
   float dot = 0.f;
   for (int i = 1; i < n - 1; ++i) {
     float su, sv;
@@ -111,23 +106,22 @@ QOGI_ALWAYS_INLINE float AdjointRowBody(int n, float alpha, const float* QOGI_RE
 
 // AdjointRowBody for the data model and accumulation given at run time.
 QOGI_VELOCIMETRY_KERNEL
-float AdjointRow(bool continuity, bool accumulate, int n, float alpha,
-                 const float* QOGI_RESTRICT a, const float* QOGI_RESTRICT b,
-                 const float* QOGI_RESTRICT g, const float* QOGI_RESTRICT g_up,
-                 const float* QOGI_RESTRICT g_dn, const float* QOGI_RESTRICT pu,
-                 const float* QOGI_RESTRICT pu_up, const float* QOGI_RESTRICT pu_dn,
-                 const float* QOGI_RESTRICT pv, const float* QOGI_RESTRICT pv_up,
-                 const float* QOGI_RESTRICT pv_dn, float* QOGI_RESTRICT ou,
-                 float* QOGI_RESTRICT ov) {
+float AdjointRow(bool continuity, bool accumulate, int n, float alpha, const float* QOGI_RESTRICT a,
+                 const float* QOGI_RESTRICT b, const float* QOGI_RESTRICT g,
+                 const float* QOGI_RESTRICT g_up, const float* QOGI_RESTRICT g_dn,
+                 const float* QOGI_RESTRICT pu, const float* QOGI_RESTRICT pu_up,
+                 const float* QOGI_RESTRICT pu_dn, const float* QOGI_RESTRICT pv,
+                 const float* QOGI_RESTRICT pv_up, const float* QOGI_RESTRICT pv_dn,
+                 float* QOGI_RESTRICT ou, float* QOGI_RESTRICT ov) {
   if (continuity)
-    return accumulate ? AdjointRowBody<true, true>(n, alpha, a, b, g, g_up, g_dn, pu, pu_up,
-                                                   pu_dn, pv, pv_up, pv_dn, ou, ov)
-                      : AdjointRowBody<true, false>(n, alpha, a, b, g, g_up, g_dn, pu,
-                                                    pu_up, pu_dn, pv, pv_up, pv_dn, ou, ov);
-  return accumulate ? AdjointRowBody<false, true>(n, alpha, a, b, g, g_up, g_dn, pu, pu_up,
-                                                  pu_dn, pv, pv_up, pv_dn, ou, ov)
-                    : AdjointRowBody<false, false>(n, alpha, a, b, g, g_up, g_dn, pu, pu_up,
-                                                   pu_dn, pv, pv_up, pv_dn, ou, ov);
+    return accumulate ? AdjointRowBody<true, true>(n, alpha, a, b, g, g_up, g_dn, pu, pu_up, pu_dn,
+                                                   pv, pv_up, pv_dn, ou, ov)
+                      : AdjointRowBody<true, false>(n, alpha, a, b, g, g_up, g_dn, pu, pu_up, pu_dn,
+                                                    pv, pv_up, pv_dn, ou, ov);
+  return accumulate ? AdjointRowBody<false, true>(n, alpha, a, b, g, g_up, g_dn, pu, pu_up, pu_dn,
+                                                  pv, pv_up, pv_dn, ou, ov)
+                    : AdjointRowBody<false, false>(n, alpha, a, b, g, g_up, g_dn, pu, pu_up, pu_dn,
+                                                   pv, pv_up, pv_dn, ou, ov);
 }
 
 // The continuity data term's linearisation on one row (see Linearise):
@@ -136,13 +130,12 @@ float AdjointRow(bool continuity, bool accumulate, int n, float alpha,
 // the source mask x row_weight, 0 on the frame's first and last column),
 // c = w b^2.
 template <bool kSource>
-QOGI_ALWAYS_INLINE void ContinuityDataRowBody(int n, float row_weight, const uchar* QOGI_RESTRICT pin,
-                       const float* QOGI_RESTRICT ps, const float* QOGI_RESTRICT ux,
-                       const float* QOGI_RESTRICT uy, const float* QOGI_RESTRICT vx,
-                       const float* QOGI_RESTRICT vy, const float* QOGI_RESTRICT pw,
-                       const float* QOGI_RESTRICT p0, float* QOGI_RESTRICT a,
-                       float* QOGI_RESTRICT b, float* QOGI_RESTRICT r,
-                       float* QOGI_RESTRICT w, float* QOGI_RESTRICT c) {
+QOGI_ALWAYS_INLINE void ContinuityDataRowBody(
+    int n, float row_weight, const uchar* QOGI_RESTRICT pin, const float* QOGI_RESTRICT ps,
+    const float* QOGI_RESTRICT ux, const float* QOGI_RESTRICT uy, const float* QOGI_RESTRICT vx,
+    const float* QOGI_RESTRICT vy, const float* QOGI_RESTRICT pw, const float* QOGI_RESTRICT p0,
+    float* QOGI_RESTRICT a, float* QOGI_RESTRICT b, float* QOGI_RESTRICT r, float* QOGI_RESTRICT w,
+    float* QOGI_RESTRICT c) {
   for (int x = 0; x < n; ++x) {
     float weight = pin[x] ? 1.f : 0.f;
     if (kSource) weight *= ps[x];
@@ -166,13 +159,12 @@ void ContinuityDataRow(bool source, int n, float row_weight, const uchar* QOGI_R
                        const float* QOGI_RESTRICT uy, const float* QOGI_RESTRICT vx,
                        const float* QOGI_RESTRICT vy, const float* QOGI_RESTRICT pw,
                        const float* QOGI_RESTRICT p0, float* QOGI_RESTRICT a,
-                       float* QOGI_RESTRICT b, float* QOGI_RESTRICT r,
-                       float* QOGI_RESTRICT w, float* QOGI_RESTRICT c) {
+                       float* QOGI_RESTRICT b, float* QOGI_RESTRICT r, float* QOGI_RESTRICT w,
+                       float* QOGI_RESTRICT c) {
   if (source)
     ContinuityDataRowBody<true>(n, row_weight, pin, ps, ux, uy, vx, vy, pw, p0, a, b, r, w, c);
   else
-    ContinuityDataRowBody<false>(n, row_weight, pin, ps, ux, uy, vx, vy, pw, p0, a, b, r, w,
-                                 c);
+    ContinuityDataRowBody<false>(n, row_weight, pin, ps, ux, uy, vx, vy, pw, p0, a, b, r, w, c);
 }
 
 // out = 1 where (x, y) + (u, v) lies in [0, wmax] x [0, hmax], else 0
@@ -208,11 +200,11 @@ QOGI_ALWAYS_INLINE void InvertBlock(float d11, float d12, float d22, float& pa, 
 // regularisation's diagonal there, c_up / c_dn the rows above and below (a
 // zero row beyond the frame).
 template <bool kContinuity>
-QOGI_ALWAYS_INLINE void BlockInverseRowBody(int x0, int x1, float reg, const float* QOGI_RESTRICT a,
-                     const float* QOGI_RESTRICT b, const float* QOGI_RESTRICT w,
-                     const float* QOGI_RESTRICT c, const float* QOGI_RESTRICT c_up,
-                     const float* QOGI_RESTRICT c_dn, float* QOGI_RESTRICT pa,
-                     float* QOGI_RESTRICT pb, float* QOGI_RESTRICT pc) {
+QOGI_ALWAYS_INLINE void BlockInverseRowBody(
+    int x0, int x1, float reg, const float* QOGI_RESTRICT a, const float* QOGI_RESTRICT b,
+    const float* QOGI_RESTRICT w, const float* QOGI_RESTRICT c, const float* QOGI_RESTRICT c_up,
+    const float* QOGI_RESTRICT c_dn, float* QOGI_RESTRICT pa, float* QOGI_RESTRICT pb,
+    float* QOGI_RESTRICT pc) {
   for (int x = x0; x < x1; ++x) {
     float d11, d12, d22;
     if (!kContinuity) {
@@ -231,12 +223,11 @@ QOGI_ALWAYS_INLINE void BlockInverseRowBody(int x0, int x1, float reg, const flo
 
 // BlockInverseRowBody for the data model given at run time.
 QOGI_VELOCIMETRY_KERNEL
-void BlockInverseRow(bool continuity, int x0, int x1, float reg,
-                     const float* QOGI_RESTRICT a, const float* QOGI_RESTRICT b,
-                     const float* QOGI_RESTRICT w, const float* QOGI_RESTRICT c,
-                     const float* QOGI_RESTRICT c_up, const float* QOGI_RESTRICT c_dn,
-                     float* QOGI_RESTRICT pa, float* QOGI_RESTRICT pb,
-                     float* QOGI_RESTRICT pc) {
+void BlockInverseRow(bool continuity, int x0, int x1, float reg, const float* QOGI_RESTRICT a,
+                     const float* QOGI_RESTRICT b, const float* QOGI_RESTRICT w,
+                     const float* QOGI_RESTRICT c, const float* QOGI_RESTRICT c_up,
+                     const float* QOGI_RESTRICT c_dn, float* QOGI_RESTRICT pa,
+                     float* QOGI_RESTRICT pb, float* QOGI_RESTRICT pc) {
   if (continuity)
     BlockInverseRowBody<true>(x0, x1, reg, a, b, w, c, c_up, c_dn, pa, pb, pc);
   else
@@ -255,10 +246,11 @@ void GaussianAux(const cv::Mat& src, cv::Mat& dst, double sigma) {
 // the preconditioner's off-diagonal pb is zero (continuity), not read.
 template <bool kDiagonal>
 QOGI_ALWAYS_INLINE void UpdateResidualBody(int n, float step, const float* QOGI_RESTRICT qu,
-                    const float* QOGI_RESTRICT qv, const float* QOGI_RESTRICT pa,
-                    const float* QOGI_RESTRICT pb, const float* QOGI_RESTRICT pc,
-                    float* QOGI_RESTRICT ru, float* QOGI_RESTRICT rv, float& rz,
-                    float& rr) {
+                                           const float* QOGI_RESTRICT qv,
+                                           const float* QOGI_RESTRICT pa,
+                                           const float* QOGI_RESTRICT pb,
+                                           const float* QOGI_RESTRICT pc, float* QOGI_RESTRICT ru,
+                                           float* QOGI_RESTRICT rv, float& rz, float& rr) {
   float sz = 0.f, sr = 0.f;
   for (int i = 0; i < n; ++i) {
     const float a = ru[i] - step * qu[i], b = rv[i] - step * qv[i];
@@ -276,11 +268,11 @@ QOGI_ALWAYS_INLINE void UpdateResidualBody(int n, float step, const float* QOGI_
 
 // x += step p; p = P res + beta p.
 template <bool kDiagonal>
-QOGI_ALWAYS_INLINE void UpdateDirectionBody(int n, float step, float beta, const float* QOGI_RESTRICT ru,
-                     const float* QOGI_RESTRICT rv, const float* QOGI_RESTRICT pa,
-                     const float* QOGI_RESTRICT pb, const float* QOGI_RESTRICT pc,
-                     float* QOGI_RESTRICT xu, float* QOGI_RESTRICT xv,
-                     float* QOGI_RESTRICT pu, float* QOGI_RESTRICT pv) {
+QOGI_ALWAYS_INLINE void UpdateDirectionBody(
+    int n, float step, float beta, const float* QOGI_RESTRICT ru, const float* QOGI_RESTRICT rv,
+    const float* QOGI_RESTRICT pa, const float* QOGI_RESTRICT pb, const float* QOGI_RESTRICT pc,
+    float* QOGI_RESTRICT xu, float* QOGI_RESTRICT xv, float* QOGI_RESTRICT pu,
+    float* QOGI_RESTRICT pv) {
   for (int i = 0; i < n; ++i) {
     xu[i] += step * pu[i];
     xv[i] += step * pv[i];
@@ -299,8 +291,8 @@ QOGI_ALWAYS_INLINE void UpdateDirectionBody(int n, float step, float beta, const
 // does not take function templates.)
 QOGI_VELOCIMETRY_KERNEL
 void UpdateResidual(bool diagonal, int n, float step, const float* qu, const float* qv,
-                    const float* pa, const float* pb, const float* pc, float* ru,
-                    float* rv, float& rz, float& rr) {
+                    const float* pa, const float* pb, const float* pc, float* ru, float* rv,
+                    float& rz, float& rr) {
   if (diagonal)
     UpdateResidualBody<true>(n, step, qu, qv, pa, pb, pc, ru, rv, rz, rr);
   else
@@ -308,9 +300,9 @@ void UpdateResidual(bool diagonal, int n, float step, const float* qu, const flo
 }
 
 QOGI_VELOCIMETRY_KERNEL
-void UpdateDirection(bool diagonal, int n, float step, float beta, const float* ru,
-                     const float* rv, const float* pa, const float* pb, const float* pc,
-                     float* xu, float* xv, float* pu, float* pv) {
+void UpdateDirection(bool diagonal, int n, float step, float beta, const float* ru, const float* rv,
+                     const float* pa, const float* pb, const float* pc, float* xu, float* xv,
+                     float* pu, float* pv) {
   if (diagonal)
     UpdateDirectionBody<true>(n, step, beta, ru, rv, pa, pb, pc, xu, xv, pu, pv);
   else
@@ -319,9 +311,9 @@ void UpdateDirection(bool diagonal, int n, float step, float beta, const float* 
 
 }  // namespace
 
-void VariationalSolver::Solve(const cv::Mat& prev, const cv::Mat& next,
-                              const cv::Mat& mask, const cv::Mat& source, bool warm,
-                              const VariationalSettings& s, FlowField& flow) {
+void VariationalSolver::Solve(const cv::Mat& prev, const cv::Mat& next, const cv::Mat& mask,
+                              const cv::Mat& source, bool warm, const VariationalSettings& s,
+                              FlowField& flow) {
   data_ = s.data;
   alpha_ = s.alpha;
   alpha_div_ = s.alpha_div;
@@ -364,9 +356,8 @@ void VariationalSolver::Solve(const cv::Mat& prev, const cv::Mat& next,
   }
   // With a warm start the large motion is known: only the finest
   // warm_levels levels refine it (all levels when 0).
-  const int top = (warm && s.warm_levels > 0)
-                      ? std::min(levels - 1, finest + s.warm_levels - 1)
-                      : levels - 1;
+  const int top =
+      (warm && s.warm_levels > 0) ? std::min(levels - 1, finest + s.warm_levels - 1) : levels - 1;
   coarsest_ = levels - 1;
   const cv::Size top_size = p0_[top].size();
   if (warm) {
@@ -456,8 +447,8 @@ void VariationalSolver::SolveLevel(int level, int finest, const VariationalSetti
       std::fill(pu + b, pu + b + len, 0.f);
       std::fill(pv + b, pv + b + len, 0.f);
       float rz = 0.f, rr = 0.f;
-      UpdateResidual(diagonal, len, 0.f, qu + b, qv + b, pa + b, pb + b, pc + b, ru + b, rv + b,
-                     rz, rr);
+      UpdateResidual(diagonal, len, 0.f, qu + b, qv + b, pa + b, pb + b, pc + b, ru + b, rv + b, rz,
+                     rr);
       UpdateDirection(diagonal, len, 0.f, 0.f, ru + b, rv + b, pa + b, pb + b, pc + b, xu + b,
                       xv + b, pu + b, pv + b);
       prz[st] = rz;
@@ -488,16 +479,16 @@ void VariationalSolver::SolveLevel(int level, int finest, const VariationalSetti
       // x += step p (and, unless done, the next search direction).
       ParallelStripes(H, W, [&](int, int y0, int y1) {
         const std::size_t b = static_cast<std::size_t>(y0) * W;
-        UpdateDirection(diagonal, (y1 - y0) * W, step, beta, ru + b, rv + b, pa + b, pb + b,
-                        pc + b, xu + b, xv + b, pu + b, pv + b);
+        UpdateDirection(diagonal, (y1 - y0) * W, step, beta, ru + b, rv + b, pa + b, pb + b, pc + b,
+                        xu + b, xv + b, pu + b, pv + b);
       });
       if (done) break;
     }
     float* fu = u_.ptr<float>();
     float* fv = v_.ptr<float>();
     ParallelStripes(H, W, [&](int, int y0, int y1) {
-      for (std::size_t k = static_cast<std::size_t>(y0) * W;
-           k < static_cast<std::size_t>(y1) * W; ++k) {
+      for (std::size_t k = static_cast<std::size_t>(y0) * W; k < static_cast<std::size_t>(y1) * W;
+           ++k) {
         fu[k] += xu[k];
         fv[k] += xv[k];
       }
@@ -558,8 +549,8 @@ void VariationalSolver::Linearise(int level, const VariationalSettings& s) {
       const float* vx = vx_.ptr<float>(y);
       const float* vy = vy_.ptr<float>(y);
       const float row_weight = (y == 0 || y == H - 1) ? 0.f : 1.f;
-      ContinuityDataRow(ps != nullptr, W, row_weight, pin, ps, ux, uy, vx, vy, pw, p0, a, b,
-                        r, w, c);
+      ContinuityDataRow(ps != nullptr, W, row_weight, pin, ps, ux, uy, vx, vy, pw, p0, a, b, r, w,
+                        c);
     }
   });
   // Inverse of the 2 x 2 diagonal blocks of A^T W A + R.
@@ -625,10 +616,8 @@ void VariationalSolver::Linearise(int level, const VariationalSettings& s) {
   });
   const double sigma = div_curl_scale_ / static_cast<double>(1 << level);
   if (sigma >= 0.3) {
-    if (has_div)
-      GaussianAux(xi_, xi_, sigma);
-    if (has_curl)
-      GaussianAux(zeta_, zeta_, sigma);
+    if (has_div) GaussianAux(xi_, xi_, sigma);
+    if (has_curl) GaussianAux(zeta_, zeta_, sigma);
   }
 }
 
@@ -672,16 +661,16 @@ void VariationalSolver::ForwardPass(const float* pu, const float* pv, bool rhs) 
         if (rhs) {
           for (int x = 1; x < W - 1; ++x) gr[x] = w[row + x] * b[row + x] * r[row + x];
         } else {
-          ForwardContRow(W, c + row, a + row, a + row - W, a + row + W, pu + row,
-                         pv + row - W, pv + row + W, gr);
+          ForwardContRow(W, c + row, a + row, a + row - W, a + row + W, pu + row, pv + row - W,
+                         pv + row + W, gr);
         }
       }
       if (dc) {
         float* dr = del + row;
         float* kr = kap + row;
         dr[0] = dr[W - 1] = kr[0] = kr[W - 1] = 0.f;
-        DivCurlRow(W, ad, ac, pu + row, pu + row - W, pu + row + W, pv + row,
-                   pv + row - W, pv + row + W, dr, has_curl ? kr : nullptr);
+        DivCurlRow(W, ad, ac, pu + row, pu + row - W, pu + row + W, pv + row, pv + row - W,
+                   pv + row + W, dr, has_curl ? kr : nullptr);
         if (!has_curl) std::fill(kr, kr + W, 0.f);
         if (rhs) {
           const float* pxi = xi_.ptr<float>(y);
@@ -696,8 +685,7 @@ void VariationalSolver::ForwardPass(const float* pu, const float* pv, bool rhs) 
   });
 }
 
-double VariationalSolver::AdjointPass(const float* pu, const float* pv, float* ou,
-                                      float* ov) {
+double VariationalSolver::AdjointPass(const float* pu, const float* pv, float* ou, float* ov) {
   const int W = W_, H = H_;
   const bool cont = data_ == DataModel::kContinuity;
   const bool has_curl = alpha_curl_ > 0;
@@ -733,12 +721,12 @@ double VariationalSolver::AdjointPass(const float* pu, const float* pv, float* o
       const float* pv_up = pv + (top ? row : row - W);
       const float* pv_dn = pv + (bottom ? row : row + W);
       if (dc) {
-        DivCurlAdjointRow(W, del + row, del_up, del_dn, has_curl ? kap + row : nullptr,
-                          kap_up, kap_dn, ou + row, ov + row);
+        DivCurlAdjointRow(W, del + row, del_up, del_dn, has_curl ? kap + row : nullptr, kap_up,
+                          kap_dn, ou + row, ov + row);
       }
-      const float d = AdjointRow(cont, dc, W, alpha, a + row, b + row, g + row, g_up, g_dn,
-                                 pu + row, pu_up, pu_dn, pv + row, pv_up, pv_dn, ou + row,
-                                 ov + row);
+      const float d =
+          AdjointRow(cont, dc, W, alpha, a + row, b + row, g + row, g_up, g_dn, pu + row, pu_up,
+                     pu_dn, pv + row, pv_up, pv_dn, ou + row, ov + row);
       dot += d;
       // The frame's first and last column.
       for (const int x : {0, W - 1}) {
@@ -754,8 +742,14 @@ double VariationalSolver::AdjointPass(const float* pu, const float* pv, float* o
           sv = b[k] * g[k];
         }
         float lu = 0.f, lv = 0.f;
-        if (left) { lu += pu[k] - pu[k - 1]; lv += pv[k] - pv[k - 1]; }
-        if (right) { lu += pu[k] - pu[k + 1]; lv += pv[k] - pv[k + 1]; }
+        if (left) {
+          lu += pu[k] - pu[k - 1];
+          lv += pv[k] - pv[k - 1];
+        }
+        if (right) {
+          lu += pu[k] - pu[k + 1];
+          lv += pv[k] - pv[k + 1];
+        }
         lu += pu[k] - pu_up[x];
         lv += pv[k] - pv_up[x];
         lu += pu[k] - pu_dn[x];
@@ -823,8 +817,8 @@ void VariationalSolver::FinalResidual(int level, FlowField& flow, const cv::Mat&
       }
     }
   }
-  flow.residual_ratio = sum_before > 0 ? sum_after / sum_before
-                                       : std::numeric_limits<double>::quiet_NaN();
+  flow.residual_ratio =
+      sum_before > 0 ? sum_after / sum_before : std::numeric_limits<double>::quiet_NaN();
   if (level == 0) {
     QualityFromResidual(residual, valid, flow.quality);
   } else {
@@ -834,8 +828,8 @@ void VariationalSolver::FinalResidual(int level, FlowField& flow, const cv::Mat&
   // Validity at full resolution: x + w inside the frame, inside the mask.
   const int W = flow.u.cols, H = flow.u.rows;
   for (int y = 0; y < H; ++y)
-    InsideRow(W, y, static_cast<float>(W - 1), static_cast<float>(H - 1),
-              flow.u.ptr<float>(y), flow.v.ptr<float>(y), flow.valid.ptr<uchar>(y));
+    InsideRow(W, y, static_cast<float>(W - 1), static_cast<float>(H - 1), flow.u.ptr<float>(y),
+              flow.v.ptr<float>(y), flow.valid.ptr<uchar>(y));
   ApplyMask(mask, flow.u, flow.v, flow.valid);
 }
 

@@ -74,9 +74,8 @@ class VariationalSolver {
  public:
   // mask: the gas mask (may be empty); source: where gas may enter the image
   // (continuity only; may be empty).
-  void Solve(const cv::Mat& prev, const cv::Mat& next, const cv::Mat& mask,
-             const cv::Mat& source, bool warm, const VariationalSettings& s,
-             FlowField& flow);
+  void Solve(const cv::Mat& prev, const cv::Mat& next, const cv::Mat& mask, const cv::Mat& source,
+             bool warm, const VariationalSettings& s, FlowField& flow);
 
  private:
   void SolveLevel(int level, int finest, const VariationalSettings& s);

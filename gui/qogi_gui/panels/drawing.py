@@ -78,8 +78,9 @@ class SurfaceEditor:
         if self.mode in ("line", "polyline"):
             if self.drawing is None:
                 n = len(self.surfaces)
-                self.drawing = SurfaceDraft(self._new_name(),
-                                            colour=SURFACE_COLOURS[n % len(SURFACE_COLOURS)])
+                self.drawing = SurfaceDraft(
+                    self._new_name(), colour=SURFACE_COLOURS[n % len(SURFACE_COLOURS)]
+                )
             if self.drawing.points and math.dist(self.drawing.points[-1], (x, y)) < 1e-6:
                 return vm.log.error("that point repeats the previous one: click somewhere else")
             self.drawing.points.append((float(x), float(y)))
@@ -92,16 +93,19 @@ class SurfaceEditor:
                 self._corner = (float(x), float(y))
                 vm.rev["surfaces"] += 1
                 return True
-            region = RegionDraft.from_corners(self._corner, (x, y), vm.recording.width,
-                                              vm.recording.height)
+            region = RegionDraft.from_corners(
+                self._corner, (x, y), vm.recording.width, vm.recording.height
+            )
             self._corner = None
             if region.n_pixels < 1:
                 return vm.log.error("the region holds no pixel centre: drag a larger rectangle")
             return self.set_region(region)
         if self.mode == "source":
             vm.form.set_source(x, y)
-            vm.log.info(f"source set at ({x:.1f}, {y:.1f}) px: surfaces are oriented so that "
-                        "flow away from it counts positive")
+            vm.log.info(
+                f"source set at ({x:.1f}, {y:.1f}) px: surfaces are oriented so that "
+                "flow away from it counts positive"
+            )
             return True
         # view / edit: select the nearest surface
         best = None
@@ -138,8 +142,10 @@ class SurfaceEditor:
         self.surfaces.append(d)
         self.selected = len(self.surfaces) - 1
         self.vm.run.inputs_changed()
-        self.vm.log.info(f"surface {d.name} drawn ({len(d.points)} points); the arrow shows the "
-                         "direction counted positive")
+        self.vm.log.info(
+            f"surface {d.name} drawn ({len(d.points)} points); the arrow shows the "
+            "direction counted positive"
+        )
         return True
 
     def cancel_drawing(self) -> None:
@@ -166,11 +172,14 @@ class SurfaceEditor:
         r = vm.recording
         bad = [p for p in pts if not (0 <= p[0] <= r.width - 1 and 0 <= p[1] <= r.height - 1)]
         if bad:
-            return vm.log.error(f"surface point {bad[0]} is outside the image: x must be in "
-                                f"[0, {r.width - 1}] and y in [0, {r.height - 1}] px")
+            return vm.log.error(
+                f"surface point {bad[0]} is outside the image: x must be in "
+                f"[0, {r.width - 1}] and y in [0, {r.height - 1}] px"
+            )
         n = len(self.surfaces)
-        d = SurfaceDraft(name.strip() or self._new_name(), pts,
-                         SURFACE_COLOURS[n % len(SURFACE_COLOURS)])
+        d = SurfaceDraft(
+            name.strip() or self._new_name(), pts, SURFACE_COLOURS[n % len(SURFACE_COLOURS)]
+        )
         if not d.complete:
             return vm.log.error("a surface needs at least two distinct points")
         if any(s.name == d.name for s in self.surfaces):
@@ -198,15 +207,18 @@ class SurfaceEditor:
             return vm.log.error("give one or more distances > 0 px, e.g. 30, 60, 90")
         source = vm.form.source_point()
         try:
-            found, src = qogi.auto_surfaces(qogi.plume_image(vm.recording), dists,
-                                            source=source, return_source=True)
+            found, src = qogi.auto_surfaces(
+                qogi.plume_image(vm.recording), dists, source=source, return_source=True
+            )
         except ValueError as e:
             return vm.log.error(f"automatic surfaces: {e}")
         r = vm.recording
         added = 0
         for surf in found:
-            pts = [(min(max(x, 0.0), r.width - 1.0), min(max(y, 0.0), r.height - 1.0))
-                   for x, y in surf.points]
+            pts = [
+                (min(max(x, 0.0), r.width - 1.0), min(max(y, 0.0), r.height - 1.0))
+                for x, y in surf.points
+            ]
             name = surf.name
             k = 2
             while any(s.name == name for s in self.surfaces):
@@ -217,9 +229,11 @@ class SurfaceEditor:
         if source is None:
             vm.form.set_source(*src)
             vm.rev["surfaces"] += 1
-        vm.log.info(f"{added} surface(s) placed across the plume at "
-                    f"{', '.join(f'{d:g}' for d in dists)} px from the source at "
-                    f"({src[0]:.1f}, {src[1]:.1f}) px")
+        vm.log.info(
+            f"{added} surface(s) placed across the plume at "
+            f"{', '.join(f'{d:g}' for d in dists)} px from the source at "
+            f"({src[0]:.1f}, {src[1]:.1f}) px"
+        )
         return added > 0
 
     def _surface(self, index: int) -> Optional[SurfaceDraft]:
@@ -236,7 +250,7 @@ class SurfaceEditor:
         if not 0 <= vertex < len(s.points):
             return self.vm.log.error(f"surface {s.name} has no point {vertex}")
         x, y = self._snap(x, y)
-        others = s.points[:vertex] + s.points[vertex + 1:]
+        others = s.points[:vertex] + s.points[vertex + 1 :]
         if any(math.dist(p, (x, y)) < 1e-6 for p in others):
             return self.vm.log.error("two points of a surface cannot coincide")
         s.points[vertex] = (x, y)
@@ -284,13 +298,18 @@ class SurfaceEditor:
             r = vm.recording
             if r is None:
                 return vm.log.error("open a recording before picking a region")
-            if not (0 <= region.x0 < region.x1 <= r.width and 0 <= region.y0 < region.y1
-                    <= r.height):
-                return vm.log.error(f"region {region.as_tuple()} is not a rectangle inside the "
-                                    f"{r.width}x{r.height} image")
+            if not (
+                0 <= region.x0 < region.x1 <= r.width and 0 <= region.y0 < region.y1 <= r.height
+            ):
+                return vm.log.error(
+                    f"region {region.as_tuple()} is not a rectangle inside the "
+                    f"{r.width}x{r.height} image"
+                )
             settings.background = "region"
-            vm.log.info(f"background region x {region.x0}..{region.x1 - 1}, y {region.y0}.."
-                        f"{region.y1 - 1} ({region.n_pixels} pixels)")
+            vm.log.info(
+                f"background region x {region.x0}..{region.x1 - 1}, y {region.y0}.."
+                f"{region.y1 - 1} ({region.n_pixels} pixels)"
+            )
         elif settings.background == "region":
             settings.background = BACKGROUNDS[0]
         self.region = region

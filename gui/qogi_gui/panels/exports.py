@@ -8,8 +8,16 @@ from pathlib import Path
 import numpy as np
 
 from .. import display
-from ..export import (ExportError, check_writable, render_frame_rgb, report_text,
-                      write_frame_png, write_pdf_report, write_plots, write_report)
+from ..export import (
+    ExportError,
+    check_writable,
+    render_frame_rgb,
+    report_text,
+    write_frame_png,
+    write_pdf_report,
+    write_plots,
+    write_report,
+)
 
 __all__ = ["Exporter"]
 
@@ -48,6 +56,7 @@ class Exporter:
             p = check_writable(path)
             self.vm.run.result.to_csv(str(p))
             return p
+
         return self._export("CSV", go)
 
     def export_json(self, path) -> bool:
@@ -59,6 +68,7 @@ class Exporter:
             p = check_writable(path)
             self.vm.run.result.to_json(str(p))
             return p
+
         return self._export("JSON", go)
 
     def export_plots(self, path) -> bool:
@@ -66,8 +76,9 @@ class Exporter:
         if not self._need_result():
             return False
         run = self.vm.run
-        return self._export("plots", lambda: write_plots(run.result, path,
-                                                         maps=run.result_has_maps))
+        return self._export(
+            "plots", lambda: write_plots(run.result, path, maps=run.result_has_maps)
+        )
 
     def frame_picture(self, zoom: int = 3) -> np.ndarray:
         """What the image shows (frame, overlay, surfaces, region, source) as
@@ -77,8 +88,9 @@ class Exporter:
         over = vm.overlay.render()
         if over is not None:
             rgba = display.blend(rgba, over)
-        return render_frame_rgb(rgba, vm.editor.surfaces, vm.editor.region, zoom=zoom,
-                                source=vm.form.source_point())
+        return render_frame_rgb(
+            rgba, vm.editor.surfaces, vm.editor.region, zoom=zoom, source=vm.form.source_point()
+        )
 
     def export_frame(self, path) -> bool:
         """The current frame as shown, as PNG."""
@@ -88,8 +100,9 @@ class Exporter:
 
     def report(self, files=()) -> str:
         vm = self.vm
-        return report_text(vm.run.result, vm.file.summary, vm.run.result_surfaces,
-                           vm.run.result_settings, files)
+        return report_text(
+            vm.run.result, vm.file.summary, vm.run.result_surfaces, vm.run.result_settings, files
+        )
 
     def export_report(self, path) -> bool:
         """The report of the result: a PDF (``qogi.report``, the same as
@@ -97,8 +110,9 @@ class Exporter:
         if not self._need_result():
             return False
         if Path(os.fspath(path)).suffix.lower() == ".pdf":
-            return self._export("report", lambda: write_pdf_report(self.vm.run.result, path,
-                                                                   self.vm.recording))
+            return self._export(
+                "report", lambda: write_pdf_report(self.vm.run.result, path, self.vm.recording)
+            )
         return self._export("report", lambda: write_report(path, self.report()))
 
     def export_all(self, folder, stem: str = "qogi") -> bool:
@@ -109,14 +123,19 @@ class Exporter:
         f = Path(os.fspath(folder)).expanduser()
         if not f.is_dir():
             return self.vm.log.error(f"could not export: the folder {f} does not exist")
-        ok = (self.export_csv(f / f"{stem}.csv") and self.export_json(f / f"{stem}.json")
-              and self.export_plots(f / f"{stem}_rates.png")
-              and self.export_frame(f / f"{stem}_frame.png"))
+        ok = (
+            self.export_csv(f / f"{stem}.csv")
+            and self.export_json(f / f"{stem}.json")
+            and self.export_plots(f / f"{stem}_rates.png")
+            and self.export_frame(f / f"{stem}_frame.png")
+        )
         if not ok:
             return False
         if not self.export_report(f / f"{stem}_report.pdf"):
             return False
-        files = sorted(p for p in f.glob(f"{stem}*")
-                       if p.suffix in (".csv", ".json", ".png", ".pdf"))
-        return self._export("report", lambda: write_report(f / f"{stem}_report.md",
-                                                           self.report(files)))
+        files = sorted(
+            p for p in f.glob(f"{stem}*") if p.suffix in (".csv", ".json", ".png", ".pdf")
+        )
+        return self._export(
+            "report", lambda: write_report(f / f"{stem}_report.md", self.report(files))
+        )

@@ -37,8 +37,12 @@ class Overlay:
             return None
         key = (vm.rev["result"], vm.player.frame)
         if self._maps_cache[0] != key:
-            self._maps_cache = (key, results.frame_maps(
-                vm.run.result, vm.player.frame, (vm.recording.height, vm.recording.width)))
+            self._maps_cache = (
+                key,
+                results.frame_maps(
+                    vm.run.result, vm.player.frame, (vm.recording.height, vm.recording.width)
+                ),
+            )
         return self._maps_cache[1]
 
     def species(self) -> Optional[str]:
@@ -64,13 +68,20 @@ class Overlay:
         """Show the next (direction > 0) or previous frame that has maps."""
         frames = self.map_frames()
         if not frames:
-            return self.vm.log.error("the result holds no per-pixel maps: run with 'keep "
-                                     "per-pixel maps' ticked")
+            return self.vm.log.error(
+                "the result holds no per-pixel maps: run with 'keep per-pixel maps' ticked"
+            )
         player = self.vm.player
-        later = [f for f in frames if f > player.frame] if direction > 0 else \
-            [f for f in frames if f < player.frame]
-        target = (later[0] if direction > 0 else later[-1]) if later else \
-            (frames[0] if direction > 0 else frames[-1])
+        later = (
+            [f for f in frames if f > player.frame]
+            if direction > 0
+            else [f for f in frames if f < player.frame]
+        )
+        target = (
+            (later[0] if direction > 0 else later[-1])
+            if later
+            else (frames[0] if direction > 0 else frames[-1])
+        )
         player.playing = False
         player.seek(target)
         return True
@@ -82,11 +93,15 @@ class Overlay:
             return 0.0
         if sp not in self._vmax:
             kept = self.map_frames()
-            frames = [kept[int(i)] for i in np.linspace(0, len(kept) - 1,
-                                                        min(8, len(kept))).round()] if kept else []
+            frames = (
+                [kept[int(i)] for i in np.linspace(0, len(kept) - 1, min(8, len(kept))).round()]
+                if kept
+                else []
+            )
             rec = self.vm.recording
-            self._vmax[sp] = results.overlay_scale(self.vm.run.result, sp, frames,
-                                                   (rec.height, rec.width))
+            self._vmax[sp] = results.overlay_scale(
+                self.vm.run.result, sp, frames, (rec.height, rec.width)
+            )
         return self._vmax[sp]
 
     def render(self) -> Optional[np.ndarray]:
@@ -103,8 +118,9 @@ class Overlay:
         vmax = self.vmax()
         if col is None or not vmax > 0:
             return None
-        return display.colorize_overlay(col, vmax, display.colormap_lut(d.overlay_colormap),
-                                        out=self._buffer)
+        return display.colorize_overlay(
+            col, vmax, display.colormap_lut(d.overlay_colormap), out=self._buffer
+        )
 
     def vectors(self, spacing: int = 12) -> Tuple[np.ndarray, np.ndarray, float]:
         """Velocity arrows (tails, heads, scale) of the shown frame where the
@@ -119,5 +135,6 @@ class Overlay:
         sp = self.species()
         col = maps.get("column_density_kg_m2", {}).get(sp) if sp else None
         vmax = self.vmax()
-        return results.vector_field(u, v, weight=col, spacing=spacing,
-                                    min_weight=0.05 * vmax if col is not None else 0.0)
+        return results.vector_field(
+            u, v, weight=col, spacing=spacing, min_weight=0.05 * vmax if col is not None else 0.0
+        )

@@ -22,7 +22,7 @@ class Playback:
         self.frame = 0
         self.playing = False
         self.speed = 1.0
-        self._play_t = 0.0              # playback time since the first frame [s]
+        self._play_t = 0.0  # playback time since the first frame [s]
         self._last_tick: Optional[float] = None
 
     def reset(self, recording) -> None:

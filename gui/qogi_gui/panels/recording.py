@@ -39,8 +39,10 @@ class RecordingPanel:
         :meth:`ViewModel.poll` sees it done; the window keeps drawing meanwhile."""
         vm = self.vm
         if vm.work.busy:
-            return vm.log.error(f"the {vm.work.job.name} is still running: cancel it or wait "
-                                "before opening another recording")
+            return vm.log.error(
+                f"the {vm.work.job.name} is still running: cancel it or wait "
+                "before opening another recording"
+            )
         p = os.path.abspath(os.path.expanduser(os.fspath(path))) if str(path).strip() else ""
         if not p:
             return vm.log.error("no file chosen: pick a recording (.h5) or a camera file to open")
@@ -49,8 +51,11 @@ class RecordingPanel:
             return False
         if background:
             self._opening = p
-            vm.work.start(Job("opening the recording", lambda progress: self._open_file(p, facts)),
-                          "open", self._open_finished)
+            vm.work.start(
+                Job("opening the recording", lambda progress: self._open_file(p, facts)),
+                "open",
+                self._open_finished,
+            )
             return True
         try:
             rec, warning = self._open_file(p, facts)
@@ -77,8 +82,10 @@ class RecordingPanel:
             if "non-finite" not in str(e) or getattr(e, "location", "") != "/frames":
                 raise
         rec = api.open_recording(p, nonfinite="invalid")
-        return rec, (f"{rec.n_invalid} non-finite pixel values in {p} are treated as invalid "
-                     "pixels (shown transparent, not quantified)")
+        return rec, (
+            f"{rec.n_invalid} non-finite pixel values in {p} are treated as invalid "
+            "pixels (shown transparent, not quantified)"
+        )
 
     def _opened(self, rec, p: str, warning: str) -> bool:
         vm = self.vm
@@ -90,8 +97,10 @@ class RecordingPanel:
         vm.store.add_recent(p)
         if vm.store.warning:
             vm.log.warn(vm.store.warning)
-        vm.log.info(f"opened {p}: {rec.n_frames} frames x {rec.n_channels} channel(s), "
-                    f"{rec.width}x{rec.height} px, {rec.camera.frame_rate_hz:g} Hz")
+        vm.log.info(
+            f"opened {p}: {rec.n_frames} frames x {rec.n_channels} channel(s), "
+            f"{rec.width}x{rec.height} px, {rec.camera.frame_rate_hz:g} Hz"
+        )
         return True
 
     def _open_failed(self, path: str, e: Exception) -> bool:
@@ -102,9 +111,14 @@ class RecordingPanel:
             # A camera file whose remembered facts no longer fit (e.g. a camera
             # whose band is not the file's): ask again, saying why.
             from qogi.io.open import scene_needs
+
             try:
-                self._ask_scene(path, scene_needs(path), vm.store.scene_for(path) or {},
-                                error=f"could not open {os.path.basename(path)}: {e}")
+                self._ask_scene(
+                    path,
+                    scene_needs(path),
+                    vm.store.scene_for(path) or {},
+                    error=f"could not open {os.path.basename(path)}: {e}",
+                )
                 return False
             except (ValueError, OSError):
                 pass
@@ -118,7 +132,7 @@ class RecordingPanel:
         if vm.recording is not None and vm.recording is not rec:
             try:
                 vm.recording.close()
-            except Exception:  # closing a file we are done with must not stop the new one
+            except Exception:  # noqa: BLE001 - closing a file we are done with must not stop the new one
                 pass
         vm.recording, self.path = rec, path
         self.summary = rec.summary()
@@ -151,17 +165,23 @@ class RecordingPanel:
         from ..scene_form import FIELDS, SceneRequest
 
         self.scene_request = SceneRequest(
-            path=p, kind=needs["kind"], needs=list(needs["needs"]), holds=dict(needs["holds"]),
+            path=p,
+            kind=needs["kind"],
+            needs=list(needs["needs"]),
+            holds=dict(needs["holds"]),
             defaults=list(needs["defaults"]),
             values={k: "" if values.get(k) is None else str(values.get(k)) for k in FIELDS},
-            error=error)
+            error=error,
+        )
         self.vm.rev["scene_request"] += 1
         missing = ", ".join(FIELDS[k][0] for k in needs["needs"])
         if error:
             self.vm.log.error(error)
         else:
-            self.vm.log.info(f"{os.path.basename(p)} is a camera file: give the scene facts it "
-                             f"does not hold ({missing}) in the form")
+            self.vm.log.info(
+                f"{os.path.basename(p)} is a camera file: give the scene facts it "
+                f"does not hold ({missing}) in the form"
+            )
 
     def submit_scene(self, values: dict) -> bool:
         """Open the pending camera file with the form's ``values`` (text per
@@ -220,25 +240,35 @@ class RecordingPanel:
         if not s:
             return []
         cam, fr, sc = s["camera"], s["frames"], s["scene"]
-        rows = [("file", str(s["path"])),
-                ("camera", str(cam["name"])),
-                ("pixel field of view", f"{cam['ifov_rad'] * 1e3:.4g} mrad"),
-                ("frame rate", f"{cam['frame_rate_hz']:.4g} Hz"),
-                ("NETD", f"{cam['netd_K'] * 1e3:.3g} mK" if cam.get("netd_K") else "-"),
-                ("frames", f"{fr['T']} x {fr['C']} channel(s) x {fr['W']}x{fr['H']} px"),
-                ("duration", f"{fr['duration_s']:.3f} s"),
-                ("stored quantity", f"{fr['quantity']} [{fr['unit']}]")]
+        rows = [
+            ("file", str(s["path"])),
+            ("camera", str(cam["name"])),
+            ("pixel field of view", f"{cam['ifov_rad'] * 1e3:.4g} mrad"),
+            ("frame rate", f"{cam['frame_rate_hz']:.4g} Hz"),
+            ("NETD", f"{cam['netd_K'] * 1e3:.3g} mK" if cam.get("netd_K") else "-"),
+            ("frames", f"{fr['T']} x {fr['C']} channel(s) x {fr['W']}x{fr['H']} px"),
+            ("duration", f"{fr['duration_s']:.3f} s"),
+            ("stored quantity", f"{fr['quantity']} [{fr['unit']}]"),
+        ]
         for ch in s["channels"]:
             lo, hi = ch["half_max_cm1"]
-            rows.append((f"channel {ch['index']}",
-                         f"{ch['name']}: {1e4 / hi:.3f}-{1e4 / lo:.3f} um (half max), "
-                         f"centroid {ch['centroid_um']:.3f} um"))
-        rows += [("distance", f"{sc['distance_m']:g} m"),
-                 ("ambient temperature", f"{sc['ambient_temperature_K']:.2f} K"),
-                 ("pressure", f"{sc['pressure_Pa']:.0f} Pa")]
-        for key, label, unit in (("wind_speed_m_s", "wind speed", "m/s"),
-                                 ("gas_temperature_K", "gas temperature", "K"),
-                                 ("background_temperature_K", "background temperature", "K")):
+            rows.append(
+                (
+                    f"channel {ch['index']}",
+                    f"{ch['name']}: {1e4 / hi:.3f}-{1e4 / lo:.3f} um (half max), "
+                    f"centroid {ch['centroid_um']:.3f} um",
+                )
+            )
+        rows += [
+            ("distance", f"{sc['distance_m']:g} m"),
+            ("ambient temperature", f"{sc['ambient_temperature_K']:.2f} K"),
+            ("pressure", f"{sc['pressure_Pa']:.0f} Pa"),
+        ]
+        for key, label, unit in (
+            ("wind_speed_m_s", "wind speed", "m/s"),
+            ("gas_temperature_K", "gas temperature", "K"),
+            ("background_temperature_K", "background temperature", "K"),
+        ):
             if sc.get(key) is not None:
                 rows.append((label, f"{sc[key]:g} {unit}"))
         if sc.get("species"):

@@ -48,13 +48,15 @@ class RunPanel:
         if editor.drawing is not None:
             editor.finish_drawing()
         if not editor.surfaces:
-            return error("draw at least one control surface across the plume "
-                         "(Surfaces: line or polyline) before running")
+            return error(
+                "draw at least one control surface across the plume "
+                "(Surfaces: line or polyline) before running"
+            )
         try:
             kwargs = form.settings.config_kwargs(vm.api, vm.recording, editor.region)
             config = form.settings.build_config(vm.api, vm.recording, editor.region)
         except SettingsError as e:
-            form.field_errors = {k: "" for k in form.field_errors} | e.errors
+            form.field_errors = dict.fromkeys(form.field_errors, "") | e.errors
             return error(f"fix the analysis settings first: {e}")
         try:
             surfaces = [vm.api.Surface(list(s.points), name=s.name) for s in editor.surfaces]
@@ -67,12 +69,19 @@ class RunPanel:
         def work(progress):
             return api.quantify(rec, surfaces, config, progress=progress, keep_maps=keep)
 
-        self._pending = ([SurfaceDraft(s.name, list(s.points), s.colour) for s in editor.surfaces],
-                         kwargs, keep)
-        vm.work.start(Job("quantification", work, cancelled_types=(api.Cancelled,)),
-                      "quantify", self._finished)
-        vm.log.info(f"quantifying {', '.join(kwargs['species'])} through "
-                    f"{len(surfaces)} surface(s)...")
+        self._pending = (
+            [SurfaceDraft(s.name, list(s.points), s.colour) for s in editor.surfaces],
+            kwargs,
+            keep,
+        )
+        vm.work.start(
+            Job("quantification", work, cancelled_types=(api.Cancelled,)),
+            "quantify",
+            self._finished,
+        )
+        vm.log.info(
+            f"quantifying {', '.join(kwargs['species'])} through {len(surfaces)} surface(s)..."
+        )
         return True
 
     def _finished(self, job: Job, snap: dict) -> None:
@@ -85,8 +94,10 @@ class RunPanel:
             if job.partial is not None:
                 self._take_result(job.partial, surfaces, kwargs, keep, partial=True)
                 n = max((r.n_frames for r in results.rate_rows(job.partial)), default=0)
-                log.warn(f"quantification cancelled; showing the partial result of the "
-                         f"{n} frame(s) finished")
+                log.warn(
+                    f"quantification cancelled; showing the partial result of the "
+                    f"{n} frame(s) finished"
+                )
             else:
                 log.warn("quantification cancelled before any frame finished")
         else:

@@ -21,15 +21,15 @@ class DisplayState:
     """How the video is drawn."""
 
     channel: int = 0
-    quantity: str = "radiance"          # or "radiometric_temperature"
+    quantity: str = "radiance"  # or "radiometric_temperature"
     colormap: str = display.COLORMAPS[0]
-    range_mode: str = "recording"       # "recording" (auto, fixed over the video), "frame", "fixed"
+    range_mode: str = "recording"  # "recording" (auto, fixed over the video), "frame", "fixed"
     fixed_min: float = 0.0
     fixed_max: float = 1.0
-    show_overlay: bool = True           # column density over the video (when a result has maps)
+    show_overlay: bool = True  # column density over the video (when a result has maps)
     overlay_species: str = ""
     overlay_colormap: str = display.OVERLAY_COLORMAPS[0]
-    show_vectors: bool = True           # velocity vectors (when a result has maps)
+    show_vectors: bool = True  # velocity vectors (when a result has maps)
 
 
 class Video:
@@ -68,8 +68,9 @@ class Video:
             if k == "colormap" and v not in display.COLORMAPS:
                 return error(f"colour map must be one of {', '.join(display.COLORMAPS)}")
             if k == "overlay_colormap" and v not in display.OVERLAY_COLORMAPS:
-                return error("overlay colour map must be one of "
-                             f"{', '.join(display.OVERLAY_COLORMAPS)}")
+                return error(
+                    f"overlay colour map must be one of {', '.join(display.OVERLAY_COLORMAPS)}"
+                )
             if k == "range_mode" and v not in RANGE_MODES:
                 return error(f"range must be one of {', '.join(RANGE_MODES)}")
         fixed = {k: changes[k] for k in ("fixed_min", "fixed_max") if k in changes}
@@ -86,8 +87,11 @@ class Video:
             changes["channel"] = int(changes["channel"])
         for k, v in changes.items():
             setattr(d, k, v)
-        if ("channel" in changes or "quantity" in changes) and rec is not None \
-                and "fixed_min" not in changes:
+        if (
+            ("channel" in changes or "quantity" in changes)
+            and rec is not None
+            and "fixed_min" not in changes
+        ):
             # A fixed range in other units would be meaningless: restart it from auto.
             d.fixed_min, d.fixed_max = self.auto_range()
         self.vm.rev["display"] += 1
@@ -142,8 +146,14 @@ class Video:
         img = self.channel_image()
         lo, hi = self.display_range(img)
         self.last_range = (lo, hi)
-        return display.colorize(img, lo, hi, display.colormap_lut(self.display.colormap),
-                                out=self._rgba, scratch=self._scratch)
+        return display.colorize(
+            img,
+            lo,
+            hi,
+            display.colormap_lut(self.display.colormap),
+            out=self._rgba,
+            scratch=self._scratch,
+        )
 
     # ----------------------------------------------------------------- read-out
     def px_per_frame_to_m_s(self) -> float:
@@ -151,8 +161,11 @@ class Video:
         rec = self.vm.recording
         if rec is None:
             return math.nan
-        return (float(rec.scene.distance_m) * float(rec.camera.ifov_rad)
-                * float(rec.camera.frame_rate_hz))
+        return (
+            float(rec.scene.distance_m)
+            * float(rec.camera.ifov_rad)
+            * float(rec.camera.frame_rate_hz)
+        )
 
     def readout(self, x: float, y: float) -> Optional[dict]:
         """What is under the cursor at pixel coordinates (x, y): per channel the
@@ -168,13 +181,19 @@ class Video:
 
         frame = self.current_frame()
         player = self.vm.player
-        out = {"x": ix, "y": iy, "frame": player.frame, "time_s": player.frame_time_s,
-               "channels": []}
+        out = {
+            "x": ix,
+            "y": iy,
+            "frame": player.frame,
+            "time_s": player.frame_time_s,
+            "channels": [],
+        }
         for k, ch in enumerate(rec.channels):
             v = np.float64(frame[k, iy, ix])
             if not np.isfinite(v):
-                out["channels"].append({"name": ch.name, "radiance": math.nan,
-                                        "temperature_K": math.nan})
+                out["channels"].append(
+                    {"name": ch.name, "radiance": math.nan, "temperature_K": math.nan}
+                )
                 continue
             tab = band_table(ch)
             if rec.quantity == "radiance":
@@ -185,15 +204,22 @@ class Video:
         maps = self.vm.overlay.frame_maps()
         if maps:
             cols = maps.get("column_density_kg_m2", {})
-            out["column_density_kg_m2"] = {sp: float(np.asarray(c)[iy, ix])
-                                           for sp, c in cols.items()}
+            out["column_density_kg_m2"] = {
+                sp: float(np.asarray(c)[iy, ix]) for sp, c in cols.items()
+            }
             if "velocity_px_per_frame" in maps:
                 u, v = maps["velocity_px_per_frame"]
-                out["velocity_px_per_frame"] = (float(np.asarray(u)[iy, ix]),
-                                                float(np.asarray(v)[iy, ix]))
-                out["velocity_m_s"] = tuple(c * self.px_per_frame_to_m_s()
-                                            for c in out["velocity_px_per_frame"])
+                out["velocity_px_per_frame"] = (
+                    float(np.asarray(u)[iy, ix]),
+                    float(np.asarray(v)[iy, ix]),
+                )
+                out["velocity_m_s"] = tuple(
+                    c * self.px_per_frame_to_m_s() for c in out["velocity_px_per_frame"]
+                )
             if "status" in maps:
-                out["status"] = maps["status"][iy, ix].item() if hasattr(
-                    maps["status"][iy, ix], "item") else maps["status"][iy, ix]
+                out["status"] = (
+                    maps["status"][iy, ix].item()
+                    if hasattr(maps["status"][iy, ix], "item")
+                    else maps["status"][iy, ix]
+                )
         return out

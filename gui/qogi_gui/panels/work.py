@@ -62,8 +62,10 @@ class Work:
         if isinstance(e, (ValueError, OSError)):
             self.vm.log.error(f"{what} failed: {e}")
         else:
-            self.vm.log.error(f"{what} failed with an internal error ({type(e).__name__}: {e}); "
-                              "details were printed to the terminal")
+            self.vm.log.error(
+                f"{what} failed with an internal error ({type(e).__name__}: {e}); "
+                "details were printed to the terminal"
+            )
             if job.traceback:
                 print(job.traceback, file=sys.stderr)
 

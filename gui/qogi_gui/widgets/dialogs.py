@@ -19,23 +19,46 @@ class Dialogs:
 
     def build(self) -> None:
         s = self.app.safe
-        with dpg.file_dialog(tag="open_dialog", show=False, width=760, height=460, modal=True,
-                             callback=s(self.app.recording_tab.on_open_chosen),
-                             default_path=self.vm.store.last_dir or os.getcwd()):
-            dpg.add_file_extension("Recordings and camera files{.h5,.hdf5,.seq,.csq,.jpg,.fff,.hcc}",
-                                   color=(150, 255, 150, 255))
-            dpg.add_file_extension("Recordings (*.h5 *.hdf5){.h5,.hdf5}", color=(150, 255, 150, 255))
-            dpg.add_file_extension("FLIR (*.seq *.csq *.jpg *.fff){.seq,.csq,.jpg,.fff}",
-                                   color=(150, 200, 255, 255))
+        with dpg.file_dialog(
+            tag="open_dialog",
+            show=False,
+            width=760,
+            height=460,
+            modal=True,
+            callback=s(self.app.recording_tab.on_open_chosen),
+            default_path=self.vm.store.last_dir or os.getcwd(),
+        ):
+            dpg.add_file_extension(
+                "Recordings and camera files{.h5,.hdf5,.seq,.csq,.jpg,.fff,.hcc}",
+                color=(150, 255, 150, 255),
+            )
+            dpg.add_file_extension(
+                "Recordings (*.h5 *.hdf5){.h5,.hdf5}", color=(150, 255, 150, 255)
+            )
+            dpg.add_file_extension(
+                "FLIR (*.seq *.csq *.jpg *.fff){.seq,.csq,.jpg,.fff}", color=(150, 200, 255, 255)
+            )
             dpg.add_file_extension("Telops (*.hcc){.hcc}", color=(150, 200, 255, 255))
             dpg.add_file_extension(".*")
         self._build_scene_form()
-        dpg.add_file_dialog(tag="export_dialog", show=False, width=760, height=460, modal=True,
-                            directory_selector=True,
-                            callback=s(lambda sd, a, u: dpg.set_value(
-                                "export_dir", a.get("file_path_name", ""))))
-        with dpg.window(tag="popup", show=False, modal=True, no_collapse=True, width=560,
-                        label="qogi", pos=(300, 200)):
+        dpg.add_file_dialog(
+            tag="export_dialog",
+            show=False,
+            width=760,
+            height=460,
+            modal=True,
+            directory_selector=True,
+            callback=s(lambda sd, a, u: dpg.set_value("export_dir", a.get("file_path_name", ""))),
+        )
+        with dpg.window(
+            tag="popup",
+            show=False,
+            modal=True,
+            no_collapse=True,
+            width=560,
+            label="qogi",
+            pos=(300, 200),
+        ):
             dpg.add_text("", tag="popup_text", wrap=530)
             dpg.add_button(label="OK", width=80, callback=lambda: dpg.hide_item("popup"))
 
@@ -53,32 +76,44 @@ class Dialogs:
         from qogi.presets import camera_preset_names
 
         from ..scene_form import FIELDS
+
         s, file = self.app.safe, self.vm.file
-        with dpg.window(tag="scene_form", show=False, modal=True, no_collapse=True, width=620,
-                        label="Scene facts", pos=(260, 180),
-                        on_close=s(lambda *a: file.cancel_scene())):
+        with dpg.window(
+            tag="scene_form",
+            show=False,
+            modal=True,
+            no_collapse=True,
+            width=620,
+            label="Scene facts",
+            pos=(260, 180),
+            on_close=s(lambda *a: file.cancel_scene()),
+        ):
             dpg.add_text("", tag="scene_title", wrap=590)
             for key, (label, unit) in FIELDS.items():
                 with dpg.group(horizontal=True):
                     dpg.add_text(f"{label} [{unit}]" if key != "camera" else label)
                     if key == "camera":
-                        dpg.add_combo(list(camera_preset_names()), tag="scene_camera_preset",
-                                      width=120, callback=lambda sd, a, u: dpg.set_value(
-                                          "scene_f_camera", a))
+                        dpg.add_combo(
+                            list(camera_preset_names()),
+                            tag="scene_camera_preset",
+                            width=120,
+                            callback=lambda sd, a, u: dpg.set_value("scene_f_camera", a),
+                        )
                     dpg.add_input_text(tag=f"scene_f_{key}", width=220)
                 dpg.add_text("", tag=f"scene_hint_{key}", color=(170, 170, 170, 255), wrap=590)
             dpg.add_text("", tag="scene_error", color=(255, 120, 120, 255), wrap=590)
             with dpg.group(horizontal=True):
                 dpg.add_button(label="Open", width=90, callback=s(self.on_scene_submit))
-                dpg.add_button(label="Cancel", width=90,
-                               callback=s(lambda *a: file.cancel_scene()))
+                dpg.add_button(label="Cancel", width=90, callback=s(lambda *a: file.cancel_scene()))
 
     def on_scene_submit(self, *args) -> bool:
         from ..scene_form import FIELDS
+
         return self.vm.file.submit_scene({k: dpg.get_value(f"scene_f_{k}") for k in FIELDS})
 
     def refresh_scene_form(self) -> None:
         from ..scene_form import FIELDS
+
         req = self.vm.file.scene_request
         if req is None:
             dpg.hide_item("scene_form")

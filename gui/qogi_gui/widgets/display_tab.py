@@ -9,10 +9,15 @@ from .theme import GREY, LEFT_WIDTH
 
 __all__ = ["DisplayTab", "QUANTITY_CHOICES", "RANGE_CHOICES"]
 
-QUANTITY_CHOICES = {"band radiance [W/(m2 sr)]": "radiance",
-                    "radiometric temperature [K]": "radiometric_temperature"}
-RANGE_CHOICES = {"auto (whole recording)": "recording", "auto (this frame)": "frame",
-                 "fixed": "fixed"}
+QUANTITY_CHOICES = {
+    "band radiance [W/(m2 sr)]": "radiance",
+    "radiometric temperature [K]": "radiometric_temperature",
+}
+RANGE_CHOICES = {
+    "auto (whole recording)": "recording",
+    "auto (this frame)": "frame",
+    "fixed": "fixed",
+}
 
 
 class DisplayTab:
@@ -22,47 +27,97 @@ class DisplayTab:
 
     def build(self) -> None:
         s, video = self.app.safe, self.vm.video
-        dpg.add_combo([], label="channel", tag="d_channel", width=260,
-                      callback=s(self._on_channel))
-        dpg.add_radio_button(list(QUANTITY_CHOICES), tag="d_quantity",
-                             callback=s(lambda sd, a, u: video.set_display(
-                                 quantity=QUANTITY_CHOICES[a])))
-        dpg.add_combo(list(display.COLORMAPS), label="colour map", tag="d_cmap", width=160,
-                      default_value=display.COLORMAPS[0],
-                      callback=s(lambda sd, a, u: video.set_display(colormap=a)))
-        dpg.add_radio_button(list(RANGE_CHOICES), tag="d_range", horizontal=False,
-                             callback=s(lambda sd, a, u: video.set_display(
-                                 range_mode=RANGE_CHOICES[a])))
+        dpg.add_combo([], label="channel", tag="d_channel", width=260, callback=s(self._on_channel))
+        dpg.add_radio_button(
+            list(QUANTITY_CHOICES),
+            tag="d_quantity",
+            callback=s(lambda sd, a, u: video.set_display(quantity=QUANTITY_CHOICES[a])),
+        )
+        dpg.add_combo(
+            list(display.COLORMAPS),
+            label="colour map",
+            tag="d_cmap",
+            width=160,
+            default_value=display.COLORMAPS[0],
+            callback=s(lambda sd, a, u: video.set_display(colormap=a)),
+        )
+        dpg.add_radio_button(
+            list(RANGE_CHOICES),
+            tag="d_range",
+            horizontal=False,
+            callback=s(lambda sd, a, u: video.set_display(range_mode=RANGE_CHOICES[a])),
+        )
         with dpg.group(horizontal=True):
-            dpg.add_input_double(label="min", tag="d_min", width=120, format="%.6g",
-                                 on_enter=True, callback=s(self._on_fixed_range))
-            dpg.add_input_double(label="max", tag="d_max", width=120, format="%.6g",
-                                 on_enter=True, callback=s(self._on_fixed_range))
-        dpg.add_button(label="Fix the range shown now", tag="d_fix_now",
-                       callback=s(self._on_fix_now))
-        dpg.add_text("Zoom with the mouse wheel, pan by dragging (in look mode), "
-                     "double-click to fit.", wrap=LEFT_WIDTH - 20, color=GREY)
+            dpg.add_input_double(
+                label="min",
+                tag="d_min",
+                width=120,
+                format="%.6g",
+                on_enter=True,
+                callback=s(self._on_fixed_range),
+            )
+            dpg.add_input_double(
+                label="max",
+                tag="d_max",
+                width=120,
+                format="%.6g",
+                on_enter=True,
+                callback=s(self._on_fixed_range),
+            )
+        dpg.add_button(
+            label="Fix the range shown now", tag="d_fix_now", callback=s(self._on_fix_now)
+        )
+        dpg.add_text(
+            "Zoom with the mouse wheel, pan by dragging (in look mode), double-click to fit.",
+            wrap=LEFT_WIDTH - 20,
+            color=GREY,
+        )
         dpg.add_separator()
         dpg.add_text("Results on the video")
-        dpg.add_checkbox(label="column density overlay", tag="d_overlay", default_value=True,
-                         callback=s(lambda sd, a, u: video.set_display(show_overlay=a)))
-        dpg.add_combo([], label="species", tag="d_overlay_species", width=120,
-                      callback=s(lambda sd, a, u: video.set_display(overlay_species=a)))
-        dpg.add_combo(list(display.OVERLAY_COLORMAPS), label="overlay colours", width=120,
-                      default_value=display.OVERLAY_COLORMAPS[0], tag="d_overlay_cmap",
-                      callback=s(lambda sd, a, u: video.set_display(overlay_colormap=a)))
-        dpg.add_checkbox(label="velocity vectors", tag="d_vectors", default_value=True,
-                         callback=s(lambda sd, a, u: video.set_display(show_vectors=a)))
+        dpg.add_checkbox(
+            label="column density overlay",
+            tag="d_overlay",
+            default_value=True,
+            callback=s(lambda sd, a, u: video.set_display(show_overlay=a)),
+        )
+        dpg.add_combo(
+            [],
+            label="species",
+            tag="d_overlay_species",
+            width=120,
+            callback=s(lambda sd, a, u: video.set_display(overlay_species=a)),
+        )
+        dpg.add_combo(
+            list(display.OVERLAY_COLORMAPS),
+            label="overlay colours",
+            width=120,
+            default_value=display.OVERLAY_COLORMAPS[0],
+            tag="d_overlay_cmap",
+            callback=s(lambda sd, a, u: video.set_display(overlay_colormap=a)),
+        )
+        dpg.add_checkbox(
+            label="velocity vectors",
+            tag="d_vectors",
+            default_value=True,
+            callback=s(lambda sd, a, u: video.set_display(show_vectors=a)),
+        )
         with dpg.group(horizontal=True):
-            dpg.add_button(label="< frame with maps", tag="d_prev_maps",
-                           callback=s(lambda *a: self.vm.overlay.seek_map_frame(-1)))
-            dpg.add_button(label="frame with maps >", tag="d_next_maps",
-                           callback=s(lambda *a: self.vm.overlay.seek_map_frame(1)))
+            dpg.add_button(
+                label="< frame with maps",
+                tag="d_prev_maps",
+                callback=s(lambda *a: self.vm.overlay.seek_map_frame(-1)),
+            )
+            dpg.add_button(
+                label="frame with maps >",
+                tag="d_next_maps",
+                callback=s(lambda *a: self.vm.overlay.seek_map_frame(1)),
+            )
         dpg.add_text("", tag="d_overlay_note", wrap=LEFT_WIDTH - 20, color=GREY)
 
     def new_recording(self, rec) -> None:
-        dpg.configure_item("d_channel", items=[f"{k}: {ch.name}" for k, ch in
-                                               enumerate(rec.channels)])
+        dpg.configure_item(
+            "d_channel", items=[f"{k}: {ch.name}" for k, ch in enumerate(rec.channels)]
+        )
         dpg.set_value("d_channel", f"0: {rec.channels[0].name}")
 
     def new_result(self) -> None:
@@ -91,27 +146,34 @@ class DisplayTab:
         vm = self.vm
         run, note = vm.run, ""
         if run.result is not None and shown:
-            note = (f"overlay: {vm.overlay.species()} column density 0 .. "
-                    f"{vm.overlay.vmax() * 1e3:.3g} g/m2")
+            note = (
+                f"overlay: {vm.overlay.species()} column density 0 .. "
+                f"{vm.overlay.vmax() * 1e3:.3g} g/m2"
+            )
             if scale > 0:
-                note += (f"; vectors: 1 px/frame = {vm.video.px_per_frame_to_m_s():.3g} m/s, "
-                         f"drawn {scale:.2g} px long")
+                note += (
+                    f"; vectors: 1 px/frame = {vm.video.px_per_frame_to_m_s():.3g} m/s, "
+                    f"drawn {scale:.2g} px long"
+                )
         elif run.result is not None and not run.result_has_maps:
             note = "run with 'keep per-pixel maps' to see the overlay and vectors"
         if run.result is not None and run.result_has_maps:
             kept = vm.overlay.map_frames()
             n = vm.player.n_frames
             if len(kept) < n:
-                note += (("; " if note else "") + f"maps kept for {len(kept)} of {n} "
-                         "frames: step between them with the buttons above")
+                note += (
+                    ("; " if note else "") + f"maps kept for {len(kept)} of {n} "
+                    "frames: step between them with the buttons above"
+                )
         dpg.set_value("d_overlay_note", note)
 
     def _on_channel(self, sender, value, user_data) -> None:
         self.vm.video.set_display(channel=int(str(value).split(":", 1)[0]))
 
     def _on_fixed_range(self, *args) -> None:
-        self.vm.video.set_display(fixed_min=dpg.get_value("d_min"),
-                                  fixed_max=dpg.get_value("d_max"), range_mode="fixed")
+        self.vm.video.set_display(
+            fixed_min=dpg.get_value("d_min"), fixed_max=dpg.get_value("d_max"), range_mode="fixed"
+        )
 
     def _on_fix_now(self, *args) -> None:
         lo, hi = self.vm.video.last_range

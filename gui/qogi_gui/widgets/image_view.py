@@ -6,9 +6,8 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 import dearpygui.dearpygui as dpg
+import numpy as np
 
 from .. import display, results
 from ..surfaces import flow_arrow
@@ -33,16 +32,30 @@ class ImageView:
     def build(self) -> None:
         themes = self.app.themes
         with dpg.group(horizontal=True):
-            with dpg.plot(tag="img_plot", height=480, width=-90, equal_aspects=True,
-                          no_menus=True, no_box_select=True, no_mouse_pos=True,
-                          no_title=True):
+            with dpg.plot(
+                tag="img_plot",
+                height=480,
+                width=-90,
+                equal_aspects=True,
+                no_menus=True,
+                no_box_select=True,
+                no_mouse_pos=True,
+                no_title=True,
+            ):
                 dpg.add_plot_axis(dpg.mvXAxis, tag="img_x", no_gridlines=True)
                 dpg.add_plot_axis(dpg.mvYAxis, tag="img_y", invert=True, no_gridlines=True)
                 dpg.add_line_series([], [], segments=True, tag="vectors", parent="img_y")
                 dpg.bind_item_theme("vectors", themes["vectors"])
             dpg.bind_item_theme("img_plot", themes["image_plot"])
-            dpg.add_colormap_scale(tag="img_scale", width=85, height=480, min_scale=0,
-                                   max_scale=1, colormap="cmap_inferno", format="%.4g")
+            dpg.add_colormap_scale(
+                tag="img_scale",
+                width=85,
+                height=480,
+                min_scale=0,
+                max_scale=1,
+                colormap="cmap_inferno",
+                format="%.4g",
+            )
 
     def build_readout(self) -> None:
         dpg.add_text("", tag="readout", color=(200, 220, 255))
@@ -50,10 +63,12 @@ class ImageView:
     def build_handlers(self) -> None:
         s = self.app.safe
         with dpg.handler_registry():
-            dpg.add_mouse_click_handler(button=dpg.mvMouseButton_Left,
-                                        callback=s(lambda *a: self._mouse_click("left")))
-            dpg.add_mouse_click_handler(button=dpg.mvMouseButton_Right,
-                                        callback=s(lambda *a: self._mouse_click("right")))
+            dpg.add_mouse_click_handler(
+                button=dpg.mvMouseButton_Left, callback=s(lambda *a: self._mouse_click("left"))
+            )
+            dpg.add_mouse_click_handler(
+                button=dpg.mvMouseButton_Right, callback=s(lambda *a: self._mouse_click("right"))
+            )
             dpg.add_key_press_handler(callback=s(self._on_key))
 
     # ----------------------------------------------------------------- refresh
@@ -64,22 +79,41 @@ class ImageView:
             for tag in ("frame_series", "overlay_series", "frame_tex", "overlay_tex"):
                 if dpg.does_item_exist(tag):
                     dpg.delete_item(tag)
-            dpg.add_raw_texture(rec.width, rec.height, np.zeros(rec.width * rec.height * 4,
-                                                                np.float32),
-                                format=dpg.mvFormat_Float_rgba, tag="frame_tex",
-                                parent="textures")
-            dpg.add_raw_texture(rec.width, rec.height, np.zeros(rec.width * rec.height * 4,
-                                                                np.float32),
-                                format=dpg.mvFormat_Float_rgba, tag="overlay_tex",
-                                parent="textures")
+            dpg.add_raw_texture(
+                rec.width,
+                rec.height,
+                np.zeros(rec.width * rec.height * 4, np.float32),
+                format=dpg.mvFormat_Float_rgba,
+                tag="frame_tex",
+                parent="textures",
+            )
+            dpg.add_raw_texture(
+                rec.width,
+                rec.height,
+                np.zeros(rec.width * rec.height * 4, np.float32),
+                format=dpg.mvFormat_Float_rgba,
+                tag="overlay_tex",
+                parent="textures",
+            )
             # Texture row 0 is the image's top row; the y axis runs down (inverted),
             # so flip v to keep pixel (x, y) at plot (x, y).
             kw = dict(uv_min=(0.0, 1.0), uv_max=(1.0, 0.0), parent="img_y")
-            dpg.add_image_series("frame_tex", (-0.5, -0.5), (rec.width - 0.5, rec.height - 0.5),
-                                 tag="frame_series", before="vectors", **kw)
-            dpg.add_image_series("overlay_tex", (-0.5, -0.5),
-                                 (rec.width - 0.5, rec.height - 0.5), tag="overlay_series",
-                                 before="vectors", **kw)
+            dpg.add_image_series(
+                "frame_tex",
+                (-0.5, -0.5),
+                (rec.width - 0.5, rec.height - 0.5),
+                tag="frame_series",
+                before="vectors",
+                **kw,
+            )
+            dpg.add_image_series(
+                "overlay_tex",
+                (-0.5, -0.5),
+                (rec.width - 0.5, rec.height - 0.5),
+                tag="overlay_series",
+                before="vectors",
+                **kw,
+            )
             self._tex_shape = shape
 
     def fit_image(self) -> None:
@@ -140,15 +174,27 @@ class ImageView:
                 ax, ay = results.arrow_segments(np.array([arrow[0]]), np.array([arrow[1]]))
                 series(ax, ay, ("line", c), segments=True)
             x0, y0 = srf.points[0]
-            self._overlay_items.append(dpg.add_plot_annotation(
-                label=srf.name, default_value=(x0, y0), offset=(-12, -10), color=rgb(c, 200),
-                parent="img_plot"))
+            self._overlay_items.append(
+                dpg.add_plot_annotation(
+                    label=srf.name,
+                    default_value=(x0, y0),
+                    offset=(-12, -10),
+                    color=rgb(c, 200),
+                    parent="img_plot",
+                )
+            )
             if editor.mode == "edit":
                 for j, (x, y) in enumerate(srf.points):
-                    self._drag_points.append(dpg.add_drag_point(
-                        default_value=(x, y), color=rgb(c), parent="img_plot",
-                        user_data=(i, j), show_label=False,
-                        callback=self.app.safe(self._on_drag)))
+                    self._drag_points.append(
+                        dpg.add_drag_point(
+                            default_value=(x, y),
+                            color=rgb(c),
+                            parent="img_plot",
+                            user_data=(i, j),
+                            show_label=False,
+                            callback=self.app.safe(self._on_drag),
+                        )
+                    )
         if editor.drawing is not None and editor.drawing.points:
             xs, ys = zip(*editor.drawing.points)
             series(xs, ys, "drawing")
@@ -156,9 +202,15 @@ class ImageView:
             r = editor.region
             x0, x1, y0, y1 = r.x0 - 0.5, r.x1 - 0.5, r.y0 - 0.5, r.y1 - 0.5
             series([x0, x1, x1, x0, x0], [y0, y0, y1, y1, y0], "region")
-            self._overlay_items.append(dpg.add_plot_annotation(
-                label="background", default_value=(x0, y0), offset=(30, -8),
-                color=(255, 255, 255, 160), parent="img_plot"))
+            self._overlay_items.append(
+                dpg.add_plot_annotation(
+                    label="background",
+                    default_value=(x0, y0),
+                    offset=(30, -8),
+                    color=(255, 255, 255, 160),
+                    parent="img_plot",
+                )
+            )
         if editor.region_corner is not None:
             series([editor.region_corner[0]], [editor.region_corner[1]], "drawing", scatter=True)
         src = self.vm.form.source_point()
@@ -188,8 +240,10 @@ class ImageView:
             d = vm.video.display
             lo, hi = vm.video.last_range
             rng = {v: k for k, v in RANGE_CHOICES.items()}[d.range_mode]
-            text = (f"colours: channel {d.channel} {display.QUANTITY_LABELS[d.quantity]} "
-                    f"{lo:.5g} .. {hi:.5g}, {rng}; point at the image for pixel values")
+            text = (
+                f"colours: channel {d.channel} {display.QUANTITY_LABELS[d.quantity]} "
+                f"{lo:.5g} .. {hi:.5g}, {rng}; point at the image for pixel values"
+            )
         if text != self._readout_text:
             self._readout_text = text
             dpg.set_value("readout", text)
@@ -205,7 +259,7 @@ class ImageView:
             lo, hi = dpg.get_axis_limits("img_x")
             w = dpg.get_item_rect_size("img_plot")[0]
             return max(1e-3, (hi - lo) / max(1, w - 40))
-        except Exception:  # before the first frame the plot has no size yet
+        except Exception:  # noqa: BLE001 - before the first frame the plot has no size yet
             return 1.0
 
     def _mouse_click(self, button: str) -> None:
@@ -254,8 +308,7 @@ def format_readout(r: dict) -> str:
     """One line describing the pixel under the cursor."""
     parts = [f"pixel ({r['x']}, {r['y']})"]
     for ch in r["channels"]:
-        parts.append(f"{ch['name']}: {ch['radiance']:.5g} W/(m2 sr), "
-                     f"{ch['temperature_K']:.2f} K")
+        parts.append(f"{ch['name']}: {ch['radiance']:.5g} W/(m2 sr), {ch['temperature_K']:.2f} K")
     for sp, v in r.get("column_density_kg_m2", {}).items():
         parts.append(f"{sp} {v * 1e3:.3g} g/m2")
     if "velocity_m_s" in r:

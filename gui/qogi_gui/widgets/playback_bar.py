@@ -21,11 +21,20 @@ class PlaybackBar:
             dpg.add_button(label="<", callback=s(lambda *a: player.step(-1)))
             dpg.add_button(label="Play", tag="play_button", width=60, callback=s(self.on_play))
             dpg.add_button(label=">", callback=s(lambda *a: player.step(1)))
-            dpg.add_slider_int(tag="frame_slider", width=-330, min_value=0, max_value=0,
-                               callback=s(lambda sd, a, u: player.seek(a)))
-            dpg.add_combo([f"{v:g}x" for v in SPEEDS], tag="speed", width=70,
-                          default_value="1x",
-                          callback=s(lambda sd, a, u: player.set_speed(a.rstrip("x"))))
+            dpg.add_slider_int(
+                tag="frame_slider",
+                width=-330,
+                min_value=0,
+                max_value=0,
+                callback=s(lambda sd, a, u: player.seek(a)),
+            )
+            dpg.add_combo(
+                [f"{v:g}x" for v in SPEEDS],
+                tag="speed",
+                width=70,
+                default_value="1x",
+                callback=s(lambda sd, a, u: player.set_speed(a.rstrip("x"))),
+            )
             dpg.add_text("", tag="time_text")
 
     def new_recording(self, rec) -> None:
@@ -38,8 +47,10 @@ class PlaybackBar:
         if dpg.get_value("frame_slider") != player.frame:
             dpg.set_value("frame_slider", player.frame)
         dpg.configure_item("play_button", label="Pause" if player.playing else "Play")
-        dpg.set_value("time_text", f"t = {player.frame_time_s:7.3f} s   frame {player.frame + 1}/"
-                                   f"{player.n_frames}")
+        dpg.set_value(
+            "time_text",
+            f"t = {player.frame_time_s:7.3f} s   frame {player.frame + 1}/{player.n_frames}",
+        )
 
     def on_play(self, *args) -> None:
         self.vm.player.play()

@@ -22,12 +22,20 @@ class RecordingTab:
             dpg.add_button(label="Open recording...", callback=s(self.on_open_dialog))
             dpg.add_button(label="Load demo scene", tag="demo_button", callback=s(self.on_demo))
         dpg.add_spacer(height=4)
-        with dpg.table(tag="meta_table", header_row=False, borders_innerH=True,
-                       policy=dpg.mvTable_SizingStretchProp):
+        with dpg.table(
+            tag="meta_table",
+            header_row=False,
+            borders_innerH=True,
+            policy=dpg.mvTable_SizingStretchProp,
+        ):
             dpg.add_table_column(init_width_or_weight=0.36)
             dpg.add_table_column(init_width_or_weight=0.64)
-        dpg.add_text("Open a recording (.h5) or load the demo scene.", tag="meta_hint",
-                     wrap=LEFT_WIDTH - 20, color=GREY)
+        dpg.add_text(
+            "Open a recording (.h5) or load the demo scene.",
+            tag="meta_hint",
+            wrap=LEFT_WIDTH - 20,
+            color=GREY,
+        )
         dpg.add_spacer(height=8)
         dpg.add_text("Recent recordings")
         dpg.add_group(tag="recent_list")
@@ -57,8 +65,12 @@ class RecordingTab:
         for p in recent:
             dpg.add_menu_item(label=p, parent="recent_menu", user_data=p, callback=open_it)
             name = os.path.basename(p)
-            dpg.add_button(label=name if len(name) < 52 else "..." + name[-49:],
-                           parent="recent_list", user_data=p, callback=open_it)
+            dpg.add_button(
+                label=name if len(name) < 52 else "..." + name[-49:],
+                parent="recent_list",
+                user_data=p,
+                callback=open_it,
+            )
             with dpg.tooltip(dpg.last_item()):
                 dpg.add_text(p)
 

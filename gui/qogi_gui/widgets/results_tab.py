@@ -37,56 +37,92 @@ def build_results_panel(app, parent) -> None:
     dpg.delete_item(parent, children_only=True)
     res = run.result
     if res is None:
-        dpg.add_text("No result yet: draw a surface, check the Analysis tab and run.",
-                     parent=parent, color=GREY, wrap=420)
+        dpg.add_text(
+            "No result yet: draw a surface, check the Analysis tab and run.",
+            parent=parent,
+            color=GREY,
+            wrap=420,
+        )
         return
     if run.result_partial:
-        dpg.add_text("Partial result: the run was cancelled; these numbers rest on the frames "
-                     "finished before that.", parent=parent, color=YELLOW, wrap=420)
+        dpg.add_text(
+            "Partial result: the run was cancelled; these numbers rest on the frames "
+            "finished before that.",
+            parent=parent,
+            color=YELLOW,
+            wrap=420,
+        )
     rows = results.rate_rows(res)
     surfaces = list(dict.fromkeys(r.surface for r in rows))
     species = list(dict.fromkeys(r.species for r in rows))
     by = {(r.surface, r.species): r for r in rows}
 
     dpg.add_text("Emission rate per surface (side by side)", parent=parent)
-    with dpg.table(parent=parent, header_row=True, borders_innerV=True, borders_outerH=True,
-                   policy=dpg.mvTable_SizingStretchProp, row_background=True):
+    with dpg.table(
+        parent=parent,
+        header_row=True,
+        borders_innerV=True,
+        borders_outerH=True,
+        policy=dpg.mvTable_SizingStretchProp,
+        row_background=True,
+    ):
         dpg.add_table_column(label="", init_width_or_weight=1.3)
         for s in surfaces:
             dpg.add_table_column(label=s, init_width_or_weight=1.0)
         for sp in species:
-            lines = [
-                (f"{sp} mean [kg/h]", lambda r: _fmt(r.mean_kg_h)),
-                ("90% low [kg/h]", lambda r: _fmt(r.ci90_kg_h[0])),
-                ("90% high [kg/h]", lambda r: _fmt(r.ci90_kg_h[1])),
-                ("[g/h]", lambda r: _fmt(r.mean_g_h)),
-                ("[SLPM]", lambda r: _fmt(r.mean_slpm)),
-                ("truth [kg/h]", lambda r: _fmt(r.truth_kg_h) if r.truth_kg_h is not None
-                 else "-"),
-                ("error vs truth", lambda r: f"{r.error_pct:+.1f} %" if r.error_pct is not None
-                 else "-"),
-                ("frames (valid)", lambda r: f"{r.n_frames} ({r.n_frames_valid})"),
-                ("pixels (median)", lambda r: _fmt(r.pixels_median, 4)),
-                ("dominant uncertainty", lambda r: r.dominant_uncertainty or "-"),
-                ("1 sigma [kg/h]", lambda r: ""),
-            ] + [
-                (f"  {term}", lambda r, term=term: _fmt(r.uncertainty_terms_kg_h[term], 3)
-                 if term in r.uncertainty_terms_kg_h else "-")
-                for term in results.uncertainty_terms(rows)
-            ] + [
-                ("detection limit [kg/h]", lambda r: r.detection_text),
-            ]
+            lines = (
+                [
+                    (f"{sp} mean [kg/h]", lambda r: _fmt(r.mean_kg_h)),
+                    ("90% low [kg/h]", lambda r: _fmt(r.ci90_kg_h[0])),
+                    ("90% high [kg/h]", lambda r: _fmt(r.ci90_kg_h[1])),
+                    ("[g/h]", lambda r: _fmt(r.mean_g_h)),
+                    ("[SLPM]", lambda r: _fmt(r.mean_slpm)),
+                    (
+                        "truth [kg/h]",
+                        lambda r: _fmt(r.truth_kg_h) if r.truth_kg_h is not None else "-",
+                    ),
+                    (
+                        "error vs truth",
+                        lambda r: f"{r.error_pct:+.1f} %" if r.error_pct is not None else "-",
+                    ),
+                    ("frames (valid)", lambda r: f"{r.n_frames} ({r.n_frames_valid})"),
+                    ("pixels (median)", lambda r: _fmt(r.pixels_median, 4)),
+                    ("dominant uncertainty", lambda r: r.dominant_uncertainty or "-"),
+                    ("1 sigma [kg/h]", lambda r: ""),
+                ]
+                + [
+                    (
+                        f"  {term}",
+                        lambda r, term=term: (
+                            _fmt(r.uncertainty_terms_kg_h[term], 3)
+                            if term in r.uncertainty_terms_kg_h
+                            else "-"
+                        ),
+                    )
+                    for term in results.uncertainty_terms(rows)
+                ]
+                + [
+                    ("detection limit [kg/h]", lambda r: r.detection_text),
+                ]
+            )
             for label, fn in lines:
                 with dpg.table_row():
                     dpg.add_text(label, color=GREY)
                     for s in surfaces:
                         r = by.get((s, sp))
-                        dpg.add_text(fn(r) if r is not None else "-",
-                                     color=(255, 255, 255) if label.endswith("[kg/h]") and
-                                     "mean" in label else (220, 220, 220))
+                        dpg.add_text(
+                            fn(r) if r is not None else "-",
+                            color=(255, 255, 255)
+                            if label.endswith("[kg/h]") and "mean" in label
+                            else (220, 220, 220),
+                        )
     if run.result_stale:
-        dpg.add_text("Surfaces or settings changed since this run: run again to update.",
-                     parent=parent, color=YELLOW, wrap=420)
+        dpg.add_text(
+            "Surfaces or settings changed since this run: run again to update.",
+            parent=parent,
+            color=YELLOW,
+            wrap=420,
+        )
     warnings = results.warning_lines(res)
     if warnings:
         dpg.add_text(f"Warnings ({len(warnings)})", parent=parent, color=YELLOW)
@@ -111,18 +147,27 @@ def build_results_panel(app, parent) -> None:
                     continue
                 xs.append(i + (k - (len(species) - 1) / 2) * width)
                 ys.append(r.mean_kg_h)
-                lo.append(max(0.0, r.mean_kg_h - r.ci90_kg_h[0]) if math.isfinite(
-                    r.ci90_kg_h[0]) else 0.0)
-                hi.append(max(0.0, r.ci90_kg_h[1] - r.mean_kg_h) if math.isfinite(
-                    r.ci90_kg_h[1]) else 0.0)
+                lo.append(
+                    max(0.0, r.mean_kg_h - r.ci90_kg_h[0]) if math.isfinite(r.ci90_kg_h[0]) else 0.0
+                )
+                hi.append(
+                    max(0.0, r.ci90_kg_h[1] - r.mean_kg_h) if math.isfinite(r.ci90_kg_h[1]) else 0.0
+                )
             if xs:
                 dpg.add_bar_series(xs, ys, weight=width * 0.9, label=sp, parent=ya)
                 dpg.add_error_series(xs, ys, lo, hi, parent=ya)
-            truth = next((by[(s, sp)].truth_kg_h for s in surfaces
-                          if (s, sp) in by and by[(s, sp)].truth_kg_h is not None), None)
+            truth = next(
+                (
+                    by[(s, sp)].truth_kg_h
+                    for s in surfaces
+                    if (s, sp) in by and by[(s, sp)].truth_kg_h is not None
+                ),
+                None,
+            )
             if truth is not None:  # a line across the bars (fitting the axis takes it in)
-                t = dpg.add_line_series([-0.6, len(surfaces) - 0.4], [truth, truth],
-                                        label=f"truth {sp}", parent=ya)
+                t = dpg.add_line_series(
+                    [-0.6, len(surfaces) - 0.4], [truth, truth], label=f"truth {sp}", parent=ya
+                )
                 dpg.bind_item_theme(t, app.themes["truth"])
         dpg.set_axis_limits(xa, -0.6, len(surfaces) - 0.4)
         dpg.fit_axis_data(ya)
@@ -130,8 +175,12 @@ def build_results_panel(app, parent) -> None:
     status = results.pixel_status_rows(res)
     if status:
         dpg.add_text("Pixels (all quantified frames)", parent=parent)
-        with dpg.table(parent=parent, header_row=True, policy=dpg.mvTable_SizingStretchProp,
-                       borders_innerH=True):
+        with dpg.table(
+            parent=parent,
+            header_row=True,
+            policy=dpg.mvTable_SizingStretchProp,
+            borders_innerH=True,
+        ):
             for label in ("status", "pixels", "share"):
                 dpg.add_table_column(label=label)
             for name, n, pct in status:
@@ -166,13 +215,15 @@ def build_rates_plot(app, axis) -> None:
         lo, hi = ser["ci90_kg_h"]
         t0, t1 = float(t[0]), float(t[-1])
         if math.isfinite(lo) and math.isfinite(hi):
-            band = dpg.add_shade_series([t0, t1], [lo, lo], y2=[hi, hi],
-                                        label=f"{label} 90% band", parent=axis)
+            band = dpg.add_shade_series(
+                [t0, t1], [lo, lo], y2=[hi, hi], label=f"{label} 90% band", parent=axis
+            )
             dpg.bind_item_theme(band, app.themes[("line", colour)])
         m = ser["mean_kg_h"]
         if math.isfinite(m):
-            mean = dpg.add_line_series([t0, t1], [m, m], label=f"{label} mean {m:.3g} kg/h",
-                                       parent=axis)
+            mean = dpg.add_line_series(
+                [t0, t1], [m, m], label=f"{label} mean {m:.3g} kg/h", parent=axis
+            )
             dpg.bind_item_theme(mean, app.themes[("selected", colour)])
         if ser["truth_kg_h"] is not None:
             truths[ser["species"]] = ser["truth_kg_h"]
@@ -210,21 +261,33 @@ class ResultsTab:
         s = self.app.safe
         dpg.add_text("Export")
         with dpg.group(horizontal=True):
-            dpg.add_input_text(label="folder", tag="export_dir", width=270,
-                               default_value=self.vm.store.last_dir or os.getcwd())
+            dpg.add_input_text(
+                label="folder",
+                tag="export_dir",
+                width=270,
+                default_value=self.vm.store.last_dir or os.getcwd(),
+            )
             dpg.add_button(label="...", callback=s(lambda *a: dpg.show_item("export_dialog")))
-        dpg.add_input_text(label="file name start", tag="export_stem", width=160,
-                           default_value="qogi")
+        dpg.add_input_text(
+            label="file name start", tag="export_stem", width=160, default_value="qogi"
+        )
         with dpg.group(horizontal=True):
-            for label, kind in (("CSV", "csv"), ("JSON", "json"), ("Plots PNG", "plots"),
-                                ("Frame PNG", "frame"), ("Report", "report"),
-                                ("Report PDF", "report_pdf")):
-                dpg.add_button(label=label, callback=s(lambda sd, a, u: self.on_export(u)),
-                               user_data=kind)
+            for label, kind in (
+                ("CSV", "csv"),
+                ("JSON", "json"),
+                ("Plots PNG", "plots"),
+                ("Frame PNG", "frame"),
+                ("Report", "report"),
+                ("Report PDF", "report_pdf"),
+            ):
+                dpg.add_button(
+                    label=label, callback=s(lambda sd, a, u: self.on_export(u)), user_data=kind
+                )
         with dpg.group(horizontal=True):
             dpg.add_button(label="Export all", callback=s(lambda *a: self.on_export("all")))
-            dpg.add_button(label="Window screenshot",
-                           callback=s(lambda *a: self.on_export("window")))
+            dpg.add_button(
+                label="Window screenshot", callback=s(lambda *a: self.on_export("window"))
+            )
 
     def on_export(self, kind: str) -> bool:
         """Export ``kind`` (csv, json, plots, frame, report, report_pdf, all,
@@ -234,15 +297,26 @@ class ResultsTab:
         ex = self.vm.exporter
         if kind == "window":
             if not folder.is_dir():
-                return self.vm.log.error(f"could not save the screenshot: the folder {folder} "
-                                         "does not exist")
+                return self.vm.log.error(
+                    f"could not save the screenshot: the folder {folder} does not exist"
+                )
             return self.app.screenshot(folder / f"{stem}_window.png")
-        target = {"csv": f"{stem}.csv", "json": f"{stem}.json", "plots": f"{stem}_rates.png",
-                  "frame": f"{stem}_frame.png", "report": f"{stem}_report.md",
-                  "report_pdf": f"{stem}_report.pdf"}
-        fn = {"csv": ex.export_csv, "json": ex.export_json, "plots": ex.export_plots,
-              "frame": ex.export_frame, "report": ex.export_report,
-              "report_pdf": ex.export_report}
+        target = {
+            "csv": f"{stem}.csv",
+            "json": f"{stem}.json",
+            "plots": f"{stem}_rates.png",
+            "frame": f"{stem}_frame.png",
+            "report": f"{stem}_report.md",
+            "report_pdf": f"{stem}_report.pdf",
+        }
+        fn = {
+            "csv": ex.export_csv,
+            "json": ex.export_json,
+            "plots": ex.export_plots,
+            "frame": ex.export_frame,
+            "report": ex.export_report,
+            "report_pdf": ex.export_report,
+        }
         if kind == "all":
             return ex.export_all(folder, stem)
         return fn[kind](folder / target[kind])

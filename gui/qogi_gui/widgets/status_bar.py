@@ -37,8 +37,11 @@ class StatusBar:
             return
         running = p["state"] == "running"
         dpg.set_value("progress", p["fraction"])
-        label = f"{work.job.name}: {p['message']}" if running else \
-            f"{work.job.name} {p['state']} ({p['elapsed_s']:.1f} s)"
+        label = (
+            f"{work.job.name}: {p['message']}"
+            if running
+            else f"{work.job.name} {p['state']} ({p['elapsed_s']:.1f} s)"
+        )
         dpg.configure_item("progress", overlay=label[:60])
         dpg.configure_item("cancel_button", show=running)
         dpg.configure_item("run_button", enabled=not running)
@@ -50,7 +53,7 @@ class StatusBar:
         msgs = self.vm.log.messages
         if len(msgs) == self._n_messages:
             return False
-        new = msgs[self._n_messages:]
+        new = msgs[self._n_messages :]
         self._n_messages = len(msgs)
         last = msgs[-1]
         colour = {"error": RED, "warning": YELLOW}.get(last.level, GREEN)
@@ -62,17 +65,21 @@ class StatusBar:
         return True
 
     def show_fps(self, fps: float, video_fps: float) -> None:
-        dpg.set_value("fps_text", f"playing: {fps:.0f} frames drawn/s, "
-                                  f"{video_fps:.0f} recording frames shown/s"
-                      if self.vm.player.playing else "")
+        dpg.set_value(
+            "fps_text",
+            f"playing: {fps:.0f} frames drawn/s, {video_fps:.0f} recording frames shown/s"
+            if self.vm.player.playing
+            else "",
+        )
 
     def show_messages(self) -> None:
         """A window listing the last messages, newest first."""
         if dpg.does_item_exist("messages_window"):
             dpg.delete_item("messages_window")
         colours = {"error": RED, "warning": YELLOW, "info": (220, 220, 220)}
-        with dpg.window(tag="messages_window", label="Messages", width=760, height=420,
-                        pos=(200, 120)):
+        with dpg.window(
+            tag="messages_window", label="Messages", width=760, height=420, pos=(200, 120)
+        ):
             for m in reversed(self.vm.log.messages[-60:]):
                 stamp = time.strftime("%H:%M:%S", time.localtime(m.time_s))
                 dpg.add_text(f"{stamp}  {m.text}", wrap=730, color=colours.get(m.level, GREY))

@@ -2,15 +2,13 @@
 
 from __future__ import annotations
 
-import numpy as np
-
 import dearpygui.dearpygui as dpg
+import numpy as np
 
 from .. import display
 from ..surfaces import SURFACE_COLOURS
 
-__all__ = ["LEFT_WIDTH", "GREY", "RED", "YELLOW", "GREEN", "rgb", "build_themes",
-           "build_colormaps"]
+__all__ = ["LEFT_WIDTH", "GREY", "RED", "YELLOW", "GREEN", "rgb", "build_themes", "build_colormaps"]
 
 LEFT_WIDTH = 440
 GREY = (150, 150, 150)
@@ -32,19 +30,27 @@ def build_themes() -> dict:
         with dpg.theme() as t:
             with dpg.theme_component(dpg.mvAll):
                 dpg.add_theme_color(dpg.mvPlotCol_Line, rgb(colour), category=dpg.mvThemeCat_Plots)
-                dpg.add_theme_color(dpg.mvPlotCol_MarkerFill, rgb(colour),
-                                    category=dpg.mvThemeCat_Plots)
-                dpg.add_theme_color(dpg.mvPlotCol_MarkerOutline, rgb(colour),
-                                    category=dpg.mvThemeCat_Plots)
-                dpg.add_theme_color(dpg.mvPlotCol_Fill, rgb(colour, 60),
-                                    category=dpg.mvThemeCat_Plots)
-                dpg.add_theme_style(dpg.mvPlotStyleVar_LineWeight, weight,
-                                    category=dpg.mvThemeCat_Plots)
+                dpg.add_theme_color(
+                    dpg.mvPlotCol_MarkerFill, rgb(colour), category=dpg.mvThemeCat_Plots
+                )
+                dpg.add_theme_color(
+                    dpg.mvPlotCol_MarkerOutline, rgb(colour), category=dpg.mvThemeCat_Plots
+                )
+                dpg.add_theme_color(
+                    dpg.mvPlotCol_Fill, rgb(colour, 60), category=dpg.mvThemeCat_Plots
+                )
+                dpg.add_theme_style(
+                    dpg.mvPlotStyleVar_LineWeight, weight, category=dpg.mvThemeCat_Plots
+                )
                 if marker:
-                    dpg.add_theme_style(dpg.mvPlotStyleVar_Marker, dpg.mvPlotMarker_Circle,
-                                        category=dpg.mvThemeCat_Plots)
-                    dpg.add_theme_style(dpg.mvPlotStyleVar_MarkerSize, 4.5,
-                                        category=dpg.mvThemeCat_Plots)
+                    dpg.add_theme_style(
+                        dpg.mvPlotStyleVar_Marker,
+                        dpg.mvPlotMarker_Circle,
+                        category=dpg.mvThemeCat_Plots,
+                    )
+                    dpg.add_theme_style(
+                        dpg.mvPlotStyleVar_MarkerSize, 4.5, category=dpg.mvThemeCat_Plots
+                    )
         return t
 
     for c in SURFACE_COLOURS:
@@ -58,8 +64,7 @@ def build_themes() -> dict:
     themes["truth"] = line_theme((230, 230, 230), 1.5)
     with dpg.theme() as t:
         with dpg.theme_component(dpg.mvAll):
-            dpg.add_theme_style(dpg.mvPlotStyleVar_PlotPadding, 2, 2,
-                                category=dpg.mvThemeCat_Plots)
+            dpg.add_theme_style(dpg.mvPlotStyleVar_PlotPadding, 2, 2, category=dpg.mvThemeCat_Plots)
     themes["image_plot"] = t
     with dpg.theme() as t:
         with dpg.theme_component(dpg.mvButton):
@@ -80,5 +85,6 @@ def build_colormaps() -> None:
         for name in set(display.COLORMAPS) | set(display.OVERLAY_COLORMAPS):
             lut = display.colormap_lut(name)
             pts = lut[np.linspace(0, len(lut) - 1, 24).round().astype(int)]
-            dpg.add_colormap([[int(round(v * 255)) for v in c] for c in pts], False,
-                             tag=f"cmap_{name}")
+            dpg.add_colormap(
+                [[int(round(v * 255)) for v in c] for c in pts], False, tag=f"cmap_{name}"
+            )

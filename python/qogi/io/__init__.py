@@ -20,17 +20,37 @@ from typing import Union
 
 from ..recording import Recording, open_recording
 from .arrays import read_numpy, read_tiff
-from .flir import (FlirFile, FlirFrame, FlirMetadata, flir_apparent_temperature,
-                   flir_raw_from_temperature, flir_temperature, open_flir, read_flir,
-                   read_flir_recording)
+from .flir import (
+    FlirFile,
+    FlirFrame,
+    FlirMetadata,
+    flir_apparent_temperature,
+    flir_raw_from_temperature,
+    flir_temperature,
+    open_flir,
+    read_flir,
+    read_flir_recording,
+)
 from .flir_writer import write_flir_seq
 from .telops import HccFile, open_hcc, write_hcc
 
 __all__ = [
-    "read_recording", "read_numpy", "read_tiff", "read_flir", "open_flir",
-    "read_flir_recording", "flir_temperature", "flir_apparent_temperature",
-    "flir_raw_from_temperature", "FlirFile", "FlirFrame", "FlirMetadata", "open_hcc", "write_hcc",
-    "HccFile", "write_flir_seq",
+    "read_recording",
+    "read_numpy",
+    "read_tiff",
+    "read_flir",
+    "open_flir",
+    "read_flir_recording",
+    "flir_temperature",
+    "flir_apparent_temperature",
+    "flir_raw_from_temperature",
+    "FlirFile",
+    "FlirFrame",
+    "FlirMetadata",
+    "open_hcc",
+    "write_hcc",
+    "HccFile",
+    "write_flir_seq",
 ]
 
 FLIR_EXTENSIONS = (".seq", ".csq", ".fff", ".jpg", ".jpeg")
@@ -52,10 +72,13 @@ def read_recording(path: Union[str, os.PathLike], **kwargs) -> Recording:
         return read_flir_recording(path, **kwargs)
     if ext in TELOPS_EXTENSIONS:
         from .open import open_recording as open_camera_file
+
         return open_camera_file(path, **kwargs)
     if ext in (".npy", ".npz"):
         return read_numpy(path, **kwargs)
     if ext in (".tif", ".tiff"):
         return read_tiff(path, **kwargs)
-    raise ValueError(f"{path}: unknown recording file type {ext!r} (known: .h5, .seq, .csq, "
-                     ".fff, .jpg, .npy, .npz, .tif)")
+    raise ValueError(
+        f"{path}: unknown recording file type {ext!r} (known: .h5, .seq, .csq, "
+        ".fff, .jpg, .npy, .npz, .tif)"
+    )

@@ -16,44 +16,75 @@ from ..recording import QUANTITIES, Camera, Recording, RecordingError, Scene, Tr
 __all__ = ["read_numpy", "read_tiff"]
 
 
-def _require(path: str, quantity: Optional[str], camera: Optional[Camera],
-             scene: Optional[Scene], what: str) -> Tuple[str, Camera, Scene]:
+def _require(
+    path: str, quantity: Optional[str], camera: Optional[Camera], scene: Optional[Scene], what: str
+) -> Tuple[str, Camera, Scene]:
     """The quantity, camera and scene a file of bare pixels needs, all given."""
-    missing = [n for n, v in (("quantity", quantity), ("camera", camera), ("scene", scene))
-               if v is None]
+    missing = [
+        n for n, v in (("quantity", quantity), ("camera", camera), ("scene", scene)) if v is None
+    ]
     if missing:
         raise RecordingError(
-            path, ", ".join(missing),
+            path,
+            ", ".join(missing),
             f"{what} holds only pixels: the {' and '.join(missing)} must be given",
             "pass quantity='radiance' (W/(m2 sr)) or 'radiometric_temperature' (K), "
             "camera=qogi.Camera(name, ifov_rad, [SpectralResponse per channel], frame_rate_hz) "
-            "and scene=qogi.Scene(distance_m, ambient_temperature_K, pressure_Pa)")
+            "and scene=qogi.Scene(distance_m, ambient_temperature_K, pressure_Pa)",
+        )
     if quantity not in QUANTITIES:
-        raise RecordingError(path, "quantity", f"unknown quantity {quantity!r}",
-                             f"use one of {sorted(QUANTITIES)}")
+        raise RecordingError(
+            path, "quantity", f"unknown quantity {quantity!r}", f"use one of {sorted(QUANTITIES)}"
+        )
     assert quantity is not None and camera is not None and scene is not None  # checked above
     return quantity, camera, scene
 
 
-def _finish(path: str, data: np.ndarray, time_s, quantity, camera, scene, truth, nonfinite,
-            source_format: str) -> Recording:
+def _finish(
+    path: str,
+    data: np.ndarray,
+    time_s,
+    quantity,
+    camera,
+    scene,
+    truth,
+    nonfinite,
+    source_format: str,
+) -> Recording:
     if data.ndim == 3:
         data = data[:, None]
     if data.ndim != 4:
-        raise RecordingError(path, "frames",
-                             f"expected (T, C, H, W) or (T, H, W); got shape {data.shape}",
-                             "save frames as (time, channel, height, width)")
-    rec = Recording.from_arrays(data, time_s, quantity=quantity, camera=camera, scene=scene,
-                                truth=truth, nonfinite=nonfinite)
+        raise RecordingError(
+            path,
+            "frames",
+            f"expected (T, C, H, W) or (T, H, W); got shape {data.shape}",
+            "save frames as (time, channel, height, width)",
+        )
+    rec = Recording.from_arrays(
+        data,
+        time_s,
+        quantity=quantity,
+        camera=camera,
+        scene=scene,
+        truth=truth,
+        nonfinite=nonfinite,
+    )
     rec.path = path
     rec.attrs.update({"source": os.path.basename(path), "source_format": source_format})
     return rec
 
 
-def read_numpy(path: Union[str, os.PathLike], *, quantity: Optional[str] = None,
-               camera: Optional[Camera] = None, scene: Optional[Scene] = None,
-               time_s=None, truth: Optional[Truth] = None, key: str = "frames",
-               nonfinite: str = "error") -> Recording:
+def read_numpy(
+    path: Union[str, os.PathLike],
+    *,
+    quantity: Optional[str] = None,
+    camera: Optional[Camera] = None,
+    scene: Optional[Scene] = None,
+    time_s=None,
+    truth: Optional[Truth] = None,
+    key: str = "frames",
+    nonfinite: str = "error",
+) -> Recording:
     """A recording from a numpy file.
 
     Parameters
@@ -83,8 +114,12 @@ def read_numpy(path: Union[str, os.PathLike], *, quantity: Optional[str] = None,
     if isinstance(loaded, np.lib.npyio.NpzFile):
         with loaded:
             if key not in loaded.files:
-                raise RecordingError(p, key, f"no array {key!r} in the archive "
-                                     f"(it has {loaded.files})", "pass key='<name>'")
+                raise RecordingError(
+                    p,
+                    key,
+                    f"no array {key!r} in the archive (it has {loaded.files})",
+                    "pass key='<name>'",
+                )
             data = np.asarray(loaded[key])
             if time_s is None and "time_s" in loaded.files:
                 time_s = np.asarray(loaded["time_s"])
@@ -97,10 +132,18 @@ def read_numpy(path: Union[str, os.PathLike], *, quantity: Optional[str] = None,
     return _finish(p, data, time_s, quantity, camera, scene, truth, nonfinite, fmt)
 
 
-def read_tiff(path: Union[str, os.PathLike], *, quantity: Optional[str] = None,
-              camera: Optional[Camera] = None, scene: Optional[Scene] = None,
-              time_s=None, scale: Optional[float] = None, offset: float = 0.0,
-              truth: Optional[Truth] = None, nonfinite: str = "error") -> Recording:
+def read_tiff(
+    path: Union[str, os.PathLike],
+    *,
+    quantity: Optional[str] = None,
+    camera: Optional[Camera] = None,
+    scene: Optional[Scene] = None,
+    time_s=None,
+    scale: Optional[float] = None,
+    offset: float = 0.0,
+    truth: Optional[Truth] = None,
+    nonfinite: str = "error",
+) -> Recording:
     """A recording from a multi-page TIFF stack (read with OpenCV).
 
     Pages are frames; with C channels (``len(camera.channels)``) consecutive
@@ -131,19 +174,26 @@ def read_tiff(path: Union[str, os.PathLike], *, quantity: Optional[str] = None,
         raise RecordingError(p, "pages", f"pages have different shapes {sorted(shapes)}")
     stack = np.stack(pages)
     if np.issubdtype(stack.dtype, np.integer) and scale is None:
-        raise RecordingError(p, "pages",
-                             f"pages are integers ({stack.dtype}): camera counts, not "
-                             f"{quantity} [{QUANTITIES[quantity]}]",
-                             "pass scale= and offset= (value = scale * count + offset)")
+        raise RecordingError(
+            p,
+            "pages",
+            f"pages are integers ({stack.dtype}): camera counts, not "
+            f"{quantity} [{QUANTITIES[quantity]}]",
+            "pass scale= and offset= (value = scale * count + offset)",
+        )
     data: np.ndarray = stack.astype(np.float64 if scale is not None else np.float32)
     if scale is not None:
         data = data * float(scale) + float(offset)
     n_ch = len(camera.channels)
-    if data.ndim == 4:                                  # (T, H, W, C) pages
+    if data.ndim == 4:  # (T, H, W, C) pages
         data = np.moveaxis(data, -1, 1)
     elif n_ch > 1:
         if data.shape[0] % n_ch:
-            raise RecordingError(p, "pages", f"{data.shape[0]} pages is not a multiple of the "
-                                 f"{n_ch} channels", "write C pages per frame")
+            raise RecordingError(
+                p,
+                "pages",
+                f"{data.shape[0]} pages is not a multiple of the {n_ch} channels",
+                "write C pages per frame",
+            )
         data = data.reshape((-1, n_ch) + data.shape[1:])
     return _finish(p, data, time_s, quantity, camera, scene, truth, nonfinite, "TIFF")

@@ -35,15 +35,21 @@ import numpy as np
 from ..files import atomic_open
 from .flir import C2_CM_K, FlirMetadata
 
-__all__ = ["write_flir_seq", "fff_block", "planck_calibration_for", "flir_metadata",
-           "raw_from_apparent_temperature", "write_recording_as_seq"]
+__all__ = [
+    "write_flir_seq",
+    "fff_block",
+    "planck_calibration_for",
+    "flir_metadata",
+    "raw_from_apparent_temperature",
+    "write_recording_as_seq",
+]
 
 _CAMERA_INFO_LEN = 0x480
 
 
 def _put_str(buf: bytearray, off: int, size: int, s: str) -> None:
-    b = s.encode("latin-1")[:size - 1]
-    buf[off:off + len(b)] = b
+    b = s.encode("latin-1")[: size - 1]
+    buf[off : off + len(b)] = b
 
 
 def _camera_info(m: FlirMetadata, order: str) -> bytes:
@@ -98,8 +104,14 @@ def _camera_info(m: FlirMetadata, order: str) -> bytes:
     return bytes(rec)
 
 
-def fff_block(raw: np.ndarray, metadata: FlirMetadata, *, byte_order: str = "<",
-              header_order: str = ">", creator: str = "qogi") -> bytes:
+def fff_block(
+    raw: np.ndarray,
+    metadata: FlirMetadata,
+    *,
+    byte_order: str = "<",
+    header_order: str = ">",
+    creator: str = "qogi",
+) -> bytes:
     """One FFF block: header, a two-entry record directory, RawData and
     CameraInfo. ``raw`` is (H, W) uint16 counts."""
     a = np.asarray(raw)
@@ -121,18 +133,25 @@ def fff_block(raw: np.ndarray, metadata: FlirMetadata, *, byte_order: str = "<",
     struct.pack_into(header_order + "III", header, 0x14, 100, dir_off, n)
     struct.pack_into(header_order + "I", header, 0x20, n + 1)
     directory = bytearray()
-    for idx, (rtype, off, length) in enumerate(((0x01, raw_off, len(raw_rec)),
-                                                (0x20, cam_off, len(cam_rec))), start=1):
+    for idx, (rtype, off, length) in enumerate(
+        ((0x01, raw_off, len(raw_rec)), (0x20, cam_off, len(cam_rec))), start=1
+    ):
         e = bytearray(32)
-        struct.pack_into(header_order + "HHIIII", e, 0, rtype, 1 if rtype == 1 else 0, 100, idx,
-                         off, length)
+        struct.pack_into(
+            header_order + "HHIIII", e, 0, rtype, 1 if rtype == 1 else 0, 100, idx, off, length
+        )
         directory += e
     return bytes(header + directory + raw_rec + cam_rec)
 
 
-def write_flir_seq(path: Union[str, os.PathLike], frames: Iterable[np.ndarray],
-                   metadata: Union[FlirMetadata, Sequence[FlirMetadata]], *,
-                   byte_order: str = "<", header_order: str = ">") -> int:
+def write_flir_seq(
+    path: Union[str, os.PathLike],
+    frames: Iterable[np.ndarray],
+    metadata: Union[FlirMetadata, Sequence[FlirMetadata]],
+    *,
+    byte_order: str = "<",
+    header_order: str = ">",
+) -> int:
     """Write a FLIR .seq file (atomically): one FFF block per frame.
 
     Parameters
@@ -160,8 +179,9 @@ def write_flir_seq(path: Union[str, os.PathLike], frames: Iterable[np.ndarray],
     return n
 
 
-def planck_calibration_for(centroid_cm1: float, max_temperature_K: float = 345.0,
-                           offset_counts: float = -1000.0) -> dict:
+def planck_calibration_for(
+    centroid_cm1: float, max_temperature_K: float = 345.0, offset_counts: float = -1000.0
+) -> dict:
     """Planck constants (R1, R2, B, F, O) of a FLIR-like one-line calibration
     raw(T) = R1 / (R2 (exp(B/T) - F)) - O for a camera whose band is centred at
     ``centroid_cm1`` [cm-1]: B = c2 nu (so the file's effective band is the
@@ -169,32 +189,68 @@ def planck_calibration_for(centroid_cm1: float, max_temperature_K: float = 345.0
     the top of the 16-bit range."""
     b = C2_CM_K * float(centroid_cm1)
     r1 = (65000.0 + offset_counts) * (math.exp(b / max_temperature_K) - 1.0)
-    return {"planck_r1": r1, "planck_r2": 1.0, "planck_b": b, "planck_f": 1.0,
-            "planck_o": float(offset_counts)}
+    return {
+        "planck_r1": r1,
+        "planck_r2": 1.0,
+        "planck_b": b,
+        "planck_f": 1.0,
+        "planck_o": float(offset_counts),
+    }
 
 
-def flir_metadata(*, width: int, height: int, timestamp_s: float, planck: dict,
-                  field_of_view_deg: float, frame_rate_hz: int,
-                  object_distance_m: float = 1.0, atmospheric_temperature_K: float = 293.15,
-                  camera_model: str = "qogi synthetic", lens_model: str = "",
-                  **extra) -> FlirMetadata:
+def flir_metadata(
+    *,
+    width: int,
+    height: int,
+    timestamp_s: float,
+    planck: dict,
+    field_of_view_deg: float,
+    frame_rate_hz: int,
+    object_distance_m: float = 1.0,
+    atmospheric_temperature_K: float = 293.15,
+    camera_model: str = "qogi synthetic",
+    lens_model: str = "",
+    **extra,
+) -> FlirMetadata:
     """A :class:`FlirMetadata` with FLIR's defaults for the object parameters
     (emissivity 1, distance 1 m, 20 C, RH 50 %, FLIR's atmospheric constants)
     unless given."""
     d: Dict[str, Any]
-    d = dict(width=width, height=height, emissivity=1.0, object_distance_m=object_distance_m,
-             reflected_temperature_K=293.15, atmospheric_temperature_K=atmospheric_temperature_K,
-             ir_window_temperature_K=293.15, ir_window_transmission=1.0, relative_humidity=0.5,
-             atmospheric_trans_alpha1=0.006569, atmospheric_trans_alpha2=0.01262,
-             atmospheric_trans_beta1=-0.002276, atmospheric_trans_beta2=-0.00667,
-             atmospheric_trans_x=1.9, camera_temperature_range_max_K=423.15,
-             camera_temperature_range_min_K=253.15, camera_model=camera_model,
-             camera_part_number="", camera_serial_number="0", camera_software="qogi",
-             lens_model=lens_model, lens_part_number="", lens_serial_number="", filter_model="",
-             field_of_view_deg=field_of_view_deg, focus_distance_m=0.0,
-             frame_rate_hz=int(frame_rate_hz), raw_value_range_min=0,
-             raw_value_range_max=65535, raw_value_median=0, raw_value_range=0,
-             timestamp_s=timestamp_s, utc_offset_min=0)
+    d = dict(
+        width=width,
+        height=height,
+        emissivity=1.0,
+        object_distance_m=object_distance_m,
+        reflected_temperature_K=293.15,
+        atmospheric_temperature_K=atmospheric_temperature_K,
+        ir_window_temperature_K=293.15,
+        ir_window_transmission=1.0,
+        relative_humidity=0.5,
+        atmospheric_trans_alpha1=0.006569,
+        atmospheric_trans_alpha2=0.01262,
+        atmospheric_trans_beta1=-0.002276,
+        atmospheric_trans_beta2=-0.00667,
+        atmospheric_trans_x=1.9,
+        camera_temperature_range_max_K=423.15,
+        camera_temperature_range_min_K=253.15,
+        camera_model=camera_model,
+        camera_part_number="",
+        camera_serial_number="0",
+        camera_software="qogi",
+        lens_model=lens_model,
+        lens_part_number="",
+        lens_serial_number="",
+        filter_model="",
+        field_of_view_deg=field_of_view_deg,
+        focus_distance_m=0.0,
+        frame_rate_hz=int(frame_rate_hz),
+        raw_value_range_min=0,
+        raw_value_range_max=65535,
+        raw_value_median=0,
+        raw_value_range=0,
+        timestamp_s=timestamp_s,
+        utc_offset_min=0,
+    )
     d.update(planck)
     d.update(extra)
     return FlirMetadata(**d)
@@ -210,35 +266,53 @@ def raw_from_apparent_temperature(temperature_K: np.ndarray, metadata: FlirMetad
     return np.clip(np.rint(raw), 0, 65535).astype(np.uint16)
 
 
-def write_recording_as_seq(recording, path: Union[str, os.PathLike], *,
-                           start_time_s: float = 1.7e9, object_distance_m: float = 1.0,
-                           atmospheric_temperature_K: Optional[float] = None,
-                           max_temperature_K: float = 345.0, camera_model: str = "",
-                           byte_order: str = "<") -> int:
+def write_recording_as_seq(
+    recording,
+    path: Union[str, os.PathLike],
+    *,
+    start_time_s: float = 1.7e9,
+    object_distance_m: float = 1.0,
+    atmospheric_temperature_K: Optional[float] = None,
+    max_temperature_K: float = 345.0,
+    camera_model: str = "",
+    byte_order: str = "<",
+) -> int:
     """Export a one-channel :class:`qogi.Recording` as a FLIR .seq: each
     frame's radiometric temperature through the channel becomes counts of a
     calibration centred on the channel (:func:`planck_calibration_for`), each
     frame stamped with its own time (``start_time_s`` + ``time_s``, to the
     millisecond, as FLIR stores it). The field of view is IFOV x width."""
     if recording.n_channels != 1:
-        raise ValueError(f"a FLIR .seq holds one channel; this recording has "
-                         f"{recording.n_channels}")
+        raise ValueError(
+            f"a FLIR .seq holds one channel; this recording has {recording.n_channels}"
+        )
     ch = recording.channels[0]
     planck = planck_calibration_for(ch.centroid_cm1, max_temperature_K)
     _, _, h, w = recording.shape
-    atm = (recording.scene.ambient_temperature_K if atmospheric_temperature_K is None
-           else atmospheric_temperature_K)
-    metas = [flir_metadata(width=w, height=h, timestamp_s=start_time_s + float(t), planck=planck,
-                           field_of_view_deg=math.degrees(recording.camera.ifov_rad * w),
-                           frame_rate_hz=int(round(recording.camera.frame_rate_hz)),
-                           object_distance_m=object_distance_m,
-                           atmospheric_temperature_K=atm,
-                           camera_model=camera_model or recording.camera.name)
-             for t in recording.time_s]
+    atm = (
+        recording.scene.ambient_temperature_K
+        if atmospheric_temperature_K is None
+        else atmospheric_temperature_K
+    )
+    metas = [
+        flir_metadata(
+            width=w,
+            height=h,
+            timestamp_s=start_time_s + float(t),
+            planck=planck,
+            field_of_view_deg=math.degrees(recording.camera.ifov_rad * w),
+            frame_rate_hz=int(round(recording.camera.frame_rate_hz)),
+            object_distance_m=object_distance_m,
+            atmospheric_temperature_K=atm,
+            camera_model=camera_model or recording.camera.name,
+        )
+        for t in recording.time_s
+    ]
 
     def frames():
         for i in range(recording.n_frames):
             yield raw_from_apparent_temperature(
-                recording.frame(i, quantity="radiometric_temperature")[0], metas[i])
+                recording.frame(i, quantity="radiometric_temperature")[0], metas[i]
+            )
 
     return write_flir_seq(path, frames(), metas, byte_order=byte_order)

@@ -43,8 +43,15 @@ from ..optics import SpectralResponse, channel_problem
 from ..recording import Camera, Recording, RecordingError, Scene, typical_interval
 from ..recording import open_recording as _open_hdf5
 
-__all__ = ["open_recording", "file_kind", "resolve_camera", "scene_needs",
-           "STANDARD_PRESSURE_PA", "FLIR_DEFAULTS", "CAMERA_EXTENSIONS"]
+__all__ = [
+    "open_recording",
+    "file_kind",
+    "resolve_camera",
+    "scene_needs",
+    "STANDARD_PRESSURE_PA",
+    "FLIR_DEFAULTS",
+    "CAMERA_EXTENSIONS",
+]
 
 #: Pressure used when none is given (a file never holds it) [Pa]; flagged.
 STANDARD_PRESSURE_PA = 101325.0
@@ -91,8 +98,7 @@ def resolve_camera(camera, *, ifov_rad: Optional[float] = None) -> Camera:
     if isinstance(camera, Camera):
         return camera
     if isinstance(camera, SpectralResponse):
-        return Camera(camera.name or "custom", ifov_rad if ifov_rad is not None else 0.0,
-                      [camera])
+        return Camera(camera.name or "custom", ifov_rad if ifov_rad is not None else 0.0, [camera])
     if isinstance(camera, (str, os.PathLike)):
         s = os.fspath(camera)
         if s in camera_preset_names():
@@ -103,36 +109,46 @@ def resolve_camera(camera, *, ifov_rad: Optional[float] = None) -> Camera:
             except ValueError as e:
                 raise UsageError(f"--camera {s}: not a spectral-response CSV ({e})") from None
             return Camera(os.path.basename(s), ifov_rad if ifov_rad is not None else 0.0, [ch])
-        raise UsageError(f"--camera {s!r} is neither a camera preset "
-                         f"({', '.join(camera_preset_names())}) nor a response CSV file "
-                         "(two columns: wavenumber_cm1 or wavelength_um, response)")
-    raise UsageError(f"camera must be a preset name, a CSV path, a qogi.SpectralResponse or a "
-                     f"qogi.Camera; got {type(camera).__name__}")
+        raise UsageError(
+            f"--camera {s!r} is neither a camera preset "
+            f"({', '.join(camera_preset_names())}) nor a response CSV file "
+            "(two columns: wavenumber_cm1 or wavelength_um, response)"
+        )
+    raise UsageError(
+        f"camera must be a preset name, a CSV path, a qogi.SpectralResponse or a "
+        f"qogi.Camera; got {type(camera).__name__}"
+    )
 
 
 def _missing(path: str, what: str, why: str, flag: str) -> UsageError:
-    e = UsageError(f"{path}: {what} is needed and the file does not hold it: {why}. Give it "
-                   f"with {flag}")
+    e = UsageError(
+        f"{path}: {what} is needed and the file does not hold it: {why}. Give it with {flag}"
+    )
     e.missing = what  # type: ignore[attr-defined]
     return e
 
 
 def _no_camera(path: str, kind: str) -> UsageError:
     from ..presets import camera_preset_names
+
     return _missing(
-        path, "the camera (spectral response)",
+        path,
+        "the camera (spectral response)",
         f"a {kind} file holds calibrated frames but not the camera's spectral response, which "
         "the gas absorption in each pixel's band is computed with",
-        f"--camera {'|'.join(camera_preset_names())}|response.csv (Python: camera=...)")
+        f"--camera {'|'.join(camera_preset_names())}|response.csv (Python: camera=...)",
+    )
 
 
 def _band_um(ch: SpectralResponse) -> str:
     from ..recording import _half_max_band
+
     lo, hi = _half_max_band(ch)
     return f"{1e4 / hi:.2f}-{1e4 / lo:.2f} um"
 
 
 # --------------------------------------------------------------------------- lazy sources
+
 
 class _FlirFrames:
     """Apparent (or object) radiometric temperature of a FLIR file's frames,
@@ -146,15 +162,21 @@ class _FlirFrames:
 
     def __getitem__(self, sl) -> np.ndarray:
         from .flir import flir_apparent_temperature, flir_temperature
+
         idx = range(self.shape[0])[sl]
         out = np.empty((len(idx),) + self.shape[1:], np.float32)
         for k, i in enumerate(idx):
             fr = self.flir.frame(i)
             if fr.raw.shape != self.shape[2:]:
-                raise DataError(f"{self.flir.path}: frame {i} is {fr.raw.shape[1]}x"
-                                f"{fr.raw.shape[0]}, frame 0 {self.shape[3]}x{self.shape[2]}")
-            t = (flir_temperature(fr.raw, fr.metadata) if self.object_parameters
-                 else flir_apparent_temperature(fr.raw, fr.metadata))
+                raise DataError(
+                    f"{self.flir.path}: frame {i} is {fr.raw.shape[1]}x"
+                    f"{fr.raw.shape[0]}, frame 0 {self.shape[3]}x{self.shape[2]}"
+                )
+            t = (
+                flir_temperature(fr.raw, fr.metadata)
+                if self.object_parameters
+                else flir_apparent_temperature(fr.raw, fr.metadata)
+            )
             out[k, 0] = t
         return out
 
@@ -195,11 +217,20 @@ class _HccFrames:
 
 # --------------------------------------------------------------------------- the opener
 
-def open_recording(path: Union[str, os.PathLike], camera=None, distance_m: Optional[float] = None,
-                   ambient_temperature_K: Optional[float] = None,
-                   pressure_Pa: Optional[float] = None, *, ifov_rad: Optional[float] = None,
-                   nonfinite: str = "error", check_frames: Optional[bool] = None,
-                   object_parameters: bool = False, species=()) -> Recording:
+
+def open_recording(
+    path: Union[str, os.PathLike],
+    camera=None,
+    distance_m: Optional[float] = None,
+    ambient_temperature_K: Optional[float] = None,
+    pressure_Pa: Optional[float] = None,
+    *,
+    ifov_rad: Optional[float] = None,
+    nonfinite: str = "error",
+    check_frames: Optional[bool] = None,
+    object_parameters: bool = False,
+    species=(),
+) -> Recording:
     """Open a qogi HDF5 recording or a camera file as a lazy :class:`Recording`.
 
     Parameters
@@ -251,18 +282,37 @@ def open_recording(path: Union[str, os.PathLike], camera=None, distance_m: Optio
     p = os.fspath(path)
     kind = file_kind(p) if os.path.isfile(p) else "hdf5"
     if kind == "hdf5":
-        return _open_h5(p, camera, distance_m, ambient_temperature_K, pressure_Pa, nonfinite,
-                        True if check_frames is None else check_frames)
+        return _open_h5(
+            p,
+            camera,
+            distance_m,
+            ambient_temperature_K,
+            pressure_Pa,
+            nonfinite,
+            True if check_frames is None else check_frames,
+        )
     if kind == "flir":
-        rec = _open_flir(p, camera, distance_m, ambient_temperature_K, pressure_Pa, ifov_rad,
-                         nonfinite, object_parameters, species)
+        rec = _open_flir(
+            p,
+            camera,
+            distance_m,
+            ambient_temperature_K,
+            pressure_Pa,
+            ifov_rad,
+            nonfinite,
+            object_parameters,
+            species,
+        )
     elif kind == "telops":
-        rec = _open_hcc(p, camera, distance_m, ambient_temperature_K, pressure_Pa, ifov_rad,
-                        nonfinite, species)
+        rec = _open_hcc(
+            p, camera, distance_m, ambient_temperature_K, pressure_Pa, ifov_rad, nonfinite, species
+        )
     else:
-        raise UsageError(f"{p}: unknown file type (not HDF5, FLIR FFF/JPEG or Telops .hcc by "
-                         "its first bytes); qogi opens .h5 recordings, FLIR .seq/.csq/.fff/"
-                         ".jpg and Telops .hcc (numpy/TIFF arrays: qogi.io.read_numpy/read_tiff)")
+        raise UsageError(
+            f"{p}: unknown file type (not HDF5, FLIR FFF/JPEG or Telops .hcc by "
+            "its first bytes); qogi opens .h5 recordings, FLIR .seq/.csq/.fff/"
+            ".jpg and Telops .hcc (numpy/TIFF arrays: qogi.io.read_numpy/read_tiff)"
+        )
     if check_frames:
         try:
             rec._scan_frames()
@@ -274,12 +324,21 @@ def open_recording(path: Union[str, os.PathLike], camera=None, distance_m: Optio
 
 def _open_h5(p, camera, distance_m, ambient_K, pressure_Pa, nonfinite, check_frames):
     if camera is not None:
-        raise UsageError(f"{p}: a qogi recording carries its own camera (spectral responses); "
-                         "--camera is for camera files (.seq, .csq, .jpg, .fff, .hcc)")
+        raise UsageError(
+            f"{p}: a qogi recording carries its own camera (spectral responses); "
+            "--camera is for camera files (.seq, .csq, .jpg, .fff, .hcc)"
+        )
     rec = _open_hdf5(p, nonfinite=nonfinite, check_frames=check_frames)
-    origins = {k: "file" for k in ("distance_m", "ambient_temperature_K", "pressure_Pa")}
-    given = {k: v for k, v in (("distance_m", distance_m), ("ambient_temperature_K", ambient_K),
-                               ("pressure_Pa", pressure_Pa)) if v is not None}
+    origins = dict.fromkeys(("distance_m", "ambient_temperature_K", "pressure_Pa"), "file")
+    given = {
+        k: v
+        for k, v in (
+            ("distance_m", distance_m),
+            ("ambient_temperature_K", ambient_K),
+            ("pressure_Pa", pressure_Pa),
+        )
+        if v is not None
+    }
     if given:
         try:
             changes: Dict[str, Any] = {k: float(v) for k, v in given.items()}
@@ -289,7 +348,7 @@ def _open_h5(p, camera, distance_m, ambient_K, pressure_Pa, nonfinite, check_fra
             rec.close()
             raise
         rec.scene = scene
-        origins.update({k: "given" for k in given})
+        origins.update(dict.fromkeys(given, "given"))
     rec.scene_origin = origins  # type: ignore[attr-defined]
     rec.warnings = Diagnostics()  # type: ignore[attr-defined]
     return rec
@@ -297,9 +356,12 @@ def _open_h5(p, camera, distance_m, ambient_K, pressure_Pa, nonfinite, check_fra
 
 def _scene(p, facts: dict, species) -> Scene:
     try:
-        scene = Scene(distance_m=facts["distance_m"],
-                      ambient_temperature_K=facts["ambient_temperature_K"],
-                      pressure_Pa=facts["pressure_Pa"], species=tuple(species))
+        scene = Scene(
+            distance_m=facts["distance_m"],
+            ambient_temperature_K=facts["ambient_temperature_K"],
+            pressure_Pa=facts["pressure_Pa"],
+            species=tuple(species),
+        )
         scene.validate(p)
     except RecordingError as e:
         raise UsageError(str(e)) from None
@@ -311,10 +373,13 @@ def _pressure(p, pressure_Pa, origins, warns) -> float:
         origins["pressure_Pa"] = "given"
         return float(pressure_Pa)
     origins["pressure_Pa"] = "assumed (standard sea-level pressure)"
-    warns.add("scene-pressure-assumed",
-              f"{os.path.basename(p)} does not record the ambient pressure; {STANDARD_PRESSURE_PA:g}"
-              " Pa (sea level) is assumed (the gas lines' pressure broadening depends on it); give "
-              "--pressure for a site at altitude", value_Pa=STANDARD_PRESSURE_PA)
+    warns.add(
+        "scene-pressure-assumed",
+        f"{os.path.basename(p)} does not record the ambient pressure; {STANDARD_PRESSURE_PA:g}"
+        " Pa (sea level) is assumed (the gas lines' pressure broadening depends on it); give "
+        "--pressure for a site at altitude",
+        value_Pa=STANDARD_PRESSURE_PA,
+    )
     return STANDARD_PRESSURE_PA
 
 
@@ -329,11 +394,14 @@ def _times(p, stamps: np.ndarray, nominal_hz: float, warns: Diagnostics):
         missing = int(np.sum(np.maximum(np.rint(gaps) - 1, 0)))
         if missing:
             first = int(np.flatnonzero(gaps > 1.5)[0])
-            warns.add("frames-dropped",
-                      f"{os.path.basename(p)}: the frame time stamps show {missing} missing "
-                      f"frame(s) (the first gap after frame {first}, {t[first + 1] - t[first]:.4g} s "
-                      f"for a {dt:.4g} s interval); the pipeline uses the stamped times",
-                      missing=missing, first_gap_after_frame=first)
+            warns.add(
+                "frames-dropped",
+                f"{os.path.basename(p)}: the frame time stamps show {missing} missing "
+                f"frame(s) (the first gap after frame {first}, {t[first + 1] - t[first]:.4g} s "
+                f"for a {dt:.4g} s interval); the pipeline uses the stamped times",
+                missing=missing,
+                first_gap_after_frame=first,
+            )
         return t, 1.0 / dt
     if n == 1:
         if nominal_hz > 0:
@@ -341,17 +409,22 @@ def _times(p, stamps: np.ndarray, nominal_hz: float, warns: Diagnostics):
         raise DataError(f"{p}: a single frame with no frame rate")
     if nominal_hz > 0:
         bad = int(np.flatnonzero(np.diff(stamps) <= 0)[0])
-        warns.add("frame-times-from-rate",
-                  f"{os.path.basename(p)}: the frame time stamps do not increase (frame {bad + 1} "
-                  f"at {stamps[bad + 1]!r} s after frame {bad} at {stamps[bad]!r} s); times are "
-                  f"frame index / the nominal {nominal_hz:g} Hz, so dropped frames cannot be seen")
+        warns.add(
+            "frame-times-from-rate",
+            f"{os.path.basename(p)}: the frame time stamps do not increase (frame {bad + 1} "
+            f"at {stamps[bad + 1]!r} s after frame {bad} at {stamps[bad]!r} s); times are "
+            f"frame index / the nominal {nominal_hz:g} Hz, so dropped frames cannot be seen",
+        )
         return np.arange(n) / float(nominal_hz), float(nominal_hz)
-    raise DataError(f"{p}: the frame time stamps do not increase and the file has no frame "
-                    "rate: frame times are unknown")
+    raise DataError(
+        f"{p}: the frame time stamps do not increase and the file has no frame "
+        "rate: frame times are unknown"
+    )
 
 
-def _open_flir(p, camera, distance_m, ambient_K, pressure_Pa, ifov_rad, nonfinite,
-               object_parameters, species) -> Recording:
+def _open_flir(
+    p, camera, distance_m, ambient_K, pressure_Pa, ifov_rad, nonfinite, object_parameters, species
+) -> Recording:
     from .flir import FlirFile
 
     if camera is None:
@@ -363,9 +436,11 @@ def _open_flir(p, camera, distance_m, ambient_K, pressure_Pa, ifov_rad, nonfinit
         raise _no_camera(p, "FLIR")
     cam = resolve_camera(camera, ifov_rad=ifov_rad)
     if channel_problem(cam.channels, 1) is not None:
-        raise UsageError(f"{p}: a FLIR file holds one channel; the camera {cam.name!r} has "
-                         f"{len(cam.channels)} (give a one-channel camera, e.g. gf320 or a "
-                         "response CSV)")
+        raise UsageError(
+            f"{p}: a FLIR file holds one channel; the camera {cam.name!r} has "
+            f"{len(cam.channels)} (give a one-channel camera, e.g. gf320 or a "
+            "response CSV)"
+        )
     ch = cam.channels[0]
     f = FlirFile(p)
     try:
@@ -373,21 +448,31 @@ def _open_flir(p, camera, distance_m, ambient_K, pressure_Pa, ifov_rad, nonfinit
         m0 = metas[0]
         nu_eff = m0.effective_wavenumber_cm1
         if not (nu_eff > 0 and abs(ch.centroid_cm1 - nu_eff) <= BAND_TOLERANCE * nu_eff):
-            file_band = (f"{1e4 / nu_eff:.1f} um ({nu_eff:.0f} cm-1, from its Planck B = "
-                         f"{m0.planck_b:g} K = c2 x wavenumber)" if nu_eff > 0
-                         else f"unknown (Planck B = {m0.planck_b:g} K)")
-            kind = ("a long-wave (LWIR) camera" if 0 < nu_eff < 1450 else
-                    "a mid-wave (MWIR) camera" if nu_eff >= 1450 else "an unknown band")
+            file_band = (
+                f"{1e4 / nu_eff:.1f} um ({nu_eff:.0f} cm-1, from its Planck B = "
+                f"{m0.planck_b:g} K = c2 x wavenumber)"
+                if nu_eff > 0
+                else f"unknown (Planck B = {m0.planck_b:g} K)"
+            )
+            kind = (
+                "a long-wave (LWIR) camera"
+                if 0 < nu_eff < 1450
+                else "a mid-wave (MWIR) camera"
+                if nu_eff >= 1450
+                else "an unknown band"
+            )
             raise UsageError(
                 f"{p}: the file's camera ({m0.camera_model or 'FLIR'}) is calibrated near "
                 f"{file_band}: {kind}; the camera {cam.name!r} given sees "
                 f"{_band_um(ch)} (centroid {1e4 / ch.centroid_cm1:.2f} um). Its frames cannot be "
                 "read through that band: give the spectral response of the camera that recorded "
                 "the file (--camera response.csv); a long-wave camera does not see methane's "
-                "3.3 um band")
+                "3.3 um band"
+            )
         if len({(m.width, m.height) for m in metas}) != 1:
-            raise DataError(f"{p}: frames have different sizes "
-                            f"{sorted({(m.width, m.height) for m in metas})}")
+            raise DataError(
+                f"{p}: frames have different sizes {sorted({(m.width, m.height) for m in metas})}"
+            )
         warns, origins = Diagnostics(), {"camera": "given", "time_s": "file (frame time stamps)"}
         times, rate = _times(p, np.array([m.timestamp_s for m in metas]), m0.frame_rate_hz, warns)
         if warns.has("frame-times-from-rate"):
@@ -395,50 +480,89 @@ def _open_flir(p, camera, distance_m, ambient_K, pressure_Pa, ifov_rad, nonfinit
         facts = {}
         name = os.path.basename(p)
         for key, given, held, label, flag in (
-                ("distance_m", distance_m, m0.object_distance_m, "object distance", "--distance"),
-                ("ambient_temperature_K", ambient_K, m0.atmospheric_temperature_K,
-                 "atmospheric temperature", "--ambient-temperature")):
+            ("distance_m", distance_m, m0.object_distance_m, "object distance", "--distance"),
+            (
+                "ambient_temperature_K",
+                ambient_K,
+                m0.atmospheric_temperature_K,
+                "atmospheric temperature",
+                "--ambient-temperature",
+            ),
+        ):
             if given is not None:
                 facts[key], origins[key] = float(given), "given"
                 continue
             if not (np.isfinite(held) and held > 0):
-                raise _missing(p, key.replace("_", " "),
-                               f"the file's {label} is {held!r}, not a usable value", flag)
+                raise _missing(
+                    p,
+                    key.replace("_", " "),
+                    f"the file's {label} is {held!r}, not a usable value",
+                    flag,
+                )
             facts[key], origins[key] = float(held), f"file (FLIR {label})"
             if abs(held - FLIR_DEFAULTS[key]) < 1e-4:
                 unit = "m" if key == "distance_m" else "K"
-                warns.add("scene-camera-default",
-                          f"{name}: the {label} {held:g} {unit} is FLIR's factory default, "
-                          f"probably never set for this scene; "
-                          + ("the rate scales with the distance: give --distance"
-                             if key == "distance_m" else "give --ambient-temperature"),
-                          fact=key, value=float(held))
+                warns.add(
+                    "scene-camera-default",
+                    f"{name}: the {label} {held:g} {unit} is FLIR's factory default, "
+                    f"probably never set for this scene; "
+                    + (
+                        "the rate scales with the distance: give --distance"
+                        if key == "distance_m"
+                        else "give --ambient-temperature"
+                    ),
+                    fact=key,
+                    value=float(held),
+                )
         facts["pressure_Pa"] = _pressure(p, pressure_Pa, origins, warns)
         if ifov_rad is not None:
             ifov, origins["ifov_rad"] = float(ifov_rad), "given"
         elif m0.field_of_view_deg > 0 and m0.width > 0:
-            ifov, origins["ifov_rad"] = np.deg2rad(m0.field_of_view_deg) / m0.width, \
-                "file (field of view / width)"
+            ifov, origins["ifov_rad"] = (
+                np.deg2rad(m0.field_of_view_deg) / m0.width,
+                "file (field of view / width)",
+            )
         elif cam.ifov_rad > 0:
             ifov, origins["ifov_rad"] = cam.ifov_rad, "camera preset"
         else:
-            raise _missing(p, "the IFOV", "the file has no field of view and the camera none",
-                           "ifov_rad=... (angular size of one pixel, rad)")
-        camera_out = Camera(" ".join(s for s in (m0.camera_model, m0.lens_model) if s) or cam.name,
-                            float(ifov), [ch], float(rate), cam.netd_K)
+            raise _missing(
+                p,
+                "the IFOV",
+                "the file has no field of view and the camera none",
+                "ifov_rad=... (angular size of one pixel, rad)",
+            )
+        camera_out = Camera(
+            " ".join(s for s in (m0.camera_model, m0.lens_model) if s) or cam.name,
+            float(ifov),
+            [ch],
+            float(rate),
+            cam.netd_K,
+        )
         scene = _scene(p, facts, species)
         source = _FlirFrames(f, len(metas), m0.height, m0.width, object_parameters)
-        rec = Recording(source=source, time_s=np.asarray(times, np.float64),
-                        quantity="radiometric_temperature", camera=camera_out, scene=scene,
-                        truth=None, path=p, nonfinite="invalid" if nonfinite == "error" else nonfinite,
-                        h5file=source,
-                        attrs={"source": name, "source_format": f"FLIR {f.kind} ({m0.raw_format})",
-                               "start_time_posix_s": float(m0.timestamp_s),
-                               "camera_preset": cam.name,
-                               "flir_temperature": "object" if object_parameters else "apparent",
-                               "flir_planck_r1": m0.planck_r1, "flir_planck_r2": m0.planck_r2,
-                               "flir_planck_b": m0.planck_b, "flir_planck_f": m0.planck_f,
-                               "flir_planck_o": m0.planck_o})
+        rec = Recording(
+            source=source,
+            time_s=np.asarray(times, np.float64),
+            quantity="radiometric_temperature",
+            camera=camera_out,
+            scene=scene,
+            truth=None,
+            path=p,
+            nonfinite="invalid" if nonfinite == "error" else nonfinite,
+            h5file=source,
+            attrs={
+                "source": name,
+                "source_format": f"FLIR {f.kind} ({m0.raw_format})",
+                "start_time_posix_s": float(m0.timestamp_s),
+                "camera_preset": cam.name,
+                "flir_temperature": "object" if object_parameters else "apparent",
+                "flir_planck_r1": m0.planck_r1,
+                "flir_planck_r2": m0.planck_r2,
+                "flir_planck_b": m0.planck_b,
+                "flir_planck_f": m0.planck_f,
+                "flir_planck_o": m0.planck_o,
+            },
+        )
         rec._validate_metadata()
     except BaseException:
         f.close()
@@ -448,8 +572,9 @@ def _open_flir(p, camera, distance_m, ambient_K, pressure_Pa, ifov_rad, nonfinit
     return rec
 
 
-def _open_hcc(p, camera, distance_m, ambient_K, pressure_Pa, ifov_rad, nonfinite,
-              species) -> Recording:
+def _open_hcc(
+    p, camera, distance_m, ambient_K, pressure_Pa, ifov_rad, nonfinite, species
+) -> Recording:
     from .telops import CALIBRATION_MODES, HccFile, wheel_turns
 
     h = HccFile(p)
@@ -457,15 +582,18 @@ def _open_hcc(p, camera, distance_m, ambient_K, pressure_Pa, ifov_rad, nonfinite
         fields = h.fields()
         modes = sorted(set(fields["CalibrationMode"].tolist()))
         if len(modes) != 1:
-            raise DataError(f"{p}: the calibration mode changes within the file ({modes}); "
-                            "export it with one mode")
+            raise DataError(
+                f"{p}: the calibration mode changes within the file ({modes}); "
+                "export it with one mode"
+            )
         mode = modes[0]
         mname, quantity, _unit = CALIBRATION_MODES.get(mode, (f"mode {mode}", None, "?"))
         if quantity is None:  # the file's content, not an argument: bad data (exit 3)
             raise DataError(
                 f"{p}: calibration mode {mname} ({mode}) holds uncalibrated detector counts; "
                 "qogi needs radiometric data: export the sequence as RT (radiometric "
-                "temperature) or IBR (in-band radiance) with Telops Reveal IR")
+                "temperature) or IBR (in-band radiance) with Telops Reveal IR"
+            )
         if camera is None:
             raise _no_camera(p, "Telops .hcc")
         cam = resolve_camera(camera, ifov_rad=ifov_rad)
@@ -473,35 +601,57 @@ def _open_hcc(p, camera, distance_m, ambient_K, pressure_Pa, ifov_rad, nonfinite
         if wheel:
             order, turns, skipped = wheel_turns(fields["FWPosition"])
         else:
-            order, turns, skipped = [int(fields["FWPosition"][0])], \
-                np.arange(h.n_frames)[:, None], 0
+            order, turns, skipped = (
+                [int(fields["FWPosition"][0])],
+                np.arange(h.n_frames)[:, None],
+                0,
+            )
         positions = sorted(order)
         if channel_problem(cam.channels, len(positions)) is not None:
             raise UsageError(
                 f"{p}: the file has {len(positions)} filter position(s) "
                 f"({', '.join(map(str, positions))}) but the camera {cam.name!r} has "
                 f"{len(cam.channels)} channel(s); give the camera whose channel k is filter "
-                "position k (sorted), e.g. --camera fast-m150 for a four-filter wheel")
+                "position k (sorted), e.g. --camera fast-m150 for a four-filter wheel"
+            )
         if turns.shape[0] == 0:
-            raise DataError(f"{p}: no complete wheel turn (positions in file order: "
-                            f"{fields['FWPosition'][:12].tolist()} ...)")
+            raise DataError(
+                f"{p}: no complete wheel turn (positions in file order: "
+                f"{fields['FWPosition'][:12].tolist()} ...)"
+            )
         warns = Diagnostics()
         name = os.path.basename(p)
         origins = {"camera": "given", "time_s": "file (POSIX time + sub-second ticks)"}
         if skipped:
-            warns.add("frames-dropped",
-                      f"{name}: {skipped} frame(s) left out because their wheel turn was "
-                      "incomplete (a dropped frame)", missing=int(skipped))
+            warns.add(
+                "frames-dropped",
+                f"{name}: {skipped} frame(s) left out because their wheel turn was "
+                "incomplete (a dropped frame)",
+                missing=int(skipped),
+            )
         facts = {}
         for key, given, flag, why in (
-                ("distance_m", distance_m, "--distance",
-                 "the column density per pixel and the pixel's size at the plume scale with it"),
-                ("ambient_temperature_K", ambient_K, "--ambient-temperature",
-                 "the gas temperature (assumed ambient) and the air between camera and plume "
-                 "depend on it")):
+            (
+                "distance_m",
+                distance_m,
+                "--distance",
+                "the column density per pixel and the pixel's size at the plume scale with it",
+            ),
+            (
+                "ambient_temperature_K",
+                ambient_K,
+                "--ambient-temperature",
+                "the gas temperature (assumed ambient) and the air between camera and plume "
+                "depend on it",
+            ),
+        ):
             if given is None:
-                raise _missing(p, key.replace("_", " ").replace(" K", "").replace(" m", ""),
-                               f"a Telops .hcc file does not record it, and {why}", flag)
+                raise _missing(
+                    p,
+                    key.replace("_", " ").replace(" K", "").replace(" m", ""),
+                    f"a Telops .hcc file does not record it, and {why}",
+                    flag,
+                )
             facts[key], origins[key] = float(given), "given"
         facts["pressure_Pa"] = _pressure(p, pressure_Pa, origins, warns)
         if ifov_rad is not None:
@@ -509,31 +659,47 @@ def _open_hcc(p, camera, distance_m, ambient_K, pressure_Pa, ifov_rad, nonfinite
         elif cam.ifov_rad > 0:
             ifov, origins["ifov_rad"] = cam.ifov_rad, "camera preset"
         else:
-            raise _missing(p, "the IFOV", "a Telops file does not record the lens",
-                           "ifov_rad=... (angular size of one pixel, rad)")
+            raise _missing(
+                p,
+                "the IFOV",
+                "a Telops file does not record the lens",
+                "ifov_rad=... (angular size of one pixel, rad)",
+            )
         factor = 1.0
         if quantity == "irradiance":
             # An extended source filling the pixel: E = L x (pixel solid angle).
-            factor, quantity = 1.0 / ifov ** 2, "radiance"
+            factor, quantity = 1.0 / ifov**2, "radiance"
         ftimes = fields["time_s"]
-        ch_times = ftimes[turns]                        # (T, C) POSIX s
+        ch_times = ftimes[turns]  # (T, C) POSIX s
         turn_t = ch_times.mean(axis=1)
-        t0 = float(turn_t[0])                           # time zero: the first turn's mean
-        times, rate = _times(p, turn_t, fields["AcquisitionFrameRate"][0] / 1000.0
-                             / max(1, len(positions)), warns)
+        t0 = float(turn_t[0])  # time zero: the first turn's mean
+        times, rate = _times(
+            p, turn_t, fields["AcquisitionFrameRate"][0] / 1000.0 / max(1, len(positions)), warns
+        )
         camera_out = Camera(cam.name, float(ifov), list(cam.channels), float(rate), cam.netd_K)
         scene = _scene(p, facts, species)
         source = _HccFrames(h, turns, factor)
         offsets = (ch_times - ch_times.mean(axis=1, keepdims=True)).mean(axis=0)
-        rec = Recording(source=source, time_s=np.asarray(times, np.float64), quantity=quantity,
-                        camera=camera_out, scene=scene, truth=None, path=p,
-                        nonfinite="invalid" if nonfinite == "error" else nonfinite, h5file=source,
-                        attrs={"source": name, "source_format": f"Telops hcc v{h.version[0]}."
-                               f"{h.version[1]} ({mname})", "start_time_posix_s": t0,
-                               "camera_preset": cam.name,
-                               "telops_calibration_mode": mname,
-                               "telops_filter_positions": np.asarray(positions, np.int64),
-                               "channel_time_offset_s": offsets})
+        rec = Recording(
+            source=source,
+            time_s=np.asarray(times, np.float64),
+            quantity=quantity,
+            camera=camera_out,
+            scene=scene,
+            truth=None,
+            path=p,
+            nonfinite="invalid" if nonfinite == "error" else nonfinite,
+            h5file=source,
+            attrs={
+                "source": name,
+                "source_format": f"Telops hcc v{h.version[0]}.{h.version[1]} ({mname})",
+                "start_time_posix_s": t0,
+                "camera_preset": cam.name,
+                "telops_calibration_mode": mname,
+                "telops_filter_positions": np.asarray(positions, np.int64),
+                "channel_time_offset_s": offsets,
+            },
+        )
         rec._validate_metadata()
     except BaseException:
         h.close()
@@ -545,6 +711,7 @@ def _open_hcc(p, camera, distance_m, ambient_K, pressure_Pa, ifov_rad, nonfinite
 
 
 # --------------------------------------------------------------------------- what is needed
+
 
 def scene_needs(path: Union[str, os.PathLike]) -> Dict[str, object]:
     """What a file holds and what opening it as a recording needs, without
@@ -558,25 +725,33 @@ def scene_needs(path: Union[str, os.PathLike]) -> Dict[str, object]:
     defaults: List[str] = []
     if kind == "flir":
         from .flir import FlirFile
+
         with FlirFile(p) as f:
             m = f.metadata(0)
         flir: Dict[str, Optional[float]] = {
             "distance_m": m.object_distance_m,
             "ambient_temperature_K": m.atmospheric_temperature_K,
             "band_um": 1e4 / m.effective_wavenumber_cm1 if m.planck_b > 0 else None,
-            "ifov_rad": np.deg2rad(m.field_of_view_deg) / m.width if m.width else None}
+            "ifov_rad": np.deg2rad(m.field_of_view_deg) / m.width if m.width else None,
+        }
         needs = ["camera"]
         holds = dict(flir)
-        defaults = [k for k, v in FLIR_DEFAULTS.items()
-                    if (held := flir[k]) is not None and abs(held - v) < 1e-4]
+        defaults = [
+            k
+            for k, v in FLIR_DEFAULTS.items()
+            if (held := flir[k]) is not None and abs(held - v) < 1e-4
+        ]
     elif kind == "telops":
         from .telops import CALIBRATION_MODES, HccFile
+
         with HccFile(p) as h:
             fl = h.fields()
         pos = sorted(set(fl["FWPosition"].tolist())) if fl["FWMode"].any() else []
-        holds = {"calibration_mode": CALIBRATION_MODES.get(int(fl["CalibrationMode"][0]),
-                                                           ("?",))[0],
-                 "filter_positions": pos, "frames": int(len(fl["FrameID"]))}
+        holds = {
+            "calibration_mode": CALIBRATION_MODES.get(int(fl["CalibrationMode"][0]), ("?",))[0],
+            "filter_positions": pos,
+            "frames": int(len(fl["FrameID"])),
+        }
         needs = ["camera", "distance_m", "ambient_temperature_K"]
     elif kind == "hdf5":
         needs = []

@@ -49,24 +49,47 @@ import numpy as np
 from ..errors import DataError
 from ..files import atomic_open
 
-__all__ = ["HccFile", "open_hcc", "write_hcc", "hcc_header", "HEADER_FIELDS",
-           "CALIBRATION_MODES", "wheel_turns", "HccFormatError"]
+__all__ = [
+    "HccFile",
+    "open_hcc",
+    "write_hcc",
+    "hcc_header",
+    "HEADER_FIELDS",
+    "CALIBRATION_MODES",
+    "wheel_turns",
+    "HccFormatError",
+]
 
 #: (name, offset, numpy little-endian type) of the header fields qogi reads.
 HEADER_FIELDS: Tuple[Tuple[str, int, str], ...] = (
-    ("DeviceXMLMinorVersion", 2, "u1"), ("DeviceXMLMajorVersion", 3, "u1"),
-    ("ImageHeaderLength", 4, "<u2"), ("FrameID", 8, "<u4"), ("DataOffset", 12, "<f4"),
-    ("DataExp", 16, "i1"), ("ExposureTime", 24, "<u4"), ("CalibrationMode", 28, "u1"),
-    ("Width", 32, "<u2"), ("Height", 34, "<u2"), ("AcquisitionFrameRate", 44, "<u4"),
-    ("FWMode", 75, "u1"), ("FWSpeedSetpoint", 76, "<u2"), ("FWSpeed", 78, "<u2"),
-    ("POSIXTime", 100, "<u4"), ("SubSecondTime", 104, "<u4"), ("FWPosition", 128, "u1"),
-    ("NDFilterPosition", 130, "u1"), ("ExternalBlackBodyTemperature", 156, "<f4"),
+    ("DeviceXMLMinorVersion", 2, "u1"),
+    ("DeviceXMLMajorVersion", 3, "u1"),
+    ("ImageHeaderLength", 4, "<u2"),
+    ("FrameID", 8, "<u4"),
+    ("DataOffset", 12, "<f4"),
+    ("DataExp", 16, "i1"),
+    ("ExposureTime", 24, "<u4"),
+    ("CalibrationMode", 28, "u1"),
+    ("Width", 32, "<u2"),
+    ("Height", 34, "<u2"),
+    ("AcquisitionFrameRate", 44, "<u4"),
+    ("FWMode", 75, "u1"),
+    ("FWSpeedSetpoint", 76, "<u2"),
+    ("FWSpeed", 78, "<u2"),
+    ("POSIXTime", 100, "<u4"),
+    ("SubSecondTime", 104, "<u4"),
+    ("FWPosition", 128, "u1"),
+    ("NDFilterPosition", 130, "u1"),
+    ("ExternalBlackBodyTemperature", 156, "<f4"),
 )
 #: CalibrationMode -> (name, qogi quantity or None when not usable, unit).
 CALIBRATION_MODES = {
-    0: ("Raw0", None, "counts"), 1: ("NUC", None, "counts"),
-    2: ("RT", "radiometric_temperature", "K"), 3: ("IBR", "radiance", "W/(m2 sr)"),
-    4: ("IBI", "irradiance", "W/m2"), 5: ("Raw", None, "counts"),
+    0: ("Raw0", None, "counts"),
+    1: ("NUC", None, "counts"),
+    2: ("RT", "radiometric_temperature", "K"),
+    3: ("IBR", "radiance", "W/(m2 sr)"),
+    4: ("IBI", "irradiance", "W/m2"),
+    5: ("Raw", None, "counts"),
 }
 #: Smallest pixel word that marks a bad pixel.
 BAD_PIXEL = 0xFFF1
@@ -96,43 +119,58 @@ class HccFile:
         with open(self.path, "rb") as fh:
             head = fh.read(_MIN_HEADER)
         if len(head) < 48 or head[:2] != b"TC":
-            raise HccFormatError(f"{self.path}: not a Telops .hcc file (starts with "
-                                 f"{head[:2]!r}; expected the signature 'TC')")
+            raise HccFormatError(
+                f"{self.path}: not a Telops .hcc file (starts with "
+                f"{head[:2]!r}; expected the signature 'TC')"
+            )
         self.version = (head[3], head[2])
         self.header_length = struct.unpack_from("<H", head, 4)[0]
         self.width, self.height = struct.unpack_from("<HH", head, 32)
         if self.version[0] < 10:
             raise HccFormatError(
                 f"{self.path}: header version {self.version[0]}.{self.version[1]} predates "
-                "per-frame time stamps (version 10); re-export it with Telops Reveal IR")
+                "per-frame time stamps (version 10); re-export it with Telops Reveal IR"
+            )
         if self.width == 0 or self.height == 0:
-            raise HccFormatError(f"{self.path}: frame 0 header gives a {self.width}x"
-                                 f"{self.height} image")
+            raise HccFormatError(
+                f"{self.path}: frame 0 header gives a {self.width}x{self.height} image"
+            )
         if self.header_length < _MIN_HEADER:
-            raise HccFormatError(f"{self.path}: ImageHeaderLength {self.header_length} bytes is "
-                                 f"shorter than the {_MIN_HEADER}-byte layout read here")
+            raise HccFormatError(
+                f"{self.path}: ImageHeaderLength {self.header_length} bytes is "
+                f"shorter than the {_MIN_HEADER}-byte layout read here"
+            )
         self.stride = self.header_length + 2 * self.width * self.height
         self.n_frames = size // self.stride
         self.trailing_bytes = size - self.n_frames * self.stride
         if self.n_frames == 0:
-            raise HccFormatError(f"{self.path}: {size} bytes, less than one frame of "
-                                 f"{self.stride} bytes ({self.width}x{self.height})")
+            raise HccFormatError(
+                f"{self.path}: {size} bytes, less than one frame of "
+                f"{self.stride} bytes ({self.width}x{self.height})"
+            )
         names = [f[0] for f in HEADER_FIELDS] + ["pixels"]
         formats = [f[2] for f in HEADER_FIELDS] + [("<u2", (self.height, self.width))]
         offsets = [f[1] for f in HEADER_FIELDS] + [self.header_length]
-        self._dtype = np.dtype({"names": names, "formats": formats, "offsets": offsets,
-                                "itemsize": self.stride})
-        self._map: Optional[np.memmap] = np.memmap(self.path, dtype=self._dtype, mode="r",
-                                                   shape=(self.n_frames,))
+        self._dtype = np.dtype(
+            {"names": names, "formats": formats, "offsets": offsets, "itemsize": self.stride}
+        )
+        self._map: Optional[np.memmap] = np.memmap(
+            self.path, dtype=self._dtype, mode="r", shape=(self.n_frames,)
+        )
         f = self.fields()
-        bad = np.flatnonzero((f["Width"] != self.width) | (f["Height"] != self.height)
-                             | (f["ImageHeaderLength"] != self.header_length))
+        bad = np.flatnonzero(
+            (f["Width"] != self.width)
+            | (f["Height"] != self.height)
+            | (f["ImageHeaderLength"] != self.header_length)
+        )
         if bad.size:
             i = int(bad[0])
-            raise HccFormatError(f"{self.path}: frame {i} header says {f['Width'][i]}x"
-                                 f"{f['Height'][i]} with a {f['ImageHeaderLength'][i]}-byte "
-                                 f"header, unlike frame 0 ({self.width}x{self.height}, "
-                                 f"{self.header_length}): a corrupt or concatenated file")
+            raise HccFormatError(
+                f"{self.path}: frame {i} header says {f['Width'][i]}x"
+                f"{f['Height'][i]} with a {f['ImageHeaderLength'][i]}-byte "
+                f"header, unlike frame 0 ({self.width}x{self.height}, "
+                f"{self.header_length}): a corrupt or concatenated file"
+            )
 
     def fields(self, start: int = 0, stop: Optional[int] = None) -> Dict[str, np.ndarray]:
         """Header fields of frames ``start:stop``: name -> array, as stored
@@ -140,8 +178,10 @@ class HccFile:
         100 ns ticks). Also ``time_s`` (POSIX seconds, float64)."""
         m = self._frames()[start:stop]
         out = {name: np.array(m[name]) for name, _, _ in HEADER_FIELDS}
-        out["time_s"] = out["POSIXTime"].astype(np.float64) + \
-            out["SubSecondTime"].astype(np.float64) / TICKS_PER_S
+        out["time_s"] = (
+            out["POSIXTime"].astype(np.float64)
+            + out["SubSecondTime"].astype(np.float64) / TICKS_PER_S
+        )
         return out
 
     def counts(self, start: int, stop: int) -> np.ndarray:
@@ -180,15 +220,17 @@ class HccFile:
     def __len__(self) -> int:
         return self.n_frames
 
-    def __enter__(self) -> "HccFile":
+    def __enter__(self) -> HccFile:
         return self
 
     def __exit__(self, *exc) -> None:
         self.close()
 
     def __repr__(self) -> str:
-        return (f"HccFile({self.path!r}, {self.n_frames} frames, {self.width}x{self.height}, "
-                f"v{self.version[0]}.{self.version[1]})")
+        return (
+            f"HccFile({self.path!r}, {self.n_frames} frames, {self.width}x{self.height}, "
+            f"v{self.version[0]}.{self.version[1]})"
+        )
 
 
 def open_hcc(path: Union[str, os.PathLike]) -> HccFile:
@@ -198,8 +240,15 @@ def open_hcc(path: Union[str, os.PathLike]) -> HccFile:
 
 # --------------------------------------------------------------------------- writing
 
-def hcc_header(*, width: int, height: int, header_length: Optional[int] = None,
-               version: Tuple[int, int] = (12, 1), **fields) -> bytes:
+
+def hcc_header(
+    *,
+    width: int,
+    height: int,
+    header_length: Optional[int] = None,
+    version: Tuple[int, int] = (12, 1),
+    **fields,
+) -> bytes:
     """One frame header: ``fields`` (names of :data:`HEADER_FIELDS`, values
     as stored) at their offsets; everything else zero. ``header_length``
     defaults to two image lines (4 x width bytes, Telops' convention), at
@@ -210,8 +259,13 @@ def hcc_header(*, width: int, height: int, header_length: Optional[int] = None,
             header_length += 4 * width
     buf = bytearray(header_length)
     buf[0:2] = b"TC"
-    values = {"DeviceXMLMajorVersion": version[0], "DeviceXMLMinorVersion": version[1],
-              "ImageHeaderLength": header_length, "Width": width, "Height": height}
+    values = {
+        "DeviceXMLMajorVersion": version[0],
+        "DeviceXMLMinorVersion": version[1],
+        "ImageHeaderLength": header_length,
+        "Width": width,
+        "Height": height,
+    }
     values.update(fields)
     known = {name: (off, typ) for name, off, typ in HEADER_FIELDS}
     for name, v in values.items():
@@ -234,16 +288,23 @@ def _scaling(v: np.ndarray, max_word: int = BAD_PIXEL - 1) -> Tuple[float, int]:
         offset = float(np.nextafter(np.float32(lo), np.float32(-np.inf)))
     span = max(hi - offset, 1e-30)
     exp = math.ceil(math.log2(span / max_word))
-    while (hi - offset) / 2.0 ** exp > max_word:
+    while (hi - offset) / 2.0**exp > max_word:
         exp += 1
     return offset, max(-128, min(127, exp))
 
 
-def write_hcc(path: Union[str, os.PathLike], frames: Iterable[np.ndarray],
-              time_s: Sequence[float], *, calibration_mode: int = 2,
-              fw_positions: Optional[Sequence[int]] = None, frame_rate_hz: float = 100.0,
-              exposure_time_us: float = 100.0, fw_speed_rpm: int = 0,
-              version: Tuple[int, int] = (12, 1)) -> int:
+def write_hcc(
+    path: Union[str, os.PathLike],
+    frames: Iterable[np.ndarray],
+    time_s: Sequence[float],
+    *,
+    calibration_mode: int = 2,
+    fw_positions: Optional[Sequence[int]] = None,
+    frame_rate_hz: float = 100.0,
+    exposure_time_us: float = 100.0,
+    fw_speed_rpm: int = 0,
+    version: Tuple[int, int] = (12, 1),
+) -> int:
     """Write a Telops .hcc file (atomically), frame by frame.
 
     Parameters
@@ -272,22 +333,30 @@ def write_hcc(path: Union[str, os.PathLike], frames: Iterable[np.ndarray],
                 a = a.astype(np.float64)
                 off, exp = _scaling(a)
                 with np.errstate(invalid="ignore"):
-                    q = np.rint((a - off) / 2.0 ** exp)
-                words = np.where(np.isfinite(q), np.clip(q, 0, BAD_PIXEL - 1), 0xFFFF
-                                 ).astype("<u2")
+                    q = np.rint((a - off) / 2.0**exp)
+                words = np.where(np.isfinite(q), np.clip(q, 0, BAD_PIXEL - 1), 0xFFFF).astype("<u2")
             t = float(time_s[i])
             sec = math.floor(t)
             ticks = int(round((t - sec) * TICKS_PER_S))
             if ticks >= TICKS_PER_S:
                 sec, ticks = sec + 1, ticks - TICKS_PER_S
-            fields: Dict[str, Any] = dict(FrameID=i, DataOffset=off, DataExp=exp,
-                          ExposureTime=int(round(exposure_time_us * 100)),
-                          CalibrationMode=calibration_mode,
-                          AcquisitionFrameRate=int(round(frame_rate_hz * 1000)),
-                          POSIXTime=sec, SubSecondTime=ticks)
+            fields: Dict[str, Any] = dict(
+                FrameID=i,
+                DataOffset=off,
+                DataExp=exp,
+                ExposureTime=int(round(exposure_time_us * 100)),
+                CalibrationMode=calibration_mode,
+                AcquisitionFrameRate=int(round(frame_rate_hz * 1000)),
+                POSIXTime=sec,
+                SubSecondTime=ticks,
+            )
             if fw_positions is not None:
-                fields.update(FWMode=1, FWPosition=int(fw_positions[i]),
-                              FWSpeedSetpoint=fw_speed_rpm, FWSpeed=fw_speed_rpm)
+                fields.update(
+                    FWMode=1,
+                    FWPosition=int(fw_positions[i]),
+                    FWSpeedSetpoint=fw_speed_rpm,
+                    FWSpeed=fw_speed_rpm,
+                )
             fh.write(hcc_header(width=w, height=h, version=version, **fields))
             fh.write(words.astype("<u2").tobytes())
             n += 1
@@ -297,6 +366,7 @@ def write_hcc(path: Union[str, os.PathLike], frames: Iterable[np.ndarray],
 
 
 # --------------------------------------------------------------------------- filter wheel
+
 
 def wheel_turns(positions: np.ndarray) -> Tuple[List[int], np.ndarray, int]:
     """Group frames by wheel turn.
@@ -335,7 +405,7 @@ def wheel_turns(positions: np.ndarray) -> Tuple[List[int], np.ndarray, int]:
         if pos[i] != order[0]:
             i += 1
             continue
-        seq = pos[i:i + c].tolist()
+        seq = pos[i : i + c].tolist()
         if seq == order:
             row = [0] * c
             for k, p in enumerate(order):

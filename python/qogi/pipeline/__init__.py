@@ -42,6 +42,17 @@ from .setup import check_inputs
 #: work; the command line runs them before its progress bar.
 _check_inputs = check_inputs
 
-__all__ = ["QuantifyConfig", "SceneConditions", "Methods", "Execution", "quantify",
-           "Cancelled", "VELOCITY_SYSTEMATIC", "COLUMN_SYSTEMATIC",
-           "COLUMN_SYSTEMATIC_INFERRED", "BLOCK_BYTES", "MIN_BLOCK_FRAMES", "check_inputs"]
+__all__ = [
+    "QuantifyConfig",
+    "SceneConditions",
+    "Methods",
+    "Execution",
+    "quantify",
+    "Cancelled",
+    "VELOCITY_SYSTEMATIC",
+    "COLUMN_SYSTEMATIC",
+    "COLUMN_SYSTEMATIC_INFERRED",
+    "BLOCK_BYTES",
+    "MIN_BLOCK_FRAMES",
+    "check_inputs",
+]

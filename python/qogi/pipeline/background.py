@@ -24,9 +24,17 @@ def prepare(run: RunState) -> None:
     """Chooses the run's background method and sets :attr:`RunState.background`
     (its static shape from the sampled frames)."""
     bg_cfg, run.info["background_choice"] = _choose_background(
-        run.cfg, run.sample_frames, run.surfaces, run.samples, run.channel_sign)
-    background = Background(run.rec, bg_cfg, run.roi, run.frames, run.channel_sign, run.say,
-                            run.background_temperature_K)
+        run.cfg, run.sample_frames, run.surfaces, run.samples, run.channel_sign
+    )
+    background = Background(
+        run.rec,
+        bg_cfg,
+        run.roi,
+        run.frames,
+        run.channel_sign,
+        run.say,
+        run.background_temperature_K,
+    )
     if not isinstance(bg_cfg.background, Region) and bg_cfg.background != "percentile":
         sl = run.roi.slices()
         # setup.prepare samples frames for every method but a region and the percentile.
@@ -48,20 +56,30 @@ def _choose_background(cfg: QuantifyConfig, sample_frames, surfaces, samples, ch
         # No frame-to-frame noise to test the strips with: the strips beside
         # the surfaces (the estimate that needs no time series).
         return cfg.replace(background="beside-surface"), {
-            "method": "beside-surface", "reason": "fewer than 2 frames: the strips not tested",
-            "strips": [], "relative": {}, "not_gas_free": []}
+            "method": "beside-surface",
+            "reason": "fewer than 2 frames: the strips not tested",
+            "strips": [],
+            "relative": {},
+            "not_gas_free": [],
+        }
     choice = choose(sample_frames, surfaces, samples, channel_sign, cfg.background_percentile)
     return cfg.replace(background=choice["method"]), choice
-
-
 
 
 class Background:
     """Gas-free band radiance per channel: along each surface's samples and on
     the analysis region (the latter for the velocity field)."""
 
-    def __init__(self, rec: Recording, cfg: QuantifyConfig, roi: Region, frames: range,
-                 channel_sign: np.ndarray, say, typical_temperature_K: float):
+    def __init__(
+        self,
+        rec: Recording,
+        cfg: QuantifyConfig,
+        roi: Region,
+        frames: range,
+        channel_sign: np.ndarray,
+        say,
+        typical_temperature_K: float,
+    ):
         self.cfg = cfg
         self.roi = roi
         self.channel_sign = np.asarray(channel_sign, dtype=float)
@@ -76,7 +94,7 @@ class Background:
             sl = roi.slices()
             stack = []
             # At most 200 frames spread over the run bound the memory.
-            use = list(frames)[::max(1, len(frames) // 200)]
+            use = list(frames)[:: max(1, len(frames) // 200)]
             for k, f in enumerate(use):
                 stack.append(rec.frame(f, quantity="radiance")[:, sl[0], sl[1]])
                 if k % 50 == 0:
@@ -89,9 +107,11 @@ class Background:
     def region_mean(self, frame: np.ndarray, region: Region) -> np.ndarray:
         """Mean of frames (..., C, H, W) over the region -> (..., C)."""
         r = region.clip(frame.shape[-1], frame.shape[-2])
-        return frame[..., r.y0:r.y1, r.x0:r.x1].mean(axis=(-2, -1))
+        return frame[..., r.y0 : r.y1, r.x0 : r.x1].mean(axis=(-2, -1))
 
-    def along(self, frame: np.ndarray, surface: Surface, xy: np.ndarray, t: np.ndarray) -> np.ndarray:
+    def along(
+        self, frame: np.ndarray, surface: Surface, xy: np.ndarray, t: np.ndarray
+    ) -> np.ndarray:
         """Background radiance (..., C, N) at the surface samples xy of frames
         (..., C, H, W)."""
         cfg = self.cfg
@@ -100,8 +120,10 @@ class Background:
             return np.repeat(self.region_mean(frame, cfg.background)[..., None], n, axis=-1)
         if cfg.background == "percentile":
             assert self.percentile_img is not None  # made in __init__ for "percentile"
-            return np.broadcast_to(_bilinear(self.percentile_img, xy - [self.roi.x0, self.roi.y0]),
-                                   frame.shape[:-2] + (n,))
+            return np.broadcast_to(
+                _bilinear(self.percentile_img, xy - [self.roi.x0, self.roi.y0]),
+                frame.shape[:-2] + (n,),
+            )
         # Beside the surface: the mean radiance of short stretches just beyond
         # both ends, interpolated linearly along the surface.
         p = np.asarray(surface.points)
@@ -115,8 +137,9 @@ class Background:
             ends.append(_bilinear(frame, pts).mean(axis=-1))
         return ends[0][..., None] * (1 - t) + ends[1][..., None] * t
 
-    def field(self, frame_roi: np.ndarray, horizontal: bool,
-              channel: Optional[int] = None) -> Optional[np.ndarray]:
+    def field(
+        self, frame_roi: np.ndarray, horizontal: bool, channel: Optional[int] = None
+    ) -> Optional[np.ndarray]:
         """Background over the analysis region: (C, h, w) for the frame's
         channels (C, h, w), or (h, w) for ``channel`` given one channel's
         (h, w); leading frame axes pass through. None for a region background
@@ -177,4 +200,3 @@ class Background:
                 free = np.abs(r_smooth - np.median(r_smooth)) <= 2.5 * 1.4826 * mad(r_smooth)
                 use[c] = mad((mean_roi[c] - lin[c])[free]) > 2.0 * mad(r_smooth[free])
             self.shape_correction[o] = corr * use[:, None, None]
-

@@ -24,15 +24,29 @@ from ..result import Result, SpeciesRate, SurfaceResult
 from .columns import InvertedColumns
 from .state import RunState
 
-__all__ = ["finish", "Systematics", "VELOCITY_SYSTEMATIC", "COLUMN_SYSTEMATIC", "COLUMN_SYSTEMATIC_INFERRED"]
+__all__ = [
+    "finish",
+    "Systematics",
+    "VELOCITY_SYSTEMATIC",
+    "COLUMN_SYSTEMATIC",
+    "COLUMN_SYSTEMATIC_INFERRED",
+]
 
 #: Relative systematic uncertainty (1 sigma) of the mass-weighted normal
 #: velocity for each velocimetry source, used in the uncertainty budget.
 #: From the velocimetry study on the synthetic presets (docs/velocimetry.md);
 #: "wind" and "exit" are user-given speeds whose relation to the gas velocity at
 #: the surface is unknown to qogi and are given a wide band.
-VELOCITY_SYSTEMATIC = {"fluid": 0.10, "horn_schunck": 0.25, "lucas_kanade": 0.3,
-                       "farneback": 0.3, "dis": 0.3, "piv": 0.2, "wind": 0.5, "exit": 0.5}
+VELOCITY_SYSTEMATIC = {
+    "fluid": 0.10,
+    "horn_schunck": 0.25,
+    "lucas_kanade": 0.3,
+    "farneback": 0.3,
+    "dis": 0.3,
+    "piv": 0.2,
+    "wind": 0.5,
+    "exit": 0.5,
+}
 #: Relative systematic uncertainty (1 sigma) of column densities from the
 #: Gaussian line-of-sight model (profile shape; docs/inversion.md), with the
 #: gas temperature given or ambient (columns on the ambient lab release with
@@ -67,7 +81,6 @@ def _effective_samples(x: np.ndarray) -> float:
             break
         tau += 2 * rho
     return max(1.0, n / tau)
-
 
 
 @dataclasses.dataclass(frozen=True)
@@ -108,41 +121,69 @@ def finish(st: RunState, complete: bool) -> Result:
     for j, (s, samples) in enumerate(zip(st.surfaces, st.samples)):
         per_species = {}
         for sp in cfg.species:
-            rate, summary, finite, n_eff = _species_rate(st, j, s, samples, sp, systematics,
-                                                         bg_choice, done)
+            rate, summary, finite, n_eff = _species_rate(
+                st, j, s, samples, sp, systematics, bg_choice, done
+            )
             if finite.size:
-                advice[sp].append(_record_advice(finite, n_eff, summary, samples.dl, columns,
-                                                 j, scene))
+                advice[sp].append(
+                    _record_advice(finite, n_eff, summary, samples.dl, columns, j, scene)
+                )
             flux_inputs[(j, sp)] = summary
             if sp == cfg.species[0] and summary.mass_line > 0 and finite.size:
-                rise_speeds[j] = float(np.sum(finite)) / summary.mass_line * \
-                    (done / finite.size)
+                rise_speeds[j] = float(np.sum(finite)) / summary.mass_line * (done / finite.size)
             per_species[sp] = rate
         results.append(SurfaceResult(s, per_species))
-    info = {"seconds": time.perf_counter() - st.t_start, "frames": int(done),
-            "frame_rate_hz": float(scene.frame_rate), "pixel_m": float(scene.pixel_m),
-            "gas_temperature_K": float(scene.gas_K),
-            "velocity_systematic": float(systematics.velocity),
-            "column_systematic": float(systematics.column), **systematics.mixing,
-            **velocity_info}
+    info = {
+        "seconds": time.perf_counter() - st.t_start,
+        "frames": int(done),
+        "frame_rate_hz": float(scene.frame_rate),
+        "pixel_m": float(scene.pixel_m),
+        "gas_temperature_K": float(scene.gas_K),
+        "velocity_systematic": float(systematics.velocity),
+        "column_systematic": float(systematics.column),
+        **systematics.mixing,
+        **velocity_info,
+    }
     _record_warnings(advice, info, warnings)
     if bg_choice is not None and not cfg.methods.truth_columns:
         for name, excess in bg_choice.get("not_gas_free", []):
-            warnings.add("background-not-gas-free",
-                         f"neither background is gas-free here: the strips beside the surface "
-                         f"carry gas and the temporal percentile along it stands {excess:.0f} "
-                         f"noise above the line between its ends (gas that never leaves); the "
-                         f"columns are low by about that, carried in the budget's background "
-                         f"term; draw longer surfaces or give a gas-free background region",
-                         surface=name, excess_noise=excess)
+            warnings.add(
+                "background-not-gas-free",
+                f"neither background is gas-free here: the strips beside the surface "
+                f"carry gas and the temporal percentile along it stands {excess:.0f} "
+                f"noise above the line between its ends (gas that never leaves); the "
+                f"columns are low by about that, carried in the budget's background "
+                f"term; draw longer surfaces or give a gas-free background region",
+                surface=name,
+                excess_noise=excess,
+            )
     if complete and columns is not None and not cfg.methods.truth_columns:
         from ..hotgas import check_gas_temperature
-        check_gas_temperature(cfg, scene, results, columns, st.samples, flux_inputs, rise_speeds,
-                              velocity_info.get("source_xy"), warnings, info)
+
+        check_gas_temperature(
+            cfg,
+            scene,
+            results,
+            columns,
+            st.samples,
+            flux_inputs,
+            rise_speeds,
+            velocity_info.get("source_xy"),
+            warnings,
+            info,
+        )
     if not checks.check_result(results, warnings):
         complete = False
-    return Result(results, config=cfg, recording_path=str(rec.path), pixel_status=status_counts,
-                  maps=kept_maps, info=info, complete=complete, warnings=warnings)
+    return Result(
+        results,
+        config=cfg,
+        recording_path=str(rec.path),
+        pixel_status=status_counts,
+        maps=kept_maps,
+        info=info,
+        complete=complete,
+        warnings=warnings,
+    )
 
 
 def _block_notes(st: RunState) -> Dict[str, object]:
@@ -155,8 +196,13 @@ def _block_notes(st: RunState) -> Dict[str, object]:
         velocity_info = {**velocity_info, **longest.velocity_info}
         if len(outs) > 1:
             velocity_info["blocks"] = len(outs)
-            notes = sorted({str(o.velocity_info.get("flux_level")) for o in outs
-                            if "flux_level" in o.velocity_info})
+            notes = sorted(
+                {
+                    str(o.velocity_info.get("flux_level"))
+                    for o in outs
+                    if "flux_level" in o.velocity_info
+                }
+            )
             if len(notes) > 1:
                 velocity_info["flux_level"] = "; ".join(notes)
     return velocity_info or {}
@@ -167,8 +213,11 @@ def _systematics(st: RunState, done: int) -> Systematics:
     from .. import checks
 
     cfg, columns = st.cfg, st.columns
-    vsys = cfg.velocity_systematic if cfg.velocity_systematic is not None else \
-        VELOCITY_SYSTEMATIC[cfg.velocity]
+    vsys = (
+        cfg.velocity_systematic
+        if cfg.velocity_systematic is not None
+        else VELOCITY_SYSTEMATIC[cfg.velocity]
+    )
     # Too short a run for the velocimetry: its level is not measured.
     few = not cfg.methods.given_speed and done < checks.MIN_FRAMES_RATE
     if few:
@@ -177,19 +226,23 @@ def _systematics(st: RunState, done: int) -> Systematics:
     mixing: Dict[str, float] = {}
     col_sys = cfg.column_systematic
     if col_sys is None:
-        col_sys = COLUMN_SYSTEMATIC_INFERRED if cfg.conditions.infers_temperature else \
-            COLUMN_SYSTEMATIC
+        col_sys = (
+            COLUMN_SYSTEMATIC_INFERRED if cfg.conditions.infers_temperature else COLUMN_SYSTEMATIC
+        )
     if isinstance(columns, InvertedColumns) and columns.k_K_per_fraction is not None:
-        mixing = {"mixing_line_K_per_fraction": columns.k_K_per_fraction,
-                  "mixing_line_sigma_K_per_fraction": columns.k_sigma,
-                  "mixing_line_pixels": columns.mixing_pixels,
-                  "mixing_line_column_effect": columns.k_relative_effect}
+        mixing = {
+            "mixing_line_K_per_fraction": columns.k_K_per_fraction,
+            "mixing_line_sigma_K_per_fraction": columns.k_sigma,
+            "mixing_line_pixels": columns.mixing_pixels,
+            "mixing_line_column_effect": columns.k_relative_effect,
+        }
         col_sys = math.hypot(col_sys, columns.k_relative_effect)
     return Systematics(vsys, col_sys, mixing)
 
 
-def _species_rate(st: RunState, j: int, surface, samples, sp: str, systematics: Systematics,
-                  bg_choice, done: int):
+def _species_rate(
+    st: RunState, j: int, surface, samples, sp: str, systematics: Systematics, bg_choice, done: int
+):
     """Surface ``j``'s rate of species ``sp`` over the run's blocks: its
     :class:`qogi.result.SpeciesRate` (mean, 90 % interval, budget terms,
     detection limit), the flux checks' sums, the finite per-frame rates
@@ -215,10 +268,10 @@ def _species_rate(st: RunState, j: int, surface, samples, sp: str, systematics: 
     terms = {
         "temporal": temporal * 3600,
         "velocity": abs(mean) * systematics.velocity * 3600,
-        "column density": math.sqrt(col_rand ** 2 + (abs(mean) * systematics.column) ** 2)
+        "column density": math.sqrt(col_rand**2 + (abs(mean) * systematics.column) ** 2) * 3600,
+        "line shape": abs(mean)
+        * _line_shape_term(columns, j, sp, summary, warnings, surface.name)
         * 3600,
-        "line shape": abs(mean) * _line_shape_term(columns, j, sp, summary,
-                                                   warnings, surface.name) * 3600,
     }
     if bg_choice is not None and not st.cfg.methods.truth_columns:
         terms["background"] = abs(mean) * bg_choice["relative"].get(j, 0.0) * 3600
@@ -229,25 +282,44 @@ def _species_rate(st: RunState, j: int, surface, samples, sp: str, systematics: 
     dominant = max(terms, key=lambda k: terms[k])
     limit, det = None, None
     if isinstance(columns, InvertedColumns):  # not truth columns
-        from ..detection import velocity_from_sums, detection_limit_from_sums
-        v_n = velocity_from_sums(sum(p.cv_sum for p in parts),
-                                 sum(p.c_sum for p in parts),
-                                 np.concatenate([np.zeros(0)] +
-                                                [p.vabs_median for p in parts]))
+        from ..detection import detection_limit_from_sums, velocity_from_sums
+
+        v_n = velocity_from_sums(
+            sum(p.cv_sum for p in parts),
+            sum(p.c_sum for p in parts),
+            np.concatenate([np.zeros(0)] + [p.vabs_median for p in parts]),
+        )
         limit, det = detection_limit_from_sums(
-            columns.model, sp, rec.camera.netd_K or 0.02, columns._bg_t, scene.gas_K,
-            scene.ambient_K, v_n,
-            np.concatenate([np.zeros(0)] + [p.width_m for p in parts]), dl,
-            mean_snr=columns.mean_contrast_snr(j))
+            columns.model,
+            sp,
+            rec.camera.netd_K or 0.02,
+            columns._bg_t,
+            scene.gas_K,
+            scene.ambient_K,
+            v_n,
+            np.concatenate([np.zeros(0)] + [p.width_m for p in parts]),
+            dl,
+            mean_snr=columns.mean_contrast_snr(j),
+        )
     truth = None
     if rec.truth is not None and sp in rec.truth.emission_rate_kg_s:
         truth = rec.truth.emission_rate_kg_s[sp] * 3600
     times = st.timebase.time_s[:done]
     out = SpeciesRate(
-        species=sp, time_s=times, rate_kg_s=rate, mean_kg_h=mean_h, ci90_kg_h=ci,
-        n_frames=int(finite.size), molar_mass_kg_mol=_engine.molar_mass(sp),
-        uncertainty_terms_kg_h=terms, dominant_uncertainty=dominant, pixels_used=pixels,
-        truth_kg_h=truth, detection_limit_kg_h=limit, detection=det)
+        species=sp,
+        time_s=times,
+        rate_kg_s=rate,
+        mean_kg_h=mean_h,
+        ci90_kg_h=ci,
+        n_frames=int(finite.size),
+        molar_mass_kg_mol=_engine.molar_mass(sp),
+        uncertainty_terms_kg_h=terms,
+        dominant_uncertainty=dominant,
+        pixels_used=pixels,
+        truth_kg_h=truth,
+        detection_limit_kg_h=limit,
+        detection=det,
+    )
     return out, summary, finite, n_eff
 
 
@@ -260,14 +332,17 @@ def _line_shape_term(columns, j: int, species: str, summary, warnings, surface: 
     try:
         grid, ratios = columns.line_shape_curves(j, species)
     except (ValueError, RuntimeError, OSError) as e:
-        warnings.add("line-shape-term-missing", f"the line-shape term could not be sized: {e}",
-                     surface=surface, species=species)
+        warnings.add(
+            "line-shape-term-missing",
+            f"the line-shape term could not be sized: {e}",
+            surface=surface,
+            species=species,
+        )
         return 0.0
     return max([abs(f - 1.0) for f in summary.flux_ratios(grid, ratios)], default=0.0)
 
 
-def _check_direction(summary, mean_kg_s: float, ci, warnings, surface: str,
-                     species: str) -> tuple:
+def _check_direction(summary, mean_kg_s: float, ci, warnings, surface: str, species: str) -> tuple:
     """The interval of a rate that runs against the surface's orientation or
     is zero while gas crosses it, widened to +-the flux the columns carry at
     the floored speed (:func:`_speed_floor`; docs/pipeline_api.md); with a
@@ -278,18 +353,26 @@ def _check_direction(summary, mean_kg_s: float, ci, warnings, surface: str,
     bound = flag["bound_kg_s"] * 3600
     lo, hi = min(ci[0], -bound), max(ci[1], bound)
     if flag["reason"] == "zero":
-        warnings.add("zero-rate-with-gas",
-                     f"the rate is zero while gas crosses the surface (no velocity there: e.g. "
-                     f"a wrong source or flow direction); interval widened to "
-                     f"[{lo:.4g}, {hi:.4g}] kg/h, the flux its columns carry at the flow's "
-                     f"speed in either direction", surface=surface, species=species,
-                     bound_kg_h=bound)
+        warnings.add(
+            "zero-rate-with-gas",
+            f"the rate is zero while gas crosses the surface (no velocity there: e.g. "
+            f"a wrong source or flow direction); interval widened to "
+            f"[{lo:.4g}, {hi:.4g}] kg/h, the flux its columns carry at the flow's "
+            f"speed in either direction",
+            surface=surface,
+            species=species,
+            bound_kg_h=bound,
+        )
     else:
-        warnings.add("flux-against-surface",
-                     f"the rate runs against the surface's orientation (away from the source): "
-                     f"the flux level or the source may be reversed; interval widened to "
-                     f"[{lo:.4g}, {hi:.4g}] kg/h", surface=surface, species=species,
-                     bound_kg_h=bound)
+        warnings.add(
+            "flux-against-surface",
+            f"the rate runs against the surface's orientation (away from the source): "
+            f"the flux level or the source may be reversed; interval widened to "
+            f"[{lo:.4g}, {hi:.4g}] kg/h",
+            surface=surface,
+            species=species,
+            bound_kg_h=bound,
+        )
     return (lo, hi)
 
 
@@ -298,9 +381,12 @@ def _record_advice(finite, n_eff, summary, dl, columns, j, scene) -> dict:
     speed where gas is, and the plume's width (2.35 sigma of its depth)."""
     from ..budget import record_length_advice
 
-    sigma = (columns.sigma_m.get(j) if isinstance(columns, InvertedColumns) else None) or float(np.sum(dl)) / 4.0
-    return record_length_advice(finite, scene.frame_rate, n_eff, summary.mean_speed(),
-                                2.3548 * sigma)
+    sigma = (columns.sigma_m.get(j) if isinstance(columns, InvertedColumns) else None) or float(
+        np.sum(dl)
+    ) / 4.0
+    return record_length_advice(
+        finite, scene.frame_rate, n_eff, summary.mean_speed(), 2.3548 * sigma
+    )
 
 
 def _record_warnings(advice: Dict[str, list], info: dict, warnings) -> None:
@@ -315,11 +401,15 @@ def _record_warnings(advice: Dict[str, list], info: dict, warnings) -> None:
         worst = max(items, key=lambda a: a["needed_s"])
         out[sp] = {k: float(v) for k, v in worst.items()}
         if worst["needed_s"] > worst["record_s"]:
-            warnings.add("record-too-short",
-                         f"a 10 % (1 sigma) mean needs about {worst['needed_s']:.0f} s of record; "
-                         f"this one is {worst['record_s']:.1f} s (temporal "
-                         f"{100 * worst['temporal']:.0f} %, flux level "
-                         f"{100 * worst['level']:.0f} % now)", species=sp,
-                         needed_s=worst["needed_s"], record_s=worst["record_s"])
+            warnings.add(
+                "record-too-short",
+                f"a 10 % (1 sigma) mean needs about {worst['needed_s']:.0f} s of record; "
+                f"this one is {worst['record_s']:.1f} s (temporal "
+                f"{100 * worst['temporal']:.0f} %, flux level "
+                f"{100 * worst['level']:.0f} % now)",
+                species=sp,
+                needed_s=worst["needed_s"],
+                record_s=worst["record_s"],
+            )
     if out:
         info["record_length"] = out

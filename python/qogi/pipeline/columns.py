@@ -39,8 +39,9 @@ def prepare(run: RunState) -> None:
         run.columns = TruthColumns(run.rec, run.cfg)
     else:
         run.say(0.01, "cross-section tables and the scene's inversion table")
-        run.columns = InvertedColumns(run.rec, run.cfg, run.scene, run.roi, run.horizontal,
-                                      run.background)
+        run.columns = InvertedColumns(
+            run.rec, run.cfg, run.scene, run.roi, run.horizontal, run.background
+        )
 
 
 class TruthColumns:
@@ -57,16 +58,30 @@ class TruthColumns:
 
 
 #: InversionResult fields per pixel: arrays, and dicts of arrays per species.
-_RESULT_ARRAYS = ("status", "bound_mask", "flags", "parameters", "parameter_sigma", "covariance",
-                  "chi2", "condition_number", "iterations")
-_RESULT_DICTS = ("column_density", "column_density_sigma", "path_concentration_ppm_m",
-                 "path_concentration_sigma_ppm_m")
+_RESULT_ARRAYS = (
+    "status",
+    "bound_mask",
+    "flags",
+    "parameters",
+    "parameter_sigma",
+    "covariance",
+    "chi2",
+    "condition_number",
+    "iterations",
+)
+_RESULT_DICTS = (
+    "column_density",
+    "column_density_sigma",
+    "path_concentration_ppm_m",
+    "path_concentration_sigma_ppm_m",
+)
 
 
 def _merge_results(a, b, sel: np.ndarray):
     """InversionResult ``a`` (pixels on the first axis) with the pixels
     selected by ``sel`` taken from ``b``."""
     import copy
+
     out = copy.copy(a)
     for name in _RESULT_ARRAYS:
         x = np.array(getattr(a, name))
@@ -85,6 +100,7 @@ def _merge_results(a, b, sel: np.ndarray):
 def _owned(result):
     """A copy of an InversionResult whose arrays may be written."""
     import copy
+
     out = copy.copy(result)
     for name in _RESULT_ARRAYS:
         setattr(out, name, np.array(getattr(result, name)))
@@ -102,7 +118,6 @@ def _scatter(full, part, idx: np.ndarray) -> None:
             getattr(full, name)[sp][idx] = v
 
 
-
 class InvertedColumns:
     """Column densities by the per-pixel inversion (qogi.inversion).
 
@@ -115,8 +130,15 @@ class InvertedColumns:
     not its absolute scale.
     """
 
-    def __init__(self, rec: Recording, cfg: QuantifyConfig, scene: Scene, roi: Region,
-                 horizontal: bool, background: Background):
+    def __init__(
+        self,
+        rec: Recording,
+        cfg: QuantifyConfig,
+        scene: Scene,
+        roi: Region,
+        horizontal: bool,
+        background: Background,
+    ):
         from .. import inversion as inv
         from ..forward import forward_model
 
@@ -124,8 +146,9 @@ class InvertedColumns:
         self.horizontal = horizontal
         self.background = background
         channels = rec.channels
-        self.model = forward_model(channels, cfg.species, scene.pressure_Pa,
-                                   line_shape=cfg.line_shape)
+        self.model = forward_model(
+            channels, cfg.species, scene.pressure_Pa, line_shape=cfg.line_shape
+        )
         netd = rec.camera.netd_K or 0.02
         if cfg.gas_temperature == "infer":
             self.temperature_range_K = (scene.ambient_K - 10.0, scene.ambient_K + 150.0)
@@ -144,11 +167,13 @@ class InvertedColumns:
         # It is built on a worker thread (the engine releases the GIL) while
         # the frames are read; the first use of :attr:`table` waits for it.
         infer = cfg.gas_temperature == "infer"
-        table_kw = dict(min_peak_temperature_K=self.temperature_range_K[0],
-                        max_peak_temperature_K=self.temperature_range_K[1],
-                        temperature_step_K=10.0 if infer else 5.0,
-                        nodes_per_decade=6 if infer else 8,
-                        num_threads=cfg.num_threads)
+        table_kw = dict(
+            min_peak_temperature_K=self.temperature_range_K[0],
+            max_peak_temperature_K=self.temperature_range_K[1],
+            temperature_step_K=10.0 if infer else 5.0,
+            nodes_per_decade=6 if infer else 8,
+            num_threads=cfg.num_threads,
+        )
         self._table = None
 
         line_solver = infer and (cfg.composition is not None or len(cfg.species) == 1)
@@ -156,8 +181,9 @@ class InvertedColumns:
         workers = _workers_mod.current()
 
         def build():
-            table = inv.scene_table(self.model, scene.ambient_K,
-                                    progress=workers.still_wanted, **table_kw)
+            table = inv.scene_table(
+                self.model, scene.ambient_K, progress=workers.still_wanted, **table_kw
+            )
             if line_solver and table is not None and workers.still_wanted():
                 inv._line_inverter(table)  # its band tables, cached
             return table
@@ -165,8 +191,10 @@ class InvertedColumns:
         self._table_job: Optional[_workers_mod.Task] = workers.submit(build, "qogi-scene-table")
         # The other line-shape rules, for the budget's line-shape term.
         from ..budget import AlternativeModels
-        self.alternatives = AlternativeModels(channels, cfg.species, scene.pressure_Pa,
-                                              cfg.line_shape, start=workers.start)
+
+        self.alternatives = AlternativeModels(
+            channels, cfg.species, scene.pressure_Pa, cfg.line_shape, start=workers.start
+        )
         self.k_K_per_fraction: Optional[float] = None
         self.k_sigma, self.k_relative_effect = 0.0, 0.0
         self.mixing_pixels = 0
@@ -178,8 +206,9 @@ class InvertedColumns:
             fractions = {ref: "free"}
             for sp in cfg.species[1:]:
                 fractions[sp] = inv.tied(ref, cfg.composition[sp] / cfg.composition[ref])
-        self._inv_kw = dict(netd_K=netd, fractions=fractions, temperature=temperature,
-                            num_threads=cfg.num_threads)
+        self._inv_kw = dict(
+            netd_K=netd, fractions=fractions, temperature=temperature, num_threads=cfg.num_threads
+        )
         self.inv_module = inv
         # The velocity proxy: a monotone lookup from the contrast of the
         # channel most sensitive to the first species to its column density,
@@ -187,10 +216,16 @@ class InvertedColumns:
         # background (velocimetry needs the field's shape, not its scale).
         bg_t = background.typical_temperature_K
         self._bg_t = bg_t
-        contrast = self._contrast({cfg.species[0]: np.array([1e-3])}, np.array([scene.gas_K]),
-                                  np.array([0.02]), use_table=False)[0]
-        sens = [abs(contrast[c]) / (netd * ch.band_radiance_derivative(bg_t))
-                for c, ch in enumerate(channels)]
+        contrast = self._contrast(
+            {cfg.species[0]: np.array([1e-3])},
+            np.array([scene.gas_K]),
+            np.array([0.02]),
+            use_table=False,
+        )[0]
+        sens = [
+            abs(contrast[c]) / (netd * ch.band_radiance_derivative(bg_t))
+            for c, ch in enumerate(channels)
+        ]
         self.proxy_channel = int(np.argmax(sens))
         self._set_proxy_lookup(0.0 if cfg.gas_temperature == "infer" else None)
         self.sigma_m: Dict[int, float] = {}
@@ -252,8 +287,9 @@ class InvertedColumns:
         out = []
         for i in range(n):
             keep = np.concatenate([[True], np.diff(contrast[i]) > 0])
-            out.append((np.concatenate([[0.0], contrast[i][keep]]),
-                        np.concatenate([[0.0], cols[i][keep]])))
+            out.append(
+                (np.concatenate([[0.0], contrast[i][keep]]), np.concatenate([[0.0], cols[i][keep]]))
+            )
         return out
 
     def line_shape_curves(self, j: int, species: str):
@@ -272,20 +308,38 @@ class InvertedColumns:
             return np.clip(scene.ambient_K + self.k_K_per_fraction * x, lo, hi)
 
         models = [m for _, m in self.alternatives.get()]
-        return line_shape_ratios(self.model, models, self.proxy_channel, fractions, temperature,
-                                 self.sigma_m.get(j, cfg.sigma_m or 0.02), scene.ambient_K,
-                                 self._bg_t, species)
+        return line_shape_ratios(
+            self.model,
+            models,
+            self.proxy_channel,
+            fractions,
+            temperature,
+            self.sigma_m.get(j, cfg.sigma_m or 0.02),
+            scene.ambient_K,
+            self._bg_t,
+            species,
+        )
 
-    def _contrast(self, fractions: Dict[str, np.ndarray], peak_temperature_K: np.ndarray,
-                  sigma_m: np.ndarray, use_table: bool = True) -> np.ndarray:
+    def _contrast(
+        self,
+        fractions: Dict[str, np.ndarray],
+        peak_temperature_K: np.ndarray,
+        sigma_m: np.ndarray,
+        use_table: bool = True,
+    ) -> np.ndarray:
         """Contrast (N, C) [W/(m2 sr)] of Gaussian plumes in front of the
         scene's typical background: from the per-scene table when there is
         one (thousands of times faster), else from the fast model."""
         tp = np.asarray(peak_temperature_K, float)
         sg = np.asarray(sigma_m, float)
         if use_table and self.table is not None:
-            x = np.stack([np.asarray(fractions.get(sp, np.zeros_like(tp)), float)
-                          for sp in self.cfg.species], axis=1)
+            x = np.stack(
+                [
+                    np.asarray(fractions.get(sp, np.zeros_like(tp)), float)
+                    for sp in self.cfg.species
+                ],
+                axis=1,
+            )
             tbg = np.full((tp.size, len(self.rec.channels)), float(self._bg_t))
             return np.asarray(self.table.contrast(np.ascontiguousarray(x), tp, sg, tbg)[0])
         rad = self.model.band_radiance(fractions, tp, sg, self.scene.ambient_K, self._bg_t)
@@ -299,8 +353,9 @@ class InvertedColumns:
         if not prof:
             return None
         ch = self.rec.channels[self.proxy_channel]
-        netd = np.broadcast_to(np.asarray(self._inv_kw["netd_K"], float),
-                               (len(self.rec.channels),))[self.proxy_channel]
+        netd = np.broadcast_to(
+            np.asarray(self._inv_kw["netd_K"], float), (len(self.rec.channels),)
+        )[self.proxy_channel]
         noise = netd * float(ch.band_radiance_derivative(self._bg_t)) / math.sqrt(len(prof))
         return np.mean([p[j] for p in prof], axis=0) / noise
 
@@ -325,7 +380,7 @@ class InvertedColumns:
                 contrast[k] = self._lookup(contrast[k])
             return contrast
         view = contrast if self.horizontal else contrast.transpose(0, 2, 1)
-        mean = self._lookup(view.mean(axis=0))              # (lines, across)
+        mean = self._lookup(view.mean(axis=0))  # (lines, across)
         top = mean.max()
         lines = np.arange(mean.shape[0])
         seen = (mean.max(axis=1) > 0.05 * top) if top > 0 else np.zeros(len(lines), bool)
@@ -338,8 +393,9 @@ class InvertedColumns:
         widths = np.interp(lines, lines[ok], widths[ok])
         grid = np.geomspace(0.002, 0.5, 9)
         nodes = self._lookup_nodes(grid)
-        u = np.interp(np.log(np.clip(widths, grid[0], grid[-1])), np.log(grid),
-                      np.arange(grid.size))
+        u = np.interp(
+            np.log(np.clip(widths, grid[0], grid[-1])), np.log(grid), np.arange(grid.size)
+        )
         j0 = np.minimum(np.floor(u).astype(int), grid.size - 2)
         self.line_depths_m = widths
         from .. import _engine
@@ -350,10 +406,20 @@ class InvertedColumns:
         m = max(len(c) for c, _ in nodes)
         xs = np.array([np.pad(c, (0, m - len(c)), mode="edge") for c, _ in nodes])
         ys = np.array([np.pad(k, (0, m - len(k)), mode="edge") for _, k in nodes])
-        work = contrast if (contrast.flags.c_contiguous and contrast.dtype == np.float32) \
+        work = (
+            contrast
+            if (contrast.flags.c_contiguous and contrast.dtype == np.float32)
             else np.ascontiguousarray(contrast, dtype=np.float32)
-        _engine.lookup_lines(work, bool(self.horizontal), xs, ys, j0.astype(np.int32),
-                             np.clip(u - j0, 0.0, 1.0), num_threads=self.cfg.num_threads)
+        )
+        _engine.lookup_lines(
+            work,
+            bool(self.horizontal),
+            xs,
+            ys,
+            j0.astype(np.int32),
+            np.clip(u - j0, 0.0, 1.0),
+            num_threads=self.cfg.num_threads,
+        )
         if work is not contrast:
             contrast[...] = work
         return contrast
@@ -376,8 +442,13 @@ class InvertedColumns:
         dl *= np.float32(self.background.channel_sign[c])
         return dl
 
-    def collect(self, frames: np.ndarray, surfaces: Sequence[Surface], samples,
-                out: Optional[np.ndarray] = None) -> np.ndarray:
+    def collect(
+        self,
+        frames: np.ndarray,
+        surfaces: Sequence[Surface],
+        samples,
+        out: Optional[np.ndarray] = None,
+    ) -> np.ndarray:
         """The signed proxy-channel contrast fields (B, h, w) of a block of
         frames (B, C, H, W) (into ``out`` when given), converted to a column
         proxy by :meth:`contrast_to_column` once the lookup is final; stores
@@ -422,8 +493,8 @@ class InvertedColumns:
                 if not (np.isfinite(sigma) and sigma > 0):
                     sigma = 0.02
             self.sigma_m[j] = float(sigma)
-            sig[edges[j]:edges[j + 1]] = sigma
-        rad = np.asarray(self._rad)          # (T, C, N)
+            sig[edges[j] : edges[j + 1]] = sigma
+        rad = np.asarray(self._rad)  # (T, C, N)
         bg = np.asarray(self._bg)
         # The plume depth: given, or the width of the time-averaged plume
         # across each surface (axisymmetric plume), held fixed with one
@@ -438,12 +509,21 @@ class InvertedColumns:
         if self.cfg.gas_temperature == "infer" and not time_averaged:
             return self._finish_mixing(rad, bg, sig, edges, len(samples), progress, alongside)
         if time_averaged:
-            res = self._invert(rad.mean(axis=0), bg.mean(axis=0), sigma_pixels, sigma_param,
-                               noise_scale=1.0 / math.sqrt(nt), progress=progress)
-            res_cols = {sp: np.repeat(res.column_density[sp][None], nt, axis=0)
-                        for sp in self.cfg.species}
-            res_sig = {sp: np.repeat(res.column_density_sigma[sp][None], nt, axis=0)
-                       for sp in self.cfg.species}
+            res = self._invert(
+                rad.mean(axis=0),
+                bg.mean(axis=0),
+                sigma_pixels,
+                sigma_param,
+                noise_scale=1.0 / math.sqrt(nt),
+                progress=progress,
+            )
+            res_cols = {
+                sp: np.repeat(res.column_density[sp][None], nt, axis=0) for sp in self.cfg.species
+            }
+            res_sig = {
+                sp: np.repeat(res.column_density_sigma[sp][None], nt, axis=0)
+                for sp in self.cfg.species
+            }
             ok = np.repeat((res.valid | (res.status == inv.BELOW_DETECTION))[None], nt, axis=0)
             counts = res.counts()
         else:
@@ -451,9 +531,14 @@ class InvertedColumns:
             # guess: warm starts from the previous frame can follow the wrong
             # branch of the temperature-column ambiguity of hot plumes.
             c_, n_ = rad.shape[1], rad.shape[2]
-            flat = self._invert(rad.transpose(1, 0, 2).reshape(c_, nt * n_),
-                                bg.transpose(1, 0, 2).reshape(c_, nt * n_),
-                                np.tile(sigma_pixels, nt), sigma_param, 1.0, progress)
+            flat = self._invert(
+                rad.transpose(1, 0, 2).reshape(c_, nt * n_),
+                bg.transpose(1, 0, 2).reshape(c_, nt * n_),
+                np.tile(sigma_pixels, nt),
+                sigma_param,
+                1.0,
+                progress,
+            )
             res_cols = {sp: flat.column_density[sp].reshape(nt, n_) for sp in self.cfg.species}
             res_sig = {sp: flat.column_density_sigma[sp].reshape(nt, n_) for sp in self.cfg.species}
             ok = (flat.valid | (flat.status == inv.BELOW_DETECTION)).reshape(nt, n_)
@@ -461,7 +546,9 @@ class InvertedColumns:
         out = []
         for j in range(len(samples)):
             a, b = edges[j], edges[j + 1]
-            cols = {sp: np.where(ok[:, a:b], res_cols[sp][:, a:b], np.nan) for sp in self.cfg.species}
+            cols = {
+                sp: np.where(ok[:, a:b], res_cols[sp][:, a:b], np.nan) for sp in self.cfg.species
+            }
             sigs = {sp: np.where(ok[:, a:b], res_sig[sp][:, a:b], 0.0) for sp in self.cfg.species}
             out.append((cols, sigs))
         if alongside is not None:
@@ -507,9 +594,17 @@ class InvertedColumns:
 
         def fixed_t():
             if not fixed:
-                fixed.append(inv.Inversion(self.model, t_amb, temperature=inv.fixed(t_amb),
-                                           sigma_m=0.05, temperature_range_K=(lo, hi),
-                                           table=self.table, **kw))
+                fixed.append(
+                    inv.Inversion(
+                        self.model,
+                        t_amb,
+                        temperature=inv.fixed(t_amb),
+                        sigma_m=0.05,
+                        temperature_range_K=(lo, hi),
+                        table=self.table,
+                        **kw,
+                    )
+                )
             return fixed[0]
 
         def stage(a, b, label):
@@ -523,8 +618,13 @@ class InvertedColumns:
         # pixels not yet within 0.3 % of their root.
         def g(xv, kk, idx, a, b):
             t = np.clip(t_amb + kk * xv, lo, hi)
-            res = fixed_t().invert(r2[:, idx], background_radiance=b2[:, idx], sigma_m=s2[idx],
-                                 peak_temperature_K=t, progress=stage(a, b, "columns"))
+            res = fixed_t().invert(
+                r2[:, idx],
+                background_radiance=b2[:, idx],
+                sigma_m=s2[idx],
+                peak_temperature_K=t,
+                progress=stage(a, b, "columns"),
+            )
             return res, sum(res.peak_fraction[sp] for sp in cfg.species)
 
         def solve_passes(kk, idx, a, b, passes=7):
@@ -533,7 +633,7 @@ class InvertedColumns:
             out = _owned(out)
             live: np.ndarray = np.flatnonzero((g0 > 0) & out.valid)
             ua: np.ndarray = np.full(live.size, math.log(1e-7))
-            fa = np.log(g0[live]) - ua                      # > 0
+            fa = np.log(g0[live]) - ua  # > 0
             ub = np.log(np.minimum(g0[live], 1.0))
             res, gb = g(np.exp(ub), kk, idx[live], a + span, a + 2 * span)
             fb = np.log(np.maximum(gb, 1e-12)) - ub
@@ -546,8 +646,7 @@ class InvertedColumns:
                 if live.size == 0:
                     break
                 uc = (ua * fb - ub * fa) / (fb - fa)
-                res, gc = g(np.exp(uc), kk, idx[live], a + (2 + step) * span,
-                            a + (3 + step) * span)
+                res, gc = g(np.exp(uc), kk, idx[live], a + (2 + step) * span, a + (3 + step) * span)
                 fc = np.log(np.maximum(gc, 1e-12)) - uc
                 _scatter(out, res, live)
                 pos = fc > 0  # the root lies above uc: uc replaces the lower end
@@ -558,10 +657,15 @@ class InvertedColumns:
                 ub = np.where(~pos, uc, ub)
                 side = np.where(pos, 1, -1)
                 keep = np.abs(fc) > 3e-3
-                live, ua, fa, ub, fb, side = (live[keep], ua[keep], fa[keep], ub[keep], fb[keep],
-                                              side[keep])
+                live, ua, fa, ub, fb, side = (
+                    live[keep],
+                    ua[keep],
+                    fa[keep],
+                    ub[keep],
+                    fb[keep],
+                    side[keep],
+                )
             return out
-
 
         # With a known composition (or one species) each pixel-frame is one
         # least-squares problem on the line (the engine's mixing-line
@@ -571,9 +675,17 @@ class InvertedColumns:
 
         def solve_line(kk, idx, a, b):
             return inv.invert_on_mixing_line(
-                self.model, self.table, kk, r2[:, idx], b2[:, idx], s2[idx],
-                netd_K=self._inv_kw["netd_K"], composition=comp,
-                num_threads=cfg.num_threads, progress=stage(a, b, "columns"))
+                self.model,
+                self.table,
+                kk,
+                r2[:, idx],
+                b2[:, idx],
+                s2[idx],
+                netd_K=self._inv_kw["netd_K"],
+                composition=comp,
+                num_threads=cfg.num_threads,
+                progress=stage(a, b, "columns"),
+            )
 
         solve = solve_line if comp is not None else solve_passes
 
@@ -587,16 +699,26 @@ class InvertedColumns:
         # profile; the fixed-point passes above solve it on the line.
         netd_K = self._inv_kw["netd_K"]
         if comp is not None:
-            found = inv.mixing_line_slope(self.model, self.table, r2, b2, s2, netd_K=netd_K,
-                                          composition=comp, num_threads=cfg.num_threads,
-                                          progress=stage(0.0, 0.3, "mixing line"))
+            found = inv.mixing_line_slope(
+                self.model,
+                self.table,
+                r2,
+                b2,
+                s2,
+                netd_K=netd_K,
+                composition=comp,
+                num_threads=cfg.num_threads,
+                progress=stage(0.0, 0.3, "mixing line"),
+            )
         else:
             cand, _ = inv.mixing_line_slope_sample(self.model, self.table, r2, b2, netd_K=netd_K)
             found = None
             if cand.size >= 5:
                 grid = np.arange(lo - t_amb, hi - t_amb + 1e-9, 10.0)
-                chi = [solve(float(kk), cand, 0.3 * i / grid.size, 0.3 * (i + 1) / grid.size).chi2
-                       for i, kk in enumerate(grid)]
+                chi = [
+                    solve(float(kk), cand, 0.3 * i / grid.size, 0.3 * (i + 1) / grid.size).chi2
+                    for i, kk in enumerate(grid)
+                ]
                 found = inv.mixing_line_slope_from_profile(grid, np.asarray(chi))
         self.k_K_per_fraction, self.k_sigma, self.mixing_pixels = 0.0, 0.0, 0
         if found is not None:
@@ -651,31 +773,41 @@ class InvertedColumns:
             res_all = {}
             for val in np.unique(sigma_pixels):
                 sel = sigma_pixels == val
-                inversion = inv.Inversion(self.model, self.scene.ambient_K,
-                                          sigma_m=inv.prior(float(val), 0.5 * float(val),
-                                                            1e-3, 0.5), table=self.table,
-                                          **self._inv_kw)
-                res_all[float(val)] = (sel, inversion.invert(rad, background_radiance=bg,
-                                                             mask=sel, progress=progress))
+                inversion = inv.Inversion(
+                    self.model,
+                    self.scene.ambient_K,
+                    sigma_m=inv.prior(float(val), 0.5 * float(val), 1e-3, 0.5),
+                    table=self.table,
+                    **self._inv_kw,
+                )
+                res_all[float(val)] = (
+                    sel,
+                    inversion.invert(rad, background_radiance=bg, mask=sel, progress=progress),
+                )
             # Merge: each pixel from the run that selected it.
             sels = list(res_all.values())
             out = sels[0][1]
             for sel, r in sels[1:]:
                 out = _merge_results(out, r, sel)
             return out
-        inversion = inv.Inversion(self.model, self.scene.ambient_K, sigma_m=sigma_param,
-                                  table=self.table, **self._inv_kw)
+        inversion = inv.Inversion(
+            self.model, self.scene.ambient_K, sigma_m=sigma_param, table=self.table, **self._inv_kw
+        )
         if noise_scale != 1.0:
-            return inversion.invert_mean(rad[None] if rad.ndim == 2 else rad,
-                                         background_radiance=bg, sigma_m=sigma_pixels,
-                                         progress=progress)
-        return inversion.invert(rad, background_radiance=bg, sigma_m=sigma_pixels,
-                                progress=progress)
+            return inversion.invert_mean(
+                rad[None] if rad.ndim == 2 else rad,
+                background_radiance=bg,
+                sigma_m=sigma_pixels,
+                progress=progress,
+            )
+        return inversion.invert(
+            rad, background_radiance=bg, sigma_m=sigma_pixels, progress=progress
+        )
 
 
-
-def _anchor_proxy(fields: np.ndarray, samples, surf_cols, species: str, horizontal: bool,
-                  roi: Region) -> Dict[str, float]:
+def _anchor_proxy(
+    fields: np.ndarray, samples, surf_cols, species: str, horizontal: bool, roi: Region
+) -> Dict[str, float]:
     """Scales the velocity proxy (T, H, W) line by line to the inverted
     columns where both exist: along each surface, the ratio of the full
     inversion's column sum to the proxy's (over every frame) is the proxy's
@@ -686,12 +818,13 @@ def _anchor_proxy(fields: np.ndarray, samples, surf_cols, species: str, horizont
     Returns {line: ratio} of the anchors (for the record)."""
     pos, ratio = [], []
     for (xy, _n, _dl, _t), cols in zip(samples, surf_cols):
-        inv = cols[species][:fields.shape[0]]
+        inv = cols[species][: fields.shape[0]]
         good = np.isfinite(inv)
         if not good.any():
             continue
-        prox = np.stack([_bilinear(fields[k], xy - [roi.x0, roi.y0])
-                         for k in range(fields.shape[0])])
+        prox = np.stack(
+            [_bilinear(fields[k], xy - [roi.x0, roi.y0]) for k in range(fields.shape[0])]
+        )
         a, b = float(np.sum(np.where(good, inv, 0.0))), float(np.sum(np.where(good, prox, 0.0)))
         if a > 0 and b > 0:
             pos.append(float(np.mean(xy[:, 1] - roi.y0 if horizontal else xy[:, 0] - roi.x0)))
@@ -705,7 +838,6 @@ def _anchor_proxy(fields: np.ndarray, samples, surf_cols, species: str, horizont
     scale = np.exp(np.interp(lines, pos_a, np.log(ratio_a))).astype(np.float32)
     view *= scale[None, :, None]
     return {f"{p:.0f}": float(r) for p, r in zip(pos_a, ratio_a)}
-
 
 
 def block_columns(st: RunState, blk, say) -> BlockColumns:
@@ -731,9 +863,11 @@ def block_columns(st: RunState, blk, say) -> BlockColumns:
         if cfg.methods.truth_columns or n_done == 0:
             return
         per_surface, cnt = columns.finish(
-            samples, time_averaged=time_averaged,
+            samples,
+            time_averaged=time_averaged,
             progress=lambda fr_: say(0.35 + 0.25 * fr_, "inverting the surfaces' pixels"),
-            alongside=alongside)
+            alongside=alongside,
+        )
         for j in range(len(samples)):
             for sp in cfg.species:
                 surf_cols[j][sp][:n_done] = per_surface[j][0][sp]
@@ -756,8 +890,7 @@ def block_columns(st: RunState, blk, say) -> BlockColumns:
                 for j, (xy, _n, _dl, _t) in enumerate(samples):
                     for sp in cfg.species:
                         surf_cols[j][sp][k] = _bilinear(fields[sp], xy - [roi.x0, roi.y0])
-                counts["converged"] = counts.get("converged", 0) + \
-                    sum(len(x[0]) for x in samples)
+                counts["converged"] = counts.get("converged", 0) + sum(len(x[0]) for x in samples)
                 done = k + 1
                 say(0.05 + 0.3 * done / nb, f"column field, frame {done}/{nb}")
         else:
@@ -768,7 +901,7 @@ def block_columns(st: RunState, blk, say) -> BlockColumns:
                 m = min(sub, nb - k)
                 fr = rec.frames(first + k, first + k + m, quantity="radiance")
                 st.radiance_check(fr, first + k)
-                columns.collect(fr, st.surfaces, samples, out=col_fields[k:k + m])
+                columns.collect(fr, st.surfaces, samples, out=col_fields[k : k + m])
                 done = k + m
                 say(0.05 + 0.3 * done / nb, f"background and column field, frame {done}/{nb}")
         if time_averaged and cfg.methods.truth_columns:
@@ -782,7 +915,8 @@ def block_columns(st: RunState, blk, say) -> BlockColumns:
         invert_collected(done, time_averaged, alongside=lambda: columns.contrast_to_column(part))
         if not cfg.methods.truth_columns:
             info["proxy_anchor"] = _anchor_proxy(
-                part, samples, surf_cols, cfg.species[0], st.horizontal, roi)
+                part, samples, surf_cols, cfg.species[0], st.horizontal, roi
+            )
     except Cancelled:
         try:
             invert_collected(done, time_averaged)

@@ -30,13 +30,27 @@ import numpy as np
 
 from ..surfaces import Region
 
-__all__ = ["QuantifyConfig", "SceneConditions", "Methods", "Execution", "FIELDS",
-           "VELOCITY_SOURCES"]
+__all__ = [
+    "QuantifyConfig",
+    "SceneConditions",
+    "Methods",
+    "Execution",
+    "FIELDS",
+    "VELOCITY_SOURCES",
+]
 
 #: The velocimetry sources (qogi.velocimetry's method names, and the given
 #: speeds ``wind`` and ``exit``).
-VELOCITY_SOURCES = ("fluid", "horn_schunck", "lucas_kanade", "farneback", "dis", "piv",
-                    "wind", "exit")
+VELOCITY_SOURCES = (
+    "fluid",
+    "horn_schunck",
+    "lucas_kanade",
+    "farneback",
+    "dis",
+    "piv",
+    "wind",
+    "exit",
+)
 _VELOCITY_SOURCES = VELOCITY_SOURCES
 
 
@@ -63,40 +77,52 @@ class SceneConditions:
         if not self.species:
             raise ValueError("species is empty; e.g. species=['CH4']")
         from .. import _engine
+
         for sp in self.species:
             _engine.molar_mass(sp)
         g = self.gas_temperature
         if isinstance(g, str):
             if g not in ("ambient", "infer"):
-                raise ValueError(f"gas_temperature must be 'ambient', 'infer' or a temperature in K; got {g!r}")
+                raise ValueError(
+                    f"gas_temperature must be 'ambient', 'infer' or a temperature in K; got {g!r}"
+                )
         elif not (np.isfinite(g) and 150.0 <= float(g) <= 600.0):
             raise ValueError(f"gas_temperature must be within [150, 600] K; got {g}")
-        for name, lo, hi in (("distance_m", 1e-3, 1e5), ("ambient_temperature_K", 180, 350),
-                             ("pressure_Pa", 3e4, 1.1e5), ("sigma_m", 1e-4, 10.0)):
+        for name, lo, hi in (
+            ("distance_m", 1e-3, 1e5),
+            ("ambient_temperature_K", 180, 350),
+            ("pressure_Pa", 3e4, 1.1e5),
+            ("sigma_m", 1e-4, 10.0),
+        ):
             v = getattr(self, name)
             if v is not None and not (np.isfinite(v) and lo <= v <= hi):
                 raise ValueError(f"{name} must be within [{lo:g}, {hi:g}]; got {v}")
         if self.exit_temperature_K is not None and not (
-                np.isfinite(self.exit_temperature_K) and 150.0 <= self.exit_temperature_K <= 900.0):
-            raise ValueError(f"exit_temperature_K must be within [150, 900] K; got "
-                             f"{self.exit_temperature_K}")
+            np.isfinite(self.exit_temperature_K) and 150.0 <= self.exit_temperature_K <= 900.0
+        ):
+            raise ValueError(
+                f"exit_temperature_K must be within [150, 900] K; got {self.exit_temperature_K}"
+            )
         if self.source is not None:
             from ..errors import UsageError
+
             try:
                 x, y = (float(v) for v in self.source)
             except (TypeError, ValueError):
-                raise UsageError(f"source must be a pixel position (x, y); got "
-                                 f"{self.source!r}") from None
+                raise UsageError(
+                    f"source must be a pixel position (x, y); got {self.source!r}"
+                ) from None
             if not (math.isfinite(x) and math.isfinite(y)):
-                raise UsageError(f"source must be a finite pixel position (x, y); got "
-                                 f"({x}, {y})")
+                raise UsageError(f"source must be a finite pixel position (x, y); got ({x}, {y})")
             self.source = (x, y)
         if self.composition is not None:
             comp = {str(k): float(v) for k, v in dict(self.composition).items()}
             missing = [sp for sp in self.species if sp not in comp]
             if missing or any(not (np.isfinite(v) and v > 0) for v in comp.values()):
-                raise ValueError("composition needs a volume fraction > 0 for every species "
-                                 f"quantified ({self.species}); got {self.composition}")
+                raise ValueError(
+                    "composition needs a volume fraction > 0 for every species "
+                    f"quantified ({self.species}); got {self.composition}"
+                )
             self.composition = comp
 
     @property
@@ -123,25 +149,43 @@ class Methods:
         # qogi.velocimetry's method names; the hyphenated spellings are accepted too.
         self.velocity = str(self.velocity).replace("-", "_")
         if self.velocity not in VELOCITY_SOURCES:
-            raise ValueError(f"velocity must be one of {', '.join(VELOCITY_SOURCES)}; got {self.velocity!r}")
+            raise ValueError(
+                f"velocity must be one of {', '.join(VELOCITY_SOURCES)}; got {self.velocity!r}"
+            )
         if self.averaging not in ("per-frame", "time-averaged"):
-            raise ValueError(f"averaging must be 'per-frame' or 'time-averaged'; got {self.averaging!r}")
+            raise ValueError(
+                f"averaging must be 'per-frame' or 'time-averaged'; got {self.averaging!r}"
+            )
         if isinstance(self.background, str):
             if self.background not in ("auto", "beside-surface", "percentile"):
-                raise ValueError("background must be 'auto', 'beside-surface', 'percentile' or a "
-                                 "qogi.Region; "
-                                 f"got {self.background!r}")
+                raise ValueError(
+                    "background must be 'auto', 'beside-surface', 'percentile' or a "
+                    "qogi.Region; "
+                    f"got {self.background!r}"
+                )
         elif not isinstance(self.background, Region):
-            raise ValueError(f"background must be a string or a qogi.Region; got {self.background!r}")
+            raise ValueError(
+                f"background must be a string or a qogi.Region; got {self.background!r}"
+            )
         if not 0 <= self.background_percentile <= 50:
-            raise ValueError(f"background_percentile must be within [0, 50]; got {self.background_percentile}")
+            raise ValueError(
+                f"background_percentile must be within [0, 50]; got {self.background_percentile}"
+            )
         if self.column_density not in ("inversion", "truth"):
-            raise ValueError(f"column_density must be 'inversion' or 'truth' (validation); got {self.column_density!r}")
+            raise ValueError(
+                "column_density must be 'inversion' or 'truth' (validation); got "
+                f"{self.column_density!r}"
+            )
         if self.velocity_systematic is not None and not 0 <= self.velocity_systematic <= 1:
-            raise ValueError(f"velocity_systematic must be within [0, 1]; got {self.velocity_systematic}")
+            raise ValueError(
+                f"velocity_systematic must be within [0, 1]; got {self.velocity_systematic}"
+            )
         if self.column_systematic is not None and not 0 <= self.column_systematic <= 1:
-            raise ValueError(f"column_systematic must be within [0, 1]; got {self.column_systematic}")
+            raise ValueError(
+                f"column_systematic must be within [0, 1]; got {self.column_systematic}"
+            )
         from ..forward import LineShape
+
         self.line_shape = str(LineShape.parse(self.line_shape))
 
     @property
@@ -177,19 +221,29 @@ class Execution:
         if self.frames is not None:
             a, b = self.frames
             if not (0 <= a < b):
-                raise ValueError(f"frames must be (start, stop) with 0 <= start < stop; got {self.frames}")
+                raise ValueError(
+                    f"frames must be (start, stop) with 0 <= start < stop; got {self.frames}"
+                )
             self.frames = (int(a), int(b))
-        if self.pair_stride is not None and (isinstance(self.pair_stride, bool) or
-                                             not isinstance(self.pair_stride, int) or
-                                             not 1 <= self.pair_stride <= 100):
-            raise ValueError(f"pair_stride must be an integer within [1, 100] (frames between "
-                             f"the velocimetry's pairs) or None (automatic); got "
-                             f"{self.pair_stride!r}")
-        if self.block_frames is not None and (isinstance(self.block_frames, bool) or
-                                              not isinstance(self.block_frames, int) or
-                                              self.block_frames < 8):
-            raise ValueError(f"block_frames must be an integer >= 8 (frames streamed per block) "
-                             f"or None (automatic); got {self.block_frames!r}")
+        if self.pair_stride is not None and (
+            isinstance(self.pair_stride, bool)
+            or not isinstance(self.pair_stride, int)
+            or not 1 <= self.pair_stride <= 100
+        ):
+            raise ValueError(
+                f"pair_stride must be an integer within [1, 100] (frames between "
+                f"the velocimetry's pairs) or None (automatic); got "
+                f"{self.pair_stride!r}"
+            )
+        if self.block_frames is not None and (
+            isinstance(self.block_frames, bool)
+            or not isinstance(self.block_frames, int)
+            or self.block_frames < 8
+        ):
+            raise ValueError(
+                f"block_frames must be an integer >= 8 (frames streamed per block) "
+                f"or None (automatic); got {self.block_frames!r}"
+            )
 
 
 _GROUPS = {"conditions": SceneConditions, "methods": Methods, "execution": Execution}
@@ -197,16 +251,31 @@ _GROUPS = {"conditions": SceneConditions, "methods": Methods, "execution": Execu
 #: The flat keys of :class:`QuantifyConfig`, in their saved order, with the
 #: role (attribute of the config) each belongs to.
 FIELDS: Dict[str, str] = {
-    "species": "conditions", "gas_temperature": "conditions", "velocity": "methods",
-    "wind_speed_m_s": "conditions", "exit_velocity_m_s": "conditions",
-    "averaging": "methods", "background": "methods", "background_percentile": "methods",
-    "source": "conditions", "distance_m": "conditions",
-    "ambient_temperature_K": "conditions", "pressure_Pa": "conditions",
-    "sigma_m": "conditions", "frames": "execution", "num_threads": "execution",
-    "composition": "conditions", "column_density": "methods",
-    "velocity_systematic": "methods", "column_systematic": "methods",
-    "flux_level": "methods", "pair_stride": "execution", "block_frames": "execution",
-    "line_shape": "methods", "exit_temperature_K": "conditions"}
+    "species": "conditions",
+    "gas_temperature": "conditions",
+    "velocity": "methods",
+    "wind_speed_m_s": "conditions",
+    "exit_velocity_m_s": "conditions",
+    "averaging": "methods",
+    "background": "methods",
+    "background_percentile": "methods",
+    "source": "conditions",
+    "distance_m": "conditions",
+    "ambient_temperature_K": "conditions",
+    "pressure_Pa": "conditions",
+    "sigma_m": "conditions",
+    "frames": "execution",
+    "num_threads": "execution",
+    "composition": "conditions",
+    "column_density": "methods",
+    "velocity_systematic": "methods",
+    "column_systematic": "methods",
+    "flux_level": "methods",
+    "pair_stride": "execution",
+    "block_frames": "execution",
+    "line_shape": "methods",
+    "exit_temperature_K": "conditions",
+}
 
 assert set(FIELDS) == {f.name for g in _GROUPS.values() for f in dataclasses.fields(g)}
 
@@ -287,33 +356,43 @@ class QuantifyConfig:
     def __init__(self, **kwargs):
         unknown = sorted(set(kwargs) - set(FIELDS))
         if unknown:
-            raise TypeError(f"QuantifyConfig() got unexpected keyword argument(s) "
-                            f"{', '.join(unknown)}")
+            raise TypeError(
+                f"QuantifyConfig() got unexpected keyword argument(s) {', '.join(unknown)}"
+            )
         for group, cls in _GROUPS.items():
-            self.__dict__[group] = cls(**{k: v for k, v in kwargs.items()
-                                         if FIELDS[k] == group})
+            self.__dict__[group] = cls(**{k: v for k, v in kwargs.items() if FIELDS[k] == group})
         self._check_across()
 
     def _check_across(self) -> None:
         """Checks that tie the roles together."""
         m, c = self.methods, self.conditions
-        if m.velocity == "wind" and not (c.wind_speed_m_s is not None and
-                                         0 < c.wind_speed_m_s <= 100):
-            raise ValueError("velocity='wind' needs wind_speed_m_s within (0, 100] m/s; got "
-                             f"{c.wind_speed_m_s}")
-        if m.velocity == "exit" and not (c.exit_velocity_m_s is not None and
-                                         0 < c.exit_velocity_m_s <= 500):
-            raise ValueError("velocity='exit' needs exit_velocity_m_s within (0, 500] m/s; got "
-                             f"{c.exit_velocity_m_s}")
+        if m.velocity == "wind" and not (
+            c.wind_speed_m_s is not None and 0 < c.wind_speed_m_s <= 100
+        ):
+            raise ValueError(
+                f"velocity='wind' needs wind_speed_m_s within (0, 100] m/s; got {c.wind_speed_m_s}"
+            )
+        if m.velocity == "exit" and not (
+            c.exit_velocity_m_s is not None and 0 < c.exit_velocity_m_s <= 500
+        ):
+            raise ValueError(
+                "velocity='exit' needs exit_velocity_m_s within (0, 500] m/s; got "
+                f"{c.exit_velocity_m_s}"
+            )
 
     @classmethod
-    def from_parts(cls, conditions: Optional[SceneConditions] = None,
-                   methods: Optional[Methods] = None,
-                   execution: Optional[Execution] = None) -> "QuantifyConfig":
+    def from_parts(
+        cls,
+        conditions: Optional[SceneConditions] = None,
+        methods: Optional[Methods] = None,
+        execution: Optional[Execution] = None,
+    ) -> QuantifyConfig:
         """The config of three role objects (defaults for those not given)."""
         parts: Dict[str, Union[SceneConditions, Methods, Execution]] = {
-            "conditions": conditions or SceneConditions(), "methods": methods or Methods(),
-            "execution": execution or Execution()}
+            "conditions": conditions or SceneConditions(),
+            "methods": methods or Methods(),
+            "execution": execution or Execution(),
+        }
         flat = {}
         for obj in parts.values():
             flat.update({f.name: getattr(obj, f.name) for f in dataclasses.fields(obj)})
@@ -329,7 +408,7 @@ class QuantifyConfig:
         """The default value of flat key ``name``."""
         return _default(name)
 
-    def replace(self, **changes) -> "QuantifyConfig":
+    def replace(self, **changes) -> QuantifyConfig:
         """A copy with the given flat keys changed (validated again)."""
         flat = {name: getattr(self, name) for name in FIELDS}
         flat.update(changes)
@@ -365,22 +444,25 @@ class QuantifyConfig:
         return self.replace()
 
     @classmethod
-    def from_dict(cls, d: dict) -> "QuantifyConfig":
+    def from_dict(cls, d: dict) -> QuantifyConfig:
         """The config :meth:`to_dict` wrote (JSON-friendly lists accepted);
         unknown keys raise ``qogi.UsageError`` (qogi.config_io)."""
         from ..config_io import config_from_dict
+
         return config_from_dict(d)
 
     @classmethod
-    def from_toml(cls, path) -> "QuantifyConfig":
+    def from_toml(cls, path) -> QuantifyConfig:
         """The config of a settings file (TOML, or a result JSON); see qogi.config_io."""
         from ..config_io import load_settings
+
         return load_settings(path).config
 
     def to_toml(self, path, surfaces=(), units=None) -> None:
         """Write this config (and optionally surfaces and the reporting unit)
         as a settings file that :meth:`from_toml` and ``--config`` read back."""
         from ..config_io import write_toml
+
         write_toml(path, self, surfaces, units)
 
 
@@ -395,4 +477,6 @@ def _plain(v):
     return v
 
 
-assert all(isinstance(QuantifyConfig.__dict__.get(n), _Flat) for n in FIELDS), "a flat key undeclared"
+assert all(isinstance(QuantifyConfig.__dict__.get(n), _Flat) for n in FIELDS), (
+    "a flat key undeclared"
+)

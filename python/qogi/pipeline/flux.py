@@ -16,8 +16,9 @@ from .state import BlockColumns, BlockOut, Flow, RunState, SurfaceFlux
 __all__ = ["block_flux", "block_maps"]
 
 
-def block_flux(st: RunState, blk, cols: BlockColumns, vn: Optional[List[np.ndarray]],
-               flows: Optional[Flow]) -> BlockOut:
+def block_flux(
+    st: RunState, blk, cols: BlockColumns, vn: Optional[List[np.ndarray]], flows: Optional[Flow]
+) -> BlockOut:
     """The kept frames of a block (its overlap with the neighbours left
     out): each surface's and species' :class:`SurfaceFlux` from the columns
     and the normal velocities ``vn`` [m/s] (per surface, (frames, samples)).
@@ -29,9 +30,18 @@ def block_flux(st: RunState, blk, cols: BlockColumns, vn: Optional[List[np.ndarr
     flux = []
     for j, (xy, _n, dl, _t) in enumerate(st.samples):
         v = np.zeros((k1 - k0, len(xy))) if vn is None else vn[j][k0:k1]
-        flux.append({sp: _surface_flux(cols.columns[j][sp][k0:k1], cols.sigmas[j][sp][k0:k1], v,
-                                       dl, _speed_floor(st, flows, j, sp))
-                     for sp in cfg.species})
+        flux.append(
+            {
+                sp: _surface_flux(
+                    cols.columns[j][sp][k0:k1],
+                    cols.sigmas[j][sp][k0:k1],
+                    v,
+                    dl,
+                    _speed_floor(st, flows, j, sp),
+                )
+                for sp in cfg.species
+            }
+        )
     return BlockOut(flux, k1 - k0, cols.counts, {}, cols.info, cols.cancelled)
 
 
@@ -48,24 +58,37 @@ def block_maps(st: RunState, blk, cols: BlockColumns, flows: Flow) -> dict:
             continue
         uv = tuple(np.zeros(col_fields.shape[1:], np.float32) for _ in range(2))
         for full, p in zip(uv, (fu[k], fv[k])):
-            full[cy:cy + p.shape[0], cx:cx + p.shape[1]] = p
-        maps[first + k] = {"column_density_kg_m2": {st.cfg.species[0]: col_fields[k].copy()},
-                           "velocity_px_per_frame": uv, "origin": (st.roi.x0, st.roi.y0)}
+            full[cy : cy + p.shape[0], cx : cx + p.shape[1]] = p
+        maps[first + k] = {
+            "column_density_kg_m2": {st.cfg.species[0]: col_fields[k].copy()},
+            "velocity_px_per_frame": uv,
+            "origin": (st.roi.x0, st.roi.y0),
+        }
     return maps
 
 
-def _surface_flux(c: np.ndarray, sig: np.ndarray, vn: np.ndarray, dl: np.ndarray,
-                  speed_floor: float = 0.0) -> SurfaceFlux:
+def _surface_flux(
+    c: np.ndarray, sig: np.ndarray, vn: np.ndarray, dl: np.ndarray, speed_floor: float = 0.0
+) -> SurfaceFlux:
     """Thesis eq. 12 per frame: sum over the samples of column c [kg/m2] x
     normal velocity vn [m/s] x length dl [m], (frames, samples) arrays;
     ``speed_floor`` [m/s] the direction check's least speed."""
     from ..detection import frame_widths, velocity_sums
     from ..flux import surface_rate
     from ..flux_summary import FluxSummary
+
     r = surface_rate(c, sig, vn, dl)  # the engine's flux module (cpp/engine/flux)
     cv, cs, vmed = velocity_sums(c, np.broadcast_to(vn, c.shape))
-    return SurfaceFlux(r.rate, r.samples, r.column_variance, cv, cs, vmed,
-                       frame_widths(c, dl), FluxSummary.of(c, sig, vn, dl, speed_floor))
+    return SurfaceFlux(
+        r.rate,
+        r.samples,
+        r.column_variance,
+        cv,
+        cs,
+        vmed,
+        frame_widths(c, dl),
+        FluxSummary.of(c, sig, vn, dl, speed_floor),
+    )
 
 
 def _speed_floor(st: RunState, flows: Optional[Flow], j: int, species: str) -> float:
@@ -81,10 +104,12 @@ def _speed_floor(st: RunState, flows: Optional[Flow], j: int, species: str) -> f
         fu, fv, _ = flows
         if len(fu):
             step = max(1, len(fu) // 20)
-            typical = float(np.nanpercentile(np.hypot(fu[::step], fv[::step]), 90)) \
+            typical = (
+                float(np.nanpercentile(np.hypot(fu[::step], fv[::step]), 90))
                 * scene.m_s_per_px_frame
-    g_reduced = 9.81 * abs(1.0 - _engine.molar_mass(species) * scene.ambient_K /
-                           (0.028965 * scene.gas_K))
+            )
+    g_reduced = 9.81 * abs(
+        1.0 - _engine.molar_mass(species) * scene.ambient_K / (0.028965 * scene.gas_K)
+    )
     sigma_m = getattr(st.columns, "sigma_m", {}).get(j) or 0.02
     return max(typical, math.sqrt(g_reduced * 2.3548 * sigma_m))
-

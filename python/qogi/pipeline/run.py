@@ -33,10 +33,13 @@ BLOCK_BYTES = 1 << 30
 MIN_BLOCK_FRAMES = 450
 
 
-def quantify(recording: Union[Recording, str], surfaces: Sequence[Surface],
-             config: Optional[QuantifyConfig] = None,
-             progress: Optional[Callable[[float, str], Optional[bool]]] = None,
-             keep_maps: bool = False) -> Result:
+def quantify(
+    recording: Union[Recording, str],
+    surfaces: Sequence[Surface],
+    config: Optional[QuantifyConfig] = None,
+    progress: Optional[Callable[[float, str], Optional[bool]]] = None,
+    keep_maps: bool = False,
+) -> Result:
     """Emission-rate time series of each species through each control surface.
 
     Parameters
@@ -68,6 +71,7 @@ def quantify(recording: Union[Recording, str], surfaces: Sequence[Surface],
         surfaces = [s.oriented_away_from(cfg.source) for s in surfaces]
     check_inputs(rec, surfaces, cfg)
     from ..checks import check_surfaces
+
     check_surfaces(surfaces)
     with _workers_mod.owned_workers():
         result = _run(rec, surfaces, cfg, progress, keep_maps)
@@ -75,16 +79,19 @@ def quantify(recording: Union[Recording, str], surfaces: Sequence[Surface],
     # assumed pressure, dropped frames) and where each scene fact came from.
     # (Dropped frames are the pipeline's own finding too: reported once.)
     result.warnings.extend_unique(
-        w for w in (getattr(rec, "warnings", None) or ())
-        if not (w.code == "frames-dropped" and result.warnings.has("frames-dropped")))
+        w
+        for w in (getattr(rec, "warnings", None) or ())
+        if not (w.code == "frames-dropped" and result.warnings.has("frames-dropped"))
+    )
     scene_origin = getattr(rec, "scene_origin", None)  # set by qogi.io.open
     if scene_origin:
         result.info["scene_origin"] = dict(scene_origin)
     return result
 
 
-def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
-         keep_maps: bool) -> Result:
+def _run(
+    rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress, keep_maps: bool
+) -> Result:
     """The stages in order; a cancel raises :class:`qogi.Cancelled` with the
     Result of the blocks finished (``complete=False``)."""
     from ..timebase import stream_blocks
@@ -109,8 +116,9 @@ def _run(rec: Recording, surfaces: List[Surface], cfg: QuantifyConfig, progress,
             run.blocks.append(out)
         if out is None or out.cancelled:
             run.radiance_check.report(run.warnings)
-            raise Cancelled("quantification cancelled",
-                            partial=budget.finish(run, complete=False)) from None
+            raise Cancelled(
+                "quantification cancelled", partial=budget.finish(run, complete=False)
+            ) from None
     run.radiance_check.report(run.warnings)
     return budget.finish(run, complete=True)
 
@@ -121,8 +129,9 @@ def _block(run: RunState, blk, say) -> BlockOut:
     if cols.cancelled:
         return flux.block_flux(run, blk, cols, None, None)
     flows = velocity.block_velocity(run, cols, blk, say)
-    vn = [velocity.normal_velocity(run, flows, s.xy, s.n, cols.fields.shape[0])
-          for s in run.samples]
+    vn = [
+        velocity.normal_velocity(run, flows, s.xy, s.n, cols.fields.shape[0]) for s in run.samples
+    ]
     out = flux.block_flux(run, blk, cols, vn, flows)
     if run.keep_maps and flows is not None:
         out.maps = flux.block_maps(run, blk, cols, flows)

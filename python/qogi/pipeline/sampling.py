@@ -16,6 +16,9 @@ def _bilinear(img: np.ndarray, xy: np.ndarray) -> np.ndarray:
     y0 = np.minimum(np.floor(y).astype(int), h - 2) if h > 1 else np.zeros(len(y), int)
     fx, fy = x - x0, y - y0
     x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
-    return (img[..., y0, x0] * (1 - fx) * (1 - fy) + img[..., y0, x1] * fx * (1 - fy)
-            + img[..., y1, x0] * (1 - fx) * fy + img[..., y1, x1] * fx * fy)
-
+    return (
+        img[..., y0, x0] * (1 - fx) * (1 - fy)
+        + img[..., y0, x1] * fx * (1 - fy)
+        + img[..., y1, x0] * (1 - fx) * fy
+        + img[..., y1, x1] * fx * fy
+    )

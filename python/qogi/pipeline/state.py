@@ -20,8 +20,17 @@ from ..recording import Recording
 from ..surfaces import Region, Surface
 from .config import QuantifyConfig
 
-__all__ = ["Scene", "SurfaceSamples", "Transport", "FluxLevelPlan", "Flow", "RunState",
-           "BlockColumns", "SurfaceFlux", "BlockOut"]
+__all__ = [
+    "Scene",
+    "SurfaceSamples",
+    "Transport",
+    "FluxLevelPlan",
+    "Flow",
+    "RunState",
+    "BlockColumns",
+    "SurfaceFlux",
+    "BlockOut",
+]
 
 
 class Scene:
@@ -40,8 +49,11 @@ class Scene:
         self.pixel_m = self.distance_m * self.ifov
         self.m_s_per_px_frame = self.pixel_m * self.frame_rate
         self.netd = rec.camera.netd_K or 0.02
-        self.gas_K = (self.ambient_K if cfg.gas_temperature in ("ambient", "infer")
-                      else float(cfg.gas_temperature))
+        self.gas_K = (
+            self.ambient_K
+            if cfg.gas_temperature in ("ambient", "infer")
+            else float(cfg.gas_temperature)
+        )
 
 
 class SurfaceSamples(NamedTuple):
@@ -158,15 +170,15 @@ class RunState:
     surfaces: List[Surface]
     samples: List[SurfaceSamples]
     frames: range
-    timebase: Any                     # qogi.timebase.FrameTimebase
-    warnings: Any                     # qogi.diagnostics.Diagnostics
+    timebase: Any  # qogi.timebase.FrameTimebase
+    warnings: Any  # qogi.diagnostics.Diagnostics
     say: Callable[[float, str], None]  # raises Cancelled when the caller's progress says stop
     keep_maps: bool
     roi: Region
     horizontal: bool
-    radiance_check: Any               # qogi.checks.RadianceCheck
+    radiance_check: Any  # qogi.checks.RadianceCheck
     channel_sign: np.ndarray
-    background_temperature_K: float   # the typical background's temperature [K]
+    background_temperature_K: float  # the typical background's temperature [K]
     t_start: float
     #: The run's notes for ``Result.info`` (velocimetry, background, source).
     info: Dict[str, object] = dataclasses.field(default_factory=dict)
@@ -174,10 +186,10 @@ class RunState:
     #: that need them have run (background choice, source detection).
     sample_frames: Optional[np.ndarray] = None
     # Set by the stages, in order:
-    background: Any = None            # background stage: pipeline.background.Background
-    columns: Any = None               # columns stage: TruthColumns or InvertedColumns
-    source: Optional[Tuple[float, float]] = None   # velocity stage (given or detected)
-    transport: Optional[Transport] = None          # velocity stage
+    background: Any = None  # background stage: pipeline.background.Background
+    columns: Any = None  # columns stage: TruthColumns or InvertedColumns
+    source: Optional[Tuple[float, float]] = None  # velocity stage (given or detected)
+    transport: Optional[Transport] = None  # velocity stage
     crop: Tuple[slice, slice] = (slice(None), slice(None))
     blocks: List[BlockOut] = dataclasses.field(default_factory=list)
 

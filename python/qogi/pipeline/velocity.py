@@ -36,11 +36,14 @@ def prepare(run: RunState) -> None:
     # setup.prepare samples frames whenever wants_source(cfg).
     if wants_source(cfg) and sample_frames is not None and len(sample_frames) >= 2:
         from ..surfaces import _plume_image, detect_source
+
         try:
             source = detect_source(_plume_image(sample_frames))
             run.info["source_xy"] = [float(source[0]), float(source[1])]
-            run.info["source"] = (f"detected at x={source[0]:.1f}, y={source[1]:.1f} "
-                                  f"(for the flux level; give source= to set it)")
+            run.info["source"] = (
+                f"detected at x={source[0]:.1f}, y={source[1]:.1f} "
+                f"(for the flux level; give source= to set it)"
+            )
         except ValueError as e:
             run.info["source"] = f"not detected: {e}"
     del sample_frames
@@ -49,25 +52,35 @@ def prepare(run: RunState) -> None:
     run.source = source
     # The flow's part of the region (all of it without a source).
     if source is not None and not cfg.methods.given_speed:
-        run.transport = _transport_crop(run.surfaces, source, run.roi,
-                                        (run.rec.height, run.rec.width))
+        run.transport = _transport_crop(
+            run.surfaces, source, run.roi, (run.rec.height, run.rec.width)
+        )
         run.crop = run.transport.crop
 
 
-def flux_level_plan(cfg: QuantifyConfig, source: Optional[Tuple[float, float]],
-                    frames: int) -> FluxLevelPlan:
+def flux_level_plan(
+    cfg: QuantifyConfig, source: Optional[Tuple[float, float]], frames: int
+) -> FluxLevelPlan:
     """Whether a block of ``frames`` frames takes its flux level from the
     transport of the line-integrated column (time of flight of the plume's
     structures: mass conservation alone cannot fix it in a steady plume;
     docs/velocimetry.md): with the fluid method and a known source."""
-    return FluxLevelPlan("a method other than fluid" if cfg.velocity != "fluid" else
-                         "flux_level=False" if not cfg.flux_level else
-                         "no source given or detected" if source is None else
-                         "fewer than 3 frames" if frames < 3 else None)
+    return FluxLevelPlan(
+        "a method other than fluid"
+        if cfg.velocity != "fluid"
+        else "flux_level=False"
+        if not cfg.flux_level
+        else "no source given or detected"
+        if source is None
+        else "fewer than 3 frames"
+        if frames < 3
+        else None
+    )
 
 
-def normal_velocity(st: RunState, flows: Optional[Flow], xy: np.ndarray, n: np.ndarray,
-                    nb: int) -> np.ndarray:
+def normal_velocity(
+    st: RunState, flows: Optional[Flow], xy: np.ndarray, n: np.ndarray, nb: int
+) -> np.ndarray:
     """The velocity along each sample's normal [m/s], (frames, samples):
     the given speed, or the flow's (px per nominal frame interval) sampled
     at the surface (zero outside the flow's part; NaN without a flow)."""
@@ -103,12 +116,16 @@ def block_velocity(st: RunState, cols: BlockColumns, blk, say) -> Optional[Flow]
     fewer than 2 frames); its notes (pair stride, flux level) into the
     block's ``info``."""
     a, b = blk.read
-    return _block_velocity(st, cols.fields, st.timebase.pair_intervals[a:b - 1], cols.info,
-                           say)
+    return _block_velocity(st, cols.fields, st.timebase.pair_intervals[a : b - 1], cols.info, say)
 
 
-def _block_velocity(st: RunState, col_fields: np.ndarray, intervals: np.ndarray,
-                    velocity_info: Dict[str, object], say) -> Optional[Flow]:
+def _block_velocity(
+    st: RunState,
+    col_fields: np.ndarray,
+    intervals: np.ndarray,
+    velocity_info: Dict[str, object],
+    say,
+) -> Optional[Flow]:
     from .. import velocimetry as vel
 
     cfg, roi, crop, source = st.cfg, st.roi, st.crop, st.source
@@ -121,9 +138,9 @@ def _block_velocity(st: RunState, col_fields: np.ndarray, intervals: np.ndarray,
     source_mask = None
     if source is not None:
         sx, sy = source[0] - roi.x0, source[1] - roi.y0
-        yy, xx = np.mgrid[0:velocity_frames.shape[1], 0:velocity_frames.shape[2]]
+        yy, xx = np.mgrid[0 : velocity_frames.shape[1], 0 : velocity_frames.shape[2]]
         rad = 6.0
-        source_mask = ((xx - sx) ** 2 + (yy - sy) ** 2) <= rad ** 2
+        source_mask = ((xx - sx) ** 2 + (yy - sy) ** 2) <= rad**2
         if not source_mask.any():
             source_mask = None
     # With the fluid method and a known source, the flux level comes from
@@ -134,13 +151,12 @@ def _block_velocity(st: RunState, col_fields: np.ndarray, intervals: np.ndarray,
     if plan.on:
         # plan.on needs a source with the fluid method: prepare set the transport.
         assert st.transport is not None
-        axis, index, region_index = st.transport.axis, st.transport.index, \
-            st.transport.region_index
+        axis, index, region_index = st.transport.axis, st.transport.index, st.transport.region_index
     field = velocity_frames[:, crop[0], crop[1]]
     mask = source_mask[crop[0], crop[1]] if source_mask is not None else None
     # The flows' scale: the 99.5th percentile of (up to) 100 frames spread
     # over the block.
-    scale = np.percentile(field[::max(1, field.shape[0] // 100)], 99.5)
+    scale = np.percentile(field[:: max(1, field.shape[0] // 100)], 99.5)
     norm = np.ascontiguousarray(field / scale if scale > 0 else field, dtype=np.float32)
     # The flux level's transport along the whole region (the plume's
     # structures beyond the flow's part constrain it too;
@@ -149,7 +165,8 @@ def _block_velocity(st: RunState, col_fields: np.ndarray, intervals: np.ndarray,
     if plan.on:
         job = _workers_mod.current().submit(
             lambda: vel.transport_flux(velocity_frames, axis, region_index, intervals=intervals),
-            "qogi-transport")
+            "qogi-transport",
+        )
     # Pairs `stride` frames apart where the plume moves little per frame
     # (at 100 Hz a lab plume crosses ~1 px per frame): ~3 px per pair, at
     # most every 4th frame, with the transport's flux level (which sets
@@ -167,8 +184,13 @@ def _block_velocity(st: RunState, col_fields: np.ndarray, intervals: np.ndarray,
     fvel = None
     try:
         seq = vel.optical_flow_sequence(
-            norm[::stride], method=cfg.velocity, source_mask=mask, warm_start=True,
-            workers=0, progress=lambda fr_: say(0.6 + 0.3 * fr_, "velocimetry"))
+            norm[::stride],
+            method=cfg.velocity,
+            source_mask=mask,
+            warm_start=True,
+            workers=0,
+            progress=lambda fr_: say(0.6 + 0.3 * fr_, "velocimetry"),
+        )
         # Each pair's displacement over its real duration (time_s), in px per
         # `stride` nominal frame intervals.
         per = (stride / _pair_durations(intervals, stride, done)).astype(np.float32)
@@ -176,8 +198,7 @@ def _block_velocity(st: RunState, col_fields: np.ndarray, intervals: np.ndarray,
             seq.u *= per[:, None, None]
             seq.v *= per[:, None, None]
         if stride > 1:
-            fvel = vel.interpolate_frame_velocity(*vel.frame_velocity(seq), stride,
-                                                  norm.shape[0])
+            fvel = vel.interpolate_frame_velocity(*vel.frame_velocity(seq), stride, norm.shape[0])
     except KeyboardInterrupt:
         # Ctrl-C inside the velocimetry (or its own loops' stop): the block
         # is dropped and the run returns the blocks finished before it.
@@ -194,14 +215,17 @@ def _block_velocity(st: RunState, col_fields: np.ndarray, intervals: np.ndarray,
             # In the flow field's units and lines.
             lines = crop[0] if axis in ("up", "down") else crop[1]
             tf = tf.lines(lines, scale=1.0 / scale if scale > 0 else 1.0)
-            u, v, level = vel.calibrate_flux_level(seq, norm, axis, index, transport=tf,
-                                                   frame_velocities=fvel)
+            u, v, level = vel.calibrate_flux_level(
+                seq, norm, axis, index, transport=tf, frame_velocities=fvel
+            )
             uv = (u, v)
-            flux_note = (f"on: transport of the line-integrated column, axis {axis}"
-                         if np.isfinite(level).any() else
-                         f"on: transport velocity of each line along axis {axis} (the "
-                         f"flow did not follow the transport, e.g. wind faster than it "
-                         f"can track)")
+            flux_note = (
+                f"on: transport of the line-integrated column, axis {axis}"
+                if np.isfinite(level).any()
+                else f"on: transport velocity of each line along axis {axis} (the "
+                f"flow did not follow the transport, e.g. wind faster than it "
+                f"can track)"
+            )
         except ValueError as e:
             flux_note = f"off: {e}"
     if uv is None:
@@ -209,7 +233,6 @@ def _block_velocity(st: RunState, col_fields: np.ndarray, intervals: np.ndarray,
     velocity_info["flux_level"] = flux_note
     # The analysed part and its origin in the region (no velocity outside it).
     return Flow(uv[0], uv[1], (crop[1].start, crop[0].start))
-
 
 
 def _transport_crop(surfaces, source, roi: Region, shape: Tuple[int, int]) -> Transport:
@@ -237,4 +260,3 @@ def _transport_crop(surfaces, source, roi: Region, shape: Tuple[int, int]) -> Tr
         cut = slice(0, int(max(1, min(size, np.ceil(far + margin) + 1))))
     crop = (cut, slice(0, shape[1])) if axis in ("up", "down") else (slice(0, shape[0]), cut)
     return Transport(axis, index, crop, region_index)
-
