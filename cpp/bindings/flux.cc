@@ -12,15 +12,6 @@
 #include "engine/flux/transport_flux.h"
 
 namespace qogi {
-namespace {
-
-py::array_t<double> DoubleVector(const std::vector<double>& v) {
-  py::array_t<double> out(static_cast<py::ssize_t>(v.size()));
-  std::copy(v.begin(), v.end(), out.mutable_data());
-  return out;
-}
-
-}  // namespace
 
 void BindFlux(py::module_& m) {
   m.def(
@@ -46,9 +37,9 @@ void BindFlux(py::module_& m) {
           r = SurfaceFluxRate(column.data(), column_sigma.data(), normal_velocity.data(),
                               length_m.data(), std::size_t(T), std::size_t(S), options);
         }
-        py::array_t<std::int64_t> samples(static_cast<py::ssize_t>(r.samples.size()));
-        std::copy(r.samples.begin(), r.samples.end(), samples.mutable_data());
-        return py::make_tuple(DoubleVector(r.rate), samples, DoubleVector(r.rate_variance));
+        return py::make_tuple(ToArray(r.rate),
+                              ToArray<std::int64_t>(r.samples, {py::ssize_t(r.samples.size())}),
+                              ToArray(r.rate_variance));
       },
       py::arg("column"), py::arg("column_sigma"), py::arg("normal_velocity"), py::arg("length_m"),
       py::arg("molar_mass_kg_mol") = 0.0,
@@ -74,8 +65,8 @@ void BindFlux(py::module_& m) {
           tf = TransportFlux(frames.data(), frames.shape(0), frames.shape(1), frames.shape(2),
                              options, &control);
         }
-        return py::make_tuple(DoubleVector(tf.flux), DoubleVector(tf.line_column),
-                              DoubleVector(tf.velocity), DoubleVector(tf.displacement));
+        return py::make_tuple(ToArray(tf.flux), ToArray(tf.line_column), ToArray(tf.velocity),
+                              ToArray(tf.displacement));
       },
       py::arg("frames"), py::arg("axis") = "up", py::arg("source_index") = py::none(),
       py::arg("intervals") = py::none(), py::arg("num_threads") = 0,
@@ -112,7 +103,7 @@ void BindFlux(py::module_& m) {
         options.num_threads = num_threads;
         TransportFluxResult tf;
         tf.axis = options.axis;
-        tf.flux.assign(transport_flux.data(), transport_flux.data() + transport_flux.size());
+        tf.flux = FlatVector(transport_flux);
         RunControl control = MakeRunControl();
         FluxLevel level;
         {
@@ -120,9 +111,7 @@ void BindFlux(py::module_& m) {
           level = FlowFluxLevel(frames.data(), u.data(), v.data(), frames.shape(0), frames.shape(1),
                                 frames.shape(2), tf, options, &control);
         }
-        py::array_t<float> scale(static_cast<py::ssize_t>(level.scale.size()));
-        std::copy(level.scale.begin(), level.scale.end(), scale.mutable_data());
-        return py::make_tuple(scale, level.flow_used);
+        return py::make_tuple(ToArray(level.scale), level.flow_used);
       },
       py::arg("frames"), py::arg("u"), py::arg("v"), py::arg("transport_flux"),
       py::arg("axis") = "up", py::arg("smooth_px") = 2.0, py::arg("min_fraction") = 0.05,
@@ -135,8 +124,8 @@ void BindFlux(py::module_& m) {
          py::ssize_t T, py::ssize_t H, py::ssize_t W) {
         TransportFluxResult tf;
         tf.axis = ParseFluxAxis(axis);
-        tf.velocity.assign(velocity.data(), velocity.data() + velocity.size());
-        tf.line_column.assign(line_column.data(), line_column.data() + line_column.size());
+        tf.velocity = FlatVector(velocity);
+        tf.line_column = FlatVector(line_column);
         Require(T >= 0 && H >= 0 && W >= 0, "shape must be non-negative");
         py::array_t<float> u({T, H, W}), v({T, H, W});
         float* pu = u.mutable_data();

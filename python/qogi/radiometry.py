@@ -48,6 +48,21 @@ from .optics import SpectralResponse
 __all__ = ["BandTable", "band_table", "temperature_to_radiance", "radiance_to_temperature"]
 
 
+def _tabulated(x, lo: float, hi: float, table, exact) -> np.ndarray:
+    """``table`` where lo <= x <= hi, ``exact`` elsewhere, NaN for NaN; any
+    shape, float32 in gives float32 out (else float64)."""
+    a = np.asarray(x)
+    out_dtype = np.float32 if a.dtype == np.float32 else np.float64
+    xx = a.astype(np.float64, copy=False)
+    inside = (xx >= lo) & (xx <= hi)
+    out = table(np.where(inside, xx, lo))
+    outside = ~inside & np.isfinite(xx)
+    if np.any(outside):
+        out[outside] = exact(xx[outside])
+    out[~np.isfinite(xx)] = np.nan
+    return out.astype(out_dtype, copy=False)
+
+
 class BandTable:
     """Per-channel lookup between radiometric temperature [K] and band radiance [W/(m2 sr)].
 
@@ -104,16 +119,13 @@ class BandTable:
         Any shape; float32 input gives float32 output, otherwise float64.
         NaN stays NaN.
         """
-        t = np.asarray(temperature_K)
-        out_dtype = np.float32 if t.dtype == np.float32 else np.float64
-        tt = t.astype(np.float64, copy=False)
-        inside = (tt >= self.t_min_K) & (tt <= self.t_max_K)
-        out = self._table.radiance(np.where(inside, tt, self.t_min_K))
-        outside = ~inside & np.isfinite(tt)
-        if np.any(outside):
-            out[outside] = self.channel.band_radiance(tt[outside])
-        out[~np.isfinite(tt)] = np.nan
-        return out.astype(out_dtype, copy=False)
+        return _tabulated(
+            temperature_K,
+            self.t_min_K,
+            self.t_max_K,
+            self._table.radiance,
+            self.channel.band_radiance,
+        )
 
     def temperature(self, radiance) -> np.ndarray:
         """Radiometric temperature [K] of band radiances [W/(m2 sr)].
@@ -123,16 +135,13 @@ class BandTable:
         raises ValueError for values no blackbody of 10-1e5 K gives
         (e.g. <= 0).
         """
-        lum = np.asarray(radiance)
-        out_dtype = np.float32 if lum.dtype == np.float32 else np.float64
-        ll = lum.astype(np.float64, copy=False)
-        inside = (ll >= self.radiance_min) & (ll <= self.radiance_max)
-        out = self._table.temperature(np.where(inside, ll, self.radiance_min))
-        outside = ~inside & np.isfinite(ll)
-        if np.any(outside):
-            out[outside] = self.channel.radiometric_temperature(ll[outside])
-        out[~np.isfinite(ll)] = np.nan
-        return out.astype(out_dtype, copy=False)
+        return _tabulated(
+            radiance,
+            self.radiance_min,
+            self.radiance_max,
+            self._table.temperature,
+            self.channel.radiometric_temperature,
+        )
 
 
 _CACHE: OrderedDict[bytes, BandTable] = OrderedDict()
