@@ -121,7 +121,9 @@ TEST(MixingLineSlope, SamplesAtRandomReportsProgressAndCancels) {
   ASSERT_EQ(some.size(), all / 3);
   for (std::size_t j = 0; j < some.size(); ++j) {
     EXPECT_TRUE(std::binary_search(every.begin(), every.end(), some[j])) << some[j];
-    if (j > 0) EXPECT_LT(some[j - 1], some[j]);
+    if (j > 0) {
+      EXPECT_LT(some[j - 1], some[j]);
+    }
   }
   EXPECT_EQ(MixingLineSlopeSample(inv, o, p.n, p.rad.data(), p.bg.data()), some);
   MixingLineSlopeOptions other = o;
