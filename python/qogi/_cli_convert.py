@@ -25,40 +25,30 @@ def convert(
     import numpy as np
 
     from .files import atomic_path
-    from .recording import RecordingWriter, set_attr
+    from .recording import write_recording
 
-    t, c, h, w = rec.shape
-    step = max(1, batch_bytes // max(1, c * h * w * 4))
+    _, c, h, w = rec.shape
+    extra: dict = {
+        f"origin_{k}": str(v) for k, v in (getattr(rec, "scene_origin", None) or {}).items()
+    }
+    warns = getattr(rec, "warnings", None) or []
+    if warns:
+        extra["source_warnings"] = json.dumps([d.to_dict() for d in warns])
+    ct = getattr(rec, "channel_time_s", None)
+    if ct is not None:
+        extra["channel_time_offset_s"] = np.asarray(
+            ct - np.asarray(ct).mean(axis=1, keepdims=True)
+        ).mean(axis=0)
     with atomic_path(out) as tmp:
-        with RecordingWriter(
+        write_recording(
             tmp,
-            quantity=rec.quantity,
-            camera=rec.camera,
-            scene=rec.scene,
-            frame_shape=(c, h, w),
-            truth=rec.truth,
+            rec,
             compression=compression,
-            expected_frames=t,
-            allow_nonfinite=True,
-        ) as wr:
-            for s in range(0, t, step):
-                e = min(t, s + step)
-                wr.append(rec.frames(s, e), rec.time_s[s:e])
-                if progress is not None:
-                    progress(e / t, f"frame {e}/{t}")
-            for k, v in rec.attrs.items():
-                if k not in ("format", "version"):
-                    set_attr(wr._f, k, v)
-            for k, v in (getattr(rec, "scene_origin", None) or {}).items():
-                set_attr(wr._f, f"origin_{k}", str(v))
-            warns = getattr(rec, "warnings", None) or []
-            if warns:
-                set_attr(wr._f, "source_warnings", json.dumps([d.to_dict() for d in warns]))
-            ct = getattr(rec, "channel_time_s", None)
-            if ct is not None:
-                wr._f.attrs["channel_time_offset_s"] = np.asarray(
-                    ct - np.asarray(ct).mean(axis=1, keepdims=True)
-                ).mean(axis=0)
+            overwrite=True,
+            batch_frames=max(1, batch_bytes // max(1, c * h * w * 4)),
+            attrs=extra,
+            progress=progress,
+        )
     return os.fspath(out)
 
 

@@ -1463,6 +1463,8 @@ def write_recording(
     compression_level: Optional[int] = None,
     overwrite: bool = True,
     batch_frames: Optional[int] = None,
+    attrs: Optional[Dict[str, object]] = None,
+    progress=None,
 ) -> None:
     """Write ``recording`` to an HDF5 file following the recording contract.
 
@@ -1482,6 +1484,11 @@ def write_recording(
         Refuse to replace an existing file when False.
     batch_frames : int, optional
         Frames copied per batch (default: ~64 MB worth).
+    attrs : dict, optional
+        Root attributes to write besides the recording's own (e.g. a
+        conversion's origins), text as fixed-length UTF-8 (:func:`set_attr`).
+    progress : callable(fraction, message), optional
+        Called after each batch of frames.
     """
     if not isinstance(recording, Recording):
         raise TypeError(f"recording must be a qogi.Recording; got {type(recording).__name__}")
@@ -1512,7 +1519,9 @@ def write_recording(
         for s in range(0, t, step):
             e = min(t, s + step)
             wr.append(recording.frames(s, e), recording.time_s[s:e])
-        for k, v in recording.attrs.items():
+            if progress is not None:
+                progress(e / t, f"frame {e}/{t}")
+        for k, v in {**recording.attrs, **(attrs or {})}.items():
             if k not in ("format", "version"):
                 set_attr(wr._f, k, v)
 
