@@ -24,31 +24,13 @@ import pathlib
 import tempfile
 import time
 
-import qogi
+from bench_pipeline import looped  # the same looped recording
+
 from qogi import batch, render
-from qogi.recording import RecordingWriter
 
 N_RECORDINGS = 20
 SOURCES = 4
 PRESET = "lab-ch4-5slpm-gf320"
-
-
-def looped(src_path, dst_path, duration_s, start):
-    src = qogi.open_recording(src_path)
-    rate = src.camera.frame_rate_hz
-    n = int(round(duration_s * rate))
-    with RecordingWriter(
-        dst_path,
-        quantity=src.quantity,
-        camera=src.camera,
-        scene=src.scene,
-        frame_shape=src.shape[1:],
-        truth=src.truth,
-        expected_frames=n,
-    ) as w:
-        for i in range(n):
-            w.append(src.frame((start + i) % src.n_frames), i / rate)
-    src.close()
 
 
 def load():

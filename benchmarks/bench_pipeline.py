@@ -33,7 +33,9 @@ CASES = [
 ]
 
 
-def looped(src_path, dst_path, duration_s):
+def looped(src_path, dst_path, duration_s, start=0):
+    """A recording of ``duration_s`` looping ``src_path``'s frames from frame
+    ``start`` (at its frame rate); also used by bench_batch.py."""
     src = qogi.open_recording(src_path)
     rate = src.camera.frame_rate_hz
     n = int(round(duration_s * rate))
@@ -47,7 +49,8 @@ def looped(src_path, dst_path, duration_s):
         expected_frames=n,
     ) as w:
         for i in range(n):
-            w.append(src.frame(i % src.n_frames), i / rate)
+            w.append(src.frame((start + i) % src.n_frames), i / rate)
+    src.close()
     return dst_path
 
 
