@@ -15,6 +15,7 @@ block's :class:`~.state.BlockColumns`.
 from __future__ import annotations
 
 import math
+import os
 from typing import Any, Dict, List, Optional, Sequence
 
 import numpy as np
@@ -195,6 +196,7 @@ class InvertedColumns:
         self.alternatives = AlternativeModels(
             channels, cfg.species, scene.pressure_Pa, cfg.line_shape, start=workers.start
         )
+        self._line_shape_cache: Dict[tuple, tuple] = {}
         self.k_K_per_fraction: Optional[float] = None
         self.k_sigma, self.k_relative_effect = 0.0, 0.0
         self.mixing_pixels = 0
@@ -295,30 +297,69 @@ class InvertedColumns:
     def line_shape_curves(self, j: int, species: str):
         """(columns, ratios) of :func:`qogi.budget.line_shape_ratios` for
         surface ``j``: the proxy channel, the surface's depth, the assumed
-        gas temperature or the fitted mixing line."""
-        from ..budget import fractions_of, line_shape_ratios
+        gas temperature or the fitted mixing line (computed once per surface
+        and species, or once per surface with a known composition;
+        :meth:`prepare_line_shape_curves` computes them side by side)."""
+        cols, ratios = self._line_shape_job(j, species)()
+        return cols[species], ratios
 
-        cfg, scene = self.cfg, self.scene
-        fractions = fractions_of(cfg, species)
+    def prepare_line_shape_curves(self, surfaces: Sequence[int], species: Sequence[str]) -> None:
+        """Compute the line-shape curves of every surface and species on
+        threads (the engine's band radiance releases the GIL) before the
+        budget reads them one by one."""
+        from concurrent.futures import ThreadPoolExecutor
 
-        def temperature(x):
-            if self.k_K_per_fraction is None:
-                return np.full_like(x, scene.gas_K)
-            lo, hi = self.temperature_range_K
-            return np.clip(scene.ambient_K + self.k_K_per_fraction * x, lo, hi)
+        jobs = {}
+        for j in surfaces:
+            for sp in species:
+                key = self._line_shape_key(j, sp)
+                if key not in self._line_shape_cache and key not in jobs:
+                    jobs[key] = self._line_shape_job(j, sp)
+        if len(jobs) < 2:
+            return
+        threads = max(1, min(len(jobs), self.cfg.num_threads or os.cpu_count() or 1))
+        with ThreadPoolExecutor(threads, thread_name_prefix="qogi-line-shape") as pool:
+            for f in [pool.submit(job) for job in jobs.values()]:
+                try:
+                    f.result()
+                except (ValueError, RuntimeError, OSError):
+                    pass  # raised again (and reported) when the budget reads it
 
-        models = [m for _, m in self.alternatives.get()]
-        return line_shape_ratios(
-            self.model,
-            models,
-            self.proxy_channel,
-            fractions,
-            temperature,
-            self.sigma_m.get(j, cfg.sigma_m or 0.02),
-            scene.ambient_K,
-            self._bg_t,
-            species,
-        )
+    def _line_shape_key(self, j: int, species: str) -> tuple:
+        # A known composition gives every species the same plumes.
+        return (j, None if self.cfg.composition else species)
+
+    def _line_shape_job(self, j: int, species: str):
+        """A call returning (and caching) the surface's curves for all
+        species: ({species: columns}, ratios)."""
+        from ..budget import fractions_of, line_shape_ratios_all
+
+        key = self._line_shape_key(j, species)
+        cache = self._line_shape_cache
+
+        def job():
+            if key not in cache:
+                cfg, scene = self.cfg, self.scene
+
+                def temperature(x):
+                    if self.k_K_per_fraction is None:
+                        return np.full_like(x, scene.gas_K)
+                    lo, hi = self.temperature_range_K
+                    return np.clip(scene.ambient_K + self.k_K_per_fraction * x, lo, hi)
+
+                cache[key] = line_shape_ratios_all(
+                    self.model,
+                    [m for _, m in self.alternatives.get()],
+                    self.proxy_channel,
+                    fractions_of(cfg, species),
+                    temperature,
+                    self.sigma_m.get(j, cfg.sigma_m or 0.02),
+                    scene.ambient_K,
+                    self._bg_t,
+                )
+            return cache[key]
+
+        return job
 
     def _contrast(
         self,
