@@ -280,7 +280,8 @@ def _page_two(fig, result, sha):
     fig.text(
         0.06,
         0.895,
-        "Uncertainty budget (1 sigma, combined in quadrature; 90 % interval = mean +- 1.645 sigma)",
+        "Uncertainty budget (1 sigma each; 90 % interval: relative terms as a log-normal factor, "
+        "temporal and column noise added)",
         fontsize=9,
         fontweight="bold",
         color=_INK,

@@ -36,8 +36,10 @@ class SpeciesRate:
 
     ``rate_kg_s`` is the per-frame series (NaN where a frame could not be
     quantified); ``mean_kg_h`` the mean rate and ``ci90_kg_h`` its 90 %
-    interval; ``uncertainty_terms_kg_h`` the 1-sigma contributions (combined in
-    quadrature) and ``dominant_uncertainty`` the largest of them.
+    interval (:func:`qogi.pipeline.budget.interval90`: the relative terms as
+    a log-normal factor, so wider on the side away from zero);
+    ``uncertainty_terms_kg_h`` the 1-sigma contributions and
+    ``dominant_uncertainty`` the largest of them.
     """
 
     species: str

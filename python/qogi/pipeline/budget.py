@@ -26,6 +26,7 @@ from .state import RunState
 
 __all__ = [
     "finish",
+    "interval90",
     "Systematics",
     "VELOCITY_SYSTEMATIC",
     "COLUMN_SYSTEMATIC",
@@ -118,6 +119,8 @@ def finish(st: RunState, complete: bool) -> Result:
     # The record of background._choose_background (a dict) or None.
     bg_choice = cast(Optional[dict], velocity_info.get("background_choice"))
     rise_speeds: Dict[int, float] = {}
+    if isinstance(columns, InvertedColumns) and outs:
+        columns.prepare_line_shape_curves(range(len(st.surfaces)), cfg.species)
     for j, (s, samples) in enumerate(zip(st.surfaces, st.samples)):
         per_species = {}
         for sp in cfg.species:
@@ -265,19 +268,29 @@ def _species_rate(
     for p in parts:
         if p.summary is not None:
             summary += p.summary
-    terms = {
-        "temporal": temporal * 3600,
-        "velocity": abs(mean) * systematics.velocity * 3600,
-        "column density": math.sqrt(col_rand**2 + (abs(mean) * systematics.column) ** 2) * 3600,
-        "line shape": abs(mean)
-        * _line_shape_term(columns, j, sp, summary, warnings, surface.name)
-        * 3600,
+    # Relative (multiplicative) terms: the rate is the truth times a factor
+    # for each; additive: the record's temporal scatter and the columns' noise.
+    relative = {
+        "velocity": systematics.velocity,
+        "column density": systematics.column,
+        "line shape": _line_shape_term(columns, j, sp, summary, warnings, surface.name),
     }
     if bg_choice is not None and not st.cfg.methods.truth_columns:
-        terms["background"] = abs(mean) * bg_choice["relative"].get(j, 0.0) * 3600
-    sigma = math.sqrt(sum(v * v for v in terms.values()))
+        relative["background"] = bg_choice["relative"].get(j, 0.0)
+    terms = {
+        "temporal": temporal * 3600,
+        "velocity": abs(mean) * relative["velocity"] * 3600,
+        "column density": math.sqrt(col_rand**2 + (abs(mean) * systematics.column) ** 2) * 3600,
+        "line shape": abs(mean) * relative["line shape"] * 3600,
+    }
+    if "background" in relative:
+        terms["background"] = abs(mean) * relative["background"] * 3600
     mean_h = mean * 3600
-    ci = (mean_h - 1.645 * sigma, mean_h + 1.645 * sigma)
+    ci = interval90(
+        mean_h,
+        math.hypot(temporal, col_rand) * 3600,
+        math.sqrt(sum(r * r for r in relative.values())),
+    )
     ci = _check_direction(summary, mean, ci, warnings, surface.name, sp)
     dominant = max(terms, key=lambda k: terms[k])
     limit, det = None, None
@@ -323,6 +336,35 @@ def _species_rate(
     return out, summary, finite, n_eff
 
 
+#: The two-sided 90 % quantile of the standard normal.
+Z90 = 1.6448536269514722
+
+
+def interval90(mean: float, additive: float, relative: float) -> tuple:
+    """The 90 % interval of a rate ``mean`` with ``additive`` (1 sigma, in
+    the rate's unit: the record's temporal scatter, the columns' noise) and
+    ``relative`` uncertainty (1 sigma, a fraction: velocity, column model,
+    line shape, background).
+
+    The relative terms are factors between the truth and the estimate (a
+    velocity 10 % slow makes the rate 10 % low whatever the rate), so they
+    are log-normal: the truth lies within [m exp(-z s), m exp(z s)] of the
+    magnitude m, wider on the far side from zero (a rate read 25 % low
+    needs +33 % to reach the truth). The additive part is added to each
+    side in quadrature. For small terms this is mean +- z sigma. A relative
+    term of 100 % or more says the level is not measured at all (e.g. too
+    few frames for the velocimetry): the near side then reaches zero and
+    past it by the additive part.
+    """
+    m = abs(mean)
+    up = math.hypot(m * math.expm1(Z90 * relative), Z90 * additive)
+    near = m if relative >= 1.0 else -m * math.expm1(-Z90 * relative)
+    down = math.hypot(near, Z90 * additive)
+    if mean < 0:  # a magnitude read against the surface: mirrored
+        up, down = down, up
+    return (mean - down, mean + up)
+
+
 def _line_shape_term(columns, j: int, species: str, summary, warnings, surface: str) -> float:
     """Relative ``line shape`` term of surface j (qogi.budget): the largest
     change of the flux when its columns are re-read through the other
@@ -344,14 +386,19 @@ def _line_shape_term(columns, j: int, species: str, summary, warnings, surface: 
 
 def _check_direction(summary, mean_kg_s: float, ci, warnings, surface: str, species: str) -> tuple:
     """The interval of a rate that runs against the surface's orientation or
-    is zero while gas crosses it, widened to +-the flux the columns carry at
-    the floored speed (:func:`_speed_floor`; docs/pipeline_api.md); with a
-    warning ``flux-against-surface`` or ``zero-rate-with-gas``."""
+    is zero while gas crosses it, widened symmetrically about zero to the
+    larger of its own far end and the flux the columns carry at the floored
+    speed (:func:`_speed_floor`; docs/pipeline_api.md); with a warning
+    ``flux-against-surface`` or ``zero-rate-with-gas``."""
     flag = summary.direction(mean_kg_s)
     if flag is None:
         return ci
     bound = flag["bound_kg_s"] * 3600
-    lo, hi = min(ci[0], -bound), max(ci[1], bound)
+    # The direction is what is in doubt, not the magnitude: the interval is
+    # the magnitude's either way (mirrored about zero), and at least the
+    # flux the columns carry at the floored speed.
+    reach = max(bound, abs(ci[0]), abs(ci[1]))
+    lo, hi = min(ci[0], -reach), max(ci[1], reach)
     if flag["reason"] == "zero":
         warnings.add(
             "zero-rate-with-gas",
