@@ -223,7 +223,10 @@ def report(cache: Path, cases, seeds: int, img_dir: Path | None) -> None:
     import matplotlib.pyplot as plt
 
     for case in cases:
-        runs = [json.loads(p.read_text()) for p in sorted(cache.glob(f"{case}-*.result.json"))]
+        dur = f"{CASES[case]['duration_s']:g}s"
+        runs = [
+            json.loads(p.read_text()) for p in sorted(cache.glob(f"{case}-{dur}-seed*.result.json"))
+        ]
         runs = [r for r in runs if r["seed"] < seeds]
         if not runs:
             continue

@@ -25,7 +25,10 @@ commercial tools' known failure. Two kinds of evidence are weighed:
    amount is overstated, i.e. the gas is warmer than assumed (its excess
    emission read as column).
 
-A warning ``gas-temperature-suspect`` carries the bias direction and size.
+A warning ``gas-temperature-suspect`` carries the bias direction and size,
+and every 90 % interval is widened to include the rates read at that bias
+(:func:`widen_for_bias`): the evidence's estimate is inside the interval,
+the assumed temperature's too.
 """
 
 from __future__ import annotations
@@ -34,7 +37,7 @@ from typing import Any, Dict, Optional
 
 import numpy as np
 
-__all__ = ["check_gas_temperature", "RISE_RATIO_THRESHOLD", "BIAS_THRESHOLD"]
+__all__ = ["check_gas_temperature", "widen_for_bias", "RISE_RATIO_THRESHOLD", "BIAS_THRESHOLD"]
 
 #: The measured / lowest predicted rise speed below which the rise is
 #: evidence of an overstated rate. Chosen on the validation's 10 s records,
@@ -144,6 +147,21 @@ def _molar(species: str) -> float:
     return _engine.molar_mass(species)
 
 
+def widen_for_bias(results, bias_factor: float) -> None:
+    """Widen every surface's and species' 90 % interval to the union of
+    itself and itself divided by ``bias_factor`` (the rates the evidence's
+    temperature would give: the gas temperature is common to all species
+    and surfaces), so that a rate the evidence says is x2 too high carries
+    an interval reaching half of it."""
+    b = float(bias_factor)
+    if not (np.isfinite(b) and b > 0):
+        return
+    for r in results:
+        for rate in r.species.values():
+            lo, hi = rate.ci90_kg_h
+            rate.ci90_kg_h = (min(lo, lo / b), max(hi, hi / b))
+
+
 def check_gas_temperature(
     cfg,
     scene,
@@ -183,7 +201,8 @@ def check_gas_temperature(
                     "gas-temperature-suspect",
                     f"the gas leaves at {exit_K:.0f} K but the columns assume "
                     f"{scene.gas_K:.0f} K: the rate is likely {'too high' if b > 1 else 'too low'}"
-                    f" by about x{b:.2f} (mixing line from the exit temperature); use a "
+                    f" by about x{b:.2f} (mixing line from the exit temperature); the 90 % "
+                    f"intervals are widened to include the rates read at that bias; use a "
                     f"multichannel camera with gas_temperature='infer', or give the gas "
                     f"temperature",
                     species=sp,
@@ -191,6 +210,7 @@ def check_gas_temperature(
                     bias_factor=b,
                     direction="high" if b > 1 else "low",
                 )
+                widen_for_bias(results, b)
     if source is not None and rise_speeds and cfg.velocity not in ("wind", "exit"):
         try:
             rise = _rise_ratio(cfg, scene, results, source, samples, rise_speeds)
@@ -210,7 +230,8 @@ def check_gas_temperature(
                     f"the plume rises at {rise['rise_ratio']:.2f} of the slowest speed the "
                     f"quantified rate's buoyancy can drive at the assumed {scene.gas_K:.0f} K: "
                     f"the rate is likely too high (gas warmer than assumed), by up to about "
-                    f"x{b:.1f}; use a multichannel camera with gas_temperature='infer', or "
+                    f"x{b:.1f} (the 90 % intervals are widened to include the rates read at "
+                    f"that bias); use a multichannel camera with gas_temperature='infer', or "
                     f"give exit_temperature_K",
                     species=sp,
                     evidence="plume rise",
@@ -218,5 +239,6 @@ def check_gas_temperature(
                     direction="high",
                     rise_ratio=rise["rise_ratio"],
                 )
+                widen_for_bias(results, b)
     if out:
         info["gas_temperature_check"] = out
