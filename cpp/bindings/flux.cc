@@ -89,7 +89,7 @@ void BindFlux(py::module_& m) {
       "flux_level_scale",
       [](const FloatArray& frames, const FloatArray& u, const FloatArray& v,
          const DoubleArray& transport_flux, const std::string& axis, double smooth_px,
-         double min_fraction, double max_factor, int num_threads) {
+         double min_fraction, double max_factor, double max_reversed, int num_threads) {
         CheckNdim(frames, 3, "frames");
         for (const auto* a : {&u, &v})
           Require(a->ndim() == 3 && a->shape(0) == frames.shape(0) &&
@@ -100,6 +100,7 @@ void BindFlux(py::module_& m) {
         options.smooth_px = smooth_px;
         options.min_fraction = min_fraction;
         options.max_factor = max_factor;
+        options.max_reversed = max_reversed;
         options.num_threads = num_threads;
         TransportFluxResult tf;
         tf.axis = options.axis;
@@ -115,7 +116,7 @@ void BindFlux(py::module_& m) {
       },
       py::arg("frames"), py::arg("u"), py::arg("v"), py::arg("transport_flux"),
       py::arg("axis") = "up", py::arg("smooth_px") = 2.0, py::arg("min_fraction") = 0.05,
-      py::arg("max_factor") = 2.5, py::arg("num_threads") = 0,
+      py::arg("max_factor") = 2.5, py::arg("max_reversed") = 0.1, py::arg("num_threads") = 0,
       "(scale per line float32, flow_used) (engine/flux/flux_level.h); does not modify u, v.");
 
   m.def(

@@ -908,6 +908,7 @@ def calibrate_flux_level(
     max_factor: float = 2.5,
     transport: Optional[TransportFlux] = None,
     frame_velocities: Optional[tuple] = None,
+    max_reversed: float = 0.1,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Velocity at each frame time (:func:`frame_velocity`), rescaled line by
     line so that its time-averaged flux along ``axis`` equals the transport
@@ -935,7 +936,11 @@ def calibrate_flux_level(
     ~2.3 on the 100 Hz stack release): outside it the flow does not measure
     the transport there (e.g. a plume
     carried by wind tens of pixels per frame, beyond what the flow can
-    follow, or a flow running against the transport). When fewer than half
+    follow, or a flow running against the transport), and only when at most
+    ``max_reversed`` of the flow's frame-by-frame flux through the line
+    (|flux| summed over the frames) runs against the transport (a flow that
+    lost a fast crosswind for a stretch of the record and reads it backwards
+    there, while its time average lands within the factors). When fewer than half
     of the lines that carry the transport flux have a usable factor, the flow
     is not used at all: the velocity is the transport's own, the time-averaged
     mass-weighted velocity of each line (:attr:`TransportFlux.velocity`),
@@ -1006,6 +1011,8 @@ def calibrate_flux_level(
         tf = transport
     if not max_factor > 1:
         raise ValueError(f"max_factor must be > 1; got {max_factor}")
+    if not 0 < max_reversed <= 1:
+        raise ValueError(f"max_reversed must be in (0, 1]; got {max_reversed}")
     if frame_velocities is None:
         fu, fv = frame_velocity(seq)
     scale, flow_used = _engine.flux_level_scale(
@@ -1017,6 +1024,7 @@ def calibrate_flux_level(
         float(smooth_px),
         float(min_fraction),
         float(max_factor),
+        float(max_reversed),
     )
     if not flow_used:
         return _transport_velocity(tf, stack.shape) + (scale,)

@@ -347,6 +347,28 @@ def test_calibrate_flux_level_falls_back_to_the_transport_velocity(wind_15hz):
     np.testing.assert_allclose(scale[cols], 1 / 0.7, rtol=0.05)
     with pytest.raises(ValueError, match="max_factor"):
         vel.calibrate_flux_level(slow, column, axis="right", source_index=exit_col, max_factor=1.0)
+    # A flow that reads the wind backwards for the first third of the record
+    # and 1.8x fast after (time average 0.93 of the transport, within the
+    # factors; 18 % of its frame flux the wrong way, as the default flow did
+    # on the outdoor sky release's seed 4): the transport's velocity replaces it.
+    n = backwards.shape[0]
+    lost = np.where(np.arange(n)[:, None, None] < n // 3, -0.8, 1.8) * u[:1]
+    seq_lost = vel.FlowSequence(
+        lost.astype(np.float32),
+        np.zeros_like(backwards),
+        np.ones_like(backwards),
+        np.ones(backwards.shape, bool),
+        np.zeros(n),
+        "exact",
+    )
+    _, _, scale = vel.calibrate_flux_level(seq_lost, column, axis="right", source_index=exit_col)
+    assert np.all(np.isnan(scale))
+    _, _, scale = vel.calibrate_flux_level(
+        seq_lost, column, axis="right", source_index=exit_col, max_reversed=0.5
+    )
+    assert np.isfinite(scale[cols]).all()
+    with pytest.raises(ValueError, match="max_reversed"):
+        vel.calibrate_flux_level(slow, column, axis="right", source_index=exit_col, max_reversed=0)
 
 
 # -- pairs several frames apart at high frame rates ----------------------------

@@ -46,6 +46,8 @@ void FluxLevelOptions::Check() const {
   Require(min_fraction > 0 && min_fraction < 1,
           "min_fraction must be in (0, 1); got " + FormatNumber(min_fraction));
   Require(max_factor > 1, "max_factor must be > 1; got " + FormatNumber(max_factor));
+  Require(max_reversed > 0 && max_reversed <= 1,
+          "max_reversed must be in (0, 1]; got " + FormatNumber(max_reversed));
 }
 
 FluxLevel FlowFluxLevel(const float* frames, const float* u, const float* v, std::size_t T,
@@ -65,7 +67,9 @@ FluxLevel FlowFluxLevel(const float* frames, const float* u, const float* v, std
   // float, as the frames and velocities are, summed in double).
   const float* comp = rows ? v : u;
   const double sign = axis == FluxAxis::kUp || axis == FluxAxis::kLeft ? -1.0 : 1.0;
-  std::vector<double> flow(n, 0.0);
+  // Per line also the frames' flux against the axis and in all (|flux|
+  // summed over frames), for the reversed fraction.
+  std::vector<double> flow(n, 0.0), against(n, 0.0), total(n, 0.0);
   ParallelFor(
       n, 8,
       [&](std::size_t l0, std::size_t l1) {
@@ -80,6 +84,10 @@ FluxLevel FlowFluxLevel(const float* frames, const float* u, const float* v, std
               for (std::size_t y = 0; y < H; ++y) s += double(f[y * W + l] * c[y * W + l]);
             }
             flow[l] += s;
+            if (std::isfinite(s)) {
+              total[l] += std::abs(s);
+              if (sign * s < 0) against[l] += -sign * s;
+            }
           }
         }
       },
@@ -106,6 +114,9 @@ FluxLevel FlowFluxLevel(const float* frames, const float* u, const float* v, std
     good[l] = carries[l] && flow[l] > flow_floor;
     if (good[l]) ratio[l] = tf[l] / flow[l];
     good[l] = good[l] && ratio[l] >= 1.0 / options.max_factor && ratio[l] <= options.max_factor;
+    // The transport runs along the axis on a carrying line (tf > 0): flux
+    // the other way is the flow's.
+    good[l] = good[l] && against[l] <= options.max_reversed * total[l];
     if (!good[l]) ratio[l] = 0.0;
     n_good += good[l];
   }

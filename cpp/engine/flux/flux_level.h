@@ -25,6 +25,15 @@ struct FluxLevelOptions {
   // A line's factor is used within [1 / max_factor, max_factor] only
   // (default 2.5, > 1).
   double max_factor = 2.5;
+  // A line's factor is used only when at most this fraction of the flow's
+  // frame-by-frame flux through it (sum over frames of |flux|) runs against
+  // the transport: a flow that reverses for stretches of the record (lost a
+  // crosswind of ~20 px per frame for 50 of 150 frames) does not measure
+  // the transport there, even when its time average happens to land within
+  // max_factor. The lab plumes' flows read 0-0.06 per line (90th
+  // percentile), flows that lost the outdoor crosswind 0.21-0.27 (median;
+  // docs/velocimetry.md). Default 0.1, in (0, 1].
+  double max_reversed = 0.1;
   // Worker threads (0 = all cores).
   int num_threads = 0;
 
