@@ -30,7 +30,6 @@ import numpy as np
 __all__ = [
     "AlternativeModels",
     "line_shape_ratios",
-    "line_shape_ratios_all",
     "line_shape_systematic",
     "record_length_advice",
     "direction_check",
@@ -118,7 +117,6 @@ def line_shape_ratios(
     sigma_m: float,
     ambient_K: float,
     background_K: float,
-    species: str,
     alt_temperature_of_x: Optional[Callable[[np.ndarray], np.ndarray]] = None,
 ):
     """Column ratios between line-shape rules at equal contrast.
@@ -129,42 +127,13 @@ def line_shape_ratios(
     the contrast of ``channel`` is computed with ``model`` and with each
     alternative model. A contrast read through the used model gives column
     c; the same contrast read through an alternative gives c'. Returns the
-    used model's columns of ``species`` [kg/m2] (n,) and the ratios c'/c
-    (n_alternatives, n), on the grid where the contrast is monotone.
-    ``alt_temperature_of_x`` (default ``temperature_of_x``) reads the
-    contrast at another peak temperature instead (qogi.hotgas: the bias of an
-    assumed temperature). (:func:`line_shape_ratios_all`: every species'
-    columns from the same plumes.)
+    used model's columns {species: (n,) [kg/m2]} and the ratios c'/c
+    (n_alternatives, n), on the grid where the contrast is monotone. The
+    ratios do not depend on the species (the same plumes' contrasts): with a
+    known composition one call serves all species. ``alt_temperature_of_x``
+    (default ``temperature_of_x``) reads the contrast at another peak
+    temperature instead (qogi.hotgas: the bias of an assumed temperature).
     """
-    cols, ratios = line_shape_ratios_all(
-        model,
-        alternatives,
-        channel,
-        fractions_of_x,
-        temperature_of_x,
-        sigma_m,
-        ambient_K,
-        background_K,
-        alt_temperature_of_x,
-    )
-    return cols[species], ratios
-
-
-def line_shape_ratios_all(
-    model,
-    alternatives,
-    channel: int,
-    fractions_of_x: Callable[[np.ndarray], Dict[str, np.ndarray]],
-    temperature_of_x: Callable[[np.ndarray], np.ndarray],
-    sigma_m: float,
-    ambient_K: float,
-    background_K: float,
-    alt_temperature_of_x: Optional[Callable[[np.ndarray], np.ndarray]] = None,
-):
-    """:func:`line_shape_ratios` for every species of ``model`` at once:
-    ({species: columns (n,)}, ratios (n_alternatives, n)). The ratios do not
-    depend on the species (the same plumes' contrasts); with a known
-    composition one call serves all species."""
     x = np.geomspace(1e-6, 1.0, LINE_SHAPE_GRID)
     fr = fractions_of_x(x)
     t = temperature_of_x(x)

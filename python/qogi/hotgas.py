@@ -63,7 +63,7 @@ def _bias_factor(columns, j: int, species: str, summary, exit_K: float) -> float
     fractions = fractions_of(cfg, species)
 
     lo, hi = columns.model.temperature_range_K
-    grid, ratios = line_shape_ratios(
+    grids, ratios = line_shape_ratios(
         columns.model,
         [columns.model],
         columns.proxy_channel,
@@ -72,12 +72,11 @@ def _bias_factor(columns, j: int, species: str, summary, exit_K: float) -> float
         columns.sigma_m.get(j, cfg.sigma_m or 0.02),
         scene.ambient_K,
         columns._bg_t,
-        species,
         alt_temperature_of_x=lambda x: np.clip(
             scene.ambient_K + (exit_K - scene.ambient_K) * x, lo, hi
         ),
     )
-    f = summary.flux_ratios(grid, ratios)[0]
+    f = summary.flux_ratios(grids[species], ratios)[0]
     return 1.0 / f if f > 0 else float("nan")
 
 

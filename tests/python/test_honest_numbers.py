@@ -57,7 +57,7 @@ def test_the_rules_differ_little_for_thin_plumes_and_much_for_thick_ones(gf320_m
 
 def test_the_line_shape_term_is_large_where_the_plume_is_optically_thick(gf320_models):
     used, *alts = gf320_models
-    grid, ratios = budget.line_shape_ratios(
+    grids, ratios = budget.line_shape_ratios(
         used,
         alts,
         0,
@@ -66,8 +66,8 @@ def test_the_line_shape_term_is_large_where_the_plume_is_optically_thick(gf320_m
         0.03,
         295.0,
         285.0,
-        "CH4",
     )
+    grid = grids["CH4"]
     # Columns of a thin plume edge (1 % over 3 cm) and of a thick core (60 %).
     thin_c = used.column_density({"CH4": 0.01}, 295.0, 0.03, 295.0)["CH4"]
     thick_c = used.column_density({"CH4": 0.6}, 295.0, 0.03, 295.0)["CH4"]

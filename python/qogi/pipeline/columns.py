@@ -332,7 +332,7 @@ class InvertedColumns:
     def _line_shape_job(self, j: int, species: str):
         """A call returning (and caching) the surface's curves for all
         species: ({species: columns}, ratios)."""
-        from ..budget import fractions_of, line_shape_ratios_all
+        from ..budget import fractions_of, line_shape_ratios
 
         key = self._line_shape_key(j, species)
         cache = self._line_shape_cache
@@ -347,7 +347,7 @@ class InvertedColumns:
                     lo, hi = self.temperature_range_K
                     return np.clip(scene.ambient_K + self.k_K_per_fraction * x, lo, hi)
 
-                cache[key] = line_shape_ratios_all(
+                cache[key] = line_shape_ratios(
                     self.model,
                     [m for _, m in self.alternatives.get()],
                     self.proxy_channel,
