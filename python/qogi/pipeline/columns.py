@@ -15,7 +15,6 @@ block's :class:`~.state.BlockColumns`.
 from __future__ import annotations
 
 import math
-import os
 from typing import Any, Dict, List, Optional, Sequence
 
 import numpy as np
@@ -317,7 +316,9 @@ class InvertedColumns:
                     jobs[key] = self._line_shape_job(j, sp)
         if len(jobs) < 2:
             return
-        threads = max(1, min(len(jobs), self.cfg.num_threads or os.cpu_count() or 1))
+        from .. import _engine
+
+        threads = min(len(jobs), _engine.resolve_threads(self.cfg.num_threads or 0))
         with ThreadPoolExecutor(threads, thread_name_prefix="qogi-line-shape") as pool:
             for f in [pool.submit(job) for job in jobs.values()]:
                 try:
