@@ -196,13 +196,34 @@ def test_a_reversed_source_is_flagged_and_its_interval_widened(ambient):
         r = s.species["CH4"]
         assert r.mean_kg_h < 0
         lo, hi = r.ci90_kg_h
-        # Widened to what is known: the magnitude, either way. (The interval
-        # is mirrored about zero. On this 20-frame record the velocity level
-        # is not measured, a 100 % term, so its far end reaches the truth;
-        # the flux bound alone, at the floored speed, reaches 0.079 kg/h.)
+        # Widened to what is known: the magnitude, either way (mirrored about
+        # zero; on this 20-frame record the velocity level is not measured,
+        # a 100 % term).
         assert lo == pytest.approx(-hi)
-        assert lo <= -0.5 * truth and hi >= 0.5 * truth, (r.ci90_kg_h, truth)
+        assert lo <= -truth and hi >= truth, (r.ci90_kg_h, truth)
     assert res.warnings.has("flux-against-surface")
+
+
+@pytest.mark.slow
+def test_a_reversed_source_on_a_long_record_still_reaches_the_truth(tmp_path):
+    # 10 s of the lab release with the source given above the plume: the
+    # velocity level is measured here (10 % term), so the interval's reach
+    # comes from the flux bound. The transport along the axis from the given
+    # source finds no flux (a zero rate), the transport the other way the
+    # gas's speed: at 4 cm the buoyancy scale alone (0.22 m/s) bounded the
+    # flux at 0.075 kg/h, the reverse transport at 0.19, 0.23 at the upper
+    # end of its relative terms, against the 0.2 kg/h truth.
+    p = tmp_path / "ambient-10s.h5"
+    render.synthesize("lab-ch4-5slpm-gf320", p, duration_s=10.0, seed=1)
+    rec = qogi.open_recording(p)
+    surf, source = _lab_surfaces(rec)
+    truth = rec.truth.emission_rate_kg_s["CH4"] * 3600
+    res = quantify(rec, surf, QuantifyConfig(source=(source[0], 5.0)))
+    print(res.summary())
+    assert res.warnings.has("zero-rate-with-gas") or res.warnings.has("flux-against-surface")
+    for s in res.surfaces:
+        lo, hi = s.species["CH4"].ci90_kg_h
+        assert lo <= -truth and hi >= truth, (s.surface.name, lo, hi, truth)
 
 
 def test_a_reversed_source_is_flagged(ambient):

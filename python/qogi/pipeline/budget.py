@@ -286,12 +286,9 @@ def _species_rate(
     if "background" in relative:
         terms["background"] = abs(mean) * relative["background"] * 3600
     mean_h = mean * 3600
-    ci = interval90(
-        mean_h,
-        math.hypot(temporal, col_rand) * 3600,
-        math.sqrt(sum(r * r for r in relative.values())),
-    )
-    ci = _check_direction(summary, mean, ci, warnings, surface.name, sp)
+    rel = math.sqrt(sum(r * r for r in relative.values()))
+    ci = interval90(mean_h, math.hypot(temporal, col_rand) * 3600, rel)
+    ci = _check_direction(summary, mean, ci, warnings, surface.name, sp, rel)
     dominant = max(terms, key=lambda k: terms[k])
     limit, det = None, None
     if isinstance(columns, InvertedColumns):  # not truth columns
@@ -384,20 +381,25 @@ def _line_shape_term(columns, j: int, species: str, summary, warnings, surface: 
     return max([abs(f - 1.0) for f in summary.flux_ratios(grid, ratios)], default=0.0)
 
 
-def _check_direction(summary, mean_kg_s: float, ci, warnings, surface: str, species: str) -> tuple:
+def _check_direction(
+    summary, mean_kg_s: float, ci, warnings, surface: str, species: str, relative: float
+) -> tuple:
     """The interval of a rate that runs against the surface's orientation or
     is zero while gas crosses it, widened symmetrically about zero to the
-    larger of its own far end and the flux the columns carry at the floored
-    speed (:func:`_speed_floor`; docs/pipeline_api.md); with a warning
-    ``flux-against-surface`` or ``zero-rate-with-gas``."""
+    larger of its own far end and the upper end of the flux the columns
+    carry at the floored speed (:func:`~.flux._speed_floor`) with the
+    rate's ``relative`` 1-sigma terms (:func:`interval90`;
+    docs/pipeline_api.md); with a warning ``flux-against-surface`` or
+    ``zero-rate-with-gas``."""
     flag = summary.direction(mean_kg_s)
     if flag is None:
         return ci
     bound = flag["bound_kg_s"] * 3600
     # The direction is what is in doubt, not the magnitude: the interval is
     # the magnitude's either way (mirrored about zero), and at least the
-    # flux the columns carry at the floored speed.
-    reach = max(bound, abs(ci[0]), abs(ci[1]))
+    # flux the columns carry at the floored speed, itself an estimate of
+    # the magnitude with the rate's relative terms.
+    reach = max(interval90(bound, 0.0, relative)[1], abs(ci[0]), abs(ci[1]))
     lo, hi = min(ci[0], -reach), max(ci[1], reach)
     if flag["reason"] == "zero":
         warnings.add(

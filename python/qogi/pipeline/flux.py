@@ -52,7 +52,7 @@ def block_maps(st: RunState, blk, cols: BlockColumns, flows: Flow) -> dict:
     first = st.start + a
     col_fields = cols.fields
     maps = {}
-    fu, fv, (cx, cy) = flows
+    fu, fv, (cx, cy) = flows.u, flows.v, flows.origin
     for k in range(blk.offset, blk.offset + blk.n_keep):
         if (a + k) % st.map_every:
             continue
@@ -93,21 +93,34 @@ def _surface_flux(
 
 def _speed_floor(st: RunState, flows: Optional[Flow], j: int, species: str) -> float:
     """The least speed [m/s] the direction check's flux bound assumes on
-    surface j in a block: the flow's 90th-percentile speed and the buoyancy
+    surface j in a block: the flow's 90th-percentile speed, the buoyancy
     scale sqrt(g' width) (a plume moves at least about that fast where its own
-    buoyancy drives it), so a dead flow cannot make the bound vanish."""
+    buoyancy drives it), so a dead flow cannot make the bound vanish, and,
+    when the block found its transport only the other way (``Flow.reverse_speed``:
+    gas moving towards the given source), that transport's speed on the
+    surface's lines (median over its samples)."""
     from .. import _engine
 
     scene = st.scene
     typical = 0.0
     if flows is not None:
-        fu, fv, _ = flows
+        fu, fv = flows.u, flows.v
         if len(fu):
             step = max(1, len(fu) // 20)
             typical = (
                 float(np.nanpercentile(np.hypot(fu[::step], fv[::step]), 90))
                 * scene.m_s_per_px_frame
             )
+        if flows.reverse_speed is not None and st.transport is not None:
+            xy = st.samples[j][0]
+            along = st.transport.axis in ("up", "down")
+            line = np.rint((xy[:, 1] - st.roi.y0) if along else (xy[:, 0] - st.roi.x0))
+            rs = flows.reverse_speed
+            ok = (line >= 0) & (line < len(rs))
+            speeds = rs[line[ok].astype(int)]
+            speeds = speeds[np.isfinite(speeds)]
+            if speeds.size:
+                typical = max(typical, float(np.median(speeds)) * scene.m_s_per_px_frame)
     g_reduced = 9.81 * abs(
         1.0 - _engine.molar_mass(species) * scene.ambient_K / (0.028965 * scene.gas_K)
     )

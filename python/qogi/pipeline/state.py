@@ -100,11 +100,16 @@ class FluxLevelPlan:
 class Flow(NamedTuple):
     """A block's velocity [px per nominal frame interval] over the flow's
     part of the region: ``u``, ``v`` (frames, h, w) and that part's origin
-    ``(x0, y0)`` in the region."""
+    ``(x0, y0)`` in the region; ``reverse_speed``: when the flux level found
+    no transport along the axis from the source (or the flow did not follow
+    it), the transport's speed per line of the region [px per nominal frame
+    interval] measured the other way (gas moving towards the source: a wrong
+    source or axis), else None."""
 
     u: np.ndarray
     v: np.ndarray
     origin: Tuple[int, int]
+    reverse_speed: Optional[np.ndarray] = None
 
 
 @dataclasses.dataclass

@@ -94,7 +94,7 @@ def normal_velocity(
         return np.full((nb, len(xy)), float(cfg.exit_velocity_m_s))
     if flows is None:
         return np.full((nb, len(xy)), np.nan)
-    fu, fv, (cx, cy) = flows
+    fu, fv, (cx, cy) = flows.u, flows.v, flows.origin
     p = xy - [roi.x0 + cx, roi.y0 + cy]
     h, w = fu.shape[1:]
     inside = (p[:, 0] >= 0) & (p[:, 0] <= w - 1) & (p[:, 1] >= 0) & (p[:, 1] <= h - 1)
@@ -208,6 +208,7 @@ def _block_velocity(
             job.wait()
     uv = None
     flux_note = plan.off_note()
+    level_found = False
     if plan.on:
         try:
             assert job is not None  # submitted above when plan.on
@@ -219,9 +220,10 @@ def _block_velocity(
                 seq, norm, axis, index, transport=tf, frame_velocities=fvel
             )
             uv = (u, v)
+            level_found = bool(np.isfinite(level).any())
             flux_note = (
                 f"on: transport of the line-integrated column, axis {axis}"
-                if np.isfinite(level).any()
+                if level_found
                 else f"on: transport velocity of each line along axis {axis} (the "
                 f"flow did not follow the transport, e.g. wind faster than it "
                 f"can track)"
@@ -231,8 +233,34 @@ def _block_velocity(
     if uv is None:
         uv = fvel if fvel is not None else vel.frame_velocity(seq)
     velocity_info["flux_level"] = flux_note
+    # No transport along the axis from the source, or a flow that does not
+    # follow it: the gas may move the other way (a source given at the
+    # wrong end). The transport the other way is what is known of its speed
+    # then (the budget's direction check: pipeline/flux._speed_floor).
+    reverse = None
+    if plan.on and not level_found:
+        reverse = _reverse_transport_speed(velocity_frames, axis, intervals)
     # The analysed part and its origin in the region (no velocity outside it).
-    return Flow(uv[0], uv[1], (crop[1].start, crop[0].start))
+    return Flow(uv[0], uv[1], (crop[1].start, crop[0].start), reverse)
+
+
+_OPPOSITE = {"up": "down", "down": "up", "left": "right", "right": "left"}
+
+
+def _reverse_transport_speed(
+    frames: np.ndarray, axis: str, intervals: np.ndarray
+) -> Optional[np.ndarray]:
+    """|mass-weighted velocity| per line of the region [px per nominal frame
+    interval] of the transport along the axis opposite to ``axis`` (no
+    source line), or None when that finds no transport either."""
+    from .. import velocimetry as vel
+
+    try:
+        tf = vel.transport_flux(frames, _OPPOSITE[axis], None, intervals=intervals)
+    except ValueError:
+        return None
+    speed = np.abs(np.asarray(tf.velocity, float))
+    return speed if np.isfinite(speed).any() else None
 
 
 def _transport_crop(surfaces, source, roi: Region, shape: Tuple[int, int]) -> Transport:
