@@ -28,6 +28,13 @@ def test_line_shape_text_round_trips_and_bad_text_is_a_clear_error():
     assert len(LineShape().alternatives()) == 2
 
 
+def _rendered(folder, preset: str, duration_s: float, seed: int, **kw):
+    """A synthetic recording of ``preset`` rendered into ``folder``, opened."""
+    p = folder / f"{preset}-{duration_s:.3g}s-seed{seed}.h5"
+    render.synthesize(preset, p, duration_s=duration_s, seed=seed, **kw)
+    return qogi.open_recording(p)
+
+
 @pytest.fixture(scope="module")
 def gf320_models():
     cam = qogi.camera_preset("gf320")
@@ -82,9 +89,9 @@ def test_the_line_shape_term_is_large_where_the_plume_is_optically_thick(gf320_m
 @pytest.fixture(scope="module")
 def lab_hapi_air(tmp_path_factory):
     """The ambient lab release rendered with HAPI's wings and air broadening."""
-    p = tmp_path_factory.mktemp("cross") / "gf320-hapi-air.h5"
-    render.synthesize("lab-ch4-5slpm-gf320", p, duration_s=20 / 15, seed=3, line_shape="hapi+air")
-    return qogi.open_recording(p)
+    return _rendered(
+        tmp_path_factory.mktemp("cross"), "lab-ch4-5slpm-gf320", 20 / 15, 3, line_shape="hapi+air"
+    )
 
 
 def test_cross_rule_the_line_shape_term_covers_the_rule_the_renderer_used(lab_hapi_air):
@@ -213,9 +220,7 @@ def test_a_reversed_source_on_a_long_record_still_reaches_the_truth(tmp_path):
     # gas's speed: at 4 cm the buoyancy scale alone (0.22 m/s) bounded the
     # flux at 0.075 kg/h, the reverse transport at 0.19, 0.23 at the upper
     # end of its relative terms, against the 0.2 kg/h truth.
-    p = tmp_path / "ambient-10s.h5"
-    render.synthesize("lab-ch4-5slpm-gf320", p, duration_s=10.0, seed=1)
-    rec = qogi.open_recording(p)
+    rec = _rendered(tmp_path, "lab-ch4-5slpm-gf320", 10.0, 1)
     surf, source = _lab_surfaces(rec)
     truth = rec.truth.emission_rate_kg_s["CH4"] * 3600
     res = quantify(rec, surf, QuantifyConfig(source=(source[0], 5.0)))
@@ -241,16 +246,12 @@ def test_a_reversed_source_is_flagged(ambient):
 
 @pytest.fixture(scope="module")
 def heated(tmp_path_factory):
-    p = tmp_path_factory.mktemp("hot") / "heated.h5"
-    render.synthesize("lab-heated-ch4-55c-gf320", p, duration_s=20 / 15, seed=5)
-    return qogi.open_recording(p)
+    return _rendered(tmp_path_factory.mktemp("hot"), "lab-heated-ch4-55c-gf320", 20 / 15, 5)
 
 
 @pytest.fixture(scope="module")
 def ambient(tmp_path_factory):
-    p = tmp_path_factory.mktemp("hot") / "ambient.h5"
-    render.synthesize("lab-ch4-5slpm-gf320", p, duration_s=20 / 15, seed=5)
-    return qogi.open_recording(p)
+    return _rendered(tmp_path_factory.mktemp("hot"), "lab-ch4-5slpm-gf320", 20 / 15, 5)
 
 
 def _lab_surfaces(rec):
@@ -291,9 +292,7 @@ def test_hot_gas_warning_from_the_plume_rise_alone(tmp_path):
     # drive a faster rise than the velocimetry measures. The rise needs a
     # few seconds of record (on 1.3 s the ratio reads 0.92, on 10 s
     # 0.77-0.85; the ambient release 0.89-1.06).
-    p = tmp_path / "heated-6s.h5"
-    render.synthesize("lab-heated-ch4-55c-gf320", p, duration_s=6.0, seed=7)
-    heated = qogi.open_recording(p)
+    heated = _rendered(tmp_path, "lab-heated-ch4-55c-gf320", 6.0, 7)
     surf, source = _lab_surfaces(heated)
     res = quantify(heated, surf, QuantifyConfig(source=source))
     print(res.warnings, res.info.get("gas_temperature_check"))
