@@ -80,6 +80,9 @@ def _signals_deferred():
     keeps them from being a mix of this run's and an earlier one's)."""
     import signal
 
+    from ._interrupts import raise_pending
+
+    raise_pending()  # a Ctrl-C Python dropped (qogi._interrupts): no output at all
     got: list = []
     old = {}
     for s in (signal.SIGINT, signal.SIGTERM):
@@ -92,6 +95,7 @@ def _signals_deferred():
     finally:
         for s, h in old.items():
             signal.signal(s, h)
+    raise_pending()  # dropped inside the block: the outputs are all written
     if got:
         from .cli import _Terminated
 

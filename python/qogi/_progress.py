@@ -13,7 +13,9 @@ class ProgressBar:
     On a terminal it redraws one line; otherwise it prints a line at most every
     ``interval_s`` seconds (and at 100 %), so logs stay readable. A callback of
     qogi's progress protocol (:mod:`qogi.progress`), usable as the ``progress``
-    of its long-running functions; returns None: never cancels (Ctrl-C does).
+    of its long-running functions; it cancels (returns False) only when a
+    Ctrl-C was dropped by Python (:mod:`qogi._interrupts`), otherwise Ctrl-C
+    itself stops the run.
     """
 
     def __init__(
@@ -34,7 +36,11 @@ class ProgressBar:
         self._t0 = time.perf_counter()
         self._done = False
 
-    def __call__(self, fraction: float, message: str = "") -> None:
+    def __call__(self, fraction: float, message: str = "") -> Optional[bool]:
+        from ._interrupts import pending
+
+        if pending() is not None:
+            return False
         if not self.enabled or self._done:
             return None
         now = time.perf_counter()

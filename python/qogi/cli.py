@@ -209,8 +209,11 @@ def main(argv: list[str] | None = None) -> int:
         previous = signal.signal(signal.SIGTERM, _on_sigterm)
     except ValueError:  # not the main thread (embedded use): leave SIGTERM alone
         pass
+    from ._interrupts import kept
+
     try:
-        return int(args.func(args) or 0)
+        with kept():  # a Ctrl-C Python would drop (in a finaliser) still stops the run
+            return int(args.func(args) or 0)
     except QogiError as e:
         print(f"qogi {name}: error: {e}", file=sys.stderr)
         return e.exit_code
