@@ -6,6 +6,8 @@ import sys
 import time
 from typing import Optional, TextIO
 
+from ._interrupts import pending
+
 
 class ProgressBar:
     """``bar(fraction, message)`` draws ``[#####.....]  42%  message`` on stderr.
@@ -37,8 +39,6 @@ class ProgressBar:
         self._done = False
 
     def __call__(self, fraction: float, message: str = "") -> Optional[bool]:
-        from ._interrupts import pending
-
         if pending() is not None:
             return False
         if not self.enabled or self._done:
