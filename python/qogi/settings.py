@@ -96,6 +96,8 @@ class Setting:
     fallback : object
         The value of a scene fact neither given nor held by the recording
         (None: none needed).
+    none : str
+        What None means, where messages should say it (``automatic``).
     """
 
     name: str
@@ -112,6 +114,7 @@ class Setting:
     scene_key: Optional[str] = None
     doc: str = ""
     fallback: Any = None
+    none: str = ""
     _choices: Tuple[str, ...] = ()
     _default: Any = None
 
@@ -409,6 +412,7 @@ SETTINGS: Dict[str, Setting] = {
             lo=1,
             hi=100,
             optional=True,
+            none="automatic",
             flag="--pair-stride",
             metavar="N",
             doc=(
@@ -425,6 +429,7 @@ SETTINGS: Dict[str, Setting] = {
             "frames streamed per block (the memory bound); None: automatic",
             lo=8,
             optional=True,
+            none="automatic",
             flag="--block-frames",
             metavar="N",
             doc=(
@@ -513,9 +518,10 @@ def _fmt(v) -> str:
 
 
 def _check_number(s: Setting, v, integer: bool = False):
+    alt = f" or None ({s.none})" if s.none else ""
     if integer:
         if not _is_integer(v):
-            raise SettingError(s.name, f"must be a whole number; got {_fmt(v)}")
+            raise SettingError(s.name, f"must be a whole number{alt}; got {_fmt(v)}")
         v = int(v)
     else:
         if not _is_number(v):
@@ -528,7 +534,7 @@ def _check_number(s: Setting, v, integer: bool = False):
     if not (low_ok and high_ok):
         what = "within " if s.hi is not None else ""
         note = " (0 = all cores)" if s.name == "num_threads" else ""
-        raise SettingError(s.name, f"must be {what}{s.range_text()}{note}; got {_fmt(v)}")
+        raise SettingError(s.name, f"must be {what}{s.range_text()}{note}{alt}; got {_fmt(v)}")
     return v
 
 
