@@ -483,11 +483,12 @@ def _settings_used(cfg: dict, info: dict) -> dict:
 
     taken = info.get("from_recording") or {}
     out = {}
-    for k, v in cfg.items():
-        if v is None and k in taken:
-            v = f"{taken[k]} (the recording's)"
-        elif v is None and k in SETTINGS and SETTINGS[k].fallback is not None:
+    for k, given in cfg.items():
+        used = given
+        if given is None and k in taken:
+            used = f"{taken[k]} (the recording's)"
+        elif given is None and k in SETTINGS and SETTINGS[k].fallback is not None:
             f = SETTINGS[k].fallback
-            v = list(f) if isinstance(f, tuple) else f
-        out[k] = v
+            used = list(f) if isinstance(f, tuple) else f
+        out[k] = used
     return out

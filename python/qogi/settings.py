@@ -143,7 +143,6 @@ def _velocity_choices() -> Tuple[str, ...]:
     return tuple(velocimetry.METHODS) + ("wind", "exit")
 
 
-_FRACTION = dict(lo=0.0, hi=1.0, optional=True)
 
 #: The settings, in their saved order.
 SETTINGS: Dict[str, Setting] = {
@@ -371,7 +370,9 @@ SETTINGS: Dict[str, Setting] = {
             "method's entry of qogi.pipeline.VELOCITY_SYSTEMATIC",
             flag="--velocity-systematic",
             metavar="FRACTION",
-            **_FRACTION,
+            lo=0.0,
+            hi=1.0,
+            optional=True,
             doc=(
                 "relative 1-sigma systematic of the velocity in the budget (None: the method's "
                 "entry of `qogi.pipeline.VELOCITY_SYSTEMATIC`, fluid 0.10)"
@@ -385,7 +386,9 @@ SETTINGS: Dict[str, Setting] = {
             "temperature given or ambient, 0.13 with it inferred",
             flag="--column-systematic",
             metavar="FRACTION",
-            **_FRACTION,
+            lo=0.0,
+            hi=1.0,
+            optional=True,
             doc=(
                 "relative 1-sigma systematic of the columns (Gaussian line-of-sight profile); "
                 "None: 0.05 with the gas temperature given or ambient, 0.13 with it inferred (the"
@@ -708,6 +711,17 @@ def _text_numbers(s: Setting, text: str, sep: str) -> List[str]:
     return [p.strip() for p in text.replace(";", sep).split(sep)]
 
 
+def _two(name: str, t: str, sep: str, convert, form: str, what: str) -> tuple:
+    """Two values written ``A<sep>B`` (``X,Y``, ``START:STOP``)."""
+    parts = t.split(sep)
+    if len(parts) != 2:
+        raise SettingError(name, f"expected {form} (two {what} separated by {sep!r}); got {t!r}")
+    try:
+        return tuple(convert(p) for p in parts)
+    except ValueError:
+        raise SettingError(name, f"expected {form} as {what}; got {t!r}") from None
+
+
 def from_text(name: str, text: str):
     """The checked value of setting ``name`` written as text: a command-line
     argument, a CSV manifest's cell, a viewer's field (:func:`check`'s
@@ -761,23 +775,9 @@ def from_text(name: str, text: str):
             )
         return Region(*[int(x) for x in xs])
     if kind == "pair":
-        parts = t.split(",")
-        if len(parts) != 2:
-            raise SettingError(name, f"expected X,Y (two numbers separated by a comma); got {t!r}")
-        try:
-            xy = tuple(float(p) for p in parts)
-        except ValueError:
-            raise SettingError(name, f"expected X,Y as numbers; got {t!r}") from None
-        return check(name, xy)
+        return check(name, _two(name, t, ",", float, "X,Y", "numbers"))
     if kind == "frames":
-        parts = t.split(":")
-        if len(parts) != 2:
-            raise SettingError(name, f"expected START:STOP (e.g. 0:150); got {t!r}")
-        try:
-            ab = tuple(int(p) for p in parts)
-        except ValueError:
-            raise SettingError(name, f"expected START:STOP as whole numbers; got {t!r}") from None
-        return check(name, ab)
+        return check(name, _two(name, t, ":", int, "START:STOP", "whole numbers"))
     if kind == "composition":
         out: Dict[str, Any] = {}
         for part in _text_numbers(s, t, ","):

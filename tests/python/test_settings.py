@@ -131,24 +131,29 @@ def _cli(tmp_path, name, text):
     return True, ""
 
 
-def _settings_toml(tmp_path, name, text):
-    p = tmp_path / "s.toml"
-    p.write_text(f"{name} = {_toml_value(name, text)}\n")
+def _outcome(load, path):
+    """(accepted, message) of reading ``path`` with ``load``."""
     try:
-        load_settings(p)
+        load(path)
     except UsageError as e:
         return False, str(e)
     return True, ""
+
+
+def _settings_toml(tmp_path, name, text):
+    p = tmp_path / "s.toml"
+    p.write_text(f"{name} = {_toml_value(name, text)}\n")
+    return _outcome(load_settings, p)
+
+
+def _manifest(path):
+    return batch.load_manifest(path, check_files=False)
 
 
 def _manifest_csv(tmp_path, name, text):
     p = tmp_path / "m.csv"
     p.write_text(f'path,surfaces,{name}\n{REC},"{SURFACE}","{text}"\n')
-    try:
-        batch.load_manifest(p, check_files=False)
-    except UsageError as e:
-        return False, str(e)
-    return True, ""
+    return _outcome(_manifest, p)
 
 
 def _manifest_toml(tmp_path, name, text):
@@ -157,11 +162,7 @@ def _manifest_toml(tmp_path, name, text):
         f'[[recording]]\npath = "{REC}"\nsurfaces = "{SURFACE}"\n'
         f"{name} = {_toml_value(name, text)}\n"
     )
-    try:
-        batch.load_manifest(p, check_files=False)
-    except UsageError as e:
-        return False, str(e)
-    return True, ""
+    return _outcome(_manifest, p)
 
 
 WAYS = {
