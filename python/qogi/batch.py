@@ -390,6 +390,8 @@ def load_manifest(path: Union[str, os.PathLike], *, check_files: bool = True) ->
             col = next((k for k in fields if k in str(e)), None)
             what = f"column {col!r}: " if col else ""
             raise UsageError(f"{where}: {what}{e}") from None
+        if check_files:
+            _check_scene_facts(where, rec, cfg)
         rows.append(
             Row(
                 name=name,
@@ -405,6 +407,30 @@ def load_manifest(path: Union[str, os.PathLike], *, check_files: bool = True) ->
             )
         )
     return rows
+
+
+def _check_scene_facts(where: str, path: pathlib.Path, cfg) -> None:
+    """A row whose method needs a scene fact that only the recording can
+    give (velocity 'wind' without a wind speed) is checked against the
+    recording's /scene now, before anything runs (qogi.settings.complete)."""
+    from .settings import SettingError
+
+    if not (cfg.velocity == "wind" and cfg.wind_speed_m_s is None):
+        return
+    from .recording import open_recording
+
+    try:
+        with open_recording(str(path)) as r:
+            scene = r.scene
+    except (OSError, ValueError) as e:
+        raise UsageError(
+            f"{where}: column 'wind_speed_m_s': must be given for velocity='wind' "
+            f"(the recording {path.name} cannot be read for its /scene wind speed: {e})"
+        ) from None
+    try:
+        cfg.completed(scene)
+    except SettingError as e:
+        raise UsageError(f"{where}: column {e.name!r}: {e.body}") from None
 
 
 # ---------------------------------------------------------------------------

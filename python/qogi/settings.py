@@ -912,9 +912,11 @@ def _help(s: Setting) -> str:
     acc = describe(s.name)
     extra = f"; accepts {acc}" if acc and s.kind not in ("choice",) else ""
     dflt = f" (default {d})" if d is not None and not isinstance(d, list) else ""
-    if isinstance(d, list):
-        dflt = f" (default {','.join(d)})"
-    return (s.help + extra + dflt).replace("%", "%%")
+    if isinstance(d, bool):
+        dflt = f" (default {str(d).lower()})"
+    # On a command line a setting left out is "not given" (None in Python).
+    text = s.help.replace("; None: ", "; not given: ")
+    return (text + extra + dflt).replace("%", "%%")
 
 
 #: Settings given elsewhere on the qogi quantify command line (the scene

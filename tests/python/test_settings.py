@@ -8,6 +8,7 @@ holds completes the config (issue 27)."""
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import io
 import json
 import pathlib
@@ -302,3 +303,48 @@ def test_a_scene_without_the_fact_falls_back_or_says_what_to_give():
         match=r"recording's /scene gas_temperature_K must be within \[150, 600\] K; got 900",
     ):
         QuantifyConfig().completed(_scene(gas_temperature_K=900.0))
+
+
+def _windy_recording(path, **scene):
+    """A small recording (tests/python/test_interrupt.py's) whose /scene
+    holds the given facts."""
+    from test_interrupt import small_recording
+
+    small_recording(path)
+    with qogi.open_recording(path) as rec:
+        frames, camera = rec.frames(quantity="radiance"), rec.camera
+        sc = dataclasses.replace(rec.scene, **scene)
+    qogi.Recording.from_arrays(frames, quantity="radiance", camera=camera, scene=sc).save(path)
+    return path
+
+
+def test_quantify_takes_the_recordings_wind_and_gas_temperature_and_says_so(tmp_path):
+    path = _windy_recording(tmp_path / "w.h5", wind_speed_m_s=2.5, gas_temperature_K=300.0)
+    rec = qogi.open_recording(path)
+    surface = [qogi.Surface([(4, 12), (28, 12)])]
+    res = qogi.quantify(rec, surface, QuantifyConfig(velocity="wind"))
+    assert res.info["from_recording"]["wind_speed_m_s"] == 2.5
+    assert res.info["from_recording"]["gas_temperature"] == 300.0
+    assert res.config.wind_speed_m_s is None  # the config as given
+    given = QuantifyConfig(
+        velocity="wind", wind_speed_m_s=2.5, gas_temperature=300.0, species=["CH4"]
+    )
+    same = qogi.quantify(rec, surface, given)
+    assert same.total("CH4").mean_kg_h == res.total("CH4").mean_kg_h
+    assert "wind_speed_m_s" not in same.info["from_recording"]
+    # A given value wins over the recording's.
+    other = qogi.quantify(rec, surface, QuantifyConfig(velocity="wind", wind_speed_m_s=5.0))
+    assert other.total("CH4").mean_kg_h == pytest.approx(2 * res.total("CH4").mean_kg_h)
+
+
+def test_a_manifest_row_with_wind_and_no_speed_needs_it_in_the_recording(tmp_path):
+    _windy_recording(tmp_path / "w.h5", wind_speed_m_s=2.5)
+    _windy_recording(tmp_path / "calm.h5")
+    (tmp_path / "m.csv").write_text(
+        f'path,surfaces,velocity\nw.h5,"{SURFACE}",wind\ncalm.h5,"{SURFACE}",wind\n'
+    )
+    with pytest.raises(UsageError, match=r"line 3: column 'wind_speed_m_s': must be given"):
+        batch.load_manifest(tmp_path / "m.csv")
+    (tmp_path / "m.csv").write_text(f'path,surfaces,velocity\nw.h5,"{SURFACE}",wind\n')
+    [row] = batch.load_manifest(tmp_path / "m.csv")
+    assert row.config.velocity == "wind" and row.config.wind_speed_m_s is None
