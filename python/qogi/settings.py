@@ -143,7 +143,6 @@ def _velocity_choices() -> Tuple[str, ...]:
     return tuple(velocimetry.METHODS) + ("wind", "exit")
 
 
-
 #: The settings, in their saved order.
 SETTINGS: Dict[str, Setting] = {
     s.name: s
