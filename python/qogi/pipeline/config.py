@@ -15,6 +15,13 @@ three objects, each validating its own fields:
 * :class:`Execution`: how the run is carried out (which frames, threads,
   pair stride, streamed block length).
 
+Each field is declared once, in the run's settings table
+(:data:`qogi.settings.SETTINGS`: role, type, unit, range or choices, default,
+flag, help): the role objects check their fields with it, and the command
+line, settings files, batch manifests, the viewer's form and the docs read
+the same table. A scene fact not given is the recording's
+(:meth:`QuantifyConfig.completed`, called by :func:`qogi.quantify`).
+
 ``QuantifyConfig(**flat)``, ``cfg.name`` (read and assignment),
 :meth:`QuantifyConfig.to_dict` / :meth:`~QuantifyConfig.from_dict` and the TOML
 round trip all use the flat keys, in the order of :data:`FIELDS`.
