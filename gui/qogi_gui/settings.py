@@ -204,8 +204,7 @@ class AnalysisSettings:
     @classmethod
     def for_recording(cls, recording) -> AnalysisSettings:
         """Defaults for a recording: its scene's species (or CH4) ticked, its
-        scene values as the scene fields (its gas temperature, when it holds
-        one, given), all frames."""
+        scene values as the scene fields, all frames."""
         scene = recording.scene
         names = list(dict.fromkeys(list(scene.species) + list(COMMON_SPECIES)))
         ticked = set(scene.species) or {"CH4"}
@@ -214,9 +213,6 @@ class AnalysisSettings:
         s.ambient_temperature_K = f"{scene.ambient_temperature_K:g}"
         s.pressure_Pa = f"{scene.pressure_Pa:g}"
         if scene.gas_temperature_K is not None:
-            # The recording's gas temperature completes the run's settings
-            # (as qogi quantify does with it: qogi.settings.complete).
-            s.gas_temperature_mode = "given"
             s.gas_temperature_K = f"{scene.gas_temperature_K:g}"
         if scene.wind_speed_m_s is not None:
             s.wind_speed_m_s = f"{scene.wind_speed_m_s:g}"

@@ -164,17 +164,17 @@ SETTINGS: Dict[str, Setting] = {
             "gas_temperature",
             "gas temperature at the plume centre: 'ambient' (assumed equal to the "
             "ambient air), a temperature in K, or 'infer' (needs >= 2 channels: the "
-            "multichannel inversion's mixing line); None: the recording's "
-            "gas temperature, else ambient",
+            "multichannel inversion's mixing line). Not completed by the "
+            "recording's /scene gas_temperature_K: that is the gas at its "
+            "source (a synthetic release writes its exit temperature), far hotter "
+            "than the diluted plume at the surfaces",
             unit="K",
             lo=150.0,
             hi=600.0,
-            optional=True,
             flag="--gas-temperature",
             metavar="ambient|infer|K",
-            scene_key="gas_temperature_K",
-            fallback="ambient",
             _choices=("ambient", "infer"),
+            _default="ambient",
         ),
         Setting(
             "velocity",

@@ -264,14 +264,8 @@ def test_hot_gas_warning_fires_on_the_heated_single_channel_preset(heated):
     res = quantify(
         heated,
         surf,
-        # Assumed ambient (given: the recording's own gas temperature, its
-        # exit temperature, would otherwise complete the config).
         QuantifyConfig(
-            source=source,
-            gas_temperature="ambient",
-            exit_temperature_K=exit_K,
-            velocity="exit",
-            exit_velocity_m_s=0.3,
+            source=source, exit_temperature_K=exit_K, velocity="exit", exit_velocity_m_s=0.3
         ),
     )
     print(res.warnings)
@@ -300,7 +294,7 @@ def test_hot_gas_warning_from_the_plume_rise_alone(tmp_path):
     # 0.77-0.85; the ambient release 0.89-1.06).
     heated = _rendered(tmp_path, "lab-heated-ch4-55c-gf320", 6.0, 7)
     surf, source = _lab_surfaces(heated)
-    res = quantify(heated, surf, QuantifyConfig(source=source, gas_temperature="ambient"))
+    res = quantify(heated, surf, QuantifyConfig(source=source))
     print(res.warnings, res.info.get("gas_temperature_check"))
     w = [d for d in res.warnings if d.code == "gas-temperature-suspect"]
     assert w and w[0].data["evidence"] == "plume rise" and w[0].data["direction"] == "high"

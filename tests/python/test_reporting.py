@@ -286,7 +286,8 @@ def test_pdf_report_pages_render_and_say_what_matters(lab, tmp_path):
         f"Warnings ({n_warnings})",
         "test-warning",
         "Settings",
-        "gas_temperature = 294.45 (the recording's)",  # the lab release's /scene value
+        "gas_temperature = ambient",
+        "distance_m = 1.5 (the recording's)",
         "source = (159.5, 227.0)",
         f"{r.mean_kg_h:.4g}",
         "Detection limit",
