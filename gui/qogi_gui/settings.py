@@ -7,8 +7,10 @@ the field is fine); :meth:`AnalysisSettings.build_config` turns a valid form
 into ``qogi.QuantifyConfig`` (docs/pipeline_api.md), whose own checks are
 reported against the field they name.
 
-Accepted ranges of the scene parameters are the recording contract's
-(``qogi.recording.RANGES``), so the form, the files and the pipeline agree.
+Every field that is a setting of the run is read and checked by the run's
+settings table (``qogi.settings``): the same ranges, choices and messages as
+the command line, the settings TOML and the batch manifest, so a value the
+form accepts is one the run accepts.
 """
 
 from __future__ import annotations
@@ -29,10 +31,13 @@ __all__ = [
     "SettingsError",
 ]
 
+from qogi import settings as _settings
+from qogi.forward import TABLE_WING_CM1, WING_CM1_RANGE
+
 GAS_TEMPERATURE_MODES = ("ambient", "given", "infer")
-AVERAGING = ("per-frame", "time-averaged")
+AVERAGING = _settings.choices("averaging")
 #: The first is the default, as in ``qogi.QuantifyConfig``.
-BACKGROUNDS = ("auto", "beside-surface", "percentile", "region")
+BACKGROUNDS = _settings.choices("background") + ("region",)
 #: Species offered in addition to those the recording's scene names.
 COMMON_SPECIES = ("CH4", "CO2")
 #: Line-shape rules of the cross-sections (``qogi.forward.LineShape``): the
@@ -42,11 +47,8 @@ LINE_SHAPE_WINGS = ("fixed", "hapi")
 LINE_SHAPE_BROADENINGS = ("self", "air")
 #: The fixed wing's half-width [cm-1]: default and accepted range, as
 #: ``qogi.forward.LineShape`` checks them.
-LINE_WING_CM1_DEFAULT = 25.0
-LINE_WING_CM1_RANGE = (1.0, 100.0)
-#: A given exit temperature [K], as ``qogi.QuantifyConfig.exit_temperature_K``
-#: accepts it.
-EXIT_TEMPERATURE_RANGE_K = (150.0, 900.0)
+LINE_WING_CM1_DEFAULT = TABLE_WING_CM1
+LINE_WING_CM1_RANGE = WING_CM1_RANGE
 
 #: Field key -> (label, unit). The keys are the form's, not always the config's.
 FIELDS: Dict[str, Tuple[str, str]] = {
@@ -105,24 +107,27 @@ class SettingsError(ValueError):
 
 def velocity_choices() -> List[str]:
     """Velocity sources: the methods of ``qogi.velocimetry`` (default first),
-    then ``"wind"`` (a given speed) and ``"exit"`` (a given exit velocity)."""
-    from qogi import velocimetry
-
-    methods = list(velocimetry.METHODS)
-    default = velocimetry.DEFAULT_METHOD
+    then ``"wind"`` (a given speed) and ``"exit"`` (a given exit velocity):
+    the settings table's choices."""
+    methods = list(_settings.choices("velocity"))
+    default = _settings.default("velocity")
     methods.sort(key=lambda m: m != default)
-    return methods + ["wind", "exit"]
+    return methods
 
 
-def _ranges():
-    from qogi.recording import RANGES
+def _check(name: str, text: str) -> str:
+    """ "" if ``text`` is a value the run's setting ``name`` accepts, else
+    the settings table's message (qogi.settings.from_text)."""
+    try:
+        _settings.from_text(name, text)
+    except _settings.SettingError as e:
+        return e.body
+    return ""
 
-    return RANGES
 
-
-def _range_text(key: str) -> str:
-    lo, hi, unit, mode = _ranges()[key]
-    return f"({lo:g}, {hi:g}] {unit}" if mode == "exclusive_low" else f"[{lo:g}, {hi:g}] {unit}"
+def _value(name: str, text: str):
+    """The value of setting ``name`` typed as ``text`` (valid: checked first)."""
+    return _settings.from_text(name, text)
 
 
 def _number(text: str) -> float:
@@ -146,25 +151,20 @@ def _integer(text: str) -> int:
         raise ValueError(f"{s!r} is not a whole number") from None
 
 
-def _check_range(text: str, bounds: Tuple[float, float], unit: str) -> str:
-    """ "" if ``text`` is a number within the closed ``bounds``, else the message."""
-    try:
-        v = _number(text)
-    except ValueError as e:
-        return str(e)
-    lo, hi = bounds
-    return "" if lo <= v <= hi else f"{v:g} {unit} is outside [{lo:g}, {hi:g}] {unit}"
+def _hint(name: str) -> str:
+    """The numbers the run's setting ``name`` accepts, as the settings
+    table states them (``[150, 600] K``, ``>= 0``)."""
+    return _settings.SETTINGS[name].range_text()
 
 
-def _check_contract_range(key: str, text: str) -> str:
-    """ "" if ``text`` is a number inside RANGES[key], else the message."""
-    try:
-        v = _number(text)
-    except ValueError as e:
-        return str(e)
-    lo, hi, unit, mode = _ranges()[key]
-    ok = (v > lo if mode == "exclusive_low" else v >= lo) and v <= hi
-    return "" if ok else f"{v:g} {unit} is outside {_range_text(key)}"
+#: Text fields that are the run's optional numbers (empty: None).
+_OPTIONAL_NUMBERS = (
+    "distance_m",
+    "ambient_temperature_K",
+    "pressure_Pa",
+    "sigma_m",
+    "exit_temperature_K",
+)
 
 
 @dataclass
@@ -223,21 +223,19 @@ class AnalysisSettings:
         """What each field accepts (unit and range), shown beside it."""
         h = {
             "species": "tick at least one",
-            "gas_temperature_K": _range_text("scene.gas_temperature_K"),
+            "gas_temperature_K": _hint("gas_temperature"),
             "velocity": "optical-flow method, or a given wind / exit speed",
-            "wind_speed_m_s": "> 0, up to 100 m/s, along each surface's normal",
-            "exit_velocity_m_s": "> 0 m/s (flow / exit area; lab checks)",
+            "wind_speed_m_s": _hint("wind_speed_m_s") + ", along each surface's normal",
+            "exit_velocity_m_s": _hint("exit_velocity_m_s") + " (flow / exit area; lab checks)",
             "averaging": "invert each frame, or the time-averaged frames",
             "background": "how the gas-free radiance is estimated",
-            "background_percentile": "[0, 50] %, temporal low percentile",
-            "distance_m": _range_text("scene.distance_m") + "; empty = recording's",
-            "ambient_temperature_K": _range_text("scene.ambient_temperature_K")
-            + "; empty = recording's",
-            "pressure_Pa": _range_text("scene.pressure_Pa") + "; empty = recording's",
-            "sigma_m": "> 0 m; empty = from the plume width",
+            "background_percentile": _hint("background_percentile") + ", temporal low percentile",
+            "distance_m": _hint("distance_m") + "; empty = recording's",
+            "ambient_temperature_K": _hint("ambient_temperature_K") + "; empty = recording's",
+            "pressure_Pa": _hint("pressure_Pa") + "; empty = recording's",
+            "sigma_m": _hint("sigma_m") + "; empty = from the plume width",
             "exit_temperature_K": (
-                f"[{EXIT_TEMPERATURE_RANGE_K[0]:g}, "
-                f"{EXIT_TEMPERATURE_RANGE_K[1]:g}] K; the gas's temperature "
+                _hint("exit_temperature_K") + "; the gas's temperature "
                 "at the exit, when known: checks an assumed (ambient or "
                 "given) gas temperature, warning gas-temperature-suspect; "
                 "empty = not known"
@@ -254,7 +252,7 @@ class AnalysisSettings:
             ),
             "frame_start": "0 ..",
             "frame_stop": "empty = to the end",
-            "num_threads": "0 = all cores",
+            "num_threads": _hint("num_threads") + " (0 = all cores)",
             "source": "x, y in pixels; flow away from it counts positive",
         }
         if recording is not None:
@@ -277,9 +275,7 @@ class AnalysisSettings:
         if self.gas_temperature_mode not in GAS_TEMPERATURE_MODES:
             err["gas_temperature_K"] = f"choose one of {', '.join(GAS_TEMPERATURE_MODES)}"
         elif self.gas_temperature_mode == "given":
-            err["gas_temperature_K"] = _check_contract_range(
-                "scene.gas_temperature_K", self.gas_temperature_K
-            )
+            err["gas_temperature_K"] = _check("gas_temperature", self.gas_temperature_K)
         elif (
             self.gas_temperature_mode == "infer"
             and recording is not None
@@ -293,52 +289,28 @@ class AnalysisSettings:
         if self.velocity not in choices:
             err["velocity"] = f"choose one of {', '.join(choices)}"
         elif self.velocity == "wind":
-            msg = _check_contract_range("scene.wind_speed_m_s", self.wind_speed_m_s)
-            if not msg and _number(self.wind_speed_m_s) <= 0:
-                msg = "must be > 0 m/s (no wind carries no gas through the surface)"
-            err["wind_speed_m_s"] = msg
+            err["wind_speed_m_s"] = _check("wind_speed_m_s", self.wind_speed_m_s)
         elif self.velocity == "exit":
-            try:
-                if _number(self.exit_velocity_m_s) <= 0:
-                    err["exit_velocity_m_s"] = "must be > 0 m/s"
-            except ValueError as e:
-                err["exit_velocity_m_s"] = str(e)
+            err["exit_velocity_m_s"] = _check("exit_velocity_m_s", self.exit_velocity_m_s)
         if self.averaging not in AVERAGING:
             err["averaging"] = f"choose one of {', '.join(AVERAGING)}"
         if self.background not in BACKGROUNDS:
             err["background"] = f"choose one of {', '.join(BACKGROUNDS)}"
         elif self.background == "percentile":
-            try:
-                p = _number(self.background_percentile)
-                if not 0 <= p <= 50:
-                    err["background_percentile"] = f"{p:g} % is outside [0, 50] %"
-            except ValueError as e:
-                err["background_percentile"] = str(e)
+            err["background_percentile"] = _check(
+                "background_percentile", self.background_percentile
+            )
         elif self.background == "region":
             if region is None:
                 err["background"] = "pick the region on the image first (Surfaces tab)"
             elif region.n_pixels < 1:
                 err["background"] = "the picked region holds no pixel: pick a larger one"
-        for name in ("distance_m", "ambient_temperature_K", "pressure_Pa"):
+        for name in _OPTIONAL_NUMBERS:  # empty: the recording's (or not known)
             if str(getattr(self, name)).strip():
-                err[name] = _check_contract_range(f"scene.{name}", getattr(self, name))
-        if str(self.sigma_m).strip():
-            try:
-                if _number(self.sigma_m) <= 0:
-                    err["sigma_m"] = "must be > 0 m (or empty: from the plume width)"
-            except ValueError as e:
-                err["sigma_m"] = str(e)
-        if str(self.exit_temperature_K).strip():
-            err["exit_temperature_K"] = _check_range(
-                self.exit_temperature_K, EXIT_TEMPERATURE_RANGE_K, "K"
-            )
+                err[name] = _check(name, getattr(self, name))
         err["line_shape"], err["line_shape_wing_cm1"] = self._check_line_shape()
         err["frame_start"], err["frame_stop"] = self._check_frames(recording)
-        try:
-            if _integer(self.num_threads) < 0:
-                err["num_threads"] = "must be >= 0 (0 = all cores)"
-        except ValueError as e:
-            err["num_threads"] = str(e)
+        err["num_threads"] = _check("num_threads", self.num_threads)
         if self.use_source:
             err["source"] = self._check_source(recording)
         return err
@@ -351,7 +323,11 @@ class AnalysisSettings:
             return f"choose the broadening: {', '.join(LINE_SHAPE_BROADENINGS)}", ""
         if self.line_shape_wing != "fixed":
             return "", ""
-        return "", _check_range(self.line_shape_wing_cm1, LINE_WING_CM1_RANGE, "cm-1")
+        try:
+            _number(self.line_shape_wing_cm1)
+        except ValueError as e:
+            return "", str(e)
+        return "", _check("line_shape", self.line_shape())
 
     def line_shape(self) -> str:
         """The rule in ``qogi.QuantifyConfig.line_shape``'s text form
@@ -378,8 +354,10 @@ class AnalysisSettings:
             stop = _integer(self.frame_stop) if str(self.frame_stop).strip() else None
         except ValueError as e:
             return "", str(e)
-        if start < 0:
-            return f"{start} is before the first frame (0)", ""
+        if stop is not None or start < 0:  # the run's own check of the range
+            msg = _check("frames", f"{start}:{stop if stop is not None else max(start + 1, 1)}")
+            if msg:
+                return (msg, "") if start < 0 else ("", msg)
         if recording is None:
             return "", ""
         n = recording.n_frames
@@ -393,6 +371,9 @@ class AnalysisSettings:
         return "", ""
 
     def _check_source(self, recording) -> str:
+        msg = _check("source", f"{self.source_x},{self.source_y}")
+        if msg:
+            return f"{msg} (pick the source on the image or type x and y)"
         try:
             x, y = _number(self.source_x), _number(self.source_y)
         except ValueError as e:
@@ -415,37 +396,33 @@ class AnalysisSettings:
             raise SettingsError(errors)
         kw: dict = {"species": [s for s, on in self.species.items() if on]}
         if self.gas_temperature_mode == "given":
-            kw["gas_temperature"] = _number(self.gas_temperature_K)
+            kw["gas_temperature"] = _value("gas_temperature", self.gas_temperature_K)
         else:
             kw["gas_temperature"] = self.gas_temperature_mode
         kw["velocity"] = self.velocity
         if self.velocity == "wind":
-            kw["wind_speed_m_s"] = _number(self.wind_speed_m_s)
+            kw["wind_speed_m_s"] = _value("wind_speed_m_s", self.wind_speed_m_s)
         if self.velocity == "exit":
-            kw["exit_velocity_m_s"] = _number(self.exit_velocity_m_s)
+            kw["exit_velocity_m_s"] = _value("exit_velocity_m_s", self.exit_velocity_m_s)
         kw["averaging"] = self.averaging
         if self.background == "region":
             kw["background"] = api.Region(*region.as_tuple())
         else:
             kw["background"] = self.background
         if self.background == "percentile":
-            kw["background_percentile"] = _number(self.background_percentile)
+            kw["background_percentile"] = _value(
+                "background_percentile", self.background_percentile
+            )
         if self.use_source:
             kw["source"] = (_number(self.source_x), _number(self.source_y))
-        for name in (
-            "distance_m",
-            "ambient_temperature_K",
-            "pressure_Pa",
-            "sigma_m",
-            "exit_temperature_K",
-        ):
+        for name in _OPTIONAL_NUMBERS:
             text = str(getattr(self, name)).strip()
-            kw[name] = _number(text) if text else None
+            kw[name] = _value(name, text) if text else None
         kw["line_shape"] = self.line_shape()
         start, stop = self._frame_range(recording)
         if recording is not None and (start, stop) != (0, recording.n_frames):
             kw["frames"] = (start, stop)
-        kw["num_threads"] = _integer(self.num_threads)
+        kw["num_threads"] = _value("num_threads", self.num_threads)
         return kw
 
     def build_config(self, api, recording, region=None):
@@ -455,6 +432,9 @@ class AnalysisSettings:
         kw = self.config_kwargs(api, recording, region)
         try:
             return api.QuantifyConfig(**kw)
+        except _settings.SettingError as e:
+            field = _CONFIG_TO_FORM.get(e.name) or _field_named_in(str(e))
+            raise SettingsError({field: e.body}) from e
         except (ValueError, TypeError) as e:
             raise SettingsError({_field_named_in(str(e)): str(e)}) from e
 

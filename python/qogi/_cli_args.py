@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import argparse
 import math
-from typing import Tuple
 
 
 def _number(text: str) -> float:
@@ -69,35 +68,3 @@ def seed(text: str) -> int:
     if v >= 2**64:
         raise argparse.ArgumentTypeError(f"must be < 2^64; got {text}")
     return v
-
-
-def pixel_xy(text: str) -> Tuple[float, float]:
-    """``X,Y``: a pixel position, two finite numbers."""
-    parts = text.split(",")
-    if len(parts) != 2:
-        raise argparse.ArgumentTypeError(
-            f"expected X,Y (two numbers separated by a comma); got {text!r}"
-        )
-    try:
-        x, y = (float(p) for p in parts)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected X,Y as numbers; got {text!r}") from None
-    if not (math.isfinite(x) and math.isfinite(y)):
-        raise argparse.ArgumentTypeError(f"X,Y must be finite pixel coordinates; got {text!r}")
-    return x, y
-
-
-def frame_range(text: str) -> Tuple[int, int]:
-    """``START:STOP``: frames START (inclusive) to STOP (exclusive), 0-based."""
-    parts = text.split(":")
-    if len(parts) != 2:
-        raise argparse.ArgumentTypeError(f"expected START:STOP (e.g. 0:150); got {text!r}")
-    try:
-        a, b = (int(p) for p in parts)
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"expected START:STOP as whole numbers; got {text!r}"
-        ) from None
-    if a < 0 or b <= a:
-        raise argparse.ArgumentTypeError(f"need 0 <= START < STOP; got {text!r}")
-    return a, b

@@ -6,12 +6,11 @@ from __future__ import annotations
 
 import argparse
 
-from ._cli_args import positive_float
-
 
 def add_scene_options(p: argparse.ArgumentParser, distance: bool = True) -> None:
     """--camera, --distance, --ambient-temperature, --pressure."""
     from .presets import camera_preset_names
+    from .settings import arg_type
 
     g = p.add_argument_group(
         "camera files (FLIR .seq/.csq/.jpg/.fff, Telops .hcc)",
@@ -26,20 +25,20 @@ def add_scene_options(p: argparse.ArgumentParser, distance: bool = True) -> None
     if distance:
         g.add_argument(
             "--distance",
-            type=positive_float,
+            type=arg_type("distance_m"),
             metavar="M",
             help="camera-to-plume distance [m] (required for .hcc; FLIR files hold "
             "an object distance, flagged when it is FLIR's default 1 m)",
         )
     g.add_argument(
         "--ambient-temperature",
-        type=positive_float,
+        type=arg_type("ambient_temperature_K"),
         metavar="K",
         help="ambient air temperature [K] (required for .hcc; FLIR files hold one)",
     )
     g.add_argument(
         "--pressure",
-        type=positive_float,
+        type=arg_type("pressure_Pa"),
         metavar="PA",
         help="ambient pressure [Pa] (default 101325, flagged)",
     )

@@ -8,46 +8,19 @@ import os
 import sys
 from typing import Any, Dict
 
-from ._cli_args import frame_range, nonnegative_int, pixel_xy, positive_float, seed
+from ._cli_args import positive_float, seed
 
 
 def _config_from_args(args):
     """The QuantifyConfig of the command line: the settings file's
-    (``--config``), with every flag given explicitly overriding it."""
+    (``--config``), with every flag given explicitly overriding it (each
+    checked while parsed: qogi.settings)."""
     from .config_io import config_from_dict
-    from .surfaces import Region
+    from .settings import config_overrides
 
-    over: Dict[str, Any] = {}
-    if args.infer_temperature:
-        over["gas_temperature"] = "infer"
-    elif args.gas_temperature is not None:
-        over["gas_temperature"] = args.gas_temperature
-    if args.velocity is not None:
-        over["velocity"] = args.velocity
-    if args.wind_speed is not None:
-        over.update(velocity="wind", wind_speed_m_s=args.wind_speed)
-    if args.exit_velocity is not None:
-        over.update(velocity="exit", exit_velocity_m_s=args.exit_velocity)
-    if args.background is not None:
-        over["background"] = (
-            args.background
-            if args.background in ("auto", "beside-surface", "percentile")
-            else Region.parse(args.background)
-        )
-    # --frames and --source arrive parsed and checked (qogi._cli_args).
-    for key, value in (
-        ("species", args.species),
-        ("averaging", args.averaging),
-        ("distance_m", args.distance),
-        ("sigma_m", args.sigma),
-        ("num_threads", args.threads),
-        ("frames", args.frames),
-        ("source", args.source),
-        ("line_shape", args.line_shape),
-        ("exit_temperature_K", args.exit_temperature),
-    ):
-        if value is not None:
-            over[key] = value
+    over: Dict[str, Any] = config_overrides(args)
+    if args.distance is not None:  # a scene option (qogi._cli_camera), also the config's
+        over["distance_m"] = args.distance
     base = {}
     if getattr(args, "settings", None) is not None:
         base = args.settings.config.to_dict()
@@ -237,7 +210,7 @@ def add_commands(sub) -> None:
     q = sub.add_parser(
         "quantify",
         help="emission rate of a recording through control surfaces",
-        description="Quantify the emission rate (kg/h, with a 90%% interval) of each species "
+        description="Quantify the emission rate (kg/h, with a 90% interval) of each species "
         "through each control surface: background, per-pixel column density "
         "(inversion of the radiative transfer), velocimetry, flux (thesis eq. 12). "
         "Flux is positive along a surface's left-hand normal walking from its first "
@@ -263,90 +236,14 @@ def add_commands(sub) -> None:
         metavar="D1,D2,...",
         help="detect the plume and place surfaces at these distances (px) from the source",
     )
-    q.add_argument(
-        "--species", action="append", help="species to quantify (repeatable; default CH4)"
+    g = q.add_argument_group(
+        "analysis settings",
+        "The run's settings (docs/pipeline_api.md, 'Configuration'); a flag given "
+        "overrides --config's value.",
     )
-    t = q.add_mutually_exclusive_group()
-    t.add_argument(
-        "--gas-temperature",
-        type=positive_float,
-        metavar="K",
-        help="gas temperature at the plume centre [K] (default: ambient)",
-    )
-    t.add_argument(
-        "--infer-temperature",
-        action="store_true",
-        help="infer the gas temperature (needs >= 2 channels)",
-    )
-    v = q.add_mutually_exclusive_group()
-    v.add_argument(
-        "--velocity",
-        default=None,
-        type=lambda m: m.replace("-", "_"),
-        choices=["fluid", "horn_schunck", "lucas_kanade", "farneback", "dis", "piv"],
-        help="velocimetry method (default: fluid, the continuity-equation flow)",
-    )
-    v.add_argument(
-        "--wind-speed",
-        type=positive_float,
-        metavar="M_S",
-        help="use this speed [m/s] normal to every surface instead of velocimetry",
-    )
-    v.add_argument(
-        "--exit-velocity",
-        type=positive_float,
-        metavar="M_S",
-        help="use the release's exit velocity [m/s] (lab checks)",
-    )
-    q.add_argument(
-        "--source", type=pixel_xy, metavar="X,Y", help="source pixel: orient surfaces away from it"
-    )
-    q.add_argument(
-        "--background",
-        default=None,
-        help="auto (default: beside the surfaces where the strips there are "
-        "gas-free, else the temporal percentile), beside-surface, percentile, "
-        "or a gas-free region x0,y0,x1,y1",
-    )
-    q.add_argument(
-        "--averaging",
-        default=None,
-        choices=["per-frame", "time-averaged"],
-        help="invert every frame then average rates (default), or invert the time-averaged frames",
-    )
-    q.add_argument(
-        "--line-shape",
-        default=None,
-        metavar="RULE",
-        help="line shape of the cross-sections: the wing rule fixed[:CM1] or hapi "
-        "(50 half-widths), then +self or +air broadening (default "
-        "fixed:25+self; docs/forward_model.md)",
-    )
-    q.add_argument(
-        "--exit-temperature",
-        type=positive_float,
-        metavar="K",
-        help="the gas's temperature at the exit [K], when known: checked against "
-        "the assumed gas temperature (warning gas-temperature-suspect)",
-    )
-    q.add_argument(
-        "--sigma",
-        type=positive_float,
-        metavar="M",
-        help="plume depth sigma [m] (default: from the plume width across each surface)",
-    )
-    q.add_argument(
-        "--frames",
-        type=frame_range,
-        metavar="START:STOP",
-        help="frame range: START (inclusive) to STOP (exclusive), from 0",
-    )
-    q.add_argument(
-        "--threads",
-        type=nonnegative_int,
-        default=None,
-        help="worker threads (0 = all cores, the default)",
-    )
+    from .settings import add_arguments
+
+    add_arguments(g)
     q.add_argument(
         "--config",
         metavar="SETTINGS.toml|RESULT.json",
@@ -496,7 +393,7 @@ def add_demo_command(sub) -> None:
         description="The main job end to end on a synthetic release whose true emission rate "
         "is known exactly: simulate and render a preset (qogi synth), quantify it "
         "through three control surfaces (qogi quantify), print the estimate against "
-        "the truth with its 90%% interval, and write plots.",
+        "the truth with its 90% interval, and write plots.",
     )
     d.add_argument(
         "--preset", default="lab-ch4-5slpm-gf320", help="synthetic preset (qogi synth --list)"

@@ -160,13 +160,6 @@ def _floats(v, sep=",") -> List[float]:
     return [float(x) for x in str(v).replace(";", sep).split(sep) if x.strip()]
 
 
-def _pair(v) -> Tuple[float, float]:
-    xs = _floats(v)
-    if len(xs) != 2:
-        raise ValueError(f"expected two numbers x,y; got {v!r}")
-    return (xs[0], xs[1])
-
-
 def _polyline(v) -> List[Tuple[float, float]]:
     xs = _floats(v)
     if len(xs) < 4 or len(xs) % 2:
@@ -189,55 +182,15 @@ def _surfaces(v):
     raise ValueError(f"expected 'auto' or a list of polylines; got {v!r}")
 
 
-def _gas_temperature(v):
-    if isinstance(v, str) and v.strip().lower() in ("ambient", "infer"):
-        return v.strip().lower()
-    return float(v)
-
-
-def _background(v):
-    if isinstance(v, str) and v.strip() in ("beside-surface", "percentile"):
-        return v.strip()
-    from .surfaces import Region
-
-    xs = _floats(v)
-    if len(xs) != 4:
-        raise ValueError(f"expected beside-surface, percentile or a region x0,y0,x1,y1; got {v!r}")
-    return Region(*[int(round(x)) for x in xs])
-
-
-def _frames(v):
-    if isinstance(v, (list, tuple)):
-        a, b = v
-    else:
-        a, b = str(v).split(":")
-    return (int(a), int(b))
-
-
-def _composition(v):
-    if isinstance(v, dict):
-        return {str(k): float(x) for k, x in v.items()}
-    out = {}
-    for part in str(v).replace(",", ";").split(";"):
-        if part.strip():
-            k, x = part.split("=")
-            out[k.strip()] = float(x)
-    return out
-
-
-def _species(v):
-    if isinstance(v, (list, tuple)):
-        return [str(x).strip() for x in v]
-    return [x.strip() for x in str(v).replace(",", ";").split(";") if x.strip()]
-
-
-def _optional_float(v):
-    return None if v is None else float(v)
-
-
 def _parsers() -> Dict[str, Any]:
     """Column -> function turning a cell (CSV text or TOML value) into the
-    value; an empty CSV cell means "use the default"."""
+    value; an empty CSV cell means "use the default". The config's columns
+    are read by the settings table (:func:`qogi.settings.from_value`: the
+    values and messages of the command line and the settings TOML)."""
+    from functools import partial
+
+    from .settings import from_value
+
     p: Dict[str, Any] = {
         "path": str,
         "name": str,
@@ -247,20 +200,9 @@ def _parsers() -> Dict[str, Any]:
         "ifov_rad": float,
         "plots": _bool,
         "timeout_s": float,
-        "species": _species,
-        "gas_temperature": _gas_temperature,
-        "velocity": str,
-        "background": _background,
-        "source": _pair,
-        "frames": _frames,
-        "composition": _composition,
-        "averaging": str,
-        "column_density": str,
-        "flux_level": _bool,
-        "pair_stride": int,
     }
     for name in _config_fields():
-        p.setdefault(name, _optional_float)
+        p[name] = partial(from_value, name)
     return p
 
 
@@ -345,6 +287,7 @@ def load_manifest(path: Union[str, os.PathLike], *, check_files: bool = True) ->
         the value and the fix.
     """
     from .pipeline import QuantifyConfig
+    from .settings import SettingError
 
     path = pathlib.Path(path)
     if not path.is_file():
@@ -372,6 +315,8 @@ def load_manifest(path: Union[str, os.PathLike], *, check_files: bool = True) ->
                 )
             try:
                 out[key] = parsers[key](v)
+            except SettingError as e:
+                raise UsageError(f"{where}: column {key!r}: {e.body}") from None
             except (ValueError, TypeError) as e:
                 raise UsageError(f"{where}: column {key!r}: cannot use {v!r}: {e}") from None
         return out
@@ -439,10 +384,14 @@ def load_manifest(path: Union[str, os.PathLike], *, check_files: bool = True) ->
             raise UsageError(f"{where}: column 'timeout_s' must be > 0 s; got {v['timeout_s']}")
         try:
             cfg = QuantifyConfig(**{k: x for k, x in v.items() if k in fields})
+        except SettingError as e:
+            raise UsageError(f"{where}: column {e.name!r}: {e.body}") from None
         except (ValueError, TypeError) as e:
             col = next((k for k in fields if k in str(e)), None)
             what = f"column {col!r}: " if col else ""
             raise UsageError(f"{where}: {what}{e}") from None
+        if check_files:
+            _check_scene_facts(where, rec, cfg)
         rows.append(
             Row(
                 name=name,
@@ -458,6 +407,30 @@ def load_manifest(path: Union[str, os.PathLike], *, check_files: bool = True) ->
             )
         )
     return rows
+
+
+def _check_scene_facts(where: str, path: pathlib.Path, cfg) -> None:
+    """A row whose method needs a scene fact that only the recording can
+    give (velocity 'wind' without a wind speed) is checked against the
+    recording's /scene now, before anything runs (qogi.settings.complete)."""
+    from .settings import SettingError
+
+    if not (cfg.velocity == "wind" and cfg.wind_speed_m_s is None):
+        return
+    from .recording import open_recording
+
+    try:
+        with open_recording(str(path)) as r:
+            scene = r.scene
+    except (OSError, ValueError) as e:
+        raise UsageError(
+            f"{where}: column 'wind_speed_m_s': must be given for velocity='wind' "
+            f"(the recording {path.name} cannot be read for its /scene wind speed: {e})"
+        ) from None
+    try:
+        cfg.completed(scene)
+    except SettingError as e:
+        raise UsageError(f"{where}: column {e.name!r}: {e.body}") from None
 
 
 # ---------------------------------------------------------------------------

@@ -148,11 +148,23 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+class _Paragraphs(argparse.HelpFormatter):
+    """argparse's formatter, keeping blank-line paragraph breaks in
+    descriptions and epilogs (each paragraph still wrapped to the terminal)."""
+
+    def _fill_text(self, text, width, indent):
+        return "\n\n".join(
+            super(_Paragraphs, self)._fill_text(p, width, indent) for p in text.split("\n\n")
+        )
+
+
 def _add_exit_codes(parser: argparse.ArgumentParser) -> None:
-    """Every command's --help ends with the exit codes (qogi.errors)."""
+    """Every command's --help ends with the exit codes (qogi.errors), a
+    paragraph of its own."""
     from .errors import EXIT_CODES_HELP
 
     parser.epilog = f"{parser.epilog}\n\n{EXIT_CODES_HELP}" if parser.epilog else EXIT_CODES_HELP
+    parser.formatter_class = _Paragraphs
     for action in parser._actions:
         if isinstance(action, argparse._SubParsersAction):
             for child in set(action.choices.values()):

@@ -35,7 +35,7 @@ from typing import Any, List, Optional
 
 from .errors import UsageError
 from .files import PathLike, atomic_open
-from .surfaces import Region, Surface
+from .surfaces import Surface
 
 __all__ = ["Settings", "config_from_dict", "load_settings", "write_toml", "dumps_toml"]
 
@@ -61,7 +61,8 @@ def _fields():
 def config_from_dict(d: dict):
     """A QuantifyConfig from :meth:`QuantifyConfig.to_dict`'s dict (lists for
     tuples, a dict for a background region). Unknown keys raise UsageError
-    naming them and the known ones; values are validated by the config."""
+    naming them and the known ones; values are checked by the settings table
+    (:func:`qogi.settings.from_value`) and the config."""
     from .pipeline import QuantifyConfig
 
     if not isinstance(d, dict):
@@ -70,19 +71,12 @@ def config_from_dict(d: dict):
     unknown = sorted(set(d) - set(fields))
     if unknown:
         raise UsageError(f"unknown setting(s) {', '.join(unknown)}; known: {', '.join(fields)}")
-    kw = dict(d)
-    bg = kw.get("background")
-    if isinstance(bg, dict):
-        try:
-            kw["background"] = Region(**{k: int(bg[k]) for k in ("x0", "y0", "x1", "y1")})
-        except (KeyError, TypeError) as e:
-            raise UsageError(f"background region needs x0, y0, x1, y1; got {bg}") from e
-    for name in ("source", "frames"):
-        if kw.get(name) is not None:
-            v = kw[name]
-            if not isinstance(v, (list, tuple)) or len(v) != 2:
-                raise UsageError(f"{name} must be a pair; got {v!r}")
-            kw[name] = tuple(v)
+    from .settings import from_value
+
+    # Each value read as the settings table reads a file's values (a table or
+    # four numbers for a background region, lists for pairs; text as on the
+    # command line): the same values are accepted, with the same messages.
+    kw = {k: v if v is None else from_value(k, v) for k, v in d.items()}
     try:
         return QuantifyConfig(**kw)
     except TypeError as e:

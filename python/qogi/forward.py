@@ -57,6 +57,8 @@ DEFAULT_TABLE_TEMPERATURES_K = np.arange(200.0, 600.0 + 1e-9, 10.0)
 FWHM_PER_SIGMA = 2.0 * np.sqrt(2.0 * np.log(2.0))
 #: Line wings of the forward model's tables [cm-1] (spectra's fixed table window).
 TABLE_WING_CM1 = 25.0
+#: Accepted half-widths of a fixed wing [cm-1] (LineShape.wing_cm1).
+WING_CM1_RANGE = (1.0, 100.0)
 
 ChannelsArg = Union["SpectralResponse", Sequence["SpectralResponse"], object]
 
@@ -91,10 +93,11 @@ class LineShape:
         if self.wing not in ("fixed", "hapi"):
             raise ValueError(f"line shape wing must be 'fixed' or 'hapi'; got {self.wing!r}")
         if self.wing == "fixed" and not (
-            np.isfinite(self.wing_cm1) and 1.0 <= self.wing_cm1 <= 100.0
+            np.isfinite(self.wing_cm1) and WING_CM1_RANGE[0] <= self.wing_cm1 <= WING_CM1_RANGE[1]
         ):
+            lo, hi = WING_CM1_RANGE
             raise ValueError(
-                f"line shape wing_cm1 must be within [1, 100] cm-1; got {self.wing_cm1}"
+                f"line shape wing_cm1 must be within [{lo:g}, {hi:g}] cm-1; got {self.wing_cm1}"
             )
         object.__setattr__(
             self, "wing_cm1", float(self.wing_cm1) if self.wing == "fixed" else TABLE_WING_CM1

@@ -359,7 +359,7 @@ def _page_two(fig, result, sha):
     y -= 0.03 + 0.0115 * min(len(wl), 14)
     fig.text(0.06, y, "Settings", fontsize=9, fontweight="bold", color=_INK)
     cfg = result.config.to_dict() if hasattr(result.config, "to_dict") else dict(result.config)
-    lines = [f"{k} = {v}" for k, v in cfg.items()]
+    lines = [f"{k} = {v}" for k, v in _settings_used(cfg, result.info).items()]
     lines += [
         f"reporting unit = {u}",
         f"volumes at standard conditions: {standard_conditions_text(result.standard_conditions)}",
@@ -473,3 +473,22 @@ def write_report(result, path: PathLike, recording=None) -> str:
         plt.close(page1)
         plt.close(page2)
     return os.fspath(path)
+
+
+def _settings_used(cfg: dict, info: dict) -> dict:
+    """The run's settings as used: the config as given, each scene fact not
+    given shown with the recording's value (``info["from_recording"]``) or
+    its fallback (qogi.settings)."""
+    from .settings import SETTINGS
+
+    taken = info.get("from_recording") or {}
+    out = {}
+    for k, given in cfg.items():
+        used = given
+        if given is None and k in taken:
+            used = f"{taken[k]} (the recording's)"
+        elif given is None and k in SETTINGS and SETTINGS[k].fallback is not None:
+            f = SETTINGS[k].fallback
+            used = list(f) if isinstance(f, tuple) else f
+        out[k] = used
+    return out

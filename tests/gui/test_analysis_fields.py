@@ -66,15 +66,17 @@ def test_line_shape_and_exit_temperature_reach_the_run(opened, api):
 
 def test_bad_values_are_messages_beside_their_fields(opened, api):
     bad = opened.update_settings(exit_temperature_K="1000", line_shape_wing_cm1="0.5")
-    assert bad["exit_temperature_K"] == "1000 K is outside [150, 900] K"
-    assert bad["line_shape_wing_cm1"] == "0.5 cm-1 is outside [1, 100] cm-1"
+    assert bad["exit_temperature_K"] == "must be within [150, 900] K; got 1000"
+    assert bad["line_shape_wing_cm1"] == (
+        "'fixed:0.5+self': wing_cm1 must be within [1, 100] cm-1; got 0.5"
+    )
     assert not opened.start_run()
     msg = opened.last_message
-    assert msg.level == "error" and "exit temperature: 1000 K" in msg.text
-    assert "line wing half-width: 0.5 cm-1" in msg.text
+    assert msg.level == "error" and "exit temperature: must be within [150, 900] K" in msg.text
+    assert "line wing half-width: 'fixed:0.5+self'" in msg.text
     assert opened.field_errors["exit_temperature_K"] and not api.calls
     bad = opened.update_settings(exit_temperature_K="hot", line_shape_wing_cm1="")
-    assert "not a number" in bad["exit_temperature_K"]
+    assert "must be a number; got 'hot'" in bad["exit_temperature_K"]
     assert "empty" in bad["line_shape_wing_cm1"]
     # HAPI's rule has no fixed width: the width field is not checked then.
     bad = opened.update_settings(exit_temperature_K="", line_shape_wing="hapi")

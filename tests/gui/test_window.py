@@ -126,7 +126,7 @@ def test_window_end_to_end(xvfb, tmp_path):
 
     # The analysis form's line-shape and exit-temperature fields (issue 18): a
     # bad value is a message beside its field; the run used the default rule.
-    assert state["field_message"] == "900.5 K is outside [150, 900] K"
+    assert state["field_message"] == "must be within [150, 900] K; got 900.5"
     assert state["line_shape"] == "fixed:25+self"
     # The Results tab shows each term of the budget, the line shape among them,
     # and every warning of the exported result.

@@ -9,6 +9,7 @@ import pickle
 
 import pytest
 
+import qogi
 from qogi.pipeline import Execution, Methods, QuantifyConfig, SceneConditions
 from qogi.surfaces import Region
 
@@ -90,7 +91,12 @@ def test_checks_still_run_within_and_across_roles():
     with pytest.raises(ValueError, match="block_frames"):
         QuantifyConfig(block_frames=3)
     with pytest.raises(ValueError, match="wind_speed_m_s"):
-        QuantifyConfig(velocity="wind")  # a method that needs a scene fact
+        QuantifyConfig(velocity="wind", wind_speed_m_s=0.0)
+    # A method that needs a scene fact: given, or the recording's (issue 27),
+    # else refused when the run starts (before any work).
+    windless = qogi.Scene(distance_m=3.0, ambient_temperature_K=290.0, pressure_Pa=1e5)
+    with pytest.raises(ValueError, match="wind_speed_m_s must be given for velocity='wind'"):
+        QuantifyConfig(velocity="wind").completed(windless)
     with pytest.raises(TypeError, match="no_such_key"):
         QuantifyConfig(no_such_key=1)
 

@@ -106,7 +106,7 @@ def test_cancel_keeps_the_frames_done(lab):
         (dict(gas_temperature="hot"), ["gas_temperature"]),
         (dict(gas_temperature=5000.0), ["gas_temperature", "[150, 600]"]),
         (dict(velocity="magic"), ["velocity", "fluid"]),
-        (dict(velocity="wind"), ["wind_speed_m_s"]),
+        (dict(velocity="wind", wind_speed_m_s=0.0), ["wind_speed_m_s", "(0, 100]"]),
         (dict(averaging="sometimes"), ["averaging"]),
         (dict(background="guess"), ["background"]),
         (dict(frames=(5, 2)), ["frames"]),

@@ -287,6 +287,7 @@ def test_pdf_report_pages_render_and_say_what_matters(lab, tmp_path):
         "test-warning",
         "Settings",
         "gas_temperature = ambient",
+        "distance_m = 1.5 (the recording's)",
         "source = (159.5, 227.0)",
         f"{r.mean_kg_h:.4g}",
         "Detection limit",

@@ -15,6 +15,13 @@ three objects, each validating its own fields:
 * :class:`Execution`: how the run is carried out (which frames, threads,
   pair stride, streamed block length).
 
+Each field is declared once, in the run's settings table
+(:data:`qogi.settings.SETTINGS`: role, type, unit, range or choices, default,
+flag, help): the role objects check their fields with it, and the command
+line, settings files, batch manifests, the viewer's form and the docs read
+the same table. A scene fact not given is the recording's
+(:meth:`QuantifyConfig.completed`, called by :func:`qogi.quantify`).
+
 ``QuantifyConfig(**flat)``, ``cfg.name`` (read and assignment),
 :meth:`QuantifyConfig.to_dict` / :meth:`~QuantifyConfig.from_dict` and the TOML
 round trip all use the flat keys, in the order of :data:`FIELDS`.
@@ -23,11 +30,10 @@ round trip all use the flat keys, in the order of :data:`FIELDS`.
 from __future__ import annotations
 
 import dataclasses
-import math
+from functools import partial
 from typing import Any, Dict, Generic, List, Optional, Tuple, TypeVar, Union, overload
 
-import numpy as np
-
+from .. import settings as _settings
 from ..surfaces import Region
 
 __all__ = [
@@ -39,91 +45,65 @@ __all__ = [
     "VELOCITY_SOURCES",
 ]
 
-#: The velocimetry sources (qogi.velocimetry's method names, and the given
-#: speeds ``wind`` and ``exit``).
-VELOCITY_SOURCES = (
-    "fluid",
-    "horn_schunck",
-    "lucas_kanade",
-    "farneback",
-    "dis",
-    "piv",
-    "wind",
-    "exit",
-)
-_VELOCITY_SOURCES = VELOCITY_SOURCES
+
+#: The velocity sources (qogi.velocimetry's methods and the given speeds
+#: ``wind`` and ``exit``): the settings table's choices.
+VELOCITY_SOURCES = _settings.choices("velocity")
+
+
+def _check_fields(obj) -> None:
+    """Each field of a role object checked, and put in its canonical form,
+    by the settings table (qogi.settings.check)."""
+    for f in dataclasses.fields(obj):
+        setattr(obj, f.name, _settings.check(f.name, getattr(obj, f.name)))
 
 
 @dataclasses.dataclass
 class SceneConditions:
     """Facts about the scene and the gas (None: the recording's)."""
 
-    species: List[str] = dataclasses.field(default_factory=lambda: ["CH4"])
-    gas_temperature: Union[str, float] = "ambient"
-    composition: Optional[Dict[str, float]] = None
-    exit_temperature_K: Optional[float] = None
-    distance_m: Optional[float] = None
-    ambient_temperature_K: Optional[float] = None
-    pressure_Pa: Optional[float] = None
-    source: Optional[Tuple[float, float]] = None
-    sigma_m: Optional[float] = None
-    wind_speed_m_s: Optional[float] = None
-    exit_velocity_m_s: Optional[float] = None
+    species: List[str] = dataclasses.field(default_factory=partial(_settings.default, "species"))
+    gas_temperature: Union[str, float] = dataclasses.field(
+        default_factory=partial(_settings.default, "gas_temperature")
+    )
+    composition: Optional[Dict[str, float]] = dataclasses.field(
+        default_factory=partial(_settings.default, "composition")
+    )
+    exit_temperature_K: Optional[float] = dataclasses.field(
+        default_factory=partial(_settings.default, "exit_temperature_K")
+    )
+    distance_m: Optional[float] = dataclasses.field(
+        default_factory=partial(_settings.default, "distance_m")
+    )
+    ambient_temperature_K: Optional[float] = dataclasses.field(
+        default_factory=partial(_settings.default, "ambient_temperature_K")
+    )
+    pressure_Pa: Optional[float] = dataclasses.field(
+        default_factory=partial(_settings.default, "pressure_Pa")
+    )
+    source: Optional[Tuple[float, float]] = dataclasses.field(
+        default_factory=partial(_settings.default, "source")
+    )
+    sigma_m: Optional[float] = dataclasses.field(
+        default_factory=partial(_settings.default, "sigma_m")
+    )
+    wind_speed_m_s: Optional[float] = dataclasses.field(
+        default_factory=partial(_settings.default, "wind_speed_m_s")
+    )
+    exit_velocity_m_s: Optional[float] = dataclasses.field(
+        default_factory=partial(_settings.default, "exit_velocity_m_s")
+    )
 
     def __post_init__(self):
-        if isinstance(self.species, str):
-            self.species = [self.species]
-        self.species = list(self.species)
-        if not self.species:
-            raise ValueError("species is empty; e.g. species=['CH4']")
-        from .. import _engine
-
-        for sp in self.species:
-            _engine.molar_mass(sp)
-        g = self.gas_temperature
-        if isinstance(g, str):
-            if g not in ("ambient", "infer"):
-                raise ValueError(
-                    f"gas_temperature must be 'ambient', 'infer' or a temperature in K; got {g!r}"
+        _check_fields(self)
+        if self.composition is not None and self.species is not None:
+            missing = [sp for sp in self.species if sp not in self.composition]
+            if missing:
+                raise _settings.SettingError(
+                    "composition",
+                    "needs a volume fraction > 0 for every species quantified "
+                    f"({self.species}); got {self.composition}",
                 )
-        elif not (np.isfinite(g) and 150.0 <= float(g) <= 600.0):
-            raise ValueError(f"gas_temperature must be within [150, 600] K; got {g}")
-        for name, lo, hi in (
-            ("distance_m", 1e-3, 1e5),
-            ("ambient_temperature_K", 180, 350),
-            ("pressure_Pa", 3e4, 1.1e5),
-            ("sigma_m", 1e-4, 10.0),
-        ):
-            v = getattr(self, name)
-            if v is not None and not (np.isfinite(v) and lo <= v <= hi):
-                raise ValueError(f"{name} must be within [{lo:g}, {hi:g}]; got {v}")
-        if self.exit_temperature_K is not None and not (
-            np.isfinite(self.exit_temperature_K) and 150.0 <= self.exit_temperature_K <= 900.0
-        ):
-            raise ValueError(
-                f"exit_temperature_K must be within [150, 900] K; got {self.exit_temperature_K}"
-            )
-        if self.source is not None:
-            from ..errors import UsageError
-
-            try:
-                x, y = (float(v) for v in self.source)
-            except (TypeError, ValueError):
-                raise UsageError(
-                    f"source must be a pixel position (x, y); got {self.source!r}"
-                ) from None
-            if not (math.isfinite(x) and math.isfinite(y)):
-                raise UsageError(f"source must be a finite pixel position (x, y); got ({x}, {y})")
-            self.source = (x, y)
-        if self.composition is not None:
-            comp = {str(k): float(v) for k, v in dict(self.composition).items()}
-            missing = [sp for sp in self.species if sp not in comp]
-            if missing or any(not (np.isfinite(v) and v > 0) for v in comp.values()):
-                raise ValueError(
-                    "composition needs a volume fraction > 0 for every species "
-                    f"quantified ({self.species}); got {self.composition}"
-                )
-            self.composition = comp
 
     @property
     def infers_temperature(self) -> bool:
@@ -135,58 +115,28 @@ class SceneConditions:
 class Methods:
     """The analysis choices (each changes the result; docs/pipeline_api.md)."""
 
-    velocity: str = "fluid"
-    averaging: str = "per-frame"
-    background: Union[str, Region] = "auto"
-    background_percentile: float = 5.0
-    column_density: str = "inversion"
-    velocity_systematic: Optional[float] = None
-    column_systematic: Optional[float] = None
-    flux_level: bool = True
-    line_shape: str = "fixed:25+self"
+    velocity: str = dataclasses.field(default_factory=partial(_settings.default, "velocity"))
+    averaging: str = dataclasses.field(default_factory=partial(_settings.default, "averaging"))
+    background: Union[str, Region] = dataclasses.field(
+        default_factory=partial(_settings.default, "background")
+    )
+    background_percentile: float = dataclasses.field(
+        default_factory=partial(_settings.default, "background_percentile")
+    )
+    column_density: str = dataclasses.field(
+        default_factory=partial(_settings.default, "column_density")
+    )
+    velocity_systematic: Optional[float] = dataclasses.field(
+        default_factory=partial(_settings.default, "velocity_systematic")
+    )
+    column_systematic: Optional[float] = dataclasses.field(
+        default_factory=partial(_settings.default, "column_systematic")
+    )
+    flux_level: bool = dataclasses.field(default_factory=partial(_settings.default, "flux_level"))
+    line_shape: str = dataclasses.field(default_factory=partial(_settings.default, "line_shape"))
 
     def __post_init__(self):
-        # qogi.velocimetry's method names; the hyphenated spellings are accepted too.
-        self.velocity = str(self.velocity).replace("-", "_")
-        if self.velocity not in VELOCITY_SOURCES:
-            raise ValueError(
-                f"velocity must be one of {', '.join(VELOCITY_SOURCES)}; got {self.velocity!r}"
-            )
-        if self.averaging not in ("per-frame", "time-averaged"):
-            raise ValueError(
-                f"averaging must be 'per-frame' or 'time-averaged'; got {self.averaging!r}"
-            )
-        if isinstance(self.background, str):
-            if self.background not in ("auto", "beside-surface", "percentile"):
-                raise ValueError(
-                    "background must be 'auto', 'beside-surface', 'percentile' or a "
-                    "qogi.Region; "
-                    f"got {self.background!r}"
-                )
-        elif not isinstance(self.background, Region):
-            raise ValueError(
-                f"background must be a string or a qogi.Region; got {self.background!r}"
-            )
-        if not 0 <= self.background_percentile <= 50:
-            raise ValueError(
-                f"background_percentile must be within [0, 50]; got {self.background_percentile}"
-            )
-        if self.column_density not in ("inversion", "truth"):
-            raise ValueError(
-                "column_density must be 'inversion' or 'truth' (validation); got "
-                f"{self.column_density!r}"
-            )
-        if self.velocity_systematic is not None and not 0 <= self.velocity_systematic <= 1:
-            raise ValueError(
-                f"velocity_systematic must be within [0, 1]; got {self.velocity_systematic}"
-            )
-        if self.column_systematic is not None and not 0 <= self.column_systematic <= 1:
-            raise ValueError(
-                f"column_systematic must be within [0, 1]; got {self.column_systematic}"
-            )
-        from ..forward import LineShape
-
-        self.line_shape = str(LineShape.parse(self.line_shape))
+        _check_fields(self)
 
     @property
     def given_speed(self) -> bool:
@@ -212,70 +162,27 @@ class Methods:
 class Execution:
     """How the run is carried out (frames analysed, threads, streaming)."""
 
-    frames: Optional[Tuple[int, int]] = None
-    num_threads: int = 0
-    pair_stride: Optional[int] = None
-    block_frames: Optional[int] = None
+    frames: Optional[Tuple[int, int]] = dataclasses.field(
+        default_factory=partial(_settings.default, "frames")
+    )
+    num_threads: int = dataclasses.field(default_factory=partial(_settings.default, "num_threads"))
+    pair_stride: Optional[int] = dataclasses.field(
+        default_factory=partial(_settings.default, "pair_stride")
+    )
+    block_frames: Optional[int] = dataclasses.field(
+        default_factory=partial(_settings.default, "block_frames")
+    )
 
     def __post_init__(self):
-        if self.frames is not None:
-            a, b = self.frames
-            if not (0 <= a < b):
-                raise ValueError(
-                    f"frames must be (start, stop) with 0 <= start < stop; got {self.frames}"
-                )
-            self.frames = (int(a), int(b))
-        if self.pair_stride is not None and (
-            isinstance(self.pair_stride, bool)
-            or not isinstance(self.pair_stride, int)
-            or not 1 <= self.pair_stride <= 100
-        ):
-            raise ValueError(
-                f"pair_stride must be an integer within [1, 100] (frames between "
-                f"the velocimetry's pairs) or None (automatic); got "
-                f"{self.pair_stride!r}"
-            )
-        if self.block_frames is not None and (
-            isinstance(self.block_frames, bool)
-            or not isinstance(self.block_frames, int)
-            or self.block_frames < 8
-        ):
-            raise ValueError(
-                f"block_frames must be an integer >= 8 (frames streamed per block) "
-                f"or None (automatic); got {self.block_frames!r}"
-            )
+        _check_fields(self)
 
 
 _GROUPS = {"conditions": SceneConditions, "methods": Methods, "execution": Execution}
 
 #: The flat keys of :class:`QuantifyConfig`, in their saved order, with the
-#: role (attribute of the config) each belongs to.
-FIELDS: Dict[str, str] = {
-    "species": "conditions",
-    "gas_temperature": "conditions",
-    "velocity": "methods",
-    "wind_speed_m_s": "conditions",
-    "exit_velocity_m_s": "conditions",
-    "averaging": "methods",
-    "background": "methods",
-    "background_percentile": "methods",
-    "source": "conditions",
-    "distance_m": "conditions",
-    "ambient_temperature_K": "conditions",
-    "pressure_Pa": "conditions",
-    "sigma_m": "conditions",
-    "frames": "execution",
-    "num_threads": "execution",
-    "composition": "conditions",
-    "column_density": "methods",
-    "velocity_systematic": "methods",
-    "column_systematic": "methods",
-    "flux_level": "methods",
-    "pair_stride": "execution",
-    "block_frames": "execution",
-    "line_shape": "methods",
-    "exit_temperature_K": "conditions",
-}
+#: role (attribute of the config) each belongs to: the settings table's
+#: (qogi.settings.SETTINGS).
+FIELDS: Dict[str, str] = {name: _settings.ROLES[s.role] for name, s in _settings.SETTINGS.items()}
 
 assert set(FIELDS) == {f.name for g in _GROUPS.values() for f in dataclasses.fields(g)}
 
@@ -364,21 +271,39 @@ class QuantifyConfig:
         self._check_across()
 
     def _check_across(self) -> None:
-        """Checks that tie the roles together."""
+        """Checks that tie the roles together (a speed not given may still
+        come from the recording: :meth:`completed` checks it then)."""
         m, c = self.methods, self.conditions
-        if m.velocity == "wind" and not (
-            c.wind_speed_m_s is not None and 0 < c.wind_speed_m_s <= 100
-        ):
-            raise ValueError(
-                f"velocity='wind' needs wind_speed_m_s within (0, 100] m/s; got {c.wind_speed_m_s}"
+        if m.velocity == "exit" and c.exit_velocity_m_s is None:
+            raise _settings.SettingError(
+                "exit_velocity_m_s",
+                "must be given for velocity='exit' (the release's exit velocity, "
+                f"{_settings.SETTINGS['exit_velocity_m_s'].range_text()})",
             )
-        if m.velocity == "exit" and not (
-            c.exit_velocity_m_s is not None and 0 < c.exit_velocity_m_s <= 500
-        ):
-            raise ValueError(
-                "velocity='exit' needs exit_velocity_m_s within (0, 500] m/s; got "
-                f"{c.exit_velocity_m_s}"
+
+    def completed(self, scene) -> Tuple[QuantifyConfig, Dict[str, Any]]:
+        """This config with every scene fact not given taken from the
+        recording's ``scene`` (:class:`qogi.Scene`), else its fallback
+        (qogi.settings.complete), and the facts so taken (name -> value).
+
+        Raises
+        ------
+        qogi.settings.SettingError
+            A fact the run needs that neither the config nor the recording
+            gives (``velocity="wind"`` without a wind speed), or one the
+            recording holds outside the accepted range.
+        """
+        flat, taken = _settings.complete(self.to_dict(), scene)
+        if flat["velocity"] == "wind" and flat["wind_speed_m_s"] is None:
+            raise _settings.SettingError(
+                "wind_speed_m_s",
+                "must be given for velocity='wind' (the recording's /scene holds "
+                f"no wind speed); accepted: {_settings.describe('wind_speed_m_s')}",
             )
+        bg = flat["background"]
+        if isinstance(bg, dict):
+            flat["background"] = Region(**bg)
+        return self.replace(**flat), taken
 
     @classmethod
     def from_parts(

@@ -73,8 +73,14 @@ def quantify(
     from ..checks import check_surfaces
 
     check_surfaces(surfaces)
+    # The scene facts not given are the recording's (qogi.settings.complete):
+    # the stages see them all; the result keeps the config as given and says
+    # which values came from the recording.
+    run_cfg, taken = cfg.completed(rec.scene)
     with _workers_mod.owned_workers():
-        result = _run(rec, surfaces, cfg, progress, keep_maps)
+        result = _run(rec, surfaces, run_cfg, progress, keep_maps)
+    result.config = cfg
+    result.info["from_recording"] = {k: _plain(v) for k, v in taken.items()}
     # What opening a camera file noticed (scene facts at factory defaults,
     # assumed pressure, dropped frames) and where each scene fact came from.
     # (Dropped frames are the pipeline's own finding too: reported once.)
@@ -87,6 +93,11 @@ def quantify(
     if scene_origin:
         result.info["scene_origin"] = dict(scene_origin)
     return result
+
+
+def _plain(v):
+    """A JSON-friendly copy of a setting's value (lists for tuples)."""
+    return list(v) if isinstance(v, (tuple, list)) else v
 
 
 def _run(

@@ -21,6 +21,9 @@ __all__ = ["check_inputs", "prepare"]
 
 
 def check_inputs(rec: Recording, surfaces: Sequence[Surface], cfg: QuantifyConfig) -> None:
+    """The call's own mistakes, before any work (``cfg`` completed by the
+    recording's scene facts first: :meth:`QuantifyConfig.completed`)."""
+    cfg, _ = cfg.completed(rec.scene)
     if not surfaces:
         raise ValueError("no control surface given; draw one or use qogi.auto_surfaces")
     w, h = rec.width, rec.height
