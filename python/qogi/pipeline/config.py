@@ -219,16 +219,25 @@ class Execution:
 
     def __post_init__(self):
         if self.frames is not None:
-            a, b = self.frames
-            if not (0 <= a < b):
+            if (
+                not isinstance(self.frames, (tuple, list))
+                or len(self.frames) != 2
+                or not all(_is_integer(v) for v in self.frames)
+                or not 0 <= self.frames[0] < self.frames[1]
+            ):
                 raise ValueError(
-                    f"frames must be (start, stop) with 0 <= start < stop; got {self.frames}"
+                    f"frames must be (start, stop), integers with 0 <= start < stop; "
+                    f"got {self.frames!r}"
                 )
-            self.frames = (int(a), int(b))
+            self.frames = (int(self.frames[0]), int(self.frames[1]))
+        if not _is_integer(self.num_threads) or self.num_threads < 0:
+            raise ValueError(
+                f"num_threads must be an integer >= 0 (worker threads; 0 = all cores); "
+                f"got {self.num_threads!r}"
+            )
+        self.num_threads = int(self.num_threads)
         if self.pair_stride is not None and (
-            isinstance(self.pair_stride, bool)
-            or not isinstance(self.pair_stride, int)
-            or not 1 <= self.pair_stride <= 100
+            not _is_integer(self.pair_stride) or not 1 <= self.pair_stride <= 100
         ):
             raise ValueError(
                 f"pair_stride must be an integer within [1, 100] (frames between "
@@ -236,14 +245,21 @@ class Execution:
                 f"{self.pair_stride!r}"
             )
         if self.block_frames is not None and (
-            isinstance(self.block_frames, bool)
-            or not isinstance(self.block_frames, int)
-            or self.block_frames < 8
+            not _is_integer(self.block_frames) or self.block_frames < 8
         ):
             raise ValueError(
                 f"block_frames must be an integer >= 8 (frames streamed per block) "
                 f"or None (automatic); got {self.block_frames!r}"
             )
+        for name in ("pair_stride", "block_frames"):
+            if getattr(self, name) is not None:
+                setattr(self, name, int(getattr(self, name)))
+
+
+def _is_integer(v) -> bool:
+    """An int or numpy integer, not a bool (a float, even 2.0, is refused:
+    the engine's integer settings must not be rounded silently)."""
+    return isinstance(v, (int, np.integer)) and not isinstance(v, bool)
 
 
 _GROUPS = {"conditions": SceneConditions, "methods": Methods, "execution": Execution}
