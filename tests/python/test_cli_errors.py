@@ -305,3 +305,133 @@ def test_an_internal_error_shows_the_traceback_and_asks_for_a_report(capsys, mon
 
 def test_exit_codes_are_distinct():
     assert len({errors.EXIT_OK, EXIT_INTERNAL, EXIT_USAGE, EXIT_DATA, errors.EXIT_INTERRUPTED}) == 5
+
+
+# ------------------------------------------------- issue 29: the last cases
+
+
+def _lab_plume_image(h=240, w=320, src=(159.5, 227.0)):
+    """A plume rising straight up from ``src`` and widening (a detection image)."""
+    y, x = np.mgrid[0:h, 0:w].astype(float)
+    rise = np.clip(src[1] - y, 0.0, None)
+    width = 3.0 + 0.25 * rise
+    return np.where(y <= src[1], np.exp(-0.5 * ((x - src[0]) / width) ** 2) / width, 0.0)
+
+
+@pytest.mark.parametrize("dist", [-20.0, 0.0, float("nan")])
+def test_auto_surfaces_refuse_a_distance_that_is_not_downstream(dist):
+    """--auto-surfaces=-20 used to put the surface on the image's bottom row,
+    below the source (0.107 kg/h for a 0.200 kg/h release, exit 0)."""
+    from qogi.surfaces import auto_surfaces
+
+    with pytest.raises(ValueError, match=r"give distances > 0 px"):
+        auto_surfaces(_lab_plume_image(), [dist], source=(159.5, 227.0))
+
+
+@pytest.mark.parametrize("dist", [5000.0, 300.0, 228.0])
+def test_auto_surfaces_refuse_a_distance_beyond_the_image_naming_the_largest(dist):
+    """5000 px (or 300 on a 240-row image) used to be clipped to a stub in a
+    corner or to the top row and read "not detected" without a word."""
+    from qogi.surfaces import auto_surfaces
+
+    with pytest.raises(ValueError, match=r"the largest usable distance is 227 px"):
+        auto_surfaces(_lab_plume_image(), [dist], source=(159.5, 227.0))
+    assert auto_surfaces(_lab_plume_image(), [227.0], source=(159.5, 227.0))
+
+
+def test_a_surface_cut_by_the_image_border_is_shortened_along_itself_and_warned():
+    from qogi.diagnostics import Diagnostics
+    from qogi.surfaces import auto_surfaces
+
+    img = _lab_plume_image(h=240, w=80, src=(39.5, 227.0))  # the plume outgrows the width
+    warns = Diagnostics()
+    low, high = auto_surfaces(img, [20.0, 200.0], source=(39.5, 227.0), warnings=warns)
+    assert [w.surface for w in warns] == [high.name] and warns.codes() == ["surface-clipped"]
+    assert "was cut to the image" in warns[0].message
+    assert warns[0].data["length_px"] < warns[0].data["wanted_px"]
+    p = np.asarray(high.points)
+    assert np.all((p >= 0) & (p <= [79, 239]))
+    assert p[0, 1] == pytest.approx(p[1, 1])  # still across the (vertical) axis
+    assert np.asarray(low.points)[:, 0].min() > 0  # the low one fits: not warned
+
+
+@pytest.mark.parametrize(
+    "value, needle",
+    [("5000", "the largest usable distance is"), ("-20", "give distances > 0 px")],
+)
+def test_quantify_auto_surfaces_out_of_range_is_a_usage_error(capsys, rec, value, needle):
+    code, _, err = run(capsys, "quantify", rec, f"--auto-surfaces={value}", "--source", "16,22")
+    line = one_line_error(err, "quantify")
+    assert code == EXIT_USAGE and f"--auto-surfaces {value}" in line and needle in line
+
+
+def test_quantify_accepts_a_dict_config_and_names_the_types_it_accepts(rec):
+    """quantify(rec, surfaces, {"species": ["CH4"]}) and (..., "CH4") used
+    to fail with AttributeError: 'dict' object has no attribute 'source'."""
+    import qogi
+
+    surfaces = [qogi.Surface.parse(SURFACE)]
+    with pytest.raises(TypeError, match=r"config must be a qogi\.QuantifyConfig, a dict"):
+        qogi.quantify(str(rec), surfaces, "CH4")
+    with pytest.raises(errors.UsageError, match=r"unknown setting.*specie\b"):
+        qogi.quantify(str(rec), surfaces, {"specie": ["CH4"]})
+    got = qogi.quantify(
+        str(rec), surfaces, {"species": ["CH4"], "source": [16, 22], "frames": [0, 6]}
+    )
+    assert got.config == qogi.QuantifyConfig(species=["CH4"], source=(16, 22), frames=(0, 6))
+
+
+@pytest.mark.parametrize(
+    "field, value",
+    [
+        ("num_threads", 1.5),
+        ("num_threads", "2"),
+        ("num_threads", -1),
+        ("num_threads", True),
+        ("pair_stride", 2.0),
+        ("block_frames", 64.5),
+        ("frames", (0.5, 10)),
+        ("frames", (0, 10.0)),
+    ],
+)
+def test_integer_settings_refuse_other_values_at_construction(field, value):
+    """QuantifyConfig(num_threads=1.5) used to be accepted and fail later
+    with a TypeError inside the engine."""
+    import qogi
+
+    with pytest.raises(ValueError, match=f"{field} must be"):
+        qogi.QuantifyConfig(**{field: value})
+
+
+def test_integer_settings_take_numpy_integers_as_ints():
+    import qogi
+
+    cfg = qogi.QuantifyConfig(num_threads=np.int64(2), frames=(np.int32(0), np.int64(5)))
+    assert cfg.num_threads == 2 and type(cfg.num_threads) is int
+    assert cfg.frames == (0, 5) and all(type(v) is int for v in cfg.frames)
+
+
+BROKEN_PAR = "  61 3000.000000 1.000E-20 this is not a HITRAN record\n"  # 53 characters
+
+
+def test_a_line_list_not_in_the_par_format_is_bad_data_naming_file_and_line(
+    capsys, tmp_path, monkeypatch
+):
+    """Given with --line-list or found on QOGI_HITRAN_PATH (xsec, hitran
+    list, quantify): exit 3 naming the file, the line and what the format
+    needs, not an internal error (RuntimeError: truncated record, exit 1)."""
+    folder = tmp_path / "lines"
+    folder.mkdir()
+    par = folder / "CH4.par"
+    par.write_text("\n" + BROKEN_PAR)  # the record is line 2
+    monkeypatch.setenv("QOGI_CACHE_DIR", str(tmp_path / "cache"))
+    code, _, err = run(capsys, "xsec", "CH4", "--range", "2990", "3010", "--line-list", par)
+    line = one_line_error(err, "xsec")
+    assert code == EXIT_DATA and f"{par}:2: truncated record" in line
+    assert "one 160-character record per line" in line
+    monkeypatch.setenv("QOGI_HITRAN_PATH", str(folder))
+    code, _, err = run(capsys, "hitran", "list", "CH4")
+    assert code == EXIT_DATA and f"{par}:2" in one_line_error(err, "hitran list")
+    rec = small_recording(tmp_path / "r.h5", n_frames=8)
+    code, _, err = run(capsys, "quantify", rec, "-q", "--surface", SURFACE)
+    assert code == EXIT_DATA and f"{par}:2" in one_line_error(err, "quantify")
