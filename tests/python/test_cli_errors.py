@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import json
 import os
+import subprocess
+import sys
 
 import h5py
 import numpy as np
@@ -432,6 +434,64 @@ def test_a_line_list_not_in_the_par_format_is_bad_data_naming_file_and_line(
     monkeypatch.setenv("QOGI_HITRAN_PATH", str(folder))
     code, _, err = run(capsys, "hitran", "list", "CH4")
     assert code == EXIT_DATA and f"{par}:2" in one_line_error(err, "hitran list")
+    # quantify in a fresh process (this one may hold the scene's tables already).
     rec = small_recording(tmp_path / "r.h5", n_frames=8)
-    code, _, err = run(capsys, "quantify", rec, "-q", "--surface", SURFACE)
-    assert code == EXIT_DATA and f"{par}:2" in one_line_error(err, "quantify")
+    r = subprocess.run(
+        [sys.executable, "-m", "qogi", "quantify", str(rec), "-q", "--surface", SURFACE],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
+    assert r.returncode == EXIT_DATA and f"{par}:2" in one_line_error(r.stderr, "quantify")
+
+
+@pytest.mark.parametrize("source", [[], ["--source", "16,22"]])
+def test_a_texture_velocimetry_is_warned_with_or_without_a_source(capsys, rec, tmp_path, source):
+    """--velocity farneback without --source read 0.0001 kg/h for a 0.2 kg/h
+    release without a word; with --source the engine refused it ("source_mask
+    applies to the fluid method only"). Both now run and say why the number
+    is not a flux."""
+    out = tmp_path / "r.json"
+    code, _, err = run(
+        capsys, "quantify", rec, "--surface", SURFACE, "--velocity", "farneback", *source,
+        "-q", "--json", out,
+    )  # fmt: skip
+    assert code in (0, EXIT_DATA) and "Traceback" not in err and "source_mask" not in err, err
+    [w] = [w for w in json.loads(out.read_text())["warnings"] if w["code"] == "velocity-texture"]
+    assert "tracks the plume's texture" in w["message"] and "fluid" in w["message"]
+
+
+def test_the_velocity_map_is_blank_where_no_flow_was_computed(tmp_path):
+    """The maps plot painted 0 px/frame outside the flow's part of the
+    region (the upper half of the demo's plume); there is no velocity there."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import qogi
+
+    chs = [qogi.SpectralResponse([2941.18, 3125.0], [1.0, 1.0], name="3.2-3.4 um")]
+    t = np.arange(12)[:, None, None]
+    y, x = np.arange(96)[None, :, None], np.arange(48)[None, None, :]
+    temp = 285.0 + 25.0 * np.exp(-((x - 24) ** 2 + (y - (88 - 2 * t)) ** 2) / 20.0)
+    frames = chs[0].band_radiance(temp.ravel()).reshape(temp.shape)[:, None]
+    tall = qogi.Recording.from_arrays(
+        frames,
+        quantity="radiance",
+        camera=qogi.Camera("test camera", 1e-3, chs, frame_rate_hz=10.0, netd_K=0.02),
+        scene=qogi.Scene(distance_m=3.0, ambient_temperature_K=288.0, pressure_Pa=101325.0),
+    )
+    cfg = qogi.QuantifyConfig(source=(24.0, 90.0))
+    res = qogi.quantify(tall, [qogi.Surface.parse("8,80,40,80")], cfg, keep_maps=True)
+    m = res.maps(res.map_frames[0])
+    u, v = m["velocity_px_per_frame"]
+    x0, y0, x1, y1 = m["velocity_region"]
+    inside = np.zeros(u.shape, bool)
+    inside[y0:y1, x0:x1] = True
+    assert not inside.all(), "the flow covers the whole region: nothing to check"
+    assert np.isnan(u[~inside]).all() and np.isnan(v[~inside]).all()
+    assert np.isfinite(u[inside]).all() and np.isfinite(v[inside]).all()
+    fig = res.plot(tmp_path / "maps.png", kind="maps")
+    [ax] = [a for a in fig.axes if a.get_title().startswith("velocity")]
+    assert "where the flow was computed" in ax.get_title()
+    assert len(ax.patches) == 1  # the computed region's outline
