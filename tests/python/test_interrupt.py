@@ -6,7 +6,6 @@ because the interpreter exited while that thread was still in the engine."""
 
 from __future__ import annotations
 
-import os
 import signal
 import subprocess
 import sys
