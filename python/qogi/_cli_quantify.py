@@ -483,19 +483,18 @@ def cmd_demo(args: argparse.Namespace) -> int:
     )
     print("3. result (estimate vs truth):")
     print(result.summary())
-    try:
-        import matplotlib
-    except ImportError:
-        matplotlib = None
+    import importlib.util
+
+    plots = importlib.util.find_spec("matplotlib") is not None
     from .files import all_or_nothing
 
     with all_or_nothing():  # the demo's outputs together or none (a full disk)
         result.to_json(os.path.join(out, "result.json"))
         result.to_csv(os.path.join(out, "result.csv"))
-        if matplotlib is not None:
+        if plots:
             result.plot(os.path.join(out, "rates.png"), kind="rates")
             result.plot(os.path.join(out, "maps.png"), kind="maps")
-    if matplotlib is None:
+    if not plots:
         print(
             f"4. wrote {out}/result.json, result.csv (plots need matplotlib: "
             "pip install 'qogi[plot]')"

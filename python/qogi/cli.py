@@ -182,7 +182,8 @@ def _interrupted(exc: BaseException) -> bool:
     extension module (the engine, numpy) initialises becomes pybind11's
     ``ImportError: initialization failed`` caused by it, numpy's own
     ImportError has it in its chain."""
-    seen, todo = set(), [exc]
+    seen: set = set()
+    todo: list = [exc]
     while todo:
         e = todo.pop()
         if e is None or id(e) in seen:
