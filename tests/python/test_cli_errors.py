@@ -495,3 +495,14 @@ def test_the_velocity_map_is_blank_where_no_flow_was_computed(tmp_path):
     [ax] = [a for a in fig.axes if a.get_title().startswith("velocity")]
     assert "where the flow was computed" in ax.get_title()
     assert len(ax.patches) == 1  # the computed region's outline
+
+
+def test_a_pair_stride_too_long_for_the_frames_is_reduced_with_a_warning(rec):
+    """Another option that was clamped without a word: pair_stride=10 on
+    8 frames ran with a stride of 3."""
+    import qogi
+
+    cfg = qogi.QuantifyConfig(source=(16.0, 22.0), pair_stride=10)
+    res = qogi.quantify(str(rec), [qogi.Surface.parse(SURFACE)], cfg)
+    [w] = [w for w in res.warnings if w.code == "pair-stride-reduced"]
+    assert w.data == {"given": 10, "used": 3} and "was reduced to 3" in w.message
