@@ -190,16 +190,16 @@ def _block_velocity(
             if np.isfinite(d) and d > 0:
                 stride = int(np.clip(round(3.0 / d), 1, 4))
     stride = max(1, min(int(stride), (norm.shape[0] - 1) // 2))
-    if cfg.pair_stride is not None and stride != cfg.pair_stride:
-        if not st.warnings.has("pair-stride-reduced"):
-            st.warnings.add(
-                "pair-stride-reduced",
-                f"pair_stride={cfg.pair_stride} was reduced to {stride}: a block of "
-                f"{norm.shape[0]} frames holds at least two pairs only with a stride up to "
-                f"{stride} (give more frames, or a smaller stride)",
-                given=int(cfg.pair_stride),
-                used=int(stride),
-            )
+    reduced = cfg.pair_stride is not None and stride != cfg.pair_stride
+    if reduced and not st.warnings.has("pair-stride-reduced"):
+        st.warnings.add(
+            "pair-stride-reduced",
+            f"pair_stride={cfg.pair_stride} was reduced to {stride}: a block of "
+            f"{norm.shape[0]} frames holds at least two pairs only with a stride up to "
+            f"{stride} (give more frames, or a smaller stride)",
+            given=int(cfg.pair_stride or 0),
+            used=int(stride),
+        )
     velocity_info["pair_stride"] = stride
     fvel = None
     try:
