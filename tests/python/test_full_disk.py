@@ -19,6 +19,9 @@ import uuid
 
 import numpy as np
 import pytest
+from fuzz_targets import write_on_full_disk
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from test_interrupt import SURFACE, small_recording
 
 import qogi
@@ -40,19 +43,25 @@ def _mount_tmpfs(path, size_kib: int) -> bool:
 
 
 @pytest.fixture
-def full(tmp_path):
-    """A folder on a 256 KiB tmpfs holding ``existing.h5`` and filled up to
-    its last 8 KiB: writing anything larger fails with ENOSPC."""
-    folder = tmp_path / f"full-{uuid.uuid4().hex[:6]}"
+def tmpfs(tmp_path):
+    """An empty folder on its own 256 KiB tmpfs."""
+    folder = tmp_path / f"tmpfs-{uuid.uuid4().hex[:6]}"
     if not _mount_tmpfs(folder, 256):
         pytest.skip("needs root and mount to make a small tmpfs (a real full file system)")
     try:
-        (folder / "existing.h5").write_bytes(KEEP)
-        st = os.statvfs(folder)
-        (folder / "filler").write_bytes(b"\0" * (st.f_bavail * st.f_frsize - 8192))
         yield folder
     finally:
         subprocess.run(["umount", str(folder)], check=False)
+
+
+@pytest.fixture
+def full(tmpfs):
+    """The tmpfs holding ``existing.h5`` and filled up to its last 8 KiB:
+    writing anything larger fails with ENOSPC."""
+    (tmpfs / "existing.h5").write_bytes(KEEP)
+    st = os.statvfs(tmpfs)
+    (tmpfs / "filler").write_bytes(b"\0" * (st.f_bavail * st.f_frsize - 8192))
+    return tmpfs
 
 
 def _untouched(folder):
@@ -191,3 +200,22 @@ def test_check_outputs_refuses_a_folder_with_no_free_byte_before_any_work(full):
             pass
     with pytest.raises(NoSpaceError, match="no space left"):
         check_outputs({"--json": full / "r.json"})
+
+
+@settings(deadline=None, derandomize=True, database=None, max_examples=40,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])  # fmt: skip
+@given(data=st.binary(min_size=4, max_size=4))
+def test_writers_on_a_nearly_full_disk_complete_or_raise_no_space(tmpfs, data):
+    """The fuzz target of ``make fuzz`` (writers), bounded: the free space,
+    the writer and the size drawn; each write completes or is NoSpaceError,
+    with nothing left behind."""
+    assert write_on_full_disk(data, tmpfs) in ("written", "no space")
+
+
+def test_the_writers_fuzz_target_sees_both_outcomes(tmpfs):
+    outcomes = {
+        write_on_full_disk(bytes([0, free, kind, 40]), tmpfs)
+        for free in (0, 0xFF)
+        for kind in range(4)
+    }
+    assert outcomes == {"written", "no space"}
