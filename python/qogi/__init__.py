@@ -18,82 +18,45 @@ from typing import TYPE_CHECKING, Any, Dict
 
 from ._version import __version__
 
-#: Public name -> the module (relative to qogi) that defines it.
-_LAZY: Dict[str, str] = {
-    **dict.fromkeys(
-        (
-            "Calibration",
-            "CalibrationScene",
-            "ChannelOptics",
-            "add_netd_noise",
-            "add_warm_optics",
-            "camera_optics",
-            "correct_warm_optics",
-            "fit_calibration",
-            "netd_radiance_sigma",
-            "warm_optics_radiance",
-        ),
-        ".camera",
-    ),
-    **dict.fromkeys(
-        ("ForwardModel", "band_radiance", "column_density", "forward_model"), ".forward"
-    ),
-    **dict.fromkeys(("Inversion", "InversionResult"), ".inversion"),
-    "open_recording": ".io.open",
-    **dict.fromkeys(
-        ("SpectralResponse", "planck_radiance", "planck_radiance_derivative"), ".optics"
-    ),
-    **dict.fromkeys(("Cancelled", "QuantifyConfig", "quantify"), ".pipeline"),
-    **dict.fromkeys(("camera_preset", "camera_preset_names"), ".presets"),
-    **dict.fromkeys(
-        (
-            "Camera",
-            "Recording",
-            "RecordingError",
-            "RecordingWriter",
-            "Scene",
-            "Truth",
-            "write_recording",
-        ),
-        ".recording",
-    ),
-    "Result": ".result",
-    **dict.fromkeys(
-        (
-            "CrossSectionTable",
-            "LineList",
-            "absorption_coefficient",
-            "cross_section",
-            "cross_section_table",
-            "find_line_lists",
-            "load_line_list",
-            "partition_sum",
-            "voigt_profile",
-        ),
-        ".spectra",
-    ),
-    **dict.fromkeys(
-        ("Region", "Surface", "auto_surfaces", "detect_source", "plume_image"), ".surfaces"
-    ),
-    **dict.fromkeys(("FlowEstimator", "optical_flow", "optical_flow_sequence"), ".velocimetry"),
-}
-#: Submodules that ``import qogi`` has always made attributes (``qogi.io.read_flir``).
-_SUBMODULES = ("camera", "inversion", "io", "radiometry", "synth", "units")
+
+def _lazy_names() -> Dict[str, str]:
+    """Public name -> the module (relative to qogi) that defines it, read from
+    the ``TYPE_CHECKING`` imports at the end of this file (the one list of the
+    names, as lazy_loader's ``attach_stub`` reads a stub), and the submodules
+    ``import qogi`` has always made attributes (``qogi.io.read_flir``), which
+    map to themselves."""
+    import ast
+
+    with open(__file__, encoding="utf-8") as fh:
+        tree = ast.parse(fh.read())
+    [block] = [
+        n
+        for n in tree.body
+        if isinstance(n, ast.If) and getattr(n.test, "id", "") == "TYPE_CHECKING"
+    ]
+    out: Dict[str, str] = {}
+    for node in block.body:
+        if isinstance(node, ast.ImportFrom):
+            for alias in node.names:
+                out[alias.name] = "." + (node.module or alias.name)
+    return out
+
+
+_LAZY = _lazy_names()
 
 
 def __getattr__(name: str) -> Any:
-    if name in _SUBMODULES:
-        return importlib.import_module("." + name, __name__)
     where = _LAZY.get(name)
     if where is None:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(where, __name__), name)
+    module = importlib.import_module(where, __name__)
+    value = module if where == "." + name else getattr(module, name)
     globals()[name] = value  # the next access is a plain attribute
     return value
 
 
 def __dir__():
-    return sorted(set(globals()) | set(_LAZY) | set(_SUBMODULES))
+    return sorted(set(globals()) | set(_LAZY))
 
 
 if TYPE_CHECKING:  # what the names are, for mypy and editors
