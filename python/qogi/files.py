@@ -26,7 +26,7 @@ __all__ = ["atomic_path", "atomic_open", "all_or_nothing", "check_outputs", "no_
 PathLike = Union[str, "os.PathLike[str]"]
 
 _TMP_PREFIX = ".qogi-tmp-"
-_local = threading.local()  # this thread's atomic_path nesting and all_or_nothing group
+_local = threading.local()  # this thread's all_or_nothing group
 
 
 @contextlib.contextmanager
@@ -48,8 +48,6 @@ def atomic_path(target: PathLike, *, suffix: Optional[str] = None) -> Iterator[p
         raise
     os.close(fd)
     tmp_path = pathlib.Path(tmp)
-    depth = getattr(_local, "depth", 0)  # > 0: writing into an outer atomic_path's file
-    _local.depth = depth + 1
     try:
         yield tmp_path
         _fsync_file(tmp_path)
@@ -59,7 +57,9 @@ def atomic_path(target: PathLike, *, suffix: Optional[str] = None) -> Iterator[p
         except OSError:
             pass
         group = getattr(_local, "group", None)
-        if group is not None and depth == 0:
+        # A target that is itself a temporary (a writer inside another
+        # atomic_path, e.g. convert's) is renamed now: the outer one defers.
+        if group is not None and not target.name.startswith(_TMP_PREFIX):
             group.append((tmp_path, target))  # renamed when the group completes
         else:
             os.replace(tmp_path, target)
@@ -73,8 +73,6 @@ def atomic_path(target: PathLike, *, suffix: Optional[str] = None) -> Iterator[p
         if full:  # named after this target (an inner writer's is a temporary)
             raise no_space(target) from e
         raise
-    finally:
-        _local.depth = depth
 
 
 @contextlib.contextmanager

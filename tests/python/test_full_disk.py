@@ -219,3 +219,33 @@ def test_the_writers_fuzz_target_sees_both_outcomes(tmpfs):
         for kind in range(4)
     }
     assert outcomes == {"written", "no space"}
+
+
+def test_all_or_nothing_replaces_every_output_or_none(tmp_path, rec):
+    """No full disk needed: the group's logic on an ordinary folder."""
+    from qogi.files import all_or_nothing, atomic_open
+    from qogi.recording import write_recording
+
+    a, b, h5 = tmp_path / "a.json", tmp_path / "b.csv", tmp_path / "c.h5"
+    for p in (a, b, h5):
+        p.write_bytes(KEEP)
+
+    def three_outputs():
+        with all_or_nothing():
+            with atomic_open(a) as fh:
+                fh.write("new a")
+            with atomic_open(b) as fh:
+                fh.write("new b")
+            raise RuntimeError("the third output failed")
+
+    with pytest.raises(RuntimeError, match="the third output failed"):
+        three_outputs()
+    assert a.read_bytes() == b.read_bytes() == KEEP
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json", "b.csv", "c.h5"]
+    with all_or_nothing():
+        with atomic_open(a) as fh:
+            fh.write("new a")
+        assert a.read_bytes() == KEEP  # not before the group completes
+        write_recording(h5, qogi.open_recording(rec))  # a writer with its own temporary
+    assert a.read_text() == "new a" and qogi.open_recording(h5).n_frames == 12
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json", "b.csv", "c.h5"]
