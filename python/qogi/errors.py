@@ -51,7 +51,8 @@ EXIT_INTERRUPTED = 130
 EXIT_CODES_HELP = (
     "exit status: 0 done; 1 internal error (a bug: please report it with the traceback); "
     "2 usage error (bad argument, unwritable output, missing scene fact); 3 bad data "
-    "(unreadable file, non-physical input, or a result that is NaN/incomplete); "
+    "(unreadable file, non-physical input, a full disk, or a result that is "
+    "NaN/incomplete); "
     "130 interrupted (Ctrl-C)"
 )
 
