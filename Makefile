@@ -103,12 +103,16 @@ lint: $(STAMPS)/built
 	  || echo "lint: failed (scripts/format.sh fixes formatting and import order)"; \
 	exit $$status
 
-# Coverage-guided fuzzing of the FLIR and recording readers (atheris), FUZZ_S
-# seconds each; `make test` runs a bounded hypothesis fuzz (tests/python/test_fuzz.py).
+# Coverage-guided fuzzing of the FLIR and recording readers, and of the writers
+# on a nearly full file system (root: a tmpfs it mounts; skipped otherwise)
+# (atheris), FUZZ_S seconds each; `make test` runs a bounded hypothesis fuzz
+# (tests/python/test_fuzz.py, test_full_disk.py).
 FUZZ_S ?= 600
 fuzz: $(STAMPS)/built
 	cd tests/fuzz && ../../$(VPY) run_fuzz.py flir -max_total_time=$(FUZZ_S)
 	cd tests/fuzz && ../../$(VPY) run_fuzz.py recording -max_total_time=$(FUZZ_S)
+	if [ "$$(id -u)" = 0 ]; then cd tests/fuzz && ../../$(VPY) run_fuzz.py writers \
+	  -max_total_time=$(FUZZ_S); else echo "fuzz: writers on a full disk need root (tmpfs)"; fi
 
 bench: $(STAMPS)/built
 	$(VPY) -m pip install -q -r requirements/bench.txt -c requirements/constraints.txt

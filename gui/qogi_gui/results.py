@@ -268,6 +268,10 @@ def full_frame_maps(maps: dict, shape: Tuple[int, int]) -> dict:
     if "status" in maps:
         st = np.asarray(maps["status"])
         out["status"] = _embed(st, origin, shape, -1) if np.issubdtype(st.dtype, np.number) else st
+    if "velocity_region" in maps:  # x0, y0, x1, y1 in the maps' pixels: now the frame's
+        x0, y0, x1, y1 = maps["velocity_region"]
+        ox, oy = int(round(origin[0])), int(round(origin[1]))
+        out["velocity_region"] = (x0 + ox, y0 + oy, x1 + ox, y1 + oy)
     out["origin"] = (0, 0)
     return out
 

@@ -7,58 +7,108 @@ Gas Imaging using Broadband MWIR Single-Channel and Multispectral Cameras"
 
 The heavy lifting is done by the C++ engine in :mod:`qogi._engine`; this
 package is the public API.
+
+The public names load on first use (PEP 562): ``import qogi`` itself is
+instant, so the command line (``qogi.cli``) starts without the engine and a
+Ctrl-C while the modules load is its own "interrupted", not a traceback.
 """
 
-from . import (  # noqa: F401  (qogi.io.read_flir etc. after `import qogi`)
-    camera,
-    inversion,
-    io,
-    radiometry,
-    synth,
-    units,
-)
+import importlib
+from typing import TYPE_CHECKING, Any, Dict
+
 from ._version import __version__
-from .camera import (
-    Calibration,
-    CalibrationScene,
-    ChannelOptics,
-    add_netd_noise,
-    add_warm_optics,
-    camera_optics,
-    correct_warm_optics,
-    fit_calibration,
-    netd_radiance_sigma,
-    warm_optics_radiance,
-)
-from .forward import ForwardModel, band_radiance, column_density, forward_model
-from .inversion import Inversion, InversionResult
-from .io.open import open_recording  # HDF5 recordings and camera files (FLIR, Telops)
-from .optics import SpectralResponse, planck_radiance, planck_radiance_derivative
-from .pipeline import Cancelled, QuantifyConfig, quantify
-from .presets import camera_preset, camera_preset_names
-from .recording import (
-    Camera,
-    Recording,
-    RecordingError,
-    RecordingWriter,
-    Scene,
-    Truth,
-    write_recording,
-)
-from .result import Result
-from .spectra import (
-    CrossSectionTable,
-    LineList,
-    absorption_coefficient,
-    cross_section,
-    cross_section_table,
-    find_line_lists,
-    load_line_list,
-    partition_sum,
-    voigt_profile,
-)
-from .surfaces import Region, Surface, auto_surfaces, detect_source, plume_image
-from .velocimetry import FlowEstimator, optical_flow, optical_flow_sequence
+
+
+def _lazy_names() -> Dict[str, str]:
+    """Public name -> the module (relative to qogi) that defines it, read from
+    the ``TYPE_CHECKING`` imports at the end of this file (the one list of the
+    names, as lazy_loader's ``attach_stub`` reads a stub), and the submodules
+    ``import qogi`` has always made attributes (``qogi.io.read_flir``), which
+    map to themselves."""
+    import ast
+
+    with open(__file__, encoding="utf-8") as fh:
+        tree = ast.parse(fh.read())
+    [block] = [
+        n
+        for n in tree.body
+        if isinstance(n, ast.If) and getattr(n.test, "id", "") == "TYPE_CHECKING"
+    ]
+    out: Dict[str, str] = {}
+    for node in block.body:
+        if isinstance(node, ast.ImportFrom):
+            for alias in node.names:
+                out[alias.name] = "." + (node.module or alias.name)
+    return out
+
+
+_LAZY = _lazy_names()
+
+
+def __getattr__(name: str) -> Any:
+    where = _LAZY.get(name)
+    if where is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    module = importlib.import_module(where, __name__)
+    value = module if where == "." + name else getattr(module, name)
+    globals()[name] = value  # the next access is a plain attribute
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))
+
+
+if TYPE_CHECKING:  # what the names are, for mypy and editors
+    from . import (  # noqa: F401  (qogi.io.read_flir etc. after `import qogi`)
+        camera,
+        inversion,
+        io,
+        radiometry,
+        synth,
+        units,
+    )
+    from .camera import (
+        Calibration,
+        CalibrationScene,
+        ChannelOptics,
+        add_netd_noise,
+        add_warm_optics,
+        camera_optics,
+        correct_warm_optics,
+        fit_calibration,
+        netd_radiance_sigma,
+        warm_optics_radiance,
+    )
+    from .forward import ForwardModel, band_radiance, column_density, forward_model
+    from .inversion import Inversion, InversionResult
+    from .io.open import open_recording  # HDF5 recordings and camera files (FLIR, Telops)
+    from .optics import SpectralResponse, planck_radiance, planck_radiance_derivative
+    from .pipeline import Cancelled, QuantifyConfig, quantify
+    from .presets import camera_preset, camera_preset_names
+    from .recording import (
+        Camera,
+        Recording,
+        RecordingError,
+        RecordingWriter,
+        Scene,
+        Truth,
+        write_recording,
+    )
+    from .result import Result
+    from .spectra import (
+        CrossSectionTable,
+        LineList,
+        absorption_coefficient,
+        cross_section,
+        cross_section_table,
+        find_line_lists,
+        load_line_list,
+        partition_sum,
+        voigt_profile,
+    )
+    from .surfaces import Region, Surface, auto_surfaces, detect_source, plume_image
+    from .velocimetry import FlowEstimator, optical_flow, optical_flow_sequence
 
 __all__ = [
     "Cancelled",

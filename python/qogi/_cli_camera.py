@@ -143,6 +143,14 @@ def format_hcc_info(info: dict) -> str:
             f"frame 0    min {ff['min']}, mean {ff['mean']}, max {ff['max']}, "
             f"{ff['n_bad_pixels']} bad pixels",
         ]
+        + (
+            [
+                f"warning: {info['trailing_bytes']} bytes after the last whole frame: "
+                "a cut-off last frame is left out"
+            ]
+            if info["trailing_bytes"]
+            else []
+        )
     )
 
 

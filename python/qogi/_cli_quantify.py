@@ -90,8 +90,9 @@ def _untrustworthy(result) -> list:
 def cmd_quantify(args: argparse.Namespace) -> int:
     from ._cli_camera import open_input, origin_lines
     from ._progress import ProgressBar
+    from .diagnostics import Diagnostics
     from .errors import EXIT_DATA, EXIT_INTERRUPTED, Cancelled, DataError, UsageError
-    from .files import check_outputs
+    from .files import all_or_nothing, check_outputs
     from .pipeline import _check_inputs, quantify
     from .surfaces import Surface
 
@@ -115,8 +116,12 @@ def cmd_quantify(args: argparse.Namespace) -> int:
         surfaces = [Surface.parse(s, name=f"S{k + 1}") for k, s in enumerate(args.surface or [])]
         if not surfaces and not args.auto_surfaces and args.settings is not None:
             surfaces = list(args.settings.surfaces)
+        placed = Diagnostics()  # what placing the automatic surfaces did
         if args.auto_surfaces:
-            auto, source = _auto(rec, args, cfg)
+            auto, source = _auto(rec, args, cfg, placed)
+            if not args.quiet:
+                for w in placed:
+                    print(f"qogi quantify: warning: {w.message}", file=sys.stderr)
             surfaces += auto
             if cfg.source is None:
                 # The detected source orients the surfaces and gives the
@@ -159,13 +164,14 @@ def cmd_quantify(args: argparse.Namespace) -> int:
         return EXIT_INTERRUPTED
     finally:
         bar.close()
+    result.warnings.extend_unique(placed)
     bad = _untrustworthy(result)
     if bad:
         result.complete = False
     result.units = units
     # With --json - the JSON is the standard output; the summary goes to stderr.
     print(result.summary(), file=sys.stderr if args.json == "-" else sys.stdout)
-    with _signals_deferred():
+    with _signals_deferred(), all_or_nothing():
         if args.json == "-":
             sys.stdout.write(result.to_json() + "\n")
         elif args.json:
@@ -193,7 +199,10 @@ def cmd_quantify(args: argparse.Namespace) -> int:
     return 0
 
 
-def _auto(rec, args, cfg):
+def _auto(rec, args, cfg, warnings):
+    """Surfaces at the --auto-surfaces distances and the source; a surface
+    cut by the image border adds a ``surface-clipped`` warning."""
+    from .errors import UsageError
     from .surfaces import auto_surfaces, plume_image
 
     try:
@@ -203,7 +212,11 @@ def _auto(rec, args, cfg):
             f"--auto-surfaces {args.auto_surfaces!r}: expected distances in "
             "pixels separated by commas, e.g. 40,80"
         ) from None
-    return auto_surfaces(plume_image(rec), dists, source=cfg.source, return_source=True)
+    image = plume_image(rec)
+    try:
+        return auto_surfaces(image, dists, source=cfg.source, return_source=True, warnings=warnings)
+    except ValueError as e:
+        raise UsageError(f"--auto-surfaces {args.auto_surfaces}: {e}") from None
 
 
 def add_commands(sub) -> None:
@@ -367,18 +380,23 @@ def cmd_demo(args: argparse.Namespace) -> int:
     )
     print("3. result (estimate vs truth):")
     print(result.summary())
-    result.to_json(os.path.join(out, "result.json"))
-    result.to_csv(os.path.join(out, "result.csv"))
-    try:
-        import matplotlib  # noqa: F401
-    except ImportError:
+    import importlib.util
+
+    plots = importlib.util.find_spec("matplotlib") is not None
+    from .files import all_or_nothing
+
+    with all_or_nothing():  # the demo's outputs together or none (a full disk)
+        result.to_json(os.path.join(out, "result.json"))
+        result.to_csv(os.path.join(out, "result.csv"))
+        if plots:
+            result.plot(os.path.join(out, "rates.png"), kind="rates")
+            result.plot(os.path.join(out, "maps.png"), kind="maps")
+    if not plots:
         print(
             f"4. wrote {out}/result.json, result.csv (plots need matplotlib: "
             "pip install 'qogi[plot]')"
         )
         return 0
-    result.plot(os.path.join(out, "rates.png"), kind="rates")
-    result.plot(os.path.join(out, "maps.png"), kind="maps")
     print(
         f"4. wrote {out}/result.json, result.csv, rates.png (emission-rate time series per "
         f"surface), maps.png (column density and velocity)"

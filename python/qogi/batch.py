@@ -34,6 +34,7 @@ import traceback
 from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 
 from ._version import __version__
+from .diagnostics import Diagnostics
 from .errors import UsageError
 from .optics import channel_problem
 
@@ -539,6 +540,7 @@ def run_row(job: dict) -> dict:
             return False
         return None
 
+    placed = Diagnostics()
     try:
         with open_recording(row.path) as rec:
             if row.camera is not None or row.ifov_rad is not None:
@@ -547,7 +549,11 @@ def run_row(job: dict) -> dict:
                 assert row.surfaces == "auto" and row.auto_distances_px is not None
                 stage["message"] = "placing surfaces"
                 surfaces, source = auto_surfaces(
-                    plume_image(rec), row.auto_distances_px, source=cfg.source, return_source=True
+                    plume_image(rec),
+                    row.auto_distances_px,
+                    source=cfg.source,
+                    return_source=True,
+                    warnings=placed,
                 )
                 if cfg.source is None:
                     cfg.source = source
@@ -556,6 +562,7 @@ def run_row(job: dict) -> dict:
             if deadline is not None and time.perf_counter() > deadline:
                 raise _TimedOut()
             result = quantify(rec, surfaces, cfg, progress=progress, keep_maps=row.plots)
+            result.warnings.extend_unique(placed)  # surfaces cut by the image border
     except (Cancelled, _TimedOut):
         return _failed(
             folder,

@@ -566,6 +566,7 @@ class Calibration:
         below it)."""
         arrays = self._arrays()
         from .files import atomic_path
+        from .recording import h5_writing
 
         if isinstance(target, (str, os.PathLike)) and str(target).endswith(".npz"):
             with atomic_path(target) as tmp:
@@ -580,7 +581,7 @@ class Calibration:
                     import shutil
 
                     shutil.copyfile(target, tmp)
-                with h5py.File(tmp, "a") as f:
+                with h5_writing(tmp, "a") as f:  # a full disk: dropped, not left open
                     self._save_h5(f, group, arrays)
         elif isinstance(target, h5py.Group):
             self._save_h5(target, group, arrays)

@@ -3,9 +3,19 @@
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 
 from . import __version__
+from .errors import (  # small: the command line starts without the engine
+    EXIT_DATA,
+    EXIT_INTERNAL,
+    EXIT_INTERRUPTED,
+    EXIT_USAGE,
+    Cancelled,
+    QogiError,
+    is_no_space,
+)
 
 
 def cmd_info(args: argparse.Namespace) -> int:
@@ -179,6 +189,24 @@ def _on_sigterm(signum, frame):
     raise _Terminated()
 
 
+def _interrupted(exc: BaseException) -> bool:
+    """A Ctrl-C, also when it arrives wrapped: a KeyboardInterrupt while an
+    extension module (the engine, numpy) initialises becomes pybind11's
+    ``ImportError: initialization failed`` caused by it, numpy's own
+    ImportError has it in its chain."""
+    seen: set = set()
+    todo: list = [exc]
+    while todo:
+        e = todo.pop()
+        if e is None or id(e) in seen:
+            continue
+        if isinstance(e, KeyboardInterrupt):
+            return True
+        seen.add(id(e))
+        todo += [e.__cause__, e.__context__]
+    return False
+
+
 def _report_bug(command: str) -> None:
     import traceback
 
@@ -200,30 +228,27 @@ def main(argv: list[str] | None = None) -> int:
     are gone; anything else is a bug: the traceback and a request to report it
     (exit 1).
     """
-    import signal
-
-    from .errors import EXIT_DATA, EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_USAGE, Cancelled, QogiError
-
     try:
         parser = build_parser()
         args = parser.parse_args(argv)
-    except KeyboardInterrupt:
+        if not getattr(args, "func", None):
+            parser.print_help()
+            return EXIT_USAGE
+        name = args.command + (
+            f" {args.hitran_command}" if getattr(args, "hitran_command", None) else ""
+        )
+        from ._interrupts import kept
+    except (KeyboardInterrupt, ImportError) as e:
+        if not _interrupted(e):
+            raise
         print("qogi: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
-    if not getattr(args, "func", None):
-        parser.print_help()
-        return EXIT_USAGE
-    name = args.command + (
-        f" {args.hitran_command}" if getattr(args, "hitran_command", None) else ""
-    )
     previous = None
     try:
-        previous = signal.signal(signal.SIGTERM, _on_sigterm)
-    except ValueError:  # not the main thread (embedded use): leave SIGTERM alone
-        pass
-    from ._interrupts import kept
-
-    try:
+        try:
+            previous = signal.signal(signal.SIGTERM, _on_sigterm)
+        except ValueError:  # not the main thread (embedded use): leave SIGTERM alone
+            pass
         with kept():  # a Ctrl-C Python would drop (in a finaliser) still stops the run
             return int(args.func(args) or 0)
     except QogiError as e:
@@ -250,9 +275,15 @@ def main(argv: list[str] | None = None) -> int:
         text = str(e) or type(e).__name__
         if isinstance(e, OSError) and e.filename is not None and e.strerror:
             text = f"{e.filename}: {e.strerror}"
+        if is_no_space(e):  # a write outside qogi's atomic writers (e.g. standard output)
+            print(f"qogi {name}: error: no space left: {text}", file=sys.stderr)
+            return EXIT_DATA
         print(f"qogi {name}: error: {text}", file=sys.stderr)
         return EXIT_USAGE
-    except Exception:  # any other failure is a bug, reported as one  # noqa: BLE001
+    except Exception as e:  # any other failure is a bug, reported as one  # noqa: BLE001
+        if _interrupted(e):
+            print(f"qogi {name}: interrupted", file=sys.stderr)
+            return EXIT_INTERRUPTED
         _report_bug(name)
         return EXIT_INTERNAL
     finally:

@@ -10,6 +10,9 @@ exit codes.
   frames). Both derive from :class:`ValueError`, so code that caught
   ValueError keeps working.
 
+* :class:`NoSpaceError` (exit 3, a DataError and an OSError): the file
+  system filled up while a file was written; the message names the folder.
+
 * :class:`Cancelled` (exit 130): the work stopped because its progress
   callback returned False (qogi's one progress protocol, :mod:`qogi.progress`);
   ``.partial`` holds what was finished (e.g. the Result of the frames done),
@@ -22,12 +25,14 @@ traceback and asks for a report (exit 1).
 
 from __future__ import annotations
 
+import errno
 from typing import Any
 
 __all__ = [
     "QogiError",
     "UsageError",
     "DataError",
+    "NoSpaceError",
     "Cancelled",
     "EXIT_OK",
     "EXIT_INTERNAL",
@@ -46,7 +51,8 @@ EXIT_INTERRUPTED = 130
 EXIT_CODES_HELP = (
     "exit status: 0 done; 1 internal error (a bug: please report it with the traceback); "
     "2 usage error (bad argument, unwritable output, missing scene fact); 3 bad data "
-    "(unreadable file, non-physical input, or a result that is NaN/incomplete); "
+    "(unreadable file, non-physical input, a full disk, or a result that is "
+    "NaN/incomplete); "
     "130 interrupted (Ctrl-C)"
 )
 
@@ -67,6 +73,27 @@ class DataError(QogiError):
     """The input data cannot give a trustworthy answer (exit 3)."""
 
     exit_code = EXIT_DATA
+
+
+class NoSpaceError(DataError, OSError):
+    """The file system filled up while qogi wrote a file (exit 3): the
+    message names the folder and the file; nothing already there was changed.
+    Also an OSError with ``errno`` ENOSPC, so code that treats a failed write
+    as an OSError (a cache that is skipped when it cannot be written) keeps
+    doing so."""
+
+    def __init__(self, message: str):
+        super().__init__(message)
+        self.errno = errno.ENOSPC
+
+
+def is_no_space(exc: BaseException) -> bool:
+    """Whether ``exc`` (an OSError, or h5py's/HDF5's error about a failed
+    write) says the disk or the user's quota is full."""
+    if isinstance(exc, OSError) and exc.errno in (errno.ENOSPC, errno.EDQUOT):
+        return True
+    text = str(exc)
+    return "No space left on device" in text or "Disk quota exceeded" in text
 
 
 class Cancelled(Exception):

@@ -16,15 +16,17 @@ import contextlib
 import os
 import pathlib
 import tempfile
+import threading
 from typing import IO, Iterable, Iterator, Optional, Union
 
-from .errors import UsageError
+from .errors import NoSpaceError, UsageError, is_no_space
 
-__all__ = ["atomic_path", "atomic_open", "check_outputs"]
+__all__ = ["atomic_path", "atomic_open", "all_or_nothing", "check_outputs", "no_space"]
 
 PathLike = Union[str, "os.PathLike[str]"]
 
 _TMP_PREFIX = ".qogi-tmp-"
+_local = threading.local()  # this thread's all_or_nothing group
 
 
 @contextlib.contextmanager
@@ -38,7 +40,12 @@ def atomic_path(target: PathLike, *, suffix: Optional[str] = None) -> Iterator[p
     target = pathlib.Path(target)
     folder = target.parent if str(target.parent) else pathlib.Path(".")
     sfx = target.suffix if suffix is None else suffix
-    fd, tmp = tempfile.mkstemp(prefix=_TMP_PREFIX + target.name + ".", suffix=sfx, dir=folder)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=_TMP_PREFIX + target.name + ".", suffix=sfx, dir=folder)
+    except OSError as e:
+        if is_no_space(e):
+            raise no_space(target) from e
+        raise
     os.close(fd)
     tmp_path = pathlib.Path(tmp)
     try:
@@ -49,12 +56,61 @@ def atomic_path(target: PathLike, *, suffix: Optional[str] = None) -> Iterator[p
             os.chmod(tmp_path, mode)
         except OSError:
             pass
-        os.replace(tmp_path, target)
-        _fsync_dir(folder)
-    except BaseException:
+        group = getattr(_local, "group", None)
+        # A target that is itself a temporary (a writer inside another
+        # atomic_path, e.g. convert's) is renamed now: the outer one defers.
+        if group is not None and not target.name.startswith(_TMP_PREFIX):
+            group.append((tmp_path, target))  # renamed when the group completes
+        else:
+            os.replace(tmp_path, target)
+            _fsync_dir(folder)
+    except BaseException as e:
+        # Some writers report a full disk as a short write without an errno
+        # (numpy's tofile): the file system then has no free block left.
+        full = is_no_space(e) or (isinstance(e, OSError) and _free_bytes(folder) == 0)
         with contextlib.suppress(OSError):
             tmp_path.unlink()
+        if full:  # named after this target (an inner writer's is a temporary)
+            raise no_space(target) from e
         raise
+
+
+@contextlib.contextmanager
+def all_or_nothing() -> Iterator[None]:
+    """Inside the block, files written through :func:`atomic_path` (and
+    :func:`atomic_open`) replace their targets only when the whole block
+    completes; an error (a full disk at the third of four outputs) or an
+    interruption leaves every target as it was, so a set of outputs is never
+    a mix of two runs. Nested groups belong to the outermost."""
+    if getattr(_local, "group", None) is not None:
+        yield
+        return
+    group: list = []
+    _local.group = group
+    try:
+        yield
+    except BaseException:
+        for tmp, _target in group:
+            with contextlib.suppress(OSError):
+                tmp.unlink()
+        raise
+    finally:
+        _local.group = None
+    for tmp, target in group:
+        os.replace(tmp, target)
+    for folder in {t.parent if str(t.parent) else pathlib.Path(".") for _, t in group}:
+        _fsync_dir(folder)
+
+
+def no_space(target: PathLike) -> NoSpaceError:
+    """The error for a write of ``target`` that found its file system full."""
+    target = pathlib.Path(target)
+    folder = target.parent if str(target.parent) else pathlib.Path(".")
+    kept = f"{target} was left as it was" if target.exists() else "nothing was written"
+    return NoSpaceError(
+        f"no space left on {folder} (writing {target.name}): free some space there or "
+        f"write to another folder; {kept}"
+    )
 
 
 @contextlib.contextmanager
@@ -94,6 +150,17 @@ def _fsync_dir(folder: pathlib.Path) -> None:
             os.fsync(fd)
         finally:
             os.close(fd)
+
+
+def _free_bytes(folder: pathlib.Path) -> Optional[int]:
+    """Bytes this process may still write in ``folder``'s file system (root
+    may use the blocks reserved for it; None where the OS does not say)."""
+    try:
+        st = os.statvfs(folder)
+        root = os.geteuid() == 0
+    except (OSError, AttributeError):  # no statvfs or geteuid on Windows
+        return None
+    return (st.f_bfree if root else st.f_bavail) * st.f_frsize
 
 
 def _same_file(a: pathlib.Path, b: pathlib.Path) -> bool:
@@ -158,4 +225,6 @@ def check_outputs(outputs: dict, inputs: Iterable[PathLike] = ()) -> None:
             )
         if path.exists() and not os.access(path, os.W_OK) and not os.access(folder, os.W_OK):
             raise UsageError(f"{name} {path}: exists and cannot be replaced.")
+        if _free_bytes(folder) == 0:
+            raise no_space(path)
         seen[name] = path

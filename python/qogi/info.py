@@ -145,11 +145,13 @@ def flir_info(path) -> dict:
         n = len(f)
         first = f.frame(0)
         last_meta = f.metadata(n - 1)
+        damaged = list(f.damaged)
     m = first.metadata
     out = {
         "path": os.fspath(path),
         "kind": f.kind,
         "n_frames": n,
+        "damaged_frames": damaged,
         "metadata": m.as_dict(),
         "time_span_s": last_meta.timestamp_s - m.timestamp_s,
         "first_frame": {
@@ -192,6 +194,7 @@ def format_flir_info(info: dict) -> str:
     ):
         s = ff[key]
         lines.append(f"  {label:<16} {_g(s['min'], fmt)} {_g(s['mean'], fmt)} {_g(s['max'], fmt)}")
+    lines += [f"warning: {msg}" for msg in info.get("damaged_frames", [])]
     lines.append(
         f"To make a recording: qogi convert {info['path']} -o OUT.h5 --camera "
         "<preset|response.csv> [--distance M] (or qogi.open_recording(path, camera=...))"

@@ -34,6 +34,9 @@ ask for the quantity it needs whatever the file stores.
 
 from __future__ import annotations
 
+import contextlib
+import errno
+import io
 import math
 import os
 import re
@@ -42,7 +45,7 @@ from typing import Any, Dict, Iterator, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
-from .errors import DataError
+from .errors import DataError, is_no_space
 from .optics import SpectralResponse, channel_problem
 from .radiometry import band_table
 
@@ -840,6 +843,98 @@ def _h5py():
     return h5py
 
 
+class GuardedFile(io.RawIOBase):
+    """The file HDF5 writes a recording through (h5py's ``fileobj`` driver).
+
+    A failed write (a full disk, a quota) is kept in :attr:`error` and every
+    later write is dropped, so HDF5 itself never sees one fail. HDF5 that
+    sees a write fail while it flushes its caches (at close, on a full disk)
+    leaves the file open inside the library in a state in which closing it
+    fails and the interpreter's exit crashes (SIGSEGV); through this file
+    the close completes and :meth:`check` raises the write's error, after
+    which the file is deleted (it is a temporary one,
+    :func:`qogi.files.atomic_path`).
+    """
+
+    def __init__(self, path: Union[str, os.PathLike], mode: str = "w"):
+        super().__init__()
+        self._fh = open(path, "w+b" if mode == "w" else "r+b", buffering=0)  # noqa: SIM115
+        self.error: Optional[OSError] = None
+
+    def readable(self) -> bool:
+        return True
+
+    def writable(self) -> bool:
+        return True
+
+    def seekable(self) -> bool:
+        return True
+
+    def seek(self, pos: int, whence: int = 0) -> int:
+        return self._fh.seek(pos, whence)
+
+    def tell(self) -> int:
+        return self._fh.tell()
+
+    def readinto(self, b) -> int:
+        return self._fh.readinto(b)
+
+    def write(self, b) -> int:
+        n = memoryview(b).nbytes
+        if self.error is None:
+            try:
+                done = self._fh.write(b)
+                if done == n:
+                    return n
+                raise OSError(errno.ENOSPC, f"short write ({done} of {n} bytes)")
+            except OSError as e:
+                self.error = e
+        self._fh.seek(n, 1)
+        return n
+
+    def truncate(self, size: Optional[int] = None) -> int:
+        if self.error is None:
+            try:
+                return self._fh.truncate(size)
+            except OSError as e:
+                self.error = e
+        return self._fh.tell() if size is None else size
+
+    def flush(self) -> None:
+        pass  # unbuffered: every write has reached the OS
+
+    def close(self) -> None:
+        if not self.closed:
+            self._fh.close()
+        super().close()
+
+    def check(self) -> None:
+        """Raises the first failed write's error (an OSError), if any."""
+        if self.error is not None:
+            raise self.error
+
+
+@contextlib.contextmanager
+def h5_writing(path: Union[str, os.PathLike], mode: str = "w"):
+    """``h5py.File`` written through a :class:`GuardedFile`: a full disk is
+    an OSError (ENOSPC) when the block ends, never a file HDF5 cannot close.
+    ``mode`` "w" (create) or "a" (change an existing file)."""
+    sink = GuardedFile(path, mode)
+    try:
+        f = _h5py().File(sink, "w" if mode == "w" else "r+")
+    except BaseException:
+        sink.close()
+        raise
+    try:
+        yield f
+    finally:
+        try:
+            f.close()
+        finally:
+            sink.close()
+    sink.check()
+
+
 #: Largest attribute or metadata dataset (channel responses, truth) read whole [bytes].
 _MAX_METADATA_BYTES = 64 << 20
 
@@ -1618,8 +1713,11 @@ class RecordingWriter:
         self._atomic = atomic_path(self.path)
         tmp = self._atomic.__enter__()
         try:
-            self._f = h5py.File(tmp, "w")
+            self._sink = GuardedFile(tmp, "w")  # a full disk: an error here, not in HDF5
+            self._f = h5py.File(self._sink, "w")
         except BaseException as e:
+            if getattr(self, "_sink", None) is not None:
+                self._sink.close()
             self._atomic.__exit__(type(e), e, e.__traceback__)
             raise
         try:
@@ -1640,9 +1738,11 @@ class RecordingWriter:
                 "time_s", shape=(n0,), maxshape=(None,), dtype=np.float64, chunks=(4096,)
             )
             set_attr(self._time, "unit", "s")
+            self._sink.check()
         except BaseException as e:
-            self._f.close()
-            self._f = None
+            f, self._f = self._f, None
+            f.close()
+            self._sink.close()
             self._atomic.__exit__(type(e), e, e.__traceback__)
             raise
 
@@ -1704,6 +1804,7 @@ class RecordingWriter:
             self._time.resize(n1, axis=0)
         self._frames[n0:n1] = a
         self._time[n0:n1] = t
+        self._sink.check()  # a full disk stops the writer now, not at close()
         self._n = n1
         self._last_t = float(t[-1])
 
@@ -1739,11 +1840,13 @@ class RecordingWriter:
                 self._f["camera"].attrs["frame_rate_hz"] = rate
             _check_frame_rate(self.path, t, rate)
             self._f.attrs["complete"] = True
+            self._f.close()  # HDF5's last writes, through the guarded file
+            self._sink.check()
         except BaseException as e:
             self._abandon(e)
             raise
-        self._f.close()
         self._f = None
+        self._sink.close()
         self._atomic.__exit__(None, None, None)
 
     def _abandon(self, exc: BaseException) -> None:
@@ -1753,7 +1856,7 @@ class RecordingWriter:
             return
         keep = False
         try:
-            if self.keep_partial and self._n > 0:
+            if self.keep_partial and self._n > 0 and self._sink.error is None and self._f.id:
                 if self._frames.shape[0] != self._n:
                     self._frames.resize(self._n, axis=0)
                     self._time.resize(self._n, axis=0)
@@ -1763,12 +1866,17 @@ class RecordingWriter:
                 self._f.attrs["complete"] = False
                 keep = True
         finally:
-            self._f.close()
-            self._f = None
-            if keep:
+            f, self._f = self._f, None
+            try:
+                if f.id:  # open (close() may have closed it before its check failed)
+                    f.close()  # cannot fail on a full disk: the guarded file drops the writes
+            finally:
+                self._sink.close()
+            if keep and self._sink.error is None:
                 self._atomic.__exit__(None, None, None)
             else:
-                self._atomic.__exit__(type(exc), exc, exc.__traceback__)
+                err = exc if self._sink.error is None or is_no_space(exc) else self._sink.error
+                self._atomic.__exit__(type(err), err, err.__traceback__)
 
     def __enter__(self) -> RecordingWriter:
         return self

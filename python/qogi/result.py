@@ -197,7 +197,9 @@ class Result:
         velocimetry ran on (single-channel lookup at the assumed gas
         temperature: its shape is right, its scale approximate; the surfaces'
         own columns come from the full inversion), ``velocity_px_per_frame``
-        (u, v) and ``origin`` (x0, y0) of the maps in the frame."""
+        (u, v; NaN outside the part where the flow was computed,
+        ``velocity_region`` x0, y0, x1, y1 in the maps' pixels, end exclusive)
+        and ``origin`` (x0, y0) of the maps in the frame."""
         if frame not in self._maps:
             raise KeyError(
                 f"no maps kept for frame {frame}; run quantify(..., keep_maps=True) "
@@ -456,10 +458,21 @@ class Result:
             u, v = m["velocity_px_per_frame"]
             total = sum(cols.values())
             gas = total > 0.05 * np.max(total) if np.max(total) > 0 else np.zeros_like(total, bool)
+            gas = gas & np.isfinite(u) & np.isfinite(v)  # NaN: no flow computed there
             speed = np.where(gas, np.hypot(u, v), np.nan)
             ax = axes[0, -1]
             im = ax.imshow(speed, cmap="viridis")
             fig.colorbar(im, ax=ax, label="speed where there is gas [px/frame]")
+            region = m.get("velocity_region")
+            if region is not None:  # the flow's part of the maps; blank outside it
+                x0, y0, x1, y1 = region
+                ax.add_patch(
+                    plt.Rectangle(
+                        (x0 - 0.5, y0 - 0.5), x1 - x0, y1 - y0, fill=False, ec="0.4", ls="--"
+                    )
+                )
+                ax.set_xlim(-0.5, u.shape[1] - 0.5)
+                ax.set_ylim(u.shape[0] - 0.5, -0.5)
             step = max(1, min(u.shape) // 24)
             yy, xx = np.mgrid[0 : u.shape[0] : step, 0 : u.shape[1] : step]
             g = gas[::step, ::step]
@@ -467,7 +480,11 @@ class Result:
             ax.quiver(
                 xx[g], yy[g], u[::step, ::step][g], v[::step, ::step][g], color="k", angles="xy"
             )
-            ax.set_title("velocity (arrows: gas pixels)")
+            ax.set_title(
+                "velocity (arrows: gas pixels; dashed: where the flow was computed)"
+                if region is not None
+                else "velocity (arrows: gas pixels)"
+            )
             fig.tight_layout()
         else:
             raise ValueError(f"kind must be 'rates' or 'maps'; got {kind!r}")

@@ -54,6 +54,7 @@ import numpy as np
 from . import _engine
 from ._version import __version__
 from .cache import cache_dir, cache_path, store
+from .errors import DataError
 
 log = logging.getLogger(__name__)
 
@@ -268,7 +269,15 @@ def _read(files: Sequence[pathlib.Path], molecule: int) -> _Loaded:
         hit = _loaded.get(key)
     if hit is not None:
         return hit
-    lines = _engine.read_line_files([os.fspath(f) for f in files], molecule=molecule)
+    try:
+        lines = _engine.read_line_files([os.fspath(f) for f in files], molecule=molecule)
+    except RuntimeError as e:  # the engine names the file, line, field and columns
+        raise DataError(
+            f"{e}. A HITRAN .par line list has one 160-character record per line "
+            "(HITRAN2004 and later; a HAPI .data file with extra parameters needs its "
+            ".header beside it): re-download the file (`qogi hitran fetch`), or remove "
+            "it from the line-list path"
+        ) from None
     entry = _Loaded(lines, [os.fspath(f) for f in files])
     with _cache_lock:
         if len(_loaded) > 16:
@@ -343,8 +352,9 @@ def load_line_list(
     ------
     FileNotFoundError
         No line list found (the message lists where it looked).
-    RuntimeError
-        A malformed record (file, line number, field and columns named).
+    qogi.errors.DataError
+        A malformed record or an unreadable file (file, line number, field
+        and columns named, and what the format needs).
     """
     lines = _resolve(species, line_list).lines
     if nu_min_cm1 > 0 or np.isfinite(nu_max_cm1) or isotopologues or min_intensity > 0:

@@ -284,6 +284,7 @@ def auto_surfaces(
     threshold: float = 0.1,
     margin_px: float = 10.0,
     return_source: bool = False,
+    warnings=None,
 ):
     """Detect the plume in a (time-averaged) column-density or contrast image
     and place straight surfaces across it at the given distances from the source.
@@ -300,6 +301,14 @@ def auto_surfaces(
     sides (its background is taken just beyond its ends), oriented so that flow away
     from the source is positive.
 
+    Each distance must be positive (downstream of the source) and keep the
+    surface's centre inside the image: otherwise ValueError naming the usable
+    distances. A surface whose ends reach beyond the image is shortened
+    along itself to the image (it stays perpendicular to the axis) and, when
+    ``warnings`` (a :class:`qogi.diagnostics.Diagnostics`) is given, a
+    ``surface-clipped`` warning says how much was cut: the plume's part
+    outside the image is not counted.
+
     Returns the list of surfaces, or ``(surfaces, (x, y) source)`` with
     ``return_source=True`` (e.g. for ``QuantifyConfig(source=...)``, which
     turns on the transport flux level of the default velocimetry).
@@ -314,7 +323,27 @@ def auto_surfaces(
     perp = np.array([axis[1], -axis[0]])
     out = []
     h, wd = img.shape
-    for k, dist in enumerate(distances_px):
+    t_in, t_out = _span_in_image(src, axis, wd, h)
+    for k, dist in enumerate(float(d) for d in distances_px):
+        if not (np.isfinite(dist) and dist > 0):
+            raise ValueError(
+                f"distance {dist:g} px: surfaces are placed downstream of the source "
+                f"(x={src[0]:.1f}, y={src[1]:.1f}) along the plume; give distances > 0 px"
+            )
+        if not t_in <= dist <= t_out:
+            lo_d, hi_d = max(np.ceil(t_in), 1.0), np.floor(t_out)
+            usable = (
+                "the plume's axis does not cross the image downstream of the source"
+                if hi_d < lo_d
+                else f"the largest usable distance is {hi_d:.0f} px"
+                if lo_d <= 1.0
+                else f"usable distances are {lo_d:.0f} to {hi_d:.0f} px"
+            )
+            raise ValueError(
+                f"distance {dist:g} px puts the surface's centre outside the {wd} x {h} "
+                f"image (along the plume's axis from the source at x={src[0]:.1f}, "
+                f"y={src[1]:.1f}); {usable}"
+            )
         # Extent of the mask across the axis near this distance.
         along = (pts - src) @ axis
         near = np.abs(along - dist) < 3
@@ -324,15 +353,45 @@ def auto_surfaces(
             lo, hi = across.min() - pad, across.max() + pad
         else:
             lo, hi = -margin_px, margin_px
-        a = src + dist * axis + lo * perp
-        b = src + dist * axis + hi * perp
-        a = np.clip(a, 0, [wd - 1, h - 1])
-        b = np.clip(b, 0, [wd - 1, h - 1])
+        mid = src + dist * axis
+        c_lo, c_hi = _span_in_image(mid, perp, wd, h)
+        cut_lo, cut_hi = max(lo, c_lo), min(hi, c_hi)
+        if cut_hi - cut_lo < 1.0:
+            raise ValueError(
+                f"distance {dist:g} px: the plume's width there lies outside the {wd} x {h} "
+                "image; choose a distance where the plume is inside the image"
+            )
+        a, b = mid + cut_lo * perp, mid + cut_hi * perp
         s = Surface([tuple(a), tuple(b)], name=f"A{k + 1} ({dist:g} px)")
+        if warnings is not None and (cut_lo > lo or cut_hi < hi):
+            warnings.add(
+                "surface-clipped",
+                f"surface {s.name} was cut to the image: {s.length_px:.1f} of "
+                f"{hi - lo:.1f} px are inside it; gas crossing the part outside "
+                "the image is not counted (choose a distance where the plume is "
+                "inside the image)",
+                surface=s.name,
+                length_px=round(float(s.length_px), 2),
+                wanted_px=round(float(hi - lo), 2),
+            )
         out.append(s.oriented_away_from(tuple(src)))
     if return_source:
         return out, (float(src[0]), float(src[1]))
     return out
+
+
+def _span_in_image(p: np.ndarray, d: np.ndarray, width: int, height: int) -> Tuple[float, float]:
+    """The range (t0, t1) of t where ``p + t d`` lies in the image's pixel
+    centres [0, width-1] x [0, height-1] (t0 > t1: the line misses it)."""
+    t0, t1 = -np.inf, np.inf
+    for x, dx, top in ((p[0], d[0], width - 1), (p[1], d[1], height - 1)):
+        if abs(dx) < 1e-12:
+            if not 0 <= x <= top:
+                return np.inf, -np.inf
+            continue
+        a, b = (0 - x) / dx, (top - x) / dx
+        t0, t1 = max(t0, min(a, b)), min(t1, max(a, b))
+    return float(t0), float(t1)
 
 
 def truth_surfaces(

@@ -99,3 +99,76 @@ def read_recording_bytes(data: bytes, folder=None) -> int:
         with open(p, "wb") as fh:
             fh.write(data)
         return read_recording_file(p, data)
+
+
+#: What a writer may raise on a full file system.
+_KEEP = b"written before the fuzzed writer ran\n"
+
+
+def write_on_full_disk(data: bytes, folder) -> str:
+    """A writer on a nearly full file system (``folder``: an otherwise empty
+    small tmpfs). ``data`` picks the free space left (0-64 KiB), the writer
+    (a recording through write_recording or RecordingWriter, text through
+    atomic_open, arrays through numpy's savez) and how much it writes. The
+    write completes or raises NoSpaceError naming ``folder``; either way no
+    temporary file is left and the file already there is unchanged.
+    Returns "written" or "no space"; raises AssertionError on a finding."""
+    import qogi
+    from qogi.errors import NoSpaceError
+    from qogi.files import atomic_open, atomic_path
+
+    b = (data or b"\0") + bytes(4)
+    free = int.from_bytes(b[0:2], "little")  # bytes left free: 0-64 KiB
+    kind = b[2] % 4
+    size = 1 + b[3] % 64  # frames or KiB
+    folder = pathlib.Path(folder)
+    target = folder / "target.out"
+    target.write_bytes(_KEEP)
+    st = os.statvfs(folder)
+    filler = folder / "filler"
+    try:
+        with open(filler, "wb") as fh:
+            fh.write(bytes(max(0, st.f_bavail * st.f_frsize - free)))
+    except OSError:
+        pass  # full already
+    outcome = "written"
+    try:
+        if kind in (0, 1):
+            rng = np.random.default_rng(size)
+            frames = (50.0 + rng.random((size, 1, 24, 32))).astype(np.float32)
+            cam = qogi.Camera(
+                "fuzz", 1e-3, [qogi.SpectralResponse([2941.0, 3125.0], [1.0, 1.0])], 15.0
+            )
+            scene = qogi.Scene(distance_m=3.0, ambient_temperature_K=288.0, pressure_Pa=1e5)
+            rec = qogi.Recording.from_arrays(frames, quantity="radiance", camera=cam, scene=scene)
+            if kind == 0:
+                qogi.write_recording(target, rec)
+            else:
+                with qogi.RecordingWriter(
+                    target, quantity="radiance", camera=cam, scene=scene, frame_shape=(1, 24, 32)
+                ) as w:
+                    for k in range(size):
+                        w.append(frames[k], k / 15.0)
+        elif kind == 2:
+            with atomic_open(target, "w") as fh:
+                fh.write("x" * 1024 * size)
+        else:
+            with atomic_path(target, suffix=".npz") as tmp:
+                np.savez(tmp, a=np.arange(128 * size, dtype=np.float64))
+    except NoSpaceError as e:
+        if f"no space left on {folder}" not in str(e):
+            raise AssertionError(f"NoSpaceError without the folder: {e}") from e
+        outcome = "no space"
+    except Exception as e:
+        raise AssertionError(f"a full disk raised {type(e).__name__}: {e}") from e
+    finally:
+        filler.unlink(missing_ok=True)
+    left = sorted(p.name for p in folder.iterdir())
+    if left != ["target.out"]:
+        raise AssertionError(f"files left behind: {left}")
+    if outcome == "no space" and target.read_bytes() != _KEEP:
+        raise AssertionError("a failed write changed the file that was there")
+    if outcome == "written" and target.read_bytes() == _KEEP:
+        raise AssertionError("a write that returned did not replace the file")
+    target.unlink()
+    return outcome

@@ -336,3 +336,68 @@ def test_info_says_what_a_conversion_needs(lab, capsys):
     assert info["needs"]["needs"] == ["camera"]
     assert info["recording"]["scene_origin"]["distance_m"] == "file (FLIR object distance)"
     assert math.isclose(info["needs"]["holds"]["band_um"], 1e4 / 3033.1, rel_tol=1e-3)
+
+
+# ------------------------------------------------------------ damaged frames
+
+
+def _three_frame_seq(path):
+    m = dict(width=3, height=2, planck=planck_calibration_for(3030.0), field_of_view_deg=0.2)
+    metas = [flir_metadata(timestamp_s=1.7e9 + k / 30.0, frame_rate_hz=30, **m) for k in range(3)]
+    write_flir_seq(path, [np.full((2, 3), 20000 + k, np.uint16) for k in range(3)], metas)
+    return path
+
+
+def _damage_header(path, frame):
+    data = bytearray(path.read_bytes())
+    starts = [i for i in range(len(data)) if data[i : i + 4] == b"FFF\0"]
+    data[starts[frame] : starts[frame] + 4] = b"XXXX"
+    path.write_bytes(bytes(data))
+    return starts
+
+
+def test_a_frame_with_a_damaged_header_is_reported_not_skipped_silently(tmp_path, capsys):
+    """A .seq whose second frame's header is damaged: qogi info said 1 frame
+    for a 2-frame file and qogi convert wrote it, exit 0, without a word."""
+    p = _three_frame_seq(tmp_path / "three.seq")
+    starts = _damage_header(p, 1)
+    with FlirFile(p) as f:
+        assert len(f) == 2 and [f.frame(i).raw[0, 0] for i in range(2)] == [20000, 20002]
+        [msg] = f.damaged
+    assert f"frame 1 (bytes {starts[1]}-{starts[2]}" in msg and "b'XXXX'" in msg
+    with qogi.open_recording(p, camera="gf320", distance_m=3.0) as rec:
+        assert rec.n_frames == 2
+        [w] = [w for w in rec.warnings if w.code == "frames-damaged"]
+        assert w.message == msg
+    assert main(["info", str(p)]) == 0
+    assert f"warning: {msg}" in capsys.readouterr().out
+    out = tmp_path / "three.h5"
+    assert main(["convert", str(p), "-o", str(out), "--camera", "gf320", "--distance", "3"]) == 0
+    assert "qogi convert: warning: [frames-damaged]" in capsys.readouterr().err
+    with qogi.open_recording(out) as rec:
+        assert rec.n_frames == 2 and "frames-damaged" in rec.attrs["source_warnings"]
+
+
+def test_padding_between_frames_is_not_damage(tmp_path):
+    p = _three_frame_seq(tmp_path / "three.seq")
+    data = p.read_bytes()
+    second = data.index(b"FFF\0", 1)
+    p.write_bytes(data[:second] + bytes(512) + data[second:])  # zeros between blocks
+    with FlirFile(p) as f:
+        assert len(f) == 3 and f.damaged == []
+
+
+def test_a_damaged_first_header_is_bad_data(tmp_path, capsys):
+    p = _three_frame_seq(tmp_path / "three.seq")
+    _damage_header(p, 0)
+    assert main(["info", str(p)]) == 3
+    assert "not a FLIR radiometric file" in capsys.readouterr().err
+
+
+def test_the_flir_sample_with_its_second_header_damaged(flir_samples, tmp_path, capsys):
+    p = tmp_path / "SampleSEQ.seq"
+    p.write_bytes((flir_samples / "SampleSEQ.seq").read_bytes())
+    _damage_header(p, 2)  # 0, a stray 'FFF\0' inside frame 0's counts, then frame 1
+    assert main(["info", str(p)]) == 0
+    out = capsys.readouterr().out
+    assert "(seq, 1 frames" in out and "warning: " in out and "frame 1 (bytes 617180-" in out

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import json
 import os
+import subprocess
+import sys
 
 import h5py
 import numpy as np
@@ -308,3 +310,202 @@ def test_an_internal_error_shows_the_traceback_and_asks_for_a_report(capsys, mon
 
 def test_exit_codes_are_distinct():
     assert len({errors.EXIT_OK, EXIT_INTERNAL, EXIT_USAGE, EXIT_DATA, errors.EXIT_INTERRUPTED}) == 5
+
+
+# ------------------------------------------------- issue 29: the last cases
+
+
+def _lab_plume_image(h=240, w=320, src=(159.5, 227.0)):
+    """A plume rising straight up from ``src`` and widening (a detection image)."""
+    y, x = np.mgrid[0:h, 0:w].astype(float)
+    rise = np.clip(src[1] - y, 0.0, None)
+    width = 3.0 + 0.25 * rise
+    return np.where(y <= src[1], np.exp(-0.5 * ((x - src[0]) / width) ** 2) / width, 0.0)
+
+
+@pytest.mark.parametrize("dist", [-20.0, 0.0, float("nan")])
+def test_auto_surfaces_refuse_a_distance_that_is_not_downstream(dist):
+    """--auto-surfaces=-20 used to put the surface on the image's bottom row,
+    below the source (0.107 kg/h for a 0.200 kg/h release, exit 0)."""
+    from qogi.surfaces import auto_surfaces
+
+    with pytest.raises(ValueError, match=r"give distances > 0 px"):
+        auto_surfaces(_lab_plume_image(), [dist], source=(159.5, 227.0))
+
+
+@pytest.mark.parametrize("dist", [5000.0, 300.0, 228.0])
+def test_auto_surfaces_refuse_a_distance_beyond_the_image_naming_the_largest(dist):
+    """5000 px (or 300 on a 240-row image) used to be clipped to a stub in a
+    corner or to the top row and read "not detected" without a word."""
+    from qogi.surfaces import auto_surfaces
+
+    with pytest.raises(ValueError, match=r"the largest usable distance is 227 px"):
+        auto_surfaces(_lab_plume_image(), [dist], source=(159.5, 227.0))
+    assert auto_surfaces(_lab_plume_image(), [227.0], source=(159.5, 227.0))
+
+
+def test_a_surface_cut_by_the_image_border_is_shortened_along_itself_and_warned():
+    from qogi.diagnostics import Diagnostics
+    from qogi.surfaces import auto_surfaces
+
+    img = _lab_plume_image(h=240, w=80, src=(39.5, 227.0))  # the plume outgrows the width
+    warns = Diagnostics()
+    low, high = auto_surfaces(img, [20.0, 200.0], source=(39.5, 227.0), warnings=warns)
+    assert [w.surface for w in warns] == [high.name] and warns.codes() == ["surface-clipped"]
+    assert "was cut to the image" in warns[0].message
+    assert warns[0].data["length_px"] < warns[0].data["wanted_px"]
+    p = np.asarray(high.points)
+    assert np.all((p >= 0) & (p <= [79, 239]))
+    assert p[0, 1] == pytest.approx(p[1, 1])  # still across the (vertical) axis
+    assert np.asarray(low.points)[:, 0].min() > 0  # the low one fits: not warned
+
+
+@pytest.mark.parametrize(
+    "value, needle",
+    [("5000", "the largest usable distance is"), ("-20", "give distances > 0 px")],
+)
+def test_quantify_auto_surfaces_out_of_range_is_a_usage_error(capsys, rec, value, needle):
+    code, _, err = run(capsys, "quantify", rec, f"--auto-surfaces={value}", "--source", "16,22")
+    line = one_line_error(err, "quantify")
+    assert code == EXIT_USAGE and f"--auto-surfaces {value}" in line and needle in line
+
+
+def test_quantify_accepts_a_dict_config_and_names_the_types_it_accepts(rec):
+    """quantify(rec, surfaces, {"species": ["CH4"]}) and (..., "CH4") used
+    to fail with AttributeError: 'dict' object has no attribute 'source'."""
+    import qogi
+
+    surfaces = [qogi.Surface.parse(SURFACE)]
+    with pytest.raises(TypeError, match=r"config must be a qogi\.QuantifyConfig, a dict"):
+        qogi.quantify(str(rec), surfaces, "CH4")
+    with pytest.raises(errors.UsageError, match=r"unknown setting.*specie\b"):
+        qogi.quantify(str(rec), surfaces, {"specie": ["CH4"]})
+    got = qogi.quantify(
+        str(rec), surfaces, {"species": ["CH4"], "source": [16, 22], "frames": [0, 6]}
+    )
+    assert got.config == qogi.QuantifyConfig(species=["CH4"], source=(16, 22), frames=(0, 6))
+
+
+@pytest.mark.parametrize(
+    "field, value",
+    [
+        ("num_threads", 1.5),
+        ("num_threads", "2"),
+        ("num_threads", -1),
+        ("num_threads", True),
+        ("pair_stride", 2.0),
+        ("block_frames", 64.5),
+        ("frames", (0.5, 10)),
+        ("frames", (0, 10.0)),
+    ],
+)
+def test_integer_settings_refuse_other_values_at_construction(field, value):
+    """QuantifyConfig(num_threads=1.5) used to be accepted and fail later
+    with a TypeError inside the engine."""
+    import qogi
+
+    with pytest.raises(ValueError, match=f"{field} must be"):
+        qogi.QuantifyConfig(**{field: value})
+
+
+def test_integer_settings_take_numpy_integers_as_ints():
+    import qogi
+
+    cfg = qogi.QuantifyConfig(num_threads=np.int64(2), frames=(np.int32(0), np.int64(5)))
+    assert cfg.num_threads == 2 and type(cfg.num_threads) is int
+    assert cfg.frames == (0, 5) and all(type(v) is int for v in cfg.frames)
+
+
+BROKEN_PAR = "  61 3000.000000 1.000E-20 this is not a HITRAN record\n"  # 53 characters
+
+
+def test_a_line_list_not_in_the_par_format_is_bad_data_naming_file_and_line(
+    capsys, tmp_path, monkeypatch
+):
+    """Given with --line-list or found on QOGI_HITRAN_PATH (xsec, hitran
+    list, quantify): exit 3 naming the file, the line and what the format
+    needs, not an internal error (RuntimeError: truncated record, exit 1)."""
+    folder = tmp_path / "lines"
+    folder.mkdir()
+    par = folder / "CH4.par"
+    par.write_text("\n" + BROKEN_PAR)  # the record is line 2
+    monkeypatch.setenv("QOGI_CACHE_DIR", str(tmp_path / "cache"))
+    code, _, err = run(capsys, "xsec", "CH4", "--range", "2990", "3010", "--line-list", par)
+    line = one_line_error(err, "xsec")
+    assert code == EXIT_DATA and f"{par}:2: truncated record" in line
+    assert "one 160-character record per line" in line
+    monkeypatch.setenv("QOGI_HITRAN_PATH", str(folder))
+    code, _, err = run(capsys, "hitran", "list", "CH4")
+    assert code == EXIT_DATA and f"{par}:2" in one_line_error(err, "hitran list")
+    # quantify in a fresh process (this one may hold the scene's tables already).
+    rec = small_recording(tmp_path / "r.h5", n_frames=8)
+    r = subprocess.run(
+        [sys.executable, "-m", "qogi", "quantify", str(rec), "-q", "--surface", SURFACE],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
+    assert r.returncode == EXIT_DATA and f"{par}:2" in one_line_error(r.stderr, "quantify")
+
+
+@pytest.mark.parametrize("source", [[], ["--source", "16,22"]])
+def test_a_texture_velocimetry_is_warned_with_or_without_a_source(capsys, rec, tmp_path, source):
+    """--velocity farneback without --source read 0.0001 kg/h for a 0.2 kg/h
+    release without a word; with --source the engine refused it ("source_mask
+    applies to the fluid method only"). Both now run and say why the number
+    is not a flux."""
+    out = tmp_path / "r.json"
+    code, _, err = run(
+        capsys, "quantify", rec, "--surface", SURFACE, "--velocity", "farneback", *source,
+        "-q", "--json", out,
+    )  # fmt: skip
+    assert code in (0, EXIT_DATA) and "Traceback" not in err and "source_mask" not in err, err
+    [w] = [w for w in json.loads(out.read_text())["warnings"] if w["code"] == "velocity-texture"]
+    assert "tracks the plume's texture" in w["message"] and "fluid" in w["message"]
+
+
+def test_the_velocity_map_is_blank_where_no_flow_was_computed(tmp_path):
+    """The maps plot painted 0 px/frame outside the flow's part of the
+    region (the upper half of the demo's plume); there is no velocity there."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import qogi
+
+    chs = [qogi.SpectralResponse([2941.18, 3125.0], [1.0, 1.0], name="3.2-3.4 um")]
+    t = np.arange(12)[:, None, None]
+    y, x = np.arange(96)[None, :, None], np.arange(48)[None, None, :]
+    temp = 285.0 + 25.0 * np.exp(-((x - 24) ** 2 + (y - (88 - 2 * t)) ** 2) / 20.0)
+    frames = chs[0].band_radiance(temp.ravel()).reshape(temp.shape)[:, None]
+    tall = qogi.Recording.from_arrays(
+        frames,
+        quantity="radiance",
+        camera=qogi.Camera("test camera", 1e-3, chs, frame_rate_hz=10.0, netd_K=0.02),
+        scene=qogi.Scene(distance_m=3.0, ambient_temperature_K=288.0, pressure_Pa=101325.0),
+    )
+    cfg = qogi.QuantifyConfig(source=(24.0, 90.0))
+    res = qogi.quantify(tall, [qogi.Surface.parse("8,80,40,80")], cfg, keep_maps=True)
+    m = res.maps(res.map_frames[0])
+    u, v = m["velocity_px_per_frame"]
+    x0, y0, x1, y1 = m["velocity_region"]
+    inside = np.zeros(u.shape, bool)
+    inside[y0:y1, x0:x1] = True
+    assert not inside.all(), "the flow covers the whole region: nothing to check"
+    assert np.isnan(u[~inside]).all() and np.isnan(v[~inside]).all()
+    assert np.isfinite(u[inside]).all() and np.isfinite(v[inside]).all()
+    fig = res.plot(tmp_path / "maps.png", kind="maps")
+    [ax] = [a for a in fig.axes if a.get_title().startswith("velocity")]
+    assert "where the flow was computed" in ax.get_title()
+    assert len(ax.patches) == 1  # the computed region's outline
+
+
+def test_a_pair_stride_too_long_for_the_frames_is_reduced_with_a_warning(rec):
+    """Another option that was clamped without a word: pair_stride=10 on
+    8 frames ran with a stride of 3."""
+    import qogi
+
+    cfg = qogi.QuantifyConfig(source=(16.0, 22.0), pair_stride=10)
+    res = qogi.quantify(str(rec), [qogi.Surface.parse(SURFACE)], cfg)
+    [w] = [w for w in res.warnings if w.code == "pair-stride-reduced"]
+    assert w.data == {"given": 10, "used": 3} and "was reduced to 3" in w.message

@@ -306,3 +306,73 @@ def test_a_ctrl_c_python_drops_still_stops_quantify(rec, tmp_path, monkeypatch, 
     from qogi import _interrupts
 
     assert _interrupts.pending() is None
+
+
+def test_importing_the_command_line_loads_no_engine():
+    """``import qogi`` (the console script's ``from qogi.cli import main``)
+    loaded the whole package, about 0.15-0.5 s, before main() could catch a
+    Ctrl-C: it printed a KeyboardInterrupt traceback instead of exit 130.
+    qogi's names now load on first use (PEP 562)."""
+    code = (
+        "import sys, qogi.cli\n"
+        "print(sorted(m for m in sys.modules if m.split('.')[0] in "
+        "('qogi', 'numpy', 'h5py', 'scipy')))\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=60
+    ).stdout
+    assert out.strip() == "['qogi', 'qogi._version', 'qogi.cli', 'qogi.errors']", out
+
+
+def test_every_public_name_still_loads_from_the_package():
+    for name in qogi.__all__:
+        assert getattr(qogi, name) is not None, name
+    assert set(qogi.__all__) <= set(dir(qogi))
+    from qogi import Result, quantify  # the from-import form too
+
+    assert quantify.__module__ == "qogi.pipeline.run" and Result.__name__ == "Result"
+    with pytest.raises(AttributeError, match="has no attribute 'nope'"):
+        qogi.nope  # noqa: B018
+
+
+# Ctrl-C delivered while one module loads (a real SIGINT, sent from an import
+# hook when the import of that module starts), then `qogi info` run as the
+# console script runs it: deterministic, whatever the machine's speed.
+CTRL_C_IN_IMPORT = """
+import os, runpy, signal, sys
+target = sys.argv.pop(1)
+
+class CtrlC:
+    def find_spec(self, name, path=None, target_module=None):
+        if name == target:
+            sys.meta_path.remove(self)
+            os.kill(os.getpid(), signal.SIGINT)
+        return None
+
+sys.meta_path.insert(0, CtrlC())
+sys.argv[0] = "qogi"
+from qogi.cli import main
+sys.exit(main())
+"""
+
+
+@pytest.mark.parametrize(
+    "module",
+    ["qogi._cli_camera", "qogi.presets", "numpy", "qogi._engine", "qogi.info", "h5py"],
+)
+def test_ctrl_c_while_qogi_info_loads_its_modules_exits_130(rec, module):
+    """Ctrl-C in the first moments of ``qogi info`` landed in ``import qogi``
+    (the whole package, about 0.15 s) and printed a KeyboardInterrupt
+    traceback; inside the engine's or numpy's initialisation it arrives as
+    an ImportError caused by it. Now: exit 130 and one line."""
+    r = subprocess.run(
+        [sys.executable, "-c", CTRL_C_IN_IMPORT, module, "info", str(rec)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+        preexec_fn=_ctrl_c_on,
+    )
+    assert r.returncode == 130, f"exit {r.returncode}\n{r.stderr}"
+    assert "Traceback" not in r.stderr, r.stderr
+    assert r.stderr.strip() in ("qogi: interrupted", "qogi info: interrupted"), r.stderr

@@ -19,6 +19,7 @@ from scipy.special import wofz
 
 import qogi
 from qogi import _engine, spectra
+from qogi.errors import DataError
 
 DATA = pathlib.Path(__file__).resolve().parents[1] / "data"
 
@@ -328,13 +329,13 @@ def test_malformed_line_file_error(tmp_path, hitran_dir):
     bad = good[1][:20] + "x" + good[1][21:]
     path = tmp_path / "CH4.par"
     path.write_text("\n".join([good[0], bad, good[2]]) + "\n")
-    with pytest.raises(RuntimeError, match=r"CH4\.par:2: field 'sw' \(columns 16-25\)"):
+    with pytest.raises(DataError, match=r"CH4\.par:2: field 'sw' \(columns 16-25\)"):
         qogi.load_line_list("CH4", path)
     path.write_text(good[0][:100] + "\n")
-    with pytest.raises(RuntimeError, match=r"CH4\.par:1: truncated record"):
+    with pytest.raises(DataError, match=r"CH4\.par:1: truncated record"):
         qogi.load_line_list("CH4", path)
     path.write_text("77" + good[0][2:] + "\n")
-    with pytest.raises(RuntimeError, match="unknown HITRAN molecule code 77"):
+    with pytest.raises(DataError, match="unknown HITRAN molecule code 77"):
         qogi.load_line_list("CH4", path)
 
 

@@ -206,12 +206,21 @@ class SurfaceEditor:
         if not dists or any(not (d > 0) for d in dists):
             return vm.log.error("give one or more distances > 0 px, e.g. 30, 60, 90")
         source = vm.form.source_point()
+        from qogi.diagnostics import Diagnostics
+
+        placed = Diagnostics()
         try:
             found, src = qogi.auto_surfaces(
-                qogi.plume_image(vm.recording), dists, source=source, return_source=True
+                qogi.plume_image(vm.recording),
+                dists,
+                source=source,
+                return_source=True,
+                warnings=placed,
             )
         except ValueError as e:
             return vm.log.error(f"automatic surfaces: {e}")
+        for w in placed:
+            vm.log.info(f"warning: {w.message}")
         r = vm.recording
         added = 0
         for surf in found:

@@ -449,10 +449,14 @@ class FlirFile:
                 f"{magic!r}; expected 'FFF\\0' for .seq/.csq/.fff or a JPEG)"
             )
         self._blocks: List[_Block] = []
+        #: Frames skipped because their header is damaged: one message each
+        #: (frame index in the file's order, byte range, what was found).
+        self.damaged: List[str] = []
         pos = 0
         while pos + 0x40 <= len(self._buf):
             if bytes(self._buf[pos : pos + 4]) not in _FFF_MAGIC:
                 nxt = self._find_next(pos)
+                self._note_skipped(pos, len(self._buf) if nxt is None else nxt)
                 if nxt is None:
                     break
                 pos = nxt
@@ -464,6 +468,20 @@ class FlirFile:
             pos = max(block.end, pos + 0x40)
         if not self._blocks:
             raise FlirFormatError(f"{self.path}: no frame (no FFF block with a RawData record)")
+
+    def _note_skipped(self, start: int, stop: int) -> None:
+        """Bytes [start, stop) that hold no FFF block: padding between
+        blocks (a few bytes, or one repeated byte) is normal; more than a
+        block header's worth of other bytes is a frame whose header is damaged."""
+        gap = bytes(self._buf[start : min(stop, start + (1 << 16))])
+        if stop - start <= 0x40 or len(set(gap)) <= 1:
+            return
+        frame = len(self._blocks)
+        self.damaged.append(
+            f"{self.path}: frame {frame} (bytes {start}-{stop}, {stop - start} bytes) "
+            f"skipped: no FFF frame header there (it starts with {gap[:4]!r}, expected "
+            "'FFF\\0'); the file is damaged and this frame is left out"
+        )
 
     def _find_next(self, pos: int) -> Optional[int]:
         """Next FFF header at or after pos that parses (padding between blocks)."""

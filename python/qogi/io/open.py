@@ -474,6 +474,8 @@ def _open_flir(
                 f"{p}: frames have different sizes {sorted({(m.width, m.height) for m in metas})}"
             )
         warns, origins = Diagnostics(), {"camera": "given", "time_s": "file (frame time stamps)"}
+        for msg in f.damaged:  # frames the reader had to leave out
+            warns.add("frames-damaged", msg)
         times, rate = _times(p, np.array([m.timestamp_s for m in metas]), m0.frame_rate_hz, warns)
         if warns.has("frame-times-from-rate"):
             origins["time_s"] = "file (nominal frame rate)"
@@ -628,6 +630,13 @@ def _open_hcc(
                 f"{name}: {skipped} frame(s) left out because their wheel turn was "
                 "incomplete (a dropped frame)",
                 missing=int(skipped),
+            )
+        if h.trailing_bytes:  # a last frame cut off (a truncated copy or recording)
+            warns.add(
+                "frames-damaged",
+                f"{name}: the {h.trailing_bytes} bytes after frame {h.n_frames - 1} are less "
+                f"than a whole frame ({h.stride} bytes): a cut-off last frame was left out",
+                trailing_bytes=int(h.trailing_bytes),
             )
         facts = {}
         for key, given, flag, why in (

@@ -47,21 +47,25 @@ def block_flux(
 
 def block_maps(st: RunState, blk, cols: BlockColumns, flows: Flow) -> dict:
     """Maps (every tenth of the run) keyed by the recording's frame index,
-    the velocity back in the whole region."""
+    the velocity back in the whole region: NaN outside the part where the
+    flow was computed (``velocity_region``: x0, y0, x1, y1 in the maps'
+    pixels, end exclusive), which has no velocity, not a zero one."""
     a = blk.read[0]
     first = st.start + a
     col_fields = cols.fields
     maps = {}
     fu, fv, (cx, cy) = flows.u, flows.v, flows.origin
+    region = (int(cx), int(cy), int(cx) + fu.shape[2], int(cy) + fu.shape[1])
     for k in range(blk.offset, blk.offset + blk.n_keep):
         if (a + k) % st.map_every:
             continue
-        uv = tuple(np.zeros(col_fields.shape[1:], np.float32) for _ in range(2))
+        uv = tuple(np.full(col_fields.shape[1:], np.nan, np.float32) for _ in range(2))
         for full, p in zip(uv, (fu[k], fv[k])):
             full[cy : cy + p.shape[0], cx : cx + p.shape[1]] = p
         maps[first + k] = {
             "column_density_kg_m2": {st.cfg.species[0]: col_fields[k].copy()},
             "velocity_px_per_frame": uv,
+            "velocity_region": region,
             "origin": (st.roi.x0, st.roi.y0),
         }
     return maps

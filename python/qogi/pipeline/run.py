@@ -49,7 +49,9 @@ def quantify(
         Lines or polylines in pixel coordinates; sign convention in
         :mod:`qogi.surfaces` (left-hand normal positive), or oriented away from
         ``config.source`` when given.
-    config : QuantifyConfig, optional
+    config : QuantifyConfig or dict, optional
+        A dict is read as :meth:`QuantifyConfig.from_dict` reads it (the flat
+        keys; an unknown key is a :class:`qogi.UsageError`).
     progress : callable(fraction, message) -> bool or None
         qogi's progress protocol (:mod:`qogi.progress`): returning False
         cancels: :class:`qogi.Cancelled` is raised with the partial result of
@@ -63,7 +65,7 @@ def quantify(
     """
     from ..recording import open_recording
 
-    cfg = config or QuantifyConfig()
+    cfg = _config(config)
     rec = open_recording(recording) if not isinstance(recording, Recording) else recording
     surfaces = [s if isinstance(s, Surface) else Surface(s) for s in surfaces]
     surfaces = [Surface(s.points, s.name or f"S{k + 1}") for k, s in enumerate(surfaces)]
@@ -98,6 +100,20 @@ def quantify(
 def _plain(v):
     """A JSON-friendly copy of a setting's value (lists for tuples)."""
     return list(v) if isinstance(v, (tuple, list)) else v
+
+
+def _config(config) -> QuantifyConfig:
+    """The run's config from :func:`quantify`'s ``config`` argument."""
+    if config is None:
+        return QuantifyConfig()
+    if isinstance(config, QuantifyConfig):
+        return config
+    if isinstance(config, dict):
+        return QuantifyConfig.from_dict(config)
+    raise TypeError(
+        f"config must be a qogi.QuantifyConfig, a dict of its keys (e.g. "
+        f"{{'species': ['CH4']}}) or None; got {type(config).__name__} {config!r:.60}"
+    )
 
 
 def _run(
