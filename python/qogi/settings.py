@@ -523,7 +523,10 @@ def _check_number(s: Setting, v, integer: bool = False):
     alt = f" or None ({s.none})" if s.none else ""
     if integer:
         if not _is_integer(v):
-            raise SettingError(s.name, f"must be a whole number{alt}; got {_fmt(v)}")
+            # A float is quoted as written (2.0, not 2): an integer setting
+            # refuses it rather than rounding it silently.
+            got = repr(v) if isinstance(v, float) else _fmt(v)
+            raise SettingError(s.name, f"must be a whole number{alt}; got {got}")
         v = int(v)
     else:
         if not _is_number(v):
