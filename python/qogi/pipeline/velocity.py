@@ -173,8 +173,13 @@ def _block_velocity(
     # docs/velocimetry.md), on a worker thread while the flow runs.
     job = None
     if plan.on:
+        # Only the plume's part of each line (vel.transport_band): noise
+        # common to a line would draw the flux level low in faint plumes.
+        band = vel.transport_band(velocity_frames.mean(axis=0), axis)
         job = _workers_mod.current().submit(
-            lambda: vel.transport_flux(velocity_frames, axis, region_index, intervals=intervals),
+            lambda: vel.transport_flux(
+                velocity_frames * band, axis, region_index, intervals=intervals
+            ),
             "qogi-transport",
         )
     # Pairs `stride` frames apart where the plume moves little per frame
