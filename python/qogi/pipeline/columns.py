@@ -23,6 +23,7 @@ from .. import workers as _workers_mod
 from ..errors import Cancelled
 from ..inversion import plume_depth_from_width
 from ..recording import Recording
+from ..selfchecks import SurfaceEvidence
 from ..surfaces import Region, Surface
 from .background import Background
 from .config import QuantifyConfig
@@ -230,6 +231,8 @@ class InvertedColumns:
         self.proxy_channel = int(np.argmax(sens))
         self._set_proxy_lookup(0.0 if cfg.gas_temperature == "infer" else None)
         self.sigma_m: Dict[int, float] = {}
+        #: The self-diagnostics' sums per surface, over the run's blocks.
+        self.evidence: Dict[int, SurfaceEvidence] = {}
 
     def start_block(self) -> None:
         """Forgets the samples collected for the previous block (the pipeline
@@ -585,6 +588,12 @@ class InvertedColumns:
             res_sig = {sp: flat.column_density_sigma[sp].reshape(nt, n_) for sp in self.cfg.species}
             ok = (flat.valid | (flat.status == inv.BELOW_DETECTION)).reshape(nt, n_)
             counts = flat.counts()
+        status = (
+            np.repeat(res.status[None], nt, axis=0)
+            if time_averaged
+            else flat.status.reshape(nt, rad.shape[2])
+        )
+        self._note_evidence(rad, bg, status, edges)
         out = []
         for j in range(len(samples)):
             a, b = edges[j], edges[j + 1]
@@ -803,7 +812,23 @@ class InvertedColumns:
             cols = {sp: np.where(ok[:, a:b], res_cols[sp][:, a:b], np.nan) for sp in cfg.species}
             sigs = {sp: np.where(ok[:, a:b], res_sig[sp][:, a:b], 0.0) for sp in cfg.species}
             out.append((cols, sigs))
+        self._note_evidence(rad, bg, flat.status.reshape(nt, n), edges)
         return out, flat.counts()
+
+    def _note_evidence(self, rad, bg, status, edges) -> None:
+        """Adds a block's self-diagnostic sums per surface
+        (:class:`qogi.selfchecks.SurfaceEvidence`): the proxy channel's
+        sign-aware contrast (T, C, N radiance and background) in units of
+        its NETD noise, and the inversion's status (T, N)."""
+        c = self.proxy_channel
+        netd = float(np.broadcast_to(np.asarray(self._inv_kw["netd_K"], float), (rad.shape[1],))[c])
+        noise = netd * float(self.rec.channels[c].band_radiance_derivative(self._bg_t))
+        contrast = (rad[:, c, :] - bg[:, c, :]) * (self.background.channel_sign[c] / noise)
+        at_bound = status == self.inv_module.AT_BOUND
+        for j in range(len(edges) - 1):
+            a, b = edges[j], edges[j + 1]
+            ev = SurfaceEvidence.of(contrast[:, a:b], at_bound[:, a:b])
+            self.evidence.setdefault(j, SurfaceEvidence()).__iadd__(ev)
 
     def _invert(self, rad, bg, sigma_pixels, sigma_param, noise_scale, progress):
         """One inversion call; with an inferred temperature and no given depth,
