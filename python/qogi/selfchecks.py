@@ -26,7 +26,14 @@ per surface, summed over the run's blocks (:class:`SurfaceEvidence`):
 * ``reversed_fraction``: the share of the flux through the surface (column
   x normal speed, summed over frames and samples in absolute value) that
   runs against the surface's orientation (the flux level's flow
-  reversals).
+  reversals);
+* ``upwind_contrast_noise``: the RMS contrast, in noise, of the pixels more
+  than :data:`UPWIND_MIN_PX` behind the source (against the direction from
+  the source to the surfaces), where the gas does not go: a right, static
+  background leaves noise there (about 1, or 1.9 against a 5th-percentile
+  background); clouds drifting across the frame, or a background estimate
+  that misses the scene's structure, leave their contrast. The same for
+  every surface of the run; measured only with the source given.
 
 Each has a threshold (``THRESHOLDS``; chosen on seeds 0-2 of the structured
 presets and reported on seeds 3-5, docs/validation.md) above which the
@@ -39,7 +46,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Dict, List, Tuple
+from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
@@ -49,6 +56,8 @@ __all__ = [
     "CODES",
     "NEGATIVE_SIGMA",
     "failure_terms",
+    "upwind_mask",
+    "UPWIND_MIN_PX",
 ]
 
 #: Contrast below -NEGATIVE_SIGMA noise (the gas's sign) counts as negative.
@@ -64,13 +73,17 @@ THRESHOLDS: Dict[str, float] = {
     "negative_fraction": 0.10,
     "background_residual_noise": 4.0,
     "reversed_fraction": 0.15,
+    "upwind_contrast_noise": 6.0,
 }
+#: Pixels at least this far behind the source [px] make the upwind region.
+UPWIND_MIN_PX = 15.0
 #: The warning code each measure raises.
 CODES: Dict[str, str] = {
     "at_bound_fraction": "inversion-at-bound",
     "negative_fraction": "negative-columns",
     "background_residual_noise": "background-residual",
     "reversed_fraction": "flow-reversed",
+    "upwind_contrast_noise": "contrast-upwind",
 }
 
 
@@ -89,6 +102,10 @@ class SurfaceEvidence:
     #: :class:`qogi.flux_summary.FluxSummary`).
     flux_against: float = 0.0
     flux_abs: float = 0.0
+    #: Sum of squared contrasts [noise^2] over the upwind region's
+    #: pixel-frames, and their number (the run's, :func:`upwind_mask`).
+    upwind_sq: float = 0.0
+    upwind_n: int = 0
 
     @classmethod
     def of(
@@ -132,6 +149,9 @@ class SurfaceEvidence:
                 math.sqrt(2.0 * self.deficit_sq / self.pixels) if self.pixels else nan
             ),
             "reversed_fraction": self.flux_against / self.flux_abs if self.flux_abs > 0 else nan,
+            "upwind_contrast_noise": (
+                math.sqrt(self.upwind_sq / self.upwind_n) if self.upwind_n else nan
+            ),
         }
 
     def mean_gas_contrast_noise(self) -> float:
@@ -148,10 +168,11 @@ def failure_terms(ev: SurfaceEvidence) -> Tuple[Dict[str, float], List[Tuple[str
     * at a bound or negative: the fraction itself (the share of the
       pixel-frames whose column the inversion did not measure; the flux
       through them is unknown up to that share);
-    * background residual: the residual over the mean contrast of the gas
-      on the surface (a column changes in proportion to the contrast where
-      the plume is thin: a background wrong by r noise moves a column
-      whose contrast is C noise by r / C of itself);
+    * background residual, contrast upwind: the residual (the upwind
+      contrast) over the mean contrast of the gas on the surface (a
+      column changes in proportion to the contrast where the plume is
+      thin: a background wrong by r noise moves a column whose contrast
+      is C noise by r / C of itself);
     * reversed: twice the fraction (a flux reversed on a share r of the
       gross flux moves the net by 2 r).
 
@@ -163,7 +184,7 @@ def failure_terms(ev: SurfaceEvidence) -> Tuple[Dict[str, float], List[Tuple[str
         v = m[key]
         if not (math.isfinite(v) and v > limit):
             continue
-        if key == "background_residual_noise":
+        if key in ("background_residual_noise", "upwind_contrast_noise"):
             c = ev.mean_gas_contrast_noise()
             term = v / c if math.isfinite(c) and c > 0 else 1.0
         elif key == "reversed_fraction":
@@ -172,3 +193,22 @@ def failure_terms(ev: SurfaceEvidence) -> Tuple[Dict[str, float], List[Tuple[str
             term = v
         failed.append((key, float(min(term, 1.0))))
     return m, failed
+
+
+def upwind_mask(width: int, height: int, source, surfaces) -> Optional[np.ndarray]:
+    """The pixels (H, W) bool more than :data:`UPWIND_MIN_PX` behind the
+    source ``(x, y)`` [px] along the direction from it to the surfaces'
+    mean midpoint; None without a source, or when fewer than 50 pixels
+    qualify."""
+    if source is None or not surfaces:
+        return None
+    mids = np.array([np.asarray(s.points, float).mean(axis=0) for s in surfaces])
+    d = mids.mean(axis=0) - np.asarray(source, float)
+    norm = float(np.hypot(*d))
+    if not norm > 0:
+        return None
+    d /= norm
+    y, x = np.mgrid[0:height, 0:width]
+    along = (x - source[0]) * d[0] + (y - source[1]) * d[1]
+    mask = along < -UPWIND_MIN_PX
+    return mask if mask.sum() >= 50 else None

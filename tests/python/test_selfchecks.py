@@ -186,3 +186,24 @@ def test_textured_sky_auto_background_takes_the_inpainted_percentile(textured_sk
         r = s.species["CH4"]
         assert abs(r.error_vs_truth) < 0.25, r.error_vs_truth
         assert r.ci90_kg_h[0] <= r.truth_kg_h <= r.ci90_kg_h[1], (r.mean_kg_h, r.ci90_kg_h)
+
+
+def test_upwind_region_lies_behind_the_source_and_its_contrast_is_measured():
+    surfaces = [Surface([(60, 10), (60, 50)]), Surface([(80, 10), (80, 50)])]
+    mask = selfchecks.upwind_mask(100, 60, (30.0, 30.0), surfaces)
+    assert mask is not None
+    assert mask[:, :14].all() and not mask[:, 16:].any()  # x < 30 - 15 only
+    assert selfchecks.upwind_mask(100, 60, None, surfaces) is None
+    # A static background leaves noise there; a moving one its contrast.
+    quiet = SurfaceEvidence(pixel_frames=1, upwind_sq=1.2 * 1000, upwind_n=1000)
+    moving = SurfaceEvidence(
+        pixel_frames=1,
+        upwind_sq=40.0**2 * 1000,
+        upwind_n=1000,
+        gas_contrast_sum=80.0 * 10,
+        gas_pixel_frames=10,
+    )
+    assert selfchecks.failure_terms(quiet)[1] == []
+    m, failed = selfchecks.failure_terms(moving)
+    assert m["upwind_contrast_noise"] == pytest.approx(40.0)
+    assert dict(failed)["upwind_contrast_noise"] == pytest.approx(0.5)

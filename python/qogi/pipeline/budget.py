@@ -354,7 +354,11 @@ def _self_checks(st: RunState, j: int, surface: str, sp: str, summary, relative,
     if not isinstance(columns, InvertedColumns) or j not in columns.evidence:
         return None
     ev = dataclasses.replace(
-        columns.evidence[j], flux_against=summary.flux_against, flux_abs=summary.flux_abs
+        columns.evidence[j],
+        flux_against=summary.flux_against,
+        flux_abs=summary.flux_abs,
+        upwind_sq=columns.upwind_sums[0],
+        upwind_n=int(columns.upwind_sums[1]),
     )
     measures, failed = selfchecks.failure_terms(ev)
     what = {
@@ -367,10 +371,13 @@ def _self_checks(st: RunState, j: int, surface: str, sp: str, summary, relative,
         "(it stands beyond the radiance's own floor where the gas leaves the pixels)",
         "reversed_fraction": "of the flux through the surface runs against its "
         "orientation (the flow reverses)",
+        "upwind_contrast_noise": "noise RMS contrast behind the source, where the gas "
+        "does not go: the background moves (drifting clouds) or the estimate misses "
+        "the scene's structure",
     }
     for key, term in failed:
         v = measures[key]
-        size = f"{v:.1f}" if key == "background_residual_noise" else f"{100 * v:.0f} %"
+        size = f"{v:.1f}" if key.endswith("_noise") else f"{100 * v:.0f} %"
         warnings.add(
             selfchecks.CODES[key],
             f"{size} {what[key]}; threshold {selfchecks.THRESHOLDS[key]:g}: the rate's "

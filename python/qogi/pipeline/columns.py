@@ -43,6 +43,13 @@ def prepare(run: RunState) -> None:
         run.columns = InvertedColumns(
             run.rec, run.cfg, run.scene, run.roi, run.horizontal, run.background
         )
+        # Where the gas does not go: the self-checks' upwind region.
+        from ..selfchecks import upwind_mask
+
+        mask = upwind_mask(run.rec.width, run.rec.height, run.cfg.source, run.surfaces)
+        if mask is not None:
+            sl = run.roi.slices()
+            run.columns.upwind_mask = mask[sl[0], sl[1]]
 
 
 class TruthColumns:
@@ -231,8 +238,12 @@ class InvertedColumns:
         self.proxy_channel = int(np.argmax(sens))
         self._set_proxy_lookup(0.0 if cfg.gas_temperature == "infer" else None)
         self.sigma_m: Dict[int, float] = {}
-        #: The self-diagnostics' sums per surface, over the run's blocks.
+        #: The self-diagnostics' sums per surface, over the run's blocks,
+        #: and the region behind the source (set by :func:`prepare`) with
+        #: its sums of squared contrast [noise^2] and pixel-frames.
         self.evidence: Dict[int, SurfaceEvidence] = {}
+        self.upwind_mask: Optional[np.ndarray] = None
+        self.upwind_sums = [0.0, 0]
 
     def start_block(self) -> None:
         """Forgets the samples collected for the previous block (the pipeline
@@ -500,6 +511,14 @@ class InvertedColumns:
         the radiance and the background at the surface samples for
         :meth:`finish`."""
         field = self.proxy_field(frames, out)
+        if self.upwind_mask is not None:
+            c = self.proxy_channel
+            noise = float(
+                np.broadcast_to(np.asarray(self._inv_kw["netd_K"], float), (frames.shape[-3],))[c]
+            ) * float(self.rec.channels[c].band_radiance_derivative(self._bg_t))
+            up = field[..., self.upwind_mask].astype(float) / noise
+            self.upwind_sums[0] += float(np.sum(up * up))
+            self.upwind_sums[1] += int(up.size)
         origin = [self.roi.x0, self.roi.y0]
         rad, bg, prof = [], [], []
         for s, (xy, _n, _dl, t) in zip(surfaces, samples):
