@@ -16,7 +16,7 @@ mean - p5 = 1.645 sigma; the threshold is 2.5 sigma, sigma from the strips'
 own frame-to-frame noise floor) and fluctuations beyond the noise. It also
 measures the background's own structure along each surface (on its gas-free
 samples, the time-mean's RMS departure from the straight line between its
-ends, in noise): a textured sky, a wall's seams or a pipe's edge make the
+ends against the gas's sign, which gas cannot cause, times sqrt 2; in noise): a textured sky, a wall's seams or a pipe's edge make the
 straight line between the strips wrong by their contrast (issue 31: -36 %
 on an outdoor release). When every strip is gas-free and no surface has
 structure beyond :data:`STRUCTURE_SIGMA`, the beside-surface background is
@@ -67,10 +67,10 @@ HELD_WARN_FRACTION = 0.5
 def _structure(f, xy, tt, sign, noise, lo_pct) -> float:
     """The background's own structure along a surface [noise]: on the
     surface's gas-free samples (time-mean within :data:`GAS_EXCESS_SIGMA`
-    noise of their low percentile, as the strips are tested), the RMS of the
-    time-mean's departure from the straight line between the surface's end
-    samples, in the most departing channel; 0 with fewer than 4 gas-free
-    samples (nothing to measure)."""
+    noise of their low percentile, as the strips are tested), sqrt(2) x the
+    RMS of the time-mean's departure, against the gas's sign, from the
+    straight line between the surface's end samples, in the most departing
+    channel; 0 with fewer than 4 gas-free samples (nothing to measure)."""
     v = _sample(f, xy)  # (T, C, N)
     mean = v.mean(axis=0)  # (C, N)
     nc = v.shape[1]
@@ -87,8 +87,12 @@ def _structure(f, xy, tt, sign, noise, lo_pct) -> float:
         return 0.0
     m_a, m_b = mean[:, a].mean(axis=1), mean[:, b].mean(axis=1)
     line = m_a[:, None] + (m_b - m_a)[:, None] * ((tt - t_a) / (t_b - t_a))[None, :]
-    dev = (mean - line)[:, free] / noise
-    return float(np.sqrt(np.mean(dev**2, axis=1)).max())
+    # Only departures against the gas's sign: gas can only raise the
+    # time-mean (a plume's intermittent edge passes the gas-free test), a
+    # background's structure departs both ways; its RMS is sqrt(2) times
+    # that of the one side.
+    dev = np.minimum(0.0, sign * (mean - line))[:, free] / noise
+    return float(np.sqrt(2.0 * np.mean(dev**2, axis=1)).max())
 
 
 #: Spread [noise] between the temporal percentile and twice that
