@@ -14,9 +14,10 @@ that the gas visits shows a time-mean above its own low percentile (sign of
 the gas contrast) by more than pure noise gives (for Gaussian noise
 mean - p5 = 1.645 sigma; the threshold is 2.5 sigma, sigma from the strips'
 own frame-to-frame noise floor) and fluctuations beyond the noise. It also
-measures the background's own structure along each surface (on its gas-free
-samples, the time-mean's RMS departure from the straight line between its
-ends against the gas's sign, which gas cannot cause, times sqrt 2; in noise): a textured sky, a wall's seams or a pipe's edge make the
+measures the background's own structure along each surface (on its
+gas-free samples, the time-mean's RMS departure from the straight line
+between its ends against the gas's sign, which gas cannot cause, times
+sqrt 2; in noise): a textured sky, a wall's seams or a pipe's edge make the
 straight line between the strips wrong by their contrast (issue 31: -36 %
 on an outdoor release). When every strip is gas-free and no surface has
 structure beyond :data:`STRUCTURE_SIGMA`, the beside-surface background is

@@ -75,6 +75,11 @@ THRESHOLDS: Dict[str, float] = {
     "reversed_fraction": 0.15,
     "upwind_contrast_noise": 6.0,
 }
+#: A failure term above this (a fraction of the rate) is taken as 1: the
+#: rate is not measured (the clouds preset: background contrast behind the
+#: source at 0.6 of the gas's contrast on the surface, and the rate 7-10
+#: times the truth).
+NOT_MEASURED_ABOVE = 0.5
 #: Pixels at least this far behind the source [px] make the upwind region.
 UPWIND_MIN_PX = 15.0
 #: The warning code each measure raises.
@@ -174,7 +179,8 @@ def failure_terms(ev: SurfaceEvidence) -> Tuple[Dict[str, float], List[Tuple[str
       thin: a background wrong by r noise moves a column whose contrast
       is C noise by r / C of itself);
     * reversed: twice the fraction (a flux reversed on a share r of the
-      gross flux moves the net by 2 r).
+      gross flux moves the net by 2 r);
+    * any of them above :data:`NOT_MEASURED_ABOVE`: 1 (not measured).
 
     Returns ``(measures, [(measure, term), ...])`` for the measures that
     failed."""
@@ -191,7 +197,11 @@ def failure_terms(ev: SurfaceEvidence) -> Tuple[Dict[str, float], List[Tuple[str
             term = 2.0 * v
         else:
             term = v
-        failed.append((key, float(min(term, 1.0))))
+        # Beyond half, the failure is as large as the signal it would
+        # correct (clouds as bright as the gas, half the pixel-frames
+        # unmeasured): the rate is not measured, the term 100 % (the
+        # interval's near side reaches zero, interval90).
+        failed.append((key, float(term if term <= NOT_MEASURED_ABOVE else 1.0)))
     return m, failed
 
 
