@@ -56,6 +56,7 @@ __all__ = [
     "CODES",
     "NEGATIVE_SIGMA",
     "failure_terms",
+    "combined_term",
     "upwind_mask",
     "UPWIND_MIN_PX",
 ]
@@ -222,3 +223,11 @@ def upwind_mask(width: int, height: int, source, surfaces) -> Optional[np.ndarra
     along = (x - source[0]) * d[0] + (y - source[1]) * d[1]
     mask = along < -UPWIND_MIN_PX
     return mask if mask.sum() >= 50 else None
+
+
+def combined_term(failed: List[Tuple[str, float]]) -> float:
+    """The ``assumptions`` term of a surface: its failed terms in quadrature,
+    taken as 1 (not measured) beyond :data:`NOT_MEASURED_ABOVE`, as each
+    term alone is; 0 when none failed."""
+    total = math.sqrt(sum(t * t for _, t in failed))
+    return total if total <= NOT_MEASURED_ABOVE else 1.0

@@ -216,3 +216,9 @@ def test_upwind_region_lies_behind_the_source_and_its_contrast_is_measured():
     m, failed = selfchecks.failure_terms(moving)
     assert m["upwind_contrast_noise"] == pytest.approx(40.0)
     assert dict(failed)["upwind_contrast_noise"] == pytest.approx(0.5)
+
+
+def test_failed_terms_combine_in_quadrature_until_the_rate_is_not_measured():
+    assert selfchecks.combined_term([]) == 0.0
+    assert selfchecks.combined_term([("a", 0.3), ("b", 0.4)]) == pytest.approx(0.5)
+    assert selfchecks.combined_term([("a", 0.12), ("b", 0.49)]) == 1.0

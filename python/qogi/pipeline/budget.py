@@ -346,8 +346,8 @@ def _species_rate(
 def _self_checks(st: RunState, j: int, surface: str, sp: str, summary, relative, warnings):
     """Surface j's self-diagnostic measures (:mod:`qogi.selfchecks`; None
     without an inversion); for each beyond its threshold a warning and the
-    relative term ``relative["assumptions"]`` (the failed terms in
-    quadrature)."""
+    relative term ``relative["assumptions"]``
+    (:func:`qogi.selfchecks.combined_term`)."""
     from .. import selfchecks
 
     columns = st.columns
@@ -392,7 +392,7 @@ def _self_checks(st: RunState, j: int, surface: str, sp: str, summary, relative,
             relative_term=float(term),
         )
     if failed:
-        relative["assumptions"] = math.sqrt(sum(t * t for _, t in failed))
+        relative["assumptions"] = selfchecks.combined_term(failed)
     return measures
 
 
