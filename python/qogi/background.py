@@ -15,9 +15,9 @@ the gas contrast) by more than pure noise gives (for Gaussian noise
 mean - p5 = 1.645 sigma; the threshold is 2.5 sigma, sigma from the strips'
 own frame-to-frame noise floor) and fluctuations beyond the noise. It also
 measures the background's own structure along each surface (on its
-gas-free samples, the time-mean's RMS departure from the straight line
-between its ends against the gas's sign, which gas cannot cause, times
-sqrt 2; in noise): a textured sky, a wall's seams or a pipe's edge make the
+gas-free samples, the time-mean's RMS departure from the beside-surface
+background against the gas's sign, which gas cannot cause, times sqrt 2;
+in noise): a textured sky, a wall's seams or a pipe's edge make the
 straight line between the strips wrong by their contrast (issue 31: -36 %
 on an outdoor release). When every strip is gas-free and no surface has
 structure beyond :data:`STRUCTURE_SIGMA`, the beside-surface background is
@@ -54,7 +54,7 @@ __all__ = [
 #: (pure Gaussian noise: 1.645).
 GAS_EXCESS_SIGMA = 2.5
 #: RMS departure [noise] of the background along a surface's gas-free
-#: samples from the straight line between its ends above which the
+#: samples from the straight line between the strips above which the
 #: background has structure that the strips beside the surface miss (a
 #: textured sky, a wall's seams): then the temporal percentile. A smooth sky
 #: gives the time-mean's own noise, ~0.15 with 50 frames.
@@ -65,13 +65,16 @@ STRUCTURE_SIGMA = 3.0
 HELD_WARN_FRACTION = 0.5
 
 
-def _structure(f, xy, tt, sign, noise, lo_pct) -> float:
+def _structure(f, surface, xy, tt, sign, noise, lo_pct) -> float:
     """The background's own structure along a surface [noise]: on the
     surface's gas-free samples (time-mean within :data:`GAS_EXCESS_SIGMA`
     noise of their low percentile, as the strips are tested), sqrt(2) x the
     RMS of the time-mean's departure, against the gas's sign, from the
-    straight line between the surface's end samples, in the most departing
-    channel; 0 with fewer than 4 gas-free samples (nothing to measure)."""
+    beside-surface background (the straight line between the strips beside
+    the surface's ends), in the most departing channel; 0 with fewer than 4
+    gas-free samples (nothing to measure). Gas can only raise the time-mean
+    (a plume's intermittent edge passes the gas-free test), a background's
+    structure departs both ways, so the one side measures it."""
     v = _sample(f, xy)  # (T, C, N)
     mean = v.mean(axis=0)  # (C, N)
     nc = v.shape[1]
@@ -79,19 +82,9 @@ def _structure(f, xy, tt, sign, noise, lo_pct) -> float:
     free = ((sign * (mean - low) / noise) <= GAS_EXCESS_SIGMA).all(axis=0)  # (N,)
     if free.sum() < 4:
         return 0.0
-    # The line through the gas-free samples at either end of the surface.
-    idx = np.flatnonzero(free)
-    k = max(1, min(3, idx.size // 4))
-    a, b = idx[:k], idx[-k:]
-    t_a, t_b = float(np.mean(tt[a])), float(np.mean(tt[b]))
-    if t_b - t_a <= 0:
-        return 0.0
-    m_a, m_b = mean[:, a].mean(axis=1), mean[:, b].mean(axis=1)
-    line = m_a[:, None] + (m_b - m_a)[:, None] * ((tt - t_a) / (t_b - t_a))[None, :]
-    # Only departures against the gas's sign: gas can only raise the
-    # time-mean (a plume's intermittent edge passes the gas-free test), a
-    # background's structure departs both ways; its RMS is sqrt(2) times
-    # that of the one side.
+    h, w = f.shape[-2:]
+    ends = [_sample(f, pts).mean(axis=(0, -1)) for pts in strip_points(surface.points, w, h)]
+    line = ends[0][:, None] * (1 - tt)[None, :] + ends[1][:, None] * tt[None, :]
     dev = np.minimum(0.0, sign * (mean - line))[:, free] / noise
     return float(np.sqrt(2.0 * np.mean(dev**2, axis=1)).max())
 
@@ -232,7 +225,10 @@ def choose(
             worst = max(worst, float(e.max()))
         excess.append(worst)
     strips_ok = t >= 5 and all(e <= GAS_EXCESS_SIGMA for e in excess)
-    structure = [_structure(f, xy, tt, sign, noise, lo_pct) for (xy, _n, _dl, tt) in samples]
+    structure = [
+        _structure(f, s, xy, tt, sign, noise, lo_pct)
+        for s, (xy, _n, _dl, tt) in zip(surfaces, samples)
+    ]
     textured = [
         s.name or str(k) for k, (s, v) in enumerate(zip(surfaces, structure)) if v > STRUCTURE_SIGMA
     ]
