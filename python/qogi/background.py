@@ -13,32 +13,142 @@ strips but fails where the gas never leaves a pixel.
 that the gas visits shows a time-mean above its own low percentile (sign of
 the gas contrast) by more than pure noise gives (for Gaussian noise
 mean - p5 = 1.645 sigma; the threshold is 2.5 sigma, sigma from the strips'
-own frame-to-frame noise floor) and fluctuations beyond the noise. When
-every strip is gas-free the beside-surface background is used, else the
-percentile; the choice and the evidence go into the result's ``info`` and
+own frame-to-frame noise floor) and fluctuations beyond the noise. It also
+measures the background's own structure along each surface (on its
+gas-free samples, the time-mean's RMS departure from the beside-surface
+background against the gas's sign, which gas cannot cause, times sqrt 2;
+in noise): a textured sky, a wall's seams or a pipe's edge make the
+straight line between the strips wrong by their contrast (issue 31: -36 %
+on an outdoor release). When every strip is gas-free and no surface has
+structure beyond :data:`STRUCTURE_SIGMA`, the beside-surface background is
+used, else the percentile, whose pixels the gas never leaves are filled
+from their gas-free neighbours (:func:`inpaint_held`: the percentile's
+residual about a smooth surface inpainted, i.e. the structure, not the raw
+radiance). The choice and the evidence go into the result's ``info`` and
 the budget gets a ``background`` term: the chosen estimate's uncertainty
 (for the strips: the gas they may still hold beyond pure noise, and their
-statistical error; for the percentile: its standard error and the gas it
-still holds, its excess over the straight line between the surface's ends,
-which also raises the warning ``background-not-gas-free``) relative to the
-surface's mean contrast (a column changes in proportion to the contrast
-where the plume is thin; more where it is thick).
+statistical error; for the percentile: its standard error and, on the
+fraction of the surface the gas never leaves, the background's structure,
+which above :data:`HELD_WARN_FRACTION` also raises the warning
+``background-not-gas-free``) relative to the surface's mean contrast (a
+column changes in proportion to the contrast where the plume is thin; more
+where it is thick).
 """
 
 from __future__ import annotations
 
-from typing import Dict, List, Sequence
+from typing import Dict, List, Sequence, Tuple
 
 import numpy as np
 
-__all__ = ["choose", "strip_points", "GAS_EXCESS_SIGMA"]
+__all__ = [
+    "choose",
+    "strip_points",
+    "inpaint_held",
+    "GAS_EXCESS_SIGMA",
+    "STRUCTURE_SIGMA",
+    "HELD_SPREAD_SIGMA",
+]
 
 #: (time mean - 5th percentile) / noise above which a strip carries gas
 #: (pure Gaussian noise: 1.645).
 GAS_EXCESS_SIGMA = 2.5
-#: Excess of the percentile background over the straight line between the
-#: surface's ends [noise] above which the percentile holds gas.
-PERCENTILE_GAS_SIGMA = 5.0
+#: RMS departure [noise] of the background along a surface's gas-free
+#: samples from the straight line between the strips above which the
+#: background has structure that the strips beside the surface miss (a
+#: textured sky, a wall's seams): then the temporal percentile. A smooth sky
+#: gives the time-mean's own noise, ~0.15 with 50 frames.
+STRUCTURE_SIGMA = 3.0
+#: Fraction of a surface's samples the gas never leaves above which the
+#: warning ``background-not-gas-free`` says the percentile background there
+#: is filled from the neighbours.
+HELD_WARN_FRACTION = 0.5
+
+
+def _structure(f, surface, xy, tt, sign, noise, lo_pct) -> float:
+    """The background's own structure along a surface [noise]: on the
+    surface's gas-free samples (time-mean within :data:`GAS_EXCESS_SIGMA`
+    noise of their low percentile, as the strips are tested), sqrt(2) x the
+    RMS of the time-mean's departure, against the gas's sign, from the
+    beside-surface background (the straight line between the strips beside
+    the surface's ends), in the most departing channel; 0 with fewer than 4
+    gas-free samples (nothing to measure). Gas can only raise the time-mean
+    (a plume's intermittent edge passes the gas-free test), a background's
+    structure departs both ways, so the one side measures it."""
+    v = _sample(f, xy)  # (T, C, N)
+    mean = v.mean(axis=0)  # (C, N)
+    nc = v.shape[1]
+    low = np.stack([np.percentile(v[:, c], lo_pct[c, 0], axis=0) for c in range(nc)])
+    free = ((sign * (mean - low) / noise) <= GAS_EXCESS_SIGMA).all(axis=0)  # (N,)
+    if free.sum() < 4:
+        return 0.0
+    h, w = f.shape[-2:]
+    ends = [_sample(f, pts).mean(axis=(0, -1)) for pts in strip_points(surface.points, w, h)]
+    line = ends[0][:, None] * (1 - tt)[None, :] + ends[1][:, None] * tt[None, :]
+    dev = np.minimum(0.0, sign * (mean - line))[:, free] / noise
+    return float(np.sqrt(2.0 * np.mean(dev**2, axis=1)).max())
+
+
+#: Spread [noise] between the temporal percentile and twice that
+#: percentile of a pixel above which the gas never leaves it often enough
+#: for the percentile to be its background (pure noise: 0.36 for the 5th
+#: and 10th; the estimates' own scatter over 150 frames ~0.25).
+HELD_SPREAD_SIGMA = 1.5
+
+
+def inpaint_held(
+    stacked: np.ndarray, img: np.ndarray, channel_sign: np.ndarray, percentile: float
+) -> Tuple[np.ndarray, np.ndarray]:
+    """The temporal percentile background ``img`` (C, h, w) of frames
+    ``stacked`` (T, C, h, w), with the pixels the gas never leaves filled
+    from their gas-free neighbours: their *residual* about a smooth
+    quadratic surface fitted to the other pixels (the background's
+    structure: texture, seams, edges) inpainted (``cv2.inpaint``, Bertalmio's
+    method, Navier-Stokes based: ``cv2.INPAINT_NS``) and added back to the
+    surface there.
+
+    A pixel is held when, in any channel, the sign-aware spread between its
+    ``2 x percentile`` and ``percentile`` values exceeds
+    :data:`HELD_SPREAD_SIGMA` noise (gas present in nearly every frame
+    lifts the low tail and widens it; noise alone does not).
+
+    Returns ``(background (C, h, w), held (h, w) bool)``; the input image
+    when no pixel is held or fewer than a quarter are free.
+    """
+    import cv2
+
+    f = np.asarray(stacked, np.float32)
+    nc = f.shape[1]
+    sign = np.asarray(channel_sign, float)
+    noise = np.maximum(_noise(f), 1e-30)
+    held = np.zeros(img.shape[1:], bool)
+    for c in range(nc):
+        q = (
+            (percentile, 2.0 * percentile)
+            if sign[c] >= 0
+            else (100 - percentile, 100 - 2 * percentile)
+        )
+        a, b = np.percentile(f[:, c], q, axis=0)
+        held |= sign[c] * (b - a) > HELD_SPREAD_SIGMA * noise[c]
+    if not held.any() or (~held).sum() < 0.25 * held.size:
+        return img, held
+    h, w = held.shape
+    y, x = np.mgrid[0:h, 0:w]
+    xs, ys = (x.ravel() - 0.5 * w) / w, (y.ravel() - 0.5 * h) / h
+    basis = np.stack([np.ones_like(xs), xs, ys, xs * xs, xs * ys, ys * ys], axis=1)
+    free = ~held.ravel()
+    out = np.array(img, dtype=float, copy=True)
+    mask = held.astype(np.uint8)
+    for c in range(nc):
+        coef, *_ = np.linalg.lstsq(basis[free], out[c].ravel()[free], rcond=None)
+        smooth = (basis @ coef).reshape(h, w)
+        # In noise units: OpenCV's inpainting of float images is made for
+        # values of order one and more (Telea's method fails on radiances
+        # of 1e-3; Navier-Stokes holds at any scale once so scaled).
+        resid = ((out[c] - smooth) / noise[c]).astype(np.float32)
+        filled = cv2.inpaint(resid, mask, 3.0, cv2.INPAINT_NS).astype(float) * noise[c]
+        out[c] = np.where(held, smooth + filled, out[c])
+    return out.astype(img.dtype, copy=False), held
 
 
 def strip_points(points: np.ndarray, width: int, height: int) -> List[np.ndarray]:
@@ -94,8 +204,10 @@ def choose(
     dict with ``method`` ("beside-surface" or "percentile"), ``strips``
     (per surface: the worst strip's excess in noise units), ``reason`` and
     ``relative`` {surface index: the background term relative to the
-    surface's mean contrast} and ``not_gas_free`` [(surface, excess in noise
-    units)] where the percentile too holds gas.
+    surface's mean contrast}, ``structure`` (per surface: the background's
+    own structure along its gas-free samples, noise) and ``not_gas_free``
+    [(surface, fraction of its samples the gas never leaves)] where that
+    fraction exceeds :data:`HELD_WARN_FRACTION`.
     """
     f = np.asarray(frames, float)
     t, nc, h, w = f.shape
@@ -112,7 +224,15 @@ def choose(
             e = (sign * (mean - low) / noise).mean(axis=1)  # (C,)
             worst = max(worst, float(e.max()))
         excess.append(worst)
-    beside_ok = t >= 5 and all(e <= GAS_EXCESS_SIGMA for e in excess)
+    strips_ok = t >= 5 and all(e <= GAS_EXCESS_SIGMA for e in excess)
+    structure = [
+        _structure(f, s, xy, tt, sign, noise, lo_pct)
+        for s, (xy, _n, _dl, tt) in zip(surfaces, samples)
+    ]
+    textured = [
+        s.name or str(k) for k, (s, v) in enumerate(zip(surfaces, structure)) if v > STRUCTURE_SIGMA
+    ]
+    beside_ok = strips_ok and not textured
     method = "beside-surface" if beside_ok or t < 5 else "percentile"
     # The chosen estimate's uncertainty at each surface, relative to the
     # surface's mean contrast (signal-weighted). Beside the surfaces: gas
@@ -131,15 +251,17 @@ def choose(
             delta = (max(0.0, excess[j] - 1.645) + 1.0 / np.sqrt(6.0 * t)) * noise[:, 0]
         else:
             bg = np.stack([np.percentile(at[:, c], lo_pct[c, 0], axis=0) for c in range(nc)])
-            # Gas the percentile still holds (a plume that never leaves the
-            # pixels): its excess over the straight line between the
-            # surface's ends, averaged along the surface.
-            line = bg[:, :1] * (1 - tt) + bg[:, -1:] * tt
-            held = np.clip(sign * (bg - line), 0, None)  # (C, N)
-            held_max = float((held / noise).max())
-            if held_max > PERCENTILE_GAS_SIGMA:
-                not_free.append((s.name or str(j), held_max))
-            delta = 1.3 * noise[:, 0] / np.sqrt(t) + held.mean(axis=1)
+            # Samples the gas never leaves (the spread test of
+            # inpaint_held): their background is filled from the gas-free
+            # neighbours, uncertain by the background's own structure (at
+            # least the noise).
+            q2 = np.where(sign >= 0, 2 * percentile, 100 - 2 * percentile)
+            bg2 = np.stack([np.percentile(at[:, c], q2[c, 0], axis=0) for c in range(nc)])
+            held = (sign * (bg2 - bg) / noise > HELD_SPREAD_SIGMA).any(axis=0)  # (N,)
+            held_fraction = float(held.mean())
+            if held_fraction > HELD_WARN_FRACTION:
+                not_free.append((s.name or str(j), held_fraction))
+            delta = (1.3 / np.sqrt(t) + held_fraction * max(1.0, structure[j])) * noise[:, 0]
         contrast = sign * (at.mean(axis=0) - bg)  # (C, N)
         weight = np.clip(contrast, 0, None)
         total = weight.sum(axis=1)  # (C,)
@@ -151,8 +273,15 @@ def choose(
         rel[j] = float(delta[c_best] / max(mean_contrast, 1e-30))
     reason = (
         "the strips beside every surface are gas-free (time-mean within "
-        f"{GAS_EXCESS_SIGMA} noise of their low percentile)"
+        f"{GAS_EXCESS_SIGMA} noise of their low percentile) and the background is "
+        f"straight between them (its structure within {STRUCTURE_SIGMA:g} noise)"
         if beside_ok
+        else "the background along surface(s) "
+        + ", ".join(textured)
+        + f" has structure a straight line between the strips misses (up to "
+        f"{max(structure):.1f} noise RMS on the surface's gas-free pixels): temporal "
+        "percentile instead"
+        if strips_ok
         else "the strips beside surface(s) "
         + ", ".join(
             s.name or str(k)
@@ -165,6 +294,7 @@ def choose(
     return {
         "method": method,
         "strips": [float(e) for e in excess],
+        "structure": [float(v) for v in structure],
         "reason": reason,
         "relative": rel,
         "not_gas_free": not_free,

@@ -12,7 +12,10 @@ record-length advice each need only sums over frames, which
   line-shape rule's column ratio, is re-weighted from it to < 1e-4);
 * per sample: the sum of the columns and of their variances over frames;
 * the flux bound at a speed floor (``sum c max(|v_n|, floor) dl``), the
-  column-weighted mean speed, and the line mass ``sum c dl``.
+  column-weighted mean speed, and the line mass ``sum c dl``;
+* the flux against the surface's orientation and the gross flux
+  (``sum max(0, -c w)``, ``sum |c w|``: the flow's reversals,
+  :mod:`qogi.selfchecks`).
 """
 
 from __future__ import annotations
@@ -41,6 +44,8 @@ class FluxSummary:
     speed_num: float = 0.0
     speed_den: float = 0.0
     mass_line: float = 0.0
+    flux_against: float = 0.0
+    flux_abs: float = 0.0
 
     @classmethod
     def empty(cls, n_samples: int) -> FluxSummary:
@@ -79,6 +84,9 @@ class FluxSummary:
         s.speed_num = float(np.sum(np.abs(v) * c0))
         s.speed_den = float(np.sum(c0))
         s.mass_line = float(np.sum(c0 * dl[None, :]))
+        cw = c0 * w
+        s.flux_against = float(np.sum(np.maximum(0.0, -cw)))
+        s.flux_abs = float(np.sum(np.abs(cw)))
         return s
 
     def __iadd__(self, other: FluxSummary) -> FluxSummary:
@@ -95,6 +103,8 @@ class FluxSummary:
         self.speed_num += other.speed_num
         self.speed_den += other.speed_den
         self.mass_line += other.mass_line
+        self.flux_against += other.flux_against
+        self.flux_abs += other.flux_abs
         return self
 
     def flux_ratios(self, grid_columns: np.ndarray, ratios: np.ndarray) -> list:

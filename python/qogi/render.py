@@ -31,7 +31,7 @@ import dataclasses
 import logging
 import math
 import time
-from typing import Callable, List, Optional, Sequence
+from typing import Callable, ClassVar, List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -46,35 +46,121 @@ __all__ = ["Background", "SceneRenderer", "nnls", "render_recording", "synthesiz
 
 @dataclasses.dataclass
 class Background:
-    """The blackbody behind the plume.
+    """The blackbody behind the plume: a per-pixel map of radiometric
+    temperature, optionally changing with time (:mod:`qogi.backdrop`).
 
-    ``kind="plate"``: a uniform plate at ``temperature_K`` (a lab backdrop).
-    ``kind="sky"``: a clear-sky-like background whose radiometric temperature
-    rises linearly from ``sky_top_K`` at the top image row to ``sky_bottom_K`` at
-    the bottom row (the sky is colder overhead than near the horizon). The MWIR
-    clear sky is not a blackbody; an effective radiometric temperature per row is
-    the approximation made here.
+    The base field by ``kind``:
+
+    * ``"plate"``: uniform at ``temperature_K`` (a lab backdrop);
+    * ``"sky"``: rising linearly from ``sky_top_K`` at the top image row to
+      ``sky_bottom_K`` at the bottom row (colder overhead than near the
+      horizon). The MWIR clear sky is not a blackbody; an effective
+      radiometric temperature per pixel is the approximation made here;
+    * ``"wall"``: a cladded wall or tank at ``temperature_K`` with seams
+      (``-seam_K``, every ``panel_px``) and bolts (``+bolt_K``), and a shadow
+      (``-shadow_K``) left of a straight edge through ``shadow_x_fraction``
+      of the width at the top row, leaning ``shadow_slope`` px per row;
+    * ``"pipe-rack"``: structure at ``temperature_K`` behind horizontal pipes
+      and vertical supports, alternately ``+pipe_hot_K`` and ``-pipe_cold_K``,
+      with sharp edges.
+
+    Any kind takes a static fine texture (``texture_K`` RMS, correlation
+    ``texture_px``) and broken clouds (``cloud_K`` warmer at full cover,
+    ``cloud_cover`` of the frame, size ``cloud_px``, drifting at
+    ``cloud_drift_px_s`` = (x right, y down) px/s; soft edges). Every random
+    element is drawn from ``seed``. Temperatures K, sizes px.
     """
 
     kind: str = "plate"
     temperature_K: Optional[float] = 288.15
     sky_top_K: float = 240.0
     sky_bottom_K: float = 265.0
+    texture_K: float = 0.0
+    texture_px: float = 4.0
+    cloud_K: float = 0.0
+    cloud_cover: float = 0.4
+    cloud_px: float = 25.0
+    cloud_drift_px_s: Tuple[float, float] = (0.0, 0.0)
+    seam_K: float = 0.0
+    bolt_K: float = 0.0
+    panel_px: float = 48.0
+    shadow_K: float = 0.0
+    shadow_x_fraction: float = 0.5
+    shadow_slope: float = 0.3
+    pipe_hot_K: float = 0.0
+    pipe_cold_K: float = 0.0
+    seed: int = 0
+
+    KINDS: ClassVar[Tuple[str, ...]] = ("plate", "sky", "wall", "pipe-rack")
 
     def __post_init__(self):
-        if self.kind not in ("plate", "sky"):
-            raise ValueError(f"Background kind must be 'plate' or 'sky'; got {self.kind!r}")
-        if self.kind == "plate" and (
+        if self.kind not in self.KINDS:
+            raise ValueError(
+                f"Background kind must be one of {', '.join(self.KINDS)}; got {self.kind!r}"
+            )
+        if self.kind != "sky" and (
             self.temperature_K is None or not 150.0 <= self.temperature_K <= 600.0
         ):
             raise ValueError(
-                "a plate background needs temperature_K within [150, 600] K; "
+                f"a {self.kind} background needs temperature_K within [150, 600] K; "
                 f"got {self.temperature_K}"
             )
         for name in ("sky_top_K", "sky_bottom_K"):
             v = getattr(self, name)
             if not (150.0 <= v <= 600.0):
                 raise ValueError(f"{name} must be within [150, 600] K; got {v}")
+        for name in ("texture_K", "cloud_K", "seam_K", "bolt_K", "shadow_K"):
+            v = getattr(self, name)
+            if not 0.0 <= v <= 100.0:
+                raise ValueError(f"{name} must be within [0, 100] K; got {v}")
+        for name in ("pipe_hot_K", "pipe_cold_K"):
+            v = getattr(self, name)
+            if not 0.0 <= v <= 200.0:
+                raise ValueError(f"{name} must be within [0, 200] K; got {v}")
+        for name in ("texture_px", "cloud_px", "panel_px"):
+            v = getattr(self, name)
+            if not 0.5 <= v <= 1000.0:
+                raise ValueError(f"{name} must be within [0.5, 1000] px; got {v}")
+        if not 0.0 < self.cloud_cover < 1.0:
+            raise ValueError(f"cloud_cover must be within (0, 1); got {self.cloud_cover}")
+        self.cloud_drift_px_s = tuple(float(v) for v in self.cloud_drift_px_s)  # type: ignore[assignment]
+        if len(self.cloud_drift_px_s) != 2 or not all(
+            math.isfinite(v) and abs(v) <= 1000.0 for v in self.cloud_drift_px_s
+        ):
+            raise ValueError(
+                f"cloud_drift_px_s must be two speeds (x, y) within +-1000 px/s; "
+                f"got {self.cloud_drift_px_s}"
+            )
+        self._static_cache: dict = {}
+        self._clouds: dict = {}
+
+    @classmethod
+    def from_dict(cls, d: dict, seed: int = 0) -> Background:
+        """From a preset table's ``scene.background`` (keys are the fields;
+        ``seed`` is the recording's unless the table gives one)."""
+        known = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(d) - known)
+        if unknown:
+            raise ValueError(
+                f"unknown background field(s) {', '.join(unknown)}; "
+                f"fields: {', '.join(sorted(known))}"
+            )
+        kw = {k: v for k, v in d.items() if v is not None or k == "temperature_K"}
+        kw.setdefault("seed", int(seed))
+        if "cloud_drift_px_s" in kw:
+            kw["cloud_drift_px_s"] = tuple(kw["cloud_drift_px_s"])
+        return cls(**kw)
+
+    @property
+    def static(self) -> bool:
+        """True when the map does not change with time (no drifting clouds)."""
+        return self.cloud_K == 0.0 or self.cloud_drift_px_s == (0.0, 0.0)
+
+    @property
+    def structured(self) -> bool:
+        """True when the map is more than the plate's constant or the sky's
+        row gradient."""
+        return self.kind in ("wall", "pipe-rack") or self.texture_K > 0 or self.cloud_K > 0
 
     def _plate_K(self) -> float:
         if self.temperature_K is None:  # __post_init__ refuses a plate without one
@@ -82,15 +168,72 @@ class Background:
         return float(self.temperature_K)
 
     def row_temperatures(self, height: int) -> np.ndarray:
-        """Radiometric temperature of each image row [K]."""
+        """Radiometric temperature of each image row [K] of the base field
+        (plate or sky; the row mean of the static map otherwise)."""
         if self.kind == "plate":
             return np.full(height, self._plate_K())
-        return np.linspace(self.sky_top_K, self.sky_bottom_K, height)
+        if self.kind == "sky":
+            return np.linspace(self.sky_top_K, self.sky_bottom_K, height)
+        return np.full(height, self._plate_K())
+
+    def _static_map(self, height: int, width: int) -> np.ndarray:
+        key = (int(height), int(width))
+        if key not in self._static_cache:
+            from . import backdrop
+
+            m = np.repeat(self.row_temperatures(height)[:, None], width, axis=1)
+            if self.kind == "wall":
+                m += backdrop.wall_features(
+                    height, width, self.seam_K, self.bolt_K, self.panel_px, self.seed
+                )
+                if self.shadow_K > 0:
+                    m += backdrop.shadow_edge(
+                        height,
+                        width,
+                        self.shadow_K,
+                        self.shadow_x_fraction * (width - 1),
+                        self.shadow_slope,
+                    )
+            elif self.kind == "pipe-rack":
+                m += backdrop.pipe_rack(height, width, self.pipe_hot_K, self.pipe_cold_K, self.seed)
+            if self.texture_K > 0:
+                m += backdrop.texture_field(
+                    height, width, self.texture_K, self.texture_px, self.seed
+                )
+            self._static_cache[key] = m
+        return self._static_cache[key]
+
+    def temperature_map(self, height: int, width: int, time_s: float = 0.0) -> np.ndarray:
+        """Radiometric temperature of every pixel at ``time_s`` [K], (H, W)
+        float64 (a fresh array)."""
+        m = self._static_map(height, width).copy()
+        if self.cloud_K > 0:
+            from . import backdrop
+
+            key = (int(height), int(width))
+            if key not in self._clouds:
+                self._clouds[key] = backdrop.CloudField(
+                    height,
+                    width,
+                    self.cloud_K,
+                    self.cloud_cover,
+                    self.cloud_px,
+                    self.cloud_drift_px_s,
+                    self.seed,
+                )
+            m += self._clouds[key].temperature(float(time_s))
+        return m
+
+    def temperature_range(self, height: int, width: int) -> Tuple[float, float]:
+        """The coldest and warmest the map can be [K] (clouds at full cover
+        anywhere)."""
+        m = self._static_map(height, width)
+        return float(m.min()), float(m.max()) + self.cloud_K
 
     def representative_K(self) -> float:
-        return (
-            self._plate_K() if self.kind == "plate" else 0.5 * (self.sky_top_K + self.sky_bottom_K)
-        )
+        if self.kind == "sky":
+            return 0.5 * (self.sky_top_K + self.sky_bottom_K)
+        return self._plate_K()
 
 
 def _lsq(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -214,9 +357,12 @@ class SceneRenderer:
         self.species = list(simulation.species)
         self.t_amb = float(rel.ambient_temperature_K)
         self.pressure = float(rel.pressure_Pa)
-        self.rows_t_bg = background.row_temperatures(view.height_px)
+        self.times_s = np.asarray(simulation.times_s, dtype=float)
+        # A static background's map and band radiance, made once.
+        self._bg_t_static: Optional[np.ndarray] = None
+        self._bg_radiance: Optional[np.ndarray] = None
         t_gas = [self.t_amb, float(rel.exit_temperature_K)]
-        t_all = t_gas + [float(self.rows_t_bg.min()), float(self.rows_t_bg.max())]
+        t_all = t_gas + list(background.temperature_range(view.height_px, view.width_px))
         self.t_range = (max(200.0, min(t_all) - 2.0), min(600.0, max(t_all) + 2.0))
         keys = sorted({round(t, 1) for t in t_gas})
         self._say(0.0, "cross-section tables")
@@ -293,12 +439,14 @@ class SceneRenderer:
     def _bin_matrix(self, sets: List[tuple], channel: int) -> tuple:
         rows, y = [], []
         w = self.full.weights(channel)
-        for _f, s, pix in sets:
-            r = s["row0"] + pix // (s["path_m"].shape[1])
-            for (pos, t, x), row in zip(_paths_from_samples(s, self.species, self.t_amb, pix), r):
-                a = self.full.bin_contrasts(
-                    pos, t, x, self.pressure, channel, float(self.rows_t_bg[row])
-                )
+        for f, s, pix in sets:
+            ncols = s["path_m"].shape[1]
+            r = s["row0"] + pix // ncols
+            c = s["col0"] + pix % ncols
+            t_bg = self.background_temperature(f)[r, c]
+            paths = _paths_from_samples(s, self.species, self.t_amb, pix)
+            for (pos, t, x), tb in zip(paths, t_bg):
+                a = self.full.bin_contrasts(pos, t, x, self.pressure, channel, float(tb))
                 rows.append(a)
                 y.append(float(a @ w))
         return np.asarray(rows), np.asarray(y)
@@ -363,13 +511,37 @@ class SceneRenderer:
         self.bins_per_channel = [len(k) for k in keep]
 
     # ------------------------------------------------------------------
-    def background_radiance(self) -> np.ndarray:
-        """Band radiance of the bare background, (C, H) per row [W/(m2 sr)]."""
-        if getattr(self, "_bg_radiance", None) is None:
-            self._bg_radiance = np.stack(
-                [ch.band_radiance(self.rows_t_bg) for ch in self.forward.channels]
+    def background_temperature(self, frame: int) -> np.ndarray:
+        """Radiometric temperature of the bare background at a frame, (H, W) [K]."""
+        view = self.sim.view
+        if self.background.static:
+            if self._bg_t_static is None:
+                self._bg_t_static = self.background.temperature_map(view.height_px, view.width_px)
+            return self._bg_t_static
+        return self.background.temperature_map(
+            view.height_px, view.width_px, float(self.times_s[int(frame)])
+        )
+
+    def background_radiance(self, frame: int = 0) -> np.ndarray:
+        """Band radiance of the bare background at a frame, (C, H, W) [W/(m2 sr)]."""
+        if self.background.static and self._bg_radiance is not None:
+            return self._bg_radiance
+        t = self.background_temperature(frame)
+        if self.background.structured:
+            # A map of many temperatures: each channel's band radiance on a
+            # 0.01 K grid, interpolated (linear interpolation of Planck's law
+            # errs by < 1e-8 relative at that step).
+            lo, hi = float(t.min()), float(t.max())
+            grid = np.arange(lo - 0.02, hi + 0.03, 0.01)
+            out = np.stack(
+                [np.interp(t, grid, ch.band_radiance(grid)) for ch in self.forward.channels]
             )
-        return self._bg_radiance
+        else:  # plate or sky: the exact band radiance of each row
+            rows = np.stack([ch.band_radiance(t[:, 0]) for ch in self.forward.channels])
+            out = np.repeat(rows[:, :, None], t.shape[1], axis=2)
+        if self.background.static:
+            self._bg_radiance = out
+        return out
 
     def render_frame(self, frame: int, band_rows: int = 32) -> np.ndarray:
         """Noise-free band radiance of one frame, (C, H, W) float32 [W/(m2 sr)]."""
@@ -377,15 +549,16 @@ class SceneRenderer:
         h, w = view.height_px, view.width_px
         nc = len(self.forward.channels)
         out = np.empty((nc, h, w), dtype=np.float32)
-        out[:] = self.background_radiance()[:, :, None]
-        tbg_rows = np.repeat(self.rows_t_bg[:, None], nc, axis=1)  # (H, C)
+        out[:] = self.background_radiance(frame)
+        t_bg = self.background_temperature(frame)
         for r0 in range(0, h, band_rows):
             r1 = min(h, r0 + band_rows)
             s = self.sim.ray_samples(int(frame), rows=(r0, r1), num_threads=self.num_threads)
             if s["offset"][-1] == 0:
                 continue
-            rr = np.repeat(np.arange(r0, r1), w)
-            tb = np.ascontiguousarray(tbg_rows[rr], dtype=float).ravel()
+            tb = np.ascontiguousarray(
+                np.repeat(t_bg[r0:r1].reshape(-1, 1), nc, axis=1), dtype=float
+            ).ravel()
             fr = [
                 np.ascontiguousarray(np.clip(s["mole_fraction"][sp], 0.0, 1.0), dtype=np.float32)
                 for sp in self.species
@@ -630,14 +803,7 @@ def synthesize(
             distance_m=footprint / camera.ifov_rad,
             projection=base.projection,
         )
-    bgd = p["scene"]["background"]
-    background = (
-        Background("plate", bgd["temperature_K"])
-        if bgd["kind"] == "plate"
-        else Background(
-            "sky", None, **{k: float(bgd[k]) for k in ("sky_top_K", "sky_bottom_K") if k in bgd}
-        )
-    )
+    background = Background.from_dict(p["scene"]["background"], seed=seed)
 
     def say(f, msg):
         from .progress import report

@@ -68,6 +68,12 @@ PRESETS = [
     "lab-ch4co2-90c-m150-warm-filters",
     "stack-20kgh-wind6-gf320",
     "stack-10kgh-wind4-sky-gf320",
+    # Scenes with structure (issue 31).
+    "stack-10kgh-wind4-textured-sky-gf320",
+    "stack-10kgh-wind4-clouds-gf320",
+    "stack-3kgh-wind3-wall-absorption-gf320",
+    "stack-5kgh-wind3-tank-emission-gf320",
+    "stack-10kgh-wind4-piperack-gf320",
 ]
 
 
@@ -78,7 +84,12 @@ def test_presets_record_the_thesis_scenes():
         assert p["source"] and p["description"]
         for key in ("name", "width_px", "height_px", "ifov_rad", "frame_rate_hz"):
             assert key in p["camera"]
-        assert p["scene"]["distance_m"] > 0 and p["scene"]["background"]["kind"] in ("plate", "sky")
+        assert p["scene"]["distance_m"] > 0 and p["scene"]["background"]["kind"] in (
+            "plate",
+            "sky",
+            "wall",
+            "pipe-rack",
+        )
         view = synth.preset_view(name)
         rel = synth.preset_release(name)
         col, row = p["scene"]["exit_pixel"]

@@ -11,6 +11,7 @@ from typing import Dict, Optional
 
 import numpy as np
 
+from ..background import inpaint_held
 from ..recording import Recording
 from ..surfaces import Region, Surface
 from .config import QuantifyConfig
@@ -85,6 +86,8 @@ class Background:
         self.channel_sign = np.asarray(channel_sign, dtype=float)
         self.typical_temperature_K = typical_temperature_K
         self.percentile_img: Optional[np.ndarray] = None
+        #: Pixels of the region the gas never leaves (percentile background).
+        self.held: Optional[np.ndarray] = None
         # The background's static shape beyond a straight line across the
         # region (set by the run from its time-averaged frames).
         self.shape_correction: Optional[Dict[bool, np.ndarray]] = None
@@ -102,7 +105,12 @@ class Background:
             stacked = np.asarray(stack)
             lo = np.percentile(stacked, cfg.background_percentile, axis=0)
             hi = np.percentile(stacked, 100 - cfg.background_percentile, axis=0)
-            self.percentile_img = np.where(channel_sign[:, None, None] >= 0, lo, hi)
+            img = np.where(channel_sign[:, None, None] >= 0, lo, hi)
+            # Where the gas never leaves a pixel, its percentile holds gas:
+            # the background's structure there from the free neighbours.
+            self.percentile_img, self.held = inpaint_held(
+                stacked, img, channel_sign, cfg.background_percentile
+            )
 
     def region_mean(self, frame: np.ndarray, region: Region) -> np.ndarray:
         """Mean of frames (..., C, H, W) over the region -> (..., C)."""

@@ -119,14 +119,17 @@ def finish(st: RunState, complete: bool) -> Result:
     # The record of background._choose_background (a dict) or None.
     bg_choice = cast(Optional[dict], velocity_info.get("background_choice"))
     rise_speeds: Dict[int, float] = {}
+    self_checks: Dict[str, Dict[str, float]] = {}
     if isinstance(columns, InvertedColumns) and outs:
         columns.prepare_line_shape_curves(range(len(st.surfaces)), cfg.species)
     for j, (s, samples) in enumerate(zip(st.surfaces, st.samples)):
         per_species = {}
         for sp in cfg.species:
-            rate, summary, finite, n_eff = _species_rate(
+            rate, summary, finite, n_eff, measures = _species_rate(
                 st, j, s, samples, sp, systematics, bg_choice, done
             )
+            if measures is not None and sp == cfg.species[0]:
+                self_checks[s.name] = {k: float(v) for k, v in measures.items()}
             if finite.size:
                 advice[sp].append(
                     _record_advice(finite, n_eff, summary, samples.dl, columns, j, scene)
@@ -147,18 +150,20 @@ def finish(st: RunState, complete: bool) -> Result:
         **systematics.mixing,
         **velocity_info,
     }
+    if self_checks:
+        info["self_checks"] = self_checks
     _record_warnings(advice, info, warnings)
     if bg_choice is not None and not cfg.methods.truth_columns:
-        for name, excess in bg_choice.get("not_gas_free", []):
+        for name, held in bg_choice.get("not_gas_free", []):
             warnings.add(
                 "background-not-gas-free",
-                f"neither background is gas-free here: the strips beside the surface "
-                f"carry gas and the temporal percentile along it stands {excess:.0f} "
-                f"noise above the line between its ends (gas that never leaves); the "
-                f"columns are low by about that, carried in the budget's background "
-                f"term; draw longer surfaces or give a gas-free background region",
+                f"the gas never leaves {100 * held:.0f} % of the surface's pixels: the "
+                f"temporal background there is filled from the gas-free neighbours (their "
+                f"structure inpainted), uncertain by the background's structure, carried "
+                f"in the budget's background term; draw the surface farther downwind or "
+                f"give a gas-free background region",
                 surface=name,
-                excess_noise=excess,
+                held_fraction=held,
             )
     if complete and columns is not None and not cfg.methods.truth_columns:
         from ..hotgas import check_gas_temperature
@@ -285,6 +290,11 @@ def _species_rate(
     }
     if "background" in relative:
         terms["background"] = abs(mean) * relative["background"] * 3600
+    # The self-diagnostics (qogi.selfchecks): each measure beyond its
+    # threshold warns and adds a relative term sized by the failure.
+    measures = _self_checks(st, j, surface.name, sp, summary, relative, warnings)
+    if "assumptions" in relative:
+        terms["assumptions"] = abs(mean) * relative["assumptions"] * 3600
     mean_h = mean * 3600
     rel = math.sqrt(sum(r * r for r in relative.values()))
     ci = interval90(mean_h, math.hypot(temporal, col_rand) * 3600, rel)
@@ -330,7 +340,60 @@ def _species_rate(
         detection_limit_kg_h=limit,
         detection=det,
     )
-    return out, summary, finite, n_eff
+    return out, summary, finite, n_eff, measures
+
+
+def _self_checks(st: RunState, j: int, surface: str, sp: str, summary, relative, warnings):
+    """Surface j's self-diagnostic measures (:mod:`qogi.selfchecks`; None
+    without an inversion); for each beyond its threshold a warning and the
+    relative term ``relative["assumptions"]``
+    (:func:`qogi.selfchecks.combined_term`)."""
+    from .. import selfchecks
+
+    columns = st.columns
+    if not isinstance(columns, InvertedColumns) or j not in columns.evidence:
+        return None
+    ev = dataclasses.replace(
+        columns.evidence[j],
+        flux_against=summary.flux_against,
+        flux_abs=summary.flux_abs,
+        upwind_sq=columns.upwind_sums[0],
+        upwind_n=int(columns.upwind_sums[1]),
+    )
+    measures, failed = selfchecks.failure_terms(ev)
+    what = {
+        "at_bound_fraction": "of the pixel-frames ended on a bound of the inversion (no "
+        "column inside the bounds fits their contrast: the background is likely on the "
+        "wrong side of the radiance)",
+        "negative_fraction": "of the pixel-frames have a contrast of the sign the gas "
+        "cannot give (beyond 3 noise): the background is wrong there",
+        "background_residual_noise": "noise: the background's error along the surface "
+        "(it stands beyond the radiance's own floor where the gas leaves the pixels)",
+        "reversed_fraction": "of the flux through the surface runs against its "
+        "orientation (the flow reverses)",
+        "upwind_contrast_noise": "noise RMS contrast behind the source, where the gas "
+        "does not go: the background moves (drifting clouds) or the estimate misses "
+        "the scene's structure",
+    }
+    for key, term in failed:
+        v = measures[key]
+        size = f"{v:.1f}" if key.endswith("_noise") else f"{100 * v:.0f} %"
+        warnings.add(
+            selfchecks.CODES[key],
+            f"{size} {what[key]}; threshold {selfchecks.THRESHOLDS[key]:g}: the rate's "
+            f"interval is widened by a relative term of {100 * term:.0f} % (1 sigma); try "
+            f"another background (a gas-free region, or 'percentile') or surfaces where "
+            f"the background is uniform",
+            surface=surface,
+            species=sp,
+            measure=key,
+            value=float(v),
+            threshold=float(selfchecks.THRESHOLDS[key]),
+            relative_term=float(term),
+        )
+    if failed:
+        relative["assumptions"] = selfchecks.combined_term(failed)
+    return measures
 
 
 #: The two-sided 90 % quantile of the standard normal.

@@ -23,6 +23,7 @@ from .. import workers as _workers_mod
 from ..errors import Cancelled
 from ..inversion import plume_depth_from_width
 from ..recording import Recording
+from ..selfchecks import SurfaceEvidence
 from ..surfaces import Region, Surface
 from .background import Background
 from .config import QuantifyConfig
@@ -42,6 +43,13 @@ def prepare(run: RunState) -> None:
         run.columns = InvertedColumns(
             run.rec, run.cfg, run.scene, run.roi, run.horizontal, run.background
         )
+        # Where the gas does not go: the self-checks' upwind region.
+        from ..selfchecks import upwind_mask
+
+        mask = upwind_mask(run.rec.width, run.rec.height, run.cfg.source, run.surfaces)
+        if mask is not None:
+            sl = run.roi.slices()
+            run.columns.upwind_mask = mask[sl[0], sl[1]]
 
 
 class TruthColumns:
@@ -230,6 +238,12 @@ class InvertedColumns:
         self.proxy_channel = int(np.argmax(sens))
         self._set_proxy_lookup(0.0 if cfg.gas_temperature == "infer" else None)
         self.sigma_m: Dict[int, float] = {}
+        #: The self-diagnostics' sums per surface, over the run's blocks,
+        #: and the region behind the source (set by :func:`prepare`) with
+        #: its sums of squared contrast [noise^2] and pixel-frames.
+        self.evidence: Dict[int, SurfaceEvidence] = {}
+        self.upwind_mask: Optional[np.ndarray] = None
+        self.upwind_sums = [0.0, 0]
 
     def start_block(self) -> None:
         """Forgets the samples collected for the previous block (the pipeline
@@ -497,6 +511,14 @@ class InvertedColumns:
         the radiance and the background at the surface samples for
         :meth:`finish`."""
         field = self.proxy_field(frames, out)
+        if self.upwind_mask is not None:
+            c = self.proxy_channel
+            noise = float(
+                np.broadcast_to(np.asarray(self._inv_kw["netd_K"], float), (frames.shape[-3],))[c]
+            ) * float(self.rec.channels[c].band_radiance_derivative(self._bg_t))
+            up = field[..., self.upwind_mask].astype(float) / noise
+            self.upwind_sums[0] += float(np.sum(up * up))
+            self.upwind_sums[1] += int(up.size)
         origin = [self.roi.x0, self.roi.y0]
         rad, bg, prof = [], [], []
         for s, (xy, _n, _dl, t) in zip(surfaces, samples):
@@ -585,6 +607,12 @@ class InvertedColumns:
             res_sig = {sp: flat.column_density_sigma[sp].reshape(nt, n_) for sp in self.cfg.species}
             ok = (flat.valid | (flat.status == inv.BELOW_DETECTION)).reshape(nt, n_)
             counts = flat.counts()
+        status = (
+            np.repeat(res.status[None], nt, axis=0)
+            if time_averaged
+            else flat.status.reshape(nt, rad.shape[2])
+        )
+        self._note_evidence(rad, bg, status, edges)
         out = []
         for j in range(len(samples)):
             a, b = edges[j], edges[j + 1]
@@ -803,7 +831,23 @@ class InvertedColumns:
             cols = {sp: np.where(ok[:, a:b], res_cols[sp][:, a:b], np.nan) for sp in cfg.species}
             sigs = {sp: np.where(ok[:, a:b], res_sig[sp][:, a:b], 0.0) for sp in cfg.species}
             out.append((cols, sigs))
+        self._note_evidence(rad, bg, flat.status.reshape(nt, n), edges)
         return out, flat.counts()
+
+    def _note_evidence(self, rad, bg, status, edges) -> None:
+        """Adds a block's self-diagnostic sums per surface
+        (:class:`qogi.selfchecks.SurfaceEvidence`): the proxy channel's
+        sign-aware contrast (T, C, N radiance and background) in units of
+        its NETD noise, and the inversion's status (T, N)."""
+        c = self.proxy_channel
+        netd = float(np.broadcast_to(np.asarray(self._inv_kw["netd_K"], float), (rad.shape[1],))[c])
+        noise = netd * float(self.rec.channels[c].band_radiance_derivative(self._bg_t))
+        contrast = (rad[:, c, :] - bg[:, c, :]) * (self.background.channel_sign[c] / noise)
+        at_bound = status == self.inv_module.AT_BOUND
+        for j in range(len(edges) - 1):
+            a, b = edges[j], edges[j + 1]
+            ev = SurfaceEvidence.of(contrast[:, a:b], at_bound[:, a:b])
+            self.evidence.setdefault(j, SurfaceEvidence()).__iadd__(ev)
 
     def _invert(self, rad, bg, sigma_pixels, sigma_param, noise_scale, progress):
         """One inversion call; with an inferred temperature and no given depth,

@@ -1,0 +1,224 @@
+"""The result knows when its assumptions failed (qogi.selfchecks), and the
+automatic background looks at the background's own structure along each
+surface (qogi.background.choose)."""
+
+import numpy as np
+import pytest
+
+from qogi import selfchecks
+from qogi.background import STRUCTURE_SIGMA, choose
+from qogi.selfchecks import SurfaceEvidence
+from qogi.surfaces import Surface
+
+
+def _surface_samples(surf):
+    xy, n, dl = surf.samples(step_px=1.0)
+    tt = (np.arange(len(xy)) + 0.5) / len(xy)
+    return [(xy, n, dl, tt)]
+
+
+def _frames_with_background(bg, t=50, noise=0.01, seed=0):
+    rng = np.random.default_rng(seed)
+    return bg[None, None] + noise * rng.standard_normal((t, 1) + bg.shape)
+
+
+def test_auto_background_sees_texture_between_gas_free_strips():
+    h, w = 60, 80
+    surf = Surface([(10, 30), (70, 30)], name="S")
+    samples = _surface_samples(surf)
+    # A sky gradient: straight between the strips, beside the surface is exact.
+    sky = 10.0 + 0.002 * np.arange(w)[None, :] + 0.001 * np.arange(h)[:, None]
+    smooth = choose(_frames_with_background(sky), [surf], samples, np.array([1.0]))
+    assert smooth["method"] == "beside-surface", smooth["reason"]
+    assert smooth["structure"][0] < 1.0
+    # The same sky with a static texture 20x the noise (0.3 K at 15 mK).
+    rng = np.random.default_rng(5)
+    texture = 0.2 * np.repeat(rng.standard_normal(w // 4), 4)[None, :]
+    textured = choose(_frames_with_background(sky + texture), [surf], samples, np.array([1.0]))
+    assert textured["method"] == "percentile", textured["reason"]
+    assert textured["structure"][0] > STRUCTURE_SIGMA
+    assert "structure" in textured["reason"]
+
+
+def _evidence(bg_error, gas_every=3, t=120, n=60, seed=0):
+    """A surface's sign-aware contrast in noise units: Gaussian noise, gas
+    of 30 noise on the middle third in one frame of ``gas_every``, and a
+    background wrong by ``bg_error`` (n,) noise (positive: too high)."""
+    rng = np.random.default_rng(seed)
+    c = rng.standard_normal((t, n)) - bg_error[None, :]
+    c[::gas_every, n // 3 : 2 * n // 3] += 30.0
+    at_bound = c < -2.0  # the inversion finds no column above zero there
+    return SurfaceEvidence.of(c, at_bound)
+
+
+def test_a_right_background_passes_every_self_check():
+    m, failed = selfchecks.failure_terms(_evidence(np.zeros(60)))
+    assert failed == []
+    assert m["background_residual_noise"] < 1.0
+    assert m["negative_fraction"] < 0.01
+    assert m["at_bound_fraction"] < 0.05
+
+
+def test_a_textured_background_fails_the_residual_and_widens_by_its_size():
+    rng = np.random.default_rng(3)
+    error = 20.0 * rng.standard_normal(60)  # a texture of 20 noise RMS
+    ev = _evidence(error)
+    m, failed = selfchecks.failure_terms(ev)
+    keys = {k for k, _ in failed}
+    assert {"background_residual_noise", "negative_fraction", "at_bound_fraction"} <= keys
+    # The residual estimates the texture's RMS from its half below the floor.
+    assert m["background_residual_noise"] == pytest.approx(20.0, rel=0.35)
+    # A residual of 20 noise against gas of ~30 noise: more than half the
+    # signal, so the rate is not measured (term 1).
+    ratio = m["background_residual_noise"] / ev.mean_gas_contrast_noise()
+    assert ratio > selfchecks.NOT_MEASURED_ABOVE
+    assert dict(failed)["background_residual_noise"] == 1.0
+    # A texture of 6 noise (beyond the threshold) is sized by its ratio to the gas.
+    small = _evidence(0.3 * error)
+    m, failed = selfchecks.failure_terms(small)
+    ratio = m["background_residual_noise"] / small.mean_gas_contrast_noise()
+    assert dict(failed)["background_residual_noise"] == pytest.approx(ratio)
+
+
+def test_flow_reversals_are_the_share_of_the_gross_flux_against_the_surface():
+    ev = SurfaceEvidence(flux_against=2.0, flux_abs=10.0, pixel_frames=1)
+    m, failed = selfchecks.failure_terms(ev)
+    assert m["reversed_fraction"] == pytest.approx(0.2)
+    assert dict(failed)["reversed_fraction"] == pytest.approx(0.4)
+    # A third reversed moves the net by two thirds: not measured.
+    ev = SurfaceEvidence(flux_against=3.4, flux_abs=10.0, pixel_frames=1)
+    assert dict(selfchecks.failure_terms(ev)[1])["reversed_fraction"] == 1.0
+
+
+def test_evidence_adds_over_blocks():
+    a, b = _evidence(np.zeros(60), seed=1), _evidence(np.zeros(60), seed=2)
+    total = SurfaceEvidence()
+    total += a
+    total += b
+    assert total.pixel_frames == a.pixel_frames + b.pixel_frames
+    assert total.at_bound == a.at_bound + b.at_bound
+
+
+def test_inpainting_fills_the_structure_where_the_gas_never_leaves():
+    from qogi.background import inpaint_held
+
+    rng = np.random.default_rng(2)
+    t, h, w = 150, 40, 60
+    y, x = np.mgrid[0:h, 0:w]
+    noise = 0.01
+    # A gradient plus seams every 12 px (the structure), noise on top.
+    bg = 10.0 + 0.003 * y + 0.2 * ((x % 12) < 2)
+    frames = bg[None, None] + noise * rng.standard_normal((t, 1, h, w))
+    # Gas in every frame over a band of columns 20-31 (it never leaves):
+    # a fluctuating excess of 10-110 noise.
+    frames[:, :, :, 20:32] += noise * rng.uniform(10, 110, (t, 1, h, 12))
+    pct = np.percentile(frames, 5, axis=0)
+    out, held = inpaint_held(frames, pct, np.array([1.0]), 5.0)
+    band = np.zeros((h, w), bool)
+    band[:, 20:32] = True
+    assert held[band].mean() > 0.95 and held[~band].mean() < 0.02
+    # The percentile holds the gas (>= 10 noise); the filled background is
+    # within a fraction of the seams' 20 noise of the truth, seams included
+    # where the gas never left (the seam at columns 24-25 is 2 px of 12).
+    assert (pct[0][band] - bg[band]).mean() > 9 * noise
+    err = np.abs(out[0] - bg)[band]
+    assert np.median(err) < 3 * noise
+    # Outside the held band the percentile is untouched.
+    np.testing.assert_array_equal(out[0][~held], pct[0][~held])
+
+
+# -- end to end on small scenes ------------------------------------------------------
+
+
+def _crosswind(tmp_path, background, seed=0, duration_s=4.0):
+    """The outdoor stack release (10 kg/h, 4 m/s crosswind) in a small view
+    (96x64 px of 3.9 cm at 10 m) in front of ``background``; its exit pixel."""
+    import dataclasses
+
+    import qogi
+    from qogi import render, synth
+
+    rel = synth.preset_release("stack-10kgh-wind4-sky-gf320")
+    cam = qogi.camera_preset("gf320")
+    cam = dataclasses.replace(cam, width=96, height=64, ifov_rad=3 * cam.ifov_rad)
+    exit_px = (12.0, 36.0)
+    view = synth.View.framing(
+        rel, exit_px, width_px=96, height_px=64, ifov_rad=cam.ifov_rad, distance_m=10.0
+    )
+    sim = synth.simulate(rel, view, duration_s=duration_s, frame_rate_hz=15.0, seed=seed)
+    path = render.render_recording(sim, cam, background, tmp_path / "r.h5", seed=seed)
+    return qogi.open_recording(path), exit_px
+
+
+@pytest.fixture(scope="module")
+def textured_sky(tmp_path_factory):
+    from qogi import render
+
+    bg = render.Background(
+        "sky", None, sky_top_K=250.0, sky_bottom_K=265.0, texture_K=0.3, texture_px=2.0
+    )
+    return _crosswind(tmp_path_factory.mktemp("textured"), bg)
+
+
+def _surfaces(exit_px):
+    x, y = exit_px
+    return [Surface([(x + d, y - 20), (x + d, y + 20)], name=f"{d} px") for d in (15, 30)]
+
+
+@pytest.mark.slow
+def test_textured_sky_beside_surface_is_flagged_and_its_interval_reaches_the_truth(textured_sky):
+    from qogi.pipeline import QuantifyConfig, quantify
+
+    rec, exit_px = textured_sky
+    res = quantify(
+        rec, _surfaces(exit_px), QuantifyConfig(source=exit_px, background="beside-surface")
+    )
+    for s in res.surfaces:
+        r = s.species["CH4"]
+        codes = {w.code for w in res.warnings if w.surface == s.surface.name}
+        # The straight line between the strips misses the texture: the
+        # surface's own evidence says so, and the interval is widened by it.
+        assert {"background-residual", "inversion-at-bound"} <= codes, codes
+        assert r.uncertainty_terms_kg_h["assumptions"] > 0.2 * abs(r.mean_kg_h)
+        assert r.ci90_kg_h[0] <= r.truth_kg_h <= r.ci90_kg_h[1], (r.mean_kg_h, r.ci90_kg_h)
+
+
+@pytest.mark.slow
+def test_textured_sky_auto_background_takes_the_inpainted_percentile(textured_sky):
+    from qogi.pipeline import QuantifyConfig, quantify
+
+    rec, exit_px = textured_sky
+    res = quantify(rec, _surfaces(exit_px), QuantifyConfig(source=exit_px))
+    assert res.info["background_choice"]["method"] == "percentile"
+    assert "structure" in res.info["background_choice"]["reason"]
+    for s in res.surfaces:
+        r = s.species["CH4"]
+        assert abs(r.error_vs_truth) < 0.25, r.error_vs_truth
+        assert r.ci90_kg_h[0] <= r.truth_kg_h <= r.ci90_kg_h[1], (r.mean_kg_h, r.ci90_kg_h)
+
+
+def test_upwind_region_lies_behind_the_source_and_its_contrast_is_measured():
+    surfaces = [Surface([(60, 10), (60, 50)]), Surface([(80, 10), (80, 50)])]
+    mask = selfchecks.upwind_mask(100, 60, (30.0, 30.0), surfaces)
+    assert mask is not None
+    assert mask[:, :14].all() and not mask[:, 16:].any()  # x < 30 - 15 only
+    assert selfchecks.upwind_mask(100, 60, None, surfaces) is None
+    # A static background leaves noise there; a moving one its contrast.
+    quiet = SurfaceEvidence(pixel_frames=1, upwind_sq=1.2 * 1000, upwind_n=1000)
+    moving = SurfaceEvidence(
+        pixel_frames=1,
+        upwind_sq=40.0**2 * 1000,
+        upwind_n=1000,
+        gas_contrast_sum=80.0 * 10,
+        gas_pixel_frames=10,
+    )
+    assert selfchecks.failure_terms(quiet)[1] == []
+    m, failed = selfchecks.failure_terms(moving)
+    assert m["upwind_contrast_noise"] == pytest.approx(40.0)
+    assert dict(failed)["upwind_contrast_noise"] == pytest.approx(0.5)
+
+
+def test_failed_terms_combine_in_quadrature_until_the_rate_is_not_measured():
+    assert selfchecks.combined_term([]) == 0.0
+    assert selfchecks.combined_term([("a", 0.3), ("b", 0.4)]) == pytest.approx(0.5)
+    assert selfchecks.combined_term([("a", 0.12), ("b", 0.49)]) == 1.0
