@@ -17,13 +17,6 @@ cv::Mat ImageMat(const FloatArray& a, const char* name) {
                  const_cast<float*>(a.data()));
 }
 
-py::array_t<float> ToImage(const cv::Mat& m) {
-  py::array_t<float> out({m.rows, m.cols});
-  cv::Mat dst(m.rows, m.cols, CV_32FC1, out.mutable_data());
-  m.copyTo(dst);
-  return out;
-}
-
 py::dict ShiftDict(const RigidShift& s) {
   return ToDict(s, Field("dx_px", &RigidShift::dx_px), Field("dy_px", &RigidShift::dy_px),
                 Field("angle_rad", &RigidShift::angle_rad));
