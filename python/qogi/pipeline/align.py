@@ -279,7 +279,8 @@ def _channel_timing(run: RunState, samples: np.ndarray) -> Optional[_Timing]:
         info["status"] = "off: the channels are simultaneous"
         return None
     reference = np.median(samples, axis=0)
-    noise = np.maximum(_noise(samples, reference), 1e-30)
+    # (a floor for noise-free synthetic frames: 1e-5 of the scene's radiance)
+    noise = np.maximum(_noise(samples, reference), 1e-5 * np.median(np.abs(reference), axis=(1, 2)))
     contrast = np.abs(samples - reference) / noise[None, :, None, None]
     channel = int(np.argmax(np.percentile(contrast, 99.5, axis=(0, 2, 3))))
     info["status"] = f"on: channels moved along the gas's flow (channel {channel}) to the turn time"
