@@ -165,8 +165,19 @@ def _stabilisation(run: RunState, samples: np.ndarray) -> Optional[_Stabiliser]:
         )
         return None
     stab = _Stabiliser(reference[channel], channel, keep, rotation=bool(keep[2]))
-    shifts = np.array([stab.shift_of(f) for f in samples])
-    jitter = _rms_motion(shifts, radius)
+    first = [stab.measure(f) for f in samples]
+    ok = np.array([r["converged"] and r["inlier_fraction"] >= 0.5 for r in first])
+    if ok.mean() < 0.5:
+        # Where the only structure is the gas itself (a plate behind a steady
+        # plume), the registration follows the gas and does not settle: there
+        # is no static scene to measure the camera's motion on.
+        info["status"] = (
+            f"off: no static texture ({int((~ok).sum())} of {len(samples)} sampled frames "
+            "did not register: the structure in view is the moving gas)"
+        )
+        return None
+    shifts = np.array([[r["dx_px"], r["dy_px"], r["angle_rad"]] for r in first]) * keep
+    jitter = _rms_motion(shifts[ok], radius)
     info["jitter_rms_px"] = jitter
     if jitter < JITTER_NEGLIGIBLE_PX:
         info["status"] = f"off: measured jitter {jitter:.3f} px rms is negligible"
