@@ -55,6 +55,10 @@ JITTER_RESIDUAL_PX = 0.1
 #: A frame moved by more than this [px] is put back, but its edges are then
 #: filled by repeating the border over that width (``jitter-uncorrected``).
 JITTER_MAX_PX = 4.0
+#: Put back by the measured motion, the static scene's change from its
+#: reference beyond the noise must fall below this fraction of what it was (else the
+#: "motion" is the gas's, not the camera's).
+STATIC_GAIN = 0.8
 #: Frames sampled over the run to build the reference and measure the jitter.
 SAMPLE_FRAMES = 50
 
@@ -94,12 +98,20 @@ def prepare(run: RunState) -> None:
 class _Stabiliser:
     """The registration of one run: reference, channel, corrected directions."""
 
-    def __init__(self, reference: np.ndarray, channel: int, keep: np.ndarray, rotation: bool):
+    def __init__(
+        self,
+        reference: np.ndarray,
+        channel: int,
+        keep: np.ndarray,
+        rotation: bool,
+        static: Optional[np.ndarray] = None,
+    ):
         self.channel = channel
         self.keep = keep  # (3,) 1 for the corrected (dx, dy, angle)
+        self.static = static
         self.reg = _engine.FrameRegistration(
             np.ascontiguousarray(reference, np.float32),
-            None,
+            None if static is None else static.astype(np.uint8),
             _engine.RegistrationOptions(rotation=rotation, max_shift_px=2 * JITTER_MAX_PX),
         )
         self.shifts: Dict[int, Tuple[float, float, float]] = {}
@@ -133,6 +145,16 @@ def _noise(samples: np.ndarray, reference: np.ndarray) -> np.ndarray:
     return out
 
 
+def _static_mask(samples: np.ndarray, reference: np.ndarray, noise: float) -> np.ndarray:
+    """Pixels of one channel's static scene: their change over the sampled
+    frames (robust spread about the median) within what noise and a camera
+    motion of up to 2 px over the scene's own gradient explain; the gas,
+    which changes by itself, is left out."""
+    spread = 1.4826 * np.median(np.abs(samples - reference), axis=0)
+    gy, gx = np.gradient(reference)
+    return spread <= 3.0 * noise + 2.0 * np.hypot(gx, gy)
+
+
 def _stabilisation(run: RunState, samples: np.ndarray) -> Optional[_Stabiliser]:
     """The run's stabiliser when its measured jitter matters, else None
     (``Result.info["stabilisation"]`` says which and why)."""
@@ -147,14 +169,22 @@ def _stabilisation(run: RunState, samples: np.ndarray) -> Optional[_Stabiliser]:
     radius = float(np.hypot(0.5 * (h - 1), 0.5 * (w - 1)))
     best = None
     for c in range(samples.shape[1]):
-        reg = _engine.FrameRegistration(np.ascontiguousarray(reference[c], np.float32))
+        static = _static_mask(samples[:, c], reference[c], float(noise[c]))
+        if static.sum() < 64:
+            continue
+        reg = _engine.FrameRegistration(
+            np.ascontiguousarray(reference[c], np.float32), static.astype(np.uint8)
+        )
         p = reg.precision(float(noise[c]) if noise[c] > 0 else 1e-30)
         prec = np.array([p["dx_px"], p["dy_px"], p["angle_rad"] * radius])
         score = float(np.sort(prec)[:2].sum())
         if best is None or score < best[0]:
-            best = (score, c, prec)
-    assert best is not None
-    _, channel, prec = best
+            best = (score, c, prec, static)
+    if best is None:
+        info["status"] = "off: no static part of the scene to register on"
+        return None
+    _, channel, prec, static = best
+    info["static_fraction"] = float(static.mean())
     keep = (prec <= PRECISION_PX).astype(float)
     info["precision_px"] = [float(x) for x in prec]
     info["channel"] = int(channel)
@@ -164,7 +194,7 @@ def _stabilisation(run: RunState, samples: np.ndarray) -> Optional[_Stabiliser]:
             f"{prec[0]:.2g} px across, {prec[1]:.2g} px down)"
         )
         return None
-    stab = _Stabiliser(reference[channel], channel, keep, rotation=bool(keep[2]))
+    stab = _Stabiliser(reference[channel], channel, keep, bool(keep[2]), static)
     first = [stab.measure(f) for f in samples]
     ok = np.array([r["converged"] and r["inlier_fraction"] >= 0.5 for r in first])
     if ok.mean() < 0.5:
@@ -184,7 +214,32 @@ def _stabilisation(run: RunState, samples: np.ndarray) -> Optional[_Stabiliser]:
         return None
     # A sharper reference: the median of the sampled frames put back in place.
     stable = np.asarray([stab.warp(f.astype(np.float32), s) for f, s in zip(samples, shifts)])
-    stab = _Stabiliser(np.median(stable, axis=0)[channel], channel, keep, bool(keep[2]))
+
+    # A camera's motion, put back, brings the static scene's pixels back to
+    # the reference; a "motion" the gas made up does not (a plate behind a
+    # puffing plume): then nothing is corrected.
+    # (Each pixel's robust change over the frames beyond the noise, in
+    # quadrature: gas passing now and then does not count.)
+    def change(frames: np.ndarray) -> float:
+        mad = np.median(np.abs(frames - np.median(frames, axis=0)), axis=0)[static]
+        typical = float(np.median((1.4826 * mad) ** 2))  # over pixels too: the gas's edge aside
+        return float(np.sqrt(max(0.0, typical - float(noise[channel]) ** 2)))
+
+    before, after = change(samples[:, channel]), change(stable[:, channel])
+    info["static_residual_ratio"] = float(after / before) if before > 0 else 1.0
+    if not before > 0:
+        info["status"] = (
+            f"off: the static scene does not change beyond the noise (the measured "
+            f"{jitter:.3f} px rms is the gas's, not the camera's)"
+        )
+        return None
+    if not after < STATIC_GAIN * before:
+        info["status"] = (
+            f"off: the measured {jitter:.3f} px rms does not explain the static scene's "
+            f"changes (put back, they are {after / before:.0%} of what they were)"
+        )
+        return None
+    stab = _Stabiliser(np.median(stable, axis=0)[channel], channel, keep, bool(keep[2]), static)
     measured = [stab.measure(f) for f in samples]
     shifts = np.array([[r["dx_px"], r["dy_px"], r["angle_rad"]] for r in measured]) * keep
     # Not registered: no convergence, or most pixels left out (a local minimum).
