@@ -147,8 +147,9 @@ class Jitter:
         t = np.asarray(times_s, dtype=float)
         rng = np.random.default_rng([int(self.seed), 0x717])
         out = np.zeros((len(t), 3))
-        for k, rms in enumerate((self.rms_px / np.sqrt(2), self.rms_px / np.sqrt(2),
-                                 self.rotation_rms_rad)):
+        for k, rms in enumerate(
+            (self.rms_px / np.sqrt(2), self.rms_px / np.sqrt(2), self.rotation_rms_rad)
+        ):
             f = self.frequency_hz * rng.uniform(0.5, 1.5, 8)
             ph = rng.uniform(0, 2 * np.pi, 8)
             x = np.sin(2 * np.pi * f[None, :] * t[:, None] + ph[None, :]).sum(axis=1)
@@ -548,7 +549,10 @@ def render_recording(
         if camera.width is None or camera.height is None:
             raise ValueError("jitter needs the camera's width and height")
         margin = jitter.margin_px(camera.width, camera.height)
-        if (view.width_px, view.height_px) != (camera.width + 2 * margin, camera.height + 2 * margin):
+        if (view.width_px, view.height_px) != (
+            camera.width + 2 * margin,
+            camera.height + 2 * margin,
+        ):
             raise ValueError(
                 f"with jitter the simulation's view must be {margin} px larger than the "
                 f"camera ({camera.width}x{camera.height}) on every side; got "
@@ -637,7 +641,7 @@ def render_recording(
     sub_times = np.asarray(sim.times_s, dtype=float)
     times = sub_times[: nf * turn].reshape(nf, turn).mean(axis=1)
     motion = jitter.motion(sub_times) if jitter is not None else None
-    if motion is not None:
+    if jitter is not None and motion is not None:
         truth.datasets.update(
             jitter_dx_px=motion[:, 0].copy(),
             jitter_dy_px=motion[:, 1].copy(),
@@ -652,6 +656,7 @@ def render_recording(
         """Sub-frame f, noise-free, in the camera's image (moved when jittered)."""
         big = renderer.render_frame(f)
         return big if motion is None else _jittered(big, motion[f], margin)
+
     with RecordingWriter(
         path,
         quantity="radiance",
@@ -761,6 +766,7 @@ def synthesize(
         ex, ey = p["scene"]["exit_pixel"]
         exit_px = (ex / base.width_px * camera.width, camera.height - (base.height_px - ey))
         # A jittered camera is drawn larger and cut out after its motion.
+        assert camera.width is not None and camera.height is not None  # presets know them
         m = jitter.margin_px(camera.width, camera.height) if jitter is not None else 0
         view = synth.View.framing(
             synth.preset_release(preset_name),
@@ -781,6 +787,7 @@ def synthesize(
     )
     if jitter is not None and background.kind == "sky":
         # The same sky per camera row: its gradient carried on over the margin.
+        assert camera.width is not None and camera.height is not None  # presets know them
         m = jitter.margin_px(camera.width, camera.height)
         slope = (background.sky_bottom_K - background.sky_top_K) / (camera.height - 1)
         background = Background(
