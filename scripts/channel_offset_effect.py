@@ -6,8 +6,11 @@ at 4 x 100 Hz; two four-channel recordings are built from it at 100 turns/s:
 "simultaneous" takes every channel of turn i from frame 4 i + 2 (one instant), and
 "wheel" takes channel k from frame 4 i + k (each filter at its own time, 2.5 ms
 apart, as the wheel sees the plume), written as a Telops .hcc and read back by
-qogi.open_recording. Both are quantified the same way (temperature inferred, the
-release's exit velocity) and the rates compared.
+qogi.open_recording. They are quantified the same way (temperature inferred, the
+release's exit velocity) and the rates compared: "wheel" with the pipeline's
+filter-wheel timing correction (qogi.pipeline.align: each channel moved along
+the gas's measured flow to the turn's time), "wheel, uncorrected" the same
+recording without its channel offsets (what the pipeline did before).
 
     python scripts/channel_offset_effect.py [--duration 0.2] [--seed 5]
 """
@@ -76,8 +79,19 @@ def main() -> None:
         exit_velocity_m_s=1.0,
         source=source,
     )
+    blind = qogi.Recording(
+        source=wheel.to_array(),
+        time_s=wheel.time_s,
+        quantity=wheel.quantity,
+        camera=wheel.camera,
+        scene=wheel.scene,
+        truth=None,
+        path=wheel.path,
+        nonfinite=wheel.nonfinite,
+        attrs={k: v for k, v in wheel.attrs.items() if k != "channel_time_offset_s"},
+    )
     out, infos = {}, {}
-    for name, r in (("simultaneous", sim), ("wheel", wheel)):
+    for name, r in (("simultaneous", sim), ("wheel, uncorrected", blind), ("wheel", wheel)):
         res = quantify(r, surfs, cfg)
         out[name] = np.array([s.species["CH4"].mean_kg_h for s in res.surfaces])
         infos[name] = {k: v for k, v in res.info.items() if "temperature" in k or "mixing" in k}
@@ -89,13 +103,14 @@ def main() -> None:
         np.round(wheel.attrs["channel_time_offset_s"] * 1e3, 3),
     )
     for name, v in out.items():
-        print(f"{name:>12}: " + "  ".join(f"{x:.5g}" for x in v) + " kg/h (4, 8, 12 cm)")
+        print(f"{name:>18}: " + "  ".join(f"{x:.5g}" for x in v) + " kg/h (4, 8, 12 cm)")
     for name, v in infos.items():
-        print(f"{name:>12}: {v}")
-    print(
-        "wheel / simultaneous - 1: "
-        + "  ".join(f"{x:+.2%}" for x in out["wheel"] / out["simultaneous"] - 1)
-    )
+        print(f"{name:>18}: {v}")
+    for name in ("wheel, uncorrected", "wheel"):
+        print(
+            f"{name} / simultaneous - 1: "
+            + "  ".join(f"{x:+.2%}" for x in out[name] / out["simultaneous"] - 1)
+        )
 
 
 if __name__ == "__main__":

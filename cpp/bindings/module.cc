@@ -11,6 +11,7 @@ void BindCameraPresets(py::module_& m);
 void BindSpectra(py::module_& m);
 void BindCamera(py::module_& m);
 void BindVelocimetry(py::module_& m);
+void BindRegistration(py::module_& m);
 void BindSynth(py::module_& m);
 void BindInversion(py::module_& m);
 void BindFlux(py::module_& m);
@@ -26,6 +27,7 @@ PYBIND11_MODULE(_engine, m) {
   qogi::BindSpectra(m);
   qogi::BindCamera(m);
   qogi::BindVelocimetry(m);
+  qogi::BindRegistration(m);
   qogi::BindSynth(m);
   qogi::BindInversion(m);
   qogi::BindFlux(m);

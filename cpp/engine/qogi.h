@@ -14,6 +14,7 @@
 #include "engine/io/jpegls.h"
 #include "engine/optics/planck.h"
 #include "engine/optics/spectral_response.h"
+#include "engine/registration/registration.h"
 #include "engine/rte/binned_model.h"
 #include "engine/rte/exact_model.h"
 #include "engine/spectra/cross_section.h"

@@ -41,7 +41,7 @@ from .optics import SpectralResponse
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Background", "SceneRenderer", "nnls", "render_recording", "synthesize"]
+__all__ = ["Background", "Jitter", "SceneRenderer", "nnls", "render_recording", "synthesize"]
 
 
 @dataclasses.dataclass
@@ -234,6 +234,83 @@ class Background:
         if self.kind == "sky":
             return 0.5 * (self.sky_top_K + self.sky_bottom_K)
         return self._plate_K()
+
+
+@dataclasses.dataclass(frozen=True)
+class Jitter:
+    """A vibrating tripod: the whole image moves rigidly, frame by frame.
+
+    The motion is a sum of eight sinusoids per component with frequencies
+    drawn uniformly within ``frequency_hz`` x [0.5, 1.5] and random phases
+    (seeded), scaled so that the displacement's root-mean-square over the
+    run is ``rms_px`` (x and y alike) and the rotation's ``rotation_rms_rad``
+    (about the image centre). The renderer draws each frame ``margin_px``
+    larger on every side and resamples it by this motion
+    (:func:`qogi._engine.warp_to_reference`, bicubic) before cutting the
+    camera's image out of it, so no border is invented; background and gas
+    move together and the sensor's noise is added after, as in a real camera.
+
+    Parameters
+    ----------
+    rms_px : float, default 0.3
+        Displacement rms [px], in [0, 3].
+    frequency_hz : float, default 2.0
+        Typical vibration frequency [Hz], > 0.
+    rotation_rms_rad : float, default 0.0
+        Rotation rms [rad], in [0, 0.01].
+    seed : int, default 0
+    """
+
+    rms_px: float = 0.3
+    frequency_hz: float = 2.0
+    rotation_rms_rad: float = 0.0
+    seed: int = 0
+
+    def __post_init__(self):
+        if not 0.0 <= self.rms_px <= 3.0:
+            raise ValueError(f"Jitter rms_px must be within [0, 3] px; got {self.rms_px}")
+        if not self.frequency_hz > 0.0:
+            raise ValueError(f"Jitter frequency_hz must be > 0 Hz; got {self.frequency_hz}")
+        if not 0.0 <= self.rotation_rms_rad <= 0.01:
+            raise ValueError(
+                f"Jitter rotation_rms_rad must be within [0, 0.01] rad; got {self.rotation_rms_rad}"
+            )
+
+    def margin_px(self, width: int, height: int) -> int:
+        """Pixels drawn beyond each image edge: the largest displacement the
+        motion can reach (four times its rms, the rotation at the corner) and
+        the resampling's reach."""
+        corner = 0.5 * float(np.hypot(width, height))
+        return int(math.ceil(4.0 * (self.rms_px + self.rotation_rms_rad * corner))) + 3
+
+    def motion(self, times_s) -> np.ndarray:
+        """The rigid motion at each time, (T, 3): dx, dy [px] (the frame's
+        content at W(x) = R(angle)(x - c) + c + (dx, dy) is the still
+        camera's at x) and angle [rad]."""
+        t = np.asarray(times_s, dtype=float)
+        rng = np.random.default_rng([int(self.seed), 0x717])
+        out = np.zeros((len(t), 3))
+        for k, rms in enumerate(
+            (self.rms_px / np.sqrt(2), self.rms_px / np.sqrt(2), self.rotation_rms_rad)
+        ):
+            f = self.frequency_hz * rng.uniform(0.5, 1.5, 8)
+            ph = rng.uniform(0, 2 * np.pi, 8)
+            x = np.sin(2 * np.pi * f[None, :] * t[:, None] + ph[None, :]).sum(axis=1)
+            x -= x.mean()
+            r = float(np.sqrt(np.mean(x**2))) if len(t) > 1 else 0.0
+            out[:, k] = x * (rms / r) if r > 0 else 0.0
+        return out
+
+
+def _jittered(frame: np.ndarray, motion: np.ndarray, margin: int) -> np.ndarray:
+    """The camera's image (C, H, W) cut from a frame drawn ``margin`` px
+    larger on every side, moved by ``motion`` (dx, dy, angle)."""
+    dx, dy, a = (float(v) for v in motion)
+    # Resampling by the inverse motion puts the still scene's x at W(x).
+    c, s = math.cos(a), math.sin(a)
+    inv = (-(c * dx + s * dy), -(-s * dx + c * dy), -a)
+    big = _engine.warp_to_reference(np.ascontiguousarray(frame, np.float32), *inv)
+    return big[:, margin:-margin, margin:-margin]
 
 
 def _lsq(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -602,6 +679,8 @@ def render_recording(
     num_threads: int = 0,
     max_bins: int = 48,
     line_shape=None,
+    jitter: Optional[Jitter] = None,
+    filter_wheel: bool = False,
 ):
     """Render a simulation into a recording file (docs/recording.md contract) with ``/truth``.
 
@@ -612,6 +691,20 @@ def render_recording(
     ``column_density_kg_m2_<SPECIES>`` (T, H, W) and ``velocity_m_s`` (T, 2, H, W)
     (mass-weighted x right and z up components). Attrs record the renderer's
     measured error against the full fast model.
+
+    ``jitter`` (:class:`Jitter`) moves every frame rigidly: the simulation's
+    view must then be ``jitter.margin_px(camera.width, camera.height)``
+    larger than the camera on every side (:func:`synthesize` makes it so);
+    the motion applied is kept in ``/truth`` datasets ``jitter_dx_px``,
+    ``jitter_dy_px``, ``jitter_angle_rad`` (T,) and the truth maps are in the
+    still camera's geometry. ``filter_wheel=True`` renders channel k of frame
+    i at simulation frame ``C i + k`` (C channels): the simulation runs at C
+    times the camera's frame rate and each channel is seen at its own time
+    within a wheel turn, as the FAST M150's filter wheel does; the frame's
+    time is its turn's mean, the channels' offsets from it are the root
+    attribute ``channel_time_offset_s`` (as ``qogi convert`` writes for a
+    Telops file), the plane fluxes are the turn's means and the truth maps
+    those of simulation frame ``C i + C // 2``.
     """
     from . import synth
     from .recording import Camera, RecordingWriter, Scene, Truth, set_attr
@@ -623,9 +716,24 @@ def render_recording(
 
         report(progress, f, msg)  # qogi.Cancelled when told to stop
 
+    view = sim.view
+    margin = 0
+    if jitter is not None:
+        if camera.width is None or camera.height is None:
+            raise ValueError("jitter needs the camera's width and height")
+        margin = jitter.margin_px(camera.width, camera.height)
+        if (view.width_px, view.height_px) != (
+            camera.width + 2 * margin,
+            camera.height + 2 * margin,
+        ):
+            raise ValueError(
+                f"with jitter the simulation's view must be {margin} px larger than the "
+                f"camera ({camera.width}x{camera.height}) on every side; got "
+                f"{view.width_px}x{view.height_px} (render with qogi.render.synthesize)"
+            )
     renderer = SceneRenderer(
         sim,
-        camera,
+        dataclasses.replace(camera, width=view.width_px, height=view.height_px),
         background,
         progress=lambda f, m: say(0.1 * f, m),
         warm_filter_temperature_K=warm_filter_temperature_K,
@@ -634,8 +742,10 @@ def render_recording(
         max_bins=max_bins,
         line_shape=line_shape,
     )
-    rel, view = sim.release, sim.view
+    rel = sim.release
     nc = len(renderer.forward.channels)
+    turn = nc if filter_wheel else 1  # simulation frames per recorded frame
+    out_h, out_w = view.height_px - 2 * margin, view.width_px - 2 * margin
     scene = Scene(
         distance_m=float(view.distance_m),
         ambient_temperature_K=float(rel.ambient_temperature_K),
@@ -651,10 +761,10 @@ def render_recording(
         channels=[
             SpectralResponse(c.nu_cm1, c.response, c.name) for c in renderer.forward.channels
         ],
-        frame_rate_hz=float(sim.frame_rate_hz),
+        frame_rate_hz=float(sim.frame_rate_hz) / turn,
         netd_K=camera.netd_K,
-        width=view.width_px,
-        height=view.height_px,
+        width=out_w,
+        height=out_h,
     )
     # Truth planes: horizontal planes at heights above the exit (world z), and their image rows.
     exit_z = float(rel.stack_height_m)
@@ -667,10 +777,14 @@ def render_recording(
         ]
     heights = np.asarray(truth_plane_heights_m, dtype=float)
     pix = view.ifov_rad * view.distance_m
-    cy = (view.height_px - 1) / 2.0
+    cy = (out_h - 1) / 2.0
     rows = cy - (exit_z + heights - view.center_z_m) / pix
     planes = synth.horizontal_planes(list(exit_z + heights))
-    flux = sim.plane_flux(planes)
+    nf = sim.num_frames // turn
+    flux = {
+        sp: np.asarray(v[: nf * turn]).reshape(nf, turn, -1).mean(axis=1)
+        for sp, v in sim.plane_flux(planes).items()
+    }
     truth = Truth(
         emission_rate_kg_s=dict(sim.emission_rate_kg_s),
         datasets={
@@ -695,10 +809,27 @@ def render_recording(
             "spin_up_s": float(sim.spin_up_s),
         },
     )
-    nf = sim.num_frames
-    h, w = view.height_px, view.width_px
+    h, w = out_h, out_w
     tbg_per_channel = [float(background.representative_K())] * nc
-    times = np.asarray(sim.times_s, dtype=float)
+    sub_times = np.asarray(sim.times_s, dtype=float)
+    times = sub_times[: nf * turn].reshape(nf, turn).mean(axis=1)
+    motion = jitter.motion(sub_times) if jitter is not None else None
+    if jitter is not None and motion is not None:
+        truth.datasets.update(
+            jitter_dx_px=motion[:, 0].copy(),
+            jitter_dy_px=motion[:, 1].copy(),
+            jitter_angle_rad=motion[:, 2].copy(),
+        )
+        truth.attrs.update(jitter_rms_px=jitter.rms_px, jitter_frequency_hz=jitter.frequency_hz)
+        if filter_wheel:  # each channel's own motion: (T, C) per component
+            for k, name in enumerate(("jitter_dx_px", "jitter_dy_px", "jitter_angle_rad")):
+                truth.datasets[name] = motion[: nf * turn, k].reshape(nf, turn).copy()
+
+    def drawn(f: int) -> np.ndarray:
+        """Sub-frame f, noise-free, in the camera's image (moved when jittered)."""
+        big = renderer.render_frame(f)
+        return big if motion is None else _jittered(big, motion[f], margin)
+
     with RecordingWriter(
         path,
         quantity="radiance",
@@ -709,8 +840,14 @@ def render_recording(
         compression=compression,
         expected_frames=nf,
     ) as writer:
+        if filter_wheel:
+            offsets = (np.arange(turn) - (turn - 1) / 2.0) / float(sim.frame_rate_hz)
+            set_attr(writer.truth_group.file, "channel_time_offset_s", offsets)
         for f in range(nf):
-            frame = renderer.render_frame(f)
+            if filter_wheel:
+                frame = np.stack([drawn(turn * f + k)[k] for k in range(nc)])
+            else:
+                frame = drawn(f)
             if renderer.optics is not None and warm_filter_temperature_K is not None:
                 from . import camera as camera_mod
 
@@ -745,12 +882,13 @@ def render_recording(
                 "velocity_m_s", (nf, 2, h, w), np.float32, chunks=(1, 2, h, w), compression="lzf"
             )
             set_attr(vel, "components", "x right, z up (mass-weighted along each line of sight)")
+            inner = (slice(margin, margin + h), slice(margin, margin + w))
             for f in range(nf):
-                m = sim.truth_maps(f)
+                m = sim.truth_maps(turn * f + turn // 2)
                 for sp in renderer.species:
-                    cols[sp][f] = m["column_kg_m2"][sp]
-                vel[f, 0] = m["velocity_x_m_s"]
-                vel[f, 1] = m["velocity_z_m_s"]
+                    cols[sp][f] = m["column_kg_m2"][sp][inner]
+                vel[f, 0] = m["velocity_x_m_s"][inner]
+                vel[f, 1] = m["velocity_z_m_s"][inner]
                 say(0.95 + 0.05 * (f + 1) / nf, f"truth maps {f + 1}/{nf}")
     log.info("rendered %d frames in %.1f s", nf, time.perf_counter() - t0)
     return path
@@ -769,6 +907,8 @@ def synthesize(
     progress=None,
     num_threads: int = 0,
     line_shape=None,
+    jitter: Optional[Jitter] = None,
+    filter_wheel: bool = False,
 ):
     """Simulate and render a preset (``qogi synth``). Returns the path written.
 
@@ -778,13 +918,17 @@ def synthesize(
     same place relative to the image's bottom edge; the frame rate defaults to
     that camera's. ``line_shape`` (:class:`qogi.forward.LineShape` or its
     text, default ``fixed:25+self``) is the renderer's line shape (recorded
-    in the truth's ``line_shape`` attribute)."""
+    in the truth's ``line_shape`` attribute). ``jitter`` (:class:`Jitter`)
+    shakes the camera; ``filter_wheel=True`` sees each channel at its own
+    time within a wheel turn (see :func:`render_recording`)."""
     from . import synth
 
     p = synth.preset(preset_name)
     cam_key, camera = _camera_for(p)
     view = None
-    if camera_name is not None and camera_name != cam_key:
+    if jitter is not None or filter_wheel:
+        camera_name = camera_name or cam_key
+    if camera_name is not None and (camera_name != cam_key or jitter is not None):
         # Another camera at the same pixel footprint, framed on the same exit.
         from .presets import camera_preset
 
@@ -794,16 +938,30 @@ def synthesize(
         cam_key = camera_name
         ex, ey = p["scene"]["exit_pixel"]
         exit_px = (ex / base.width_px * camera.width, camera.height - (base.height_px - ey))
+        # A jittered camera is drawn larger and cut out after its motion.
+        assert camera.width is not None and camera.height is not None  # presets know them
+        m = jitter.margin_px(camera.width, camera.height) if jitter is not None else 0
         view = synth.View.framing(
             synth.preset_release(preset_name),
-            exit_px,
-            width_px=camera.width,
-            height_px=camera.height,
+            (exit_px[0] + m, exit_px[1] + m),
+            width_px=camera.width + 2 * m,
+            height_px=camera.height + 2 * m,
             ifov_rad=camera.ifov_rad,
             distance_m=footprint / camera.ifov_rad,
             projection=base.projection,
         )
     background = Background.from_dict(p["scene"]["background"], seed=seed)
+    if jitter is not None and background.kind == "sky":
+        # The same sky per camera row: its gradient carried on over the margin.
+        assert camera.width is not None and camera.height is not None  # presets know them
+        m = jitter.margin_px(camera.width, camera.height)
+        slope = (background.sky_bottom_K - background.sky_top_K) / (camera.height - 1)
+        background = dataclasses.replace(
+            background,
+            sky_top_K=background.sky_top_K - m * slope,
+            sky_bottom_K=background.sky_bottom_K + m * slope,
+        )
+    wheel = len(camera.channels) if filter_wheel else 1
 
     def say(f, msg):
         from .progress import report
@@ -815,7 +973,11 @@ def synthesize(
         sim = synth.simulate_preset(
             preset_name,
             duration_s=duration_s,
-            frame_rate_hz=frame_rate_hz,
+            frame_rate_hz=(
+                frame_rate_hz
+                if wheel == 1
+                else wheel * (frame_rate_hz or p["camera"]["frame_rate_hz"])
+            ),
             seed=seed,
             num_threads=num_threads,
         )
@@ -824,7 +986,7 @@ def synthesize(
             synth.preset_release(preset_name),
             view,
             p["duration_s"] if duration_s is None else duration_s,
-            camera.frame_rate_hz if frame_rate_hz is None else frame_rate_hz,
+            wheel * (camera.frame_rate_hz if frame_rate_hz is None else frame_rate_hz),
             seed=seed,
             num_threads=num_threads,
         )
@@ -842,6 +1004,8 @@ def synthesize(
         progress=lambda f, m: say(0.05 + 0.95 * f, m),
         num_threads=num_threads,
         line_shape=line_shape,
+        jitter=jitter,
+        filter_wheel=filter_wheel,
     )
     say(1.0, "done")
     return out

@@ -17,6 +17,7 @@ ORDER = [
     "sampling",
     "state",
     "setup",
+    "align",
     "background",
     "columns",
     "velocity",

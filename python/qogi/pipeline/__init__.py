@@ -4,6 +4,9 @@ A chain of stages passing one typed run state forward (docs/pipeline_api.md):
 
 1. **Recording** (:mod:`.setup`): checks, scene constants, timebase, the
    surfaces' samples.
+   Then the alignment (:mod:`.align`): frames of a vibrating camera
+   resampled to the static scene, a filter wheel's channels brought to the
+   turn's time (each only when measured to matter).
 2. **Background** (:mod:`.background`): the gas-free band radiance of each
    channel, beside each control surface or a temporal percentile (chosen from
    the scene by default), or from a user region.

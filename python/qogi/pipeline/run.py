@@ -1,6 +1,7 @@
 """The run: :func:`quantify` checks its inputs and chains the stages.
 
-recording (:mod:`.setup`) -> background (:mod:`.background`) -> columns
+recording (:mod:`.setup`) -> alignment (:mod:`.align`: jitter and filter-wheel
+timing) -> background (:mod:`.background`) -> columns
 (:mod:`.columns`) -> velocity (:mod:`.velocity`) -> flux (:mod:`.flux`) ->
 rate and budget (:mod:`.budget`), the middle three block by block
 (:mod:`qogi.timebase`: blocks of bounded length with a few frames of overlap,
@@ -17,7 +18,7 @@ from ..errors import Cancelled
 from ..recording import Recording
 from ..result import Result
 from ..surfaces import Surface
-from . import background, budget, columns, flux, setup, velocity
+from . import align, background, budget, columns, flux, setup, velocity
 from .config import QuantifyConfig
 from .setup import check_inputs
 from .state import BlockOut, RunState
@@ -124,6 +125,7 @@ def _run(
     from ..timebase import stream_blocks
 
     run = setup.prepare(rec, surfaces, cfg, progress, keep_maps)
+    align.prepare(run)
     background.prepare(run)
     columns.prepare(run)
     velocity.prepare(run)
