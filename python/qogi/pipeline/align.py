@@ -260,6 +260,25 @@ def _stabilisation(run: RunState, samples: np.ndarray) -> Optional[_Stabiliser]:
         largest_px=largest,
     )
     info["not_converged"] = failed
+    if not residual < 0.5 * info["jitter_rms_px"]:
+        # Put back, the frames still move by most of what was measured: the
+        # registration followed something other than a rigid camera motion (a
+        # warm blob rising over a faint gradient read 16 px rms, 20 px left),
+        # and resampling by it would move the gas instead. Nothing is corrected.
+        info["status"] = (
+            f"off: the measured {info['jitter_rms_px']:.3g} px rms is not a camera motion "
+            f"(put back, {residual:.3g} px rms is left)"
+        )
+        run.warnings.add(
+            "jitter-uncorrected",
+            f"the frames seem to move by {info['jitter_rms_px']:.2g} px rms, but registering "
+            f"them to the static scene leaves {residual:.2g} px rms: no camera motion "
+            "explains it, so no frame was moved; if the camera did shake, cut the shaken "
+            "part of the recording",
+            largest_px=largest,
+            not_converged=failed,
+        )
+        return None
     if largest > JITTER_MAX_PX or failed > 0.1 * len(samples):
         run.warnings.add(
             "jitter-uncorrected",
