@@ -42,6 +42,7 @@ CHANGED = {
     "ParameterSpec": dict(mode=_engine.ParameterMode.prior, value=400.0, prior_sigma=20.0),
     "PivOptions": dict(window_size=32, deform=False),
     "PlumeMaskOptions": dict(min_area=5),
+    "RegistrationOptions": dict(rotation=False, max_iterations=12, robust_scale=3.0),
     "SceneTableOptions": dict(ambient_temperature_K=290.0, temperature_step_K=2.0),
     "SynthModelOptions": dict(seed=7, modes_per_band=6),
     "SynthRelease": dict(rate=2.0, rate_unit="kg/h", composition={"CH4": 0.9, "CO2": 0.1}),
