@@ -481,7 +481,7 @@ class Result:
                 xx[g], yy[g], u[::step, ::step][g], v[::step, ::step][g], color="k", angles="xy"
             )
             ax.set_title(
-                "velocity (arrows: gas pixels; dashed: where the flow was computed)"
+                "velocity (arrows: gas pixels;\ndashed: where the flow was computed)"
                 if region is not None
                 else "velocity (arrows: gas pixels)"
             )
