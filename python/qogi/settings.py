@@ -88,7 +88,7 @@ class Setting:
     flag : str or None
         The ``qogi quantify`` option.
     metavar : str
-        The option's value placeholder.
+        The name --help shows for the option's value (argparse's metavar).
     scene_key : str or None
         The recording's ``/scene`` attribute this completes (role scene).
     doc : str
