@@ -5,6 +5,7 @@ set -euo pipefail
 
 PACKAGES=(
   g++ make pkg-config
+  clang                  # the second compiler: `make check-clang` builds the engine with it, warnings as errors
   ccache                 # compiler cache: a second build (a clone, the wheel) reuses objects
   libeigen3-dev          # Eigen3
   libceres-dev           # Ceres Solver 2.1
