@@ -79,8 +79,12 @@ $(STAMPS)/consumer: $(STAMPS)/built $(CONSUMER_SOURCES)
 consumer: $(STAMPS)/consumer
 	build/consumer/qogi_consumer
 
+# The Python tests on PYTEST_WORKERS processes (pytest-xdist), a test file per
+# process at a time (its module fixtures, the rendered scenes, built once);
+# the slowest are listed at the end. PYTEST_WORKERS=0 runs them in this process.
+PYTEST_WORKERS ?= $(JOBS)
 test-python: $(STAMPS)/built
-	$(VPY) -m pytest -q
+	$(VPY) -m pytest -q -n $(PYTEST_WORKERS) --dist loadfile --durations=15
 
 # Linters and the type checker (settings: pyproject.toml [tool.ruff]/[tool.mypy],
 # .clang-format). Every check runs and reports; the target fails if any failed.
