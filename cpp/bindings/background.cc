@@ -50,7 +50,7 @@ void BindBackground(py::module_& m) {
       Field("percentile", &DriftingBackgroundOptions::percentile,
             "percentile on the gas's low side [%], in (0, 50) (default 5)"),
       Field("window_s", &DriftingBackgroundOptions::window_s,
-            "length of the drifting layer's running window [s], > 0 (default 4)"),
+            "length of the drifting layer's running window [s], > 0 (default 10)"),
       Field("iterations", &DriftingBackgroundOptions::iterations,
             "alternations between the static and the drifting layer, 1-20 (default 3)"),
       Field("num_threads", &DriftingBackgroundOptions::num_threads,

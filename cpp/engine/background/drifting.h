@@ -81,8 +81,11 @@ struct DriftingBackgroundOptions {
   // Percentile taken on the gas's low side [%], in (0, 50) (default 5): the
   // low percentile for a gas that raises the radiance, 100 - it otherwise.
   double percentile = 5.0;
-  // Length of the running window of the drifting layer [s], > 0 (default 4).
-  double window_s = 4.0;
+  // Length of the running window of the drifting layer [s], > 0 (default 10).
+  // The gas must leave each of the layer's points in `percentile` % of the
+  // window's frames: a 4 s window read the still sky preset's plume -31 %
+  // (its core holds gas most of 4 s), the whole 10 s run -5 %.
+  double window_s = 10.0;
   // Alternations between the static and the drifting layer (each: the
   // drifting layer given the static one, then the static one given it; a
   // last drifting layer after them), 1-20 (default 3).

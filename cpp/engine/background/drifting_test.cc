@@ -92,9 +92,10 @@ TEST(DriftingBackground, FollowsTheCloudsThroughEachPixelAndLeavesTheGasOut) {
   const Scene s = MakeScene(2, kVx, kVy, true);
   const DriftResult d = MeasureDrift(s.frames, s.times, DriftOptions{});
   ASSERT_TRUE(d.measured);
-  const DriftingBackground bg(s.frames, s.times, d.vx_px_s, d.vy_px_s, +1.0,
-                              DriftingBackgroundOptions{});
-  EXPECT_GE(bg.knots(), 2);  // 6 s with a 4 s window: a running estimate
+  DriftingBackgroundOptions running;
+  running.window_s = 4.0;  // 6 s of frames: a running estimate over three knots
+  const DriftingBackground bg(s.frames, s.times, d.vx_px_s, d.vy_px_s, +1.0, running);
+  EXPECT_GE(bg.knots(), 2);
   // Away from the borders (where the clouds enter and leave the frame, one
   // side of the window sees them), over frames spread through the run.
   double sum = 0, sum2 = 0;
@@ -124,7 +125,7 @@ TEST(DriftingBackground, FollowsTheCloudsThroughEachPixelAndLeavesTheGasOut) {
   // The same frames with the clouds held still in the background estimate
   // (v = 0, a plain running percentile): the clouds' motion within the window
   // leaves errors of their contrast.
-  const DriftingBackground still(s.frames, s.times, 0.0, 0.0, +1.0, DriftingBackgroundOptions{});
+  const DriftingBackground still(s.frames, s.times, 0.0, 0.0, +1.0, running);
   double still2 = 0;
   int m = 0;
   for (int i = 5; i < kFrames; i += 10) {
