@@ -282,3 +282,36 @@ def test_drifting_background_follows_the_clouds_where_the_percentile_reads_them_
     assert -2.5 < err_d.mean() < 0.0
     assert err_d.std() < 1.5
     assert np.sqrt(np.mean(err_p**2)) > 5 * np.sqrt(np.mean(err_d**2))
+
+
+def test_a_wall_edge_crossing_the_surface_is_structure_not_drift_and_the_percentile_holds():
+    """A sunlit wall (absorption: the gas lowers the radiance) with a shadow
+    edge crossing a vertical surface and a seam: the background is still, so
+    ``auto`` takes the sign-aware percentile (the straight line between the
+    strips misses the edge), not the drifting layers; and that percentile
+    along the surface is the wall's own radiance within a noise."""
+    from qogi.background import DRIFT_SIGMA, drift_evidence
+    from qogi.pipeline.sampling import _bilinear
+
+    h, w, t, noise = 64, 48, 60, 0.01
+    y, x = np.mgrid[0:h, 0:w].astype(float)
+    wall = 10.0 - 0.8 * 0.5 * (1 - np.tanh((x - 10 - 0.4 * y) / 1.0))  # shadow to the left
+    wall[:, 30:32] -= 0.3  # a seam
+    rng = np.random.default_rng(3)
+    frames = wall[None, None] + noise * rng.standard_normal((t, 1, h, w))
+    for i in range(t):  # puffs absorbing 20 noise, across the surface half the time
+        if i % 2 == 0:
+            frames[i, 0, 20:44, :] -= 0.2 * (((x[20:44] - 9 * i) % w) < 16)
+    surf = Surface([(24, 4), (24, 60)], name="S")  # the edge crosses it near y = 35
+    samples = _surface_samples(surf)
+    sign = np.array([-1.0])
+    assert drift_evidence(frames, sign) < DRIFT_SIGMA
+    choice = choose(frames, [surf], samples, sign)
+    assert choice["method"] == "percentile", choice["reason"]
+    high = np.percentile(frames[:, 0], 95.0, axis=0)  # the absorbing gas's side
+    xy = samples[0][0]
+    err = (_bilinear(high, xy) - _bilinear(wall, xy)) / noise
+    assert np.abs(err).max() < 3.0
+    # The straight line between the strips misses the edge by its step.
+    line = np.interp(xy[:, 1], [xy[0, 1], xy[-1, 1]], _bilinear(wall, xy[[0, -1]]))
+    assert np.abs(line - _bilinear(wall, xy)).max() / noise > 20.0
