@@ -154,7 +154,13 @@ class Background:
         say(0.01, "background (drift)")
         noise = np.maximum(_noise(stack), 1e-30)
         summed = np.ascontiguousarray((stack / noise[None, :, None, None]).sum(axis=1), np.float32)
-        drift = dict(_engine.measure_drift(summed, times))
+        lags = _engine.DriftOptions()
+        if len(use) < lags.difference_lag + lags.short_lag + 1:
+            # Too few frames for a difference image to register against
+            # another: no drift measured (a running per-pixel percentile).
+            drift = {"measured": False, "pairs": 0, "converged": 0}
+        else:
+            drift = dict(_engine.measure_drift(summed, times, lags))
         if not drift["measured"]:
             drift["vx_px_s"] = drift["vy_px_s"] = 0.0
         self.drift = drift
