@@ -8,7 +8,7 @@ pipeline's stage that applies it to a run.)"""
 
 from __future__ import annotations
 
-from typing import Dict, List, Optional, Sequence
+from typing import Any, Dict, List, Optional, Sequence
 
 import numpy as np
 
@@ -158,12 +158,13 @@ class Background:
         if len(use) < lags.difference_lag + lags.short_lag + 1:
             # Too few frames for a difference image to register against
             # another: no drift measured (a running per-pixel percentile).
-            drift = {"measured": False, "pairs": 0, "converged": 0}
+            drift: Dict[str, Any] = {"measured": False, "pairs": 0, "converged": 0}
         else:
             drift = dict(_engine.measure_drift(summed, times, lags))
         if not drift["measured"]:
             drift["vx_px_s"] = drift["vy_px_s"] = 0.0
         self.drift = drift
+        vx, vy = float(drift["vx_px_s"]), float(drift["vy_px_s"])
         opts = _engine.DriftingBackgroundOptions(
             percentile=float(self.cfg.background_percentile), num_threads=self.cfg.num_threads
         )
@@ -176,8 +177,8 @@ class Background:
                 _engine.DriftingBackground(
                     np.ascontiguousarray(stack[:, c]),
                     times,
-                    drift["vx_px_s"],
-                    drift["vy_px_s"],
+                    vx,
+                    vy,
                     1.0 if self.channel_sign[c] >= 0 else -1.0,
                     opts,
                 )
