@@ -271,16 +271,27 @@ def choose(
         excess.append(worst)
     strips_ok = t >= 5 and all(e <= GAS_EXCESS_SIGMA for e in excess)
     drift = drift_evidence(f, channel_sign, percentile)
-    if drift > DRIFT_SIGMA:
-        # The background moves on its own: neither the strips (they see the
-        # clouds as they pass) nor a percentile over the whole run (it takes
-        # the clear sky under a cloud) hold; the drifting background follows
-        # it (its budget term is set once it is made: the stage's
-        # drifting_relative).
+    structure = [
+        _structure(f, s, xy, tt, sign, noise, lo_pct)
+        for s, (xy, _n, _dl, tt) in zip(surfaces, samples)
+    ]
+    textured = [
+        s.name or str(k) for k, (s, v) in enumerate(zip(surfaces, structure)) if v > STRUCTURE_SIGMA
+    ]
+    beside_ok = strips_ok and not textured
+    if not beside_ok and drift > DRIFT_SIGMA:
+        # The background moves on its own: where the strips beside the
+        # surfaces are gas-free and the background straight between them,
+        # the beside-surface background (per frame) holds whatever moves
+        # elsewhere (a warm blob sweeping a small view is no cloud); else
+        # neither the strips (they see the clouds as they pass) nor a
+        # percentile over the whole run (it takes the clear sky under a
+        # cloud) hold, and the drifting background follows it (its budget
+        # term is set once it is made: the stage's drifting_relative).
         return {
             "method": "drifting",
             "strips": [float(e) for e in excess],
-            "structure": [],
+            "structure": [float(v) for v in structure],
             "drift": drift,
             "reason": (
                 f"the background drifts on its own (its low percentile moves by {drift:.1f} "
@@ -291,14 +302,6 @@ def choose(
             "relative": {},
             "not_gas_free": [],
         }
-    structure = [
-        _structure(f, s, xy, tt, sign, noise, lo_pct)
-        for s, (xy, _n, _dl, tt) in zip(surfaces, samples)
-    ]
-    textured = [
-        s.name or str(k) for k, (s, v) in enumerate(zip(surfaces, structure)) if v > STRUCTURE_SIGMA
-    ]
-    beside_ok = strips_ok and not textured
     method = "beside-surface" if beside_ok or t < 5 else "percentile"
     # The chosen estimate's uncertainty at each surface, relative to the
     # surface's mean contrast (signal-weighted). Beside the surfaces: gas
