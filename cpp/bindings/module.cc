@@ -12,6 +12,7 @@ void BindSpectra(py::module_& m);
 void BindCamera(py::module_& m);
 void BindVelocimetry(py::module_& m);
 void BindRegistration(py::module_& m);
+void BindBackground(py::module_& m);
 void BindSynth(py::module_& m);
 void BindInversion(py::module_& m);
 void BindFlux(py::module_& m);
@@ -28,6 +29,7 @@ PYBIND11_MODULE(_engine, m) {
   qogi::BindCamera(m);
   qogi::BindVelocimetry(m);
   qogi::BindRegistration(m);
+  qogi::BindBackground(m);
   qogi::BindSynth(m);
   qogi::BindInversion(m);
   qogi::BindFlux(m);

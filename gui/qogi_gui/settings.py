@@ -296,7 +296,7 @@ class AnalysisSettings:
             err["averaging"] = f"choose one of {', '.join(AVERAGING)}"
         if self.background not in BACKGROUNDS:
             err["background"] = f"choose one of {', '.join(BACKGROUNDS)}"
-        elif self.background == "percentile":
+        elif self.background in ("percentile", "drifting"):
             err["background_percentile"] = _check(
                 "background_percentile", self.background_percentile
             )
@@ -409,7 +409,7 @@ class AnalysisSettings:
             kw["background"] = api.Region(*region.as_tuple())
         else:
             kw["background"] = self.background
-        if self.background == "percentile":
+        if self.background in ("percentile", "drifting"):
             kw["background_percentile"] = _value(
                 "background_percentile", self.background_percentile
             )

@@ -43,6 +43,8 @@ import numpy as np
 
 __all__ = [
     "choose",
+    "drift_evidence",
+    "DRIFT_SIGMA",
     "strip_points",
     "inpaint_held",
     "GAS_EXCESS_SIGMA",
@@ -59,10 +61,51 @@ GAS_EXCESS_SIGMA = 2.5
 #: textured sky, a wall's seams): then the temporal percentile. A smooth sky
 #: gives the time-mean's own noise, ~0.15 with 50 frames.
 STRUCTURE_SIGMA = 3.0
+#: The background's own drift over the run [noise] (:func:`drift_evidence`)
+#: above which it moves on its own (clouds drifting across a sky) and
+#: ``auto`` takes the drifting background. A still background gives
+#: 0.9-1.0 (the spread of four windows' percentiles of noise alone; 1.9 at
+#: the 90th percentile of pixels); the clouds preset 190 (seed 0).
+DRIFT_SIGMA = 5.0
+#: Windows of consecutive frames the drift evidence compares.
+DRIFT_WINDOWS = 4
 #: Fraction of a surface's samples the gas never leaves above which the
 #: warning ``background-not-gas-free`` says the percentile background there
 #: is filled from the neighbours.
 HELD_WARN_FRACTION = 0.5
+
+
+def drift_evidence(frames: np.ndarray, channel_sign: np.ndarray, percentile: float = 5.0) -> float:
+    """The background's own drift over the run, in noise units.
+
+    The frames (T, C, H, W), in time order, are cut into
+    :data:`DRIFT_WINDOWS` windows of consecutive frames; in each, every
+    pixel's sign-aware low percentile (the ``percentile``-th where the gas
+    raises the radiance, the ``100 - percentile``-th where it lowers it: the
+    background with the gas left out, as the temporal percentile takes it).
+    A pixel's drift is the range of its windows' percentiles over the
+    channel's noise (:func:`_noise`); the evidence is the median over the
+    image's pixels (the plume covers a minority of them, and a pixel whose
+    gas stays a whole window is an outlier of that median), the largest
+    over the channels. A still background gives the percentiles' own
+    scatter, about 1; a cloud drifting through a pixel its contrast, tens to
+    hundreds. 0 with fewer than 2 frames per window.
+    """
+    f = np.asarray(frames, float)
+    t, nc = f.shape[:2]
+    if t < 2 * DRIFT_WINDOWS:
+        return 0.0
+    sign = np.asarray(channel_sign, float)
+    noise = np.maximum(_noise(f), 1e-30)
+    worst = 0.0
+    for c in range(nc):
+        q = percentile if sign[c] >= 0 else 100.0 - percentile
+        lows = np.stack(
+            [np.percentile(f[i, c], q, axis=0) for i in np.array_split(np.arange(t), DRIFT_WINDOWS)]
+        )
+        spread = (lows.max(axis=0) - lows.min(axis=0)) / noise[c]
+        worst = max(worst, float(np.median(spread)))
+    return worst
 
 
 def _structure(f, surface, xy, tt, sign, noise, lo_pct) -> float:
@@ -201,7 +244,9 @@ def choose(
 
     Returns
     -------
-    dict with ``method`` ("beside-surface" or "percentile"), ``strips``
+    dict with ``method`` ("beside-surface", "percentile" or "drifting":
+    the background's own drift, :func:`drift_evidence`, beyond
+    :data:`DRIFT_SIGMA`), ``drift`` (that evidence, noise), ``strips``
     (per surface: the worst strip's excess in noise units), ``reason`` and
     ``relative`` {surface index: the background term relative to the
     surface's mean contrast}, ``structure`` (per surface: the background's
@@ -225,6 +270,7 @@ def choose(
             worst = max(worst, float(e.max()))
         excess.append(worst)
     strips_ok = t >= 5 and all(e <= GAS_EXCESS_SIGMA for e in excess)
+    drift = drift_evidence(f, channel_sign, percentile)
     structure = [
         _structure(f, s, xy, tt, sign, noise, lo_pct)
         for s, (xy, _n, _dl, tt) in zip(surfaces, samples)
@@ -233,6 +279,29 @@ def choose(
         s.name or str(k) for k, (s, v) in enumerate(zip(surfaces, structure)) if v > STRUCTURE_SIGMA
     ]
     beside_ok = strips_ok and not textured
+    if not beside_ok and drift > DRIFT_SIGMA:
+        # The background moves on its own: where the strips beside the
+        # surfaces are gas-free and the background straight between them,
+        # the beside-surface background (per frame) holds whatever moves
+        # elsewhere (a warm blob sweeping a small view is no cloud); else
+        # neither the strips (they see the clouds as they pass) nor a
+        # percentile over the whole run (it takes the clear sky under a
+        # cloud) hold, and the drifting background follows it (its budget
+        # term is set once it is made: the stage's drifting_relative).
+        return {
+            "method": "drifting",
+            "strips": [float(e) for e in excess],
+            "structure": [float(v) for v in structure],
+            "drift": drift,
+            "reason": (
+                f"the background drifts on its own (its low percentile moves by {drift:.1f} "
+                f"noise between windows of the run, median over the image; a still one "
+                f"within {DRIFT_SIGMA:g}): a static and a drifting layer, the drift measured "
+                "apart from the gas"
+            ),
+            "relative": {},
+            "not_gas_free": [],
+        }
     method = "beside-surface" if beside_ok or t < 5 else "percentile"
     # The chosen estimate's uncertainty at each surface, relative to the
     # surface's mean contrast (signal-weighted). Beside the surfaces: gas
@@ -295,6 +364,7 @@ def choose(
         "method": method,
         "strips": [float(e) for e in excess],
         "structure": [float(v) for v in structure],
+        "drift": drift,
         "reason": reason,
         "relative": rel,
         "not_gas_free": not_free,

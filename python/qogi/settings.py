@@ -228,24 +228,27 @@ SETTINGS: Dict[str, Setting] = {
             "background",
             "how the gas-free background radiance is estimated: 'auto' (beside the "
             "surfaces where the strips there are gas-free, else the temporal "
-            "percentile), 'beside-surface', 'percentile', or a gas-free region "
+            "percentile; a drifting background where it moves on its own), "
+            "'beside-surface', 'percentile', 'drifting', or a gas-free region "
             "x0,y0,x1,y1 (qogi.Region)",
             flag="--background",
             metavar="METHOD|X0,Y0,X1,Y1",
-            _choices=("auto", "beside-surface", "percentile"),
+            _choices=("auto", "beside-surface", "percentile", "drifting"),
             _default="auto",
             doc=(
                 "`auto`: chosen from the scene (qogi.background.choose; below); `beside-surface`:"
                 " the thesis's choice, gas-free pixels just beyond each end of the surface, "
                 "interpolated along it; `percentile`: a sign-aware temporal low percentile per "
-                "pixel; or a `qogi.Region`"
+                "pixel; `drifting`: a static layer and a layer drifting at a velocity "
+                "measured apart from the gas (clouds crossing a sky), each a sign-aware "
+                "percentile, the drifting one over a running 10 s window; or a `qogi.Region`"
             ),
         ),
         Setting(
             "background_percentile",
             "method",
             "float",
-            "temporal low percentile of background 'percentile'",
+            "temporal low percentile of background 'percentile' (and 'drifting')",
             unit="%",
             lo=0.0,
             hi=50.0,

@@ -27,6 +27,8 @@ CHANGED = {
     "CountsFluxCurve": dict(gain=2.5, offset=-3.0, quadratic=1e-4),
     "CrossSectionOptions": dict(wing_half_widths=0.0, wing_cm1=25.0, line_shift=False),
     "DisOptions": dict(patch_size=12),
+    "DriftOptions": dict(long_lag=20, max_pairs=7),
+    "DriftingBackgroundOptions": dict(percentile=10.0, window_s=2.0, iterations=2),
     "ExactModelOptions": dict(num_nodes=101, richardson=False),
     "FarnebackOptions": dict(winsize=21, gaussian_window=False),
     "FluidFlowOptions": dict(alpha=0.5, finest_level=0),

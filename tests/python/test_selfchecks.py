@@ -222,3 +222,96 @@ def test_failed_terms_combine_in_quadrature_until_the_rate_is_not_measured():
     assert selfchecks.combined_term([]) == 0.0
     assert selfchecks.combined_term([("a", 0.3), ("b", 0.4)]) == pytest.approx(0.5)
     assert selfchecks.combined_term([("a", 0.12), ("b", 0.49)]) == 1.0
+
+
+# -- drifting backgrounds (issue 31, item 2) -------------------------------------------
+
+
+def _drifting_stack(drift_px_frame=(0.5, 0.07), t=60, h=48, w=64, seed=0):
+    """Frames (T, 1, H, W) in noise units: a static gradient and texture, broken
+    'clouds' (a smooth positive field of up to 60 noise) drifting by
+    ``drift_px_frame`` per frame, a gas band (25 noise) moving 16 px per frame
+    across the rows 18-30; and the true background (T, H, W)."""
+    rng = np.random.default_rng(seed)
+    y, x = np.mgrid[0:h, 0:w].astype(float)
+    static = 0.3 * y + 2.0 * np.sin(x / 2.3) * np.cos(y / 3.1)
+    k = rng.uniform(-0.25, 0.25, (12, 2))
+    ph = rng.uniform(0, 2 * np.pi, 12)
+    truth, frames = [], []
+    for i in range(t):
+        dx, dy = drift_px_frame[0] * i, drift_px_frame[1] * i
+        c = sum(np.cos(a * (x - dx) + b * (y - dy) + p) for (a, b), p in zip(k, ph))
+        bg = static + 60.0 * np.clip(c / 4.0, 0, 1)
+        gas = np.zeros((h, w))
+        gas[18:30] = 25.0 * (((x[18:30] - 16 * i) % w) < 20)
+        truth.append(bg)
+        frames.append(bg + gas + rng.standard_normal((h, w)))
+    return np.asarray(frames)[:, None], np.asarray(truth)
+
+
+def test_drift_evidence_separates_drifting_clouds_from_a_still_textured_background():
+    from qogi.background import DRIFT_SIGMA, drift_evidence
+
+    moving, _ = _drifting_stack()
+    still, _ = _drifting_stack(drift_px_frame=(0.0, 0.0))
+    sign = np.array([1.0])
+    assert drift_evidence(moving, sign) > 2 * DRIFT_SIGMA
+    assert drift_evidence(still, sign) < 0.5 * DRIFT_SIGMA
+
+
+def test_drifting_background_follows_the_clouds_where_the_percentile_reads_them_as_gas():
+    from qogi import _engine
+
+    frames, truth = _drifting_stack(seed=1)
+    f = np.ascontiguousarray(frames[:, 0], np.float32)
+    times = np.arange(len(f)) / 15.0
+    d = _engine.measure_drift(f, times)
+    assert d["measured"]
+    assert d["vx_px_s"] == pytest.approx(0.5 * 15, abs=0.1)
+    assert d["vy_px_s"] == pytest.approx(0.07 * 15, abs=0.1)
+    bg = _engine.DriftingBackground(f, times, d["vx_px_s"], d["vy_px_s"], 1.0)
+    static = np.percentile(f, 5.0, axis=0)
+    inner = (slice(4, -4), slice(8, -8))
+    err_d, err_p = [], []
+    for i in range(5, len(f), 10):
+        err_d.append((bg.at(times[i]) - truth[i])[inner])
+        err_p.append((static - truth[i])[inner])
+    err_d, err_p = np.asarray(err_d), np.asarray(err_p)
+    # The drifting estimate: the percentile's own offset (~-1.6 noise) and a
+    # noise's scatter; the whole-run percentile misses every passing cloud.
+    assert -2.5 < err_d.mean() < 0.0
+    assert err_d.std() < 1.5
+    assert np.sqrt(np.mean(err_p**2)) > 5 * np.sqrt(np.mean(err_d**2))
+
+
+def test_a_wall_edge_crossing_the_surface_is_structure_not_drift_and_the_percentile_holds():
+    """A sunlit wall (absorption: the gas lowers the radiance) with a shadow
+    edge crossing a vertical surface and a seam: the background is still, so
+    ``auto`` takes the sign-aware percentile (the straight line between the
+    strips misses the edge), not the drifting layers; and that percentile
+    along the surface is the wall's own radiance within a noise."""
+    from qogi.background import DRIFT_SIGMA, drift_evidence
+    from qogi.pipeline.sampling import _bilinear
+
+    h, w, t, noise = 64, 48, 60, 0.01
+    y, x = np.mgrid[0:h, 0:w].astype(float)
+    wall = 10.0 - 0.8 * 0.5 * (1 - np.tanh((x - 10 - 0.4 * y) / 1.0))  # shadow to the left
+    wall[:, 30:32] -= 0.3  # a seam
+    rng = np.random.default_rng(3)
+    frames = wall[None, None] + noise * rng.standard_normal((t, 1, h, w))
+    for i in range(t):  # puffs absorbing 20 noise, across the surface half the time
+        if i % 2 == 0:
+            frames[i, 0, 20:44, :] -= 0.2 * (((x[20:44] - 9 * i) % w) < 16)
+    surf = Surface([(24, 4), (24, 60)], name="S")  # the edge crosses it near y = 35
+    samples = _surface_samples(surf)
+    sign = np.array([-1.0])
+    assert drift_evidence(frames, sign) < DRIFT_SIGMA
+    choice = choose(frames, [surf], samples, sign)
+    assert choice["method"] == "percentile", choice["reason"]
+    high = np.percentile(frames[:, 0], 95.0, axis=0)  # the absorbing gas's side
+    xy = samples[0][0]
+    err = (_bilinear(high, xy) - _bilinear(wall, xy)) / noise
+    assert np.abs(err).max() < 3.0
+    # The straight line between the strips misses the edge by its step.
+    line = np.interp(xy[:, 1], [xy[0, 1], xy[-1, 1]], _bilinear(wall, xy[[0, -1]]))
+    assert np.abs(line - _bilinear(wall, xy)).max() / noise > 20.0

@@ -190,7 +190,7 @@ class AnalysisTab:
             "gas_temperature_K": st.gas_temperature_mode == "given",
             "wind_speed_m_s": st.velocity == "wind",
             "exit_velocity_m_s": st.velocity == "exit",
-            "background_percentile": st.background == "percentile",
+            "background_percentile": st.background in ("percentile", "drifting"),
             "line_shape_wing_cm1": st.line_shape_wing == "fixed",
         }
         for key, on in show.items():

@@ -1,5 +1,6 @@
 """Stage 1, the background: the gas-free band radiance of each channel,
-beside each control surface or a temporal percentile (chosen from the scene
+beside each control surface, a temporal percentile, or a static and a
+drifting layer where the background moves on its own (chosen from the scene
 by default, :func:`qogi.background.choose`), or from a user region.
 
 (:mod:`qogi.background` holds the choice's physics; this module is the
@@ -7,11 +8,12 @@ pipeline's stage that applies it to a run.)"""
 
 from __future__ import annotations
 
-from typing import Dict, Optional
+from typing import Any, Dict, List, Optional, Sequence
 
 import numpy as np
 
-from ..background import inpaint_held
+from .. import _engine
+from ..background import _noise, inpaint_held
 from ..recording import Recording
 from ..surfaces import Region, Surface
 from .config import QuantifyConfig
@@ -36,12 +38,27 @@ def prepare(run: RunState) -> None:
         run.say,
         run.background_temperature_K,
     )
-    if not isinstance(bg_cfg.background, Region) and bg_cfg.background != "percentile":
+    if bg_cfg.background == "drifting":
+        run.info["background_drift"] = background.drift
+        choice = run.info["background_choice"]
+        if isinstance(choice, dict) and run.sample_frames is not None:
+            choice["relative"] = background.drifting_relative(
+                run.sample_frames, _sample_ids(run.frames), run.samples
+            )
+    if not isinstance(bg_cfg.background, Region) and bg_cfg.background not in (
+        "percentile",
+        "drifting",
+    ):
         sl = run.roi.slices()
         # setup.prepare samples frames for every method but a region and the percentile.
         assert run.sample_frames is not None
         background.set_static_shape(run.sample_frames[:, :, sl[0], sl[1]].mean(axis=0))
     run.background = background
+
+
+def _sample_ids(frames: range) -> List[int]:
+    """The frame indices of the run's sampled frames (as setup takes them)."""
+    return list(frames)[:: max(1, len(frames) // 50)][:50]
 
 
 def _choose_background(cfg: QuantifyConfig, sample_frames, surfaces, samples, channel_sign):
@@ -91,6 +108,15 @@ class Background:
         # The background's static shape beyond a straight line across the
         # region (set by the run from its time-averaged frames).
         self.shape_correction: Optional[Dict[bool, np.ndarray]] = None
+        #: The drifting background per channel (``"drifting"``), its drift's
+        #: record, and the last frames' background images (ids, (B, C, h, w)).
+        self._drifting: List[_engine.DriftingBackground] = []
+        self.drift: Optional[dict] = None
+        self._times = np.asarray(rec.time_s, float)
+        self._drift_cache: Optional[tuple] = None
+        self._window_frames = 0.0
+        if cfg.background == "drifting":
+            self._make_drifting(rec, frames, say)
         if cfg.background == "percentile":
             # Sign-aware: a plume warmer than the background raises radiance,
             # so its background is a low percentile; a colder one a high one.
@@ -112,18 +138,115 @@ class Background:
                 stacked, img, channel_sign, cfg.background_percentile
             )
 
+    def _make_drifting(self, rec: Recording, frames: range, say) -> None:
+        """The static and drifting layers of each channel over the region
+        (:class:`qogi._engine.DriftingBackground`) from up to 200 frames
+        spread over the run, with the drift measured on them
+        (:func:`qogi._engine.measure_drift`, on the channels' sum in noise
+        units); a drift not measured (its registrations did not converge) is
+        taken as none: a running per-pixel percentile."""
+        sl = self.roi.slices()
+        use = list(frames)[:: max(1, len(frames) // 200)]
+        stack = np.asarray(
+            [rec.frame(f, quantity="radiance")[:, sl[0], sl[1]] for f in use], np.float32
+        )
+        times = self._times[use]
+        say(0.01, "background (drift)")
+        noise = np.maximum(_noise(stack), 1e-30)
+        summed = np.ascontiguousarray((stack / noise[None, :, None, None]).sum(axis=1), np.float32)
+        lags = _engine.DriftOptions()
+        if len(use) < lags.difference_lag + lags.short_lag + 1:
+            # Too few frames for a difference image to register against
+            # another: no drift measured (a running per-pixel percentile).
+            drift: Dict[str, Any] = {"measured": False, "pairs": 0, "converged": 0}
+        else:
+            drift = dict(_engine.measure_drift(summed, times, lags))
+        if not drift["measured"]:
+            drift["vx_px_s"] = drift["vy_px_s"] = 0.0
+        self.drift = drift
+        vx, vy = float(drift["vx_px_s"]), float(drift["vy_px_s"])
+        opts = _engine.DriftingBackgroundOptions(
+            percentile=float(self.cfg.background_percentile), num_threads=self.cfg.num_threads
+        )
+        # The frames one window of the drifting layer holds.
+        span = float(times[-1] - times[0]) if len(times) > 1 else 0.0
+        self._window_frames = len(use) * min(1.0, opts.window_s / span if span > 0 else 1.0)
+        for c in range(stack.shape[1]):
+            say(0.01 + 0.01 * c / stack.shape[1], "background (drifting layers)")
+            self._drifting.append(
+                _engine.DriftingBackground(
+                    np.ascontiguousarray(stack[:, c]),
+                    times,
+                    vx,
+                    vy,
+                    1.0 if self.channel_sign[c] >= 0 else -1.0,
+                    opts,
+                )
+            )
+
+    def drifting_images(self, frame_ids: Sequence[int]) -> np.ndarray:
+        """The drifting background over the region at the given frames:
+        (B, C, h, w) float32 (the last call's kept: the block's proxy field
+        and its surfaces ask for the same frames)."""
+        ids = tuple(int(i) for i in frame_ids)
+        if self._drift_cache is None or self._drift_cache[0] != ids:
+            imgs = np.stack(
+                [np.stack([d.at(float(self._times[i])) for d in self._drifting]) for i in ids]
+            )
+            self._drift_cache = (ids, imgs)
+        return self._drift_cache[1]
+
+    def drifting_relative(self, sample_frames: np.ndarray, sample_ids, samples) -> Dict[int, float]:
+        """The drifting background's budget term per surface, relative to the
+        surface's mean contrast on the sampled frames (as
+        :func:`qogi.background.choose` sizes the others'): its scatter about
+        the truth, about one noise (the engine's synthetic check:
+        ``drifting_test``), plus the percentile's standard error over the
+        window's frames."""
+        sl = self.roi.slices()
+        f = np.asarray(sample_frames, float)[:, :, sl[0], sl[1]]
+        noise = np.maximum(_noise(f), 1e-30)
+        bg = self.drifting_images(sample_ids).astype(float)
+        origin = [self.roi.x0, self.roi.y0]
+        rel: Dict[int, float] = {}
+        delta = (1.0 + 1.3 / np.sqrt(max(2.0, self._window_frames))) * noise
+        for j, (xy, _n, _dl, _t) in enumerate(samples):
+            contrast = (_bilinear(f - bg, xy - origin) * self.channel_sign[None, :, None]).mean(
+                axis=0
+            )  # (C, N)
+            weight = np.clip(contrast, 0, None)
+            total = weight.sum(axis=1)
+            if not total.max() > 0:
+                rel[j] = 0.0
+                continue
+            c = int(np.argmax(total))
+            mean_contrast = float((contrast[c] * weight[c]).sum() / total[c])
+            rel[j] = float(delta[c] / max(mean_contrast, 1e-30))
+        return rel
+
     def region_mean(self, frame: np.ndarray, region: Region) -> np.ndarray:
         """Mean of frames (..., C, H, W) over the region -> (..., C)."""
         r = region.clip(frame.shape[-1], frame.shape[-2])
         return frame[..., r.y0 : r.y1, r.x0 : r.x1].mean(axis=(-2, -1))
 
     def along(
-        self, frame: np.ndarray, surface: Surface, xy: np.ndarray, t: np.ndarray
+        self,
+        frame: np.ndarray,
+        surface: Surface,
+        xy: np.ndarray,
+        t: np.ndarray,
+        frame_ids: Optional[Sequence[int]] = None,
     ) -> np.ndarray:
         """Background radiance (..., C, N) at the surface samples xy of frames
-        (..., C, H, W)."""
+        (..., C, H, W); ``frame_ids`` (B,), the frames' indices in the
+        recording, for the drifting background (which changes with time)."""
         cfg = self.cfg
         n = len(xy)
+        if cfg.background == "drifting":
+            if frame_ids is None:
+                raise ValueError("the drifting background needs the frames' indices (frame_ids)")
+            imgs = self.drifting_images(frame_ids)
+            return _bilinear(imgs, xy - [self.roi.x0, self.roi.y0]).reshape(frame.shape[:-2] + (n,))
         if isinstance(cfg.background, Region):
             return np.repeat(self.region_mean(frame, cfg.background)[..., None], n, axis=-1)
         if cfg.background == "percentile":
@@ -146,13 +269,25 @@ class Background:
         return ends[0][..., None] * (1 - t) + ends[1][..., None] * t
 
     def field(
-        self, frame_roi: np.ndarray, horizontal: bool, channel: Optional[int] = None
+        self,
+        frame_roi: np.ndarray,
+        horizontal: bool,
+        channel: Optional[int] = None,
+        frame_ids: Optional[Sequence[int]] = None,
     ) -> Optional[np.ndarray]:
         """Background over the analysis region: (C, h, w) for the frame's
         channels (C, h, w), or (h, w) for ``channel`` given one channel's
-        (h, w); leading frame axes pass through. None for a region background
-        (uniform: the caller takes :meth:`region_mean`)."""
+        (h, w); leading frame axes pass through (the drifting background
+        needs the frames' indices ``frame_ids``, one per leading frame).
+        None for a region background (uniform: the caller takes
+        :meth:`region_mean`)."""
         cfg = self.cfg
+        if cfg.background == "drifting":
+            if frame_ids is None:
+                raise ValueError("the drifting background needs the frames' indices (frame_ids)")
+            imgs = self.drifting_images(frame_ids)
+            out = imgs if channel is None else imgs[:, channel]
+            return out.reshape(frame_roi.shape)
         if isinstance(cfg.background, Region):
             return None
         if cfg.background == "percentile":

@@ -480,15 +480,21 @@ class InvertedColumns:
             contrast[...] = work
         return contrast
 
-    def proxy_field(self, frame: np.ndarray, out: Optional[np.ndarray] = None) -> np.ndarray:
+    def proxy_field(
+        self,
+        frame: np.ndarray,
+        out: Optional[np.ndarray] = None,
+        frame_ids: Optional[Sequence[int]] = None,
+    ) -> np.ndarray:
         """The signed proxy-channel contrast of frames (..., C, H, W) over the
-        region -> (..., h, w) float32 (into ``out`` when given)."""
+        region -> (..., h, w) float32 (into ``out`` when given); ``frame_ids``
+        the frames' indices (a drifting background changes with time)."""
         sl = self.roi.slices()
         c = self.proxy_channel
         # In float32 (the frames' own precision; its rounding, ~1e-7 of the
         # radiance, is ~1e-4 of the NETD noise).
         fr = frame[..., c, sl[0], sl[1]]
-        bg = self.background.field(fr, self.horizontal, channel=c)
+        bg = self.background.field(fr, self.horizontal, channel=c, frame_ids=frame_ids)
         if bg is None:  # a uniform region background
             assert isinstance(self.cfg.background, Region)  # field() is None only for a region
             bg = self.background.region_mean(frame, self.cfg.background)[..., c, None, None]
@@ -504,13 +510,16 @@ class InvertedColumns:
         surfaces: Sequence[Surface],
         samples,
         out: Optional[np.ndarray] = None,
+        first: int = 0,
     ) -> np.ndarray:
         """The signed proxy-channel contrast fields (B, h, w) of a block of
-        frames (B, C, H, W) (into ``out`` when given), converted to a column
+        frames (B, C, H, W), the recording's frames ``first`` on (into
+        ``out`` when given), converted to a column
         proxy by :meth:`contrast_to_column` once the lookup is final; stores
         the radiance and the background at the surface samples for
         :meth:`finish`."""
-        field = self.proxy_field(frames, out)
+        ids = range(first, first + len(frames))
+        field = self.proxy_field(frames, out, frame_ids=ids)
         if self.upwind_mask is not None:
             c = self.proxy_channel
             noise = float(
@@ -523,7 +532,7 @@ class InvertedColumns:
         rad, bg, prof = [], [], []
         for s, (xy, _n, _dl, t) in zip(surfaces, samples):
             rad.append(_bilinear(frames, xy))
-            bg.append(self.background.along(frames, s, xy, t))
+            bg.append(self.background.along(frames, s, xy, t, frame_ids=ids))
             prof.append(_bilinear(field, xy - origin))
         if not hasattr(self, "_rad"):
             self._rad: List[np.ndarray] = []
@@ -987,7 +996,9 @@ def block_columns(st: RunState, blk, say) -> BlockColumns:
                 m = min(sub, nb - k)
                 fr = rec.frames(first + k, first + k + m, quantity="radiance")
                 st.radiance_check(fr, first + k)
-                columns.collect(fr, st.surfaces, samples, out=col_fields[k : k + m])
+                columns.collect(
+                    fr, st.surfaces, samples, out=col_fields[k : k + m], first=first + k
+                )
                 done = k + m
                 say(0.05 + 0.3 * done / nb, f"background and column field, frame {done}/{nb}")
         if time_averaged and cfg.methods.truth_columns:

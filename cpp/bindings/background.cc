@@ -1,0 +1,127 @@
+// Bindings of engine/background: the drift's measurement and the two-layer
+// (static + drifting) background, with their options structs (same field
+// names as in C++). Glue only.
+#include "common.h"
+
+#include <cstring>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "engine/background/drifting.h"
+
+namespace qogi {
+namespace {
+
+// Views of the images of a (T, H, W) float32 stack (no copies).
+std::vector<cv::Mat> StackViews(const FloatArray& frames) {
+  CheckNdim(frames, 3, "frames");
+  const int t = static_cast<int>(frames.shape(0)), h = static_cast<int>(frames.shape(1)),
+            w = static_cast<int>(frames.shape(2));
+  Require(t > 0 && h > 1 && w > 1,
+          "frames must be (T, H, W) with T >= 1, H, W >= 2; got shape " + ShapeOf(frames));
+  std::vector<cv::Mat> out;
+  for (int i = 0; i < t; ++i)
+    out.emplace_back(h, w, CV_32FC1, const_cast<float*>(frames.data()) + std::size_t(i) * h * w);
+  return out;
+}
+
+}  // namespace
+
+void BindBackground(py::module_& m) {
+  BindOptions<DriftOptions>(
+      m, "DriftOptions", "Options of the drift measurement (engine/background/drifting.h).",
+      Args::kKeywordOnly,
+      Field("difference_lag", &DriftOptions::difference_lag,
+            "frames between the two frames of each difference image, >= 1 (default 5)"),
+      Field("short_lag", &DriftOptions::short_lag,
+            "frames between the difference images registered from rest, >= 1 (default 2)"),
+      Field("long_lag", &DriftOptions::long_lag,
+            "frames between the difference images registered warm-started, >= short_lag "
+            "(default 15)"),
+      Field("max_pairs", &DriftOptions::max_pairs,
+            "registrations at most per lag, >= 1 (default 15)"),
+      Field("smoothing_px", &DriftOptions::smoothing_px,
+            "Gaussian smoothing before registration [px sigma], 0-20 (default 1)"));
+  BindOptions<DriftingBackgroundOptions>(
+      m, "DriftingBackgroundOptions",
+      "Options of the two-layer drifting background (engine/background/drifting.h).",
+      Args::kKeywordOnly,
+      Field("percentile", &DriftingBackgroundOptions::percentile,
+            "percentile on the gas's low side [%], in (0, 50) (default 5)"),
+      Field("window_s", &DriftingBackgroundOptions::window_s,
+            "length of the drifting layer's running window [s], > 0 (default 10)"),
+      Field("iterations", &DriftingBackgroundOptions::iterations,
+            "alternations between the static and the drifting layer, 1-20 (default 3)"),
+      Field("num_threads", &DriftingBackgroundOptions::num_threads,
+            "worker threads, >= 0 (default 0: all)"));
+
+  m.def(
+      "measure_drift",
+      [](const FloatArray& frames, const DoubleArray& times_s, const DriftOptions& options) {
+        const std::vector<cv::Mat> f = StackViews(frames);
+        const std::vector<double> t = ToVector(times_s, "times_s");
+        DriftResult r;
+        {
+          py::gil_scoped_release release;
+          r = MeasureDrift(f, t, options);
+        }
+        py::dict d;
+        d["vx_px_s"] = r.vx_px_s;
+        d["vy_px_s"] = r.vy_px_s;
+        d["spread_vx_px_s"] = r.spread_vx_px_s;
+        d["spread_vy_px_s"] = r.spread_vy_px_s;
+        d["pairs"] = r.pairs;
+        d["converged"] = r.converged;
+        d["inlier_fraction"] = r.inlier_fraction;
+        d["measured"] = r.measured;
+        return d;
+      },
+      py::arg("frames"), py::arg("times_s"), py::arg("options") = DriftOptions{},
+      "The drift velocity of the background of frames ((T, H, W) float32, one channel, "
+      "evenly spaced) at times_s [s] (T,): registration of difference images, which hold no "
+      "static background. dict vx_px_s, vy_px_s [px/s] (x right, y down), spread_vx_px_s, "
+      "spread_vy_px_s (the pairs' spread), pairs, converged, inlier_fraction, measured "
+      "(False: fewer than half the pairs converged; the velocity is then 0).");
+
+  py::class_<DriftingBackground>(
+      m, "DriftingBackground",
+      "The background of a scene whose background drifts: a static layer S and a layer M "
+      "carried at (vx, vy) px/s, background(x, t) = S(x) + M_t(x - v t), each a sign-aware "
+      "low percentile (M over a running window in its own frame).")
+      .def(py::init([](const FloatArray& frames, const DoubleArray& times_s, double vx, double vy,
+                       double sign, const DriftingBackgroundOptions& options) {
+             const std::vector<cv::Mat> f = StackViews(frames);
+             const std::vector<double> t = ToVector(times_s, "times_s");
+             py::gil_scoped_release release;
+             return DriftingBackground(f, t, vx, vy, sign, options);  // copies what it keeps
+           }),
+           py::arg("frames"), py::arg("times_s"), py::arg("vx_px_s"), py::arg("vy_px_s"),
+           py::arg("sign"), py::arg("options") = DriftingBackgroundOptions{})
+      .def(
+          "at",
+          [](const DriftingBackground& self, double time_s) {
+            cv::Mat b;
+            {
+              py::gil_scoped_release release;
+              self.At(time_s, &b);
+            }
+            py::array_t<float> out({b.rows, b.cols});
+            std::memcpy(out.mutable_data(), b.ptr<float>(), sizeof(float) * b.total());
+            return out;
+          },
+          py::arg("time_s"), "The background at time_s [s]: (H, W) float32.")
+      .def_property_readonly(
+          "static_layer",
+          [](const DriftingBackground& self) {
+            const cv::Mat& s = self.static_layer();
+            py::array_t<float> out({s.rows, s.cols});
+            std::memcpy(out.mutable_data(), s.ptr<float>(), sizeof(float) * s.total());
+            return out;
+          },
+          "The static layer S: (H, W) float32.")
+      .def_property_readonly("knots", &DriftingBackground::knots,
+                             "The number of knots of the drifting layer.");
+}
+
+}  // namespace qogi
