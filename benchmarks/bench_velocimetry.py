@@ -319,19 +319,22 @@ def methods_table(frames, tu, tv, methods, cores):
 def default_flow(frames, source=None):
     """Run the default method warm-started over ``frames`` on one worker and
     on one per core: the best wall frames/s, the frames/s per core of that
-    run (CPU time of all threads) and its flows."""
+    run (CPU time of all threads) and the one-worker flows (the same whatever
+    the machine's load; more workers start their chunks from warm-up pairs)."""
     pairs = len(frames) - 1
-    best = None
+    best, flows = None, None
     for workers in sorted({1, vel.get_num_threads()}):
 
         def run(workers=workers):
             return qogi.optical_flow_sequence(frames, source_mask=source, workers=workers)
 
         seq = run()  # warm-up (allocations, OpenCV initialisation)
+        if flows is None:
+            flows = seq
         w, c = best_of(run)
         if best is None or pairs / w > best[0]:
-            best = (pairs / w, pairs / c, seq)
-    return best
+            best = (pairs / w, pairs / c)
+    return (*best, flows)
 
 
 def epe(u, v, tu, tv, weight=None):
