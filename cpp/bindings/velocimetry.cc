@@ -23,6 +23,8 @@ namespace qogi {
 namespace {
 
 using ByteArray = py::array_t<std::uint8_t, py::array::c_style | py::array::forcecast>;
+// An 8-bit array written in place (bound with noconvert: never a copy).
+using OutByteArray = py::array_t<std::uint8_t, py::array::c_style>;
 
 cv::Mat FloatMat(const FloatArray& a, const char* name) {
   CheckNdim(a, 2, name);
@@ -85,12 +87,8 @@ class FlowEstimator {
   py::tuple Calc(const FloatArray& prev, const FloatArray& next, const py::object& mask,
                  const py::object& u0, const py::object& v0) {
     const cv::Mat p = FloatMat(prev, "prev"), n = FloatMat(next, "next");
-    cv::Mat m;
     ByteArray mask_array;
-    if (!mask.is_none()) {
-      mask_array = mask.cast<ByteArray>();
-      m = ByteMat(mask_array, "mask");
-    }
+    const cv::Mat m = OptionalMask(mask, &mask_array);
     FlowField& f = field_;
     if (!u0.is_none() && !v0.is_none()) {
       const FloatArray ua = u0.cast<FloatArray>(), va = v0.cast<FloatArray>();
@@ -112,7 +110,51 @@ class FlowEstimator {
                           f.residual_ratio);
   }
 
+  // Calc for a sequence: warm-started (warm = true) from this estimator's
+  // own previous result, which it keeps, and written into the caller's
+  // arrays (u, v, quality: float32 (H, W); valid: uint8 (H, W), 0/1): no
+  // copies of the warm start or of the results through new arrays. Returns
+  // the residual ratio.
+  double CalcInto(const FloatArray& prev, const FloatArray& next, const py::object& mask, bool warm,
+                  FloatArray u, FloatArray v, FloatArray quality, OutByteArray valid) {
+    const cv::Mat p = FloatMat(prev, "prev"), n = FloatMat(next, "next");
+    ByteArray mask_array;
+    const cv::Mat m = OptionalMask(mask, &mask_array);
+    const cv::Mat du = FloatMat(u, "u"), dv = FloatMat(v, "v"), dq = FloatMat(quality, "quality");
+    CheckNdim(valid, 2, "valid");
+    const cv::Mat dk(static_cast<int>(valid.shape(0)), static_cast<int>(valid.shape(1)), CV_8UC1,
+                     valid.mutable_data());
+    for (const cv::Mat* out : {&du, &dv, &dq, &dk})
+      Require(out->size() == p.size(), "the output arrays must have the frames' shape " +
+                                           ShapeOf(prev) + "; got " + std::to_string(out->rows) +
+                                           " x " + std::to_string(out->cols));
+    FlowField& f = field_;
+    Require(!warm || f.HasSize(p.size()),
+            "warm=True needs a previous call with frames of the same shape " + ShapeOf(prev));
+    if (!warm) {
+      f.u.release();
+      f.v.release();
+    }
+    {
+      py::gil_scoped_release release;
+      impl_->Calc(p, n, f, m);
+      f.u.copyTo(du);
+      f.v.copyTo(dv);
+      f.quality.copyTo(dq);
+      cv::min(f.valid, 1, dk);  // the engine's 0 / nonzero as 0 / 1
+    }
+    return f.residual_ratio;
+  }
+
  private:
+  // The gas mask argument: empty for None, else a view of `keep` (which holds
+  // the converted array).
+  static cv::Mat OptionalMask(const py::object& mask, ByteArray* keep) {
+    if (mask.is_none()) return cv::Mat();
+    *keep = mask.cast<ByteArray>();
+    return ByteMat(*keep, "mask");
+  }
+
   std::unique_ptr<OpticalFlow> impl_;
   FlowField field_;
 };
@@ -267,7 +309,12 @@ void BindVelocimetry(py::module_& m) {
       .def("set_source_mask", &FlowEstimator::SetSourceMask, py::arg("source_mask"))
       .def("calc", &FlowEstimator::Calc, py::arg("prev"), py::arg("next"),
            py::arg("mask") = py::none(), py::arg("u0") = py::none(), py::arg("v0") = py::none(),
-           "(u, v, quality, valid, residual_ratio) for float32 C-contiguous frames.");
+           "(u, v, quality, valid, residual_ratio) for float32 C-contiguous frames.")
+      .def("calc_into", &FlowEstimator::CalcInto, py::arg("prev"), py::arg("next"), py::arg("mask"),
+           py::arg("warm"), py::arg("u").noconvert(), py::arg("v").noconvert(),
+           py::arg("quality").noconvert(), py::arg("valid").noconvert(),
+           "residual_ratio; writes u, v, quality (float32) and valid (uint8, 0/1) of the "
+           "frames' shape in place; warm: start from this estimator's previous result.");
 
   m.def("metres_per_second_per_pixel_per_frame", &MetresPerSecondPerPixelPerFrame,
         py::arg("distance_m"), py::arg("ifov_rad"), py::arg("frame_rate_hz"));

@@ -267,11 +267,7 @@ class FlowEstimator:
         -------
         Flow
         """
-        p = _frame(prev, "prev")
-        n = _frame(next, "next")
-        if n.shape != p.shape:
-            raise ValueError(f"prev and next must have the same shape; got {p.shape} and {n.shape}")
-        m = _mask(mask, "mask", p.shape)
+        p, n, m = self._inputs(prev, next, mask)
         u0 = v0 = None
         if flow is not None:
             u0, v0 = (flow.u, flow.v) if isinstance(flow, Flow) else flow
@@ -284,6 +280,31 @@ class FlowEstimator:
                 )
         u, v, q, valid, ratio = self._impl.calc(p, n, m, u0, v0)
         return Flow(u, v, q, valid.astype(bool), float(ratio), self.method)
+
+    def _inputs(self, prev: ArrayLike, next: ArrayLike, mask: Optional[ArrayLike]):
+        """The frames and mask as the engine takes them, checked."""
+        p = _frame(prev, "prev")
+        n = _frame(next, "next")
+        if n.shape != p.shape:
+            raise ValueError(f"prev and next must have the same shape; got {p.shape} and {n.shape}")
+        return p, n, _mask(mask, "mask", p.shape)
+
+    def _calc_into(
+        self,
+        prev: ArrayLike,
+        next: ArrayLike,
+        mask: Optional[ArrayLike],
+        warm: bool,
+        out: Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    ) -> float:
+        """:meth:`calc` for a sequence: warm-started (``warm``) from this
+        estimator's own previous result, the result written into ``out`` = (u,
+        v, quality: float32 (H, W); valid: bool (H, W)), C-contiguous views
+        that are written in place. Returns the residual ratio. Saves the
+        copies of :meth:`calc` (warm start in, four new arrays out)."""
+        p, n, m = self._inputs(prev, next, mask)
+        u, v, q, valid = out
+        return float(self._impl.calc_into(p, n, m, warm, u, v, q, valid.view(np.uint8)))
 
 
 def optical_flow(
@@ -436,22 +457,17 @@ def optical_flow_sequence(
     def run(chunk: int) -> None:
         est, first, stop = estimators[chunk], bounds[chunk], bounds[chunk + 1]
         start = max(0, first - WARM_UP_PAIRS) if (warm_start and chunk > 0) else first
-        prev_flow = None
+        # The warm-up pairs' results (discarded) go to this chunk's own arrays.
+        scratch = tuple(np.empty_like(a[0]) for a in (out_u, out_v, out_q, out_valid))
         for k in range(start, stop):
             if cancelled[0]:
                 return
             m = None if mask_stack is None else mask_stack[k]
-            f = est.calc(stack[k], stack[k + 1], m, prev_flow if warm_start else None)
-            prev_flow = f
+            out = scratch if k < first else (out_u[k], out_v[k], out_q[k], out_valid[k])
+            r = est._calc_into(stack[k], stack[k + 1], m, warm_start and k > start, out)
             if k < first:
                 continue
-            out_u[k], out_v[k], out_q[k], out_valid[k], ratio[k] = (
-                f.u,
-                f.v,
-                f.quality,
-                f.valid,
-                f.residual_ratio,
-            )
+            ratio[k] = r
             done[0] += 1
             if workers == 1 and progress is not None and progress(done[0] / n_pairs) is False:
                 cancelled[0] = True

@@ -190,6 +190,42 @@ def test_fluid_recovers_a_rotation_with_a_warm_start_sequence():
         assert epe(seq[k], tu, tv) < 0.1
 
 
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_sequence_equals_its_pairs_each_warm_started_from_the_last(workers):
+    # optical_flow_sequence writes each pair's flow into its arrays in place
+    # (FlowEstimator._calc_into); the per-pair API, chunked the same way and
+    # warm-started from the previous result, must give the same bits.
+    t = texture(seed=4)
+    x, y = grid()
+    frames = np.array([np.exp(0.4 * t(x - 0.7 * k, y + 0.4 * k)) for k in range(6)], np.float32)
+    mask = np.zeros((H, W), bool)
+    mask[10:-10, 20:-20] = True
+    seq = qogi.optical_flow_sequence(frames, masks=mask, workers=workers)
+    bounds = np.linspace(0, 5, workers + 1).round().astype(int)
+    for first, stop in zip(bounds[:-1], bounds[1:]):
+        est, prev = vel.FlowEstimator(), None
+        for k in range(max(0, first - vel.WARM_UP_PAIRS) if first else 0, stop):
+            prev = est.calc(frames[k], frames[k + 1], mask, prev)
+            if k >= first:
+                for name in ("u", "v", "quality", "valid"):
+                    np.testing.assert_array_equal(getattr(seq, name)[k], getattr(prev, name))
+                assert seq.residual_ratio[k] == prev.residual_ratio
+    assert seq.valid.dtype == bool and not seq.valid[:, ~mask].any()
+
+
+def test_calc_into_checks_its_outputs_and_warm_start():
+    a, b = translated_pair(1.0, 0.5)
+    est = vel.FlowEstimator()
+    out = (np.empty((H, W), np.float32),) * 3 + (np.empty((H, W), bool),)
+    with pytest.raises(ValueError, match="warm=True needs a previous call"):
+        est._calc_into(a, b, None, True, out)
+    bad = (np.empty((H, W + 1), np.float32),) + out[1:]
+    with pytest.raises(ValueError, match="output arrays must have the frames' shape"):
+        est._calc_into(a, b, None, False, bad)
+    with pytest.raises(TypeError):  # float64 output: never a silent copy
+        est._calc_into(a, b, None, False, (np.empty((H, W)),) + out[1:])
+
+
 def test_continuity_spreading_fluid_unbiased_brightness_constancy_biased():
     # A blob spreading radially, w = 0.02 (x - c): the exact next frame is
     # rho0(c + (x - c) / 1.02) / 1.02^2 (mass conserved by the map).

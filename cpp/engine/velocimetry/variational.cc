@@ -400,6 +400,8 @@ void VariationalSolver::SolveLevel(int level, int finest, const VariationalSetti
   const std::size_t n = static_cast<std::size_t>(W) * H;
   for (auto* vec : {&a_, &b_, &w_, &r_, &c_, &g_, &del_, &kap_, &pre_a_, &pre_b_, &pre_c_})
     vec->resize(n);
+  // Without the curl term the passes neither write kap nor add it (it stays 0).
+  if (!(alpha_curl_ > 0)) std::fill(kap_.begin(), kap_.end(), 0.f);
   for (auto* vec : {&x_, &res_, &p_, &q_}) vec->resize(2 * n);
   zero_row_.assign(W, 0.f);
   std::fill(q_.begin(), q_.end(), 0.f);
@@ -611,7 +613,7 @@ void VariationalSolver::Linearise(int level, const VariationalSettings& s) {
       pxi[0] = pxi[W - 1] = pze[0] = pze[W - 1] = 0.f;
       const std::size_t row = static_cast<std::size_t>(y) * W;
       DivCurlRow(W, 1.f, 1.f, fu + row, fu + row - W, fu + row + W, fv + row, fv + row - W,
-                 fv + row + W, pxi, pze);
+                 fv + row + W, pxi, has_curl ? pze : nullptr);
     }
   });
   const double sigma = div_curl_scale_ / static_cast<double>(1 << level);
@@ -650,10 +652,8 @@ void VariationalSolver::ForwardPass(const float* pu, const float* pv, bool rhs) 
       }
       if (y == 0 || y == H - 1) {
         if (cont) std::fill(gr, gr + W, 0.f);
-        if (dc) {
-          std::fill(del + row, del + row + W, 0.f);
-          std::fill(kap + row, kap + row + W, 0.f);
-        }
+        if (dc) std::fill(del + row, del + row + W, 0.f);
+        if (has_curl) std::fill(kap + row, kap + row + W, 0.f);
         continue;
       }
       if (cont) {
@@ -666,18 +666,19 @@ void VariationalSolver::ForwardPass(const float* pu, const float* pv, bool rhs) 
         }
       }
       if (dc) {
+        // Without the curl term kap stays as SolveLevel zeroed it.
         float* dr = del + row;
-        float* kr = kap + row;
-        dr[0] = dr[W - 1] = kr[0] = kr[W - 1] = 0.f;
+        float* kr = has_curl ? kap + row : nullptr;
+        dr[0] = dr[W - 1] = 0.f;
+        if (kr) kr[0] = kr[W - 1] = 0.f;
         DivCurlRow(W, ad, ac, pu + row, pu + row - W, pu + row + W, pv + row, pv + row - W,
-                   pv + row + W, dr, has_curl ? kr : nullptr);
-        if (!has_curl) std::fill(kr, kr + W, 0.f);
+                   pv + row + W, dr, kr);
         if (rhs) {
           const float* pxi = xi_.ptr<float>(y);
-          const float* pze = zeta_.ptr<float>(y);
-          for (int x = 1; x < W - 1; ++x) {
-            dr[x] -= ad * pxi[x];
-            kr[x] -= ac * pze[x];
+          for (int x = 1; x < W - 1; ++x) dr[x] -= ad * pxi[x];
+          if (kr) {
+            const float* pze = zeta_.ptr<float>(y);
+            for (int x = 1; x < W - 1; ++x) kr[x] -= ac * pze[x];
           }
         }
       }
