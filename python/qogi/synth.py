@@ -134,7 +134,7 @@ class Release(_Options, _engine.SynthRelease):
         a quiet column that keeps its mean profile and moves only with the
         ambient air (``turbulence_intensity``, ``draft_m_s``). Below 1 a
         low-Reynolds-number exit also stays laminar longer (no entrainment,
-        accelerating under its buoyancy and narrowing): 1 + 6 (1 -
+        accelerating under its buoyancy and narrowing): 1 + 14 (1 -
         release_turbulence) exit diameters (``docs/synthetic.md``).
     standard_temperature_K : float, default 293.15
         Standard temperature of SLPM (20 C, as many mass-flow controllers).

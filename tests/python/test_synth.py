@@ -390,7 +390,7 @@ def test_fields_layout_and_units(lab_sim):
 
 
 def test_a_quiet_release_stays_laminar_and_accelerates_under_its_buoyancy():
-    """Release turbulence 0 keeps the lab column laminar for 1 + 6 exit
+    """Release turbulence 0 keeps the lab column laminar for 1 + 14 exit
     diameters (1 for a turbulent release): no entrainment (the gas stays
     pure), so its mass flux is constant and V dV/ds = g (rho_a - rho) / rho,
     i.e. V^2 grows by 2 g' per metre; it narrows as b ~ V^(-1/2)."""
