@@ -93,7 +93,10 @@ THRESHOLDS: Dict[str, float] = {
     "background_residual_noise": 4.0,
     "reversed_fraction": 0.15,
     "upwind_contrast_noise": 6.0,
-    "column_fluctuation": 0.12,
+    # Chosen on seeds 0-2 of lab-ch4-5slpm-laminar-gf320 (0.100, 0.091,
+    # 0.130) against the lab puff plumes' lowest (0.24, m150; gf320 0.31,
+    # sky 0.46): their geometric midpoint, rounded.
+    "column_fluctuation": 0.17,
 }
 #: The measures that fail *below* their threshold (the others above it).
 BELOW = frozenset({"column_fluctuation"})
