@@ -23,6 +23,9 @@ Cases (each over seeds 0..N-1; recordings are cached under --cache):
   default ``fixed:25+self``: the line-shape term must cover the difference;
 * ``heated-1ch-exit``: the heated-1ch recording with the exit temperature
   (328.15 K) given: the gas-temperature-suspect warning's evidence;
+* ``laminar``: lab-ch4-5slpm-laminar-gf320 (the same release as a quiet,
+  nearly laminar column accelerating as it rises, with a speed wave slower
+  than the gas; GF320-like at 100 Hz, 3 s), defaults, only the source given;
 * ``textured-sky``, ``clouds``, ``wall-absorption``, ``tank-emission``,
   ``piperack``: the scenes with structure (:data:`STRUCTURED`), vertical
   surfaces 0.5, 1.0, 1.5 m downwind (to the left where the wind blows so).
@@ -112,6 +115,13 @@ CASES = {
         composition=None,
         recording="heated-1ch",
         exit_temperature_K=328.15,
+    ),
+    "laminar": dict(
+        preset="lab-ch4-5slpm-laminar-gf320",
+        camera=None,
+        duration_s=3.0,
+        gas_temperature="ambient",
+        composition=None,
     ),
 }
 #: The scenes with structure (issue 31; docs/synthetic.md): crosswind

@@ -133,6 +133,7 @@ void BindSynth(py::module_& m) {
       Field("turbulence_intensity", &Release::turbulence_intensity),
       Field("draft_m_s", &Release::draft_m_s),
       Field("ambient_time_scale_s", &Release::ambient_time_scale_s),
+      Field("release_turbulence", &Release::release_turbulence),
       Field("standard_temperature_K", &Release::standard_temperature_K),
       Field("standard_pressure_Pa", &Release::standard_pressure_Pa))
       .def("mass_rate_kg_s", &Release::MassRateKgS)
@@ -189,8 +190,10 @@ void BindSynth(py::module_& m) {
                  Field("axial_turbulence", &P::axial_turbulence),
                  Field("structure_length", &P::structure_length),
                  Field("structure_persistence", &P::structure_persistence),
-                 Field("modes_per_band", &P::modes_per_band), Field("spin_up_s", &P::spin_up_s),
-                 Field("seed", &P::seed));
+                 Field("modes_per_band", &P::modes_per_band),
+                 Field("column_wave_amplitude", &P::column_wave_amplitude),
+                 Field("column_wave_phase_speed", &P::column_wave_phase_speed),
+                 Field("spin_up_s", &P::spin_up_s), Field("seed", &P::seed));
 
   m.def("synth_known_species", &synth::KnownSpecies);
   m.def(

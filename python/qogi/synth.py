@@ -127,6 +127,15 @@ class Release(_Options, _engine.SynthRelease):
         RMS horizontal velocity of room drafts, m/s (adds in quadrature).
     ambient_time_scale_s : float, default 3.0
         Lagrangian integral time of the ambient fluctuations, s.
+    release_turbulence : float, default 1.0
+        The released gas's own turbulence relative to a fully developed
+        turbulent buoyant plume (dimensionless), in [0, 1]: 1 = the
+        developed plume's puffs (coherent offsets, axial fluctuations); 0 =
+        a quiet column that keeps its mean profile and moves only with the
+        ambient air (``turbulence_intensity``, ``draft_m_s``). Below 1 a
+        low-Reynolds-number exit also stays laminar longer (no entrainment,
+        accelerating under its buoyancy and narrowing): 1 + 14 (1 -
+        release_turbulence) exit diameters (``docs/synthetic.md``).
     standard_temperature_K : float, default 293.15
         Standard temperature of SLPM (20 C, as many mass-flow controllers).
     standard_pressure_Pa : float, default 101325
@@ -199,6 +208,15 @@ class PlumeModel(_Options, _engine.SynthModelOptions):
     structure_length : float, default 1
     structure_persistence : float, default 1
     modes_per_band : int, default 12
+    column_wave_amplitude : float, default 0.06
+        Relative amplitude of the axial speed wave of a quiet laminar column
+        (times 1 - ``Release.release_turbulence``, gone where the flow has
+        developed), in [0, 0.3]; the wave runs at the puffing frequency
+        1.5 / sqrt(D [m]) Hz (within +-10 %, seeded).
+    column_wave_phase_speed : float, default 0.6
+        Its phase speed as a fraction of the local mass-weighted speed, in
+        [0.2, 1]: the gas bunches where it is slow, a pattern travelling
+        slower than the gas.
     spin_up_s : float, default -1 (automatic)
     seed : int, default 0
     """

@@ -2,6 +2,8 @@
 automatic background looks at the background's own structure along each
 surface (qogi.background.choose)."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -315,3 +317,85 @@ def test_a_wall_edge_crossing_the_surface_is_structure_not_drift_and_the_percent
     # The straight line between the strips misses the edge by its step.
     line = np.interp(xy[:, 1], [xy[0, 1], xy[-1, 1]], _bilinear(wall, xy[[0, -1]]))
     assert np.abs(line - _bilinear(wall, xy)).max() / noise > 20.0
+
+
+# -- the steady column (issue 31): a quiet column's pattern need not be its gas -------
+
+
+def test_column_fluctuation_is_the_most_fluctuating_lines_rms_over_their_mean():
+    rng = np.random.default_rng(3)
+    t = np.arange(200)[:, None]
+    mean = np.array([0.1, 1.0, 2.0, 2.0, 1.0])  # the first line carries < 1/4 of the most
+    steady = mean * (1 + 0.05 * np.sin(2 * np.pi * t / 9 + np.arange(5)))
+    steady[:, 0] += rng.normal(0, 1.0, 200)  # a faint line's noise is left out
+    assert selfchecks.column_fluctuation(steady) == pytest.approx(0.05 / np.sqrt(2), rel=0.05)
+    puffs = mean * rng.lognormal(0, 0.4, (200, 5))
+    assert selfchecks.column_fluctuation(puffs) > 0.3
+    assert np.isnan(selfchecks.column_fluctuation(steady[:19]))  # too few frames
+    assert np.isnan(selfchecks.column_fluctuation(np.zeros((50, 5))))  # no gas
+
+
+def test_a_steady_column_fails_below_its_threshold_and_widens_by_the_pattern_speed():
+    limit = selfchecks.THRESHOLDS["column_fluctuation"]
+    quiet = SurfaceEvidence(fluctuation_sum=2 * 0.5 * limit, fluctuation_n=2)
+    measures, failed = selfchecks.failure_terms(quiet)
+    assert measures["column_fluctuation"] == pytest.approx(0.5 * limit)
+    assert failed == [("column_fluctuation", selfchecks.STEADY_COLUMN_TERM)]
+    assert selfchecks.CODES["column_fluctuation"] == "steady-column"
+    # Half the gas's speed read as the pattern's still lies inside the interval.
+    from qogi.pipeline.budget import interval90
+
+    ratio = selfchecks.STEADY_COLUMN_SPEED_RATIO
+    lo, hi = interval90(ratio, 0.0, selfchecks.STEADY_COLUMN_TERM)
+    assert lo < ratio and hi == pytest.approx(1.0)
+    _, failed = selfchecks.failure_terms(
+        SurfaceEvidence(fluctuation_sum=limit * 2, fluctuation_n=1)
+    )
+    assert failed == []
+    _, failed = selfchecks.failure_terms(SurfaceEvidence())  # not measured: no warning
+    assert failed == []
+
+
+def _lab_column(tmp_path, release, rate_hz, duration_s, seed=1):
+    """The lab release (5 SLPM CH4 before a 12 C plate, GF320 optics) in a
+    small view, 48x72 px of 1.96 mm; its exit pixel."""
+    import qogi
+    from qogi import render, synth
+
+    cam = qogi.camera_preset("gf320")
+    cam = dataclasses.replace(cam, width=48, height=72, frame_rate_hz=rate_hz)
+    exit_px = (23.5, 68.0)
+    view = synth.View.framing(
+        release, exit_px, width_px=48, height_px=72, ifov_rad=cam.ifov_rad, distance_m=1.5
+    )
+    sim = synth.simulate(release, view, duration_s=duration_s, frame_rate_hz=rate_hz, seed=seed)
+    bg = render.Background("plate", 285.15)
+    path = render.render_recording(sim, cam, bg, tmp_path / "lab.h5", seed=seed)
+    return qogi.open_recording(path), exit_px
+
+
+def _lab_surfaces(exit_px):
+    x, y = exit_px
+    return [Surface([(x - 16, y - h), (x + 16, y - h)], name=f"{h} px") for h in (20, 40, 60)]
+
+
+@pytest.mark.slow
+def test_a_quiet_column_is_flagged_steady_and_a_puffing_lab_plume_is_not(tmp_path):
+    """The laminar preset's release (its speed wave's pattern slower than the
+    gas) reads low and says so, with intervals that reach the truth; the
+    puff plume of the GF320 lab preset, in the same view, passes."""
+    from qogi import synth
+    from qogi.pipeline import QuantifyConfig, quantify
+
+    quiet, exit_px = _lab_column(
+        tmp_path, synth.preset_release("lab-ch4-5slpm-laminar-gf320"), 100.0, 1.0
+    )
+    res = quantify(quiet, _lab_surfaces(exit_px), QuantifyConfig(source=exit_px))
+    for s in res.surfaces:
+        r = s.species["CH4"]
+        codes = {w.code for w in res.warnings if w.surface == s.surface.name}
+        assert "steady-column" in codes, codes
+        assert r.ci90_kg_h[0] <= r.truth_kg_h <= r.ci90_kg_h[1], (r.mean_kg_h, r.ci90_kg_h)
+    puffs, exit_px = _lab_column(tmp_path, synth.preset_release("lab-ch4-5slpm-gf320"), 15.0, 4.0)
+    res = quantify(puffs, _lab_surfaces(exit_px), QuantifyConfig(source=exit_px))
+    assert "steady-column" not in {w.code for w in res.warnings}

@@ -30,6 +30,10 @@ def test_release_rejects_bad_input_naming_the_field():
         synth.Release(rate_kgh=3)
     with pytest.raises(ValueError, match="projection"):
         synth.View(projection="fisheye")
+    with pytest.raises(ValueError, match="release_turbulence"):
+        synth.Release(release_turbulence=1.5)
+    with pytest.raises(ValueError, match="column_wave_phase_speed"):
+        synth.PlumeModel(column_wave_phase_speed=0.1)
 
 
 def test_slpm_exit_velocity_and_species_rates():
@@ -74,6 +78,7 @@ PRESETS = [
     "stack-3kgh-wind3-wall-absorption-gf320",
     "stack-5kgh-wind3-tank-emission-gf320",
     "stack-10kgh-wind4-piperack-gf320",
+    "lab-ch4-5slpm-laminar-gf320",
 ]
 
 
@@ -379,3 +384,79 @@ def test_fields_layout_and_units(lab_sim):
         lab_sim.fields(3, dict(small, nx=0))
     with pytest.raises(IndexError):
         lab_sim.truth_maps(lab_sim.num_frames)
+
+
+# -- quiet columns (issue 31): release turbulence, buoyant acceleration, the column's wave
+
+
+def test_a_quiet_release_stays_laminar_and_accelerates_under_its_buoyancy():
+    """Release turbulence 0 keeps the lab column laminar for 1 + 14 exit
+    diameters (1 for a turbulent release): no entrainment (the gas stays
+    pure), so its mass flux is constant and V dV/ds = g (rho_a - rho) / rho,
+    i.e. V^2 grows by 2 g' per metre; it narrows as b ~ V^(-1/2)."""
+    rel = synth.preset_release("lab-ch4-5slpm-gf320")
+    d = rel.exit_diameter_m
+    quiet = synth.mean_flow(rel.replace(release_turbulence=0.0), extent_m=0.3)
+    loud = synth.mean_flow(rel, extent_m=0.3)
+    s, v, b = quiet["s_m"], quiet["velocity_m_s"], quiet["radius_m"]
+    s1, s2 = 2 * d, 6 * d
+    v1, v2 = np.interp([s1, s2], s, v)
+    rho = np.interp(s1, s, quiet["density_kg_m3"])
+    rho_a = 101325.0 * 0.0289647 / (R * rel.ambient_temperature_K)  # dry air
+    g_reduced = G * (rho_a - rho) / rho
+    assert (v2**2 - v1**2) / (2 * (s2 - s1)) == pytest.approx(g_reduced, rel=0.02)
+    assert np.interp(s2, s, quiet["mass_fraction"]) == pytest.approx(1.0, abs=1e-6)
+    b1, b2 = np.interp([s1, s2], s, b)
+    assert b2 / b1 == pytest.approx(np.sqrt(v1 / v2), rel=0.01)
+    # The turbulent release entrains from 1-2.5 diameters on: air by 6 d.
+    assert np.interp(s2, loud["s_m"], loud["mass_fraction"]) < 0.9
+    assert np.interp(s2, loud["s_m"], loud["velocity_m_s"]) < v2
+
+
+def _flux_series(rel, model=None, rate=400.0, duration=1.0, heights=(0.04, 0.06)):
+    lab = synth.preset_view("lab-ch4-5slpm-gf320")
+    view = synth.View.framing(
+        rel, (31.5, 90.0), width_px=64, height_px=96, ifov_rad=lab.ifov_rad, distance_m=1.5
+    )
+    sim = synth.simulate(rel, view, duration, rate, seed=3, model=model)
+    return sim, sim.plane_flux(synth.horizontal_planes(heights))["total"]
+
+
+def test_the_quiet_columns_wave_moves_slower_than_its_gas_and_conserves_mass():
+    """With release turbulence 0 the laminar column carries a speed wave:
+    the plane flux fluctuates by at least A c / (1 - c) (A = 0.06, c = 0.6;
+    the linear estimate, more where the column accelerates),
+    its mean stays the release rate, and its pattern takes longer than the
+    gas to travel between two planes (the lag of the flux series'
+    cross-correlation). Without the wave the column is steady."""
+    rel = synth.preset_release("lab-ch4-5slpm-gf320").replace(release_turbulence=0.0)
+    sim, f = _flux_series(rel)
+    q = sim.mass_rate_kg_s
+    np.testing.assert_allclose(f.mean(axis=0) / q, 1.0, atol=0.01)
+    amp = np.sqrt(2) * f.std(axis=0) / q  # at least the linear A c / (1 - c)
+    assert np.all((amp > 0.09) & (amp < 0.3)), amp
+    # The pattern's travel time between the planes, against the gas's.
+    a, b = f[:, 0] - f[:, 0].mean(), f[:, 1] - f[:, 1].mean()
+    lags = np.arange(1, 60)
+    cc = [np.dot(a[: -k or None], b[k:]) for k in lags]
+    k = int(np.argmax(cc))
+    y0, y1, y2 = cc[k - 1], cc[k], cc[k + 1]
+    lag = (lags[k] + 0.5 * (y0 - y2) / (y0 - 2 * y1 + y2)) / 400.0
+    mf = sim.mean_flow()
+    s = np.linspace(*np.interp([0.04, 0.06], mf["z_m"], mf["s_m"]), 200)
+    t_gas = np.trapezoid(1.0 / np.interp(s, mf["s_m"], mf["mass_weighted_speed_m_s"]), s)
+    # Between the gas's time and 1 / c times it: the wave forces a pattern
+    # at c W, and the column's response where the wave sets in is carried
+    # at W (1.33 measured on this seed).
+    assert 1.15 < lag / t_gas < 1 / 0.6 + 0.1
+    _, still = _flux_series(rel, model=synth.PlumeModel(column_wave_amplitude=0.0))
+    assert np.all(still.std(axis=0) / q < 0.005)
+
+
+def test_a_turbulent_release_has_no_column_wave():
+    """Release turbulence 1 (every earlier preset): the wave's amplitude is
+    zero, so the runs are those of before (its option changes nothing)."""
+    rel = synth.preset_release("lab-ch4-5slpm-gf320")
+    _, f0 = _flux_series(rel, duration=0.3)
+    _, f1 = _flux_series(rel, model=synth.PlumeModel(column_wave_amplitude=0.3), duration=0.3)
+    np.testing.assert_array_equal(f0, f1)

@@ -219,6 +219,7 @@ std::vector<Station> SimilarityProfiles(const std::vector<Fine>& fine, const Rel
   const double lambda = opt.concentration_width_ratio;
   const double f_inf = opt.puff_size_fraction;
   const double eps = opt.edge_speed_fraction;
+  const double tau = release.release_turbulence;
   const double sigma_a = release.AmbientRmsVelocity();
   const double l_a = std::max(1e-6, sigma_a * release.ambient_time_scale_s);
   auto profiles = [&](const Fine& f) {
@@ -271,7 +272,8 @@ std::vector<Station> SimilarityProfiles(const std::vector<Fine>& fine, const Rel
                o.excess_m_s * ((1 - phi) + phi * 2 * (t.b * t.b / 4) /
                                                (t.b * t.b / 4 + o.sigma_c * o.sigma_c))));
     const double frac = std::clamp(
-        std::max(1 - phi * (1 - f_inf), std::sqrt(kClusterDensity * rho_c / rho_e)), 0.0, 1.0);
+        std::max(1 - phi * tau * (1 - f_inf), std::sqrt(kClusterDensity * rho_c / rho_e)), 0.0,
+        1.0);
     // Offsets start smoothly where the puffs first become smaller than the
     // plume: g = 1 - f^2 -> g smoothstep(g / 0.3)^2 keeps the offset scale's
     // first and second derivatives finite there.
@@ -312,7 +314,7 @@ std::vector<Station> SimilarityProfiles(const std::vector<Fine>& fine, const Rel
         std::max(std::sqrt(u_own * u_own + u_amb * u_amb), 1e-3 * o.mass_weighted_speed);
     o.ds_dpsi = c_psi_ * o.sigma_c * o.mass_weighted_speed / o.internal_turbulence_m_s;
     o.axial_turbulence =
-        opt.axial_turbulence * o.turbulence *
+        opt.axial_turbulence * tau * o.turbulence *
         std::min(1.0, o.internal_turbulence_m_s / (kPlumeTurbulence * o.mass_weighted_speed));
     return o;
   };
@@ -325,6 +327,13 @@ std::vector<Station> SimilarityProfiles(const std::vector<Fine>& fine, const Rel
     fs[i].psi = fs[i - 1].psi + ds / 2 * (1 / fs[i].ds_dpsi + 1 / fs[i - 1].ds_dpsi);
     fs[i].time_s = fs[i - 1].time_s +
                    ds / 2 * (1 / fs[i].mass_weighted_speed + 1 / fs[i - 1].mass_weighted_speed);
+  }
+  // The quiet laminar column's speed wave: ramped in over the first exit
+  // diameter, gone where the flow has developed or the release is turbulent.
+  const double wave = opt.column_wave_amplitude * (1 - release.release_turbulence);
+  for (Station& st : fs) {
+    st.wave_amplitude = wave * (1 - st.development) * SmoothStep(st.s / release.exit_diameter_m);
+    st.wave_time_s = st.time_s / opt.column_wave_phase_speed;
   }
 
   return fs;
@@ -512,8 +521,10 @@ MeanFlow::MeanFlow(const Release& release, const PlumeModelOptions& opt, const M
   const double rho_e = mixing.exit_density();
   const double rho_a = mixing.ambient_density();
   v0_ = q_ / (rho_e * area);
-  l_lam_ = (opt.laminar_length_diameters >= 0 ? opt.laminar_length_diameters
-                                              : (release.ExitReynoldsNumber() < 2000 ? 1.0 : 0.0)) *
+  const double quiet = kQuietLaminarDiameters * (1 - release.release_turbulence);
+  l_lam_ = (opt.laminar_length_diameters >= 0
+                ? opt.laminar_length_diameters
+                : (release.ExitReynoldsNumber() < 2000 ? 1.0 + quiet : 0.0)) *
            d_;
   l_dev_ = opt.development_length_diameters * d_;
   c_psi_ = opt.structure_persistence;

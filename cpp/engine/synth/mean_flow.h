@@ -16,7 +16,16 @@
 //   alpha = alpha_jet + (alpha_plume - alpha_jet) min(1, Ri / Ri_p),
 //   Ri_p = 4 alpha_plume / 5 (the pure-plume value, Gamma = 1).
 // Above a laminar exit (Reynolds number < 2000) the column does not entrain
-// for `laminar_length_diameters`.
+// for `laminar_length_diameters` (automatic: 1 + kQuietLaminarDiameters
+// (1 - release_turbulence) diameters): there it keeps its mass flux and
+// accelerates under its buoyancy, narrowing as b ~ V^(-1/2).
+//
+// Release turbulence (Release::release_turbulence, tau in [0, 1]) scales the
+// plume's own fluctuations: the puffs' cross-stream offsets (the puff size
+// fraction tends to 1 - tau (1 - puff_size_fraction) instead of
+// puff_size_fraction, so the mean profile keeps its width sigma_c with
+// smaller offsets) and the axial speed fluctuations (x tau). The ambient
+// air's meandering (Release::turbulence_intensity, draft_m_s) is not scaled.
 //
 // Profiles: the exit's top-hat profile (concentration width b/sqrt(2), plug
 // speed V) develops over `development_length_diameters` into Gaussian
@@ -34,6 +43,14 @@
 namespace qogi::synth {
 
 inline constexpr int kMaxBands = 6;
+// Extra laminar length of a quiet low-Reynolds-number release at
+// release_turbulence = 0 [exit diameters] (the automatic laminar length is
+// 1 + kQuietLaminarDiameters (1 - release_turbulence) diameters below
+// Reynolds number 2000). Chosen so that the quiet lab column (5 SLPM CH4,
+// 1.9 cm exit, release_turbulence 0.25) stays laminar over its first ~22 cm,
+// the part of the view the lab validation measures in, as the column of a
+// large-eddy simulation of that release does (qogi issue 31).
+inline constexpr double kQuietLaminarDiameters = 14.0;
 
 // The mean flow at one point of the axis. All doubles (interpolated field by
 // field).
@@ -67,6 +84,12 @@ struct Station {
   double internal_turbulence_m_s;  // RMS turbulent velocity inside the plume u_int
   double axial_turbulence;     // RMS relative axial speed fluctuation here
   double centre_partial_density;  // mean centreline rho_r = Q/(2 pi sigma_c^2 W_m)
+  // Relative amplitude of the laminar column's axial speed wave here
+  // (PlumeModelOptions::column_wave_amplitude), and its phase time
+  // T(s) / c [s]: the travel time at the mass-weighted speed over the phase
+  // speed fraction.
+  double wave_amplitude;
+  double wave_time_s;
   double band_w[kMaxBands];       // weights of the structure scale bands
   double band_dw_ds[kMaxBands];
 };

@@ -18,6 +18,8 @@ void PlumeModelOptions::Check() const {
   CheckInRange(structure_length, 0.2, 10.0, "structure_length");
   CheckInRange(structure_persistence, 0.2, 20.0, "structure_persistence");
   CheckInRange(modes_per_band, 2, 64, "modes_per_band");
+  CheckInRange(column_wave_amplitude, 0.0, 0.3, "column_wave_amplitude");
+  CheckInRange(column_wave_phase_speed, 0.2, 1.0, "column_wave_phase_speed");
   CheckInRange(spin_up_s, -1e300, 600.0, "spin_up_s", "s");
 }
 

@@ -21,8 +21,9 @@ struct PlumeModelOptions {
   // [0.8, 2]. Default 1.2 (Fischer et al. 1979).
   double concentration_width_ratio = 1.2;
   // Length of the laminar column above the exit [exit diameters]; < 0 picks
-  // 1 for exit Reynolds numbers below 2000 and 0 otherwise; at most 50.
-  // Default -1.
+  // 1 + kQuietLaminarDiameters (1 - Release::release_turbulence) for exit
+  // Reynolds numbers below 2000 (1 for a fully turbulent release) and 0
+  // otherwise; at most 50. Default -1.
   double laminar_length_diameters = -1.0;
   // Length over which the exit's top-hat profile develops into the Gaussian
   // similarity profile and turbulence sets in [exit diameters]; in [0.5, 50].
@@ -56,6 +57,20 @@ struct PlumeModelOptions {
   double structure_persistence = 1.0;
   // Random Fourier modes per scale band and component; in [2, 64]. Default 12.
   int modes_per_band = 12;
+  // Relative amplitude of the axial speed wave of a quiet laminar column
+  // (dimensionless): in the laminar column the gas speed is
+  // W (1 + A sin(2 pi f (T(s) / c - t) + theta)) with A = this x
+  // (1 - Release::release_turbulence) x (1 - development), ramped in over the
+  // first exit diameter; f the puffing frequency 1.5 / sqrt(D [m]) Hz
+  // (Cetegen & Ahmed 1993) within +-10 % (seeded), T(s) the travel time at
+  // the mass-weighted speed, c column_wave_phase_speed. The gas bunches where
+  // it is slow: a pattern that travels at c W while the gas moves at W. In
+  // [0, 0.3]. Default 0.06.
+  double column_wave_amplitude = 0.06;
+  // Phase speed of that wave as a fraction of the local mass-weighted speed
+  // (instability waves of laminar jets and plumes travel at about 0.5-0.8 of
+  // the centreline speed); in [0.2, 1]. Default 0.6.
+  double column_wave_phase_speed = 0.6;
   // Simulated time before the first frame so that the plume is established
   // [s]; < 0 = automatic (twice the travel time out of the view plus 0.5 s);
   // at most 600. Default -1.

@@ -22,7 +22,7 @@ constexpr int kComponents = 3;  // xi1, xi2 (cross-stream), zeta (axial)
 constexpr double kLabelScale[kComponents] = {1.0, 1.0, 2.0};
 
 // Random-stream identifiers.
-enum : std::uint64_t { kStreamModes = 1, kStreamLabels = 2, kStreamMeander = 3 };
+enum : std::uint64_t { kStreamModes = 1, kStreamLabels = 2, kStreamMeander = 3, kStreamWave = 4 };
 
 // Random Fourier modes of the structure fields.
 struct Modes {
@@ -95,12 +95,17 @@ double HermiteDu(double y0, double d0, double y1, double d1, double u, double h)
 
 class Engine {
  public:
-  Engine(const MeanFlow& mf, const Modes& modes, const Meander& meander, const Box& box)
+  // wave_omega, wave_phase: angular frequency [rad/s] and phase [rad] of the
+  // laminar column's speed wave (Station::wave_amplitude).
+  Engine(const MeanFlow& mf, const Modes& modes, const Meander& meander, const Box& box,
+         double wave_omega, double wave_phase)
       : st_(mf.stations()),
         modes_(modes),
         meander_(meander),
         box_(box),
-        exit_node_(mf.exit_station()) {}
+        exit_node_(mf.exit_station()),
+        wave_omega_(wave_omega),
+        wave_phase_(wave_phase) {}
 
   // Initialises a track released at tau with labels zeta, phasors in re/im.
   void Init(Track& tr, double* re, double* im, std::uint64_t id, double tau,
@@ -268,11 +273,23 @@ class Engine {
     Eval(tr.node + 1, re, im, tr.nv[1]);
     Rotate(tr.node + 1, re, im);
     Eval(tr.node + 2, re, im, tr.nv[2]);
-    const double g0 = tr.nv[0].g, g1 = tr.nv[1].g, g2 = tr.nv[2].g;
+    const double g0 = tr.nv[0].g;
+    // The column's speed wave depends on the time a node is reached: each
+    // node's dt/ds from the time predicted with the previous ones.
+    WaveAt(tr.node + 1, tr.nv[0].t + h / 2 * g0, tr.nv[1]);
+    const double g1 = tr.nv[1].g;
+    WaveAt(tr.node + 2, tr.nv[0].t + h / 6 * (g0 + 4 * g1 + tr.nv[2].g), tr.nv[2]);
+    const double g2 = tr.nv[2].g;
     tr.nv[1].t = tr.nv[0].t + h / 24 * (5 * g0 + 8 * g1 - g2);
     tr.nv[2].t = tr.nv[0].t + h / 6 * (g0 + 4 * g1 + g2);
     if (tr.node + 1 == exit_node_) tr.t_exit = tr.nv[1].t;
     if (tr.node + 2 == exit_node_) tr.t_exit = tr.nv[2].t;
+  }
+
+  // Divides node j's dt/ds by the column wave's speed factor at time t.
+  void WaveAt(int j, double t, NodeValue& nv) const {
+    const double a = st_[j].wave_amplitude;
+    if (a > 0) nv.g /= 1 + a * std::sin(wave_omega_ * (st_[j].wave_time_s - t) + wave_phase_);
   }
 
   const std::vector<Station>& st_;
@@ -280,6 +297,7 @@ class Engine {
   const Meander& meander_;
   const Box& box_;
   int exit_node_;
+  double wave_omega_, wave_phase_;
 };
 
 }  // namespace
@@ -426,7 +444,12 @@ PlumeSimulation::PlumeSimulation(const Release& release, const View& view, doubl
   }
 
   // --- run ---------------------------------------------------------------------------
-  const Engine engine(mf, modes, meander, box_);
+  // The quiet column's wave: the puffing frequency 1.5 / sqrt(D [m]) Hz of
+  // buoyant plumes (Cetegen & Ahmed 1993) within +-10 %, a random phase.
+  const double wave_f = 1.5 / std::sqrt(release_.exit_diameter_m) *
+                        (1 + 0.1 * (2 * Uniform(seed, kStreamWave, 0) - 1));
+  const Engine engine(mf, modes, meander, box_, 2 * kPi * wave_f,
+                      2 * kPi * Uniform(seed, kStreamWave, 1));
   const double mass = mf.mass_rate_kg_s() / puff_rate_;
   const double t_start = -spin_up_;
   std::vector<Track> tracks;

@@ -89,6 +89,7 @@ void Release::Check() const {
   CheckInRange(turbulence_intensity, 0.0, 1.0, "turbulence_intensity");
   CheckInRange(draft_m_s, 0.0, 2.0, "draft_m_s", "m/s");
   CheckInRange(ambient_time_scale_s, 0.1, 600.0, "ambient_time_scale_s", "s");
+  CheckInRange(release_turbulence, 0.0, 1.0, "release_turbulence");
   CheckInRange(standard_temperature_K, 250.0, 320.0, "standard_temperature_K", "K");
   CheckInRange(standard_pressure_Pa, 5e4, 2e5, "standard_pressure_Pa", "Pa");
   const double v = ExitVelocity();

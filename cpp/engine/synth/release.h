@@ -63,6 +63,15 @@ struct Release {
   // Lagrangian integral time scale of the ambient fluctuations [s], in
   // [0.1, 600]. Default 3.
   double ambient_time_scale_s = 3.0;
+  // Turbulence the released gas carries of its own, relative to a fully
+  // developed turbulent buoyant plume (dimensionless), in [0, 1]: 1 = the
+  // developed plume's puffs, offsets and axial fluctuations; 0 = a quiet
+  // column that keeps its mean profile and moves only with the ambient air
+  // (turbulence_intensity, draft_m_s). Below 1 a low-Reynolds-number exit
+  // also stays laminar (no entrainment, buoyant acceleration) for longer: the
+  // automatic laminar length is 1 + kQuietLaminarDiameters (1 -
+  // release_turbulence) exit diameters (mean_flow.h). Default 1.
+  double release_turbulence = 1.0;
   // Standard conditions that define SLPM: temperature [K] in [250, 320]
   // (default 293.15, i.e. 20 C as many mass-flow controllers use) and pressure
   // [Pa] in [5e4, 2e5] (default 101325).

@@ -353,12 +353,19 @@ def _self_checks(st: RunState, j: int, surface: str, sp: str, summary, relative,
     columns = st.columns
     if not isinstance(columns, InvertedColumns) or j not in columns.evidence:
         return None
+    fluct = [
+        float(f)
+        for b in st.blocks
+        if isinstance(f := b.velocity_info.get("column_fluctuation"), float) and math.isfinite(f)
+    ]
     ev = dataclasses.replace(
         columns.evidence[j],
         flux_against=summary.flux_against,
         flux_abs=summary.flux_abs,
         upwind_sq=columns.upwind_sums[0],
         upwind_n=int(columns.upwind_sums[1]),
+        fluctuation_sum=sum(fluct),
+        fluctuation_n=len(fluct),
     )
     measures, failed = selfchecks.failure_terms(ev)
     what = {
@@ -374,16 +381,25 @@ def _self_checks(st: RunState, j: int, surface: str, sp: str, summary, relative,
         "upwind_contrast_noise": "noise RMS contrast behind the source, where the gas "
         "does not go: the background moves (drifting clouds) or the estimate misses "
         "the scene's structure",
+        "column_fluctuation": "RMS fluctuation of the plume's most fluctuating lines: a "
+        "steady, nearly laminar column, whose pattern (instability waves) may travel "
+        "slower than its gas, and the flux level follows the pattern",
     }
     for key, term in failed:
         v = measures[key]
         size = f"{v:.1f}" if key.endswith("_noise") else f"{100 * v:.0f} %"
+        fix = (
+            "measure where the plume has turned turbulent (surfaces higher up, a longer "
+            "view of the plume)"
+            if key == "column_fluctuation"
+            else "try another background (a gas-free region, or 'percentile') or "
+            "surfaces where the background is uniform"
+        )
         warnings.add(
             selfchecks.CODES[key],
-            f"{size} {what[key]}; threshold {selfchecks.THRESHOLDS[key]:g}: the rate's "
-            f"interval is widened by a relative term of {100 * term:.0f} % (1 sigma); try "
-            f"another background (a gas-free region, or 'percentile') or surfaces where "
-            f"the background is uniform",
+            f"{size} {what[key]}; threshold {selfchecks.THRESHOLDS[key]:g}"
+            f"{' (below)' if key in selfchecks.BELOW else ''}: the rate's "
+            f"interval is widened by a relative term of {100 * term:.0f} % (1 sigma); {fix}",
             surface=surface,
             species=sp,
             measure=key,

@@ -15,6 +15,7 @@ from typing import Dict, Optional, Tuple
 
 import numpy as np
 
+from .. import selfchecks
 from .. import workers as _workers_mod
 from ..errors import Cancelled
 from ..surfaces import Region
@@ -175,11 +176,14 @@ def _block_velocity(
     if plan.on:
         # Only the plume's part of each line (vel.transport_band): noise
         # common to a line would draw the flux level low in faint plumes.
-        band = vel.transport_band(velocity_frames.mean(axis=0), axis)
+        banded = velocity_frames * vel.transport_band(velocity_frames.mean(axis=0), axis)
+        # How much the plume's column fluctuates (qogi.selfchecks): a
+        # steady column's pattern need not travel at the gas's speed.
+        velocity_info["column_fluctuation"] = selfchecks.column_fluctuation(
+            banded.sum(axis=2 if axis in ("up", "down") else 1)
+        )
         job = _workers_mod.current().submit(
-            lambda: vel.transport_flux(
-                velocity_frames * band, axis, region_index, intervals=intervals
-            ),
+            lambda: vel.transport_flux(banded, axis, region_index, intervals=intervals),
             "qogi-transport",
         )
     # Pairs `stride` frames apart where the plume moves little per frame
