@@ -22,12 +22,63 @@ def _table(curve, which: str) -> str:
     return "\n".join(lines)
 
 
+def cmd_map(args: argparse.Namespace) -> int:
+    """``qogi pod --map REC``: the recording's minimum-detectable column map."""
+    import numpy as np
+
+    from .detectability import recording_min_detectable_column
+    from .errors import UsageError
+    from .files import atomic_path, check_outputs
+    from .io.open import open_recording
+
+    out = args.map_out
+    if out is not None:
+        check_outputs({"--map-out": out}, inputs=[args.map])
+        if not out.lower().endswith((".npy", ".png")):
+            raise UsageError(f"--map-out {out}: give a .npy or .png file name")
+    with open_recording(args.map) as rec:
+        mdc, bg = recording_min_detectable_column(rec)
+    finite = mdc[np.isfinite(mdc)]
+    g = 1e3  # g/m2
+    print(
+        f"qogi pod --map {args.map}: minimum-detectable column (k + z) NEC per pixel "
+        f"[g/m2]: median {np.median(finite) * g:.3g}, 5-95 % "
+        f"{np.percentile(finite, 5) * g:.3g} .. {np.percentile(finite, 95) * g:.3g}"
+        + (f"; {mdc.size - finite.size} pixels without contrast" if finite.size < mdc.size else "")
+        if finite.size
+        else f"qogi pod --map {args.map}: no pixel has contrast with the gas"
+    )
+    if out is None:
+        return 0
+    with atomic_path(out, suffix=out[-4:]) as tmp:
+        if out.lower().endswith(".npy"):
+            with open(tmp, "wb") as fh:
+                np.save(fh, mdc.astype(np.float32))
+        else:
+            import matplotlib
+
+            matplotlib.use("Agg", force=False)
+            import matplotlib.pyplot as plt
+
+            fig, ax = plt.subplots(figsize=(6.4, 4.8))
+            im = ax.imshow(mdc * g, cmap="viridis")
+            fig.colorbar(im, ax=ax, label="minimum-detectable column [g/m2]")
+            ax.set_title("(k + z) x noise-equivalent column per pixel")
+            fig.tight_layout()
+            fig.savefig(tmp, dpi=100)
+            plt.close(fig)
+    print(f"wrote {out}")
+    return 0
+
+
 def cmd_pod(args: argparse.Namespace) -> int:
     from ._progress import ProgressBar
     from .detectability import POD_LEVEL, PodScene, pod
     from .errors import UsageError
     from .files import atomic_open, check_outputs
 
+    if args.map is not None:
+        return cmd_map(args)
     if args.json and args.json != "-":
         check_outputs({"--json": args.json})
     scene = PodScene(
@@ -150,5 +201,12 @@ def add_commands(sub) -> None:
         "--holdout-seeds", type=nonnegative_int, default=4, help="held-out seeds checked (4)"
     )
     p.add_argument("--json", metavar="OUT.json|-", help="write the curve and tables as JSON")
+    p.add_argument(
+        "--map",
+        metavar="REC",
+        help="instead: the minimum-detectable column per pixel of a recording (its "
+        "background's temperature, the camera's NETD, the gas at ambient)",
+    )
+    p.add_argument("--map-out", metavar="OUT.npy|OUT.png", help="write the --map (kg/m2 in .npy)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_pod)

@@ -58,6 +58,7 @@ __all__ = [
     "fit_logistic",
     "pod",
     "min_detectable_column_map",
+    "recording_min_detectable_column",
 ]
 
 #: The probability of detection the headline rate is stated at (OOOOb's
@@ -537,3 +538,27 @@ def min_detectable_column_map(
     s = np.interp(bg, grid, inv) if grid.size > 1 else np.full(bg.shape, inv[0])
     with np.errstate(divide="ignore"):
         return np.where(s > 0, (detection_sigma + z) / s, np.inf)
+
+
+def recording_min_detectable_column(
+    recording, species: Optional[str] = None, gas_K: Optional[float] = None, max_frames: int = 50
+) -> Tuple[np.ndarray, np.ndarray]:
+    """The minimum-detectable column map [kg/m2] of a recording and the
+    background it was computed on [K] (each (H, W)).
+
+    The background is the per-pixel temporal median of the first channel's
+    radiometric temperature over up to ``max_frames`` frames spread over the
+    record (where the gas comes and goes, the gas-free value); the gas is at
+    ``gas_K`` (default the recording's ambient temperature, as the run's
+    default ``gas_temperature="ambient"``); ``species`` defaults to the
+    recording's first, else CH4. See :func:`min_detectable_column_map`.
+    """
+    n = recording.n_frames
+    idx = np.unique(np.linspace(0, n - 1, min(n, max(1, int(max_frames)))).astype(int))
+    frames = np.stack([recording.frame(int(i), quantity="radiometric_temperature")[0] for i in idx])
+    bg = np.median(frames, axis=0)
+    sc = recording.scene
+    sp = species or (sc.species[0] if sc.species else "CH4")
+    amb = sc.ambient_temperature_K
+    gas = amb if gas_K is None else gas_K
+    return min_detectable_column_map(bg, recording.camera, gas, amb, species=sp), bg

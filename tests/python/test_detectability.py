@@ -126,3 +126,22 @@ def test_pod_scene_and_command_line_refuse_bad_input_with_the_fix():
         text=True,
     )
     assert done.returncode == 2 and "--wind-speed: must be > 0" in done.stderr
+
+
+def test_the_command_line_writes_a_recordings_min_detectable_column_map(tmp_path, capsys):
+    from qogi.cli import main
+    from qogi.detectability import recording_min_detectable_column
+
+    rec, _, _ = render_scene(SCENE, 0.0, seed=3)
+    p = tmp_path / "blank.h5"
+    rec.save(p)
+    out = tmp_path / "mdc.npy"
+    assert main(["pod", "--map", str(p), "--map-out", str(out)]) == 0
+    assert "minimum-detectable column" in capsys.readouterr().out
+    m = np.load(out)
+    want, bg = recording_min_detectable_column(qogi.open_recording(p))
+    assert m.shape == (rec.height, rec.width) and np.allclose(m, want, rtol=1e-6)
+    # The blank's background is the plate: delta-T 8 K everywhere, one value.
+    assert np.allclose(bg, SCENE.background_K, atol=0.02)
+    assert np.ptp(m) < 0.01 * m.mean()
+    assert main(["pod", "--map", str(p), "--map-out", str(tmp_path / "x.txt")]) == 2
