@@ -37,7 +37,7 @@ def cmd_map(args: argparse.Namespace) -> int:
         if not out.lower().endswith((".npy", ".png")):
             raise UsageError(f"--map-out {out}: give a .npy or .png file name")
     with open_recording(args.map) as rec:
-        mdc, bg = recording_min_detectable_column(rec)
+        mdc, _ = recording_min_detectable_column(rec)
     finite = mdc[np.isfinite(mdc)]
     g = 1e3  # g/m2
     print(
