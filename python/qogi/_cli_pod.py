@@ -150,7 +150,7 @@ def add_commands(sub) -> None:
         "qogi says 'detected'; fit a logistic curve in the log of the rate and print the "
         "rate detected with 90 % probability, the false-alarm rate and the observed "
         "detection fractions on held-out seeds against the curve (docs/detection_limit.md). "
-        "The default run is ~50 small quantifications (a few minutes).",
+        "The default run is 56 small quantifications (a few minutes with a GF320).",
     )
     p.add_argument("--camera", default="gf320", help="camera preset (default gf320)")
     p.add_argument("--distance", type=positive_float, default=2.0, metavar="M", help="default 2 m")
@@ -194,7 +194,7 @@ def add_commands(sub) -> None:
         type=nonnegative_float,
         nargs="+",
         metavar="G_H",
-        help="release rates [g/h] (default: 0 and the stated limit x 0.5, 1, 2, 4, 8)",
+        help="release rates [g/h] (default: 0 and the stated limit x 0.71, 1, 1.41, 2, 2.83, 4)",
     )
     p.add_argument("--seeds", type=nonnegative_int, default=4, help="seeds fitted on (4)")
     p.add_argument(

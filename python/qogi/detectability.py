@@ -308,9 +308,10 @@ def fit_logistic(rates_kg_h: Sequence[float], detected: Sequence[bool]) -> Tuple
     [kg/h, -].
 
     Rates of zero (false-alarm trials) are left out. Each rate's outcomes
-    are smoothed by half a detection and half a miss (the empirical logit's
-    correction), so that a sweep whose outcomes separate perfectly still has
-    a finite slope.
+    are smoothed by a quarter of a detection and a quarter of a miss, so that
+    a sweep whose outcomes separate perfectly still has a finite slope (the
+    empirical logit's half of each flattened the curve by 30 points where 4
+    trials per rate separated).
     """
     q = np.asarray(rates_kg_h, float)
     d = np.asarray(detected, bool)
@@ -320,8 +321,8 @@ def fit_logistic(rates_kg_h: Sequence[float], detected: Sequence[bool]) -> Tuple
     if levels.size < 2:
         raise ValueError("fit_logistic needs outcomes at two or more rates > 0")
     x = np.log(levels)
-    n = np.array([np.sum(q == lv) for lv in levels], float) + 1.0
-    k = np.array([np.sum(d[q == lv]) for lv in levels], float) + 0.5
+    n = np.array([np.sum(q == lv) for lv in levels], float) + 0.5
+    k = np.array([np.sum(d[q == lv]) for lv in levels], float) + 0.25
     # Newton's method on (a, b) of logit p = a + b x.
     a, b = 0.0, 1.0
     a = -b * float(np.average(x, weights=n))
@@ -415,9 +416,11 @@ class PodCurve:
 
 def default_rates(scene: PodScene) -> List[float]:
     """Rates [kg/h] the PoD is measured at: zero (false alarms) and the
-    stated limit times 2^-1 ... 2^3 (where the curve rises)."""
+    stated limit times 2^(-1/2) ... 2^2 in steps of sqrt(2) (where the curve
+    rises: on the steady scenes measured, from about 1x to 2x the stated
+    limit; steps of 2 left no rate with a partial detection fraction)."""
     lim = stated_limit_kg_h(scene)
-    return [0.0] + [lim * 2.0**k for k in (-1, 0, 1, 2, 3)]
+    return [0.0] + [lim * 2.0 ** (k / 2) for k in range(-1, 5)]
 
 
 def pod(
