@@ -244,7 +244,7 @@ def _header(fig, result, sha, title_suffix=""):
     who = "; ".join(f"{k} {audit[k]}" for k in RECORD_SETTINGS if audit.get(k))
     fig.text(0.06, 0.929, times, fontsize=6.5, color=_MUTED)
     if who:
-        fig.text(0.94, 0.929, who[:110], fontsize=6.5, ha="right", color=_INK)
+        fig.text(0.06, 0.918, who[:150], fontsize=6.5, color=_INK)
     status = "complete" if result.complete else "PARTIAL (cancelled or interrupted)"
     fig.text(
         0.94,
@@ -254,7 +254,7 @@ def _header(fig, result, sha, title_suffix=""):
         ha="right",
         color=_MUTED if result.complete else "#b00020",
     )
-    fig.add_artist(_hline(fig, 0.922))
+    fig.add_artist(_hline(fig, 0.913))
 
 
 def _hline(fig, y):
@@ -413,7 +413,7 @@ def write_report(result, path: PathLike, recording=None) -> str:
     ):
         page1 = plt.figure(figsize=_A4)
         _header(page1, result, sha)
-        page1.text(0.06, 0.905, "Scene", fontsize=9, fontweight="bold", color=_INK)
+        page1.text(0.06, 0.899, "Scene", fontsize=9, fontweight="bold", color=_INK)
         ax = page1.add_axes((0.06, 0.57, 0.88, 0.32))
         _draw_scene(ax, result, recording)
         page1.text(0.06, 0.545, "Emission rate", fontsize=9, fontweight="bold", color=_INK)
