@@ -150,7 +150,7 @@ def add_commands(sub) -> None:
         "qogi says 'detected'; fit a logistic curve in the log of the rate and print the "
         "rate detected with 90 % probability, the false-alarm rate and the observed "
         "detection fractions on held-out seeds against the curve (docs/detection_limit.md). "
-        "The default run is 56 small quantifications (a few minutes with a GF320).",
+        "The default run is 56-72 small quantifications (5-10 minutes with a GF320 here).",
     )
     p.add_argument("--camera", default="gf320", help="camera preset (default gf320)")
     p.add_argument("--distance", type=positive_float, default=2.0, metavar="M", help="default 2 m")

@@ -429,6 +429,7 @@ def pod(
     seeds: Sequence[int] = tuple(range(6)),
     holdout_seeds: Sequence[int] = tuple(range(100, 106)),
     progress: Optional[Callable[[float, str], object]] = None,
+    refine: bool = True,
 ) -> PodCurve:
     """The probability of detection of ``scene`` (module docstring).
 
@@ -443,6 +444,13 @@ def pod(
         checked on (may be empty).
     progress : callable(fraction, message), optional
         Called after each trial.
+    refine : bool
+        Where no rate of the fit's trials has a partial detection fraction
+        (the detection switches between two neighbouring rates on every
+        seed: on a steady plume the mean rate of a record hardly varies),
+        add two rates between those two, geometrically spaced, so that the
+        curve's steepness is measured rather than set by the fit's
+        smoothing; the held-out seeds run at them too.
 
     Returns
     -------
@@ -451,17 +459,29 @@ def pod(
     rates = list(default_rates(scene) if rates_kg_h is None else rates_kg_h)
     if not rates or any(not (math.isfinite(q) and q >= 0) for q in rates):
         raise UsageError(f"rates must be finite numbers >= 0 kg/h; got {rates}")
-    if len(list(seeds)) < 1:
+    seeds, holdout_seeds = list(seeds), list(holdout_seeds)
+    if len(seeds) < 1:
         raise UsageError("pod needs at least one seed to fit on")
-    jobs = [(q, s, False) for s in seeds for q in rates]
-    jobs += [(q, s, True) for s in holdout_seeds for q in rates]
-    fit: List[Trial] = []
-    held: List[Trial] = []
-    for i, (q, s, h) in enumerate(jobs):
-        t = trial(scene, q, s)
-        (held if h else fit).append(t)
-        if progress is not None:
-            progress((i + 1) / len(jobs), f"{q * 1e3:.3g} g/h, seed {s}")
+    # The trials planned: every rate on every seed, and two refining rates.
+    total = (len(rates) + (2 if refine else 0)) * (len(seeds) + len(holdout_seeds))
+    done = [0]
+
+    def run(qs, ss) -> List[Trial]:
+        out = []
+        for s in ss:
+            for q in qs:
+                out.append(trial(scene, q, s))
+                done[0] += 1
+                if progress is not None:
+                    progress(min(1.0, done[0] / total), f"{q * 1e3:.3g} g/h, seed {s}")
+        return out
+
+    fit = run(rates, seeds)
+    if refine:
+        extra = _refining_rates(fit)
+        fit += run(extra, seeds)
+        rates += extra
+    held = run(rates, holdout_seeds)
     zero = [t.detected for t in fit + held if t.rate_kg_h == 0]
     q50, slope = fit_logistic([t.rate_kg_h for t in fit], [t.detected for t in fit])
     return PodCurve(
@@ -473,6 +493,19 @@ def pod(
         false_alarm=float(np.mean(zero)) if zero else None,
         stated_limit_kg_h=stated_limit_kg_h(scene),
     )
+
+
+def _refining_rates(trials: Sequence[Trial]) -> List[float]:
+    """Two rates between the highest rate never detected and the next
+    higher rate, when no rate was detected on some seeds only (else none)."""
+    levels = sorted({t.rate_kg_h for t in trials if t.rate_kg_h > 0})
+    frac = {q: np.mean([t.detected for t in trials if t.rate_kg_h == q]) for q in levels}
+    if any(0 < f < 1 for f in frac.values()):
+        return []
+    for lo, hi in zip(levels, levels[1:]):
+        if frac[lo] == 0 and frac[hi] == 1:
+            return [lo * (hi / lo) ** (i / 3) for i in (1, 2)]
+    return []
 
 
 def min_detectable_column_map(

@@ -145,3 +145,15 @@ def test_the_command_line_writes_a_recordings_min_detectable_column_map(tmp_path
     assert np.allclose(bg, SCENE.background_K, atol=0.02)
     assert np.ptp(m) < 0.01 * m.mean()
     assert main(["pod", "--map", str(p), "--map-out", str(tmp_path / "x.txt")]) == 2
+
+
+def test_a_step_between_two_rates_is_refined_between_them():
+    from qogi.detectability import Trial, _refining_rates
+
+    def t(q, d):
+        return Trial(q, 0, d, q, 1.0)
+
+    step = [t(0.0, False), t(1.0, False), t(1.0, False), t(2.0, True), t(2.0, True)]
+    assert _refining_rates(step) == pytest.approx([2 ** (1 / 3), 2 ** (2 / 3)])
+    # A rate already between 0 and 1: the fit sees the slope, no refining.
+    assert _refining_rates([*step, t(1.5, True), t(1.5, False)]) == []
