@@ -142,6 +142,12 @@ def cmd_pod(args: argparse.Namespace) -> int:
 
 
 def add_commands(sub) -> None:
+    import dataclasses
+
+    from .detectability import PodScene
+
+    # The scene's defaults are PodScene's (declared once, there).
+    d = {f.name: f.default for f in dataclasses.fields(PodScene)}
     p = sub.add_parser(
         "pod",
         help="probability of detection of a scene (a PoD curve and the rate detected at 90 %)",
@@ -152,40 +158,52 @@ def add_commands(sub) -> None:
         "detection fractions on held-out seeds against the curve (docs/detection_limit.md). "
         "The default run is 56-72 small quantifications (5-10 minutes with a GF320 here).",
     )
-    p.add_argument("--camera", default="gf320", help="camera preset (default gf320)")
-    p.add_argument("--distance", type=positive_float, default=2.0, metavar="M", help="default 2 m")
+    p.add_argument("--camera", default=d["camera"], help=f"camera preset (default {d['camera']})")
+    p.add_argument(
+        "--distance",
+        type=positive_float,
+        default=d["distance_m"],
+        metavar="M",
+        help=f"camera to plume (default {d['distance_m']:g} m)",
+    )
     p.add_argument(
         "--delta-t",
         type=finite_float,
-        default=5.0,
+        default=d["delta_T_K"],
         metavar="K",
-        help="gas minus background temperature (negative: absorption; default 5 K)",
+        help="gas minus background temperature (negative: absorption; default "
+        f"{d['delta_T_K']:g} K)",
     )
     p.add_argument(
         "--wind-speed",
         type=positive_float,
-        default=1.0,
+        default=d["wind_speed_m_s"],
         metavar="M_S",
-        help="gas speed across the surface (default 1 m/s)",
+        help=f"gas speed across the surface (default {d['wind_speed_m_s']:g} m/s)",
     )
     p.add_argument(
         "--plume-sigma",
         type=positive_float,
-        default=0.05,
+        default=d["plume_sigma_m"],
         metavar="M",
-        help="the plume's standard deviation across the surface (default 0.05 m)",
+        help="the plume's standard deviation across the surface (default "
+        f"{d['plume_sigma_m']:g} m)",
     )
     p.add_argument(
-        "--record", type=positive_float, default=2.0, metavar="S", help="record length (2 s)"
+        "--record",
+        type=positive_float,
+        default=d["record_s"],
+        metavar="S",
+        help=f"record length (default {d['record_s']:g} s)",
     )
     p.add_argument(
         "--ambient-temperature",
         type=positive_float,
-        default=293.15,
+        default=d["ambient_temperature_K"],
         metavar="K",
-        help="air and gas temperature (default 293.15 K)",
+        help=f"air and gas temperature (default {d['ambient_temperature_K']:g} K)",
     )
-    p.add_argument("--species", default="CH4", help="default CH4")
+    p.add_argument("--species", default=d["species"], help=f"default {d['species']}")
     p.add_argument(
         "--netd", type=positive_float, default=None, metavar="K", help="camera noise (preset's)"
     )
