@@ -150,7 +150,7 @@ def add_commands(sub) -> None:
     d = {f.name: f.default for f in dataclasses.fields(PodScene)}
     p = sub.add_parser(
         "pod",
-        help="probability of detection of a scene (a PoD curve and the rate detected at 90 %)",
+        help="probability of detection of a scene (a PoD curve and the rate detected at 90 %%)",
         description="Render steady releases of known rate in the scene (the camera's noise, "
         "the forward model), quantify each with the given gas speed and count how often "
         "qogi says 'detected'; fit a logistic curve in the log of the rate and print the "
