@@ -80,6 +80,7 @@ if TYPE_CHECKING:  # what the names are, for mypy and editors
         netd_radiance_sigma,
         warm_optics_radiance,
     )
+    from .detectability import PodCurve, PodScene, min_detectable_column_map, pod
     from .forward import ForwardModel, band_radiance, column_density, forward_model
     from .inversion import Inversion, InversionResult
     from .io.open import open_recording  # HDF5 recordings and camera files (FLIR, Telops)
@@ -163,4 +164,8 @@ __all__ = [
     "synth",
     "Inversion",
     "InversionResult",
+    "pod",
+    "PodScene",
+    "PodCurve",
+    "min_detectable_column_map",
 ]

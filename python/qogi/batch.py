@@ -665,6 +665,8 @@ def summary_row(result: dict) -> dict:
     row["n_warnings"] = len(warnings)
     row["warnings"] = " | ".join(_warning_text(w) for w in warnings)
     row.update(_meta_columns(b))
+    audit = result.get("audit") or {}
+    row.update({k: audit.get(k) or "" for k in _AUDIT_COLUMNS})
     return row
 
 
@@ -722,6 +724,17 @@ def _num(x):
     return float("nan") if x is None else float(x)
 
 
+#: The audit record's columns of the summary (qogi.audit; the qogi version
+#: is the batch's own column); empty for rows that did not run.
+_AUDIT_COLUMNS = [
+    "recording_sha256",
+    "recording_time_utc",
+    "run_started_utc",
+    "site",
+    "component",
+    "operator",
+    "location",
+]
 _LEADING = ["name", "path", "status", "error_type", "error", "complete"]
 _TRAILING = [
     "n_warnings",
@@ -734,7 +747,7 @@ _TRAILING = [
     "worker",
     "manifest_row",
     "reused",
-]
+] + _AUDIT_COLUMNS
 
 
 def summary_frame(rows: Sequence[dict]):
@@ -766,6 +779,7 @@ def summary_frame(rows: Sequence[dict]):
         "config_hash",
         "worker",
         "manifest_row",
+        *_AUDIT_COLUMNS,
     ):
         df[k] = df[k].fillna("").astype(str)
     return df

@@ -154,6 +154,9 @@ def build_parser() -> argparse.ArgumentParser:
     from ._cli_convert import add_commands as add_convert_commands
 
     add_convert_commands(sub)
+    from ._cli_pod import add_commands as add_pod_commands
+
+    add_pod_commands(sub)
     _add_exit_codes(p)
     return p
 

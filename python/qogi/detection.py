@@ -25,11 +25,13 @@ detectable rate is
 
 with ``v`` the measured gas speed normal to the surface (column-weighted) and
 ``w`` the measured effective width: of the time-averaged contrast profile
-along the surface when its peak is significant (its noise is sqrt(frames)
-lower than a frame's, and it shows the plume's wings that a frame's
-thresholded columns cut off), else the median over the frames that saw gas.
-Where neither saw gas, ``w`` is the surface's length (the widest plume the
-surface can hold: the limit is then an upper bound) and ``v`` the median
+along the surface when its peak is significant among all the surface's
+samples (:func:`significant_peak`; its noise is sqrt(frames) lower than a
+frame's, and it shows the plume's wings that a frame's thresholded columns
+cut off). Where the time average shows no plume, ``w`` is the surface's
+length (the widest plume the surface can hold: the limit is then an upper
+bound, not a width made of noise); the median width over the frames that
+saw gas only when no time average is at hand. Without gas, ``v`` is the median
 normal speed the run used. ``docs/validation/detection_limit.md`` compares it with the
 pipeline's detections on a synthetic sweep and with Zeng and Morris's GF320
 fit.
@@ -270,11 +272,18 @@ def detection_limit_from_sums(
     # The time-averaged contrast shows the plume's whole width (its noise is
     # sqrt(frames) lower); a frame's columns only the part above the per-pixel
     # threshold, too narrow near the limit.
+    # Its peak must stand out of the noise of all the surface's samples, not
+    # of one: the largest of N noise samples exceeds k noise far more often
+    # than one does (a blank's noise once gave a one-pixel "plume" and a
+    # limit 20x below what the scene lets anyone detect).
     w, width_from = None, ""
     if mean_snr is not None:
-        w = _mean_profile_width(mean_snr, dl_m, detection_sigma=DETECTION_SIGMA)
+        w = _mean_profile_width(
+            mean_snr, dl_m, detection_sigma=significant_peak(len(mean_snr), confidence)
+        )
         width_from = "time-averaged contrast"
-    if w is None:
+    else:
+        # Without the time average, the frames' thresholded columns.
         w = _median_width(widths_m)
         width_from = "columns of the frames"
     if w is None:
@@ -291,6 +300,20 @@ def detection_limit_from_sums(
         "detection_sigma": DETECTION_SIGMA,
     }
     return (limit if math.isfinite(limit) and limit > 0 else None), info
+
+
+def significant_peak(
+    n_samples: int, confidence: float = CONFIDENCE, detection_sigma: float = DETECTION_SIGMA
+) -> float:
+    """The peak (in noise units) a profile of ``n_samples`` independent
+    samples of pure noise exceeds with probability ``1 - confidence``: the
+    one-sided normal quantile at ``confidence ** (1 / n)`` (Sidak's
+    correction for looking at every sample), at least ``detection_sigma``.
+    200 samples at 95 %: 3.48."""
+    n = max(1, int(n_samples))
+    if not 0.5 < confidence < 1:
+        raise ValueError(f"confidence must be within (0.5, 1); got {confidence}")
+    return max(float(detection_sigma), NormalDist().inv_cdf(confidence ** (1.0 / n)))
 
 
 def _mean_profile_width(

@@ -1,6 +1,8 @@
 """A PDF report of one quantified recording (``qogi quantify --report``).
 
-Page 1: the header (recording, checksum, qogi version, date), the scene (a
+Page 1: the header (recording, checksum, the recording's and the run's UTC
+times, qogi version, the report's date, site, component, operator and
+location when given: the audit record, qogi.audit), the scene (a
 frame of the run with the control surfaces, their flux direction, the source
 and the column-density overlay), the emission-rate time series with the mean
 and its 90 % interval, and the table of surfaces and species. Page 2: the
@@ -12,14 +14,13 @@ backend; written atomically (qogi.files).
 from __future__ import annotations
 
 import datetime
-import hashlib
 import math
 import os
 import textwrap
-from typing import Optional
 
 import numpy as np
 
+from .audit import RECORD_SETTINGS, file_sha256
 from .detection import DETECTION_SIGMA
 from .files import PathLike, atomic_path
 
@@ -27,18 +28,6 @@ __all__ = ["write_report", "file_sha256"]
 
 _A4 = (8.27, 11.69)
 _INK, _MUTED, _ACCENT = "#1b1f24", "#5b6470", "#0b5394"
-
-
-def file_sha256(path: PathLike, block: int = 1 << 20) -> Optional[str]:
-    """SHA-256 of a file (hex), or None when it cannot be read."""
-    h = hashlib.sha256()
-    try:
-        with open(path, "rb") as fh:
-            for chunk in iter(lambda: fh.read(block), b""):
-                h.update(chunk)
-    except OSError:
-        return None
-    return h.hexdigest()
 
 
 def _fmt(x, nd: int = 4) -> str:
@@ -225,37 +214,47 @@ def _rate_rows(result):
 def _header(fig, result, sha, title_suffix=""):
     from ._version import __version__
 
+    audit = result.audit
+    version = audit.get("qogi_version") or __version__
     name = os.path.basename(str(result.recording_path))
     fig.text(
         0.06,
-        0.965,
+        0.970,
         f"qogi emission-rate report{title_suffix}",
         fontsize=15,
         fontweight="bold",
         color=_ACCENT,
     )
-    fig.text(0.06, 0.945, f"recording {name}", fontsize=9, color=_INK)
+    fig.text(0.06, 0.952, f"recording {name}", fontsize=9, color=_INK)
     fig.text(
         0.06,
-        0.930,
+        0.940,
         f"SHA-256 {sha or 'unavailable'}",
         fontsize=6.5,
         color=_MUTED,
         family="monospace",
     )
     when = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-    fig.text(0.94, 0.965, f"qogi {__version__}", fontsize=9, ha="right", color=_INK)
-    fig.text(0.94, 0.945, when, fontsize=8, ha="right", color=_MUTED)
+    fig.text(0.94, 0.970, f"qogi {version}", fontsize=9, ha="right", color=_INK)
+    fig.text(0.94, 0.952, f"report {when}", fontsize=8, ha="right", color=_MUTED)
+    times = (
+        f"recorded {audit.get('recording_time_utc') or 'unknown'} (UTC); run "
+        f"{audit.get('run_started_utc') or 'unknown'} .. {audit.get('run_finished_utc') or '-'}"
+    )
+    who = "; ".join(f"{k} {audit[k]}" for k in RECORD_SETTINGS if audit.get(k))
+    fig.text(0.06, 0.929, times, fontsize=6.5, color=_MUTED)
+    if who:
+        fig.text(0.06, 0.918, who[:150], fontsize=6.5, color=_INK)
     status = "complete" if result.complete else "PARTIAL (cancelled or interrupted)"
     fig.text(
         0.94,
-        0.930,
+        0.940,
         f"run {status}",
         fontsize=7,
         ha="right",
         color=_MUTED if result.complete else "#b00020",
     )
-    fig.add_artist(_hline(fig, 0.922))
+    fig.add_artist(_hline(fig, 0.913))
 
 
 def _hline(fig, y):
@@ -400,7 +399,8 @@ def write_report(result, path: PathLike, recording=None) -> str:
             recording = open_recording(result.recording_path)
         except (OSError, ValueError):
             recording = None
-    sha = file_sha256(result.recording_path)
+    # The checksum the run stamped (the file as quantified), else the file's now.
+    sha = result.audit.get("recording_sha256") or file_sha256(result.recording_path)
     u = result.units
 
     with plt.rc_context(
@@ -413,7 +413,7 @@ def write_report(result, path: PathLike, recording=None) -> str:
     ):
         page1 = plt.figure(figsize=_A4)
         _header(page1, result, sha)
-        page1.text(0.06, 0.905, "Scene", fontsize=9, fontweight="bold", color=_INK)
+        page1.text(0.06, 0.899, "Scene", fontsize=9, fontweight="bold", color=_INK)
         ax = page1.add_axes((0.06, 0.57, 0.88, 0.32))
         _draw_scene(ax, result, recording)
         page1.text(0.06, 0.545, "Emission rate", fontsize=9, fontweight="bold", color=_INK)

@@ -150,8 +150,10 @@ class Result:
         info: Optional[dict] = None,
         complete: bool = True,
         warnings: Optional[List[Diagnostic]] = None,
+        audit: Optional[dict] = None,
     ):
         self.surfaces = surfaces
+        self._audit = dict(audit or {})
         #: Machine-readable warnings (:class:`qogi.diagnostics.Diagnostic`):
         #: what in this result cannot be fully trusted, and why.
         self.warnings = Diagnostics(warnings or [])
@@ -189,6 +191,31 @@ class Result:
             f"{f', {len(self.warnings)} warning(s)' if self.warnings else ''}: {rates}>"
         )
 
+    @property
+    def audit(self) -> dict:
+        """The audit record (:mod:`qogi.audit`): the recording file's SHA-256,
+        the recording's and the run's UTC times, qogi's version (stamped by
+        :func:`qogi.quantify`; None where unknown) and the run's ``site``,
+        ``component``, ``operator`` and ``location`` settings (None where not
+        given)."""
+        from .audit import AUDIT_FIELDS, RECORD_SETTINGS
+
+        d = {k: self._audit.get(k) for k in AUDIT_FIELDS}
+        cfg = self.config
+        for k in RECORD_SETTINGS:
+            d[k] = cfg.get(k) if isinstance(cfg, dict) else getattr(cfg, k, None)
+        return d
+
+    @audit.setter
+    def audit(self, record: dict) -> None:
+        """Stamp the record's own fields (:data:`qogi.audit.AUDIT_FIELDS`)."""
+        from .audit import AUDIT_FIELDS
+
+        unknown = sorted(set(record) - set(AUDIT_FIELDS))
+        if unknown:
+            raise KeyError(f"not fields of the audit record: {unknown}; known: {AUDIT_FIELDS}")
+        self._audit = dict(record)
+
     # -- access --------------------------------------------------------------
     def maps(self, frame: int) -> dict:
         """Per-pixel maps of one recording frame (needs ``keep_maps=True``;
@@ -221,6 +248,7 @@ class Result:
             "format": "qogi-result",
             "version": 1,
             "recording": self.recording_path,
+            "audit": self.audit,
             "complete": bool(self.complete),
             "warnings": [w.to_dict() for w in self.warnings],
             "standard_conditions": self.standard_conditions,

@@ -19,8 +19,10 @@ locator (``gas_temperature``, ``--gas-temperature``, ``column 'gas_temperature'`
 
 Roles: ``scene`` (facts about the scene and the gas; None or the documented
 default means the recording's value where the recording holds one,
-``Setting.scene_key``), ``method`` (analysis choices that change the result)
-and ``execution`` (how the run is carried out).
+``Setting.scene_key``), ``method`` (analysis choices that change the result),
+``execution`` (how the run is carried out) and ``record`` (who measured
+what, where: written into the result's audit record, ``Result.audit``;
+they change nothing computed).
 """
 
 from __future__ import annotations
@@ -50,7 +52,12 @@ __all__ = [
 ]
 
 #: Role -> the attribute of QuantifyConfig holding that role's fields.
-ROLES = {"scene": "conditions", "method": "methods", "execution": "execution"}
+ROLES = {
+    "scene": "conditions",
+    "method": "methods",
+    "execution": "execution",
+    "record": "record",
+}
 
 
 class SettingError(UsageError):
@@ -71,12 +78,13 @@ class Setting:
     ----------
     name : str
         The flat key (config keyword, TOML key, manifest column, JSON key).
-    role : {"scene", "method", "execution"}
+    role : {"scene", "method", "execution", "record"}
     kind : str
         ``float``, ``int``, ``bool``, ``choice``, ``species``,
         ``gas_temperature`` (a choice or a float), ``background`` (a choice
         or a region), ``pair`` (a pixel position), ``frames`` (start, stop),
-        ``composition`` (species -> fraction) or ``line_shape``.
+        ``composition`` (species -> fraction), ``line_shape`` or ``text``
+        (one line of free text, at most :data:`TEXT_MAX` characters).
     help : str
         What it means (docs table, ``--help``, the viewer's hints).
     unit : str
@@ -141,6 +149,10 @@ def _velocity_choices() -> Tuple[str, ...]:
     from . import velocimetry
 
     return tuple(velocimetry.METHODS) + ("wind", "exit")
+
+
+#: The longest text a ``text`` setting accepts (characters).
+TEXT_MAX = 200
 
 
 #: The settings, in their saved order.
@@ -465,6 +477,42 @@ SETTINGS: Dict[str, Setting] = {
             flag="--exit-temperature",
             metavar="K",
         ),
+        Setting(
+            "site",
+            "record",
+            "text",
+            "the facility or site surveyed (written into the result's audit record)",
+            optional=True,
+            flag="--site",
+            metavar="TEXT",
+        ),
+        Setting(
+            "component",
+            "record",
+            "text",
+            "the component or equipment leaking (a tag, e.g. valve V-102)",
+            optional=True,
+            flag="--component",
+            metavar="TEXT",
+        ),
+        Setting(
+            "operator",
+            "record",
+            "text",
+            "who recorded or analysed the release (written into the result's audit record)",
+            optional=True,
+            flag="--operator",
+            metavar="TEXT",
+        ),
+        Setting(
+            "location",
+            "record",
+            "text",
+            "where the camera stood (coordinates or a description)",
+            optional=True,
+            flag="--location",
+            metavar="TEXT",
+        ),
     )
 }
 
@@ -637,6 +685,19 @@ def check(name: str, value):
                 raise SettingError(name, f"needs a volume fraction > 0 per species; got {value}")
             out[str(k)] = float(x)
         return out
+    if kind == "text":
+        if not isinstance(value, str):
+            raise SettingError(name, f"must be text; got {_fmt(value)}")
+        t = value.strip()
+        if not t:
+            raise SettingError(name, "is empty: type the text, or leave the setting out")
+        if len(t) > TEXT_MAX:
+            raise SettingError(name, f"must be at most {TEXT_MAX} characters; got {len(t)}")
+        if any(not c.isprintable() for c in t):
+            raise SettingError(
+                name, f"must be one line of printable text (no tabs or line breaks); got {t!r}"
+            )
+        return t
     if kind == "line_shape":
         from .forward import LineShape
 
@@ -750,7 +811,7 @@ def from_text(name: str, text: str):
         if low in ("0", "false", "no", "off"):
             return False
         raise SettingError(name, f"must be true or false; got {t!r}")
-    if kind in ("choice", "line_shape"):
+    if kind in ("choice", "line_shape", "text"):
         return check(name, t)
     if kind == "species":
         return check(name, [p for p in _text_numbers(s, t, ",") if p] or [""])
@@ -860,6 +921,7 @@ def _doc_type(s: Setting) -> str:
         "frames": "(start, stop)",
         "composition": "dict",
         "line_shape": "str",
+        "text": "str",
     }
     t = kinds[s.kind]
     return t + (" or None" if s.optional else "")
@@ -881,6 +943,8 @@ def markdown_table() -> str:
             dtext += " (the recording's, else `" + repr(f).replace("'", '"') + "`)"
         if s.kind == "line_shape":
             acc = "`fixed[:CM1]` (CM1 in [1, 100]) or `hapi`, then `+self` or `+air`"
+        elif s.kind == "text":
+            acc = f"one line of text, at most {TEXT_MAX} characters"
         elif s.kind in ("pair", "frames", "species", "composition"):
             acc = f"`{s.metavar}`"
         else:

@@ -32,8 +32,10 @@ def _num(x):
 
 def summary_rows(result) -> List[dict]:
     """One dict per surface and species: the summary numbers in the result's
-    unit and in kg/h (None where unknown)."""
+    unit and in kg/h (None where unknown), then the audit record
+    (:attr:`qogi.Result.audit`)."""
     u = result.units
+    audit = result.audit  # the audit record on every row (qogi.audit)
     rows = []
     for s in result.surfaces:
         for sp, r in s.species.items():
@@ -55,6 +57,7 @@ def summary_rows(result) -> List[dict]:
                     "n_frames": int(r.n_frames),
                     "dominant_uncertainty": r.dominant_uncertainty,
                     "truth_kg_h": None if r.truth_kg_h is None else _num(r.truth_kg_h),
+                    **audit,
                 }
             )
     return rows
@@ -63,13 +66,16 @@ def summary_rows(result) -> List[dict]:
 def _attrs(result) -> dict:
     from ._version import __version__
 
+    # The audit record as text ("" where unknown: netCDF attributes hold no None).
+    audit = {k: "" if v is None else str(v) for k, v in result.audit.items()}
     return {
         "units": result.units,
         "recording": str(result.recording_path),
         "standard_temperature_K": result.standard_conditions["temperature_K"],
         "standard_pressure_Pa": result.standard_conditions["pressure_Pa"],
         "complete": int(bool(result.complete)),
-        "qogi_version": __version__,
+        **audit,
+        "qogi_version": audit["qogi_version"] or __version__,
     }
 
 

@@ -36,6 +36,11 @@ NOT_ON_THE_FORM = {
     "flux_level",
     "pair_stride",
     "block_frames",
+    # The audit record's settings: qogi quantify's options and manifest columns.
+    "site",
+    "component",
+    "operator",
+    "location",
 }
 
 

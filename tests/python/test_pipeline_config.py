@@ -1,4 +1,5 @@
-"""QuantifyConfig is held by role (scene conditions, methods, execution) but
+"""QuantifyConfig is held by role (scene conditions, methods, execution,
+record) but
 built, read, saved and loaded through the same flat keys as before: settings
 files, result JSONs and batch tables written by earlier versions still load."""
 
@@ -42,10 +43,16 @@ OLD_FLAT = {
 }
 
 
+#: Keys added since (the audit record's settings, issue 28): after the old
+#: ones, None when an old file does not give them.
+ADDED = ["site", "component", "operator", "location"]
+
+
 def test_an_old_flat_dict_loads_and_writes_back_the_same_keys_in_the_same_order():
     cfg = QuantifyConfig.from_dict(OLD_FLAT)
     d = cfg.to_dict()
-    assert list(d) == list(OLD_FLAT)
+    assert list(d) == list(OLD_FLAT) + ADDED
+    assert all(d[k] is None for k in ADDED)
     assert d["background"] == OLD_FLAT["background"]
     assert d["source"] == (159.5, 227.0) and d["frames"] == (0, 40)
     assert QuantifyConfig.from_dict(d) == cfg
@@ -110,7 +117,7 @@ def test_replace_copy_and_pickle_keep_every_setting_and_the_original_unchanged()
         assert c == cfg and c is not cfg
         c.num_threads = 7
         assert cfg.num_threads == 2
-    assert QuantifyConfig.field_names() == list(OLD_FLAT)
+    assert QuantifyConfig.field_names() == list(OLD_FLAT) + ADDED
 
 
 def test_toml_round_trip(tmp_path):

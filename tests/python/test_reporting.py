@@ -293,6 +293,9 @@ def test_pdf_report_pages_render_and_say_what_matters(lab, tmp_path):
         "Detection limit",
         "noise-equivalent",
         "20 C (68 F)",
+        # The audit record (issue 28): the run's UTC start; no capture time in a synthetic file.
+        f"run {res.audit['run_started_utc']}",
+        "recorded unknown (UTC)",
     ):
         assert needle in text, needle
     subprocess.run(["pdftoppm", "-r", "40", "-png", str(pdf), str(tmp_path / "page")], check=True)

@@ -52,6 +52,10 @@ CASES = {
     "block_frames": (["8", "450"], ["7", "8.5"]),
     "line_shape": (["hapi+air", "fixed:30+self", "fixed"], ["lorentz", "fixed:0.5", "hapi+none"]),
     "exit_temperature_K": (["328.15"], ["1000", "100"]),
+    "site": (["Compressor station 7", "Ölfeld Nord"], ["x" * 201, "a\tb"]),
+    "component": (["valve V-102"], ["x" * 201]),
+    "operator": (["J. Doe"], ["line\tbreak"]),
+    "location": (["52.1234 N, 4.5678 E"], ["x" * 300]),
 }
 
 

@@ -36,7 +36,7 @@ from __future__ import annotations
 
 from ..errors import Cancelled
 from .budget import COLUMN_SYSTEMATIC, COLUMN_SYSTEMATIC_INFERRED, VELOCITY_SYSTEMATIC
-from .config import Execution, Methods, QuantifyConfig, SceneConditions
+from .config import Execution, Methods, QuantifyConfig, Record, SceneConditions
 from .run import BLOCK_BYTES, MIN_BLOCK_FRAMES, quantify
 from .setup import check_inputs
 
@@ -50,6 +50,7 @@ __all__ = [
     "SceneConditions",
     "Methods",
     "Execution",
+    "Record",
     "quantify",
     "Cancelled",
     "VELOCITY_SYSTEMATIC",

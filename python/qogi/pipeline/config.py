@@ -3,7 +3,7 @@
 :class:`QuantifyConfig` is what callers build, save and load: one flat set of
 keys (docs/pipeline_api.md; the keys of settings files, result JSONs, batch
 tables, the viewer's form and the command line). Inside it the settings are
-three objects, each validating its own fields:
+four objects, each validating its own fields:
 
 * :class:`SceneConditions`: facts about the scene and the gas that override
   or complete the recording's (the gas, its temperature and composition, the
@@ -13,7 +13,9 @@ three objects, each validating its own fields:
   (velocimetry, background, averaging, column source, budget overrides, line
   shape, flux level);
 * :class:`Execution`: how the run is carried out (which frames, threads,
-  pair stride, streamed block length).
+  pair stride, streamed block length);
+* :class:`Record`: who measured what, where (site, component, operator,
+  location), carried into the result's audit record.
 
 Each field is declared once, in the run's settings table
 (:data:`qogi.settings.SETTINGS`: role, type, unit, range or choices, default,
@@ -41,6 +43,7 @@ __all__ = [
     "SceneConditions",
     "Methods",
     "Execution",
+    "Record",
     "FIELDS",
     "VELOCITY_SOURCES",
 ]
@@ -177,7 +180,32 @@ class Execution:
         _check_fields(self)
 
 
-_GROUPS = {"conditions": SceneConditions, "methods": Methods, "execution": Execution}
+@dataclasses.dataclass
+class Record:
+    """Who measured what, where (each optional): written into the result's
+    audit record (``Result.audit``); they change nothing computed."""
+
+    site: Optional[str] = dataclasses.field(default_factory=partial(_settings.default, "site"))
+    component: Optional[str] = dataclasses.field(
+        default_factory=partial(_settings.default, "component")
+    )
+    operator: Optional[str] = dataclasses.field(
+        default_factory=partial(_settings.default, "operator")
+    )
+    location: Optional[str] = dataclasses.field(
+        default_factory=partial(_settings.default, "location")
+    )
+
+    def __post_init__(self):
+        _check_fields(self)
+
+
+_GROUPS = {
+    "conditions": SceneConditions,
+    "methods": Methods,
+    "execution": Execution,
+    "record": Record,
+}
 
 #: The flat keys of :class:`QuantifyConfig`, in their saved order, with the
 #: role (attribute of the config) each belongs to: the settings table's
@@ -226,13 +254,14 @@ class QuantifyConfig:
 
     Built from the flat keys (``QuantifyConfig(species=["CH4"],
     velocity="wind", wind_speed_m_s=3.0)``) and read flat (``cfg.velocity``);
-    held as three role objects: :attr:`conditions` (:class:`SceneConditions`),
-    :attr:`methods` (:class:`Methods`) and :attr:`execution`
-    (:class:`Execution`)."""
+    held as four role objects: :attr:`conditions` (:class:`SceneConditions`),
+    :attr:`methods` (:class:`Methods`), :attr:`execution`
+    (:class:`Execution`) and :attr:`record` (:class:`Record`)."""
 
     conditions: SceneConditions
     methods: Methods
     execution: Execution
+    record: Record
 
     # The flat keys, each read from and written to its role's object.
     species: _Flat[List[str]] = _Flat()
@@ -259,6 +288,10 @@ class QuantifyConfig:
     block_frames: _Flat[Optional[int]] = _Flat()
     line_shape: _Flat[str] = _Flat()
     exit_temperature_K: _Flat[Optional[float]] = _Flat()
+    site: _Flat[Optional[str]] = _Flat()
+    component: _Flat[Optional[str]] = _Flat()
+    operator: _Flat[Optional[str]] = _Flat()
+    location: _Flat[Optional[str]] = _Flat()
 
     def __init__(self, **kwargs):
         unknown = sorted(set(kwargs) - set(FIELDS))
@@ -311,12 +344,14 @@ class QuantifyConfig:
         conditions: Optional[SceneConditions] = None,
         methods: Optional[Methods] = None,
         execution: Optional[Execution] = None,
+        record: Optional[Record] = None,
     ) -> QuantifyConfig:
-        """The config of three role objects (defaults for those not given)."""
-        parts: Dict[str, Union[SceneConditions, Methods, Execution]] = {
+        """The config of four role objects (defaults for those not given)."""
+        parts: Dict[str, Union[SceneConditions, Methods, Execution, Record]] = {
             "conditions": conditions or SceneConditions(),
             "methods": methods or Methods(),
             "execution": execution or Execution(),
+            "record": record or Record(),
         }
         flat = {}
         for obj in parts.values():

@@ -11,9 +11,11 @@ cut where ``time_s`` has a gap). Every stage takes the
 
 from __future__ import annotations
 
+import time
 from typing import Callable, List, Optional, Sequence, Union
 
 from .. import workers as _workers_mod
+from ..audit import run_record
 from ..errors import Cancelled
 from ..recording import Recording
 from ..result import Result
@@ -80,8 +82,15 @@ def quantify(
     # the stages see them all; the result keeps the config as given and says
     # which values came from the recording.
     run_cfg, taken = cfg.completed(rec.scene)
+    started = time.time()
     with _workers_mod.owned_workers():
-        result = _run(rec, surfaces, run_cfg, progress, keep_maps)
+        try:
+            result = _run(rec, surfaces, run_cfg, progress, keep_maps)
+        except Cancelled as e:
+            if isinstance(e.partial, Result):
+                e.partial.audit = run_record(rec, started, time.time())
+            raise
+    result.audit = run_record(rec, started, time.time())
     result.config = cfg
     result.info["from_recording"] = {k: _plain(v) for k, v in taken.items()}
     # What opening a camera file noticed (scene facts at factory defaults,
