@@ -371,8 +371,8 @@ def test_m150_release_from_hcc_reads_the_same_rate_as_from_hdf5(tmp_path):
     b = json.loads((tmp_path / "b.json").read_text())["surfaces"][0]["species"]["CH4"]
     assert a["mean_kg_h"] > 0
     print(
-        f"M150 CH4 at 8 cm, temperature inferred, speed given: HDF5 {a['mean_kg_h']:.5g} kg/h, .hcc "
-        f"{b['mean_kg_h']:.5g} kg/h ({b['mean_kg_h'] / a['mean_kg_h'] - 1:+.3%})"
+        f"M150 CH4 at 8 cm, temperature inferred, speed given: HDF5 {a['mean_kg_h']:.5g} "
+        f"kg/h, .hcc {b['mean_kg_h']:.5g} kg/h ({b['mean_kg_h'] / a['mean_kg_h'] - 1:+.3%})"
     )
     assert b["mean_kg_h"] == pytest.approx(a["mean_kg_h"], rel=0.005)
 
