@@ -28,7 +28,7 @@ import cv2
 import numpy as np
 
 from qogi import _engine
-from qogi.render import Jitter
+from qogi.synth.render import Jitter
 
 H, W = 256, 320
 

@@ -2,7 +2,7 @@
 
 20 short 15 Hz single-channel recordings (GF320 lab release, 320x240, 4 s =
 60 frames each; QOGI_BENCH_SCALE scales the length) quantified by
-``qogi.batch.run`` on a LocalCluster of 1 worker (the engine gets every CPU)
+``qogi.apps.batch.run`` on a LocalCluster of 1 worker (the engine gets every CPU)
 and of 2 workers (the CPUs shared between them), in the same run; the
 baseline is the 1-worker figure and the scaling ratio is 2-worker throughput
 over 1-worker throughput (2.0 would be perfect on 2 free cores). The wall
@@ -26,7 +26,8 @@ import time
 
 from bench_pipeline import looped  # the same looped recording
 
-from qogi import batch, render
+from qogi.apps import batch
+from qogi.synth import render
 
 N_RECORDINGS = 20
 SOURCES = 4

@@ -21,7 +21,7 @@ import time
 import numpy as np
 
 from qogi import _engine
-from qogi.camera import CalibrationScene, add_netd_noise, camera_optics, fit_calibration
+from qogi.physics.camera import CalibrationScene, add_netd_noise, camera_optics, fit_calibration
 
 
 def best(fn, repeat=3):

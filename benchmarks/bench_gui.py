@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 import qogi
-from qogi.radiometry import temperature_to_radiance
+from qogi.physics.radiometry import temperature_to_radiance
 
 T, C, H, W, RATE = 300, 4, 256, 320, 100.0
 

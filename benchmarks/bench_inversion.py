@@ -23,7 +23,7 @@ from scipy.optimize import least_squares
 
 import qogi
 from qogi import _engine
-from qogi.inversion import fixed, free, prior
+from qogi.measure.inversion import fixed, free, prior
 
 HITRAN = (
     pathlib.Path(

@@ -45,9 +45,9 @@ class Looped:
 
 def one(path: str, minutes: float) -> dict:
     import qogi
+    from qogi.io.recording import Recording
     from qogi.pipeline import QuantifyConfig, quantify
-    from qogi.recording import Recording
-    from qogi.surfaces import truth_surfaces
+    from qogi.pipeline.surfaces import truth_surfaces
 
     src = qogi.open_recording(path).load()
     rate = src.camera.frame_rate_hz
@@ -78,7 +78,7 @@ def one(path: str, minutes: float) -> dict:
 
 
 def main(lengths):
-    from qogi import render
+    from qogi.synth import render
 
     with tempfile.TemporaryDirectory() as tmp:
         path = os.path.join(tmp, "base.h5")

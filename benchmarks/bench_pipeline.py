@@ -22,10 +22,10 @@ import tempfile
 import time
 
 import qogi
-from qogi import render
+from qogi.io.hdf5_writer import RecordingWriter
 from qogi.pipeline import QuantifyConfig, quantify
-from qogi.recording import RecordingWriter
-from qogi.surfaces import truth_surfaces
+from qogi.pipeline.surfaces import truth_surfaces
+from qogi.synth import render
 
 CASES = [
     ("lab-ch4-5slpm-gf320", 60.0, 4.0, "ambient", None),

@@ -25,7 +25,7 @@ import numpy as np
 
 import qogi
 from qogi import _engine
-from qogi.radiometry import BandTable
+from qogi.physics.radiometry import BandTable
 
 SHARED = Path(os.environ.get("QOGI_SHARED_DIR", Path(__file__).resolve().parents[2] / "shared"))
 

@@ -13,7 +13,8 @@ import time
 
 import numpy as np
 
-from qogi import render, synth
+from qogi import synth
+from qogi.synth import render
 
 PRESET = "lab-ch4co2-90c-m150"
 

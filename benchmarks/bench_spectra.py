@@ -28,7 +28,7 @@ import time
 import numpy as np
 
 import qogi
-from qogi import spectra
+from qogi.physics import spectra
 
 SHARED = pathlib.Path(
     os.environ.get("QOGI_SHARED_DIR", pathlib.Path(__file__).resolve().parents[2] / "shared")

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from qogi.camera import ChannelOptics, camera_optics
+from qogi.physics.camera import ChannelOptics, camera_optics
 
 T_OPTICS = 293.15  # 20 C
 T_BG = 288.15  # 15 C

@@ -24,10 +24,10 @@ import tempfile
 import numpy as np
 
 import qogi
-from qogi import render
 from qogi.io.telops import write_hcc
 from qogi.pipeline import QuantifyConfig, quantify
-from qogi.surfaces import truth_surfaces
+from qogi.pipeline.surfaces import truth_surfaces
+from qogi.synth import render
 
 
 def main() -> None:

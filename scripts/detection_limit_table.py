@@ -3,7 +3,7 @@
 1. The plume's speed and effective width at a control surface, measured by
    the pipeline on two synthetic presets (the 5 SLPM lab release 4 cm above
    its exit, GF320 at 1.5 m; the 20 kg/h stack 50 px downwind, GF320 at 10 m).
-2. qogi's detection limit (qogi.detection: (k + z) NEC v w, 95 %) for those
+2. qogi's detection limit (qogi.pipeline.detection: (k + z) NEC v w, 95 %) for those
    plumes seen by the GF320 at several distances and temperature contrasts,
    the pixel footprint blurring the plume (w(d) = sqrt(w^2 + p(d)^2)), beside
    Zeng and Morris's GF320 fit 18.41 |dT|^-1.094 d^2 [g/h].
@@ -26,17 +26,18 @@ import tempfile
 import numpy as np
 
 import qogi
-from qogi import render, synth
-from qogi.detection import (
+from qogi.physics.forward import forward_model
+from qogi.pipeline import QuantifyConfig, quantify
+from qogi.pipeline.detection import (
     CONFIDENCE,
     DETECTION_SIGMA,
     detection_limit_kg_s,
     noise_equivalent_column,
     zeng_morris_g_h,
 )
-from qogi.forward import forward_model
-from qogi.pipeline import QuantifyConfig, quantify
-from qogi.surfaces import Surface
+from qogi.pipeline.surfaces import Surface
+from qogi import synth
+from qogi.synth import render
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests", "python"))
 from test_reporting import _band_recording

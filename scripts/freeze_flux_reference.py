@@ -17,7 +17,7 @@ sys.path.insert(0, str(ROOT / "tests" / "python"))
 
 import flux_cases as fc  # noqa: E402
 
-from qogi import velocimetry as vel  # noqa: E402
+from qogi.measure import velocimetry as vel  # noqa: E402
 from qogi.pipeline.flux import _surface_flux  # noqa: E402
 
 

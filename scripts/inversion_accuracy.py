@@ -11,9 +11,9 @@ import time
 import numpy as np
 
 import qogi
-from qogi.inversion import fixed, free, tied
+from qogi.measure.inversion import fixed, free, tied
 
-HITRAN = qogi.spectra.bundled_hitran_dir()
+HITRAN = qogi.physics.spectra.bundled_hitran_dir()
 T_AMB = 293.15
 
 

@@ -18,7 +18,7 @@ import sys
 import numpy as np
 
 import qogi
-from qogi.forward import forward_model
+from qogi.physics.forward import forward_model
 
 RULES = ("fixed:25+self", "hapi+self", "fixed:25+air", "hapi+air")
 #: (label, CH4 peak fraction, sigma [m], peak temperature [K]); ambient 295 K, plate 285 K.

@@ -46,7 +46,7 @@ AT_G_H = {"EPA": (1.0, 17.0, 19.0), "far": (1e3, 2e3, 5e3, 1e4, 1.5e4)}
 
 def main(argv=None) -> int:
     from qogi._progress import ProgressBar
-    from qogi.detectability import PodScene, pod
+    from qogi.apps.detectability import PodScene, pod
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=6)
@@ -111,9 +111,9 @@ def main(argv=None) -> int:
 
 
 def _refit(path: Path) -> dict:
-    """The curves of a JSON written with --out, refitted (qogi.detectability's
+    """The curves of a JSON written with --out, refitted (qogi.apps.detectability's
     current fit) from its per-rate counts."""
-    from qogi.detectability import PodCurve, PodScene, Trial, fit_logistic
+    from qogi.apps.detectability import PodCurve, PodScene, Trial, fit_logistic
 
     out = {}
     for key, d in json.loads(path.read_text()).items():

@@ -52,9 +52,9 @@ from pathlib import Path
 import numpy as np
 
 import qogi
-from qogi import render
 from qogi.pipeline import QuantifyConfig, quantify
-from qogi.surfaces import Surface, truth_surfaces
+from qogi.pipeline.surfaces import Surface, truth_surfaces
+from qogi.synth import render
 
 CASES = {
     "m150": dict(

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 import qogi
-from qogi import velocimetry as vel
+from qogi.measure import velocimetry as vel
 
 METHODS = list(vel.METHODS)
 

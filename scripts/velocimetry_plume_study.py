@@ -2,7 +2,7 @@
 
 The study the thesis asked for in its future work (docs/velocimetry.md, "The
 plume study"). For each preset, frame rate and seed, a release is simulated
-(qogi.synth) and every velocimetry method runs on the sequence of column-density
+(qogi.synth.plume) and every velocimetry method runs on the sequence of column-density
 maps, as the pipeline would run it (warm-started sequence, gas masks from
 ``plume_mask``, the stack exit as the fluid method's source, invalid vectors
 replaced by their valid neighbours). On horizontal control surfaces h = 2 ... 12
@@ -28,13 +28,13 @@ Inputs:
 
 Methods: every method with its defaults, and ``fluid+transport``: the fluid
 method's velocity at the frame times with the flux level from the transport
-of the line-integrated column (``qogi.velocimetry.calibrate_flux_level``, the
+of the line-integrated column (``qogi.measure.velocimetry.calibrate_flux_level``, the
 chain of ``plume_frame_velocity``).
 
 Velocity per frame: ``pair`` divides each pair's forward displacement by the
 frame interval (what every method returns); ``centred`` averages the forward
 displacement of pair (t, t+1) and the inverted one of pair (t-1, t)
-(``qogi.velocimetry.frame_velocity``), the velocity at frame t to second order
+(``qogi.measure.velocimetry.frame_velocity``), the velocity at frame t to second order
 in the frame interval. ``exact`` rows use the exact displacement maps
 (trajectories integrated through the truth velocity maps at 16 sub-steps per
 frame): what a perfect pair tracker would return.
@@ -61,8 +61,8 @@ from pathlib import Path
 import numpy as np
 
 import qogi
+from qogi.measure import velocimetry as vel
 from qogi import synth
-from qogi import velocimetry as vel
 
 PRESETS = ("lab-ch4-5slpm-gf320", "lab-ch4co2-90c-m150")
 RATES_HZ = (100.0, 15.0)
@@ -234,8 +234,8 @@ def noisy_column(name, rate, seed, case, cache_dir):
     path = Path(cache_dir) / f"noisy_{name}_{rate:g}hz_seed{seed}.npy"
     if path.exists():
         return np.load(path)
-    from qogi import camera as camera_mod
-    from qogi import render
+    from qogi.physics import camera as camera_mod
+    from qogi.synth import render
 
     p = synth.preset(name)
     _, cam = render._camera_for(p)
@@ -311,7 +311,7 @@ def run_spec(frames, spec, case):
     """One study entry: ``METHOD[:FIELD=VALUE...]`` (pair displacements,
     (T - 1, H, W)) or ``fluid+transport`` (frame velocities, (T, H, W)): the
     fluid method with the flux level from the transport of the
-    line-integrated column (qogi.velocimetry.calibrate_flux_level)."""
+    line-integrated column (qogi.measure.velocimetry.calibrate_flux_level)."""
     if spec.endswith("+transport"):
         method, opts = parse_method(spec[: -len("+transport")])
         u, v, wall, cpu = run_method(frames, method, case, opts)

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 import qogi
-from qogi import velocimetry as vel
+from qogi.measure import velocimetry as vel
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "tests" / "python"))

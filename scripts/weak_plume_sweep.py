@@ -48,7 +48,8 @@ def ensure_recording(
     cache: Path, rate_g_h: float, seed: int, duration_s: float, maps: bool, progress=None
 ) -> Path:
     """The preset at ``rate_g_h`` rendered once per seed (truth maps with ``maps``)."""
-    from qogi import render, synth
+    from qogi import synth
+    from qogi.synth import render
 
     path = recording_path(cache, rate_g_h, seed, duration_s, maps)
     if path.exists():
@@ -122,7 +123,7 @@ def _surface_terms(captured, rec, surfaces_out) -> list:
 def run(cache: Path, rate_g_h: float, seed: int, duration_s: float, terms: bool, bar) -> dict:
     import qogi
     from qogi.pipeline import QuantifyConfig, quantify
-    from qogi.surfaces import truth_surfaces
+    from qogi.pipeline.surfaces import truth_surfaces
 
     out_json = recording_path(cache, rate_g_h, seed, duration_s, terms).with_suffix(".result.json")
     if out_json.exists():

@@ -29,6 +29,6 @@ def shared_dir() -> Path:
 @pytest.fixture(scope="session")
 def hitran_dir() -> Path:
     """The HITRAN subsets shipped inside the package (python/qogi/data/hitran)."""
-    from qogi.spectra import bundled_hitran_dir
+    from qogi.physics.spectra import bundled_hitran_dir
 
     return bundled_hitran_dir()

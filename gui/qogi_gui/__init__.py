@@ -20,7 +20,9 @@ Start it with ``qogi gui [REC.h5]``, ``make gui`` or ``python -m qogi_gui``.
 
 from __future__ import annotations
 
-__all__ = ["main"]
+import sys
+
+__all__ = ["main", "launch"]
 
 
 def main(path=None, scene=None) -> int:
@@ -30,3 +32,24 @@ def main(path=None, scene=None) -> int:
     from .app import run
 
     return run(path, scene=scene)
+
+
+def launch(path=None, scene=None) -> int:
+    """``qogi gui``: the viewer as an app of the command line (entry point
+    ``gui`` of the group ``qogi.apps``, so that the library never imports the
+    viewer). Like :func:`main`, but a missing Dear PyGui or display is an
+    error message and exit status 2, not a traceback."""
+    try:
+        from .app import NoDisplayError
+    except ImportError as e:
+        print(
+            f"qogi gui: error: the viewer needs Dear PyGui and matplotlib ({e}); install them "
+            "with: pip install 'qogi[gui]'",
+            file=sys.stderr,
+        )
+        return 2
+    try:
+        return main(path, scene=scene)
+    except NoDisplayError as e:
+        print(f"qogi gui: error: {e}", file=sys.stderr)
+        return 2

@@ -1,6 +1,6 @@
 """The demo scene: a synthetic release with exact ground truth, one click away.
 
-The demo is a short run of one of the thesis presets of :mod:`qogi.synth`
+The demo is a short run of one of the thesis presets of :mod:`qogi.synth.plume`
 (simulated plume, rendered through the preset camera), written once to the
 user's cache folder and reused afterwards. Its ``/truth`` lets the viewer show
 the estimated emission rate next to the true one.
@@ -16,7 +16,7 @@ from .jobs import Stopped
 
 __all__ = ["DEMO", "demo_path", "source_pixel", "ensure_demo"]
 
-#: What the demo scene is: a preset of qogi.synth, how long, at what rate, which seed.
+#: What the demo scene is: a preset of qogi.synth.plume, how long, at what rate, which seed.
 DEMO = {"preset": "lab-ch4-5slpm-gf320", "duration_s": 4.0, "frame_rate_hz": None, "seed": 1}
 
 
@@ -25,7 +25,7 @@ def demo_path(folder: Optional[os.PathLike] = None) -> Path:
     version and recording format version, :func:`qogi.cache.cache_path`)."""
     from qogi import __version__
     from qogi.cache import cache_path
-    from qogi.recording import VERSION
+    from qogi.contract import VERSION
 
     rate = DEMO["frame_rate_hz"]
     stem = (
@@ -80,7 +80,7 @@ def ensure_demo(
 def _synthesise(path: Path, progress: Callable[[float, str], bool]) -> None:
     """Simulate and render the demo (what ``qogi synth`` does) into ``path``."""
     from qogi.errors import Cancelled
-    from qogi.render import synthesize
+    from qogi.synth.render import synthesize
 
     try:
         synthesize(

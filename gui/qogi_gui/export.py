@@ -5,7 +5,7 @@ CSV, JSON and plots are the pipeline's own writers (``Result.to_csv``,
 the same as one from ``qogi quantify``. The frame PNG is what the window
 shows (colour-mapped frame, column-density overlay, surfaces with their flux
 direction, background region); the report is short Markdown for people, or
-the PDF of ``qogi quantify --report`` (``qogi.report``).
+the PDF of ``qogi quantify --report`` (``qogi.apps.report``).
 """
 
 from __future__ import annotations
@@ -258,9 +258,9 @@ def report_text(
 
 
 def write_pdf_report(result, path: os.PathLike, recording=None) -> Path:
-    """The one-recording PDF report (``qogi.report.write_report``, as
+    """The one-recording PDF report (``qogi.apps.report.write_report``, as
     ``qogi quantify --report``): scene, rates, table, budget, warnings, settings."""
-    from qogi.report import write_report as write_pdf
+    from qogi.apps.report import write_report as write_pdf
 
     p = check_writable(path)
     if p.suffix.lower() != ".pdf":

@@ -49,7 +49,7 @@ class RateRow:
     n_frames_valid: int
     pixels_median: float
     dominant_uncertainty: str
-    #: qogi.detection's limit [kg/h] (None: not computed) and whether the mean
+    #: qogi.pipeline.detection's limit [kg/h] (None: not computed) and whether the mean
     #: is above it (None: no limit).
     detection_limit_kg_h: Optional[float] = None
     detected: Optional[bool] = None

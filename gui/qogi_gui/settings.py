@@ -8,7 +8,7 @@ into ``qogi.QuantifyConfig`` (docs/pipeline_api.md), whose own checks are
 reported against the field they name.
 
 Every field that is a setting of the run is read and checked by the run's
-settings table (``qogi.settings``): the same ranges, choices and messages as
+settings table (``qogi.pipeline.settings``): the same ranges, choices and messages as
 the command line, the settings TOML and the batch manifest, so a value the
 form accepts is one the run accepts.
 """
@@ -31,8 +31,8 @@ __all__ = [
     "SettingsError",
 ]
 
-from qogi import settings as _settings
-from qogi.forward import TABLE_WING_CM1, WING_CM1_RANGE
+from qogi.physics.forward import TABLE_WING_CM1, WING_CM1_RANGE
+from qogi.pipeline import settings as _settings
 
 GAS_TEMPERATURE_MODES = ("ambient", "given", "infer")
 AVERAGING = _settings.choices("averaging")
@@ -40,13 +40,13 @@ AVERAGING = _settings.choices("averaging")
 BACKGROUNDS = _settings.choices("background") + ("region",)
 #: Species offered in addition to those the recording's scene names.
 COMMON_SPECIES = ("CH4", "CO2")
-#: Line-shape rules of the cross-sections (``qogi.forward.LineShape``): the
+#: Line-shape rules of the cross-sections (``qogi.physics.forward.LineShape``): the
 #: wing rule (a fixed window in cm-1, or HAPI's 50 half-widths) and the
 #: broadening (by the gas itself and air, or by air alone). First: the default.
 LINE_SHAPE_WINGS = ("fixed", "hapi")
 LINE_SHAPE_BROADENINGS = ("self", "air")
 #: The fixed wing's half-width [cm-1]: default and accepted range, as
-#: ``qogi.forward.LineShape`` checks them.
+#: ``qogi.physics.forward.LineShape`` checks them.
 LINE_WING_CM1_DEFAULT = TABLE_WING_CM1
 LINE_WING_CM1_RANGE = WING_CM1_RANGE
 
@@ -92,7 +92,7 @@ _CONFIG_TO_FORM = {
     "num_threads": "num_threads",
     "exit_temperature_K": "exit_temperature_K",
     "line_shape": "line_shape",
-    "line shape": "line_shape",  # qogi.forward.LineShape's own messages
+    "line shape": "line_shape",  # qogi.physics.forward.LineShape's own messages
 }
 
 
@@ -106,7 +106,7 @@ class SettingsError(ValueError):
 
 
 def velocity_choices() -> List[str]:
-    """Velocity sources: the methods of ``qogi.velocimetry`` (default first),
+    """Velocity sources: the methods of ``qogi.measure.velocimetry`` (default first),
     then ``"wind"`` (a given speed) and ``"exit"`` (a given exit velocity):
     the settings table's choices."""
     methods = list(_settings.choices("velocity"))
@@ -117,7 +117,7 @@ def velocity_choices() -> List[str]:
 
 def _check(name: str, text: str) -> str:
     """ "" if ``text`` is a value the run's setting ``name`` accepts, else
-    the settings table's message (qogi.settings.from_text)."""
+    the settings table's message (qogi.pipeline.settings.from_text)."""
     try:
         _settings.from_text(name, text)
     except _settings.SettingError as e:

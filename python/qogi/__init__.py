@@ -9,7 +9,7 @@ The heavy lifting is done by the C++ engine in :mod:`qogi._engine`; this
 package is the public API.
 
 The public names load on first use (PEP 562): ``import qogi`` itself is
-instant, so the command line (``qogi.cli``) starts without the engine and a
+instant, so the command line (``qogi.apps.cli``) starts without the engine and a
 Ctrl-C while the modules load is its own "interrupted", not a traceback.
 """
 
@@ -68,9 +68,17 @@ if TYPE_CHECKING:  # what the names are, for mypy and editors
         synth,
         units,
     )
-    from .camera import (
+    from .apps.detectability import PodCurve, PodScene, min_detectable_column_map, pod
+    from .contract import RecordingError
+    from .io.hdf5_writer import RecordingWriter
+    from .io.open import open_recording  # HDF5 recordings and camera files (FLIR, Telops)
+    from .io.recording import Recording, Scene, Truth, write_recording
+    from .measure.inversion import Inversion, InversionResult
+    from .measure.velocimetry import FlowEstimator, optical_flow, optical_flow_sequence
+    from .physics.camera import (
         Calibration,
         CalibrationScene,
+        Camera,
         ChannelOptics,
         add_netd_noise,
         add_warm_optics,
@@ -80,24 +88,10 @@ if TYPE_CHECKING:  # what the names are, for mypy and editors
         netd_radiance_sigma,
         warm_optics_radiance,
     )
-    from .detectability import PodCurve, PodScene, min_detectable_column_map, pod
-    from .forward import ForwardModel, band_radiance, column_density, forward_model
-    from .inversion import Inversion, InversionResult
-    from .io.open import open_recording  # HDF5 recordings and camera files (FLIR, Telops)
-    from .optics import SpectralResponse, planck_radiance, planck_radiance_derivative
-    from .pipeline import Cancelled, QuantifyConfig, quantify
-    from .presets import camera_preset, camera_preset_names
-    from .recording import (
-        Camera,
-        Recording,
-        RecordingError,
-        RecordingWriter,
-        Scene,
-        Truth,
-        write_recording,
-    )
-    from .result import Result
-    from .spectra import (
+    from .physics.forward import ForwardModel, band_radiance, column_density, forward_model
+    from .physics.optics import SpectralResponse, planck_radiance, planck_radiance_derivative
+    from .physics.presets import camera_preset, camera_preset_names
+    from .physics.spectra import (
         CrossSectionTable,
         LineList,
         absorption_coefficient,
@@ -108,8 +102,9 @@ if TYPE_CHECKING:  # what the names are, for mypy and editors
         partition_sum,
         voigt_profile,
     )
-    from .surfaces import Region, Surface, auto_surfaces, detect_source, plume_image
-    from .velocimetry import FlowEstimator, optical_flow, optical_flow_sequence
+    from .pipeline import Cancelled, QuantifyConfig, quantify
+    from .pipeline.result import Result
+    from .pipeline.surfaces import Region, Surface, auto_surfaces, detect_source, plume_image
 
 __all__ = [
     "Cancelled",

@@ -1,7 +1,7 @@
 import sys
 
 try:
-    from .cli import main
+    from .apps.cli import main
 except KeyboardInterrupt:  # Ctrl-C while the modules load
     print("qogi: interrupted", file=sys.stderr)
     sys.exit(130)

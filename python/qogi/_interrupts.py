@@ -18,6 +18,10 @@ from typing import Iterator, List, Optional, Type
 _pending: List[Type[BaseException]] = []
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (kill), handled like Ctrl-C so that temporary files go."""
+
+
 def pending() -> Optional[Type[BaseException]]:
     """The first interrupt that was dropped by Python and not yet acted on."""
     return _pending[0] if _pending else None

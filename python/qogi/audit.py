@@ -14,7 +14,7 @@ The record's own fields:
 * ``run_started_utc``, ``run_finished_utc``: the run's own start and end;
 * ``qogi_version``;
 
-and, from the run's settings (role ``record``, :mod:`qogi.settings`), the
+and, from the run's settings (role ``record``, :mod:`qogi.pipeline.settings`), the
 optional ``site``, ``component``, ``operator`` and ``location``.
 """
 
@@ -37,7 +37,7 @@ AUDIT_FIELDS = (
     "run_finished_utc",
     "qogi_version",
 )
-#: The settings of role ``record`` (qogi.settings) the audit record repeats.
+#: The settings of role ``record`` (qogi.pipeline.settings) the audit record repeats.
 RECORD_SETTINGS = ("site", "component", "operator", "location")
 
 

@@ -7,7 +7,7 @@ its target, also on Ctrl-C. A thread left inside the C++ engine when the
 interpreter exits is torn down while it holds C++ frames, which aborts the
 process ("FATAL: exception not rethrown"), so no qogi code starts a thread of
 its own: :func:`qogi.quantify` runs inside :func:`owned_workers`, and code
-below it takes :func:`current` (e.g. :class:`qogi.budget.AlternativeModels`,
+below it takes :func:`current` (e.g. :class:`qogi.pipeline.budget_terms.AlternativeModels`,
 the pipeline's scene table, transport and proxy jobs). :meth:`Workers.submit`
 returns a :class:`Task` whose :meth:`~Task.result` waits and re-raises the
 work's exception on the caller's thread (the relay each job used to write).

@@ -35,7 +35,7 @@ import numpy  # noqa: F401,E402
 with atheris.instrument_imports(include=["qogi"]):
     import qogi
     import qogi.io.flir
-    import qogi.recording  # noqa: F401
+    import qogi.io.recording  # noqa: F401
 
 from fuzz_targets import (  # noqa: E402
     SEEDS,

@@ -9,7 +9,7 @@ import pytest
 from test_viewmodel import Clock, Instrumented, run_to_end
 
 import qogi
-from qogi.forward import LineShape
+from qogi.physics.forward import LineShape
 from qogi_gui import results
 from qogi_gui.settings import AnalysisSettings
 from qogi_gui.viewmodel import ViewModel

@@ -1,4 +1,4 @@
-"""The viewer's analysis form reads the run's settings table (qogi.settings):
+"""The viewer's analysis form reads the run's settings table (qogi.pipeline.settings):
 for every setting it shows, it accepts what the run accepts and refuses the
 rest with the table's own message (the message of the command line, the
 settings TOML and the batch manifest: tests/python/test_settings.py); its
@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import pytest
 
-from qogi import settings
+from qogi.pipeline import settings
 from qogi_gui.settings import AVERAGING, BACKGROUNDS, AnalysisSettings, velocity_choices
 
 #: Setting -> (form field, the form's other fields that make it count).

@@ -713,7 +713,7 @@ def test_demo_file_name_names_its_definition(tmp_path):
     p = demo.demo_path(tmp_path)
     assert p.parent == tmp_path
     assert demo.DEMO["preset"] in p.name and f"seed{demo.DEMO['seed']}" in p.name
-    from qogi.recording import VERSION
+    from qogi.contract import VERSION
 
     assert p.name.endswith(f"qogi{qogi.__version__}.v{VERSION}.h5")  # qogi and format version
     x, y = demo.source_pixel()
@@ -721,13 +721,13 @@ def test_demo_file_name_names_its_definition(tmp_path):
 
 
 def test_cancelling_the_demo_leaves_nothing_behind(api, store, tmp_path, monkeypatch):
-    from qogi import render
+    from qogi.synth import render
     from qogi_gui import demo
 
     started = threading.Event()
 
     def fake_synthesize(preset, path, progress=None, **kw):
-        # What qogi.render.synthesize does: write, report, and raise
+        # What qogi.synth.render.synthesize does: write, report, and raise
         # KeyboardInterrupt when the progress callback returns False.
         with open(path, "wb") as f:
             f.write(b"partial")
@@ -799,7 +799,7 @@ def test_open_in_the_background(vm, rec_path, tmp_path):
 
 def test_step_between_frames_with_maps(opened, api):
     opened.add_surface([(4, 12), (28, 12)])
-    # Five frames: the fewest the velocimetry gives a rate from (qogi.checks).
+    # Five frames: the fewest the velocimetry gives a rate from (qogi.pipeline.checks).
     opened.update_settings(frame_start="2", frame_stop="7")
     opened.start_run()
     run_to_end(opened)

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 import qogi
+from qogi.io.recording import Recording, Scene
 from qogi.pipeline import QuantifyConfig, align, setup
-from qogi.recording import Recording, Scene
-from qogi.render import Jitter
-from qogi.surfaces import Surface
+from qogi.pipeline.surfaces import Surface
+from qogi.synth.render import Jitter
 
 W, H = 96, 80
 RATE_HZ = 30.0

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 import qogi
-from qogi import spectra
+from qogi.physics import spectra
 
 
 def test_the_cross_section_cache_is_written_whole_and_reused(tmp_path, monkeypatch):

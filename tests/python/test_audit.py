@@ -16,10 +16,10 @@ import numpy as np
 import pytest
 
 import qogi
-from qogi import batch
+from qogi.apps import batch
 from qogi.audit import AUDIT_FIELDS, RECORD_SETTINGS, utc_text
 from qogi.pipeline import QuantifyConfig, quantify
-from qogi.surfaces import Surface
+from qogi.pipeline.surfaces import Surface
 
 SURFACE = Surface([(10, 20), (50, 20)], name="S1")
 #: 2026-11-28 05:32:36.125 UTC, a capture time as a FLIR or Telops header gives it.
@@ -29,9 +29,9 @@ START_S = 1795843956.125
 def _recording(path, start_s=START_S):
     """A tiny scene (a static CH4 band over a plate, NETD noise, 6 frames)
     saved to ``path`` with the capture time its camera file would give."""
-    from qogi.forward import forward_model
-    from qogi.radiometry import radiance_to_temperature
-    from qogi.recording import Recording, Scene
+    from qogi.io.recording import Recording, Scene
+    from qogi.physics.forward import forward_model
+    from qogi.physics.radiometry import radiance_to_temperature
 
     cam = dataclasses.replace(qogi.camera_preset("gf320"), width=60, height=40)
     model = forward_model(cam.channels, ["CH4"])

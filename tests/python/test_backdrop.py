@@ -1,11 +1,12 @@
-"""Structured backgrounds of synthetic scenes (qogi.backdrop, render.Background):
+"""Structured backgrounds of synthetic scenes (qogi.synth.backdrop, render.Background):
 textured skies, drifting clouds, walls with seams and shadows, pipe racks;
 and the renderer showing them exactly where there is no gas."""
 
 import numpy as np
 import pytest
 
-from qogi import backdrop, render, synth
+from qogi import synth
+from qogi.synth import backdrop, render
 
 
 def test_texture_has_the_stated_rms_and_correlation_and_follows_its_seed():

@@ -18,9 +18,11 @@ from dask.system import CPU_COUNT
 from distributed import Client
 
 import qogi
-from qogi import batch, render, synth
+from qogi import synth
+from qogi.apps import batch
 from qogi.errors import UsageError
-from qogi.presets import camera_preset
+from qogi.physics.presets import camera_preset
+from qogi.synth import render
 
 # Small frames keep the test quick: a 160x128 window of the GF320 lab scene
 # (same pixel footprint), 1.5 s at 15 Hz, the exit 6 px above the bottom row.

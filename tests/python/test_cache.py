@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 import qogi
-from qogi import cache, spectra
+from qogi import cache
+from qogi.physics import spectra
 
 
 @pytest.fixture(autouse=True)
@@ -85,7 +86,7 @@ def test_a_cross_section_table_of_another_format_version_is_ignored_and_rebuilt(
 
 def test_the_demo_recording_is_named_by_its_format_version(monkeypatch, tmp_path):
     pytest.importorskip("dearpygui")
-    from qogi.recording import VERSION
+    from qogi.contract import VERSION
     from qogi_gui import demo
 
     monkeypatch.setenv("QOGI_CACHE_DIR", str(tmp_path))

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import qogi
-from qogi.camera import Calibration, CalibrationScene, fit_calibration
+from qogi.physics.camera import Calibration, CalibrationScene, fit_calibration
 
 H, W = 16, 20
 

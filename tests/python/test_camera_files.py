@@ -14,8 +14,7 @@ import numpy as np
 import pytest
 
 import qogi
-from qogi import render
-from qogi.cli import main
+from qogi.apps.cli import main
 from qogi.errors import UsageError
 from qogi.io.flir import FlirFile, flir_apparent_temperature
 from qogi.io.flir_writer import (
@@ -25,7 +24,8 @@ from qogi.io.flir_writer import (
     write_flir_seq,
     write_recording_as_seq,
 )
-from qogi.surfaces import truth_surfaces
+from qogi.pipeline.surfaces import truth_surfaces
+from qogi.synth import render
 
 LAB = "lab-ch4-5slpm-gf320"
 

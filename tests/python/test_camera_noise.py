@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import qogi
-from qogi.camera import add_netd_noise, netd_radiance_sigma
+from qogi.physics.camera import add_netd_noise, netd_radiance_sigma
 
 
 @pytest.fixture(scope="module")

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import qogi
-from qogi.camera import (
+from qogi.physics.camera import (
     ChannelOptics,
     add_warm_optics,
     camera_optics,

@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 from test_interrupt import SURFACE, small_recording
 
-from qogi import cli, errors
+from qogi import errors
+from qogi.apps import cli
 from qogi.errors import EXIT_DATA, EXIT_INTERNAL, EXIT_USAGE
 
 
@@ -42,17 +43,17 @@ def rec(tmp_path):
 @pytest.fixture
 def no_work(monkeypatch):
     """Fails the test if a command starts computing."""
+    import qogi.physics.spectra
     import qogi.pipeline
-    import qogi.render
-    import qogi.spectra
+    import qogi.synth.render
 
     def boom(*a, **k):
         raise AssertionError("the command computed before checking its arguments")
 
     monkeypatch.setattr(qogi.pipeline, "quantify", boom)
-    monkeypatch.setattr(qogi.render, "synthesize", boom)
-    monkeypatch.setattr(qogi.spectra, "cross_section", boom)
-    monkeypatch.setattr(qogi.spectra, "load_line_list", boom)
+    monkeypatch.setattr(qogi.synth.render, "synthesize", boom)
+    monkeypatch.setattr(qogi.physics.spectra, "cross_section", boom)
+    monkeypatch.setattr(qogi.physics.spectra, "load_line_list", boom)
 
 
 # ----------------------------------------------------------------- xsec
@@ -296,12 +297,12 @@ def test_every_command_documents_its_exit_codes(capsys):
 
 
 def test_an_internal_error_shows_the_traceback_and_asks_for_a_report(capsys, monkeypatch):
-    import qogi.info
+    import qogi.apps.info
 
     def broken(*a, **k):
         raise RuntimeError("an invariant broke")
 
-    monkeypatch.setattr(qogi.info, "flir_info", broken)
+    monkeypatch.setattr(qogi.apps.info, "flir_info", broken)
     code, _, err = run(capsys, "info", "x.seq")
     assert code == EXIT_INTERNAL
     assert "Traceback" in err and "RuntimeError: an invariant broke" in err
@@ -327,7 +328,7 @@ def _lab_plume_image(h=240, w=320, src=(159.5, 227.0)):
 def test_auto_surfaces_refuse_a_distance_that_is_not_downstream(dist):
     """--auto-surfaces=-20 used to put the surface on the image's bottom row,
     below the source (0.107 kg/h for a 0.200 kg/h release, exit 0)."""
-    from qogi.surfaces import auto_surfaces
+    from qogi.pipeline.surfaces import auto_surfaces
 
     with pytest.raises(ValueError, match=r"give distances > 0 px"):
         auto_surfaces(_lab_plume_image(), [dist], source=(159.5, 227.0))
@@ -337,7 +338,7 @@ def test_auto_surfaces_refuse_a_distance_that_is_not_downstream(dist):
 def test_auto_surfaces_refuse_a_distance_beyond_the_image_naming_the_largest(dist):
     """5000 px (or 300 on a 240-row image) used to be clipped to a stub in a
     corner or to the top row and read "not detected" without a word."""
-    from qogi.surfaces import auto_surfaces
+    from qogi.pipeline.surfaces import auto_surfaces
 
     with pytest.raises(ValueError, match=r"the largest usable distance is 227 px"):
         auto_surfaces(_lab_plume_image(), [dist], source=(159.5, 227.0))
@@ -346,7 +347,7 @@ def test_auto_surfaces_refuse_a_distance_beyond_the_image_naming_the_largest(dis
 
 def test_a_surface_cut_by_the_image_border_is_shortened_along_itself_and_warned():
     from qogi.diagnostics import Diagnostics
-    from qogi.surfaces import auto_surfaces
+    from qogi.pipeline.surfaces import auto_surfaces
 
     img = _lab_plume_image(h=240, w=80, src=(39.5, 227.0))  # the plume outgrows the width
     warns = Diagnostics()

@@ -9,9 +9,9 @@ import sys
 
 CHECK = """
 import sys
-import qogi.cli
+import qogi.apps.cli
 try:
-    qogi.cli.main(["--help"])
+    qogi.apps.cli.main(["--help"])
 except SystemExit:
     pass
 loaded = sorted(m for m in sys.modules if m.split(".")[0] in ("qogi_gui", "dearpygui"))

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import qogi
-from qogi.detectability import (
+from qogi.apps.detectability import (
     PodCurve,
     PodScene,
     fit_logistic,
@@ -20,8 +20,8 @@ from qogi.detectability import (
     stated_limit_kg_h,
     trial,
 )
-from qogi.detection import DETECTION_SIGMA, noise_equivalent_column, significant_peak
 from qogi.errors import UsageError
+from qogi.pipeline.detection import DETECTION_SIGMA, noise_equivalent_column, significant_peak
 
 #: A scene whose plume spans few pixels (quick to quantify): GF320 at 5 m.
 SCENE = PodScene(distance_m=5.0, delta_T_K=8.0, wind_speed_m_s=1.0, plume_sigma_m=0.03)
@@ -94,7 +94,7 @@ def test_releases_well_above_the_curve_are_detected_and_well_below_are_not():
 
 def test_min_detectable_column_is_k_plus_z_noise_columns_at_each_pixel():
     cam = qogi.camera_preset("gf320")
-    from qogi.forward import forward_model
+    from qogi.physics.forward import forward_model
 
     model = forward_model(cam.channels, ["CH4"])
     bg = np.array([[280.0, 285.0], [290.0, 293.15]])
@@ -129,8 +129,8 @@ def test_pod_scene_and_command_line_refuse_bad_input_with_the_fix():
 
 
 def test_the_command_line_writes_a_recordings_min_detectable_column_map(tmp_path, capsys):
-    from qogi.cli import main
-    from qogi.detectability import recording_min_detectable_column
+    from qogi.apps.cli import main
+    from qogi.apps.detectability import recording_min_detectable_column
 
     rec, _, _ = render_scene(SCENE, 0.0, seed=3)
     p = tmp_path / "blank.h5"
@@ -148,7 +148,7 @@ def test_the_command_line_writes_a_recordings_min_detectable_column_map(tmp_path
 
 
 def test_a_step_between_two_rates_is_refined_between_them():
-    from qogi.detectability import Trial, _refining_rates
+    from qogi.apps.detectability import Trial, _refining_rates
 
     def t(q, d):
         return Trial(q, 0, d, q, 1.0)

@@ -1,9 +1,9 @@
 """The flux module of the engine (engine/flux) against the numpy code it
 replaced: the transport flux, its typical displacement and the flux level
-(qogi.velocimetry) and the pipeline's surface flux, on seeded synthetic
+(qogi.measure.velocimetry) and the pipeline's surface flux, on seeded synthetic
 inputs (tests/python/flux_cases.py), against outputs frozen from the numpy
 implementation before the port (tests/data/flux_reference.npz); and
-qogi.flux.surface_rate against an analytic plume and the pipeline's
+qogi.measure.flux.surface_rate against an analytic plume and the pipeline's
 ``_surface_flux`` on the same inputs."""
 
 from __future__ import annotations
@@ -14,8 +14,9 @@ import flux_cases as fc
 import numpy as np
 import pytest
 
-from qogi import _engine, flux
-from qogi import velocimetry as vel
+from qogi import _engine
+from qogi.measure import flux
+from qogi.measure import velocimetry as vel
 from qogi.pipeline.flux import _surface_flux
 
 REFERENCE = Path(__file__).resolve().parents[1] / "data" / "flux_reference.npz"
@@ -103,7 +104,7 @@ def test_surface_rate_agrees_with_the_pipelines_surface_flux(ref, seed):
     c, sig, vn, dl = fc.surface_case(seed)
     got = flux.surface_rate(c, sig, vn, dl)
     # The frozen numpy numbers, and the pipeline's function as it is now
-    # (it calls qogi.flux after the merge).
+    # (it calls qogi.measure.flux after the merge).
     _close(got.rate, ref[f"sf_{seed}_rate"], "rate", rtol=1e-12, atol=0)
     np.testing.assert_array_equal(got.samples, ref[f"sf_{seed}_pixels"])
     assert got.column_variance == pytest.approx(float(ref[f"sf_{seed}_column_variance"]), rel=1e-12)

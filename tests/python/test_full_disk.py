@@ -224,7 +224,7 @@ def test_the_writers_fuzz_target_sees_both_outcomes(tmpfs):
 def test_all_or_nothing_replaces_every_output_or_none(tmp_path, rec):
     """No full disk needed: the group's logic on an ordinary folder."""
     from qogi.files import all_or_nothing, atomic_open
-    from qogi.recording import write_recording
+    from qogi.io.recording import write_recording
 
     a, b, h5 = tmp_path / "a.json", tmp_path / "b.csv", tmp_path / "c.h5"
     for p in (a, b, h5):

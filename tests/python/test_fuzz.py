@@ -267,7 +267,7 @@ _ARGV = st.lists(
 
 @functools.lru_cache(maxsize=1)
 def _parser():
-    from qogi.cli import build_parser
+    from qogi.apps.cli import build_parser
 
     return build_parser()
 

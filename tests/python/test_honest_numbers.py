@@ -7,11 +7,13 @@ import numpy as np
 import pytest
 
 import qogi
-from qogi import budget, render, synth
-from qogi.background import choose
-from qogi.forward import LineShape, forward_model
+from qogi import synth
+from qogi.physics.forward import LineShape, forward_model
 from qogi.pipeline import QuantifyConfig, quantify
-from qogi.surfaces import Surface, detect_source, truth_surfaces
+from qogi.pipeline import budget_terms as budget
+from qogi.pipeline.background_choice import choose
+from qogi.pipeline.surfaces import Surface, detect_source, truth_surfaces
+from qogi.synth import render
 
 # -- the line shape -----------------------------------------------------------
 

@@ -276,7 +276,7 @@ def _drop_a_ctrl_c():
 @pytest.mark.parametrize("when", ["during the run", "after the run"])
 def test_a_ctrl_c_python_drops_still_stops_quantify(rec, tmp_path, monkeypatch, capsys, when):
     import qogi.pipeline as pipeline
-    from qogi.cli import main
+    from qogi.apps.cli import main
 
     real = pipeline.quantify
 
@@ -311,19 +311,19 @@ def test_a_ctrl_c_python_drops_still_stops_quantify(rec, tmp_path, monkeypatch, 
 
 
 def test_importing_the_command_line_loads_no_engine():
-    """``import qogi`` (the console script's ``from qogi.cli import main``)
+    """``import qogi`` (the console script's ``from qogi.apps.cli import main``)
     loaded the whole package, about 0.15-0.5 s, before main() could catch a
     Ctrl-C: it printed a KeyboardInterrupt traceback instead of exit 130.
     qogi's names now load on first use (PEP 562)."""
     code = (
-        "import sys, qogi.cli\n"
+        "import sys, qogi.apps.cli\n"
         "print(sorted(m for m in sys.modules if m.split('.')[0] in "
         "('qogi', 'numpy', 'h5py', 'scipy')))\n"
     )
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=60
     ).stdout
-    assert out.strip() == "['qogi', 'qogi._version', 'qogi.cli', 'qogi.errors']", out
+    assert out.strip() == "['qogi', 'qogi._version', 'qogi.apps.cli', 'qogi.errors']", out
 
 
 def test_every_public_name_still_loads_from_the_package():
@@ -353,14 +353,21 @@ class CtrlC:
 
 sys.meta_path.insert(0, CtrlC())
 sys.argv[0] = "qogi"
-from qogi.cli import main
+from qogi.apps.cli import main
 sys.exit(main())
 """
 
 
 @pytest.mark.parametrize(
     "module",
-    ["qogi._cli_camera", "qogi.presets", "numpy", "qogi._engine", "qogi.info", "h5py"],
+    [
+        "qogi.apps._cli_camera",
+        "qogi.physics.presets",
+        "numpy",
+        "qogi._engine",
+        "qogi.apps.info",
+        "h5py",
+    ],
 )
 def test_ctrl_c_while_qogi_info_loads_its_modules_exits_130(rec, module):
     """Ctrl-C in the first moments of ``qogi info`` landed in ``import qogi``

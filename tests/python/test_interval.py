@@ -1,5 +1,5 @@
 """The rate's 90 % interval (qogi.pipeline.budget.interval90) against the
-distribution it claims, and the line-shape curves (qogi.budget) against
+distribution it claims, and the line-shape curves (qogi.pipeline.budget_terms) against
 analytic saturating models."""
 
 import math
@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from qogi import budget
+from qogi.pipeline import budget_terms as budget
 from qogi.pipeline.budget import Z90, interval90
 
 # -- the interval --------------------------------------------------------------

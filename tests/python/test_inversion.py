@@ -8,7 +8,7 @@ import pytest
 from synthetic_tables import lorentz_table
 
 import qogi
-from qogi.inversion import (
+from qogi.measure.inversion import (
     AT_BOUND,
     BELOW_DETECTION,
     CONVERGED,
@@ -290,10 +290,10 @@ def test_profile_cold_start_finds_the_minima_of_exhaustive_starts(model):
 
 
 def test_scene_tables_are_cached(model):
-    a = qogi.inversion.scene_table(
+    a = qogi.measure.inversion.scene_table(
         model, T_AMB, min_peak_temperature_K=290.0, max_peak_temperature_K=310.0, max_sigma_m=1.0
     )
-    b = qogi.inversion.scene_table(
+    b = qogi.measure.inversion.scene_table(
         model, T_AMB, min_peak_temperature_K=290.0, max_peak_temperature_K=310.0, max_sigma_m=1.0
     )
     assert a is b

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import qogi
-from qogi.inversion import fixed, free
+from qogi.measure.inversion import fixed, free
 
 T_AMB = 293.15  # 20 C
 NETD_M150, NETD_GF320 = 0.017, 0.015
@@ -165,7 +165,7 @@ def test_gas_temperature_assumption_biases_single_channel_and_multichannel_remov
 def test_table_error_against_the_binned_model(m150, capsys):
     _, model = m150
     # The round trip's table (cached).
-    table = qogi.inversion.scene_table(
+    table = qogi.measure.inversion.scene_table(
         model, T_AMB, min_peak_temperature_K=298.15, max_peak_temperature_K=368.15
     )
     err = qogi._engine.measure_table_error(table, 25, 3, 1e-3, True)
@@ -184,10 +184,10 @@ def test_mixing_line_round_trip_through_the_exact_model(m150, capsys):
     inferred-temperature path): 50/50 CH4/CO2 released at 90 C into 20 C air
     (T_peak = T_amb + 70 K x X), exact line-by-line radiances of 8 plumes
     (X 0.003-0.6, depth 1-5 cm, backgrounds 10-20 K colder) x 100 draws of
-    17 mK noise, inverted with qogi.inversion.invert_on_mixing_line on the
+    17 mK noise, inverted with qogi.measure.inversion.invert_on_mixing_line on the
     per-scene table: median column error < 2 % above 10x noise, z std in
     [0.7, 1.4], and zero contrast below detection."""
-    from qogi import inversion as inv
+    from qogi.measure import inversion as inv
 
     cam, model = m150
     rng = np.random.default_rng(7)
@@ -253,13 +253,13 @@ def test_mixing_line_round_trip_through_the_exact_model(m150, capsys):
 
 
 def test_mixing_line_slope_recovers_the_release_slope(m150):
-    """The scene's mixing-line slope from its pixels (qogi.inversion.
+    """The scene's mixing-line slope from its pixels (qogi.measure.inversion.
     mixing_line_slope, the engine's profile likelihood): 8 plumes (the fast
     binned model: the exact one is tested above) of 50/50 CH4/CO2 on
     T_peak = T_amb + 70 K x X x 60 draws of 17 mK noise give k within 3 of
     its stated 1-sigma of 70 K; without any contrast the result is flagged
     (found False), not a slope."""
-    from qogi import inversion as inv
+    from qogi.measure import inversion as inv
 
     cam, model = m150
     rng = np.random.default_rng(11)

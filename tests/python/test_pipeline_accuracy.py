@@ -15,9 +15,10 @@ import numpy as np
 import pytest
 
 import qogi
-from qogi import render, synth
+from qogi import synth
 from qogi.pipeline import QuantifyConfig, quantify
-from qogi.surfaces import Surface, auto_surfaces, plume_image, truth_surfaces
+from qogi.pipeline.surfaces import Surface, auto_surfaces, plume_image, truth_surfaces
+from qogi.synth import render
 
 HEIGHTS_CM = (4, 8, 12)
 

@@ -12,7 +12,7 @@ import pytest
 
 import qogi
 from qogi.pipeline import Execution, Methods, QuantifyConfig, SceneConditions
-from qogi.surfaces import Region
+from qogi.pipeline.surfaces import Region
 
 #: A result JSON's "config" as the flat dataclass wrote it (every key, its order).
 OLD_FLAT = {

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 import qogi
-from qogi import render
 from qogi.pipeline import Cancelled, QuantifyConfig, quantify
-from qogi.surfaces import Region, Surface
+from qogi.pipeline.surfaces import Region, Surface
+from qogi.synth import render
 
 
 @pytest.fixture(scope="module")

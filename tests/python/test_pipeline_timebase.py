@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 import qogi
-from qogi import render
+from qogi.io.recording import Recording, Truth
 from qogi.pipeline import QuantifyConfig, quantify
-from qogi.recording import Recording, Truth
-from qogi.surfaces import Surface
-from qogi.timebase import frame_timebase, stream_blocks
+from qogi.pipeline.surfaces import Surface
+from qogi.pipeline.timebase import frame_timebase, stream_blocks
+from qogi.synth import render
 
 SURFACE = [Surface([(100.0, 200.0), (220.0, 200.0)])]
 

@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 import qogi
-from qogi import render
 from qogi.errors import DataError, UsageError
+from qogi.io.recording import Recording
 from qogi.pipeline import QuantifyConfig, quantify
-from qogi.recording import Recording
-from qogi.surfaces import Surface
+from qogi.pipeline.surfaces import Surface
+from qogi.synth import render
 
 SURFACE = [Surface([(100.0, 200.0), (220.0, 200.0)])]
 
@@ -104,7 +104,7 @@ def test_a_nan_result_is_flagged_and_incomplete(lab):
     # instead, through a recording whose truth maps are NaN on that row.
     ds = {k: np.array(v) for k, v in lab.truth.datasets.items()}
     ds["column_density_kg_m2_CH4"][:, 150, :] = np.nan
-    truth = qogi.recording.Truth(dict(lab.truth.emission_rate_kg_s), ds, dict(lab.truth.attrs))
+    truth = qogi.io.recording.Truth(dict(lab.truth.emission_rate_kg_s), ds, dict(lab.truth.attrs))
     rec = Recording.from_arrays(
         lab.to_array(),
         lab.time_s,

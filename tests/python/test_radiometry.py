@@ -6,7 +6,12 @@ import numpy as np
 import pytest
 
 import qogi
-from qogi.radiometry import BandTable, band_table, radiance_to_temperature, temperature_to_radiance
+from qogi.physics.radiometry import (
+    BandTable,
+    band_table,
+    radiance_to_temperature,
+    temperature_to_radiance,
+)
 
 
 def bands():

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import qogi
-from qogi.recording import FRAME_RATE_TOLERANCE
+from qogi.contract import FRAME_RATE_TOLERANCE
 
 
 def channels():
@@ -434,7 +434,7 @@ def test_from_arrays_checks_like_the_reader():
 def test_typical_interval_copes_with_ms_stamps_and_dropped_frames():
     t = np.round(np.arange(40) / 30.0, 3)  # a 30 Hz camera stamping whole ms
     t = np.delete(t, [10, 25])  # two dropped frames
-    assert 1.0 / qogi.recording.typical_interval(t) == pytest.approx(30.0, rel=2e-3)
+    assert 1.0 / qogi.contract.typical_interval(t) == pytest.approx(30.0, rel=2e-3)
     assert 1.0 / np.median(np.diff(t)) == pytest.approx(30.3, rel=1e-3)  # the naive estimate
 
 
@@ -542,13 +542,13 @@ def test_a_forged_variable_length_attribute_is_refused_not_hung_on():
 
 
 def test_one_channel_check_a_recording_refuses_with_a_data_error_an_argument_with_a_usage_error():
-    """One check (qogi.optics.channel_problem) of a channel list: a
+    """One check (qogi.physics.optics.channel_problem) of a channel list: a
     recording's camera without a response, or with something that is not a
     SpectralResponse, is a RecordingError (a DataError: the data is wrong);
-    the same list passed to a function of qogi.camera is a UsageError (the
+    the same list passed to a function of qogi.physics.camera is a UsageError (the
     call is wrong); both name the channel."""
-    from qogi.camera import netd_radiance_sigma
     from qogi.errors import DataError, UsageError
+    from qogi.physics.camera import netd_radiance_sigma
 
     cam = camera()
     for chans, where in (

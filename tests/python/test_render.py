@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 import qogi
-from qogi import render, synth
+from qogi import synth
+from qogi.synth import render
 
 
 def small_scene(exit_K=294.0, ambient_K=294.0, rate_slpm=5.0):

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 import qogi
-from qogi import _engine, render, synth
+from qogi import _engine, synth
+from qogi.synth import render
 
 JIT = render.Jitter(rms_px=0.5, frequency_hz=2.0, rotation_rms_rad=1e-3, seed=2)
 

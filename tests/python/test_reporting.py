@@ -11,11 +11,13 @@ import numpy as np
 import pytest
 
 import qogi
-from qogi import render, synth, units
-from qogi.config_io import dumps_toml, load_settings
+from qogi import synth, units
 from qogi.errors import UsageError
 from qogi.pipeline import QuantifyConfig, quantify
-from qogi.surfaces import Region, Surface
+from qogi.pipeline.config import load_settings
+from qogi.pipeline.config_io import dumps_toml
+from qogi.pipeline.surfaces import Region, Surface
+from qogi.synth import render
 
 M_CH4 = 16.0425e-3  # kg/mol (12.0107 + 4 x 1.00794)
 SURFACE = Surface([(100, 207), (220, 207)], name="S1")
@@ -255,7 +257,7 @@ def test_cli_units_json_to_stdout_summary_csv_report_and_replay(lab, tmp_path):
     "scripts/setup_system.sh installs them",
 )
 def test_pdf_report_pages_render_and_say_what_matters(lab, tmp_path):
-    from qogi.report import write_report
+    from qogi.apps.report import write_report
 
     path, res = lab
     res.warnings.add("test-warning", "a warning the report must show", surface="S1")
@@ -314,8 +316,8 @@ def test_pdf_report_pages_render_and_say_what_matters(lab, tmp_path):
 def test_noise_equivalent_column_is_the_thin_limit_signal():
     # One channel: NEC = NETD dB/dT(T_bg) / (dL/dc), with dL/dc from the
     # forward model between two small columns (independent of the probe).
-    from qogi.detection import noise_equivalent_column
-    from qogi.forward import forward_model
+    from qogi.physics.forward import forward_model
+    from qogi.pipeline.detection import noise_equivalent_column
 
     cam = qogi.camera_preset("gf320")
     model = forward_model(cam.channels, ["CH4"])
@@ -332,7 +334,7 @@ def test_noise_equivalent_column_is_the_thin_limit_signal():
 
 
 def test_zeng_morris_fit_values():
-    from qogi.detection import zeng_morris_g_h
+    from qogi.pipeline.detection import zeng_morris_g_h
 
     # 18.41 x 10^-1.094 x 5^2 = 36.98 g/h at dT = 10 K, 5 m.
     assert zeng_morris_g_h(10.0, 5.0) == pytest.approx(18.41 * 10**-1.094 * 25)
@@ -357,9 +359,9 @@ def _band_recording(
     [kg/h]: sum of the columns across the band x pixel size."""
     import dataclasses
 
-    from qogi.forward import forward_model
-    from qogi.radiometry import radiance_to_temperature
-    from qogi.recording import Recording, Scene
+    from qogi.io.recording import Recording, Scene
+    from qogi.physics.forward import forward_model
+    from qogi.physics.radiometry import radiance_to_temperature
 
     cam = dataclasses.replace(qogi.camera_preset("gf320"), width=width, height=height)
     model = forward_model(cam.channels, ["CH4"])

@@ -1,16 +1,16 @@
-"""The result knows when its assumptions failed (qogi.selfchecks), and the
+"""The result knows when its assumptions failed (qogi.pipeline.selfchecks), and the
 automatic background looks at the background's own structure along each
-surface (qogi.background.choose)."""
+surface (qogi.pipeline.background_choice.choose)."""
 
 import dataclasses
 
 import numpy as np
 import pytest
 
-from qogi import selfchecks
-from qogi.background import STRUCTURE_SIGMA, choose
-from qogi.selfchecks import SurfaceEvidence
-from qogi.surfaces import Surface
+from qogi.pipeline import selfchecks
+from qogi.pipeline.background_choice import STRUCTURE_SIGMA, choose
+from qogi.pipeline.selfchecks import SurfaceEvidence
+from qogi.pipeline.surfaces import Surface
 
 
 def _surface_samples(surf):
@@ -102,7 +102,7 @@ def test_evidence_adds_over_blocks():
 
 
 def test_inpainting_fills_the_structure_where_the_gas_never_leaves():
-    from qogi.background import inpaint_held
+    from qogi.pipeline.background_choice import inpaint_held
 
     rng = np.random.default_rng(2)
     t, h, w = 150, 40, 60
@@ -138,7 +138,8 @@ def _crosswind(tmp_path, background, seed=0, duration_s=4.0):
     import dataclasses
 
     import qogi
-    from qogi import render, synth
+    from qogi import synth
+    from qogi.synth import render
 
     rel = synth.preset_release("stack-10kgh-wind4-sky-gf320")
     cam = qogi.camera_preset("gf320")
@@ -154,7 +155,7 @@ def _crosswind(tmp_path, background, seed=0, duration_s=4.0):
 
 @pytest.fixture(scope="module")
 def textured_sky(tmp_path_factory):
-    from qogi import render
+    from qogi.synth import render
 
     bg = render.Background(
         "sky", None, sky_top_K=250.0, sky_bottom_K=265.0, texture_K=0.3, texture_px=2.0
@@ -252,7 +253,7 @@ def _drifting_stack(drift_px_frame=(0.5, 0.07), t=60, h=48, w=64, seed=0):
 
 
 def test_drift_evidence_separates_drifting_clouds_from_a_still_textured_background():
-    from qogi.background import DRIFT_SIGMA, drift_evidence
+    from qogi.pipeline.background_choice import DRIFT_SIGMA, drift_evidence
 
     moving, _ = _drifting_stack()
     still, _ = _drifting_stack(drift_px_frame=(0.0, 0.0))
@@ -292,7 +293,7 @@ def test_a_wall_edge_crossing_the_surface_is_structure_not_drift_and_the_percent
     ``auto`` takes the sign-aware percentile (the straight line between the
     strips misses the edge), not the drifting layers; and that percentile
     along the surface is the wall's own radiance within a noise."""
-    from qogi.background import DRIFT_SIGMA, drift_evidence
+    from qogi.pipeline.background_choice import DRIFT_SIGMA, drift_evidence
     from qogi.pipeline.sampling import _bilinear
 
     h, w, t, noise = 64, 48, 60, 0.01
@@ -360,7 +361,8 @@ def _lab_column(tmp_path, release, rate_hz, duration_s, seed=1):
     """The lab release (5 SLPM CH4 before a 12 C plate, GF320 optics) in a
     small view, 48x72 px of 1.96 mm; its exit pixel."""
     import qogi
-    from qogi import render, synth
+    from qogi import synth
+    from qogi.synth import render
 
     cam = qogi.camera_preset("gf320")
     cam = dataclasses.replace(cam, width=48, height=72, frame_rate_hz=rate_hz)

@@ -1,4 +1,4 @@
-"""Every setting of the run is declared once (qogi.settings), and every way
+"""Every setting of the run is declared once (qogi.pipeline.settings), and every way
 in reads it from there: the command line, a saved-settings TOML, a batch
 manifest (CSV and TOML) accept the same values and refuse the same ones with
 the same message (the viewer's form: tests/gui/test_settings_form.py). The
@@ -18,10 +18,10 @@ import sys
 import pytest
 
 import qogi
-from qogi import batch, cli, settings
-from qogi.config_io import load_settings
+from qogi.apps import batch, cli
 from qogi.errors import UsageError
-from qogi.pipeline import QuantifyConfig
+from qogi.pipeline import QuantifyConfig, settings
+from qogi.pipeline.config import load_settings
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 
@@ -68,18 +68,18 @@ def test_every_setting_has_cases_and_the_config_is_the_table():
 
 
 def test_defaults_owned_elsewhere_are_read_from_their_owner():
-    from qogi import velocimetry
-    from qogi.forward import LineShape
+    from qogi.measure import velocimetry
+    from qogi.physics.forward import LineShape
 
     assert settings.default("velocity") == velocimetry.DEFAULT_METHOD == QuantifyConfig().velocity
     assert settings.default("line_shape") == str(LineShape()) == QuantifyConfig().line_shape
-    # The velocity sources are qogi.velocimetry's methods and the given speeds.
+    # The velocity sources are qogi.measure.velocimetry's methods and the given speeds.
     assert settings.choices("velocity") == tuple(velocimetry.METHODS) + ("wind", "exit")
 
 
 def test_scene_ranges_lie_within_the_recording_contract():
     """A value the config accepts is one a recording may hold."""
-    from qogi.recording import RANGES
+    from qogi.contract import RANGES
 
     for name, s in settings.SETTINGS.items():
         key = f"scene.{s.scene_key}"
@@ -120,7 +120,7 @@ SURFACE = "1,2,3,4"
 def _cli(tmp_path, name, text):
     """(accepted, stderr) of ``qogi quantify`` parsing FLAG TEXT and
     building the config (no run)."""
-    from qogi._cli_quantify import _config_from_args
+    from qogi.apps._cli_quantify import _config_from_args
 
     flag = settings.SETTINGS[name].flag
     err = io.StringIO()

@@ -18,8 +18,9 @@ import pytest
 from scipy.special import wofz
 
 import qogi
-from qogi import _engine, spectra
+from qogi import _engine
 from qogi.errors import DataError
+from qogi.physics import spectra
 
 DATA = pathlib.Path(__file__).resolve().parents[1] / "data"
 

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import qogi
-from qogi.cli import main
+from qogi.apps.cli import main
 from qogi.errors import DataError, UsageError
 from qogi.io.telops import HccFile, HccFormatError, wheel_turns, write_hcc
 
@@ -292,8 +292,8 @@ def test_a_mid_sequence_change_of_calibration_mode_is_refused(tmp_path):
 
 @pytest.mark.slow
 def test_m150_release_from_hcc_reads_the_same_rate_as_from_hdf5(tmp_path):
-    from qogi import render
-    from qogi.surfaces import truth_surfaces
+    from qogi.pipeline.surfaces import truth_surfaces
+    from qogi.synth import render
 
     h5 = tmp_path / "m150.h5"
     render.synthesize(

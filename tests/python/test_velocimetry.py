@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import qogi
-from qogi import velocimetry as vel
+from qogi.measure import velocimetry as vel
 
 H, W = 96, 128
 

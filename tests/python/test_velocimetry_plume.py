@@ -1,11 +1,11 @@
 """Velocimetry on a synthetic plume with exact truth (a short version of the
 plume study, scripts/velocimetry_plume_study.py, docs/velocimetry.md).
 
-A simulated 5 SLPM CH4 release (qogi.synth) gives exact column-density maps
+A simulated 5 SLPM CH4 release (qogi.synth.plume) gives exact column-density maps
 and the mass-weighted velocity along every line of sight. The check is the
 quantity the flux needs: on horizontal lines h above the exit, the
 time-averaged mass-weighted upward velocity sum(c v) / sum(c), from each
-method's velocity at the frame times (qogi.velocimetry.frame_velocity) against
+method's velocity at the frame times (qogi.measure.velocimetry.frame_velocity) against
 the truth. The bounds are coarse: they hold for every seed of the study with
 a margin (the seeds' spread is in the comments) and catch a method that
 regresses to texture tracking (which reads the steady plume base as nearly
@@ -19,7 +19,7 @@ import pytest
 
 import qogi
 from qogi import synth
-from qogi import velocimetry as vel
+from qogi.measure import velocimetry as vel
 
 PRESET = "lab-ch4-5slpm-gf320"
 HEIGHTS_M = (0.02, 0.04, 0.08, 0.12)

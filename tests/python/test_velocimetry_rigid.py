@@ -19,7 +19,7 @@ import pytest
 
 import qogi
 from qogi import io as qio
-from qogi import velocimetry as vel
+from qogi.measure import velocimetry as vel
 
 H, W = 256, 320
 MARGIN = 16

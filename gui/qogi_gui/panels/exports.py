@@ -105,7 +105,7 @@ class Exporter:
         )
 
     def export_report(self, path) -> bool:
-        """The report of the result: a PDF (``qogi.report``, the same as
+        """The report of the result: a PDF (``qogi.apps.report``, the same as
         ``qogi quantify --report``) when ``path`` ends in .pdf, else short Markdown."""
         if not self._need_result():
             return False

@@ -73,7 +73,7 @@ class Dialogs:
     # ----------------------------------------------------------------- scene facts
     def _build_scene_form(self) -> None:
         """The small form that asks for a camera file's missing scene facts."""
-        from qogi.presets import camera_preset_names
+        from qogi.physics.presets import camera_preset_names
 
         from ..scene_form import FIELDS
 

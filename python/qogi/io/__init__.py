@@ -18,7 +18,6 @@ from __future__ import annotations
 import os
 from typing import Union
 
-from ..recording import Recording, open_recording
 from .arrays import read_numpy, read_tiff
 from .flir import (
     FlirFile,
@@ -32,6 +31,8 @@ from .flir import (
     read_flir_recording,
 )
 from .flir_writer import write_flir_seq
+from .hdf5 import open_recording
+from .recording import Recording
 from .telops import HccFile, open_hcc, write_hcc
 
 __all__ = [

@@ -11,7 +11,9 @@ from typing import Optional, Tuple, Union
 
 import numpy as np
 
-from ..recording import QUANTITIES, Camera, Recording, RecordingError, Scene, Truth
+from ..contract import QUANTITIES, RecordingError
+from ..physics.camera import Camera
+from .recording import Recording, Scene, Truth
 
 __all__ = ["read_numpy", "read_tiff"]
 

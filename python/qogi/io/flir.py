@@ -61,16 +61,11 @@ from typing import BinaryIO, Dict, Iterator, List, Optional, Sequence, Tuple, Un
 import numpy as np
 
 from .. import _engine
+from ..contract import FRAME_RATE_TOLERANCE, RecordingError, typical_interval
 from ..errors import DataError
-from ..optics import SpectralResponse
-from ..recording import (
-    FRAME_RATE_TOLERANCE,
-    Camera,
-    Recording,
-    RecordingError,
-    Scene,
-    typical_interval,
-)
+from ..physics.camera import Camera
+from ..physics.optics import SpectralResponse
+from .recording import Recording, Scene
 
 __all__ = [
     "FlirMetadata",

@@ -37,11 +37,13 @@ from typing import Any, Dict, List, Optional, Union
 
 import numpy as np
 
+from ..contract import RecordingError, typical_interval
 from ..diagnostics import Diagnostics
 from ..errors import DataError, UsageError
-from ..optics import SpectralResponse, channel_problem
-from ..recording import Camera, Recording, RecordingError, Scene, typical_interval
-from ..recording import open_recording as _open_hdf5
+from ..physics.camera import Camera
+from ..physics.optics import SpectralResponse, channel_problem
+from .hdf5 import open_recording as _open_hdf5
+from .recording import Recording, Scene
 
 __all__ = [
     "open_recording",
@@ -93,7 +95,7 @@ def file_kind(path: Union[str, os.PathLike]) -> str:
 def resolve_camera(camera, *, ifov_rad: Optional[float] = None) -> Camera:
     """A :class:`qogi.Camera` from a preset name (``gf320``, ``fast-m150``), a
     CSV spectral response (one channel), a SpectralResponse or a Camera."""
-    from ..presets import camera_preset, camera_preset_names
+    from ..physics.presets import camera_preset, camera_preset_names
 
     if isinstance(camera, Camera):
         return camera
@@ -129,7 +131,7 @@ def _missing(path: str, what: str, why: str, flag: str) -> UsageError:
 
 
 def _no_camera(path: str, kind: str) -> UsageError:
-    from ..presets import camera_preset_names
+    from ..physics.presets import camera_preset_names
 
     return _missing(
         path,
@@ -141,7 +143,7 @@ def _no_camera(path: str, kind: str) -> UsageError:
 
 
 def _band_um(ch: SpectralResponse) -> str:
-    from ..recording import _half_max_band
+    from .recording import _half_max_band
 
     lo, hi = _half_max_band(ch)
     return f"{1e4 / hi:.2f}-{1e4 / lo:.2f} um"
@@ -255,7 +257,7 @@ def open_recording(
         One pixel's angular size; default the file's (FLIR: field of view /
         width) or the camera preset's.
     nonfinite, check_frames
-        As :func:`qogi.recording.open_recording`. Camera files mark pixels
+        As :func:`qogi.io.hdf5.open_recording`. Camera files mark pixels
         outside the calibration (FLIR) or flagged bad (Telops) as invalid
         (NaN), and are not scanned on open unless ``check_frames=True``.
     object_parameters : bool

@@ -23,7 +23,7 @@ A chain of stages passing one typed run state forward (docs/pipeline_api.md):
    rates with a 90 % interval (temporal, column density, velocity, line
    shape, background terms) and the checks in ``Result.warnings``.
 
-Stages 3-5 run block by block (:mod:`qogi.timebase`); :func:`quantify`
+Stages 3-5 run block by block (:mod:`qogi.pipeline.timebase`); :func:`quantify`
 (:mod:`.run`) chains them. Settings: :class:`QuantifyConfig`
 (:mod:`.config`); the state: :mod:`.state`. A stage imports only the stages
 before it (tests/python/test_pipeline_layers.py).

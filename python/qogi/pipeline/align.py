@@ -34,7 +34,7 @@ from typing import Dict, List, Optional, Tuple
 import numpy as np
 
 from .. import _engine
-from ..recording import Recording
+from ..io.recording import Recording
 from .state import RunState
 
 __all__ = [
@@ -348,7 +348,7 @@ class _Timing:
         self.channel = channel
         self.reference = reference.astype(np.float32)
         self.noise = noise
-        from ..velocimetry import FlowEstimator
+        from ..measure.velocimetry import FlowEstimator
 
         self.flow = FlowEstimator("dis")
 

@@ -1,9 +1,9 @@
 """Stage 1, the background: the gas-free band radiance of each channel,
 beside each control surface, a temporal percentile, or a static and a
 drifting layer where the background moves on its own (chosen from the scene
-by default, :func:`qogi.background.choose`), or from a user region.
+by default, :func:`qogi.pipeline.background_choice.choose`), or from a user region.
 
-(:mod:`qogi.background` holds the choice's physics; this module is the
+(:mod:`qogi.pipeline.background_choice` holds the choice's physics; this module is the
 pipeline's stage that applies it to a run.)"""
 
 from __future__ import annotations
@@ -13,12 +13,12 @@ from typing import Any, Dict, List, Optional, Sequence
 import numpy as np
 
 from .. import _engine
-from ..background import _noise, inpaint_held
-from ..recording import Recording
-from ..surfaces import Region, Surface
+from ..io.recording import Recording
+from .background_choice import _noise, inpaint_held
 from .config import QuantifyConfig
 from .sampling import _bilinear
 from .state import RunState
+from .surfaces import Region, Surface
 
 __all__ = ["Background", "prepare"]
 
@@ -64,11 +64,11 @@ def _sample_ids(frames: range) -> List[int]:
 def _choose_background(cfg: QuantifyConfig, sample_frames, surfaces, samples, channel_sign):
     """The background method of the run: ``"auto"`` chooses between beside
     the surfaces and the temporal percentile from the scene
-    (:func:`qogi.background.choose`). Returns (the config the background
+    (:func:`qogi.pipeline.background_choice.choose`). Returns (the config the background
     stage uses, the choice's record for ``info``, or None)."""
     if cfg.background != "auto":
         return cfg, None
-    from ..background import choose
+    from .background_choice import choose
 
     if sample_frames is None or len(sample_frames) < 2:
         # No frame-to-frame noise to test the strips with: the strips beside
@@ -199,7 +199,7 @@ class Background:
     def drifting_relative(self, sample_frames: np.ndarray, sample_ids, samples) -> Dict[int, float]:
         """The drifting background's budget term per surface, relative to the
         surface's mean contrast on the sampled frames (as
-        :func:`qogi.background.choose` sizes the others'): its scatter about
+        :func:`qogi.pipeline.background_choice.choose` sizes the others'): its scatter about
         the truth, about one noise (the engine's synthetic check:
         ``drifting_test``), plus the percentile's standard error over the
         window's frames."""
@@ -327,7 +327,7 @@ class Background:
         only where the smooth surface describes the gas-free pixels at least
         twice as well as that interpolation does (a plate or a linear
         gradient needs no correction, and gets none)."""
-        from ..surfaces import _smooth_background
+        from .surfaces import _smooth_background
 
         def mad(r):
             return float(np.median(np.abs(r - np.median(r))))

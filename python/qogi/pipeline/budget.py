@@ -5,9 +5,9 @@ column-density uncertainty, the velocimetry's systematic uncertainty, the
 line shape's and the background's; then the checks (``Result.warnings``): a
 rate against the surface's orientation or zero while gas crosses it
 (interval widened), the record length a 10 % mean needs, evidence that an
-assumed gas temperature is wrong (:mod:`qogi.hotgas`).
+assumed gas temperature is wrong (:mod:`qogi.pipeline.hotgas`).
 
-(:mod:`qogi.budget` holds the budget terms' physics; this module is the
+(:mod:`qogi.pipeline.budget_terms` holds the budget terms' physics; this module is the
 pipeline's stage that assembles the Result with them.)
 """
 
@@ -20,8 +20,8 @@ from typing import Dict, Optional, cast
 
 import numpy as np
 
-from ..result import Result, SpeciesRate, SurfaceResult
 from .columns import InvertedColumns
+from .result import Result, SpeciesRate, SurfaceResult
 from .state import RunState
 
 __all__ = [
@@ -100,7 +100,7 @@ def finish(st: RunState, complete: bool) -> Result:
     """The Result of the run's blocks analysed (``st.blocks``, in order):
     each surface's and species' per-frame rates, their mean and 90 %
     interval; ``complete`` False for a cancelled run's partial result."""
-    from .. import checks
+    from . import checks
 
     rec, cfg, scene, columns, warnings = st.rec, st.cfg, st.scene, st.columns, st.warnings
     outs = st.blocks
@@ -166,7 +166,7 @@ def finish(st: RunState, complete: bool) -> Result:
                 held_fraction=held,
             )
     if complete and columns is not None and not cfg.methods.truth_columns:
-        from ..hotgas import check_gas_temperature
+        from .hotgas import check_gas_temperature
 
         check_gas_temperature(
             cfg,
@@ -218,7 +218,7 @@ def _block_notes(st: RunState) -> Dict[str, object]:
 
 def _systematics(st: RunState, done: int) -> Systematics:
     """The run's :class:`Systematics` (``done``: frames with rates)."""
-    from .. import checks
+    from . import checks
 
     cfg, columns = st.cfg, st.columns
     vsys = (
@@ -252,11 +252,11 @@ def _species_rate(
     st: RunState, j: int, surface, samples, sp: str, systematics: Systematics, bg_choice, done: int
 ):
     """Surface ``j``'s rate of species ``sp`` over the run's blocks: its
-    :class:`qogi.result.SpeciesRate` (mean, 90 % interval, budget terms,
+    :class:`qogi.pipeline.result.SpeciesRate` (mean, 90 % interval, budget terms,
     detection limit), the flux checks' sums, the finite per-frame rates
     [kg/s] and their effective number."""
     from .. import _engine
-    from ..flux_summary import FluxSummary
+    from .flux_summary import FluxSummary
 
     rec, scene, columns, warnings = st.rec, st.scene, st.columns, st.warnings
     dl = samples.dl
@@ -290,7 +290,7 @@ def _species_rate(
     }
     if "background" in relative:
         terms["background"] = abs(mean) * relative["background"] * 3600
-    # The self-diagnostics (qogi.selfchecks): each measure beyond its
+    # The self-diagnostics (qogi.pipeline.selfchecks): each measure beyond its
     # threshold warns and adds a relative term sized by the failure.
     measures = _self_checks(st, j, surface.name, sp, summary, relative, warnings)
     if "assumptions" in relative:
@@ -302,7 +302,7 @@ def _species_rate(
     dominant = max(terms, key=lambda k: terms[k])
     limit, det = None, None
     if isinstance(columns, InvertedColumns):  # not truth columns
-        from ..detection import detection_limit_from_sums, velocity_from_sums
+        from .detection import detection_limit_from_sums, velocity_from_sums
 
         v_n = velocity_from_sums(
             sum(p.cv_sum for p in parts),
@@ -344,11 +344,11 @@ def _species_rate(
 
 
 def _self_checks(st: RunState, j: int, surface: str, sp: str, summary, relative, warnings):
-    """Surface j's self-diagnostic measures (:mod:`qogi.selfchecks`; None
+    """Surface j's self-diagnostic measures (:mod:`qogi.pipeline.selfchecks`; None
     without an inversion); for each beyond its threshold a warning and the
     relative term ``relative["assumptions"]``
-    (:func:`qogi.selfchecks.combined_term`)."""
-    from .. import selfchecks
+    (:func:`qogi.pipeline.selfchecks.combined_term`)."""
+    from . import selfchecks
 
     columns = st.columns
     if not isinstance(columns, InvertedColumns) or j not in columns.evidence:
@@ -442,7 +442,7 @@ def interval90(mean: float, additive: float, relative: float) -> tuple:
 
 
 def _line_shape_term(columns, j: int, species: str, summary, warnings, surface: str) -> float:
-    """Relative ``line shape`` term of surface j (qogi.budget): the largest
+    """Relative ``line shape`` term of surface j (qogi.pipeline.budget_terms): the largest
     change of the flux when its columns are re-read through the other
     rules; 0 without an inversion (truth columns)."""
     if not isinstance(columns, InvertedColumns):
@@ -505,9 +505,9 @@ def _check_direction(
 
 
 def _record_advice(finite, n_eff, summary, dl, columns, j, scene) -> dict:
-    """qogi.budget.record_length_advice for one surface: the mean normal
+    """qogi.pipeline.budget_terms.record_length_advice for one surface: the mean normal
     speed where gas is, and the plume's width (2.35 sigma of its depth)."""
-    from ..budget import record_length_advice
+    from .budget_terms import record_length_advice
 
     sigma = (columns.sigma_m.get(j) if isinstance(columns, InvertedColumns) else None) or float(
         np.sum(dl)

@@ -21,14 +21,14 @@ import numpy as np
 
 from .. import workers as _workers_mod
 from ..errors import Cancelled
-from ..inversion import plume_depth_from_width
-from ..recording import Recording
-from ..selfchecks import SurfaceEvidence
-from ..surfaces import Region, Surface
+from ..io.recording import Recording
+from ..measure.inversion import plume_depth_from_width
 from .background import Background
 from .config import QuantifyConfig
 from .sampling import _bilinear
+from .selfchecks import SurfaceEvidence
 from .state import BlockColumns, RunState, Scene
+from .surfaces import Region, Surface
 
 __all__ = ["prepare", "block_columns", "TruthColumns", "InvertedColumns"]
 
@@ -44,7 +44,7 @@ def prepare(run: RunState) -> None:
             run.rec, run.cfg, run.scene, run.roi, run.horizontal, run.background
         )
         # Where the gas does not go: the self-checks' upwind region.
-        from ..selfchecks import upwind_mask
+        from .selfchecks import upwind_mask
 
         mask = upwind_mask(run.rec.width, run.rec.height, run.cfg.source, run.surfaces)
         if mask is not None:
@@ -147,8 +147,8 @@ class InvertedColumns:
         horizontal: bool,
         background: Background,
     ):
-        from .. import inversion as inv
-        from ..forward import forward_model
+        from ..measure import inversion as inv
+        from ..physics.forward import forward_model
 
         self.rec, self.cfg, self.scene, self.roi = rec, cfg, scene, roi
         self.horizontal = horizontal
@@ -198,7 +198,7 @@ class InvertedColumns:
 
         self._table_job: Optional[_workers_mod.Task] = workers.submit(build, "qogi-scene-table")
         # The other line-shape rules, for the budget's line-shape term.
-        from ..budget import AlternativeModels
+        from .budget_terms import AlternativeModels
 
         self.alternatives = AlternativeModels(
             channels, cfg.species, scene.pressure_Pa, cfg.line_shape, start=workers.start
@@ -308,7 +308,7 @@ class InvertedColumns:
         return out
 
     def line_shape_curves(self, j: int, species: str):
-        """(columns, ratios) of :func:`qogi.budget.line_shape_ratios` for
+        """(columns, ratios) of :func:`qogi.pipeline.budget_terms.line_shape_ratios` for
         surface ``j``: the proxy channel, the surface's depth, the assumed
         gas temperature or the fitted mixing line (computed once per surface
         and species, or once per surface with a known composition;
@@ -347,7 +347,7 @@ class InvertedColumns:
     def _line_shape_job(self, j: int, species: str):
         """A call returning (and caching) the surface's curves for all
         species: ({species: columns}, ratios)."""
-        from ..budget import fractions_of, line_shape_ratios
+        from .budget_terms import fractions_of, line_shape_ratios
 
         key = self._line_shape_key(j, species)
         cache = self._line_shape_cache
@@ -551,7 +551,7 @@ class InvertedColumns:
         temperature inferred), else after it; its exception is re-raised.
         The plume depth of each surface is the Gaussian width of its
         time-averaged proxy column profile (axisymmetric plume), unless given."""
-        from .. import inversion as inv
+        from ..measure import inversion as inv
 
         nt = len(self._rad)
         sizes = [len(x[0]) for x in samples]
@@ -845,7 +845,7 @@ class InvertedColumns:
 
     def _note_evidence(self, rad, bg, status, edges) -> None:
         """Adds a block's self-diagnostic sums per surface
-        (:class:`qogi.selfchecks.SurfaceEvidence`): the proxy channel's
+        (:class:`qogi.pipeline.selfchecks.SurfaceEvidence`): the proxy channel's
         sign-aware contrast (T, C, N radiance and background) in units of
         its NETD noise, and the inversion's status (T, N)."""
         c = self.proxy_channel
@@ -937,7 +937,7 @@ def _anchor_proxy(
 
 def block_columns(st: RunState, blk, say) -> BlockColumns:
     """The column field over the region and the columns along the surfaces
-    of the frames of one block (``blk``, a :class:`qogi.timebase.Block`).
+    of the frames of one block (``blk``, a :class:`qogi.pipeline.timebase.Block`).
     A cancel (:class:`qogi.Cancelled` from ``say``) keeps what was read:
     the frames collected so far are inverted (unless that is cancelled too)
     and the block comes back with ``cancelled`` set."""

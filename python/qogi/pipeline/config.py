@@ -18,7 +18,7 @@ four objects, each validating its own fields:
   location), carried into the result's audit record.
 
 Each field is declared once, in the run's settings table
-(:data:`qogi.settings.SETTINGS`: role, type, unit, range or choices, default,
+(:data:`qogi.pipeline.settings.SETTINGS`: role, type, unit, range or choices, default,
 flag, help): the role objects check their fields with it, and the command
 line, settings files, batch manifests, the viewer's form and the docs read
 the same table. A scene fact not given is the recording's
@@ -32,11 +32,15 @@ round trip all use the flat keys, in the order of :data:`FIELDS`.
 from __future__ import annotations
 
 import dataclasses
+import os
 from functools import partial
 from typing import Any, Dict, Generic, List, Optional, Tuple, TypeVar, Union, overload
 
-from .. import settings as _settings
-from ..surfaces import Region
+from ..errors import UsageError
+from ..files import PathLike
+from . import settings as _settings
+from .config_io import read_settings_file, write_toml
+from .surfaces import Region, Surface
 
 __all__ = [
     "QuantifyConfig",
@@ -49,14 +53,14 @@ __all__ = [
 ]
 
 
-#: The velocity sources (qogi.velocimetry's methods and the given speeds
+#: The velocity sources (qogi.measure.velocimetry's methods and the given speeds
 #: ``wind`` and ``exit``): the settings table's choices.
 VELOCITY_SOURCES = _settings.choices("velocity")
 
 
 def _check_fields(obj) -> None:
     """Each field of a role object checked, and put in its canonical form,
-    by the settings table (qogi.settings.check)."""
+    by the settings table (qogi.pipeline.settings.check)."""
     for f in dataclasses.fields(obj):
         setattr(obj, f.name, _settings.check(f.name, getattr(obj, f.name)))
 
@@ -209,7 +213,7 @@ _GROUPS = {
 
 #: The flat keys of :class:`QuantifyConfig`, in their saved order, with the
 #: role (attribute of the config) each belongs to: the settings table's
-#: (qogi.settings.SETTINGS).
+#: (qogi.pipeline.settings.SETTINGS).
 FIELDS: Dict[str, str] = {name: _settings.ROLES[s.role] for name, s in _settings.SETTINGS.items()}
 
 assert set(FIELDS) == {f.name for g in _GROUPS.values() for f in dataclasses.fields(g)}
@@ -317,11 +321,11 @@ class QuantifyConfig:
     def completed(self, scene) -> Tuple[QuantifyConfig, Dict[str, Any]]:
         """This config with every scene fact not given taken from the
         recording's ``scene`` (:class:`qogi.Scene`), else its fallback
-        (qogi.settings.complete), and the facts so taken (name -> value).
+        (qogi.pipeline.settings.complete), and the facts so taken (name -> value).
 
         Raises
         ------
-        qogi.settings.SettingError
+        qogi.pipeline.settings.SettingError
             A fact the run needs that neither the config nor the recording
             gives (``velocity="wind"`` without a wind speed), or one the
             recording holds outside the accepted range.
@@ -406,23 +410,32 @@ class QuantifyConfig:
     @classmethod
     def from_dict(cls, d: dict) -> QuantifyConfig:
         """The config :meth:`to_dict` wrote (JSON-friendly lists accepted);
-        unknown keys raise ``qogi.UsageError`` (qogi.config_io)."""
-        from ..config_io import config_from_dict
-
-        return config_from_dict(d)
+        unknown keys raise ``qogi.UsageError`` naming them and the known ones;
+        values are checked by the settings table
+        (:func:`qogi.pipeline.settings.from_value`) and the config."""
+        if not isinstance(d, dict):
+            raise UsageError(f"a config must be a table of settings; got {type(d).__name__}")
+        fields = cls.field_names()
+        unknown = sorted(set(d) - set(fields))
+        if unknown:
+            raise UsageError(f"unknown setting(s) {', '.join(unknown)}; known: {', '.join(fields)}")
+        # Each value read as the settings table reads a file's values (a table or
+        # four numbers for a background region, lists for pairs; text as on the
+        # command line): the same values are accepted, with the same messages.
+        kw = {k: v if v is None else _settings.from_value(k, v) for k, v in d.items()}
+        try:
+            return cls(**kw)
+        except TypeError as e:
+            raise UsageError(f"invalid settings: {e}") from e
 
     @classmethod
     def from_toml(cls, path) -> QuantifyConfig:
-        """The config of a settings file (TOML, or a result JSON); see qogi.config_io."""
-        from ..config_io import load_settings
-
+        """The config of a settings file (TOML, or a result JSON); see :func:`load_settings`."""
         return load_settings(path).config
 
     def to_toml(self, path, surfaces=(), units=None) -> None:
         """Write this config (and optionally surfaces and the reporting unit)
         as a settings file that :meth:`from_toml` and ``--config`` read back."""
-        from ..config_io import write_toml
-
         write_toml(path, self, surfaces, units)
 
 
@@ -440,3 +453,50 @@ def _plain(v):
 assert all(isinstance(QuantifyConfig.__dict__.get(n), _Flat) for n in FIELDS), (
     "a flat key undeclared"
 )
+
+
+# --------------------------------------------------------------------------- settings files
+
+#: Keys of a settings file beside the config's fields.
+SETTINGS_KEYS = ("units", "surfaces")
+
+
+@dataclasses.dataclass
+class Settings:
+    """What a settings file or result JSON holds: the config, the control
+    surfaces (possibly empty) and the reporting unit (None: not given)."""
+
+    config: QuantifyConfig
+    surfaces: List[Surface]
+    units: Optional[str] = None
+
+
+def _settings_from_mapping(d: dict, where: str) -> Settings:
+    from ..units import parse_unit
+
+    if d.get("format") == "qogi-result":
+        cfg = QuantifyConfig.from_dict(d.get("config") or {})
+        surfaces = [Surface.from_dict(s) for s in d.get("surfaces", [])]
+        units = d.get("units")
+        return Settings(cfg, surfaces, parse_unit(units) if units else None)
+    rest = {k: v for k, v in d.items() if k not in SETTINGS_KEYS}
+    cfg = QuantifyConfig.from_dict(rest)
+    surfaces = []
+    for k, s in enumerate(d.get("surfaces") or []):
+        if not isinstance(s, dict) or "points" not in s:
+            raise UsageError(f"{where}: surfaces[{k}] needs points = [[x, y], ...]; got {s!r}")
+        surfaces.append(Surface([tuple(p) for p in s["points"]], name=s.get("name") or f"S{k + 1}"))
+    units = d.get("units")
+    return Settings(cfg, surfaces, parse_unit(units) if units else None)
+
+
+def load_settings(path: PathLike) -> Settings:
+    """Settings from a ``.toml`` file or a ``.json`` (a result or a plain
+    config dict; the file format: :mod:`qogi.pipeline.config_io`). Raises
+    UsageError for a missing file, bad syntax or a bad value, naming the file."""
+    p = os.fspath(path)
+    d = read_settings_file(path)
+    try:
+        return _settings_from_mapping(d, p)
+    except ValueError as e:  # UsageError or a config check
+        raise UsageError(f"{p}: {e}") from e

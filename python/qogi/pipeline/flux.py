@@ -77,9 +77,9 @@ def _surface_flux(
     """Thesis eq. 12 per frame: sum over the samples of column c [kg/m2] x
     normal velocity vn [m/s] x length dl [m], (frames, samples) arrays;
     ``speed_floor`` [m/s] the direction check's least speed."""
-    from ..detection import frame_widths, velocity_sums
-    from ..flux import surface_rate
-    from ..flux_summary import FluxSummary
+    from ..measure.flux import surface_rate
+    from .detection import frame_widths, velocity_sums
+    from .flux_summary import FluxSummary
 
     r = surface_rate(c, sig, vn, dl)  # the engine's flux module (cpp/engine/flux)
     cv, cs, vmed = velocity_sums(c, np.broadcast_to(vn, c.shape))

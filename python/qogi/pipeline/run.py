@@ -4,7 +4,7 @@ recording (:mod:`.setup`) -> alignment (:mod:`.align`: jitter and filter-wheel
 timing) -> background (:mod:`.background`) -> columns
 (:mod:`.columns`) -> velocity (:mod:`.velocity`) -> flux (:mod:`.flux`) ->
 rate and budget (:mod:`.budget`), the middle three block by block
-(:mod:`qogi.timebase`: blocks of bounded length with a few frames of overlap,
+(:mod:`qogi.pipeline.timebase`: blocks of bounded length with a few frames of overlap,
 cut where ``time_s`` has a gap). Every stage takes the
 :class:`~.state.RunState` and returns (or sets on it) what the next one needs.
 """
@@ -17,13 +17,13 @@ from typing import Callable, List, Optional, Sequence, Union
 from .. import workers as _workers_mod
 from ..audit import run_record
 from ..errors import Cancelled
-from ..recording import Recording
-from ..result import Result
-from ..surfaces import Surface
+from ..io.recording import Recording
 from . import align, background, budget, columns, flux, setup, velocity
 from .config import QuantifyConfig
+from .result import Result
 from .setup import check_inputs
 from .state import BlockOut, RunState
+from .surfaces import Surface
 
 __all__ = ["quantify", "BLOCK_BYTES", "MIN_BLOCK_FRAMES"]
 
@@ -50,7 +50,7 @@ def quantify(
     recording : qogi.Recording or path
     surfaces : list of qogi.Surface
         Lines or polylines in pixel coordinates; sign convention in
-        :mod:`qogi.surfaces` (left-hand normal positive), or oriented away from
+        :mod:`qogi.pipeline.surfaces` (left-hand normal positive), or oriented away from
         ``config.source`` when given.
     config : QuantifyConfig or dict, optional
         A dict is read as :meth:`QuantifyConfig.from_dict` reads it (the flat
@@ -66,7 +66,7 @@ def quantify(
     -------
     qogi.Result
     """
-    from ..recording import open_recording
+    from ..io.hdf5 import open_recording
 
     cfg = _config(config)
     rec = open_recording(recording) if not isinstance(recording, Recording) else recording
@@ -75,10 +75,10 @@ def quantify(
     if cfg.source is not None:
         surfaces = [s.oriented_away_from(cfg.source) for s in surfaces]
     check_inputs(rec, surfaces, cfg)
-    from ..checks import check_surfaces
+    from .checks import check_surfaces
 
     check_surfaces(surfaces)
-    # The scene facts not given are the recording's (qogi.settings.complete):
+    # The scene facts not given are the recording's (qogi.pipeline.settings.complete):
     # the stages see them all; the result keeps the config as given and says
     # which values came from the recording.
     run_cfg, taken = cfg.completed(rec.scene)
@@ -131,7 +131,7 @@ def _run(
 ) -> Result:
     """The stages in order; a cancel raises :class:`qogi.Cancelled` with the
     Result of the blocks finished (``complete=False``)."""
-    from ..timebase import stream_blocks
+    from .timebase import stream_blocks
 
     run = setup.prepare(rec, surfaces, cfg, progress, keep_maps)
     align.prepare(run)

@@ -11,11 +11,11 @@ from typing import List, Optional, Sequence
 import numpy as np
 
 from ..errors import Cancelled
+from ..io.recording import Recording
 from ..progress import Progress, report
-from ..recording import Recording
-from ..surfaces import Region, Surface
 from .config import QuantifyConfig
 from .state import RunState, Scene, SurfaceSamples
+from .surfaces import Region, Surface
 
 __all__ = ["check_inputs", "prepare"]
 
@@ -80,9 +80,9 @@ def prepare(
     checks of the frame count, the timebase and the source), the surfaces'
     samples, the background's sign and typical temperature, and the frames
     the background's choice and the source detection sample."""
-    from .. import checks
     from ..diagnostics import Diagnostics
-    from ..timebase import frame_timebase
+    from . import checks
+    from .timebase import frame_timebase
 
     t_start = time.perf_counter()
     scene = Scene(rec, cfg)

@@ -16,9 +16,9 @@ from typing import Any, Callable, Dict, List, NamedTuple, Optional, Tuple
 
 import numpy as np
 
-from ..recording import Recording
-from ..surfaces import Region, Surface
+from ..io.recording import Recording
 from .config import QuantifyConfig
+from .surfaces import Region, Surface
 
 __all__ = [
     "Scene",
@@ -122,14 +122,14 @@ class SurfaceFlux:
     rate: np.ndarray
     pixels: np.ndarray
     column_variance: float
-    #: For the detection limit (qogi.detection), summable over blocks: the
+    #: For the detection limit (qogi.pipeline.detection), summable over blocks: the
     #: column-weighted |v_n| sums, each frame's median |v_n| and effective
     #: plume width [m] (NaN without gas).
     cv_sum: float = 0.0
     c_sum: float = 0.0
     vabs_median: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
     width_m: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
-    #: The budget checks' sums (:class:`qogi.flux_summary.FluxSummary`).
+    #: The budget checks' sums (:class:`qogi.pipeline.flux_summary.FluxSummary`).
     summary: object = None
 
 
@@ -175,13 +175,13 @@ class RunState:
     surfaces: List[Surface]
     samples: List[SurfaceSamples]
     frames: range
-    timebase: Any  # qogi.timebase.FrameTimebase
+    timebase: Any  # qogi.pipeline.timebase.FrameTimebase
     warnings: Any  # qogi.diagnostics.Diagnostics
     say: Callable[[float, str], None]  # raises Cancelled when the caller's progress says stop
     keep_maps: bool
     roi: Region
     horizontal: bool
-    radiance_check: Any  # qogi.checks.RadianceCheck
+    radiance_check: Any  # qogi.pipeline.checks.RadianceCheck
     channel_sign: np.ndarray
     background_temperature_K: float  # the typical background's temperature [K]
     t_start: float

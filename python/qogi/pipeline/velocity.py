@@ -15,14 +15,14 @@ from typing import Dict, Optional, Tuple
 
 import numpy as np
 
-from .. import selfchecks
 from .. import workers as _workers_mod
 from ..errors import Cancelled
-from ..surfaces import Region
+from . import selfchecks
 from .config import QuantifyConfig
 from .sampling import _bilinear
 from .setup import wants_source
 from .state import BlockColumns, Flow, FluxLevelPlan, RunState, Transport
+from .surfaces import Region
 
 __all__ = ["prepare", "flux_level_plan", "block_velocity", "normal_velocity"]
 
@@ -36,7 +36,7 @@ def prepare(run: RunState) -> None:
     sample_frames, run.sample_frames = run.sample_frames, None
     # setup.prepare samples frames whenever wants_source(cfg).
     if wants_source(cfg) and sample_frames is not None and len(sample_frames) >= 2:
-        from ..surfaces import _plume_image, detect_source
+        from .surfaces import _plume_image, detect_source
 
         try:
             source = detect_source(_plume_image(sample_frames))
@@ -137,7 +137,7 @@ def _block_velocity(
     velocity_info: Dict[str, object],
     say,
 ) -> Optional[Flow]:
-    from .. import velocimetry as vel
+    from ..measure import velocimetry as vel
 
     cfg, roi, crop, source = st.cfg, st.roi, st.crop, st.source
     done = col_fields.shape[0]
@@ -177,7 +177,7 @@ def _block_velocity(
         # Only the plume's part of each line (vel.transport_band): noise
         # common to a line would draw the flux level low in faint plumes.
         banded = velocity_frames * vel.transport_band(velocity_frames.mean(axis=0), axis)
-        # How much the plume's column fluctuates (qogi.selfchecks): a
+        # How much the plume's column fluctuates (qogi.pipeline.selfchecks): a
         # steady column's pattern need not travel at the gas's speed.
         velocity_info["column_fluctuation"] = selfchecks.column_fluctuation(
             banded.sum(axis=2 if axis in ("up", "down") else 1)
@@ -282,7 +282,7 @@ def _reverse_transport_speed(
     """|mass-weighted velocity| per line of the region [px per nominal frame
     interval] of the transport along the axis opposite to ``axis`` (no
     source line), or None when that finds no transport either."""
-    from .. import velocimetry as vel
+    from ..measure import velocimetry as vel
 
     try:
         tf = vel.transport_flux(frames, _OPPOSITE[axis], None, intervals=intervals)

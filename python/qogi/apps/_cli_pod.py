@@ -1,0 +1,230 @@
+"""``qogi pod``: the probability of detection of a scene (qogi.apps.detectability)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from ._cli_args import finite_float, nonnegative_float, nonnegative_int, positive_float
+
+
+def _table(curve, which: str) -> str:
+    rows = curve.table(which)
+    lines = [
+        f"  {'rate [g/h]':>11s} {'trials':>6s} {'detected':>9s} {'fitted PoD':>10s}",
+    ]
+    for r in rows:
+        lines.append(
+            f"  {r['rate_kg_h'] * 1e3:11.4g} {r['n']:6d} {100 * r['observed']:8.0f}% "
+            f"{100 * r['fitted']:9.0f}%"
+        )
+    return "\n".join(lines)
+
+
+def cmd_map(args: argparse.Namespace) -> int:
+    """``qogi pod --map REC``: the recording's minimum-detectable column map."""
+    import numpy as np
+
+    from ..errors import UsageError
+    from ..files import atomic_path, check_outputs
+    from ..io.open import open_recording
+    from .detectability import recording_min_detectable_column
+
+    out = args.map_out
+    if out is not None:
+        check_outputs({"--map-out": out}, inputs=[args.map])
+        if not out.lower().endswith((".npy", ".png")):
+            raise UsageError(f"--map-out {out}: give a .npy or .png file name")
+    with open_recording(args.map) as rec:
+        mdc, _ = recording_min_detectable_column(rec)
+    finite = mdc[np.isfinite(mdc)]
+    g = 1e3  # g/m2
+    print(
+        f"qogi pod --map {args.map}: minimum-detectable column (k + z) NEC per pixel "
+        f"[g/m2]: median {np.median(finite) * g:.3g}, 5-95 % "
+        f"{np.percentile(finite, 5) * g:.3g} .. {np.percentile(finite, 95) * g:.3g}"
+        + (f"; {mdc.size - finite.size} pixels without contrast" if finite.size < mdc.size else "")
+        if finite.size
+        else f"qogi pod --map {args.map}: no pixel has contrast with the gas"
+    )
+    if out is None:
+        return 0
+    with atomic_path(out, suffix=out[-4:]) as tmp:
+        if out.lower().endswith(".npy"):
+            with open(tmp, "wb") as fh:
+                np.save(fh, mdc.astype(np.float32))
+        else:
+            import matplotlib
+
+            matplotlib.use("Agg", force=False)
+            import matplotlib.pyplot as plt
+
+            fig, ax = plt.subplots(figsize=(6.4, 4.8))
+            im = ax.imshow(mdc * g, cmap="viridis")
+            fig.colorbar(im, ax=ax, label="minimum-detectable column [g/m2]")
+            ax.set_title("(k + z) x noise-equivalent column per pixel")
+            fig.tight_layout()
+            fig.savefig(tmp, dpi=100)
+            plt.close(fig)
+    print(f"wrote {out}")
+    return 0
+
+
+def cmd_pod(args: argparse.Namespace) -> int:
+    from .._progress import ProgressBar
+    from ..errors import UsageError
+    from ..files import atomic_open, check_outputs
+    from .detectability import POD_LEVEL, PodScene, pod
+
+    if args.map is not None:
+        return cmd_map(args)
+    if args.json and args.json != "-":
+        check_outputs({"--json": args.json})
+    scene = PodScene(
+        camera=args.camera,
+        distance_m=args.distance,
+        delta_T_K=args.delta_t,
+        wind_speed_m_s=args.wind_speed,
+        plume_sigma_m=args.plume_sigma,
+        record_s=args.record,
+        ambient_temperature_K=args.ambient_temperature,
+        species=args.species,
+        netd_K=args.netd,
+    )
+    if args.seeds < 1:
+        raise UsageError("--seeds must be at least 1 (the trials the curve is fitted on)")
+    rates = None if args.rates is None else [q / 1e3 for q in args.rates]
+    bar = ProgressBar("pod ", enabled=not args.quiet)
+    try:
+        curve = pod(
+            scene,
+            rates_kg_h=rates,
+            seeds=range(args.seeds),
+            holdout_seeds=range(1000, 1000 + args.holdout_seeds),
+            progress=bar,
+        )
+    finally:
+        bar.close()
+    d = curve.to_dict()
+    if args.json:
+        text = json.dumps(d, indent=2)
+        if args.json == "-":
+            print(text)
+        else:
+            with atomic_open(args.json, "w") as fh:
+                fh.write(text + "\n")
+    out = sys.stderr if args.json == "-" else sys.stdout
+    if not args.quiet or args.json != "-":
+        pct = int(round(100 * POD_LEVEL))
+        print(
+            f"qogi pod: {scene.species}, {scene.camera} at {scene.distance_m:g} m, "
+            f"delta-T {scene.delta_T_K:+g} K, {scene.wind_speed_m_s:g} m/s, plume sigma "
+            f"{scene.plume_sigma_m:g} m, {scene.record_s:g} s\n"
+            f"  detected with {pct} % probability: {curve.rate_at(POD_LEVEL) * 1e3:.3g} g/h "
+            f"(50 %: {curve.q50_kg_h * 1e3:.3g} g/h); limit qogi states: "
+            f"{curve.stated_limit_kg_h * 1e3:.3g} g/h\n"
+            + (
+                f"  false alarms (rate 0): {100 * curve.false_alarm:.0f} %\n"
+                if curve.false_alarm is not None
+                else ""
+            )
+            + f"fitted on seeds 0..{args.seeds - 1}:\n"
+            + _table(curve, "fit")
+            + (
+                f"\nchecked on {args.holdout_seeds} held-out seeds:\n" + _table(curve, "holdout")
+                if curve.holdout
+                else ""
+            ),
+            file=out,
+        )
+    return 0
+
+
+def add_commands(sub) -> None:
+    import dataclasses
+
+    from .detectability import PodScene
+
+    # The scene's defaults are PodScene's (declared once, there).
+    d = {f.name: f.default for f in dataclasses.fields(PodScene)}
+    p = sub.add_parser(
+        "pod",
+        help="probability of detection of a scene (a PoD curve and the rate detected at 90 %%)",
+        description="Render steady releases of known rate in the scene (the camera's noise, "
+        "the forward model), quantify each with the given gas speed and count how often "
+        "qogi says 'detected'; fit a logistic curve in the log of the rate and print the "
+        "rate detected with 90 % probability, the false-alarm rate and the observed "
+        "detection fractions on held-out seeds against the curve (docs/detection_limit.md). "
+        "The default run is 56-72 small quantifications (5-10 minutes with a GF320 here).",
+    )
+    p.add_argument("--camera", default=d["camera"], help=f"camera preset (default {d['camera']})")
+    p.add_argument(
+        "--distance",
+        type=positive_float,
+        default=d["distance_m"],
+        metavar="M",
+        help=f"camera to plume (default {d['distance_m']:g} m)",
+    )
+    p.add_argument(
+        "--delta-t",
+        type=finite_float,
+        default=d["delta_T_K"],
+        metavar="K",
+        help="gas minus background temperature (negative: absorption; default "
+        f"{d['delta_T_K']:g} K)",
+    )
+    p.add_argument(
+        "--wind-speed",
+        type=positive_float,
+        default=d["wind_speed_m_s"],
+        metavar="M_S",
+        help=f"gas speed across the surface (default {d['wind_speed_m_s']:g} m/s)",
+    )
+    p.add_argument(
+        "--plume-sigma",
+        type=positive_float,
+        default=d["plume_sigma_m"],
+        metavar="M",
+        help="the plume's standard deviation across the surface (default "
+        f"{d['plume_sigma_m']:g} m)",
+    )
+    p.add_argument(
+        "--record",
+        type=positive_float,
+        default=d["record_s"],
+        metavar="S",
+        help=f"record length (default {d['record_s']:g} s)",
+    )
+    p.add_argument(
+        "--ambient-temperature",
+        type=positive_float,
+        default=d["ambient_temperature_K"],
+        metavar="K",
+        help=f"air and gas temperature (default {d['ambient_temperature_K']:g} K)",
+    )
+    p.add_argument("--species", default=d["species"], help=f"default {d['species']}")
+    p.add_argument(
+        "--netd", type=positive_float, default=None, metavar="K", help="camera noise (preset's)"
+    )
+    p.add_argument(
+        "--rates",
+        type=nonnegative_float,
+        nargs="+",
+        metavar="G_H",
+        help="release rates [g/h] (default: 0 and the stated limit x 0.71, 1, 1.41, 2, 2.83, 4)",
+    )
+    p.add_argument("--seeds", type=nonnegative_int, default=4, help="seeds fitted on (4)")
+    p.add_argument(
+        "--holdout-seeds", type=nonnegative_int, default=4, help="held-out seeds checked (4)"
+    )
+    p.add_argument("--json", metavar="OUT.json|-", help="write the curve and tables as JSON")
+    p.add_argument(
+        "--map",
+        metavar="REC",
+        help="instead: the minimum-detectable column per pixel of a recording (its "
+        "background's temperature, the camera's NETD, the gas at ambient)",
+    )
+    p.add_argument("--map-out", metavar="OUT.npy|OUT.png", help="write the --map (kg/m2 in .npy)")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_pod)
