@@ -47,6 +47,7 @@ arrays of the usable pixels.
 
 from __future__ import annotations
 
+import copy
 import math
 import threading
 from dataclasses import dataclass, field
@@ -381,6 +382,63 @@ class InversionResult:
 
 # ---------------------------------------------------------------------------
 # The inversion
+
+
+#: InversionResult fields per pixel: arrays, and dicts of arrays per species.
+_RESULT_ARRAYS = (
+    "status",
+    "bound_mask",
+    "flags",
+    "parameters",
+    "parameter_sigma",
+    "covariance",
+    "chi2",
+    "condition_number",
+    "iterations",
+)
+_RESULT_DICTS = (
+    "column_density",
+    "column_density_sigma",
+    "path_concentration_ppm_m",
+    "path_concentration_sigma_ppm_m",
+)
+
+
+def merge_results(a, b, sel: np.ndarray):
+    """InversionResult ``a`` (pixels on the first axis) with the pixels
+    selected by ``sel`` taken from ``b``."""
+    out = copy.copy(a)
+    for name in _RESULT_ARRAYS:
+        x = np.array(getattr(a, name))
+        x[sel] = np.asarray(getattr(b, name))[sel]
+        setattr(out, name, x)
+    for name in _RESULT_DICTS:
+        d = {}
+        for sp, v in getattr(a, name).items():
+            x = np.array(v)
+            x[sel] = np.asarray(getattr(b, name)[sp])[sel]
+            d[sp] = x
+        setattr(out, name, d)
+    return out
+
+
+def writable_copy(result):
+    """A copy of an InversionResult whose arrays may be written."""
+    out = copy.copy(result)
+    for name in _RESULT_ARRAYS:
+        setattr(out, name, np.array(getattr(result, name)))
+    for name in _RESULT_DICTS:
+        setattr(out, name, {sp: np.array(v) for sp, v in getattr(result, name).items()})
+    return out
+
+
+def scatter_results(full, part, idx: np.ndarray) -> None:
+    """Writes InversionResult ``part`` (pixels ``idx`` of ``full``) into ``full``."""
+    for name in _RESULT_ARRAYS:
+        getattr(full, name)[idx] = getattr(part, name)
+    for name in _RESULT_DICTS:
+        for sp, v in getattr(part, name).items():
+            getattr(full, name)[sp][idx] = v
 
 
 class Inversion:

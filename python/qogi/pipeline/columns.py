@@ -15,7 +15,7 @@ block's :class:`~.state.BlockColumns`.
 from __future__ import annotations
 
 import math
-from typing import Any, Dict, List, Optional, Sequence
+from typing import Dict, List, Optional, Sequence
 
 import numpy as np
 
@@ -23,6 +23,7 @@ from .. import workers as _workers_mod
 from ..errors import Cancelled
 from ..io.recording import Recording
 from ..measure.inversion import plume_depth_from_width
+from ..measure.mixing_line import MixingLineSolver
 from .background import Background
 from .config import QuantifyConfig
 from .sampling import _bilinear
@@ -63,67 +64,6 @@ class TruthColumns:
     def frame(self, f: int, roi: Region) -> Dict[str, np.ndarray]:
         sl = roi.slices()
         return {sp: np.asarray(d[f, sl[0], sl[1]], dtype=np.float64) for sp, d in self.ds.items()}
-
-
-#: InversionResult fields per pixel: arrays, and dicts of arrays per species.
-_RESULT_ARRAYS = (
-    "status",
-    "bound_mask",
-    "flags",
-    "parameters",
-    "parameter_sigma",
-    "covariance",
-    "chi2",
-    "condition_number",
-    "iterations",
-)
-_RESULT_DICTS = (
-    "column_density",
-    "column_density_sigma",
-    "path_concentration_ppm_m",
-    "path_concentration_sigma_ppm_m",
-)
-
-
-def _merge_results(a, b, sel: np.ndarray):
-    """InversionResult ``a`` (pixels on the first axis) with the pixels
-    selected by ``sel`` taken from ``b``."""
-    import copy
-
-    out = copy.copy(a)
-    for name in _RESULT_ARRAYS:
-        x = np.array(getattr(a, name))
-        x[sel] = np.asarray(getattr(b, name))[sel]
-        setattr(out, name, x)
-    for name in _RESULT_DICTS:
-        d = {}
-        for sp, v in getattr(a, name).items():
-            x = np.array(v)
-            x[sel] = np.asarray(getattr(b, name)[sp])[sel]
-            d[sp] = x
-        setattr(out, name, d)
-    return out
-
-
-def _owned(result):
-    """A copy of an InversionResult whose arrays may be written."""
-    import copy
-
-    out = copy.copy(result)
-    for name in _RESULT_ARRAYS:
-        setattr(out, name, np.array(getattr(result, name)))
-    for name in _RESULT_DICTS:
-        setattr(out, name, {sp: np.array(v) for sp, v in getattr(result, name).items()})
-    return out
-
-
-def _scatter(full, part, idx: np.ndarray) -> None:
-    """Writes InversionResult ``part`` (pixels ``idx`` of ``full``) into ``full``."""
-    for name in _RESULT_ARRAYS:
-        getattr(full, name)[idx] = getattr(part, name)
-    for name in _RESULT_DICTS:
-        for sp, v in getattr(part, name).items():
-            getattr(full, name)[sp][idx] = v
 
 
 class InvertedColumns:
@@ -637,168 +577,32 @@ class InvertedColumns:
     # -- the inferred gas temperature, frame by frame -----------------------------
     def _finish_mixing(self, rad, bg, sig, edges, n_surfaces, progress, alongside=None):
         """Per-frame columns with the gas temperature inferred through the
-        plume's mixing line.
-
-        A released gas that mixes with the ambient air (adiabatically, as in
-        a plume) has, at every point, a temperature excess proportional to
-        its volume fraction: T - T_amb = k x (the Gaussian line-of-sight model
-        has this shape: both follow g(s)). One k holds for the whole scene,
-        so it is measured once: on a random sample (<= 3000) of the
-        pixel-frames with contrast >= 10x noise solved on the line for each k
-        of a 10 K grid, k minimises the summed chi2 (each pixel's capped at
-        50), refined by a parabola; its 1-sigma is where that profile rises
-        by the reduced chi2. Then each pixel-frame has one unknown, x,
-        with T_peak = T_amb + k x: with a known composition (or one species)
-        its least-squares value on the line (qogi.inversion.
-        invert_on_mixing_line: a coarse scan and Gauss-Newton in ln x on the
-        scene table, ~40,000 px/s per core); otherwise a root of x = g(x) (g:
-        the fixed-temperature inversion at T(x)) by bracketed regula falsi,
-        each step one fast fixed-temperature pass over the pixels not yet
-        converged. This avoids the two-branch
-        (thin-hot / thick-cool) ambiguity of free per-pixel temperatures in
-        noisy frames and costs one line solve instead of a multi-start
-        four-parameter solve per pixel. The uncertainty of k is
-        carried into the column-density term (:attr:`k_relative_effect`).
-        """
-        inv = self.inv_module
-        cfg, t_amb = self.cfg, self.scene.ambient_K
+        plume's mixing line (:class:`qogi.measure.mixing_line.MixingLineSolver`:
+        the line's slope k measured once for the scene, then every
+        pixel-frame solved on the line). Sets :attr:`k_K_per_fraction`,
+        :attr:`k_sigma`, :attr:`mixing_pixels` and :attr:`k_relative_effect`
+        (the uncertainty of k carried into the column-density term)."""
+        cfg = self.cfg
         nt, nc, n = rad.shape
-        lo, hi = self.temperature_range_K
-        r2 = rad.transpose(1, 0, 2).reshape(nc, nt * n)
-        b2 = bg.transpose(1, 0, 2).reshape(nc, nt * n)
-        s2 = np.tile(sig, nt)
         kw = dict(self._inv_kw)
         kw.pop("temperature")
-        fixed: List[Any] = []  # the fixed-point passes' fixed-temperature inversion, made on use
+        solver = MixingLineSolver(
+            self.model,
+            self.table,
+            rad.transpose(1, 0, 2).reshape(nc, nt * n),
+            bg.transpose(1, 0, 2).reshape(nc, nt * n),
+            np.tile(sig, nt),
+            ambient_K=self.scene.ambient_K,
+            temperature_range_K=self.temperature_range_K,
+            species=cfg.species,
+            composition=cfg.composition,
+            inversion_options=kw,
+        )
 
-        def fixed_t():
-            if not fixed:
-                fixed.append(
-                    inv.Inversion(
-                        self.model,
-                        t_amb,
-                        temperature=inv.fixed(t_amb),
-                        sigma_m=0.05,
-                        temperature_range_K=(lo, hi),
-                        table=self.table,
-                        **kw,
-                    )
-                )
-            return fixed[0]
-
-        def stage(a, b, label):
+        def stage(a, b):
             return lambda f: progress(a + (b - a) * f) if progress else None
 
-        # 2. Every pixel-frame: x = g(x) with T_peak = T_amb + k x. In u = ln x
-        # the root of phi(u) = ln g(e^u) - u is bracketed by x -> 0 (g(0) > 0:
-        # phi > 0) and x = g(0) (phi <= 0 when g decreases, as it does for gas
-        # warmer than its background); the Illinois variant of regula falsi
-        # closes the bracket, each step one fixed-temperature pass over the
-        # pixels not yet within 0.3 % of their root.
-        def g(xv, kk, idx, a, b):
-            t = np.clip(t_amb + kk * xv, lo, hi)
-            res = fixed_t().invert(
-                r2[:, idx],
-                background_radiance=b2[:, idx],
-                sigma_m=s2[idx],
-                peak_temperature_K=t,
-                progress=stage(a, b, "columns"),
-            )
-            return res, sum(res.peak_fraction[sp] for sp in cfg.species)
-
-        def solve_passes(kk, idx, a, b, passes=7):
-            span = (b - a) / passes
-            out, g0 = g(np.zeros(idx.size), kk, idx, a, a + span)
-            out = _owned(out)
-            live: np.ndarray = np.flatnonzero((g0 > 0) & out.valid)
-            ua: np.ndarray = np.full(live.size, math.log(1e-7))
-            fa = np.log(g0[live]) - ua  # > 0
-            ub = np.log(np.minimum(g0[live], 1.0))
-            res, gb = g(np.exp(ub), kk, idx[live], a + span, a + 2 * span)
-            fb = np.log(np.maximum(gb, 1e-12)) - ub
-            _scatter(out, res, live)
-            # No bracket (g not decreasing there): keep the pass at x = g(0).
-            keep = (fb < 0) & (np.abs(fb) > 3e-3)
-            live, ua, fa, ub, fb = live[keep], ua[keep], fa[keep], ub[keep], fb[keep]
-            side: np.ndarray = np.zeros(live.size, int)
-            for step in range(passes - 2):
-                if live.size == 0:
-                    break
-                uc = (ua * fb - ub * fa) / (fb - fa)
-                res, gc = g(np.exp(uc), kk, idx[live], a + (2 + step) * span, a + (3 + step) * span)
-                fc = np.log(np.maximum(gc, 1e-12)) - uc
-                _scatter(out, res, live)
-                pos = fc > 0  # the root lies above uc: uc replaces the lower end
-                # Illinois: an end kept twice in a row has its value halved.
-                fa = np.where(pos, fc, np.where(side == -1, 0.5 * fa, fa))
-                fb = np.where(~pos, fc, np.where(side == 1, 0.5 * fb, fb))
-                ua = np.where(pos, uc, ua)
-                ub = np.where(~pos, uc, ub)
-                side = np.where(pos, 1, -1)
-                keep = np.abs(fc) > 3e-3
-                live, ua, fa, ub, fb, side = (
-                    live[keep],
-                    ua[keep],
-                    fa[keep],
-                    ub[keep],
-                    fb[keep],
-                    side[keep],
-                )
-            return out
-
-        # With a known composition (or one species) each pixel-frame is one
-        # least-squares problem on the line (the engine's mixing-line
-        # inverter: a coarse scan and Gauss-Newton in ln x); otherwise the
-        # fixed-point passes above.
-        comp = cfg.composition or ({cfg.species[0]: 1.0} if len(cfg.species) == 1 else None)
-
-        def solve_line(kk, idx, a, b):
-            return inv.invert_on_mixing_line(
-                self.model,
-                self.table,
-                kk,
-                r2[:, idx],
-                b2[:, idx],
-                s2[idx],
-                netd_K=self._inv_kw["netd_K"],
-                composition=comp,
-                num_threads=cfg.num_threads,
-                progress=stage(a, b, "columns"),
-            )
-
-        solve = solve_line if comp is not None else solve_passes
-
-        # 1. The mixing line's slope: the scene parameter k that minimises the
-        # total chi2 of a sample of the detected pixel-frames (<= 3000, contrast
-        # >= 10x noise) solved on the line (a profile likelihood over a 10 K
-        # grid of k, refined by a parabola; engine: qogi.inversion.
-        # mixing_line_slope). Pixel-by-pixel free temperatures are too weakly
-        # determined (and two-branched) to average into k. Without a known
-        # composition the engine chooses the sample and reads k off the
-        # profile; the fixed-point passes above solve it on the line.
-        netd_K = self._inv_kw["netd_K"]
-        if comp is not None:
-            found = inv.mixing_line_slope(
-                self.model,
-                self.table,
-                r2,
-                b2,
-                s2,
-                netd_K=netd_K,
-                composition=comp,
-                num_threads=cfg.num_threads,
-                progress=stage(0.0, 0.3, "mixing line"),
-            )
-        else:
-            cand, _ = inv.mixing_line_slope_sample(self.model, self.table, r2, b2, netd_K=netd_K)
-            found = None
-            if cand.size >= 5:
-                grid = np.arange(lo - t_amb, hi - t_amb + 1e-9, 10.0)
-                chi = [
-                    solve(float(kk), cand, 0.3 * i / grid.size, 0.3 * (i + 1) / grid.size).chi2
-                    for i, kk in enumerate(grid)
-                ]
-                found = inv.mixing_line_slope_from_profile(grid, np.asarray(chi))
+        found = solver.slope(stage(0.0, 0.3))
         self.k_K_per_fraction, self.k_sigma, self.mixing_pixels = 0.0, 0.0, 0
         if found is not None:
             self.mixing_pixels = found.num_samples
@@ -815,22 +619,16 @@ class InvertedColumns:
             _ = self.proxy_nodes  # made here, before the worker uses it
             job = _workers_mod.current().submit(alongside, "qogi-proxy")
         try:
-            everything = np.arange(nt * n)
-            flat = solve(k, everything, 0.3, 0.9)
+            flat = solver.solve(k, np.arange(nt * n), stage(0.3, 0.9))
         finally:
             if job is not None:
                 job.wait()
         if job is not None:
             job.result()  # re-raises the worker's error
         # Sensitivity to k on every 5th frame: carried into the column term.
-        self.k_relative_effect = 0.0
-        if self.k_sigma > 0:
-            sub = (np.arange(0, nt, 5)[:, None] * n + np.arange(n)[None, :]).ravel()
-            base = sum(flat.column_density[sp][sub].sum() for sp in cfg.species)
-            alt = solve(k + self.k_sigma, sub, 0.9, 1.0)
-            other = sum(alt.column_density[sp].sum() for sp in cfg.species)
-            if base > 0:
-                self.k_relative_effect = float(abs(other - base) / base)
+        sub = (np.arange(0, nt, 5)[:, None] * n + np.arange(n)[None, :]).ravel()
+        self.k_relative_effect = solver.slope_effect(flat, k, self.k_sigma, sub, stage(0.9, 1.0))
+        inv = self.inv_module
         res_cols = {sp: flat.column_density[sp].reshape(nt, n) for sp in cfg.species}
         res_sig = {sp: flat.column_density_sigma[sp].reshape(nt, n) for sp in cfg.species}
         ok = (flat.valid | (flat.status == inv.BELOW_DETECTION)).reshape(nt, n)
@@ -883,7 +681,7 @@ class InvertedColumns:
             sels = list(res_all.values())
             out = sels[0][1]
             for sel, r in sels[1:]:
-                out = _merge_results(out, r, sel)
+                out = inv.merge_results(out, r, sel)
             return out
         inversion = inv.Inversion(
             self.model, self.scene.ambient_K, sigma_m=sigma_param, table=self.table, **self._inv_kw
