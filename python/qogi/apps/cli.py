@@ -6,7 +6,7 @@ import argparse
 import signal
 import sys
 
-from .. import __version__
+from .._version import __version__
 from .._interrupts import Terminated
 from ..errors import (
     EXIT_DATA,
