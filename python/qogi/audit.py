@@ -25,6 +25,7 @@ import hashlib
 import math
 from typing import Optional
 
+from ._version import __version__
 from .files import PathLike
 
 __all__ = ["AUDIT_FIELDS", "RECORD_SETTINGS", "file_sha256", "utc_text", "run_record"]
@@ -75,7 +76,6 @@ def run_record(recording, started_s: float, finished_s: float) -> dict:
     """The audit record's own fields (:data:`AUDIT_FIELDS`) of a run over
     ``recording`` (a :class:`qogi.Recording`) that started and finished at
     POSIX times ``started_s`` and ``finished_s`` [s]."""
-    from ._version import __version__
 
     attrs = getattr(recording, "attrs", None) or {}
     start = attrs.get("start_time_posix_s")

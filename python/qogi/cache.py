@@ -20,6 +20,8 @@ import pathlib
 import re
 from typing import Callable, Union
 
+from .files import atomic_path
+
 __all__ = ["cache_dir", "cache_path", "store"]
 
 log = logging.getLogger("qogi.cache")
@@ -57,7 +59,6 @@ def store(path: Union[str, os.PathLike], write: Callable[[pathlib.Path], None]) 
     Returns False, with a warning in the log, when the cache cannot be
     written (the computation goes on without it); any other exception of
     ``write`` propagates and leaves nothing behind."""
-    from .files import atomic_path
 
     path = pathlib.Path(path)
     try:

@@ -11,6 +11,8 @@ from typing import Dict, List
 
 import numpy as np
 
+from ._version import __version__
+
 __all__ = ["summary_rows", "to_dataframe", "to_xarray"]
 
 
@@ -64,7 +66,6 @@ def summary_rows(result) -> List[dict]:
 
 
 def _attrs(result) -> dict:
-    from ._version import __version__
 
     # The audit record as text ("" where unknown: netCDF attributes hold no None).
     audit = {k: "" if v is None else str(v) for k, v in result.audit.items()}

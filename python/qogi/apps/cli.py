@@ -6,8 +6,8 @@ import argparse
 import signal
 import sys
 
-from .._version import __version__
 from .._interrupts import Terminated
+from .._version import __version__
 from ..errors import (
     EXIT_DATA,
     EXIT_INTERNAL,

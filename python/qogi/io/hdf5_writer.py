@@ -20,6 +20,7 @@ from ..contract import (
     typical_interval,
 )
 from ..errors import is_no_space
+from ..files import atomic_path
 from ..hdf5_files import GuardedFile, _h5py, set_attr
 from ..physics.camera import check_channels
 
@@ -175,7 +176,6 @@ class RecordingWriter:
         self._n = 0
         self._last_t = -math.inf
         self.keep_partial = bool(keep_partial)
-        from ..files import atomic_path
 
         self._atomic = atomic_path(self.path)
         tmp = self._atomic.__enter__()

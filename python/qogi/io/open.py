@@ -42,8 +42,11 @@ from ..diagnostics import Diagnostics
 from ..errors import DataError, UsageError
 from ..physics.camera import Camera
 from ..physics.optics import SpectralResponse, channel_problem
+from ..physics.presets import camera_preset, camera_preset_names
+from .flir import FlirFile, flir_apparent_temperature, flir_temperature
 from .hdf5 import open_recording as _open_hdf5
-from .recording import Recording, Scene
+from .recording import Recording, Scene, _half_max_band
+from .telops import CALIBRATION_MODES, HccFile, wheel_turns
 
 __all__ = [
     "open_recording",
@@ -95,7 +98,6 @@ def file_kind(path: Union[str, os.PathLike]) -> str:
 def resolve_camera(camera, *, ifov_rad: Optional[float] = None) -> Camera:
     """A :class:`qogi.Camera` from a preset name (``gf320``, ``fast-m150``), a
     CSV spectral response (one channel), a SpectralResponse or a Camera."""
-    from ..physics.presets import camera_preset, camera_preset_names
 
     if isinstance(camera, Camera):
         return camera
@@ -131,7 +133,6 @@ def _missing(path: str, what: str, why: str, flag: str) -> UsageError:
 
 
 def _no_camera(path: str, kind: str) -> UsageError:
-    from ..physics.presets import camera_preset_names
 
     return _missing(
         path,
@@ -143,7 +144,6 @@ def _no_camera(path: str, kind: str) -> UsageError:
 
 
 def _band_um(ch: SpectralResponse) -> str:
-    from .recording import _half_max_band
 
     lo, hi = _half_max_band(ch)
     return f"{1e4 / hi:.2f}-{1e4 / lo:.2f} um"
@@ -163,7 +163,6 @@ class _FlirFrames:
         self.dtype = np.dtype(np.float32)
 
     def __getitem__(self, sl) -> np.ndarray:
-        from .flir import flir_apparent_temperature, flir_temperature
 
         idx = range(self.shape[0])[sl]
         out = np.empty((len(idx),) + self.shape[1:], np.float32)
@@ -427,7 +426,6 @@ def _times(p, stamps: np.ndarray, nominal_hz: float, warns: Diagnostics):
 def _open_flir(
     p, camera, distance_m, ambient_K, pressure_Pa, ifov_rad, nonfinite, object_parameters, species
 ) -> Recording:
-    from .flir import FlirFile
 
     if camera is None:
         # A file that is not FLIR data says so before the camera is asked for
@@ -579,7 +577,6 @@ def _open_flir(
 def _open_hcc(
     p, camera, distance_m, ambient_K, pressure_Pa, ifov_rad, nonfinite, species
 ) -> Recording:
-    from .telops import CALIBRATION_MODES, HccFile, wheel_turns
 
     h = HccFile(p)
     try:
@@ -735,8 +732,6 @@ def scene_needs(path: Union[str, os.PathLike]) -> Dict[str, object]:
     needs: List[str] = []
     defaults: List[str] = []
     if kind == "flir":
-        from .flir import FlirFile
-
         with FlirFile(p) as f:
             m = f.metadata(0)
         flir: Dict[str, Optional[float]] = {
@@ -753,8 +748,6 @@ def scene_needs(path: Union[str, os.PathLike]) -> Dict[str, object]:
             if (held := flir[k]) is not None and abs(held - v) < 1e-4
         ]
     elif kind == "telops":
-        from .telops import CALIBRATION_MODES, HccFile
-
         with HccFile(p) as h:
             fl = h.fields()
         pos = sorted(set(fl["FWPosition"].tolist())) if fl["FWMode"].any() else []

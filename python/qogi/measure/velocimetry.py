@@ -62,6 +62,7 @@ from typing import Callable, Optional, Sequence, Tuple, Union, overload
 import numpy as np
 
 from .. import _engine
+from ..errors import Cancelled
 
 __all__ = [
     "METHODS",
@@ -499,8 +500,6 @@ def optical_flow_sequence(
         finally:
             set_num_threads(threads)
     if cancelled[0]:
-        from ..errors import Cancelled
-
         raise Cancelled("optical_flow_sequence cancelled by the progress callback")
     return FlowSequence(out_u, out_v, out_q, out_valid, ratio, method)
 

@@ -37,7 +37,10 @@ import numpy as np
 from .. import _engine
 from ..contract import MEMORY, RecordingError, check_range
 from ..errors import UsageError
+from ..files import atomic_path
+from ..hdf5_files import h5_writing
 from .optics import SpectralResponse, channel_problem
+from .radiometry import radiance_to_temperature, temperature_to_radiance
 
 __all__ = [
     # the camera
@@ -538,7 +541,6 @@ class Calibration:
     def radiance_to_temperature(self, radiance) -> np.ndarray:
         """Band radiance [W/(m2 sr)] -> radiometric temperature [K] through
         each channel's response (:mod:`qogi.radiometry` tables; NaN stays NaN)."""
-        from .radiometry import radiance_to_temperature
 
         a, shape, _, _ = self._layout(radiance, "radiance")
         return radiance_to_temperature(
@@ -547,7 +549,6 @@ class Calibration:
 
     def temperature_to_radiance(self, temperature_K) -> np.ndarray:
         """Radiometric temperature [K] -> band radiance [W/(m2 sr)]."""
-        from .radiometry import temperature_to_radiance
 
         a, shape, _, _ = self._layout(temperature_K, "temperature")
         return temperature_to_radiance(
@@ -636,8 +637,6 @@ class Calibration:
         ``group``, replacing it) or an open ``h5py.Group`` (into ``group``
         below it)."""
         arrays = self._arrays()
-        from ..files import atomic_path
-        from ..hdf5_files import h5_writing
 
         if isinstance(target, (str, os.PathLike)) and str(target).endswith(".npz"):
             with atomic_path(target) as tmp:

@@ -38,6 +38,7 @@ from typing import Dict, Iterable, Mapping, Optional, Sequence, Union
 import numpy as np
 
 from .. import _engine
+from . import spectra
 from .optics import SpectralResponse
 
 __all__ = [
@@ -212,7 +213,6 @@ def build_absorber_tables(
     the species has lines (``cutoff``: the wing rule, as for
     :func:`qogi.physics.spectra.cross_section_table`). Returns
     ``qogi._engine.AbsorberTable`` objects."""
-    from . import spectra
 
     temps = (
         DEFAULT_TABLE_TEMPERATURES_K

@@ -14,6 +14,7 @@ from typing import List, Optional, Tuple, Union
 import numpy as np
 
 from .. import _engine
+from ..files import atomic_open
 
 ArrayLike = Union[float, np.ndarray, list]
 
@@ -162,7 +163,6 @@ class SpectralResponse(_engine.SpectralResponse):
 
     def to_csv(self, path: str | os.PathLike) -> None:
         """Write ``wavenumber_cm1,response`` rows with a header."""
-        from ..files import atomic_open
 
         with atomic_open(path, "w", newline="") as fh:
             w = csv.writer(fh)

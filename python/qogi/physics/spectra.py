@@ -55,6 +55,7 @@ from .. import _engine
 from .._version import __version__
 from ..cache import cache_dir, cache_path, store
 from ..errors import DataError
+from ..files import atomic_open
 
 log = logging.getLogger(__name__)
 
@@ -880,7 +881,6 @@ def fetch_hitran(
     folder = pathlib.Path(folder) if folder is not None else cache_dir() / "hitran"
     folder.mkdir(parents=True, exist_ok=True)
     target = folder / f"{formula}_{nu_min_cm1:g}-{nu_max_cm1:g}.par"
-    from ..files import atomic_open
 
     with atomic_open(target, "wb") as fh:
         fh.write(data)

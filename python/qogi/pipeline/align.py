@@ -35,6 +35,7 @@ import numpy as np
 
 from .. import _engine
 from ..io.recording import Recording
+from ..measure.velocimetry import FlowEstimator
 from .state import RunState
 
 __all__ = [
@@ -348,7 +349,6 @@ class _Timing:
         self.channel = channel
         self.reference = reference.astype(np.float32)
         self.noise = noise
-        from ..measure.velocimetry import FlowEstimator
 
         self.flow = FlowEstimator("dis")
 

@@ -14,11 +14,11 @@ import numpy as np
 
 from .. import _engine
 from ..io.recording import Recording
-from .background_choice import _noise, inpaint_held
+from .background_choice import _noise, choose, inpaint_held
 from .config import QuantifyConfig
 from .sampling import _bilinear
 from .state import RunState
-from .surfaces import Region, Surface
+from .surfaces import Region, Surface, _smooth_background
 
 __all__ = ["Background", "prepare"]
 
@@ -68,7 +68,6 @@ def _choose_background(cfg: QuantifyConfig, sample_frames, surfaces, samples, ch
     stage uses, the choice's record for ``info``, or None)."""
     if cfg.background != "auto":
         return cfg, None
-    from .background_choice import choose
 
     if sample_frames is None or len(sample_frames) < 2:
         # No frame-to-frame noise to test the strips with: the strips beside
@@ -327,7 +326,6 @@ class Background:
         only where the smooth surface describes the gas-free pixels at least
         twice as well as that interpolation does (a plate or a linear
         gradient needs no correction, and gets none)."""
-        from .surfaces import _smooth_background
 
         def mad(r):
             return float(np.median(np.abs(r - np.median(r))))

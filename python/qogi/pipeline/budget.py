@@ -20,7 +20,13 @@ from typing import Dict, Optional, cast
 
 import numpy as np
 
+from .. import _engine
+from . import checks, selfchecks
+from .budget_terms import record_length_advice
 from .columns import InvertedColumns
+from .detection import detection_limit_from_sums, velocity_from_sums
+from .flux_summary import FluxSummary
+from .hotgas import check_gas_temperature
 from .result import Result, SpeciesRate, SurfaceResult
 from .state import RunState
 
@@ -100,7 +106,6 @@ def finish(st: RunState, complete: bool) -> Result:
     """The Result of the run's blocks analysed (``st.blocks``, in order):
     each surface's and species' per-frame rates, their mean and 90 %
     interval; ``complete`` False for a cancelled run's partial result."""
-    from . import checks
 
     rec, cfg, scene, columns, warnings = st.rec, st.cfg, st.scene, st.columns, st.warnings
     outs = st.blocks
@@ -166,8 +171,6 @@ def finish(st: RunState, complete: bool) -> Result:
                 held_fraction=held,
             )
     if complete and columns is not None and not cfg.methods.truth_columns:
-        from .hotgas import check_gas_temperature
-
         check_gas_temperature(
             cfg,
             scene,
@@ -218,7 +221,6 @@ def _block_notes(st: RunState) -> Dict[str, object]:
 
 def _systematics(st: RunState, done: int) -> Systematics:
     """The run's :class:`Systematics` (``done``: frames with rates)."""
-    from . import checks
 
     cfg, columns = st.cfg, st.columns
     vsys = (
@@ -255,8 +257,6 @@ def _species_rate(
     :class:`qogi.pipeline.result.SpeciesRate` (mean, 90 % interval, budget terms,
     detection limit), the flux checks' sums, the finite per-frame rates
     [kg/s] and their effective number."""
-    from .. import _engine
-    from .flux_summary import FluxSummary
 
     rec, scene, columns, warnings = st.rec, st.scene, st.columns, st.warnings
     dl = samples.dl
@@ -302,8 +302,6 @@ def _species_rate(
     dominant = max(terms, key=lambda k: terms[k])
     limit, det = None, None
     if isinstance(columns, InvertedColumns):  # not truth columns
-        from .detection import detection_limit_from_sums, velocity_from_sums
-
         v_n = velocity_from_sums(
             sum(p.cv_sum for p in parts),
             sum(p.c_sum for p in parts),
@@ -348,7 +346,6 @@ def _self_checks(st: RunState, j: int, surface: str, sp: str, summary, relative,
     without an inversion); for each beyond its threshold a warning and the
     relative term ``relative["assumptions"]``
     (:func:`qogi.pipeline.selfchecks.combined_term`)."""
-    from . import selfchecks
 
     columns = st.columns
     if not isinstance(columns, InvertedColumns) or j not in columns.evidence:
@@ -507,7 +504,6 @@ def _check_direction(
 def _record_advice(finite, n_eff, summary, dl, columns, j, scene) -> dict:
     """qogi.pipeline.budget_terms.record_length_advice for one surface: the mean normal
     speed where gas is, and the plume's width (2.35 sigma of its depth)."""
-    from .budget_terms import record_length_advice
 
     sigma = (columns.sigma_m.get(j) if isinstance(columns, InvertedColumns) else None) or float(
         np.sum(dl)

@@ -27,6 +27,10 @@ from typing import Callable, Dict, List, Optional, Sequence
 
 import numpy as np
 
+from ..physics.forward import LineShape, forward_model
+from ..workers import current
+from .flux_summary import FluxSummary
+
 __all__ = [
     "AlternativeModels",
     "line_shape_ratios",
@@ -47,7 +51,6 @@ class AlternativeModels:
     def __init__(
         self, channels, species: Sequence[str], pressure_Pa: float, line_shape, start=None
     ):
-        from ..physics.forward import LineShape, forward_model
 
         used = LineShape.parse(line_shape)
         self.rules = [
@@ -73,8 +76,6 @@ class AlternativeModels:
         # awaited on every exit, Ctrl-C included: a thread left inside the
         # engine at interpreter exit aborts the process).
         if start is None:
-            from ..workers import current
-
             start = current().start
         self._job = start(build, "qogi-line-shapes")
 
@@ -208,7 +209,6 @@ def flux_ratios(
     :func:`line_shape_systematic`); 1.0 where there is no flux. (The
     pipeline keeps the same sums over a streamed run's blocks:
     :class:`qogi.pipeline.flux_summary.FluxSummary`.)"""
-    from .flux_summary import FluxSummary
 
     c = np.asarray(columns, float)
     w = np.broadcast_to(np.asarray(weights, float), c.shape)
@@ -283,7 +283,6 @@ def direction_check(
     the columns would carry at the measured speeds taken as all outgoing
     (sum c |v_n| dl, averaged over the frames).
     """
-    from .flux_summary import FluxSummary
 
     c = np.asarray(columns, float)
     w = np.broadcast_to(np.abs(np.asarray(weights_abs, float)), c.shape)

@@ -19,15 +19,19 @@ from typing import Dict, List, Optional, Sequence
 
 import numpy as np
 
+from .. import _engine
 from .. import workers as _workers_mod
 from ..errors import Cancelled
 from ..io.recording import Recording
+from ..measure import inversion as inv
 from ..measure.inversion import plume_depth_from_width
 from ..measure.mixing_line import MixingLineSolver
+from ..physics.forward import forward_model
 from .background import Background
+from .budget_terms import AlternativeModels, fractions_of, line_shape_ratios
 from .config import QuantifyConfig
 from .sampling import _bilinear
-from .selfchecks import SurfaceEvidence
+from .selfchecks import SurfaceEvidence, upwind_mask
 from .state import BlockColumns, RunState, Scene
 from .surfaces import Region, Surface
 
@@ -45,7 +49,6 @@ def prepare(run: RunState) -> None:
             run.rec, run.cfg, run.scene, run.roi, run.horizontal, run.background
         )
         # Where the gas does not go: the self-checks' upwind region.
-        from .selfchecks import upwind_mask
 
         mask = upwind_mask(run.rec.width, run.rec.height, run.cfg.source, run.surfaces)
         if mask is not None:
@@ -87,8 +90,6 @@ class InvertedColumns:
         horizontal: bool,
         background: Background,
     ):
-        from ..measure import inversion as inv
-        from ..physics.forward import forward_model
 
         self.rec, self.cfg, self.scene, self.roi = rec, cfg, scene, roi
         self.horizontal = horizontal
@@ -138,7 +139,6 @@ class InvertedColumns:
 
         self._table_job: Optional[_workers_mod.Task] = workers.submit(build, "qogi-scene-table")
         # The other line-shape rules, for the budget's line-shape term.
-        from .budget_terms import AlternativeModels
 
         self.alternatives = AlternativeModels(
             channels, cfg.species, scene.pressure_Pa, cfg.line_shape, start=workers.start
@@ -270,7 +270,6 @@ class InvertedColumns:
                     jobs[key] = self._line_shape_job(j, sp)
         if len(jobs) < 2:
             return
-        from .. import _engine
 
         threads = min(len(jobs), _engine.resolve_threads(self.cfg.num_threads or 0))
         with ThreadPoolExecutor(threads, thread_name_prefix="qogi-line-shape") as pool:
@@ -287,7 +286,6 @@ class InvertedColumns:
     def _line_shape_job(self, j: int, species: str):
         """A call returning (and caching) the surface's curves for all
         species: ({species: columns}, ratios)."""
-        from .budget_terms import fractions_of, line_shape_ratios
 
         key = self._line_shape_key(j, species)
         cache = self._line_shape_cache
@@ -394,7 +392,6 @@ class InvertedColumns:
         )
         j0 = np.minimum(np.floor(u).astype(int), grid.size - 2)
         self.line_depths_m = widths
-        from .. import _engine
 
         # Every value through its line's two depth lookups (the engine's
         # LookupLines: numpy.interp per node table, blended per line), on a
@@ -491,7 +488,6 @@ class InvertedColumns:
         temperature inferred), else after it; its exception is re-raised.
         The plume depth of each surface is the Gaussian width of its
         time-averaged proxy column profile (axisymmetric plume), unless given."""
-        from ..measure import inversion as inv
 
         nt = len(self._rad)
         sizes = [len(x[0]) for x in samples]

@@ -38,6 +38,7 @@ from typing import Any, Dict, Generic, List, Optional, Tuple, TypeVar, Union, ov
 
 from ..errors import UsageError
 from ..files import PathLike
+from ..units import parse_unit
 from . import settings as _settings
 from .config_io import read_settings_file, write_toml
 from .surfaces import Region, Surface
@@ -472,7 +473,6 @@ class Settings:
 
 
 def _settings_from_mapping(d: dict, where: str) -> Settings:
-    from ..units import parse_unit
 
     if d.get("format") == "qogi-result":
         cfg = QuantifyConfig.from_dict(d.get("config") or {})

@@ -11,6 +11,10 @@ from typing import List, Optional
 
 import numpy as np
 
+from .. import _engine
+from ..measure.flux import surface_rate
+from .detection import frame_widths, velocity_sums
+from .flux_summary import FluxSummary
 from .state import BlockColumns, BlockOut, Flow, RunState, SurfaceFlux
 
 __all__ = ["block_flux", "block_maps"]
@@ -77,9 +81,6 @@ def _surface_flux(
     """Thesis eq. 12 per frame: sum over the samples of column c [kg/m2] x
     normal velocity vn [m/s] x length dl [m], (frames, samples) arrays;
     ``speed_floor`` [m/s] the direction check's least speed."""
-    from ..measure.flux import surface_rate
-    from .detection import frame_widths, velocity_sums
-    from .flux_summary import FluxSummary
 
     r = surface_rate(c, sig, vn, dl)  # the engine's flux module (cpp/engine/flux)
     cv, cs, vmed = velocity_sums(c, np.broadcast_to(vn, c.shape))
@@ -103,7 +104,6 @@ def _speed_floor(st: RunState, flows: Optional[Flow], j: int, species: str) -> f
     when the block found its transport only the other way (``Flow.reverse_speed``:
     gas moving towards the given source), that transport's speed on the
     surface's lines (median over its samples)."""
-    from .. import _engine
 
     scene = st.scene
     typical = 0.0

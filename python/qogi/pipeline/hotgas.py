@@ -37,6 +37,10 @@ from typing import Any, Dict, Optional
 
 import numpy as np
 
+from .. import _engine
+from ..synth import plume as synth
+from .budget_terms import fractions_of, line_shape_ratios
+
 __all__ = ["check_gas_temperature", "widen_for_bias", "RISE_RATIO_THRESHOLD", "BIAS_THRESHOLD"]
 
 #: The measured / lowest predicted rise speed below which the rise is
@@ -57,7 +61,6 @@ _DIAMETERS_M = np.geomspace(0.005, 0.1, 7)
 def _bias_factor(columns, j: int, species: str, summary, exit_K: float) -> float:
     """Flux at the assumed temperature / flux with the gas on the mixing line
     from ``exit_K`` (> 1: the assumed temperature overstates the rate)."""
-    from .budget_terms import fractions_of, line_shape_ratios
 
     cfg, scene = columns.cfg, columns.scene
     fractions = fractions_of(cfg, species)
@@ -84,7 +87,6 @@ def _rise_ratio(cfg, scene, results, source, samples, rise_speeds: dict) -> Opti
     """Measured / lowest predicted mass-weighted rise speed (median over the
     horizontal surfaces above the source), or None where the check does not
     apply."""
-    from ..synth import plume as synth
 
     sp = cfg.species[0]
     comp = cfg.composition or {sp: 1.0}
@@ -142,7 +144,6 @@ def _rise_ratio(cfg, scene, results, source, samples, rise_speeds: dict) -> Opti
 
 
 def _molar(species: str) -> float:
-    from .. import _engine
 
     return _engine.molar_mass(species)
 

@@ -11,12 +11,23 @@ from typing import Dict, List, Optional
 
 import numpy as np
 
+from ..audit import AUDIT_FIELDS, RECORD_SETTINGS
 from ..diagnostics import Diagnostic, Diagnostics
-from ..files import PathLike, atomic_open
+from ..files import PathLike, atomic_open, atomic_path
+from ..tables import summary_rows, to_dataframe, to_xarray
 
 # Standard conditions and conversions live in qogi.units (one implementation);
 # re-exported here for code that imported them from qogi.pipeline.result.
-from ..units import R_GAS, STANDARD_CONDITIONS, convert, kg_s_to_slpm, parse_unit  # noqa: F401
+from ..units import (  # noqa: F401
+    R_GAS,
+    STANDARD_CONDITIONS,
+    convert,
+    is_volumetric,
+    kg_s_to_slpm,
+    parse_unit,
+    standard_conditions_text,
+    unit_slug,
+)
 from .surfaces import Surface
 
 __all__ = ["SpeciesRate", "SurfaceResult", "Result", "STANDARD_CONDITIONS", "kg_s_to_slpm"]
@@ -198,7 +209,6 @@ class Result:
         :func:`qogi.quantify`; None where unknown) and the run's ``site``,
         ``component``, ``operator`` and ``location`` settings (None where not
         given)."""
-        from ..audit import AUDIT_FIELDS, RECORD_SETTINGS
 
         d = {k: self._audit.get(k) for k in AUDIT_FIELDS}
         cfg = self.config
@@ -209,7 +219,6 @@ class Result:
     @audit.setter
     def audit(self, record: dict) -> None:
         """Stamp the record's own fields (:data:`qogi.audit.AUDIT_FIELDS`)."""
-        from ..audit import AUDIT_FIELDS
 
         unknown = sorted(set(record) - set(AUDIT_FIELDS))
         if unknown:
@@ -295,8 +304,6 @@ class Result:
         :meth:`summary_csv_path`)."""
         import csv
 
-        from ..units import unit_slug
-
         extra = self.units != "kg/h"
         with atomic_open(path, "w", newline="") as fh:
             w = csv.writer(fh)
@@ -333,9 +340,6 @@ class Result:
         uncertainty, truth (synthetic recordings), unit and standard conditions."""
         import csv
 
-        from ..tables import summary_rows
-        from ..units import standard_conditions_text
-
         rows = summary_rows(self)
         with atomic_open(path, "w", newline="") as fh:
             w = csv.writer(fh)
@@ -359,7 +363,6 @@ class Result:
         (mean, ci90_low, ci90_high, detection_limit in :attr:`units`, the same
         in kg/h, detected, n_frames, dominant_uncertainty, truth_kg_h).
         ``df.attrs`` holds the unit, standard conditions and recording."""
-        from ..tables import to_dataframe
 
         return to_dataframe(self, summary=summary)
 
@@ -369,7 +372,6 @@ class Result:
         (surface, species, time), ``mean_kg_h``, ``ci90_low_kg_h``,
         ``ci90_high_kg_h``, ``detection_limit_kg_h`` (surface, species);
         attributes: units, standard conditions, recording, qogi version."""
-        from ..tables import to_xarray
 
         return to_xarray(self)
 
@@ -408,7 +410,6 @@ class Result:
                 lines.append(line)
         st = ", ".join(f"{k} {v}" for k, v in self.pixel_status.items())
         lines.append(f"  pixels: {st}")
-        from ..units import is_volumetric, standard_conditions_text
 
         if self.units == "kg/h" or is_volumetric(self.units):
             lines.append(
@@ -517,8 +518,6 @@ class Result:
         else:
             raise ValueError(f"kind must be 'rates' or 'maps'; got {kind!r}")
         if path is not None:
-            from ..files import atomic_path
-
             with atomic_path(path) as tmp:
                 fig.savefig(tmp, dpi=110)
             plt.close(fig)

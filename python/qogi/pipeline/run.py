@@ -17,13 +17,16 @@ from typing import Callable, List, Optional, Sequence, Union
 from .. import workers as _workers_mod
 from ..audit import run_record
 from ..errors import Cancelled
+from ..io.hdf5 import open_recording
 from ..io.recording import Recording
 from . import align, background, budget, columns, flux, setup, velocity
+from .checks import check_surfaces
 from .config import QuantifyConfig
 from .result import Result
 from .setup import check_inputs
 from .state import BlockOut, RunState
 from .surfaces import Surface
+from .timebase import stream_blocks
 
 __all__ = ["quantify", "BLOCK_BYTES", "MIN_BLOCK_FRAMES"]
 
@@ -66,7 +69,6 @@ def quantify(
     -------
     qogi.Result
     """
-    from ..io.hdf5 import open_recording
 
     cfg = _config(config)
     rec = open_recording(recording) if not isinstance(recording, Recording) else recording
@@ -75,7 +77,6 @@ def quantify(
     if cfg.source is not None:
         surfaces = [s.oriented_away_from(cfg.source) for s in surfaces]
     check_inputs(rec, surfaces, cfg)
-    from .checks import check_surfaces
 
     check_surfaces(surfaces)
     # The scene facts not given are the recording's (qogi.pipeline.settings.complete):
@@ -131,7 +132,6 @@ def _run(
 ) -> Result:
     """The stages in order; a cancel raises :class:`qogi.Cancelled` with the
     Result of the blocks finished (``complete=False``)."""
-    from .timebase import stream_blocks
 
     run = setup.prepare(rec, surfaces, cfg, progress, keep_maps)
     align.prepare(run)

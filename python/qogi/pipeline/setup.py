@@ -10,12 +10,15 @@ from typing import List, Optional, Sequence
 
 import numpy as np
 
+from ..diagnostics import Diagnostics
 from ..errors import Cancelled
 from ..io.recording import Recording
 from ..progress import Progress, report
+from . import checks
 from .config import QuantifyConfig
 from .state import RunState, Scene, SurfaceSamples
 from .surfaces import Region, Surface
+from .timebase import frame_timebase
 
 __all__ = ["check_inputs", "prepare"]
 
@@ -80,9 +83,6 @@ def prepare(
     checks of the frame count, the timebase and the source), the surfaces'
     samples, the background's sign and typical temperature, and the frames
     the background's choice and the source detection sample."""
-    from ..diagnostics import Diagnostics
-    from . import checks
-    from .timebase import frame_timebase
 
     t_start = time.perf_counter()
     scene = Scene(rec, cfg)

@@ -17,12 +17,13 @@ import numpy as np
 
 from .. import workers as _workers_mod
 from ..errors import Cancelled
+from ..measure import velocimetry as vel
 from . import selfchecks
 from .config import QuantifyConfig
 from .sampling import _bilinear
 from .setup import wants_source
 from .state import BlockColumns, Flow, FluxLevelPlan, RunState, Transport
-from .surfaces import Region
+from .surfaces import Region, _plume_image, detect_source
 
 __all__ = ["prepare", "flux_level_plan", "block_velocity", "normal_velocity"]
 
@@ -36,8 +37,6 @@ def prepare(run: RunState) -> None:
     sample_frames, run.sample_frames = run.sample_frames, None
     # setup.prepare samples frames whenever wants_source(cfg).
     if wants_source(cfg) and sample_frames is not None and len(sample_frames) >= 2:
-        from .surfaces import _plume_image, detect_source
-
         try:
             source = detect_source(_plume_image(sample_frames))
             run.info["source_xy"] = [float(source[0]), float(source[1])]
@@ -137,7 +136,6 @@ def _block_velocity(
     velocity_info: Dict[str, object],
     say,
 ) -> Optional[Flow]:
-    from ..measure import velocimetry as vel
 
     cfg, roi, crop, source = st.cfg, st.roi, st.crop, st.source
     done = col_fields.shape[0]
@@ -282,7 +280,6 @@ def _reverse_transport_speed(
     """|mass-weighted velocity| per line of the region [px per nominal frame
     interval] of the transport along the axis opposite to ``axis`` (no
     source line), or None when that finds no transport either."""
-    from ..measure import velocimetry as vel
 
     try:
         tf = vel.transport_flux(frames, _OPPOSITE[axis], None, intervals=intervals)

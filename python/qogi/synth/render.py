@@ -36,8 +36,17 @@ from typing import Callable, ClassVar, List, Optional, Sequence, Tuple
 import numpy as np
 
 from .. import _engine
+from ..hdf5_files import set_attr
+from ..io.hdf5_writer import RecordingWriter
+from ..io.recording import Scene, Truth
+from ..physics import camera as camera_mod
+from ..physics.camera import Camera
 from ..physics.forward import ForwardModel
 from ..physics.optics import SpectralResponse
+from ..physics.presets import camera_preset
+from ..progress import report
+from . import backdrop
+from . import plume as synth
 
 log = logging.getLogger(__name__)
 
@@ -179,8 +188,6 @@ class Background:
     def _static_map(self, height: int, width: int) -> np.ndarray:
         key = (int(height), int(width))
         if key not in self._static_cache:
-            from . import backdrop
-
             m = np.repeat(self.row_temperatures(height)[:, None], width, axis=1)
             if self.kind == "wall":
                 m += backdrop.wall_features(
@@ -208,8 +215,6 @@ class Background:
         float64 (a fresh array)."""
         m = self._static_map(height, width).copy()
         if self.cloud_K > 0:
-            from . import backdrop
-
             key = (int(height), int(width))
             if key not in self._clouds:
                 self._clouds[key] = backdrop.CloudField(
@@ -451,8 +456,6 @@ class SceneRenderer:
         self.optics: Optional[list] = None
         self.warm_filter_temperature_K = warm_filter_temperature_K
         if warm_filter_temperature_K is not None:
-            from ..physics import camera as camera_mod
-
             if camera_preset_name is None:
                 raise ValueError(
                     "warm filters need the camera preset's optics: give camera_preset_name"
@@ -476,7 +479,6 @@ class SceneRenderer:
 
     # ------------------------------------------------------------------
     def _say(self, fraction: float, message: str) -> None:
-        from ..progress import report
 
         report(self._progress, fraction, message)  # qogi.Cancelled when told to stop
 
@@ -655,7 +657,6 @@ class SceneRenderer:
 
 
 def _camera_for(preset: dict):
-    from ..physics.presets import camera_preset
 
     name = preset["camera"]["name"]
     key = "gf320" if "GF320" in name.upper() else name
@@ -706,16 +707,10 @@ def render_recording(
     Telops file), the plane fluxes are the turn's means and the truth maps
     those of simulation frame ``C i + C // 2``.
     """
-    from ..hdf5_files import set_attr
-    from ..io.hdf5_writer import RecordingWriter
-    from ..io.recording import Scene, Truth
-    from ..physics.camera import Camera
-    from . import plume as synth
 
     t0 = time.perf_counter()
 
     def say(f, msg):
-        from ..progress import report
 
         report(progress, f, msg)  # qogi.Cancelled when told to stop
 
@@ -852,13 +847,9 @@ def render_recording(
             else:
                 frame = drawn(f)
             if renderer.optics is not None and warm_filter_temperature_K is not None:
-                from ..physics import camera as camera_mod
-
                 t_f = float(warm_filter_temperature_K)
                 frame = camera_mod.add_warm_optics(frame, renderer.optics, t_f, t_f)
             if noise:
-                from ..physics import camera as camera_mod
-
                 frame = camera_mod.add_netd_noise(
                     frame,
                     renderer.forward.channels,
@@ -924,7 +915,6 @@ def synthesize(
     in the truth's ``line_shape`` attribute). ``jitter`` (:class:`Jitter`)
     shakes the camera; ``filter_wheel=True`` sees each channel at its own
     time within a wheel turn (see :func:`render_recording`)."""
-    from . import plume as synth
 
     p = synth.preset(preset_name)
     cam_key, camera = _camera_for(p)
@@ -933,7 +923,6 @@ def synthesize(
         camera_name = camera_name or cam_key
     if camera_name is not None and (camera_name != cam_key or jitter is not None):
         # Another camera at the same pixel footprint, framed on the same exit.
-        from ..physics.presets import camera_preset
 
         base = synth.preset_view(preset_name)
         footprint = base.distance_m * base.ifov_rad
@@ -967,7 +956,6 @@ def synthesize(
     wheel = len(camera.channels) if filter_wheel else 1
 
     def say(f, msg):
-        from ..progress import report
 
         report(progress, f, msg)  # qogi.Cancelled when told to stop
 
