@@ -12,6 +12,7 @@ import sys
 import h5py
 import numpy as np
 import pytest
+from patching import replace_everywhere
 from test_interrupt import SURFACE, small_recording
 
 from qogi import errors
@@ -43,6 +44,7 @@ def rec(tmp_path):
 @pytest.fixture
 def no_work(monkeypatch):
     """Fails the test if a command starts computing."""
+    import qogi.apps.cli  # every command's module loaded, holding the names it calls
     import qogi.physics.spectra
     import qogi.pipeline
     import qogi.synth.render
@@ -50,10 +52,13 @@ def no_work(monkeypatch):
     def boom(*a, **k):
         raise AssertionError("the command computed before checking its arguments")
 
-    monkeypatch.setattr(qogi.pipeline, "quantify", boom)
-    monkeypatch.setattr(qogi.synth.render, "synthesize", boom)
-    monkeypatch.setattr(qogi.physics.spectra, "cross_section", boom)
-    monkeypatch.setattr(qogi.physics.spectra, "load_line_list", boom)
+    for real in (
+        qogi.pipeline.quantify,
+        qogi.synth.render.synthesize,
+        qogi.physics.spectra.cross_section,
+        qogi.physics.spectra.load_line_list,
+    ):
+        replace_everywhere(monkeypatch, real, boom)
 
 
 # ----------------------------------------------------------------- xsec
@@ -238,6 +243,7 @@ def test_a_nan_result_exits_3_and_says_incomplete_in_its_files(capsys, rec, tmp_
     """Whatever makes a rate NaN (the pipeline flags it: test_pipeline_trust),
     the command line never prints it with exit 0: the files are written and
     say "complete": false, and the exit status is 3."""
+    import qogi.apps.cli
     import qogi.pipeline
 
     real = qogi.pipeline.quantify
@@ -248,7 +254,7 @@ def test_a_nan_result_exits_3_and_says_incomplete_in_its_files(capsys, rec, tmp_
         r.mean_kg_h = float("nan")
         return res
 
-    monkeypatch.setattr(qogi.pipeline, "quantify", nan_rate)
+    replace_everywhere(monkeypatch, real, nan_rate)
     out = tmp_path / "out.json"
     code, stdout, err = run(
         capsys,
@@ -302,7 +308,7 @@ def test_an_internal_error_shows_the_traceback_and_asks_for_a_report(capsys, mon
     def broken(*a, **k):
         raise RuntimeError("an invariant broke")
 
-    monkeypatch.setattr(qogi.apps.info, "flir_info", broken)
+    replace_everywhere(monkeypatch, qogi.apps.info.flir_info, broken)
     code, _, err = run(capsys, "info", "x.seq")
     assert code == EXIT_INTERNAL
     assert "Traceback" in err and "RuntimeError: an invariant broke" in err

@@ -10,7 +10,7 @@ from ..errors import EXIT_DATA, EXIT_INTERRUPTED, EXIT_OK, UsageError
 
 def cmd_batch(args: argparse.Namespace) -> int:
     try:
-        from . import batch
+        from . import batch  # optional: Dask, pandas and pyarrow (qogi[batch])
     except ImportError as e:
         raise UsageError(
             f"qogi batch needs Dask, pandas and pyarrow ({e}); install them with: "

@@ -6,11 +6,15 @@ from __future__ import annotations
 
 import argparse
 
+from ..io.open import file_kind, open_recording, scene_needs
+from ..io.telops import CALIBRATION_MODES, HccFile
+from ..physics.presets import camera_preset_names
+from ..pipeline.settings import arg_type
+from .info import flir_info, format_flir_info, format_recording_info, info_json, recording_info
+
 
 def add_scene_options(p: argparse.ArgumentParser, distance: bool = True) -> None:
     """--camera, --distance, --ambient-temperature, --pressure."""
-    from ..physics.presets import camera_preset_names
-    from ..pipeline.settings import arg_type
 
     g = p.add_argument_group(
         "camera files (FLIR .seq/.csq/.jpg/.fff, Telops .hcc)",
@@ -46,7 +50,6 @@ def add_scene_options(p: argparse.ArgumentParser, distance: bool = True) -> None
 
 def open_input(args: argparse.Namespace, **kw):
     """Open ``args.recording`` (or ``args.path``) with the scene options."""
-    from ..io.open import open_recording
 
     path = getattr(args, "recording", None) or args.path
     return open_recording(
@@ -83,8 +86,6 @@ def hcc_info(path) -> dict:
     """What a Telops .hcc file holds: size, version, calibration mode, frame
     times, filter positions, scaling range, first-frame statistics."""
     import numpy as np
-
-    from ..io.telops import CALIBRATION_MODES, HccFile
 
     with HccFile(path) as h:
         f = h.fields()
@@ -188,9 +189,6 @@ def cmd_info_camera(args) -> int:
     """``qogi info`` for a camera file: what it holds, what a conversion needs,
     and with --camera the recording it opens as."""
     import sys
-
-    from ..io.open import file_kind, scene_needs
-    from .info import flir_info, format_flir_info, format_recording_info, info_json, recording_info
 
     kind = file_kind(args.path)
     info = flir_info(args.path) if kind == "flir" else hcc_info(args.path)

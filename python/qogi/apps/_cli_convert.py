@@ -9,6 +9,11 @@ import os
 import sys
 from typing import Optional
 
+from .._progress import ProgressBar
+from ..files import atomic_path, check_outputs
+from ..io.recording import write_recording
+from ._cli_camera import add_scene_options, open_input, origin_lines
+
 
 def convert(
     rec, out, *, compression: Optional[str] = None, progress=None, batch_bytes: int = 64 << 20
@@ -23,9 +28,6 @@ def convert(
     time offset are kept as root attributes. Returns ``out``.
     """
     import numpy as np
-
-    from ..files import atomic_path
-    from ..io.recording import write_recording
 
     _, c, h, w = rec.shape
     extra: dict = {
@@ -53,9 +55,6 @@ def convert(
 
 
 def cmd_convert(args: argparse.Namespace) -> int:
-    from .._progress import ProgressBar
-    from ..files import check_outputs
-    from ._cli_camera import open_input, origin_lines
 
     check_outputs({"-o": args.output}, inputs=[args.recording])
     with open_input(args) as rec:
@@ -76,7 +75,6 @@ def cmd_convert(args: argparse.Namespace) -> int:
 
 
 def add_commands(sub) -> None:
-    from ._cli_camera import add_scene_options
 
     c = sub.add_parser(
         "convert",

@@ -6,7 +6,12 @@ import argparse
 import json
 import sys
 
+from .._progress import ProgressBar
+from ..errors import UsageError
+from ..files import atomic_open, atomic_path, check_outputs
+from ..io.open import open_recording
 from ._cli_args import finite_float, nonnegative_float, nonnegative_int, positive_float
+from .detectability import POD_LEVEL, PodScene, pod, recording_min_detectable_column
 
 
 def _table(curve, which: str) -> str:
@@ -25,11 +30,6 @@ def _table(curve, which: str) -> str:
 def cmd_map(args: argparse.Namespace) -> int:
     """``qogi pod --map REC``: the recording's minimum-detectable column map."""
     import numpy as np
-
-    from ..errors import UsageError
-    from ..files import atomic_path, check_outputs
-    from ..io.open import open_recording
-    from .detectability import recording_min_detectable_column
 
     out = args.map_out
     if out is not None:
@@ -72,10 +72,6 @@ def cmd_map(args: argparse.Namespace) -> int:
 
 
 def cmd_pod(args: argparse.Namespace) -> int:
-    from .._progress import ProgressBar
-    from ..errors import UsageError
-    from ..files import atomic_open, check_outputs
-    from .detectability import POD_LEVEL, PodScene, pod
 
     if args.map is not None:
         return cmd_map(args)
@@ -143,8 +139,6 @@ def cmd_pod(args: argparse.Namespace) -> int:
 
 def add_commands(sub) -> None:
     import dataclasses
-
-    from .detectability import PodScene
 
     # The scene's defaults are PodScene's (declared once, there).
     d = {f.name: f.default for f in dataclasses.fields(PodScene)}

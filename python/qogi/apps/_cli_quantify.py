@@ -8,16 +8,28 @@ import os
 import sys
 from typing import Any, Dict
 
-from .._interrupts import Terminated
+from .._interrupts import Terminated, raise_pending
+from .._progress import ProgressBar
+from ..diagnostics import Diagnostics
+from ..errors import EXIT_DATA, EXIT_INTERRUPTED, Cancelled, DataError, UsageError
+from ..files import all_or_nothing, check_outputs
+from ..io.hdf5 import open_recording
+from ..pipeline import QuantifyConfig, _check_inputs, quantify
+from ..pipeline.config import load_settings
+from ..pipeline.settings import add_arguments, config_overrides
+from ..pipeline.surfaces import Surface, auto_surfaces, plume_image
+from ..synth import plume as synth
+from ..synth.render import synthesize
+from ..units import parse_unit
 from ._cli_args import positive_float, seed
+from ._cli_camera import add_scene_options, open_input, origin_lines
+from .report import write_report
 
 
 def _config_from_args(args):
     """The QuantifyConfig of the command line: the settings file's
     (``--config``), with every flag given explicitly overriding it (each
     checked while parsed: qogi.pipeline.settings)."""
-    from ..pipeline.config import QuantifyConfig
-    from ..pipeline.settings import config_overrides
 
     over: Dict[str, Any] = config_overrides(args)
     if args.distance is not None:  # a scene option (qogi.apps._cli_camera), also the config's
@@ -54,8 +66,6 @@ def _signals_deferred():
     keeps them from being a mix of this run's and an earlier one's)."""
     import signal
 
-    from .._interrupts import raise_pending
-
     raise_pending()  # a Ctrl-C Python dropped (qogi._interrupts): no output at all
     got: list = []
     old = {}
@@ -87,21 +97,11 @@ def _untrustworthy(result) -> list:
 
 
 def cmd_quantify(args: argparse.Namespace) -> int:
-    from .._progress import ProgressBar
-    from ..diagnostics import Diagnostics
-    from ..errors import EXIT_DATA, EXIT_INTERRUPTED, Cancelled, DataError, UsageError
-    from ..files import all_or_nothing, check_outputs
-    from ..pipeline import _check_inputs, quantify
-    from ..pipeline.surfaces import Surface
-    from ._cli_camera import open_input, origin_lines
 
     if not os.path.isfile(args.recording):
         raise UsageError(f"{args.recording}: no such file; check the recording's path")
     check_outputs(_outputs(args), inputs=[args.recording])
     try:
-        from ..pipeline.config import load_settings
-        from ..units import parse_unit
-
         args.settings = load_settings(args.config) if args.config else None
         units = (
             parse_unit(args.units)
@@ -180,8 +180,6 @@ def cmd_quantify(args: argparse.Namespace) -> int:
         if args.save_config:
             cfg.to_toml(args.save_config, surfaces, units)
         if args.report:
-            from .report import write_report
-
             write_report(result, args.report, recording=rec)
         if args.plot:
             result.plot(args.plot, kind="rates")
@@ -201,8 +199,6 @@ def cmd_quantify(args: argparse.Namespace) -> int:
 def _auto(rec, args, cfg, warnings):
     """Surfaces at the --auto-surfaces distances and the source; a surface
     cut by the image border adds a ``surface-clipped`` warning."""
-    from ..errors import UsageError
-    from ..pipeline.surfaces import auto_surfaces, plume_image
 
     try:
         dists = [float(v) for v in args.auto_surfaces.split(",")]
@@ -253,7 +249,6 @@ def add_commands(sub) -> None:
         "The run's settings (docs/pipeline_api.md, 'Configuration'); a flag given "
         "overrides --config's value.",
     )
-    from ..pipeline.settings import add_arguments
 
     add_arguments(g)
     q.add_argument(
@@ -294,7 +289,6 @@ def add_commands(sub) -> None:
         help="write the rate plot (and OUT_maps.png with column and velocity maps)",
     )
     q.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
-    from ._cli_camera import add_scene_options
 
     add_scene_options(q)
     q.set_defaults(func=cmd_quantify)
@@ -302,15 +296,6 @@ def add_commands(sub) -> None:
 
 def cmd_demo(args: argparse.Namespace) -> int:
     """Synthesise a release with exact truth, quantify it, compare, plot."""
-
-    from .._progress import ProgressBar
-    from ..errors import UsageError
-    from ..files import check_outputs
-    from ..io.hdf5 import open_recording
-    from ..pipeline import QuantifyConfig, quantify
-    from ..pipeline.surfaces import Surface
-    from ..synth import plume as synth
-    from ..synth.render import synthesize
 
     out = os.path.abspath(args.output)
     if args.quick:
@@ -382,7 +367,6 @@ def cmd_demo(args: argparse.Namespace) -> int:
     import importlib.util
 
     plots = importlib.util.find_spec("matplotlib") is not None
-    from ..files import all_or_nothing
 
     with all_or_nothing():  # the demo's outputs together or none (a full disk)
         result.to_json(os.path.join(out, "result.json"))

@@ -10,6 +10,18 @@ import time
 
 import numpy as np
 
+from .. import _engine
+from ..errors import UsageError
+from ..files import atomic_path, check_outputs
+from ..physics.spectra import (
+    bundled_hitran_dir,
+    bundled_line_lists,
+    cross_section,
+    fetch_hitran,
+    find_line_lists,
+    hitran_search_path,
+    load_line_list,
+)
 from ._cli_args import fraction, nonnegative_float, positive_float
 
 
@@ -28,10 +40,6 @@ def _cutoff(text: str):
 
 
 def cmd_xsec(args: argparse.Namespace) -> int:
-    from .. import _engine
-    from ..errors import UsageError
-    from ..files import atomic_path, check_outputs
-    from ..physics.spectra import cross_section, load_line_list
 
     if args.out:
         check_outputs({"--out": args.out}, inputs=args.line_list or ())
@@ -104,14 +112,6 @@ def cmd_xsec(args: argparse.Namespace) -> int:
 
 
 def cmd_hitran_list(args: argparse.Namespace) -> int:
-    from .. import _engine
-    from ..physics.spectra import (
-        bundled_hitran_dir,
-        bundled_line_lists,
-        find_line_lists,
-        hitran_search_path,
-        load_line_list,
-    )
 
     bundled = bundled_hitran_dir()
     print("shipped with qogi (used when no folder above it in the search path has the species):")
@@ -157,7 +157,6 @@ def cmd_hitran_list(args: argparse.Namespace) -> int:
 
 
 def cmd_hitran_fetch(args: argparse.Namespace) -> int:
-    from ..physics.spectra import fetch_hitran
 
     isos = [int(v) for v in args.isotopologues.split(",")] if args.isotopologues else None
     try:

@@ -5,15 +5,17 @@ from __future__ import annotations
 import argparse
 import sys
 
+from .._progress import ProgressBar
+from ..errors import UsageError
+from ..files import check_outputs
+from ..io.hdf5 import open_recording
+from ..physics.presets import camera_preset_names
+from ..synth import plume as synth
+from ..synth.render import synthesize
 from ._cli_args import nonnegative_int, positive_float, seed
 
 
 def cmd_synth(args: argparse.Namespace) -> int:
-    from .._progress import ProgressBar
-    from ..errors import UsageError
-    from ..files import check_outputs
-    from ..synth import plume as synth
-    from ..synth.render import synthesize
 
     if args.list or not args.preset:
         if not args.preset and not args.list:
@@ -30,8 +32,6 @@ def cmd_synth(args: argparse.Namespace) -> int:
     if args.preset not in synth.presets():
         raise UsageError(f"unknown preset {args.preset!r}; known: {', '.join(synth.presets())}")
     if args.camera is not None:
-        from ..physics.presets import camera_preset_names
-
         known = camera_preset_names()
         if args.camera not in known:
             raise UsageError(
@@ -57,8 +57,6 @@ def cmd_synth(args: argparse.Namespace) -> int:
     finally:
         bar.close()
     if not args.quiet:
-        from ..io.hdf5 import open_recording
-
         with open_recording(path) as rec:
             if rec.truth is None:  # render() always writes the truth
                 raise RuntimeError(f"{path}: the rendered recording has no truth group")

@@ -33,10 +33,17 @@ import time
 import traceback
 from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 
+from .._progress import ProgressBar
 from .._version import __version__
 from ..diagnostics import Diagnostics
-from ..errors import UsageError
+from ..errors import Cancelled, UsageError
+from ..files import _TMP_PREFIX, atomic_open, atomic_path, check_outputs
+from ..io.hdf5 import open_recording
 from ..physics.optics import channel_problem
+from ..physics.presets import camera_preset, camera_preset_names
+from ..pipeline import QuantifyConfig, quantify
+from ..pipeline.settings import SettingError, from_value
+from ..pipeline.surfaces import Surface, auto_surfaces, plume_image
 
 __all__ = [
     "Row",
@@ -78,7 +85,6 @@ _SUMMARY_INTERVAL_S = 10.0
 
 
 def _config_fields() -> List[str]:
-    from ..pipeline import QuantifyConfig
 
     return [name for name in QuantifyConfig.field_names() if name not in _RESERVED]
 
@@ -190,8 +196,6 @@ def _parsers() -> Dict[str, Any]:
     values and messages of the command line and the settings TOML)."""
     from functools import partial
 
-    from ..pipeline.settings import from_value
-
     p: Dict[str, Any] = {
         "path": str,
         "name": str,
@@ -287,8 +291,6 @@ def load_manifest(path: Union[str, os.PathLike], *, check_files: bool = True) ->
         Naming the row (file and line, or ``[[recording]] #N``), the column,
         the value and the fix.
     """
-    from ..pipeline import QuantifyConfig
-    from ..pipeline.settings import SettingError
 
     path = pathlib.Path(path)
     if not path.is_file():
@@ -369,14 +371,11 @@ def load_manifest(path: Union[str, os.PathLike], *, check_files: bool = True) ->
             raise UsageError(
                 f"{where}: column 'auto_distances_px': distances must be > 0 px; got {dists}"
             )
-        if v.get("camera") is not None:
-            from ..physics.presets import camera_preset_names
-
-            if v["camera"] not in camera_preset_names():
-                raise UsageError(
-                    f"{where}: column 'camera': unknown camera {v['camera']!r}; "
-                    f"known: {', '.join(camera_preset_names())}"
-                )
+        if v.get("camera") is not None and v["camera"] not in camera_preset_names():
+            raise UsageError(
+                f"{where}: column 'camera': unknown camera {v['camera']!r}; "
+                f"known: {', '.join(camera_preset_names())}"
+            )
         if v.get("ifov_rad") is not None and not 0 < v["ifov_rad"] <= 0.1:
             raise UsageError(
                 f"{where}: column 'ifov_rad' must be within (0, 0.1] rad; got {v['ifov_rad']}"
@@ -414,11 +413,9 @@ def _check_scene_facts(where: str, path: pathlib.Path, cfg) -> None:
     """A row whose method needs a scene fact that only the recording can
     give (velocity 'wind' without a wind speed) is checked against the
     recording's /scene now, before anything runs (qogi.pipeline.settings.complete)."""
-    from ..pipeline.settings import SettingError
 
     if not (cfg.velocity == "wind" and cfg.wind_speed_m_s is None):
         return
-    from ..io.hdf5 import open_recording
 
     try:
         with open_recording(str(path)) as r:
@@ -477,7 +474,6 @@ def _engine_threads(job: dict) -> int:
 
 def _remove_stale_temporaries(folder: pathlib.Path) -> None:
     """Temporary files left by a killed writer (qogi.files names them so)."""
-    from ..files import _TMP_PREFIX
 
     for p in glob.glob(str(folder / (_TMP_PREFIX + "*"))):
         try:
@@ -487,7 +483,6 @@ def _remove_stale_temporaries(folder: pathlib.Path) -> None:
 
 
 def _write_json(path: pathlib.Path, d: dict) -> None:
-    from ..files import atomic_open
 
     with atomic_open(path, "w") as fh:
         fh.write(json.dumps(d, indent=2) + "\n")
@@ -511,10 +506,6 @@ def run_row(job: dict) -> dict:
     else (a bug, memory exhaustion, an output that cannot be written) is
     raised so that Dask's ``retries`` run it again.
     """
-    from ..errors import Cancelled
-    from ..io.hdf5 import open_recording
-    from ..pipeline import quantify
-    from ..pipeline.surfaces import Surface, auto_surfaces, plume_image
 
     row: Row = job["row"]
     folder = pathlib.Path(job["outdir"]) / row.name
@@ -594,7 +585,6 @@ def run_row(job: dict) -> dict:
 
 
 def _override_camera(rec, row: Row) -> None:
-    from ..physics.presets import camera_preset
 
     cam = rec.camera
     if row.camera is not None:
@@ -787,7 +777,6 @@ def summary_frame(rows: Sequence[dict]):
 
 def write_summary(df, outdir: pathlib.Path) -> None:
     """``summary.csv`` and ``summary.parquet`` in ``outdir``, each atomic."""
-    from ..files import atomic_open, atomic_path
 
     with atomic_open(outdir / SUMMARY_CSV, "w", newline="") as fh:
         df.to_csv(fh, index=False)
@@ -912,8 +901,6 @@ def run(
     import dask
     from distributed import Client, LocalCluster, as_completed
 
-    from .._progress import ProgressBar
-
     say = (
         (lambda msg: print(msg, file=log or sys.stderr, flush=True))
         if progress
@@ -939,7 +926,6 @@ def run(
             "--overwrite to redo every row"
         )
     out.mkdir(parents=True, exist_ok=True)
-    from ..files import check_outputs
 
     check_outputs(
         {"summary.csv": out / SUMMARY_CSV, "summary.parquet": out / SUMMARY_PARQUET},

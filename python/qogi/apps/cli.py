@@ -6,9 +6,10 @@ import argparse
 import signal
 import sys
 
-from .._interrupts import Terminated
+from .._interrupts import Terminated, kept
 from .._version import __version__
 from ..errors import (
+    EXIT_CODES_HELP,
     EXIT_DATA,
     EXIT_INTERNAL,
     EXIT_INTERRUPTED,
@@ -17,43 +18,6 @@ from ..errors import (
     QogiError,
     is_no_space,
 )
-
-
-def cmd_info(args: argparse.Namespace) -> int:
-    import os
-
-    from ..errors import UsageError
-    from ..io import FLIR_EXTENSIONS
-    from ..io.hdf5 import open_recording
-    from ..io.open import file_kind
-    from .info import flir_info, format_flir_info, format_recording_info, info_json, recording_info
-
-    try:
-        if os.path.isfile(args.path) and file_kind(args.path) in ("flir", "telops"):
-            from ._cli_camera import cmd_info_camera
-
-            return cmd_info_camera(args)
-        if os.path.splitext(args.path)[1].lower() in FLIR_EXTENSIONS:
-            info = flir_info(args.path)
-            text = format_flir_info
-        else:
-            with open_recording(
-                args.path, nonfinite="invalid" if args.allow_invalid else "error"
-            ) as rec:
-                info = recording_info(rec)
-            text = format_recording_info
-    except MemoryError:
-        raise
-    except (ValueError, OSError) as e:
-        from ..errors import DataError
-
-        if not os.path.isfile(args.path):
-            raise UsageError(str(e)) from None
-        if isinstance(e, DataError):
-            raise
-        raise DataError(str(e)) from None
-    print(info_json(info) if args.json else text(info))
-    return 0
 
 
 def cmd_gui(args: argparse.Namespace) -> int:
@@ -101,6 +65,20 @@ def _app(name: str):
 
 
 def build_parser() -> argparse.ArgumentParser:
+    # Deferred for start-up: the commands' modules load numpy, h5py and the
+    # engine. Imported here, inside main()'s handler, a Ctrl-C while they load
+    # is "interrupted" (exit 130), not a traceback (test_interrupt).
+    from . import (
+        _cli_batch,
+        _cli_camera,
+        _cli_convert,
+        _cli_info,
+        _cli_pod,
+        _cli_quantify,
+        _cli_spectra,
+        _cli_synth,
+    )
+
     p = argparse.ArgumentParser(
         prog="qogi",
         description="Quantitative optical gas imaging: from radiometric MWIR video of a "
@@ -108,32 +86,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--version", action="version", version=f"qogi {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
-    i = sub.add_parser(
-        "info",
-        help="describe a recording (or a FLIR .seq/.csq/.jpg file)",
-        description="Print what a recording holds: camera, channels (name, band, centroid), "
-        "frames (T, C, H, W, quantity, duration, frame rate), scene, truth, and "
-        "per-channel min/mean/max of the first frame in band radiance "
-        "[W/(m2 sr)] and radiometric temperature [K]. The file is validated "
-        "first; a bad file gives an error naming the problem and the fix. For "
-        "a FLIR file: frames, camera, Planck calibration, object parameters "
-        "and first-frame counts and temperatures.",
-    )
-    i.add_argument(
-        "path",
-        help="recording (.h5), FLIR file (.seq, .csq, .fff, .jpg) or Telops "
-        ".hcc; for a camera file it also says what a conversion needs",
-    )
-    i.add_argument("--json", action="store_true", help="print JSON instead of text")
-    i.add_argument(
-        "--allow-invalid",
-        action="store_true",
-        help="treat NaN/inf pixels as invalid instead of an error",
-    )
-    from ._cli_camera import add_scene_options
-
-    add_scene_options(i)
-    i.set_defaults(func=cmd_info)
+    _cli_info.add_commands(sub)
     g = sub.add_parser(
         "gui",
         help="open the desktop viewer",
@@ -147,28 +100,21 @@ def build_parser() -> argparse.ArgumentParser:
         nargs="?",
         help="recording (.h5) or camera file (.seq, .csq, .jpg, .fff, .hcc) to open",
     )
-    add_scene_options(g)
+    _cli_camera.add_scene_options(g)
     g.set_defaults(func=cmd_gui)
-    from ._cli_spectra import add_commands as add_spectra_commands
 
-    add_spectra_commands(sub)
-    from ._cli_synth import add_commands as add_synth_commands
+    _cli_spectra.add_commands(sub)
 
-    add_synth_commands(sub)
-    from ._cli_quantify import add_commands as add_quantify_commands
-    from ._cli_quantify import add_demo_command
+    _cli_synth.add_commands(sub)
 
-    add_quantify_commands(sub)
-    add_demo_command(sub)
-    from ._cli_batch import add_commands as add_batch_commands
+    _cli_quantify.add_commands(sub)
+    _cli_quantify.add_demo_command(sub)
 
-    add_batch_commands(sub)
-    from ._cli_convert import add_commands as add_convert_commands
+    _cli_batch.add_commands(sub)
 
-    add_convert_commands(sub)
-    from ._cli_pod import add_commands as add_pod_commands
+    _cli_convert.add_commands(sub)
 
-    add_pod_commands(sub)
+    _cli_pod.add_commands(sub)
     _add_exit_codes(p)
     return p
 
@@ -186,7 +132,6 @@ class _Paragraphs(argparse.HelpFormatter):
 def _add_exit_codes(parser: argparse.ArgumentParser) -> None:
     """Every command's --help ends with the exit codes (qogi.errors), a
     paragraph of its own."""
-    from ..errors import EXIT_CODES_HELP
 
     parser.epilog = f"{parser.epilog}\n\n{EXIT_CODES_HELP}" if parser.epilog else EXIT_CODES_HELP
     parser.formatter_class = _Paragraphs
@@ -248,7 +193,6 @@ def main(argv: list[str] | None = None) -> int:
         name = args.command + (
             f" {args.hitran_command}" if getattr(args, "hitran_command", None) else ""
         )
-        from .._interrupts import kept
     except (KeyboardInterrupt, ImportError) as e:
         if not _interrupted(e):
             raise

@@ -45,13 +45,20 @@ from typing import Callable, List, Optional, Sequence, Tuple
 
 import numpy as np
 
+from .. import _engine
 from ..errors import UsageError
+from ..io.recording import Recording, Scene
+from ..physics.forward import forward_model
+from ..physics.presets import camera_preset
+from ..physics.radiometry import radiance_to_temperature
+from ..pipeline import QuantifyConfig, quantify
 from ..pipeline.detection import (
     CONFIDENCE,
     DETECTION_SIGMA,
     detection_limit_kg_s,
     noise_equivalent_column,
 )
+from ..pipeline.surfaces import Surface
 
 __all__ = [
     "POD_LEVEL",
@@ -131,8 +138,6 @@ class PodScene:
         need("ambient_temperature_K", lambda v: 220 <= v <= 330, "within [220, 330] K")
         if self.netd_K is not None:
             need("netd_K", lambda v: 1e-3 <= v <= 1.0, "within [0.001, 1] K or None")
-        from .. import _engine
-        from ..physics.presets import camera_preset
 
         try:
             camera_preset(self.camera)
@@ -153,7 +158,6 @@ class PodScene:
 
 
 def _camera(scene: PodScene, width: int):
-    from ..physics.presets import camera_preset
 
     cam = camera_preset(scene.camera)
     netd = cam.netd_K if scene.netd_K is None else float(scene.netd_K)
@@ -161,14 +165,11 @@ def _camera(scene: PodScene, width: int):
 
 
 def _model(scene: PodScene):
-    from ..physics.forward import forward_model
-    from ..physics.presets import camera_preset
 
     return forward_model(camera_preset(scene.camera).channels, [scene.species])
 
 
 def _pixel_m(scene: PodScene) -> float:
-    from ..physics.presets import camera_preset
 
     return scene.distance_m * camera_preset(scene.camera).ifov_rad
 
@@ -192,8 +193,6 @@ def stated_limit_kg_h(scene: PodScene, confidence: float = CONFIDENCE) -> float:
     model = _model(scene)
     netd = scene.netd_K
     if netd is None:
-        from ..physics.presets import camera_preset
-
         netd = camera_preset(scene.camera).netd_K
     amb = scene.ambient_temperature_K
     nec = noise_equivalent_column(model, scene.species, netd, scene.background_K, amb, amb)
@@ -211,8 +210,6 @@ def render_scene(scene: PodScene, rate_kg_h: float, seed: int):
     -------
     (qogi.Recording, qogi.Surface, float)
     """
-    from ..io.recording import Recording, Scene
-    from ..pipeline.surfaces import Surface
 
     if not (math.isfinite(rate_kg_h) and rate_kg_h >= 0):
         raise UsageError(f"rate must be a finite number >= 0 kg/h; got {rate_kg_h!r}")
@@ -268,7 +265,6 @@ def render_scene(scene: PodScene, rate_kg_h: float, seed: int):
 def _clean_image(scene: PodScene, fractions: Tuple[float, ...]) -> np.ndarray:
     """The noise-free radiometric temperature (C, 1, W) of a row of peak
     fractions (one band radiance per rate: the seeds share it)."""
-    from ..physics.radiometry import radiance_to_temperature
 
     model = _model(scene)
     amb = scene.ambient_temperature_K
@@ -292,7 +288,6 @@ class Trial:
 def trial(scene: PodScene, rate_kg_h: float, seed: int) -> Trial:
     """Render one release (:func:`render_scene`) and quantify it with the
     scene's speed given and every other setting at its default."""
-    from ..pipeline import QuantifyConfig, quantify
 
     rec, surface, _ = render_scene(scene, rate_kg_h, seed)
     cfg = QuantifyConfig(
@@ -563,8 +558,6 @@ def min_detectable_column_map(
         Minimum-detectable column [kg/m2]; inf where the background has no
         contrast with the gas.
     """
-    from ..physics.forward import forward_model
-    from ..physics.presets import camera_preset
 
     cam = camera_preset(camera) if isinstance(camera, str) else camera
     bg = np.asarray(background_K, float)

@@ -8,6 +8,7 @@ import os
 
 import numpy as np
 
+from ..io.flir import FlirFile
 from ..physics.radiometry import band_table
 
 __all__ = ["recording_info", "flir_info", "format_recording_info", "format_flir_info"]
@@ -139,7 +140,6 @@ def flir_info(path) -> dict:
     """What a FLIR file holds: frames, size, camera, calibration, object
     parameters, time span, coding, and first-frame statistics of the raw
     counts, the apparent temperature and FLIR's object temperature."""
-    from ..io.flir import FlirFile
 
     with FlirFile(path) as f:
         n = len(f)

@@ -20,9 +20,13 @@ import textwrap
 
 import numpy as np
 
+from .._version import __version__
 from ..audit import RECORD_SETTINGS, file_sha256
 from ..files import PathLike, atomic_path
+from ..io.hdf5 import open_recording
 from ..pipeline.detection import DETECTION_SIGMA
+from ..pipeline.settings import SETTINGS
+from ..units import standard_conditions_text
 
 __all__ = ["write_report", "file_sha256"]
 
@@ -212,7 +216,6 @@ def _rate_rows(result):
 
 
 def _header(fig, result, sha, title_suffix=""):
-    from .._version import __version__
 
     audit = result.audit
     version = audit.get("qogi_version") or __version__
@@ -271,7 +274,6 @@ def _wrap(lines, width=118):
 
 
 def _page_two(fig, result, sha):
-    from ..units import standard_conditions_text
 
     _header(fig, result, sha, " (continued)")
     u = result.units
@@ -394,8 +396,6 @@ def write_report(result, path: PathLike, recording=None) -> str:
 
     if recording is None:
         try:
-            from ..io.hdf5 import open_recording
-
             recording = open_recording(result.recording_path)
         except (OSError, ValueError):
             recording = None
@@ -480,7 +480,6 @@ def _settings_used(cfg: dict, info: dict) -> dict:
     """The run's settings as used: the config as given, each scene fact not
     given shown with the recording's value (``info["from_recording"]``) or
     its fallback (qogi.pipeline.settings)."""
-    from ..pipeline.settings import SETTINGS
 
     taken = info.get("from_recording") or {}
     out = {}

@@ -32,6 +32,7 @@ from .flir import (
 )
 from .flir_writer import write_flir_seq
 from .hdf5 import open_recording
+from .open import open_recording as open_camera_file
 from .recording import Recording
 from .telops import HccFile, open_hcc, write_hcc
 
@@ -72,8 +73,6 @@ def read_recording(path: Union[str, os.PathLike], **kwargs) -> Recording:
     if ext in FLIR_EXTENSIONS:
         return read_flir_recording(path, **kwargs)
     if ext in TELOPS_EXTENSIONS:
-        from .open import open_recording as open_camera_file
-
         return open_camera_file(path, **kwargs)
     if ext in (".npy", ".npz"):
         return read_numpy(path, **kwargs)

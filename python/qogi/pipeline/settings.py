@@ -32,7 +32,11 @@ import math
 import numbers
 from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
+from .. import _engine
 from ..errors import UsageError
+from ..measure import velocimetry
+from ..physics.forward import LineShape
+from .surfaces import Region
 
 __all__ = [
     "Setting",
@@ -146,7 +150,6 @@ class Setting:
 
 
 def _velocity_choices() -> Tuple[str, ...]:
-    from ..measure import velocimetry
 
     return tuple(velocimetry.METHODS) + ("wind", "exit")
 
@@ -539,12 +542,8 @@ def default(name: str) -> Any:
     ``qogi.measure.velocimetry.DEFAULT_METHOD``, the line shape from
     ``qogi.physics.forward.LineShape()``."""
     if name == "velocity":
-        from ..measure import velocimetry
-
         return velocimetry.DEFAULT_METHOD
     if name == "line_shape":
-        from ..physics.forward import LineShape
-
         return str(LineShape())
     d = _setting(name)._default
     return list(d) if isinstance(d, tuple) else d
@@ -640,7 +639,6 @@ def check(name: str, value):
         value = [x.strip() for x in value]
         if not value or not all(value):
             raise SettingError(name, f"must name at least one species (e.g. CH4); got {value}")
-        from .. import _engine
 
         for sp in value:
             try:
@@ -653,8 +651,6 @@ def check(name: str, value):
             return _check_choice(s, value, s._choices, " or a temperature in K")
         return _check_number(s, value)
     if kind == "background":
-        from .surfaces import Region
-
         if isinstance(value, Region):
             return value
         return _check_choice(s, value, s._choices, " or a region x0,y0,x1,y1")
@@ -701,8 +697,6 @@ def check(name: str, value):
             )
         return t
     if kind == "line_shape":
-        from ..physics.forward import LineShape
-
         try:
             return str(LineShape.parse(value))
         except (ValueError, TypeError) as e:
@@ -830,7 +824,6 @@ def from_text(name: str, text: str):
     if kind == "background":
         if t in s._choices or "," not in t:
             return check(name, t)
-        from .surfaces import Region
 
         parts = _text_numbers(s, t, ",")
         try:
@@ -873,8 +866,6 @@ def from_value(name: str, value):
     if isinstance(value, str):
         return from_text(name, value)
     if s.kind == "background" and isinstance(value, (dict, list, tuple)):
-        from .surfaces import Region
-
         try:
             if isinstance(value, dict):
                 xs = [value[k] for k in ("x0", "y0", "x1", "y1")]
