@@ -60,8 +60,8 @@ import numpy as np
 
 import qogi
 from qogi import io as qio
-from qogi.measure import velocimetry as vel
 from qogi import synth
+from qogi.measure import velocimetry as vel
 
 H, W = 256, 320
 TARGET_FPS = 500.0

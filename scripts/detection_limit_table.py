@@ -26,6 +26,7 @@ import tempfile
 import numpy as np
 
 import qogi
+from qogi import synth
 from qogi.physics.forward import forward_model
 from qogi.pipeline import QuantifyConfig, quantify
 from qogi.pipeline.detection import (
@@ -36,7 +37,6 @@ from qogi.pipeline.detection import (
     zeng_morris_g_h,
 )
 from qogi.pipeline.surfaces import Surface
-from qogi import synth
 from qogi.synth import render
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests", "python"))

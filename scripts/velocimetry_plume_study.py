@@ -61,8 +61,8 @@ from pathlib import Path
 import numpy as np
 
 import qogi
-from qogi.measure import velocimetry as vel
 from qogi import synth
+from qogi.measure import velocimetry as vel
 
 PRESETS = ("lab-ch4-5slpm-gf320", "lab-ch4co2-90c-m150")
 RATES_HZ = (100.0, 15.0)

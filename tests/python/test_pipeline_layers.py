@@ -1,6 +1,6 @@
 """The pipeline reads as a chain: recording -> background -> columns ->
 velocity -> flux -> budget, each stage importing only the stages (and the
-config, sampling and state modules) before it. Parsed from the source (ast),
+pipeline's helpers, config, sampling and state modules) before it. Parsed from the source (ast),
 so a back-edge inside a function body counts too."""
 
 from __future__ import annotations
@@ -11,8 +11,21 @@ import pathlib
 import qogi.pipeline
 
 PACKAGE = pathlib.Path(qogi.pipeline.__file__).parent
-#: The stages in data-flow order; a module may import only those before it.
+#: The pipeline's own helpers (what only the stages use), then the stages in
+#: data-flow order; a module may import only those before it.
 ORDER = [
+    "surfaces",
+    "settings",
+    "config_io",
+    "detection",
+    "checks",
+    "selfchecks",
+    "timebase",
+    "flux_summary",
+    "budget_terms",
+    "hotgas",
+    "background_choice",
+    "result",
     "config",
     "sampling",
     "state",

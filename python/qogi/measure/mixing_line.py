@@ -89,7 +89,7 @@ class MixingLineSolver:
         self.species = tuple(species)
         self.kw = dict(inversion_options)
         self.netd_K = self.kw["netd_K"]
-        self.num_threads = self.kw.get("num_threads")
+        self.num_threads: int = self.kw.get("num_threads") or 0
         # With a known composition (or one species) each pixel-frame is one
         # least-squares problem on the line (the engine's mixing-line
         # inverter); otherwise the fixed-point passes.
