@@ -44,7 +44,6 @@ def rec(tmp_path):
 @pytest.fixture
 def no_work(monkeypatch):
     """Fails the test if a command starts computing."""
-    import qogi.apps.cli  # every command's module loaded, holding the names it calls
     import qogi.physics.spectra
     import qogi.pipeline
     import qogi.synth.render
