@@ -83,3 +83,25 @@ def test_tiff_pages_grouped_into_channels(tmp_path):
 def test_read_recording_dispatch(tmp_path):
     with pytest.raises(ValueError, match=r"unknown recording file type '.xyz'"):
         qio.read_recording(tmp_path / "a.xyz")
+
+
+def test_read_recording_recognises_a_file_by_its_first_bytes_not_its_name(tmp_path):
+    """One registry of formats (qogi.io.open.FORMATS): a numpy file renamed
+    .dat is still read as numpy, and file_kind names every format."""
+    from qogi.io.open import FORMATS, file_kind
+
+    frames = np.full((3, 1, 4, 5), 300.0, np.float32)
+    p = tmp_path / "frames.npy"
+    np.save(p, frames)
+    renamed = tmp_path / "frames.dat"
+    p.rename(renamed)
+    assert file_kind(renamed) == "numpy"
+    rec = qio.read_recording(
+        renamed,
+        quantity="radiometric_temperature",
+        camera=cam(1),
+        scene=scene(),
+        time_s=np.arange(3) / 10.0,
+    )
+    assert rec.shape == (3, 1, 4, 5)
+    assert {f.kind for f in FORMATS} == {"hdf5", "flir", "telops", "numpy", "tiff"}

@@ -6,7 +6,6 @@ import argparse
 import os
 
 from ..errors import DataError, UsageError
-from ..io import FLIR_EXTENSIONS
 from ..io.hdf5 import open_recording
 from ..io.open import file_kind
 from ._cli_camera import add_scene_options, cmd_info_camera
@@ -17,7 +16,7 @@ def cmd_info(args: argparse.Namespace) -> int:
     try:
         if os.path.isfile(args.path) and file_kind(args.path) in ("flir", "telops"):
             return cmd_info_camera(args)
-        if os.path.splitext(args.path)[1].lower() in FLIR_EXTENSIONS:
+        if file_kind(args.path) == "flir":
             info = flir_info(args.path)
             text = format_flir_info
         else:

@@ -7,7 +7,8 @@
 - Telops .hcc (FAST series, filter wheel): :func:`open_hcc`, :func:`write_hcc`.
 - :func:`qogi.open_recording` (:mod:`qogi.io.open`) opens any of these
   camera files lazily as a recording; :func:`read_recording` picks the
-  reader from the file name.
+  reader by the file's first bytes (one registry of formats,
+  :data:`qogi.io.open.FORMATS`).
 
 Camera files do not carry everything a recording needs (the spectral
 response, the pressure ...): the readers ask for it by name.
@@ -32,6 +33,7 @@ from .flir import (
 )
 from .flir_writer import write_flir_seq
 from .hdf5 import open_recording
+from .open import FORMATS, file_format, file_kind
 from .open import open_recording as open_camera_file
 from .recording import Recording
 from .telops import HccFile, open_hcc, write_hcc
@@ -55,30 +57,35 @@ __all__ = [
     "write_flir_seq",
 ]
 
-FLIR_EXTENSIONS = (".seq", ".csq", ".fff", ".jpg", ".jpeg")
-TELOPS_EXTENSIONS = (".hcc",)
+#: Extensions of the FLIR and Telops files (from the reader registry,
+#: :data:`qogi.io.open.FORMATS`).
+FLIR_EXTENSIONS = file_format("flir").extensions
+TELOPS_EXTENSIONS = file_format("telops").extensions
 
 
 def read_recording(path: Union[str, os.PathLike], **kwargs) -> Recording:
-    """Open any supported file as a recording, by its extension.
+    """Open any supported file as a recording, recognised by its first bytes
+    (:func:`qogi.io.open.file_kind`, the reader registry).
 
-    .h5/.hdf5 -> :func:`qogi.open_recording`; .seq/.csq/.fff/.jpg ->
-    :func:`read_flir_recording`; .hcc -> :func:`qogi.open_recording`
-    (camera=..., distance_m=..., ambient_temperature_K=...); .npy/.npz -> :func:`read_numpy`;
-    .tif/.tiff -> :func:`read_tiff`. Keyword arguments go to that reader.
+    qogi HDF5 -> :func:`qogi.open_recording`; FLIR .seq/.csq/.fff/.jpg ->
+    :func:`read_flir_recording`; Telops .hcc -> :func:`qogi.open_recording`
+    (camera=..., distance_m=..., ambient_temperature_K=...); numpy .npy/.npz ->
+    :func:`read_numpy`; TIFF -> :func:`read_tiff`. Keyword arguments go to
+    that reader.
     """
-    ext = os.path.splitext(os.fspath(path))[1].lower()
-    if ext in (".h5", ".hdf5", ".hdf"):
+    kind = file_kind(path)
+    if kind == "hdf5":
         return open_recording(path, **kwargs)
-    if ext in FLIR_EXTENSIONS:
+    if kind == "flir":
         return read_flir_recording(path, **kwargs)
-    if ext in TELOPS_EXTENSIONS:
+    if kind == "telops":
         return open_camera_file(path, **kwargs)
-    if ext in (".npy", ".npz"):
+    if kind == "numpy":
         return read_numpy(path, **kwargs)
-    if ext in (".tif", ".tiff"):
+    if kind == "tiff":
         return read_tiff(path, **kwargs)
+    ext = os.path.splitext(os.fspath(path))[1].lower()
     raise ValueError(
-        f"{path}: unknown recording file type {ext!r} (known: .h5, .seq, .csq, "
-        ".fff, .jpg, .npy, .npz, .tif)"
+        f"{path}: unknown recording file type {ext!r}, by its name and its first bytes "
+        "(known: " + "; ".join(f.description for f in FORMATS) + ")"
     )

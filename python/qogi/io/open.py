@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
-from typing import Any, Dict, List, Optional, Union
+from typing import Any, Dict, List, Optional, Tuple, Union
 
 import numpy as np
 
@@ -63,35 +63,83 @@ STANDARD_PRESSURE_PA = 101325.0
 #: FLIR's factory defaults of the object parameters: a value equal to one of
 #: these was most likely never set by the operator.
 FLIR_DEFAULTS = {"distance_m": 1.0, "ambient_temperature_K": 293.15}
-#: Extensions of camera files :func:`open_recording` reads.
-CAMERA_EXTENSIONS = (".seq", ".csq", ".fff", ".jpg", ".jpeg", ".hcc")
 #: Relative distance between a channel's centroid and a FLIR calibration's
 #: effective wavenumber B / c2 beyond which they belong to different bands.
 BAND_TOLERANCE = 0.35
 
 
+@dataclasses.dataclass(frozen=True)
+class FileFormat:
+    """One file format qogi reads, as the registry :data:`FORMATS` knows it.
+
+    ``magic``: the first bytes that identify it (any of them); ``extensions``:
+    the names it goes by, used only when a file is too short to show its first
+    bytes; ``camera_file``: a camera's own file (FLIR, Telops), which does not
+    hold the scene facts and spectral responses a recording needs.
+    """
+
+    kind: str
+    description: str
+    magic: Tuple[bytes, ...]
+    extensions: Tuple[str, ...]
+    camera_file: bool = False
+
+    def recognises(self, head: bytes) -> bool:
+        """Whether a file starting with ``head`` is of this format."""
+        return any(head.startswith(m) for m in self.magic)
+
+
+#: Every format qogi reads: the one registry behind :func:`file_kind`,
+#: :func:`open_recording` and :func:`qogi.io.read_recording`. A file is
+#: recognised by its first bytes, whatever its name.
+FORMATS = (
+    FileFormat("hdf5", "qogi recording (HDF5)", (b"\x89HDF\r\n\x1a\n",), (".h5", ".hdf5", ".hdf")),
+    FileFormat(
+        "flir",
+        "FLIR radiometric file (.seq, .csq, .fff, radiometric .jpg)",
+        (b"FFF\x00", b"AFF\x00", b"\xff\xd8"),
+        (".seq", ".csq", ".fff", ".jpg", ".jpeg"),
+        camera_file=True,
+    ),
+    FileFormat("telops", "Telops .hcc", (b"TC",), (".hcc",), camera_file=True),
+    FileFormat(
+        "numpy", "numpy array (.npy, .npz)", (b"\x93NUMPY", b"PK\x03\x04"), (".npy", ".npz")
+    ),
+    FileFormat("tiff", "multi-page TIFF", (b"II*\x00", b"MM\x00*"), (".tif", ".tiff")),
+)
+
+
+def file_format(kind: str) -> FileFormat:
+    """The registry's entry for ``kind``."""
+    for f in FORMATS:
+        if f.kind == kind:
+            return f
+    raise KeyError(kind)
+
+
+#: Extensions of the camera files :func:`open_recording` reads.
+CAMERA_EXTENSIONS = tuple(e for f in FORMATS if f.camera_file for e in f.extensions)
+
+
 def file_kind(path: Union[str, os.PathLike]) -> str:
-    """``"hdf5"``, ``"flir"``, ``"telops"`` from the file's first bytes (the
-    extension when the file is too short), or ``"unknown"``."""
+    """The :data:`FORMATS` kind of a file (``"hdf5"``, ``"flir"``,
+    ``"telops"``, ``"numpy"``, ``"tiff"``) from its first bytes (from its
+    extension when they say nothing), or ``"unknown"``."""
     p = os.fspath(path)
     try:
         with open(p, "rb") as fh:
             head = fh.read(8)
     except OSError:
         head = b""
-    if head.startswith(b"\x89HDF\r\n\x1a\n"):
-        return "hdf5"
-    if head[:4] in (b"FFF\x00", b"AFF\x00") or head[:2] == b"\xff\xd8":
-        return "flir"
-    if head[:2] == b"TC":
-        return "telops"
+    for f in FORMATS:
+        if f.recognises(head):
+            return f.kind
+    # Not recognised (too short, unreadable, or damaged): by its name, so that
+    # the reader of that format says what is wrong with it.
     ext = os.path.splitext(p)[1].lower()
-    if ext in (".h5", ".hdf5", ".hdf"):
-        return "hdf5"
-    if ext == ".hcc":
-        return "telops"
-    if ext in (".seq", ".csq", ".fff", ".jpg", ".jpeg"):
-        return "flir"
+    for f in FORMATS:
+        if ext in f.extensions:
+            return f.kind
     return "unknown"
 
 
@@ -307,6 +355,12 @@ def open_recording(
     elif kind == "telops":
         rec = _open_hcc(
             p, camera, distance_m, ambient_temperature_K, pressure_Pa, ifov_rad, nonfinite, species
+        )
+    elif kind in ("numpy", "tiff"):
+        raise UsageError(
+            f"{p}: a {file_format(kind).description} holds frames without a camera or "
+            "scene; read it with qogi.io.read_recording (or read_numpy / read_tiff), "
+            "giving them"
         )
     else:
         raise UsageError(
