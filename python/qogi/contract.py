@@ -34,6 +34,10 @@ RANGES = {
     "scene.background_temperature_K": (10.0, 2500.0, "K", ""),
     "truth.emission_rate_kg_s": (0.0, 1e6, "kg/s", ""),
 }
+#: The /scene attributes a recording must hold, then those it may hold (with
+#: the ranges of RANGES["scene.<name>"]).
+SCENE_REQUIRED = ("distance_m", "ambient_temperature_K", "pressure_Pa")
+SCENE_OPTIONAL = ("wind_speed_m_s", "gas_temperature_K", "background_temperature_K")
 #: /camera frame_rate_hz must match 1 / typical_interval(time_s) within this
 #: relative tolerance, or opening fails: time_s is what the pipeline uses, and
 #: a file whose two clocks disagree by more is ambiguous. (Dropped frames and

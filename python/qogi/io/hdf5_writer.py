@@ -13,6 +13,8 @@ import numpy as np
 from ..contract import (
     FORMAT,
     QUANTITIES,
+    SCENE_OPTIONAL,
+    SCENE_REQUIRED,
     VERSION,
     RecordingError,
     check_frame_rate,
@@ -46,14 +48,7 @@ def _write_metadata(f, quantity: str, camera: Camera, scene: Scene, truth: Optio
         g.create_dataset("response", data=np.asarray(ch.response, dtype=np.float64))
         set_attr(g, "name", ch.name)
     sc = f.require_group("scene")
-    for name in (
-        "distance_m",
-        "ambient_temperature_K",
-        "pressure_Pa",
-        "wind_speed_m_s",
-        "gas_temperature_K",
-        "background_temperature_K",
-    ):
+    for name in SCENE_REQUIRED + SCENE_OPTIONAL:
         v = getattr(scene, name)
         if v is not None:
             sc.attrs[name] = float(v)

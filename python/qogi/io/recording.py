@@ -44,6 +44,8 @@ from ..contract import (
     FORMAT,
     MEMORY,
     QUANTITIES,
+    SCENE_OPTIONAL,
+    SCENE_REQUIRED,
     SPECIES_RE,
     VERSION,
     RecordingError,
@@ -94,9 +96,9 @@ class Scene:
 
     def validate(self, path: str = MEMORY) -> None:
         """Raise :class:`RecordingError` unless every field is in range."""
-        for name in ("distance_m", "ambient_temperature_K", "pressure_Pa"):
+        for name in SCENE_REQUIRED:
             check_range(f"scene.{name}", getattr(self, name), path, f"/scene attr {name}")
-        for name in ("wind_speed_m_s", "gas_temperature_K", "background_temperature_K"):
+        for name in SCENE_OPTIONAL:
             v = getattr(self, name)
             if v is not None:
                 check_range(f"scene.{name}", v, path, f"/scene attr {name}")
@@ -569,17 +571,7 @@ class Recording:
                 "time_last_s": float(self.time_s[-1]),
                 "n_invalid": self.n_invalid,
             },
-            "scene": {
-                k: getattr(self.scene, k)
-                for k in (
-                    "distance_m",
-                    "ambient_temperature_K",
-                    "pressure_Pa",
-                    "wind_speed_m_s",
-                    "gas_temperature_K",
-                    "background_temperature_K",
-                )
-            },
+            "scene": {k: getattr(self.scene, k) for k in SCENE_REQUIRED + SCENE_OPTIONAL},
         }
         out["scene"]["species"] = list(self.scene.species)
         if self.truth is not None:
