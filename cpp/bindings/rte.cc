@@ -4,6 +4,7 @@
 #include "common.h"
 #include "engine/rte/binned_model.h"
 #include "engine/rte/exact_model.h"
+#include "engine/rte/hitran_tables.h"
 #include "engine/rte/path.h"
 #include "engine/rte/render.h"
 
@@ -124,7 +125,78 @@ void BindRte(py::module_& m) {
       .def_readonly("n_nu", &AbsorberTable::n_nu)
       .def_readonly("temperatures_K", &AbsorberTable::temperatures_K)
       .def_property_readonly("has_self", &AbsorberTable::has_self)
-      .def_property_readonly("molar_mass_kg_mol", &AbsorberTable::molar_mass);
+      .def_property_readonly("molar_mass_kg_mol", &AbsorberTable::molar_mass)
+      .def_property_readonly(
+          "sigma_air",
+          [](const AbsorberTable& t) {
+            return ToArray<float>(t.sigma_air, {static_cast<py::ssize_t>(t.temperatures_K.size()),
+                                                static_cast<py::ssize_t>(t.n_nu)});
+          },
+          "Cross-sections in air [cm2/molecule], (n_T, n_nu) float32 (a copy).")
+      .def_property_readonly(
+          "sigma_self",
+          [](const AbsorberTable& t) -> py::object {
+            if (!t.has_self()) return py::none();
+            return ToArray<float>(t.sigma_self, {static_cast<py::ssize_t>(t.temperatures_K.size()),
+                                                 static_cast<py::ssize_t>(t.n_nu)});
+          },
+          "Cross-sections of the pure gas [cm2/molecule], (n_T, n_nu) float32 (a copy), or "
+          "None without self-broadening.");
+
+  m.attr("TABLE_WING_CM1") = kTableWing_cm1;
+  using TO = AbsorberTableOptions;
+  BindOptions<TO>(
+      m, "AbsorberTableOptions", "Settings of the forward models' HITRAN tables.",
+      Args::kKeywordOnly,
+      Field("pressure_Pa", &TO::pressure_Pa, "pressure of the tables [Pa], > 0 (default 101325)"),
+      Field("temperatures_K", &TO::temperatures_K,
+            "temperature grid [K], strictly increasing, >= 2 values (default 200-600 every 10)"),
+      Field("step_cm1", &TO::step_cm1, "wavenumber step [cm-1], > 0 (default 0.01)"),
+      Field("self_broadening", &TO::self_broadening, "also a table of the pure gas (default True)"),
+      Field("wing_cm1", &TO::wing_cm1, "fixed line wing [cm-1], >= 0 (default 25)"),
+      Field("wing_half_widths", &TO::wing_half_widths,
+            "line wing in half-widths, >= 0 (default 0; HAPI's rule: 50 with wing_cm1 0)"),
+      Field("num_threads", &TO::num_threads, "worker threads, 0 = all cores (default 0)"));
+
+  m.def(
+      "build_absorber_tables",
+      [](const std::vector<std::string>& species, const std::vector<SpectralResponse>& channels,
+         const py::dict& line_lists, const std::vector<std::string>& fallback,
+         const AbsorberTableOptions& options, py::object make, py::object progress) {
+        LineSources sources;
+        sources.fallback = fallback;
+        for (const auto& kv : line_lists) {
+          const auto name = kv.first.cast<std::string>();
+          if (py::isinstance<LineList>(kv.second))
+            sources.lines[name] = kv.second.cast<const LineList&>();
+          else
+            sources.paths[name] = kv.second.cast<std::vector<std::string>>();
+        }
+        XsecTableMaker maker;
+        if (!make.is_none())
+          maker = [make](const std::string& sp, const LineList& lines, const WavenumberGrid& g,
+                         const std::vector<double>& temps, double p, double x,
+                         const CrossSectionOptions& o, const RunControl* c) {
+            py::gil_scoped_acquire gil;
+            py::object prog = py::none();
+            if (c != nullptr && c->progress)
+              prog = py::cpp_function([c](double f) { c->progress(f); });
+            py::object t = make(sp, std::make_shared<LineList>(lines), g.nu0_cm1, g.step_cm1,
+                                g.size, temps, p, x, o, prog);
+            return XsecTable(*t.cast<std::shared_ptr<XsecTable>>());
+          };
+        const RunControl control = MakeRunControl(progress);
+        py::gil_scoped_release release;
+        return BuildAbsorberTables(species, channels, sources, options, &control, maker);
+      },
+      py::arg("species"), py::arg("channels"), py::arg("line_lists"), py::arg("fallback"),
+      py::arg("options"), py::arg("make") = py::none(), py::arg("progress") = py::none(),
+      R"doc(The forward models' tables of `species` from HITRAN lines (BuildAbsorberTables).
+
+line_lists: {species: list of files/folders, or LineList}; fallback: folders searched
+after those and $QOGI_HITRAN_PATH. make(species, lines, nu0_cm1, step_cm1, size,
+temperatures_K, pressure_Pa, self_fraction, options, progress) -> XsecTable, optional:
+builds (or fetches) one table; default XsecTable.build. progress(fraction) -> bool|None.)doc");
 
   BindOptions<ExactModelOptions>(
       m, "ExactModelOptions", nullptr, Args::kPositional,

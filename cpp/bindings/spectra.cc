@@ -8,6 +8,7 @@
 #include "engine/spectra/isotopologue.h"
 #include "engine/spectra/line_list.h"
 #include "engine/spectra/line_parameters.h"
+#include "engine/spectra/line_sources.h"
 #include "engine/spectra/voigt.h"
 #include "engine/spectra/xsec_table.h"
 
@@ -191,6 +192,31 @@ nu_max_cm1, source index) spans used when merging files).
         return std::make_shared<LineList>(MergeLineLists(v));
       },
       py::arg("lists"), "Merges line lists given in priority order (see MergeLineLists).");
+
+  // --- where line lists come from --------------------------------------------
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const LineListNotFound& e) {
+      PyErr_SetString(PyExc_FileNotFoundError, e.what());
+    }
+  });
+  m.def("line_search_path", &LineSearchPath, py::arg("folders"), py::arg("fallback"),
+        "Folders searched for line lists: `folders`, then $QOGI_HITRAN_PATH, then `fallback`.");
+  m.def("find_line_files", &FindLineFiles, py::arg("species"), py::arg("paths"),
+        py::arg("fallback"),
+        "The line files of a species (FindLineFiles): named files as given, else the first "
+        "folder of line_search_path(paths, fallback) holding any; FileNotFoundError naming "
+        "the folders searched.");
+  m.def(
+      "read_molecule_lines",
+      [](const std::vector<std::string>& files, int molecule) {
+        py::gil_scoped_release release;
+        return std::make_shared<LineList>(ReadMoleculeLines(files, molecule));
+      },
+      py::arg("files"), py::arg("molecule"),
+      "The lines of one molecule (HITRAN code) from line files (first = highest priority); "
+      "ValueError when they hold none.");
 
   // --- conditions and options ----------------------------------------------
   BindOptions<GasConditions>(m, "GasConditions", nullptr, Args::kPositional,

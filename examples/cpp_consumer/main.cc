@@ -1,6 +1,7 @@
 // Computes the band radiance of a blackbody through a 3.2-3.4 um channel with
 // the installed qogi engine, and back to temperature; a CH4 line's
-// cross-section; and an emission rate from column and velocity arrays.
+// cross-section and forward-model table; and an emission rate from column and
+// velocity arrays.
 #include <engine/qogi.h>
 
 #include <cmath>
@@ -10,12 +11,17 @@
 // One synthetic CH4 line (S = 1e-20 cm/molecule at 3000 cm-1) through the
 // spectra module: its cross-section must integrate to S (up to the Lorentz
 // area beyond the 100 cm-1 wings).
-static bool SpectraWorks() {
+static qogi::LineList OneLine() {
   qogi::LineList line;
   line.molecule = {6}, line.isotopologue = {1}, line.nu_cm1 = {3000.0};
   line.intensity = {1e-20}, line.einstein_a = {0.0}, line.gamma_air = {0.05};
   line.gamma_self = {0.07}, line.elower_cm1 = {0.0}, line.n_air = {0.7};
   line.n_self = {0.7}, line.delta_air = {0.0}, line.delta_self = {0.0};
+  return line;
+}
+
+static bool SpectraWorks() {
+  const qogi::LineList line = OneLine();
   qogi::CrossSectionOptions wings;
   wings.wing_half_widths = 0, wings.wing_cm1 = 100;
   const qogi::WavenumberGrid grid = qogi::WavenumberGrid::FromRange(2800, 3200, 0.005);
@@ -27,6 +33,19 @@ static bool SpectraWorks() {
   std::printf("qogi consumer: one CH4 line, integral of sigma = %.6e (expected %.6e)\n", area,
               expect);
   return std::abs(area / expect - 1) < 1e-5;
+}
+
+// The forward models' table of that line through `channel` (2941-3125 cm-1):
+// the band narrowed to the line +- 25 cm-1, 2975-3025 cm-1 on 0.01 cm-1 steps,
+// in air and as the pure gas.
+static bool TablesWork(const qogi::SpectralResponse& channel) {
+  qogi::AbsorberTableOptions options;
+  options.temperatures_K = {250.0, 300.0};
+  const qogi::AbsorberTable t = qogi::BuildAbsorberTable("CH4", OneLine(), {channel}, options);
+  std::printf("qogi consumer: CH4 table %.2f-%.2f cm-1 (%zu points), %zu temperatures, self %s\n",
+              t.nu0_cm1, t.nu_max_cm1(), t.n_nu, t.temperatures_K.size(),
+              t.has_self() ? "yes" : "no");
+  return t.n_nu == 5001 && std::abs(t.nu0_cm1 - 2975.0) < 1e-9 && t.has_self();
 }
 
 // A Gaussian CH4 plume released at Q = 36 kg/h and carried at u = 3 m/s
@@ -69,6 +88,7 @@ int main() {
   std::printf("qogi consumer: %s, T = %.2f K -> L = %.6f W/(m2 sr) -> T = %.6f K\n",
               channel.name().c_str(), t, l, back);
   if (!SpectraWorks()) return 1;
+  if (!TablesWork(channel)) return 1;
   if (!FluxWorks()) return 1;
   return std::abs(back - t) < 1e-6 ? 0 : 1;
 }

@@ -13,6 +13,9 @@ from qogi import _engine
 #: One non-default value per options class: the round trips must carry it (a
 #: pickle or dict that fell back to the defaults would not compare equal).
 CHANGED = {
+    "AbsorberTableOptions": dict(
+        temperatures_K=[250.0, 300.0], wing_cm1=0.0, wing_half_widths=50.0
+    ),
     "AtmosphericPath": dict(distance_m=120.0, relative_humidity=0.3),
     "BinnedModelOptions": dict(key_temperatures_K=[260.0, 400.0], num_nodes=65),
     "CalibrationOptions": dict(quadratic=True, saturation_counts=16383.0),

@@ -32,6 +32,8 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import os
+import pathlib
 import threading
 from typing import Dict, Iterable, Mapping, Optional, Sequence, Union
 
@@ -52,12 +54,13 @@ __all__ = [
 ]
 
 ATM_PA = 101325.0
-#: Temperature grid of the forward model's cross-section tables [K].
-DEFAULT_TABLE_TEMPERATURES_K = np.arange(200.0, 600.0 + 1e-9, 10.0)
+#: Temperature grid of the forward model's cross-section tables [K] (the engine's default).
+DEFAULT_TABLE_TEMPERATURES_K = np.asarray(_engine.AbsorberTableOptions().temperatures_K)
 #: FWHM of the Gaussian profile in units of sigma: 2 sqrt(2 ln 2).
 FWHM_PER_SIGMA = 2.0 * np.sqrt(2.0 * np.log(2.0))
-#: Line wings of the forward model's tables [cm-1] (spectra's fixed table window).
-TABLE_WING_CM1 = 25.0
+#: Line wings of the forward model's tables, and the margin of their range
+#: beyond a species' lines [cm-1] (the engine's).
+TABLE_WING_CM1 = float(_engine.TABLE_WING_CM1)
 #: Accepted half-widths of a fixed wing [cm-1] (LineShape.wing_cm1).
 WING_CM1_RANGE = (1.0, 100.0)
 
@@ -188,14 +191,6 @@ def _species_names(species: Union[str, Iterable[str], Mapping[str, object]]) -> 
     return names
 
 
-def _table_range(channels: list, lines_nu: np.ndarray) -> tuple:
-    lo = min(float(ch.nu_cm1[0]) for ch in channels)
-    hi = max(float(ch.nu_cm1[-1]) for ch in channels)
-    lo = max(lo, float(lines_nu.min()) - TABLE_WING_CM1)
-    hi = min(hi, float(lines_nu.max()) + TABLE_WING_CM1)
-    return lo, hi
-
-
 def build_absorber_tables(
     species: Sequence[str],
     channels: list,
@@ -207,57 +202,64 @@ def build_absorber_tables(
     line_lists: Optional[Mapping] = None,
     cutoff=TABLE_WING_CM1,
     progress=None,
+    cache: bool = True,
 ) -> list:
-    """Cross-section tables (HITRAN line-by-line, cached on disk) for the
-    forward models, one per species, over the part of the channels' band where
-    the species has lines (``cutoff``: the wing rule, as for
-    :func:`qogi.physics.spectra.cross_section_table`). Returns
-    ``qogi._engine.AbsorberTable`` objects."""
+    """Cross-section tables (HITRAN line-by-line) for the forward models, one
+    per species, built by the engine (``_engine.build_absorber_tables``):
+    each species' lines found and read as :func:`qogi.physics.spectra.find_line_lists`
+    does, its table over the part of the channels' band where it has lines
+    (+- 25 cm-1), on a grid starting at a multiple of ``step_cm1``, at
+    ``pressure_Pa`` in air and, with ``self_broadening``, as the pure gas.
 
-    temps = (
-        DEFAULT_TABLE_TEMPERATURES_K
-        if temperatures_K is None
-        else np.asarray(temperatures_K, dtype=float)
+    Parameters
+    ----------
+    species : sequence of str
+        HITRAN formulas, e.g. ``["CH4", "CO2"]``.
+    channels : list of SpectralResponse
+    pressure_Pa : float, Pa, default 101325
+    temperatures_K : array, K, default 200-600 K every 10 K
+    step_cm1 : float, cm-1, default 0.01
+    self_broadening : bool, default True
+    line_lists : dict, optional
+        ``{species: path, list of paths or LineList}`` overriding the finder.
+    cutoff : float, 'hapi' or ('half_widths', k), default 25 cm-1
+        The wing rule, as for :func:`qogi.physics.spectra.cross_section_table`.
+    progress : callable(fraction) -> bool or None, optional
+        Progress over all tables; return False to cancel.
+    cache : bool, default True
+        Keep the tables in the disk cache of
+        :func:`qogi.physics.spectra.cross_section_table` (same keys).
+
+    Returns
+    -------
+    list of qogi._engine.AbsorberTable
+    """
+
+    opt = spectra._options(cutoff, True, 0.0)
+    options = _engine.AbsorberTableOptions(
+        pressure_Pa=float(pressure_Pa),
+        step_cm1=float(step_cm1),
+        self_broadening=bool(self_broadening),
+        wing_cm1=opt.wing_cm1,
+        wing_half_widths=opt.wing_half_widths,
     )
-    out = []
-    for name in species:
-        ll = (line_lists or {}).get(name)
-        lines = spectra.load_line_list(name, ll)
-        lo, hi = _table_range(channels, np.asarray(lines.nu_cm1))
-        if hi <= lo:
-            raise ValueError(
-                f"the {name} line list ({float(np.min(lines.nu_cm1)):.1f}-"
-                f"{float(np.max(lines.nu_cm1)):.1f} cm-1) does not reach any channel's band; "
-                f"drop {name} from the species or give a line list that covers the channels"
-            )
-        # Align the grid start to a multiple of the step so that all species share one grid.
-        lo = np.floor(lo / step_cm1) * step_cm1
-        kw = dict(
-            step_cm1=step_cm1,
-            temperatures_K=temps,
-            pressure_Pa=pressure_Pa,
-            line_list=lines,
-            progress=progress,
-            cutoff=cutoff,
+    if temperatures_K is not None:
+        options.temperatures_K = np.asarray(temperatures_K, dtype=float).ravel().tolist()
+    sources: Dict[str, object] = {}
+    for name, given in (line_lists or {}).items():
+        if isinstance(given, _engine.LineList):
+            sources[name] = given
+        elif isinstance(given, (str, os.PathLike)):
+            sources[name] = [os.fspath(pathlib.Path(given).expanduser())]
+        else:
+            sources[name] = [os.fspath(pathlib.Path(p).expanduser()) for p in given]
+    make = spectra.cached_table_maker(cutoff) if cache else None
+    try:
+        return _engine.build_absorber_tables(
+            list(species), channels, sources, spectra._fallback_folders(), options, make, progress
         )
-        air = spectra.cross_section_table(name, lo, hi, self_fraction=0.0, **kw)
-        self_tab = (
-            spectra.cross_section_table(name, lo, hi, self_fraction=1.0, **kw)
-            if self_broadening
-            else None
-        )
-        out.append(
-            _engine.AbsorberTable(
-                name,
-                float(pressure_Pa),
-                float(air.nu_cm1[0]),
-                float(air.step_cm1),
-                np.asarray(air.temperatures_K, dtype=float),
-                np.asarray(air.sigma, dtype=np.float32),
-                None if self_tab is None else np.asarray(self_tab.sigma, dtype=np.float32),
-            )
-        )
-    return out
+    except RuntimeError as e:  # a malformed line file (the engine names file, line, field)
+        raise spectra.malformed_line_file(e) from None
 
 
 class ForwardModel:

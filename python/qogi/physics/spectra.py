@@ -96,8 +96,6 @@ PathLike = Union[str, os.PathLike]
 LineListArg = Union[None, PathLike, Sequence[PathLike], "LineList"]
 Cutoff = Union[str, float, tuple]
 
-_LINE_EXTENSIONS = (".par", ".data", ".par.gz", ".data.gz")
-
 
 # ---------------------------------------------------------------------------
 # Where things live
@@ -134,30 +132,14 @@ def hitran_search_path(paths: Optional[Iterable[PathLike]] = None) -> list[pathl
 
     A user's own files therefore always win over the bundled ones.
     """
-    out: list[pathlib.Path] = [pathlib.Path(p).expanduser() for p in (paths or [])]
-    env = os.environ.get("QOGI_HITRAN_PATH", "")
-    out += [pathlib.Path(p).expanduser() for p in env.split(os.pathsep) if p]
-    out.append(cache_dir() / "hitran")
-    out.append(bundled_hitran_dir())
-    return out
+    folders = [os.fspath(pathlib.Path(p).expanduser()) for p in (paths or [])]
+    return [pathlib.Path(p) for p in _engine.line_search_path(folders, _fallback_folders())]
 
 
-def _species_files(folder: pathlib.Path, species: str) -> list[pathlib.Path]:
-    if not folder.is_dir():
-        return []
-    sp = species.lower()
-    exact, other = [], []
-    for f in sorted(folder.iterdir(), key=lambda p: p.name.lower()):
-        name = f.name.lower()
-        ext = next((e for e in _LINE_EXTENSIONS if name.endswith(e)), None)
-        if ext is None or not f.is_file():
-            continue
-        stem = name[: -len(ext)]
-        if stem == sp:
-            exact.append(f)
-        elif stem.startswith(sp) and stem[len(sp)] in "_-.":
-            other.append(f)
-    return exact + other
+def _fallback_folders() -> list[str]:
+    """The folders searched after the caller's and ``$QOGI_HITRAN_PATH``: the
+    per-user download cache, then the bundled subsets."""
+    return [os.fspath(cache_dir() / "hitran"), os.fspath(bundled_hitran_dir())]
 
 
 def find_line_lists(species: str, paths: Optional[Iterable[PathLike]] = None) -> list[pathlib.Path]:
@@ -181,27 +163,8 @@ def find_line_lists(species: str, paths: Optional[Iterable[PathLike]] = None) ->
     FileNotFoundError
         Naming every folder searched and how to provide line lists.
     """
-    given = [pathlib.Path(p).expanduser() for p in (paths or [])]
-    for p in given:
-        if not p.exists():
-            raise FileNotFoundError(f"line list path not found: {p}")
-    if any(p.is_file() for p in given):
-        out: list[pathlib.Path] = []
-        for p in given:
-            out += [p] if p.is_file() else _species_files(p, species)
-        return out
-    searched = []
-    for folder in hitran_search_path(paths):
-        searched.append(str(folder))
-        files = _species_files(folder, species)
-        if files:
-            return files
-    raise FileNotFoundError(
-        f"no HITRAN line list for {species!r} (looked for {species}.par/.data[.gz] and "
-        f"{species}_*.par/.data[.gz] in: {', '.join(searched)}). Pass line_list=<file or "
-        "folder>, set QOGI_HITRAN_PATH to a folder of line lists, or download one with "
-        f"`qogi hitran fetch {species} --range MIN MAX`."
-    )
+    given = [os.fspath(pathlib.Path(p).expanduser()) for p in (paths or [])]
+    return [pathlib.Path(f) for f in _engine.find_line_files(species, given, _fallback_folders())]
 
 
 # ---------------------------------------------------------------------------
@@ -264,6 +227,17 @@ class _Loaded:
         return self._digest
 
 
+def malformed_line_file(error: RuntimeError) -> DataError:
+    """The error for a line file the engine could not parse (its message names
+    the file, line, field and columns), with what the format needs."""
+    return DataError(
+        f"{error}. A HITRAN .par line list has one 160-character record per line "
+        "(HITRAN2004 and later; a HAPI .data file with extra parameters needs its "
+        ".header beside it): re-download the file (`qogi hitran fetch`), or remove "
+        "it from the line-list path"
+    )
+
+
 def _read(files: Sequence[pathlib.Path], molecule: int) -> _Loaded:
     key = (_file_signature(files), molecule)
     with _cache_lock:
@@ -271,14 +245,9 @@ def _read(files: Sequence[pathlib.Path], molecule: int) -> _Loaded:
     if hit is not None:
         return hit
     try:
-        lines = _engine.read_line_files([os.fspath(f) for f in files], molecule=molecule)
+        lines = _engine.read_molecule_lines([os.fspath(f) for f in files], molecule)
     except RuntimeError as e:  # the engine names the file, line, field and columns
-        raise DataError(
-            f"{e}. A HITRAN .par line list has one 160-character record per line "
-            "(HITRAN2004 and later; a HAPI .data file with extra parameters needs its "
-            ".header beside it): re-download the file (`qogi hitran fetch`), or remove "
-            "it from the line-list path"
-        ) from None
+        raise malformed_line_file(e) from None
     entry = _Loaded(lines, [os.fspath(f) for f in files])
     with _cache_lock:
         if len(_loaded) > 16:
@@ -306,13 +275,7 @@ def _resolve(species: Union[str, int, None], line_list: LineListArg) -> _Loaded:
         files = find_line_lists(formula, [line_list])
     else:
         files = find_line_lists(formula, list(line_list))
-    entry = _read(files, mol)
-    if len(entry.lines) == 0:
-        raise ValueError(
-            f"the line list for {formula} ({', '.join(map(str, files))}) has no "
-            f"{formula} lines (molecule code {mol})"
-        )
-    return entry
+    return _read(files, mol)
 
 
 def load_line_list(
@@ -755,7 +718,6 @@ def cross_section_table(
     CrossSectionTable
     """
     entry = _resolve(species, line_list)
-    lines, digest, sources = entry.lines, entry.digest, entry.sources
     formula = _engine.molecule_formula(_molecule(species)) if species is not None else "mixed"
     grid = _engine.grid_from_range(float(nu_min_cm1), float(nu_max_cm1), float(step_cm1))
     temps = (
@@ -764,6 +726,37 @@ def cross_section_table(
         else np.asarray(temperatures_K, dtype=float).ravel()
     )
     opt = _options(cutoff, line_shift, float(min_intensity))
+    return _cached_table(
+        entry,
+        formula,
+        grid,
+        temps,
+        float(pressure_Pa),
+        float(self_fraction),
+        opt,
+        cutoff,
+        cache,
+        num_threads,
+        progress,
+    )
+
+
+def _cached_table(
+    entry: _Loaded,
+    formula: str,
+    grid: tuple,
+    temps: np.ndarray,
+    pressure_Pa: float,
+    self_fraction: float,
+    opt,
+    cutoff: Cutoff,
+    cache: bool,
+    num_threads: int,
+    progress,
+) -> CrossSectionTable:
+    """A table from the disk cache when one with its key is there, else built
+    by the engine (and stored when ``cache``)."""
+    lines, digest, sources = entry.lines, entry.digest, entry.sources
     key = _table_key(digest, formula, grid, temps, pressure_Pa, self_fraction, opt)
     stem = f"{formula}_{grid[0]:g}-{grid[0] + grid[1] * (grid[2] - 1):g}_{key[:20]}"
     path = cache_path("xsec", stem, _xsec_cache_version(), ".qxs")
@@ -782,8 +775,8 @@ def cross_section_table(
         grid[1],
         grid[2],
         temps,
-        float(pressure_Pa),
-        float(self_fraction),
+        pressure_Pa,
+        self_fraction,
         opt,
         num_threads,
         progress,
@@ -804,6 +797,35 @@ def cross_section_table(
     if cache:
         store(path, lambda tmp: table.save(str(tmp)))
     return CrossSectionTable(table)
+
+
+def cached_table_maker(cutoff: Cutoff, num_threads: int = 0) -> Callable:
+    """The ``make`` hook of ``_engine.build_absorber_tables``: each table the
+    engine asks for comes from the disk cache (as :func:`cross_section_table`
+    keeps it) or is built and stored. ``cutoff`` is recorded in the tables'
+    metadata."""
+
+    def make(species, lines, nu0, step, size, temps, pressure, self_fraction, opt, progress):
+        entry = _Loaded(lines, list(lines.sources) or ["<LineList>"])
+        formula = _engine.molecule_formula(_molecule(species))
+        temps = np.asarray(temps, dtype=float)
+        grid = (nu0, step, size)
+        table = _cached_table(
+            entry,
+            formula,
+            grid,
+            temps,
+            pressure,
+            self_fraction,
+            opt,
+            cutoff,
+            True,
+            num_threads,
+            progress,
+        )
+        return table.engine
+
+    return make
 
 
 def _xsec_cache_version() -> str:
