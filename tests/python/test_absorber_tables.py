@@ -20,7 +20,8 @@ TEMPS = [250.0, 300.0, 350.0]
 
 #: (first wavenumber [cm-1], points) of each species' table, frozen from the
 #: previous Python path (commit aba9206:
-#: `qogi.physics.forward.build_absorber_tables(["CH4", "CO2"], qogi.camera_preset("fast-m150").channels)`
+#: `qogi.forward.build_absorber_tables(["CH4", "CO2"],
+#: qogi.camera_preset("fast-m150").channels)`
 #: and the same for ["CH4"] on "gf320").
 FROZEN_GRID = {"CH4": (2807.86, 46345), "CO2": (2075.02, 24998)}
 
