@@ -128,17 +128,33 @@ Eigen::VectorXd CoarseDisplacements(const Matrix& I, const std::vector<std::size
   return out.cwiseMax(0.5);
 }
 
-// A_t(y_t,i) for the first T - 1 rows of A, linear between columns; y
-// (T - 1, n) with 0 <= y < cols - 1.
-Matrix Shifted(const Matrix& A, const Matrix& y) {
-  Matrix out(y.rows(), y.cols());
-  for (Eigen::Index t = 0; t < y.rows(); ++t)
-    for (Eigen::Index i = 0; i < y.cols(); ++i) {
-      const double k0 = std::floor(y(t, i)), f = y(t, i) - k0;
-      const auto k = Eigen::Index(k0);
-      out(t, i) = A(t, k) * (1.0 - f) + A(t, k + 1) * f;
-    }
-  return out;
+// The column summed over the lines before level y, C_t(y), and its slope
+// dC_t/dy, between the levels by cubic Hermite interpolation: exact at the
+// levels (C_t(k) = sum of lines 0 ... k - 1; C has one column more than I),
+// with the slope at level k the mean of the two lines it separates (the
+// line itself at the ends). C_t is then continuously differentiable in y, so
+// the time-of-flight misfit has a continuous derivative in the level
+// displacements (linear interpolation's slope, the line's own, jumps at each
+// level: Gauss-Newton then stuck to whole-pixel displacements and jumped
+// between them as the input moved by a fraction of a pixel). y is clamped to
+// [0, n - 1e-9] with n = I.cols().
+double Cumulative(const Matrix& C, const Matrix& I, Eigen::Index t, double y,
+                  double* slope = nullptr) {
+  const Eigen::Index n = I.cols();
+  y = std::clamp(y, 0.0, double(n) - 1e-9);
+  const double k0 = std::floor(y), f = y - k0;
+  const auto k = Eigen::Index(k0);
+  auto node_slope = [&](Eigen::Index j) {
+    if (j <= 0) return I(t, 0);
+    if (j >= n) return I(t, n - 1);
+    return 0.5 * (I(t, j - 1) + I(t, j));
+  };
+  const double c0 = C(t, k), c1 = C(t, k + 1), m0 = node_slope(k), m1 = node_slope(k + 1);
+  const double f2 = f * f, f3 = f2 * f;
+  if (slope)
+    *slope = (6 * f2 - 6 * f) * (c0 - c1) + (3 * f2 - 4 * f + 1) * m0 + (3 * f2 - 2 * f) * m1;
+  return (2 * f3 - 3 * f2 + 1) * c0 + (f3 - 2 * f2 + f) * m0 + (-2 * f3 + 3 * f2) * c1 +
+         (f3 - f2) * m1;
 }
 
 double Median(std::vector<double> v) {
@@ -157,7 +173,7 @@ Eigen::VectorXd SolveLevels(const Matrix& C, const Matrix& I, const std::vector<
                             std::size_t k_end, const std::vector<double>& r,
                             const TransportFluxOptions& opt, std::vector<char>& ok,
                             const RunControl* control) {
-  const Eigen::Index P = I.rows() - 1, H = I.cols(), n = Eigen::Index(K.size());
+  const Eigen::Index P = I.rows() - 1, n = Eigen::Index(K.size());
   const double r_max = *std::max_element(r.begin(), r.end());
   const double scale = std::max(I.cwiseAbs().maxCoeff(), 1e-300);
   const Matrix Cs = C / scale, Is = I / scale;
@@ -168,7 +184,7 @@ Eigen::VectorXd SolveLevels(const Matrix& C, const Matrix& I, const std::vector<
       CoarseDisplacements(I, K, k_end, std::size_t(opt.half_window), opt.num_threads, control) /
       Median(r);
   ok.assign(n, 1);
-  Matrix y(P, n), g(P, n), e(P, n);
+  Matrix g(P, n), e(P, n);
   Eigen::VectorXd okv(n);
   for (int it = 0; it < opt.iterations; ++it) {
     CheckCancelled(control);
@@ -176,15 +192,13 @@ Eigen::VectorXd SolveLevels(const Matrix& C, const Matrix& I, const std::vector<
       ok[i] = double(K[i]) + d[i] * r_max <= double(k_end);
       okv[i] = ok[i];
     }
-    for (Eigen::Index t = 0; t < P; ++t)
-      for (Eigen::Index i = 0; i < n; ++i)
-        y(t, i) = std::clamp(double(K[i]) + d[i] * r[t], 0.0, double(H) - 1e-9);
-    const Matrix cb = Shifted(Cs, y);
-    // d C_t(y) / dd = I_t(floor y) r_t
+    // d C_t(y) / dd = C_t'(y) r_t
     for (Eigen::Index t = 0; t < P; ++t)
       for (Eigen::Index i = 0; i < n; ++i) {
-        g(t, i) = Is(t, Eigen::Index(std::floor(y(t, i)))) * r[t] * okv[i];
-        e(t, i) = (cb(t, i) - target(t, i)) * okv[i];
+        double slope = 0.0;
+        const double cb = Cumulative(Cs, Is, t, double(K[i]) + d[i] * r[t], &slope);
+        g(t, i) = slope * r[t] * okv[i];
+        e(t, i) = (cb - target(t, i)) * okv[i];
       }
     const double cnt = std::max(okv.sum(), 1.0);
     // The residual after the best outflows O_t.
@@ -317,17 +331,13 @@ TransportFluxResult TransportFlux(const float* frames, std::size_t T, std::size_
     std::vector<char> ok;
     const Eigen::VectorXd d = SolveLevels(C, I, K, k_end, r, options, ok, control);
     const Eigen::Index P = T - 1, m = Eigen::Index(K.size());
-    Matrix y(P, m);
-    for (Eigen::Index t = 0; t < P; ++t)
-      for (Eigen::Index i = 0; i < m; ++i)
-        y(t, i) = std::clamp(double(K[i]) + d[i] * r[t], 0.0, double(n) - 1e-9);
-    const Matrix cb = Shifted(C, y);
     const double r_mean = std::accumulate(r.begin(), r.end(), 0.0) / double(P);
     const double r_sum = std::accumulate(r.begin(), r.end(), 0.0);
     Eigen::VectorXd fl(m);
     for (Eigen::Index i = 0; i < m; ++i) {
       double s = 0.0;
-      for (Eigen::Index t = 0; t < P; ++t) s += cb(t, i) - C(t, K[i]);
+      for (Eigen::Index t = 0; t < P; ++t)
+        s += Cumulative(C, I, t, double(K[i]) + d[i] * r[t]) - C(t, K[i]);
       fl[i] = s / double(P) / r_mean;
     }
     Eigen::Index jr = -1;
