@@ -210,6 +210,23 @@ TEST(TransportFlux, TheFittedDisplacementFollowsASubPixelShiftContinuously) {
   }
 }
 
+TEST(TransportFlux, WindowsOnAColumnAtASteadySpeedReadItsFluxAsOneFitDoes) {
+  const std::size_t T = 120, H = 80, W = 32;
+  const std::vector<float> f = TranslatingColumn(3.0, T, H, W);
+  const TransportFluxResult one = TransportFlux(f.data(), T, H, W);
+  TransportFluxOptions opt;
+  opt.window = int(T);  // one window: the same fit
+  const TransportFluxResult same = TransportFlux(f.data(), T, H, W, opt);
+  opt.window = 15;  // 8 windows of ~15 pairs
+  const TransportFluxResult windows = TransportFlux(f.data(), T, H, W, opt);
+  for (std::size_t y = 3; y + 5 < H; ++y) {
+    EXPECT_NEAR(same.flux[y], one.flux[y], 1e-9 * std::abs(one.flux[y])) << "line " << y;
+    EXPECT_NEAR(windows.velocity[y], 3.0, 0.03) << "line " << y;
+    EXPECT_NEAR(windows.displacement[y], 3.0, 0.03) << "line " << y;
+    EXPECT_NEAR(windows.flux[y], one.flux[y], 0.01 * one.flux[y]) << "line " << y;
+  }
+}
+
 TEST(TransportFlux, TheSamePlumeMovingRightGivesTheSameProfile) {
   const std::size_t T = 80, H = 60, W = 24;
   const std::vector<float> up = TranslatingColumn(2.5, T, H, W);
@@ -253,6 +270,9 @@ TEST(TransportFlux, BadInputIsRefusedNamingTheArgument) {
   TransportFluxOptions bad;
   bad.source_index = 20.0;
   EXPECT_NE(message(f, bad, T).find("source_index"), std::string::npos);
+  bad = {};
+  bad.window = 2;
+  EXPECT_NE(message(f, bad, T).find("window"), std::string::npos);
   bad = {};
   bad.intervals = {1.0, 2.0};
   EXPECT_NE(message(f, bad, T).find("intervals"), std::string::npos);

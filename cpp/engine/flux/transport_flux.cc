@@ -218,6 +218,54 @@ Eigen::VectorXd SolveLevels(const Matrix& C, const Matrix& I, const std::vector<
   return d;
 }
 
+// One window's time of flight (all its frames, I and C (T_w, ...) with its
+// T_w - 1 pair durations r): the flux through each level K_i, as the mass
+// crossing it summed over the window's pairs, added to flux_sum[K_i] with the
+// window's duration added to flux_w[K_i] (so that the flux over the windows
+// is the mass crossing over the whole record per nominal interval), and the
+// solved displacements likewise. Levels fed from the source take the flux of
+// the nearest solved level plus the mean change of the mass between them.
+// A window whose line sums do not change adds nothing.
+void WindowFlux(const Matrix& I, const Matrix& C, const std::vector<double>& r,
+                const std::vector<std::size_t>& K, std::size_t k_end,
+                const TransportFluxOptions& options, const RunControl* control,
+                std::vector<double>& flux_sum, std::vector<double>& flux_w,
+                std::vector<double>& disp_sum, std::vector<double>& disp_w) {
+  const Eigen::Index T = I.rows(), P = T - 1, m = Eigen::Index(K.size());
+  bool changes = false;
+  for (std::size_t k = K[0]; k < k_end && !changes; ++k) {
+    const double mean = I.col(k).mean();
+    const double sd = std::sqrt((I.col(k).array() - mean).square().mean());
+    changes = sd > 1e-4 * I.col(k).cwiseAbs().mean();
+  }
+  if (!changes) return;
+  std::vector<char> ok;
+  const Eigen::VectorXd d = SolveLevels(C, I, K, k_end, r, options, ok, control);
+  const double r_sum = std::accumulate(r.begin(), r.end(), 0.0);
+  Eigen::VectorXd crossed(m);
+  for (Eigen::Index i = 0; i < m; ++i) {
+    double s = 0.0;
+    for (Eigen::Index t = 0; t < P; ++t)
+      s += Cumulative(C, I, t, double(K[i]) + d[i] * r[t]) - C(t, K[i]);
+    crossed[i] = s;
+  }
+  Eigen::Index jr = -1;
+  for (Eigen::Index i = 0; i < m; ++i)
+    if (ok[i]) jr = i;
+  if (jr < 0) return;
+  for (Eigen::Index i = 0; i < m; ++i) {
+    if (ok[i]) {
+      flux_sum[K[i]] += crossed[i];
+      disp_sum[K[i]] += d[i] * r_sum;
+      disp_w[K[i]] += r_sum;
+    } else {
+      const double m0 = C(0, K[i]) - C(0, K[jr]), m1 = C(T - 1, K[i]) - C(T - 1, K[jr]);
+      flux_sum[K[i]] += crossed[jr] + (m1 - m0);
+    }
+    flux_w[K[i]] += r_sum;
+  }
+}
+
 }  // namespace
 
 FluxAxis ParseFluxAxis(const std::string& name) {
@@ -248,6 +296,8 @@ void TransportFluxOptions::Check(std::size_t T, std::size_t H, std::size_t W) co
     Require(good, "intervals must be " + std::to_string(T - 1) + " positive frame intervals; got " +
                       std::to_string(intervals.size()) + " values");
   }
+  Require(window == 0 || window >= 4,
+          "window must be 0 (the whole record) or >= 4 frame pairs; got " + std::to_string(window));
   Require(iterations >= 1, "iterations must be >= 1; got " + std::to_string(iterations));
   Require(half_window >= 0, "half_window must be >= 0; got " + std::to_string(half_window));
   SourceLine(source_index, axis, Lines(axis, H, W));
@@ -324,38 +374,30 @@ TransportFluxResult TransportFlux(const float* frames, std::size_t T, std::size_
       break;
     }
 
-  std::vector<double> flux_b(n + 1, kNaN), disp_b(n + 1, kNaN);  // at the top of line k
+  // At the top of line k: the flux summed over the windows' durations, the
+  // durations it was measured over, and the same for the displacement.
+  std::vector<double> flux_sum(n + 1, 0.0), flux_w(n + 1, 0.0), disp_sum(n + 1, 0.0),
+      disp_w(n + 1, 0.0);
   if (first_gas < k_end) {
     std::vector<std::size_t> K(k_end + 1 - first_gas);
     std::iota(K.begin(), K.end(), first_gas);
-    std::vector<char> ok;
-    const Eigen::VectorXd d = SolveLevels(C, I, K, k_end, r, options, ok, control);
-    const Eigen::Index P = T - 1, m = Eigen::Index(K.size());
-    const double r_mean = std::accumulate(r.begin(), r.end(), 0.0) / double(P);
-    const double r_sum = std::accumulate(r.begin(), r.end(), 0.0);
-    Eigen::VectorXd fl(m);
-    for (Eigen::Index i = 0; i < m; ++i) {
-      double s = 0.0;
-      for (Eigen::Index t = 0; t < P; ++t)
-        s += Cumulative(C, I, t, double(K[i]) + d[i] * r[t]) - C(t, K[i]);
-      fl[i] = s / double(P) / r_mean;
+    const std::size_t P = T - 1;
+    const std::size_t windows =
+        options.window > 0
+            ? std::max<std::size_t>(1, std::size_t(std::lround(double(P) / options.window)))
+            : 1;
+    for (std::size_t w = 0; w < windows; ++w) {
+      // Pairs a ... b - 1 (frames a ... b).
+      const std::size_t a = w * P / windows, b = (w + 1) * P / windows;
+      const std::vector<double> rw(r.begin() + long(a), r.begin() + long(b));
+      WindowFlux(I.middleRows(a, b - a + 1), C.middleRows(a, b - a + 1), rw, K, k_end, options,
+                 control, flux_sum, flux_w, disp_sum, disp_w);
     }
-    Eigen::Index jr = -1;
-    for (Eigen::Index i = 0; i < m; ++i)
-      if (ok[i]) {
-        flux_b[K[i]] = fl[i];
-        disp_b[K[i]] = d[i];
-        jr = i;
-      }
-    if (jr >= 0) {
-      // Levels fed from the source: the flux of the nearest solved level
-      // plus the mean change of the mass between them.
-      for (Eigen::Index i = 0; i < m; ++i)
-        if (!ok[i]) {
-          const double m0 = C(0, K[i]) - C(0, K[jr]), m1 = C(T - 1, K[i]) - C(T - 1, K[jr]);
-          flux_b[K[i]] = fl[jr] + (m1 - m0) / r_sum;
-        }
-    }
+  }
+  std::vector<double> flux_b(n + 1, kNaN), disp_b(n + 1, kNaN);
+  for (std::size_t k = 0; k <= n; ++k) {
+    if (flux_w[k] > 0) flux_b[k] = flux_sum[k] / flux_w[k];
+    if (disp_w[k] > 0) disp_b[k] = disp_sum[k] / disp_w[k];
   }
   TransportFluxResult out;
   out.axis = axis;
