@@ -172,7 +172,7 @@ double Median(std::vector<double> v) {
 Eigen::VectorXd SolveLevels(const Matrix& C, const Matrix& I, const std::vector<std::size_t>& K,
                             std::size_t k_end, const std::vector<double>& r,
                             const TransportFluxOptions& opt, std::vector<char>& ok,
-                            const RunControl* control) {
+                            const RunControl* control, const Eigen::VectorXd* start = nullptr) {
   const Eigen::Index P = I.rows() - 1, n = Eigen::Index(K.size());
   const double r_max = *std::max_element(r.begin(), r.end());
   const double scale = std::max(I.cwiseAbs().maxCoeff(), 1e-300);
@@ -181,8 +181,10 @@ Eigen::VectorXd SolveLevels(const Matrix& C, const Matrix& I, const std::vector<
   for (Eigen::Index t = 0; t < P; ++t)
     for (Eigen::Index i = 0; i < n; ++i) target(t, i) = Cs(t + 1, K[i]);
   Eigen::VectorXd d =
-      CoarseDisplacements(I, K, k_end, std::size_t(opt.half_window), opt.num_threads, control) /
-      Median(r);
+      start ? *start
+            : Eigen::VectorXd(CoarseDisplacements(I, K, k_end, std::size_t(opt.half_window),
+                                                  opt.num_threads, control) /
+                              Median(r));
   ok.assign(n, 1);
   Matrix g(P, n), e(P, n);
   Eigen::VectorXd okv(n);
@@ -229,8 +231,9 @@ Eigen::VectorXd SolveLevels(const Matrix& C, const Matrix& I, const std::vector<
 void WindowFlux(const Matrix& I, const Matrix& C, const std::vector<double>& r,
                 const std::vector<std::size_t>& K, std::size_t k_end,
                 const TransportFluxOptions& options, const RunControl* control,
-                std::vector<double>& flux_sum, std::vector<double>& flux_w,
-                std::vector<double>& disp_sum, std::vector<double>& disp_w) {
+                const Eigen::VectorXd* start, std::vector<double>& flux_sum,
+                std::vector<double>& flux_w, std::vector<double>& disp_sum,
+                std::vector<double>& disp_w) {
   const Eigen::Index T = I.rows(), P = T - 1, m = Eigen::Index(K.size());
   bool changes = false;
   for (std::size_t k = K[0]; k < k_end && !changes; ++k) {
@@ -240,7 +243,7 @@ void WindowFlux(const Matrix& I, const Matrix& C, const std::vector<double>& r,
   }
   if (!changes) return;
   std::vector<char> ok;
-  const Eigen::VectorXd d = SolveLevels(C, I, K, k_end, r, options, ok, control);
+  const Eigen::VectorXd d = SolveLevels(C, I, K, k_end, r, options, ok, control, start);
   const double r_sum = std::accumulate(r.begin(), r.end(), 0.0);
   Eigen::VectorXd crossed(m);
   for (Eigen::Index i = 0; i < m; ++i) {
@@ -386,12 +389,20 @@ TransportFluxResult TransportFlux(const float* frames, std::size_t T, std::size_
         options.window > 0
             ? std::max<std::size_t>(1, std::size_t(std::lround(double(P) / options.window)))
             : 1;
+    // Each window's fit starts from the whole record's displacements: a
+    // window's own coarse search, on a faint plume's few frames, found
+    // displacements of tens of lines (the 2 g/h GF320 lab release read 3.7x).
+    Eigen::VectorXd whole;
+    if (windows > 1) {
+      std::vector<char> ok;
+      whole = SolveLevels(C, I, K, k_end, r, options, ok, control);
+    }
     for (std::size_t w = 0; w < windows; ++w) {
       // Pairs a ... b - 1 (frames a ... b).
       const std::size_t a = w * P / windows, b = (w + 1) * P / windows;
       const std::vector<double> rw(r.begin() + long(a), r.begin() + long(b));
       WindowFlux(I.middleRows(a, b - a + 1), C.middleRows(a, b - a + 1), rw, K, k_end, options,
-                 control, flux_sum, flux_w, disp_sum, disp_w);
+                 control, windows > 1 ? &whole : nullptr, flux_sum, flux_w, disp_sum, disp_w);
     }
   }
   std::vector<double> flux_b(n + 1, kNaN), disp_b(n + 1, kNaN);
