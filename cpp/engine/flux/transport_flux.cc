@@ -157,6 +157,17 @@ double Cumulative(const Matrix& C, const Matrix& I, Eigen::Index t, double y,
          (f3 - f2) * m1;
 }
 
+// Whether any of the lines k0 ... k_end - 1 of the line sums I (T, n)
+// changes over time (its RMS about its mean > 1e-4 of its mean |value|).
+bool Changes(const Matrix& I, std::size_t k0, std::size_t k_end) {
+  for (std::size_t k = k0; k < k_end; ++k) {
+    const double mean = I.col(k).mean();
+    const double sd = std::sqrt((I.col(k).array() - mean).square().mean());
+    if (sd > 1e-4 * I.col(k).cwiseAbs().mean()) return true;
+  }
+  return false;
+}
+
 double Median(std::vector<double> v) {
   const std::size_t n = v.size();
   std::sort(v.begin(), v.end());
@@ -235,13 +246,7 @@ void WindowFlux(const Matrix& I, const Matrix& C, const std::vector<double>& r,
                 std::vector<double>& flux_w, std::vector<double>& disp_sum,
                 std::vector<double>& disp_w) {
   const Eigen::Index T = I.rows(), P = T - 1, m = Eigen::Index(K.size());
-  bool changes = false;
-  for (std::size_t k = K[0]; k < k_end && !changes; ++k) {
-    const double mean = I.col(k).mean();
-    const double sd = std::sqrt((I.col(k).array() - mean).square().mean());
-    changes = sd > 1e-4 * I.col(k).cwiseAbs().mean();
-  }
-  if (!changes) return;
+  if (!Changes(I, K[0], k_end)) return;
   std::vector<char> ok;
   const Eigen::VectorXd d = SolveLevels(C, I, K, k_end, r, options, ok, control, start);
   const double r_sum = std::accumulate(r.begin(), r.end(), 0.0);
@@ -352,13 +357,7 @@ TransportFluxResult TransportFlux(const float* frames, std::size_t T, std::size_
   const Matrix I = Eigen::Map<const Matrix>(sums.data(), T, n);
 
   // A plume that does not change fits any flux level.
-  bool changes = false;
-  for (std::size_t k = 0; k < k_end && !changes; ++k) {
-    const double mean = I.col(k).mean();
-    const double sd = std::sqrt((I.col(k).array() - mean).square().mean());
-    changes = sd > 1e-4 * I.col(k).cwiseAbs().mean();
-  }
-  Require(changes,
+  Require(Changes(I, 0, k_end),
           "the frames do not change over time (a steady plume): its flux level cannot be "
           "measured from the transport of its structures; give frames in which the plume "
           "fluctuates");
