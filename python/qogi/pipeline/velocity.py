@@ -121,7 +121,7 @@ def _transport_window(frame_rate_hz: float, n_frames: int) -> int:
     block holds at least three such windows; else 0 (one fit over the block:
     on the M150 lab release's 2 s records two 1 s windows read its exact
     columns 0.98 -> 1.02 of the truth on average over seeds 0-3 but spread
-    more, 0.05 -> 0.07, and seed 0 1.06 -> 1.13; docs/validation.md)."""
+    more, 0.05 -> 0.07, and seed 0 1.06 -> 1.13; docs/velocimetry.md)."""
     from .. import velocimetry as vel
 
     window = max(4, int(round(vel.TRANSPORT_WINDOW_S * frame_rate_hz)))
