@@ -48,9 +48,10 @@ void BindFlux(py::module_& m) {
   m.def(
       "transport_flux",
       [](const FloatArray& frames, const std::string& axis, py::object source_index,
-         py::object intervals, int num_threads) {
+         py::object intervals, int window, int num_threads) {
         CheckNdim(frames, 3, "frames");
         TransportFluxOptions options;
+        options.window = window;
         options.axis = ParseFluxAxis(axis);
         if (!source_index.is_none()) options.source_index = source_index.cast<double>();
         if (!intervals.is_none()) {
@@ -69,7 +70,7 @@ void BindFlux(py::module_& m) {
                               ToArray(tf.displacement));
       },
       py::arg("frames"), py::arg("axis") = "up", py::arg("source_index") = py::none(),
-      py::arg("intervals") = py::none(), py::arg("num_threads") = 0,
+      py::arg("intervals") = py::none(), py::arg("window") = 0, py::arg("num_threads") = 0,
       "(flux, line_column, velocity, displacement) per line of a float32 (T, H, W) stack "
       "(engine/flux/transport_flux.h).");
 

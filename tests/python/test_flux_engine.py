@@ -20,6 +20,12 @@ from qogi.measure import velocimetry as vel
 from qogi.pipeline.flux import _surface_flux
 
 REFERENCE = Path(__file__).resolve().parents[1] / "data" / "flux_reference.npz"
+# The engine's time-of-flight misfit interpolates the cumulative line column
+# by cubic Hermite (a continuous derivative in the displacements; the numpy
+# code interpolated it linearly, whose derivative jumps at whole pixels): on
+# these cases that moves the transport's flux, velocity and displacement by
+# < 0.13 % (1e-7 before the change), and the flux level's factors with them.
+TRANSPORT_RTOL = 2e-3
 
 
 @pytest.fixture(scope="module")
@@ -36,15 +42,23 @@ def _close(got, want, what, rtol=1e-9, atol=1e-12):
     np.testing.assert_allclose(got[ok], want[ok], rtol=rtol, atol=atol, err_msg=what)
 
 
+def _close_digest(got, want, what):
+    """A velocity digest (sums over frames, rows, columns, which mix lines of
+    different factors) within TRANSPORT_RTOL of its largest entry."""
+    _close(
+        fc.digest(got), want, what, rtol=TRANSPORT_RTOL, atol=TRANSPORT_RTOL * np.abs(want).max()
+    )
+
+
 @pytest.mark.parametrize("case", fc.TRANSPORT_CASES, ids=[c[0] for c in fc.TRANSPORT_CASES])
 def test_transport_flux_and_flux_level_agree_with_the_numpy_implementation(ref, case):
     name, seed, axis, src, kind = case
     frames = fc.turned(fc.puffing_plume(seed), axis)
     tf = vel.transport_flux(frames, axis, src, intervals=fc.intervals(kind, frames.shape[0], seed))
     for f in ("flux", "line_column", "velocity", "displacement"):
-        # Gauss-Newton to 1e-4 px from the same start: the solutions agree to
-        # rounding (the sums' order differs).
-        _close(getattr(tf, f), ref[f"tf_{name}_{f}"], f"{name} {f}", rtol=1e-7)
+        # Gauss-Newton to 1e-4 px from the same start, on the Hermite misfit.
+        rtol = 1e-9 if f == "line_column" else TRANSPORT_RTOL
+        _close(getattr(tf, f), ref[f"tf_{name}_{f}"], f"{name} {f}", rtol=rtol)
     assert vel.typical_displacement(frames, axis) == pytest.approx(
         float(ref[f"td_{name}"]), rel=1e-10
     )
@@ -52,22 +66,13 @@ def test_transport_flux_and_flux_level_agree_with_the_numpy_implementation(ref, 
         fu, fv = fc.frame_velocities(seed, frames.shape, axis, level)
         u, v, scale = vel.calibrate_flux_level(None, frames, axis, src, frame_velocities=(fu, fv))
         _close(
-            scale, ref[f"cal_{name}_{level_name}_scale"], f"{name} {level_name} scale", rtol=1e-6
+            scale,
+            ref[f"cal_{name}_{level_name}_scale"],
+            f"{name} {level_name} scale",
+            rtol=TRANSPORT_RTOL,
         )
-        _close(
-            fc.digest(u),
-            ref[f"cal_{name}_{level_name}_u"],
-            f"{name} {level_name} u",
-            rtol=1e-5,
-            atol=1e-6,
-        )
-        _close(
-            fc.digest(v),
-            ref[f"cal_{name}_{level_name}_v"],
-            f"{name} {level_name} v",
-            rtol=1e-5,
-            atol=1e-6,
-        )
+        _close_digest(u, ref[f"cal_{name}_{level_name}_u"], f"{name} {level_name} u")
+        _close_digest(v, ref[f"cal_{name}_{level_name}_v"], f"{name} {level_name} v")
         assert u.dtype == np.float32 and v.dtype == np.float32 and scale.dtype == np.float32
 
 
@@ -83,9 +88,9 @@ def test_flux_level_from_a_sequence_and_a_given_transport_agrees_with_numpy(ref)
         "exact",
     )
     u, v, scale = vel.calibrate_flux_level(seq, frames, "up", None, smooth_px=0.0)
-    _close(scale, ref["cal_seq_scale"], "seq scale", rtol=1e-6)
-    _close(fc.digest(u), ref["cal_seq_u"], "seq u", rtol=1e-5, atol=1e-6)
-    _close(fc.digest(v), ref["cal_seq_v"], "seq v", rtol=1e-5, atol=1e-6)
+    _close(scale, ref["cal_seq_scale"], "seq scale", rtol=TRANSPORT_RTOL)
+    _close_digest(u, ref["cal_seq_u"], "seq u")
+    _close_digest(v, ref["cal_seq_v"], "seq v")
     part = vel.transport_flux(frames, "up").lines(slice(20, 64), scale=1.3)
     u, v, scale = vel.calibrate_flux_level(
         None,
@@ -94,9 +99,9 @@ def test_flux_level_from_a_sequence_and_a_given_transport_agrees_with_numpy(ref)
         transport=part,
         frame_velocities=(fu[:, 20:].copy(), fv[:, 20:].copy()),
     )
-    _close(scale, ref["cal_part_scale"], "part scale", rtol=1e-6)
-    _close(fc.digest(u), ref["cal_part_u"], "part u", rtol=1e-5, atol=1e-6)
-    _close(fc.digest(v), ref["cal_part_v"], "part v", rtol=1e-5, atol=1e-6)
+    _close(scale, ref["cal_part_scale"], "part scale", rtol=TRANSPORT_RTOL)
+    _close_digest(u, ref["cal_part_u"], "part u")
+    _close_digest(v, ref["cal_part_v"], "part v")
 
 
 @pytest.mark.parametrize("seed", [1, 2])
@@ -164,4 +169,4 @@ def test_max_difference_to_numpy_is_reported(ref):
             ok = np.isfinite(b) & (b != 0)
             worst = max(worst, float(np.max(np.abs(a[ok] / b[ok] - 1), initial=0.0)))
     print(f"\nmax relative difference of the transport flux to numpy: {worst:.2e}")
-    assert worst < 1e-7
+    assert worst < TRANSPORT_RTOL

@@ -128,17 +128,44 @@ Eigen::VectorXd CoarseDisplacements(const Matrix& I, const std::vector<std::size
   return out.cwiseMax(0.5);
 }
 
-// A_t(y_t,i) for the first T - 1 rows of A, linear between columns; y
-// (T - 1, n) with 0 <= y < cols - 1.
-Matrix Shifted(const Matrix& A, const Matrix& y) {
-  Matrix out(y.rows(), y.cols());
-  for (Eigen::Index t = 0; t < y.rows(); ++t)
-    for (Eigen::Index i = 0; i < y.cols(); ++i) {
-      const double k0 = std::floor(y(t, i)), f = y(t, i) - k0;
-      const auto k = Eigen::Index(k0);
-      out(t, i) = A(t, k) * (1.0 - f) + A(t, k + 1) * f;
-    }
-  return out;
+// The column summed over the lines before level y, C_t(y), and its slope
+// dC_t/dy, between the levels by cubic Hermite interpolation: exact at the
+// levels (C_t(k) = sum of lines 0 ... k - 1; C has one column more than I),
+// with the slope at level k the mean of the two lines it separates (the
+// line itself at the ends). C_t is then continuously differentiable in y, so
+// the time-of-flight misfit has a continuous derivative in the level
+// displacements (linear interpolation's slope, the line's own, jumps at each
+// level: Gauss-Newton then stuck to whole-pixel displacements and jumped
+// between them as the input moved by a fraction of a pixel). y is clamped to
+// [0, n - 1e-9] with n = I.cols().
+double Cumulative(const Matrix& C, const Matrix& I, Eigen::Index t, double y,
+                  double* slope = nullptr) {
+  const Eigen::Index n = I.cols();
+  y = std::clamp(y, 0.0, double(n) - 1e-9);
+  const double k0 = std::floor(y), f = y - k0;
+  const auto k = Eigen::Index(k0);
+  auto node_slope = [&](Eigen::Index j) {
+    if (j <= 0) return I(t, 0);
+    if (j >= n) return I(t, n - 1);
+    return 0.5 * (I(t, j - 1) + I(t, j));
+  };
+  const double c0 = C(t, k), c1 = C(t, k + 1), m0 = node_slope(k), m1 = node_slope(k + 1);
+  const double f2 = f * f, f3 = f2 * f;
+  if (slope)
+    *slope = (6 * f2 - 6 * f) * (c0 - c1) + (3 * f2 - 4 * f + 1) * m0 + (3 * f2 - 2 * f) * m1;
+  return (2 * f3 - 3 * f2 + 1) * c0 + (f3 - 2 * f2 + f) * m0 + (-2 * f3 + 3 * f2) * c1 +
+         (f3 - f2) * m1;
+}
+
+// Whether any of the lines k0 ... k_end - 1 of the line sums I (T, n)
+// changes over time (its RMS about its mean > 1e-4 of its mean |value|).
+bool Changes(const Matrix& I, std::size_t k0, std::size_t k_end) {
+  for (std::size_t k = k0; k < k_end; ++k) {
+    const double mean = I.col(k).mean();
+    const double sd = std::sqrt((I.col(k).array() - mean).square().mean());
+    if (sd > 1e-4 * I.col(k).cwiseAbs().mean()) return true;
+  }
+  return false;
 }
 
 double Median(std::vector<double> v) {
@@ -156,8 +183,8 @@ double Median(std::vector<double> v) {
 Eigen::VectorXd SolveLevels(const Matrix& C, const Matrix& I, const std::vector<std::size_t>& K,
                             std::size_t k_end, const std::vector<double>& r,
                             const TransportFluxOptions& opt, std::vector<char>& ok,
-                            const RunControl* control) {
-  const Eigen::Index P = I.rows() - 1, H = I.cols(), n = Eigen::Index(K.size());
+                            const RunControl* control, const Eigen::VectorXd* start = nullptr) {
+  const Eigen::Index P = I.rows() - 1, n = Eigen::Index(K.size());
   const double r_max = *std::max_element(r.begin(), r.end());
   const double scale = std::max(I.cwiseAbs().maxCoeff(), 1e-300);
   const Matrix Cs = C / scale, Is = I / scale;
@@ -165,10 +192,12 @@ Eigen::VectorXd SolveLevels(const Matrix& C, const Matrix& I, const std::vector<
   for (Eigen::Index t = 0; t < P; ++t)
     for (Eigen::Index i = 0; i < n; ++i) target(t, i) = Cs(t + 1, K[i]);
   Eigen::VectorXd d =
-      CoarseDisplacements(I, K, k_end, std::size_t(opt.half_window), opt.num_threads, control) /
-      Median(r);
+      start ? *start
+            : Eigen::VectorXd(CoarseDisplacements(I, K, k_end, std::size_t(opt.half_window),
+                                                  opt.num_threads, control) /
+                              Median(r));
   ok.assign(n, 1);
-  Matrix y(P, n), g(P, n), e(P, n);
+  Matrix g(P, n), e(P, n);
   Eigen::VectorXd okv(n);
   for (int it = 0; it < opt.iterations; ++it) {
     CheckCancelled(control);
@@ -176,15 +205,13 @@ Eigen::VectorXd SolveLevels(const Matrix& C, const Matrix& I, const std::vector<
       ok[i] = double(K[i]) + d[i] * r_max <= double(k_end);
       okv[i] = ok[i];
     }
-    for (Eigen::Index t = 0; t < P; ++t)
-      for (Eigen::Index i = 0; i < n; ++i)
-        y(t, i) = std::clamp(double(K[i]) + d[i] * r[t], 0.0, double(H) - 1e-9);
-    const Matrix cb = Shifted(Cs, y);
-    // d C_t(y) / dd = I_t(floor y) r_t
+    // d C_t(y) / dd = C_t'(y) r_t
     for (Eigen::Index t = 0; t < P; ++t)
       for (Eigen::Index i = 0; i < n; ++i) {
-        g(t, i) = Is(t, Eigen::Index(std::floor(y(t, i)))) * r[t] * okv[i];
-        e(t, i) = (cb(t, i) - target(t, i)) * okv[i];
+        double slope = 0.0;
+        const double cb = Cumulative(Cs, Is, t, double(K[i]) + d[i] * r[t], &slope);
+        g(t, i) = slope * r[t] * okv[i];
+        e(t, i) = (cb - target(t, i)) * okv[i];
       }
     const double cnt = std::max(okv.sum(), 1.0);
     // The residual after the best outflows O_t.
@@ -202,6 +229,49 @@ Eigen::VectorXd SolveLevels(const Matrix& C, const Matrix& I, const std::vector<
   }
   for (Eigen::Index i = 0; i < n; ++i) ok[i] = double(K[i]) + d[i] * r_max <= double(k_end);
   return d;
+}
+
+// One window's time of flight (all its frames, I and C (T_w, ...) with its
+// T_w - 1 pair durations r): the flux through each level K_i, as the mass
+// crossing it summed over the window's pairs, added to flux_sum[K_i] with the
+// window's duration added to flux_w[K_i] (so that the flux over the windows
+// is the mass crossing over the whole record per nominal interval), and the
+// solved displacements likewise. Levels fed from the source take the flux of
+// the nearest solved level plus the mean change of the mass between them.
+// A window whose line sums do not change adds nothing.
+void WindowFlux(const Matrix& I, const Matrix& C, const std::vector<double>& r,
+                const std::vector<std::size_t>& K, std::size_t k_end,
+                const TransportFluxOptions& options, const RunControl* control,
+                const Eigen::VectorXd* start, std::vector<double>& flux_sum,
+                std::vector<double>& flux_w, std::vector<double>& disp_sum,
+                std::vector<double>& disp_w) {
+  const Eigen::Index T = I.rows(), P = T - 1, m = Eigen::Index(K.size());
+  if (!Changes(I, K[0], k_end)) return;
+  std::vector<char> ok;
+  const Eigen::VectorXd d = SolveLevels(C, I, K, k_end, r, options, ok, control, start);
+  const double r_sum = std::accumulate(r.begin(), r.end(), 0.0);
+  Eigen::VectorXd crossed(m);
+  for (Eigen::Index i = 0; i < m; ++i) {
+    double s = 0.0;
+    for (Eigen::Index t = 0; t < P; ++t)
+      s += Cumulative(C, I, t, double(K[i]) + d[i] * r[t]) - C(t, K[i]);
+    crossed[i] = s;
+  }
+  Eigen::Index jr = -1;
+  for (Eigen::Index i = 0; i < m; ++i)
+    if (ok[i]) jr = i;
+  if (jr < 0) return;
+  for (Eigen::Index i = 0; i < m; ++i) {
+    if (ok[i]) {
+      flux_sum[K[i]] += crossed[i];
+      disp_sum[K[i]] += d[i] * r_sum;
+      disp_w[K[i]] += r_sum;
+    } else {
+      const double m0 = C(0, K[i]) - C(0, K[jr]), m1 = C(T - 1, K[i]) - C(T - 1, K[jr]);
+      flux_sum[K[i]] += crossed[jr] + (m1 - m0);
+    }
+    flux_w[K[i]] += r_sum;
+  }
 }
 
 }  // namespace
@@ -234,6 +304,8 @@ void TransportFluxOptions::Check(std::size_t T, std::size_t H, std::size_t W) co
     Require(good, "intervals must be " + std::to_string(T - 1) + " positive frame intervals; got " +
                       std::to_string(intervals.size()) + " values");
   }
+  Require(window == 0 || window >= 4,
+          "window must be 0 (the whole record) or >= 4 frame pairs; got " + std::to_string(window));
   Require(iterations >= 1, "iterations must be >= 1; got " + std::to_string(iterations));
   Require(half_window >= 0, "half_window must be >= 0; got " + std::to_string(half_window));
   SourceLine(source_index, axis, Lines(axis, H, W));
@@ -285,13 +357,7 @@ TransportFluxResult TransportFlux(const float* frames, std::size_t T, std::size_
   const Matrix I = Eigen::Map<const Matrix>(sums.data(), T, n);
 
   // A plume that does not change fits any flux level.
-  bool changes = false;
-  for (std::size_t k = 0; k < k_end && !changes; ++k) {
-    const double mean = I.col(k).mean();
-    const double sd = std::sqrt((I.col(k).array() - mean).square().mean());
-    changes = sd > 1e-4 * I.col(k).cwiseAbs().mean();
-  }
-  Require(changes,
+  Require(Changes(I, 0, k_end),
           "the frames do not change over time (a steady plume): its flux level cannot be "
           "measured from the transport of its structures; give frames in which the plume "
           "fluctuates");
@@ -310,42 +376,38 @@ TransportFluxResult TransportFlux(const float* frames, std::size_t T, std::size_
       break;
     }
 
-  std::vector<double> flux_b(n + 1, kNaN), disp_b(n + 1, kNaN);  // at the top of line k
+  // At the top of line k: the flux summed over the windows' durations, the
+  // durations it was measured over, and the same for the displacement.
+  std::vector<double> flux_sum(n + 1, 0.0), flux_w(n + 1, 0.0), disp_sum(n + 1, 0.0),
+      disp_w(n + 1, 0.0);
   if (first_gas < k_end) {
     std::vector<std::size_t> K(k_end + 1 - first_gas);
     std::iota(K.begin(), K.end(), first_gas);
-    std::vector<char> ok;
-    const Eigen::VectorXd d = SolveLevels(C, I, K, k_end, r, options, ok, control);
-    const Eigen::Index P = T - 1, m = Eigen::Index(K.size());
-    Matrix y(P, m);
-    for (Eigen::Index t = 0; t < P; ++t)
-      for (Eigen::Index i = 0; i < m; ++i)
-        y(t, i) = std::clamp(double(K[i]) + d[i] * r[t], 0.0, double(n) - 1e-9);
-    const Matrix cb = Shifted(C, y);
-    const double r_mean = std::accumulate(r.begin(), r.end(), 0.0) / double(P);
-    const double r_sum = std::accumulate(r.begin(), r.end(), 0.0);
-    Eigen::VectorXd fl(m);
-    for (Eigen::Index i = 0; i < m; ++i) {
-      double s = 0.0;
-      for (Eigen::Index t = 0; t < P; ++t) s += cb(t, i) - C(t, K[i]);
-      fl[i] = s / double(P) / r_mean;
+    const std::size_t P = T - 1;
+    const std::size_t windows =
+        options.window > 0
+            ? std::max<std::size_t>(1, std::size_t(std::lround(double(P) / options.window)))
+            : 1;
+    // Each window's fit starts from the whole record's displacements: a
+    // window's own coarse search, on a faint plume's few frames, found
+    // displacements of tens of lines (the 2 g/h GF320 lab release read 3.7x).
+    Eigen::VectorXd whole;
+    if (windows > 1) {
+      std::vector<char> ok;
+      whole = SolveLevels(C, I, K, k_end, r, options, ok, control);
     }
-    Eigen::Index jr = -1;
-    for (Eigen::Index i = 0; i < m; ++i)
-      if (ok[i]) {
-        flux_b[K[i]] = fl[i];
-        disp_b[K[i]] = d[i];
-        jr = i;
-      }
-    if (jr >= 0) {
-      // Levels fed from the source: the flux of the nearest solved level
-      // plus the mean change of the mass between them.
-      for (Eigen::Index i = 0; i < m; ++i)
-        if (!ok[i]) {
-          const double m0 = C(0, K[i]) - C(0, K[jr]), m1 = C(T - 1, K[i]) - C(T - 1, K[jr]);
-          flux_b[K[i]] = fl[jr] + (m1 - m0) / r_sum;
-        }
+    for (std::size_t w = 0; w < windows; ++w) {
+      // Pairs a ... b - 1 (frames a ... b).
+      const std::size_t a = w * P / windows, b = (w + 1) * P / windows;
+      const std::vector<double> rw(r.begin() + long(a), r.begin() + long(b));
+      WindowFlux(I.middleRows(a, b - a + 1), C.middleRows(a, b - a + 1), rw, K, k_end, options,
+                 control, windows > 1 ? &whole : nullptr, flux_sum, flux_w, disp_sum, disp_w);
     }
+  }
+  std::vector<double> flux_b(n + 1, kNaN), disp_b(n + 1, kNaN);
+  for (std::size_t k = 0; k <= n; ++k) {
+    if (flux_w[k] > 0) flux_b[k] = flux_sum[k] / flux_w[k];
+    if (disp_w[k] > 0) disp_b[k] = disp_sum[k] / disp_w[k];
   }
   TransportFluxResult out;
   out.axis = axis;

@@ -20,7 +20,7 @@ commercial tools' known failure. Two kinds of evidence are weighed:
    each surface. The measured one is the rate over the surface's column
    integral. The exit diameter is not known, so the prediction's lower bound
    over exit diameters 5 mm - 10 cm is used: a plume rising slower
-   than 0.87 x what any exit could make the quantified amount of gas rise
+   than 0.95 x what any exit could make the quantified amount of gas rise
    means the
    amount is overstated, i.e. the gas is warmer than assumed (its excess
    emission read as column).
@@ -44,14 +44,19 @@ from .budget_terms import fractions_of, line_shape_ratios
 __all__ = ["check_gas_temperature", "widen_for_bias", "RISE_RATIO_THRESHOLD", "BIAS_THRESHOLD"]
 
 #: The measured / lowest predicted rise speed below which the rise is
-#: evidence of an overstated rate. Chosen on the validation's 10 s records,
-#: seeds 0-7 (docs/validation.md): the ambient lab release reads 0.85-0.99
-#: (0.90-1.06 rendered with another line shape), the 55 C release assumed
-#: ambient 0.75-0.85. On the held-out seeds 8 and 9: heated 0.72 and 0.90
-#: (one of two fires), ambient 0.89 and 1.00 (silent). The margin is small
-#: (the rate's velocity scatter, +-10 %, moves the ratio by ~+-7 %): weak
-#: evidence; a given exit temperature is the strong one.
-RISE_RATIO_THRESHOLD = 0.87
+#: evidence of an overstated rate. It was 0.87, chosen on the validation's
+#: 10 s records with the flux level from one time-of-flight fit over the
+#: record, which read the lab plumes' speed 10-25 % low (docs/validation.md).
+#: With the fits in 1 s windows (records of 3 s and more) the ratios rose:
+#: re-chosen on 6 s records of the GF320 lab presets, seeds 0-5, just above
+#: the heated release's largest: the 55 C release assumed ambient reads
+#: 0.83, 0.94, 0.94, 0.86, 0.88, 0.87, the ambient one 1.04, 1.09, 1.11,
+#: 1.06, 1.06, 1.05. Held out, seeds 6 and 7: heated 0.78 and 0.89 (both
+#: fire), ambient 0.97 and 1.03 (silent); 1.33 s (one fit): ambient seed 5
+#: 1.04. The margin is small (the rate's velocity scatter, +-10 %, moves the
+#: ratio by ~+-7 %): weak evidence; a given exit temperature is the strong
+#: one.
+RISE_RATIO_THRESHOLD = 0.95
 #: Relative bias of a given exit temperature above which it is reported.
 BIAS_THRESHOLD = 0.10
 #: Exit diameters [m] over which the rise prediction's lower bound is taken.

@@ -113,6 +113,18 @@ def normal_velocity(
     return np.where(inside, (u * n[:, 0] + v * n[:, 1]) * st.scene.m_s_per_px_frame, 0.0)
 
 
+def _transport_window(frame_rate_hz: float, n_frames: int) -> int:
+    """Frame pairs per time-of-flight fit of the flux level
+    (:func:`qogi.measure.velocimetry.transport_flux`'s ``window``): about
+    :data:`qogi.measure.velocimetry.TRANSPORT_WINDOW_S` at the frame rate, where the
+    block holds at least three such windows; else 0 (one fit over the block:
+    on the M150 lab release's 2 s records two 1 s windows read its exact
+    columns 0.98 -> 1.02 of the truth on average over seeds 0-3 but spread
+    more, 0.05 -> 0.07, and seed 0 1.06 -> 1.13; docs/velocimetry.md)."""
+    window = max(4, int(round(vel.TRANSPORT_WINDOW_S * frame_rate_hz)))
+    return window if n_frames - 1 >= 3 * window else 0
+
+
 def _pair_durations(intervals: np.ndarray, stride: int, n_frames: int) -> np.ndarray:
     """Duration [nominal frame intervals] of the pairs of frames 0, stride,
     2 stride, ... of a block whose consecutive frames are ``intervals`` apart."""
@@ -180,8 +192,12 @@ def _block_velocity(
         velocity_info["column_fluctuation"] = selfchecks.column_fluctuation(
             banded.sum(axis=2 if axis in ("up", "down") else 1)
         )
+        window = _transport_window(st.scene.frame_rate, done)
+        velocity_info["transport_window"] = window
         job = _workers_mod.current().submit(
-            lambda: vel.transport_flux(banded, axis, region_index, intervals=intervals),
+            lambda: vel.transport_flux(
+                banded, axis, region_index, intervals=intervals, window=window
+            ),
             "qogi-transport",
         )
     # Pairs `stride` frames apart where the plume moves little per frame
