@@ -20,7 +20,7 @@ from typing import Callable, Optional
 
 from .errors import Cancelled
 
-__all__ = ["Progress", "Cancelled", "report", "fraction_callback", "wants_stop"]
+__all__ = ["Progress", "Cancelled", "report", "fraction_callback", "fraction_part", "wants_stop"]
 
 #: The protocol's signature: (fraction in [0, 1], message) -> False to cancel.
 Progress = Callable[[float, str], Optional[bool]]
@@ -53,3 +53,14 @@ def fraction_callback(
         return not wants_stop(progress(start + (stop - start) * float(fraction), message))
 
     return callback
+
+
+def fraction_part(
+    callback: Optional[Callable[[float], object]], start: float, stop: float
+) -> Optional[Callable[[float], object]]:
+    """A one-argument callback (the engine's form) for a part of the work:
+    its fraction f reaches ``callback`` as ``start + (stop - start) f``, and
+    ``callback``'s answer comes back. None for None."""
+    if callback is None:
+        return None
+    return lambda f: callback(start + (stop - start) * f)

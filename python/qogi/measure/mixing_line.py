@@ -29,18 +29,12 @@ from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 import numpy as np
 
 from ..physics.forward import ForwardModel
+from ..progress import fraction_part
 from . import inversion as inv
 
 __all__ = ["MixingLineSolver"]
 
 Progress = Optional[Callable[[float], Any]]
-
-
-def _span(progress: Progress, a: float, b: float) -> Progress:
-    """``progress`` over [a, b] of its range, for a part of the work."""
-    if progress is None:
-        return None
-    return lambda f: progress(a + (b - a) * f)
 
 
 class MixingLineSolver:
@@ -128,7 +122,9 @@ class MixingLineSolver:
             return None
         grid = np.arange(self.lo - self.ambient_K, self.hi - self.ambient_K + 1e-9, 10.0)
         chi = [
-            self.solve(float(kk), cand, _span(progress, i / grid.size, (i + 1) / grid.size)).chi2
+            self.solve(
+                float(kk), cand, fraction_part(progress, i / grid.size, (i + 1) / grid.size)
+            ).chi2
             for i, kk in enumerate(grid)
         ]
         return inv.mixing_line_slope_from_profile(grid, np.asarray(chi))
@@ -206,13 +202,13 @@ class MixingLineSolver:
         each step one fixed-temperature pass over the pixels not yet within
         0.3 % of their root."""
         span = 1.0 / passes
-        out, g0 = self._g(np.zeros(idx.size), kk, idx, _span(progress, 0.0, span))
+        out, g0 = self._g(np.zeros(idx.size), kk, idx, fraction_part(progress, 0.0, span))
         out = inv.writable_copy(out)
         live: np.ndarray = np.flatnonzero((g0 > 0) & out.valid)
         ua: np.ndarray = np.full(live.size, math.log(1e-7))
         fa = np.log(g0[live]) - ua  # > 0
         ub = np.log(np.minimum(g0[live], 1.0))
-        res, gb = self._g(np.exp(ub), kk, idx[live], _span(progress, span, 2 * span))
+        res, gb = self._g(np.exp(ub), kk, idx[live], fraction_part(progress, span, 2 * span))
         fb = np.log(np.maximum(gb, 1e-12)) - ub
         inv.scatter_results(out, res, live)
         # No bracket (g not decreasing there): keep the pass at x = g(0).
@@ -227,7 +223,7 @@ class MixingLineSolver:
                 np.exp(uc),
                 kk,
                 idx[live],
-                _span(progress, (2 + step) * span, (3 + step) * span),
+                fraction_part(progress, (2 + step) * span, (3 + step) * span),
             )
             fc = np.log(np.maximum(gc, 1e-12)) - uc
             inv.scatter_results(out, res, live)

@@ -27,6 +27,7 @@ from ..measure import inversion as inv
 from ..measure.inversion import plume_depth_from_width
 from ..measure.mixing_line import MixingLineSolver
 from ..physics.forward import forward_model
+from ..progress import fraction_part
 from .background import Background
 from .budget_terms import AlternativeModels, fractions_of, line_shape_ratios
 from .config import QuantifyConfig
@@ -595,10 +596,7 @@ class InvertedColumns:
             inversion_options=kw,
         )
 
-        def stage(a, b):
-            return lambda f: progress(a + (b - a) * f) if progress else None
-
-        found = solver.slope(stage(0.0, 0.3))
+        found = solver.slope(fraction_part(progress, 0.0, 0.3))
         self.k_K_per_fraction, self.k_sigma, self.mixing_pixels = 0.0, 0.0, 0
         if found is not None:
             self.mixing_pixels = found.num_samples
@@ -615,7 +613,7 @@ class InvertedColumns:
             _ = self.proxy_nodes  # made here, before the worker uses it
             job = _workers_mod.current().submit(alongside, "qogi-proxy")
         try:
-            flat = solver.solve(k, np.arange(nt * n), stage(0.3, 0.9))
+            flat = solver.solve(k, np.arange(nt * n), fraction_part(progress, 0.3, 0.9))
         finally:
             if job is not None:
                 job.wait()
@@ -623,7 +621,9 @@ class InvertedColumns:
             job.result()  # re-raises the worker's error
         # Sensitivity to k on every 5th frame: carried into the column term.
         sub = (np.arange(0, nt, 5)[:, None] * n + np.arange(n)[None, :]).ravel()
-        self.k_relative_effect = solver.slope_effect(flat, k, self.k_sigma, sub, stage(0.9, 1.0))
+        self.k_relative_effect = solver.slope_effect(
+            flat, k, self.k_sigma, sub, fraction_part(progress, 0.9, 1.0)
+        )
         inv = self.inv_module
         res_cols = {sp: flat.column_density[sp].reshape(nt, n) for sp in cfg.species}
         res_sig = {sp: flat.column_density_sigma[sp].reshape(nt, n) for sp in cfg.species}
