@@ -13,12 +13,14 @@ instant, so the command line (``qogi.apps.cli``) starts without the engine and a
 Ctrl-C while the modules load is its own "interrupted", not a traceback.
 """
 
+import functools
 import importlib
 from typing import TYPE_CHECKING, Any, Dict
 
 from ._version import __version__
 
 
+@functools.cache  # read on first use: `import qogi` parses nothing
 def _lazy_names() -> Dict[str, str]:
     """Public name -> the module (relative to qogi) that defines it, read from
     the ``TYPE_CHECKING`` imports at the end of this file (the one list of the
@@ -42,11 +44,8 @@ def _lazy_names() -> Dict[str, str]:
     return out
 
 
-_LAZY = _lazy_names()
-
-
 def __getattr__(name: str) -> Any:
-    where = _LAZY.get(name)
+    where = _lazy_names().get(name)
     if where is None:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
     module = importlib.import_module(where, __name__)
@@ -56,7 +55,7 @@ def __getattr__(name: str) -> Any:
 
 
 def __dir__():
-    return sorted(set(globals()) | set(_LAZY))
+    return sorted(set(globals()) | set(_lazy_names()))
 
 
 if TYPE_CHECKING:  # what the names are, for mypy and editors

@@ -1,9 +1,5 @@
 import sys
 
-try:
-    from .apps.cli import main
-except KeyboardInterrupt:  # Ctrl-C while the modules load
-    print("qogi: interrupted", file=sys.stderr)
-    sys.exit(130)
+from .apps.console import main
 
 sys.exit(main())

@@ -356,7 +356,7 @@ class CtrlC:
 
 sys.meta_path.insert(0, CtrlC())
 sys.argv[0] = "qogi"
-from qogi.apps.cli import main
+from qogi.apps.console import main  # what the console script and python -m qogi run
 sys.exit(main())
 """
 
@@ -364,6 +364,9 @@ sys.exit(main())
 @pytest.mark.parametrize(
     "module",
     [
+        "qogi.apps.cli",  # the command line itself, loaded inside the console entry's guard
+        "argparse",
+        "qogi._interrupts",
         "qogi.apps._cli_camera",
         "qogi.physics.presets",
         "numpy",
@@ -388,3 +391,40 @@ def test_ctrl_c_while_qogi_info_loads_its_modules_exits_130(rec, module):
     assert r.returncode == 130, f"exit {r.returncode}\n{r.stderr}"
     assert "Traceback" not in r.stderr, r.stderr
     assert r.stderr.strip() in ("qogi: interrupted", "qogi info: interrupted"), r.stderr
+
+
+# A Ctrl-C inside numpy's C initialisation can be lost altogether: it surfaced
+# as "ImportError: PyCapsule_Import could not import module 'datetime'" with no
+# KeyboardInterrupt in its chain, and qogi printed an internal error (exit 1).
+CTRL_C_LOST_IN_IMPORT = """
+import os, signal, sys
+
+class LosesACtrlC:
+    def find_spec(self, name, path=None, target_module=None):
+        if name == "numpy":
+            sys.meta_path.remove(self)
+            try:
+                os.kill(os.getpid(), signal.SIGINT)
+            except KeyboardInterrupt:
+                pass  # C code clears it and fails its import
+            raise ImportError("PyCapsule_Import could not import module 'datetime'")
+        return None
+
+sys.meta_path.insert(0, LosesACtrlC())
+sys.argv[0] = "qogi"
+from qogi.apps.console import main
+sys.exit(main())
+"""
+
+
+def test_a_ctrl_c_lost_inside_an_import_still_exits_130(rec):
+    r = subprocess.run(
+        [sys.executable, "-c", CTRL_C_LOST_IN_IMPORT, "info", str(rec)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+        preexec_fn=_ctrl_c_on,
+    )
+    assert r.returncode == 130, f"exit {r.returncode}\n{r.stderr}"
+    assert "Traceback" not in r.stderr, r.stderr

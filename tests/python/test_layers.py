@@ -28,6 +28,9 @@ DEFERRED = {
     # `import qogi.apps.cli` loads no numpy or engine: a Ctrl-C while the
     # commands' modules load is then main()'s "interrupted" (test_interrupt).
     "qogi.apps.cli": "start-up",
+    # The console script's entry imports the command line inside its guard,
+    # so that a Ctrl-C while argparse and the rest load is exit 130.
+    "qogi.apps.console": "start-up",
     # qogi batch needs the optional Dask, pandas and pyarrow (qogi[batch]).
     "qogi.apps._cli_batch": "optional",
 }

@@ -145,11 +145,24 @@ def _on_sigterm(signum, frame):
     raise Terminated()
 
 
+#: Ctrl-Cs seen by main()'s handler (which otherwise acts as Python's own).
+_SIGINTS: list = []
+
+
+def _on_sigint(signum, frame):
+    _SIGINTS.append(signum)
+    raise KeyboardInterrupt
+
+
 def _interrupted(exc: BaseException) -> bool:
     """A Ctrl-C, also when it arrives wrapped: a KeyboardInterrupt while an
     extension module (the engine, numpy) initialises becomes pybind11's
     ``ImportError: initialization failed`` caused by it, numpy's own
-    ImportError has it in its chain."""
+    ImportError has it in its chain; inside numpy's C initialisation it can be
+    lost altogether ("PyCapsule_Import could not import module 'datetime'"),
+    so an ImportError after a Ctrl-C this run saw counts as one too."""
+    if isinstance(exc, ImportError) and _SIGINTS:
+        return True
     seen: set = set()
     todo: list = [exc]
     while todo:
@@ -184,6 +197,21 @@ def main(argv: list[str] | None = None) -> int:
     are gone; anything else is a bug: the traceback and a request to report it
     (exit 1).
     """
+    _SIGINTS.clear()
+    before = None
+    try:
+        if signal.getsignal(signal.SIGINT) is not signal.SIG_IGN:  # ignored stays ignored
+            before = signal.signal(signal.SIGINT, _on_sigint)
+    except ValueError:  # not the main thread (embedded use): leave SIGINT alone
+        pass
+    try:
+        return _main(argv)
+    finally:
+        if before is not None:
+            signal.signal(signal.SIGINT, before)
+
+
+def _main(argv: list[str] | None) -> int:
     try:
         parser = build_parser()
         args = parser.parse_args(argv)
