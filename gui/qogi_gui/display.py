@@ -31,6 +31,11 @@ __all__ = [
 
 #: Colour maps offered for the video (matplotlib names); the first is the default.
 COLORMAPS = ("inferno", "gray", "magma", "viridis", "plasma", "cividis", "turbo", "hot")
+#: What the overlay shows: the shown frame's column density (maps kept by
+#: the run), or the run's minimum-detectable column (one map for the run:
+#: where in the frame the camera can see the gas at all).
+OVERLAY_KINDS = ("column density", "minimum-detectable column")
+
 #: Colour maps offered for the column-density overlay.
 OVERLAY_COLORMAPS = ("viridis", "turbo", "plasma", "cool", "winter")
 QUANTITY_LABELS = {

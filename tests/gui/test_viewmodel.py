@@ -509,6 +509,16 @@ def test_run_passes_the_drawn_surfaces_and_shows_the_result(opened, api):
     assert v < -0.5 and abs(u) < 0.5 * abs(v)
     # 1 px/frame is the pixel footprint (3 m x 1 mrad) times the frame rate.
     assert r["velocity_m_s"][1] == pytest.approx(v * 3.0 * 1e-3 * RATE_HZ)
+    # The run's minimum-detectable column is the other overlay: one map for
+    # every frame, drawn wherever the background has contrast with the gas.
+    mdc = opened.result.min_detectable_column("CH4")
+    assert mdc.shape == (H, W) and np.all(np.isfinite(mdc)) and np.all(mdc > 0)
+    assert opened.set_display(overlay_kind="minimum-detectable column")
+    opened.seek(0)  # no maps kept here: the map is the run's, not the frame's
+    over = opened.render_overlay()
+    assert over is not None and np.all(over[..., 3] == pytest.approx(0.6))
+    assert not opened.set_display(overlay_kind="nope")
+    assert "overlay must be one of" in errors(opened)[-1]
 
 
 def test_progress_is_visible_while_running_and_cancel_keeps_the_partial_result(opened, api):

@@ -298,16 +298,21 @@ def test_pdf_report_pages_render_and_say_what_matters(lab, tmp_path):
         # The audit record (issue 28): the run's UTC start; no capture time in a synthetic file.
         f"run {res.audit['run_started_utc']}",
         "recorded unknown (UTC)",
+        # Page 3 (issue 28 item 4): where in the frame the camera sees the gas.
+        "qogi emission-rate report (detectability)",
+        "Minimum-detectable column: CH4",
     ):
         assert needle in text, needle
     subprocess.run(["pdftoppm", "-r", "40", "-png", str(pdf), str(tmp_path / "page")], check=True)
     pages = sorted(tmp_path.glob("page-*.png"))
-    assert len(pages) == 2
+    assert len(pages) == 3
     import cv2
 
     img = cv2.imread(str(pages[0]))
     assert img.shape[0] > img.shape[1]  # A4 portrait
     assert (img < 128).mean() > 0.05  # the scene and plot are drawn
+    third = cv2.imread(str(pages[2]))
+    assert (third.std(axis=2) > 20).mean() > 0.05  # the map is drawn, in colour
 
 
 # -- detection limit ----------------------------------------------------------

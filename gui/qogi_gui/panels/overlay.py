@@ -104,12 +104,39 @@ class Overlay:
             )
         return self._vmax[sp]
 
+    def detectability(self) -> Optional[Tuple[np.ndarray, float, float]]:
+        """The result's minimum-detectable column map of the overlay species
+        [kg/m2] and its colour range (2nd and 98th percentiles of the finite
+        pixels), or None when the result has none (truth columns)."""
+        result, sp = self.vm.run.result, self.species()
+        if result is None or sp not in result.min_detectable_column_species:
+            return None
+        mdc = result.min_detectable_column(sp)
+        finite = mdc[np.isfinite(mdc)]
+        if not finite.size:
+            return mdc, 0.0, 0.0
+        lo, hi = np.percentile(finite, [2, 98])
+        return mdc, float(lo), float(max(hi, lo * 1.001))
+
     def render(self) -> Optional[np.ndarray]:
-        """Column density of the shown frame as RGBA (H, W, 4), transparent where
-        there is no gas; None when hidden or not available."""
+        """The overlay as RGBA (H, W, 4): the shown frame's column density,
+        transparent where there is no gas, or the run's minimum-detectable
+        column (``DisplayState.overlay_kind``); None when hidden or not
+        available."""
         d = self.vm.video.display
         if not d.show_overlay or self.vm.run.result is None:
             return None
+        if d.overlay_kind == display.OVERLAY_KINDS[1]:
+            got = self.detectability()
+            if got is None:
+                return None
+            mdc, lo, hi = got
+            shown = np.where(np.isfinite(mdc), mdc, np.nan).astype(np.float32)
+            out = display.colorize(
+                shown, lo, hi, display.colormap_lut(d.overlay_colormap), out=self._buffer
+            )
+            out[..., 3] = np.where(np.isfinite(mdc), 0.6, 0.0)  # no contrast: the video
+            return out
         maps = self.frame_maps()
         sp = self.species()
         if not maps or sp is None:

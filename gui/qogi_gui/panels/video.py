@@ -27,6 +27,7 @@ class DisplayState:
     fixed_min: float = 0.0
     fixed_max: float = 1.0
     show_overlay: bool = True  # column density over the video (when a result has maps)
+    overlay_kind: str = display.OVERLAY_KINDS[0]
     overlay_species: str = ""
     overlay_colormap: str = display.OVERLAY_COLORMAPS[0]
     show_vectors: bool = True  # velocity vectors (when a result has maps)
@@ -67,6 +68,8 @@ class Video:
                 return error(f"quantity must be one of {', '.join(display.QUANTITY_LABELS)}")
             if k == "colormap" and v not in display.COLORMAPS:
                 return error(f"colour map must be one of {', '.join(display.COLORMAPS)}")
+            if k == "overlay_kind" and v not in display.OVERLAY_KINDS:
+                return error(f"overlay must be one of {', '.join(display.OVERLAY_KINDS)}")
             if k == "overlay_colormap" and v not in display.OVERLAY_COLORMAPS:
                 return error(
                     f"overlay colour map must be one of {', '.join(display.OVERLAY_COLORMAPS)}"

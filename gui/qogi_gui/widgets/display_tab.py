@@ -75,10 +75,18 @@ class DisplayTab:
         dpg.add_separator()
         dpg.add_text("Results on the video")
         dpg.add_checkbox(
-            label="column density overlay",
+            label="overlay",
             tag="d_overlay",
             default_value=True,
             callback=s(lambda sd, a, u: video.set_display(show_overlay=a)),
+        )
+        dpg.add_combo(
+            list(display.OVERLAY_KINDS),
+            label="shows",
+            tag="d_overlay_kind",
+            width=200,
+            default_value=display.OVERLAY_KINDS[0],
+            callback=s(lambda sd, a, u: video.set_display(overlay_kind=a)),
         )
         dpg.add_combo(
             [],
@@ -137,6 +145,7 @@ class DisplayTab:
         dpg.set_value("d_min", d.fixed_min)
         dpg.set_value("d_max", d.fixed_max)
         dpg.set_value("d_overlay", d.show_overlay)
+        dpg.set_value("d_overlay_kind", d.overlay_kind)
         dpg.set_value("d_vectors", d.show_vectors)
         dpg.configure_item("img_scale", colormap=f"cmap_{d.colormap}")
 
@@ -145,7 +154,16 @@ class DisplayTab:
         there are none)."""
         vm = self.vm
         run, note = vm.run, ""
-        if run.result is not None and shown:
+        if run.result is not None and vm.video.display.overlay_kind == display.OVERLAY_KINDS[1]:
+            got = vm.overlay.detectability()
+            note = (
+                f"overlay: {vm.overlay.species()} minimum-detectable column "
+                f"{got[1] * 1e3:.3g} .. {got[2] * 1e3:.3g} g/m2 (a pixel must hold this column "
+                "to be seen in 95 % of frames; clear: no contrast)"
+                if got is not None and shown
+                else "this result has no minimum-detectable column map (truth columns)"
+            )
+        elif run.result is not None and shown:
             note = (
                 f"overlay: {vm.overlay.species()} column density 0 .. "
                 f"{vm.overlay.vmax() * 1e3:.3g} g/m2"

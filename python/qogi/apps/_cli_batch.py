@@ -101,7 +101,9 @@ def add_commands(sub) -> None:
         help="per-recording time limit [s] for rows without timeout_s",
     )
     b.add_argument(
-        "--plots", action="store_true", help="write rates.png (and maps.png) for every row"
+        "--plots",
+        action="store_true",
+        help="write rates.png (and maps.png, detectability.png) for every row",
     )
     b.add_argument("-q", "--quiet", action="store_true", help="no progress bar or messages")
     b.set_defaults(func=cmd_batch)

@@ -53,6 +53,7 @@ def _outputs(args: argparse.Namespace) -> dict:
     if args.plot:
         root, ext = os.path.splitext(args.plot)
         outs["--plot (maps)"] = f"{root}_maps{ext or '.png'}"
+        outs["--plot (detectability)"] = f"{root}_detectability{ext or '.png'}"
     if args.csv:
         root, _ = os.path.splitext(args.csv)
         outs["--csv (summary)"] = f"{root}.summary.csv"
@@ -185,6 +186,8 @@ def cmd_quantify(args: argparse.Namespace) -> int:
             result.plot(args.plot, kind="rates")
             if result.map_frames:
                 result.plot(_outputs(args)["--plot (maps)"], kind="maps")
+            if result.min_detectable_column_species:
+                result.plot(_outputs(args)["--plot (detectability)"], kind="detectability")
     if bad or not result.complete:
         why = f"no finite rate for {', '.join(bad)}" if bad else "the result is incomplete"
         print(
@@ -286,7 +289,10 @@ def add_commands(sub) -> None:
     q.add_argument(
         "--plot",
         metavar="OUT.png",
-        help="write the rate plot (and OUT_maps.png with column and velocity maps)",
+        help=(
+            "write the rate plot (and OUT_maps.png with column and velocity maps, "
+            "OUT_detectability.png with the minimum-detectable column map)"
+        ),
     )
     q.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
 
@@ -318,6 +324,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
             "result.csv": os.path.join(out, "result.csv"),
             "rates.png": os.path.join(out, "rates.png"),
             "maps.png": os.path.join(out, "maps.png"),
+            "detectability.png": os.path.join(out, "detectability.png"),
         }
     )
     print(f"qogi demo: {p['description']}")
@@ -374,6 +381,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
         if plots:
             result.plot(os.path.join(out, "rates.png"), kind="rates")
             result.plot(os.path.join(out, "maps.png"), kind="maps")
+            result.plot(os.path.join(out, "detectability.png"), kind="detectability")
     if not plots:
         print(
             f"4. wrote {out}/result.json, result.csv (plots need matplotlib: "
@@ -382,7 +390,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
         return 0
     print(
         f"4. wrote {out}/result.json, result.csv, rates.png (emission-rate time series per "
-        f"surface), maps.png (column density and velocity)"
+        f"surface), maps.png (column density and velocity), detectability.png "
+        f"(minimum-detectable column)"
     )
     return 0
 

@@ -575,6 +575,8 @@ def run_row(job: dict) -> dict:
         result.plot(folder / "rates.png", kind="rates")
         if result.map_frames:
             result.plot(folder / "maps.png", kind="maps")
+        if result.min_detectable_column_species:
+            result.plot(folder / "detectability.png", kind="detectability")
     # Last: an existing result.json means the row's outputs are all there.
     _write_json(folder / RESULT_JSON, d)
     try:

@@ -56,6 +56,8 @@ from ..pipeline.detection import (
     CONFIDENCE,
     DETECTION_SIGMA,
     detection_limit_kg_s,
+    median_background_K,
+    min_detectable_column,
     noise_equivalent_column,
 )
 from ..pipeline.surfaces import Surface
@@ -570,20 +572,9 @@ def min_detectable_column_map(
     if netd is None:
         raise ValueError("the camera has no NETD: give netd_K")
     model = forward_model(cam.channels, [species])
-    z = NormalDist().inv_cdf(confidence)
-    # 1/NEC (the signal per column and noise) varies smoothly, near linearly,
-    # with the background's temperature: evaluated on a grid of it (0.25 K
-    # steps at most, 64 points at most) and interpolated.
-    lo, hi = float(bg.min()), float(bg.max())
-    n = int(min(64, max(2, math.ceil((hi - lo) / 0.25) + 1)))
-    grid = np.linspace(lo, hi, n) if hi > lo else np.array([lo])
-    nec = np.array(
-        [noise_equivalent_column(model, species, netd, t, gas_K, ambient_K) for t in grid]
+    return min_detectable_column(
+        bg, model, species, netd, gas_K, ambient_K, confidence, detection_sigma
     )
-    inv = np.where(np.isfinite(nec), 1.0 / nec, 0.0)  # interpolate the signal, not its inverse
-    s = np.interp(bg, grid, inv) if grid.size > 1 else np.full(bg.shape, inv[0])
-    with np.errstate(divide="ignore"):
-        return np.where(s > 0, (detection_sigma + z) / s, np.inf)
 
 
 def recording_min_detectable_column(
@@ -599,10 +590,7 @@ def recording_min_detectable_column(
     default ``gas_temperature="ambient"``); ``species`` defaults to the
     recording's first, else CH4. See :func:`min_detectable_column_map`.
     """
-    n = recording.n_frames
-    idx = np.unique(np.linspace(0, n - 1, min(n, max(1, int(max_frames)))).astype(int))
-    frames = np.stack([recording.frame(int(i), quantity="radiometric_temperature")[0] for i in idx])
-    bg = np.median(frames, axis=0)
+    bg = median_background_K(recording, max_frames=max_frames)
     sc = recording.scene
     sp = species or (sc.species[0] if sc.species else "CH4")
     amb = sc.ambient_temperature_K

@@ -16,7 +16,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from typing import Dict, Optional, cast
+from typing import Dict, List, Optional, cast
 
 import numpy as np
 
@@ -24,10 +24,16 @@ from .. import _engine
 from . import checks, selfchecks
 from .budget_terms import record_length_advice
 from .columns import InvertedColumns
-from .detection import detection_limit_from_sums, velocity_from_sums
+from .detection import (
+    detection_limit_from_sums,
+    median_background_K,
+    min_detectable_column,
+    velocity_from_sums,
+)
 from .flux_summary import FluxSummary
 from .hotgas import check_gas_temperature
 from .result import Result, SpeciesRate, SurfaceResult
+from .sampling import _bilinear
 from .state import RunState
 
 __all__ = [
@@ -185,6 +191,7 @@ def finish(st: RunState, complete: bool) -> Result:
         )
     if not checks.check_result(results, warnings):
         complete = False
+    mdc = _min_detectable_columns(st, results) if isinstance(columns, InvertedColumns) else {}
     return Result(
         results,
         config=cfg,
@@ -194,7 +201,34 @@ def finish(st: RunState, complete: bool) -> Result:
         info=info,
         complete=complete,
         warnings=warnings,
+        min_detectable_column=mdc,
     )
+
+
+def _min_detectable_columns(st: RunState, results: List[SurfaceResult]) -> Dict[str, np.ndarray]:
+    """Per species, the run's minimum-detectable column map [kg/m2]
+    (:func:`qogi.pipeline.detection.min_detectable_column`) on the gas-free
+    side (10th or 90th percentile) of its frames, the gas at the run's temperature; each
+    surface's median of it goes into its detection record."""
+    columns = cast(InvertedColumns, st.columns)
+    # The gas-free side of the frames' spread: a plume present in most frames
+    # (a jet's core) would otherwise read as background with less contrast.
+    bg = median_background_K(st.rec, st.frames, percentile=10.0 if st.channel_sign[0] > 0 else 90.0)
+    maps = {
+        sp: min_detectable_column(
+            bg, columns.model, sp, columns.netd_K, st.scene.gas_K, st.scene.ambient_K
+        )
+        for sp in st.cfg.species
+    }
+    for res, samples in zip(results, st.samples):
+        for sp, rate in res.species.items():
+            if rate.detection is not None:
+                along = _bilinear(maps[sp], samples.xy)
+                finite = along[np.isfinite(along)]
+                rate.detection["min_detectable_column_kg_m2"] = (
+                    float(np.median(finite)) if finite.size else None
+                )
+    return maps
 
 
 def _block_notes(st: RunState) -> Dict[str, object]:
@@ -310,7 +344,7 @@ def _species_rate(
         limit, det = detection_limit_from_sums(
             columns.model,
             sp,
-            rec.camera.netd_K or 0.02,
+            columns.netd_K,
             columns._bg_t,
             scene.gas_K,
             scene.ambient_K,

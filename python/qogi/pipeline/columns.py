@@ -100,6 +100,7 @@ class InvertedColumns:
             channels, cfg.species, scene.pressure_Pa, line_shape=cfg.line_shape
         )
         netd = rec.camera.netd_K or 0.02
+        self.netd_K = netd  # the camera's NETD [K] the run assumes
         if cfg.gas_temperature == "infer":
             self.temperature_range_K = (scene.ambient_K - 10.0, scene.ambient_K + 150.0)
             temperature = inv.free(*self.temperature_range_K)

@@ -35,6 +35,11 @@ saw gas only when no time average is at hand. Without gas, ``v`` is the median
 normal speed the run used. ``docs/validation/detection_limit.md`` compares it with the
 pipeline's detections on a synthetic sweep and with Zeng and Morris's GF320
 fit.
+
+The **minimum-detectable column** per pixel, ``(k + z) NEC(T_bg)`` at each
+pixel's own background temperature (:func:`min_detectable_column`), is the
+column a pixel must hold to be seen in a fraction ``confidence`` of the
+frames: the map of where in the frame the camera can see this gas at all.
 """
 
 from __future__ import annotations
@@ -49,6 +54,8 @@ __all__ = [
     "CONFIDENCE",
     "DETECTION_SIGMA",
     "noise_equivalent_column",
+    "min_detectable_column",
+    "median_background_K",
     "detection_limit_kg_s",
     "effective_width",
     "normal_velocity",
@@ -120,6 +127,84 @@ def noise_equivalent_column(
     snr_per_column = np.abs(np.asarray(signal, float).reshape(-1)) / col / noise
     s = float(np.max(snr_per_column))
     return 1.0 / s if s > 0 else math.inf
+
+
+def min_detectable_column(
+    background_K: np.ndarray,
+    model,
+    species: str,
+    netd_K,
+    gas_K: float,
+    ambient_K: float,
+    confidence: float = CONFIDENCE,
+    detection_sigma: float = DETECTION_SIGMA,
+) -> np.ndarray:
+    """Per pixel, the column density [kg/m2] a pixel must hold to be seen in a
+    fraction ``confidence`` of the frames: ``(k + z) NEC(T_bg)``, with ``NEC``
+    (:func:`noise_equivalent_column`) at that pixel's background radiometric
+    temperature.
+
+    Parameters
+    ----------
+    background_K : array (H, W)
+        The background's radiometric temperature [K] per pixel (finite).
+    model : qogi.physics.forward.ForwardModel
+        The forward model (its channels and species).
+    species : str
+    netd_K : float or sequence
+        NETD per channel [K].
+    gas_K, ambient_K : float
+        Gas and ambient temperature [K].
+    confidence : float
+        Fraction of frames (one-sided normal quantile z).
+    detection_sigma : float
+        The per-pixel threshold k in noise units.
+
+    Returns
+    -------
+    array (H, W)
+        Minimum-detectable column [kg/m2]; inf where the background has no
+        contrast with the gas.
+    """
+    bg = np.asarray(background_K, float)
+    z = NormalDist().inv_cdf(confidence)
+    # 1/NEC (the signal per column and noise) varies smoothly, near linearly,
+    # with the background's temperature: evaluated on a grid of it (0.25 K
+    # steps at most, 64 points at most) and interpolated.
+    lo, hi = float(bg.min()), float(bg.max())
+    n = int(min(64, max(2, math.ceil((hi - lo) / 0.25) + 1)))
+    grid = np.linspace(lo, hi, n) if hi > lo else np.array([lo])
+    nec = np.array(
+        [noise_equivalent_column(model, species, netd_K, t, gas_K, ambient_K) for t in grid]
+    )
+    inv = np.where(np.isfinite(nec), 1.0 / nec, 0.0)  # interpolate the signal, not its inverse
+    s = np.interp(bg, grid, inv) if grid.size > 1 else np.full(bg.shape, inv[0])
+    with np.errstate(divide="ignore"):
+        return np.where(s > 0, (detection_sigma + z) / s, np.inf)
+
+
+def median_background_K(
+    recording, frames: Optional[range] = None, max_frames: int = 50, percentile: float = 50.0
+):
+    """The per-pixel temporal median (or another ``percentile``) [K] of the
+    first channel's radiometric temperature over up to ``max_frames`` frames
+    spread over ``frames`` (default: the whole recording). Where the gas comes
+    and goes, the gas-free background; a low percentile where the gas is
+    warmer than the background (emission), a high one where it is colder,
+    keeps a plume that is there in most frames out of it. Non-finite pixels
+    (dead, saturated) are filled with the median of the rest."""
+    frames = range(recording.n_frames) if frames is None else frames
+    n = len(frames)
+    pick = np.unique(np.linspace(0, n - 1, min(n, max(1, int(max_frames)))).astype(int))
+    stack = np.stack(
+        [recording.frame(frames[int(i)], quantity="radiometric_temperature")[0] for i in pick]
+    )
+    with np.errstate(all="ignore"):
+        bg = np.nanpercentile(stack, percentile, axis=0)
+    bad = ~np.isfinite(bg)
+    if bad.any() and not bad.all():
+        bg[bad] = np.median(bg[~bad])
+    return bg
 
 
 def detection_limit_kg_s(

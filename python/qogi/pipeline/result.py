@@ -162,6 +162,7 @@ class Result:
         complete: bool = True,
         warnings: Optional[List[Diagnostic]] = None,
         audit: Optional[dict] = None,
+        min_detectable_column: Optional[Dict[str, np.ndarray]] = None,
     ):
         self.surfaces = surfaces
         self._audit = dict(audit or {})
@@ -172,6 +173,7 @@ class Result:
         self.recording_path = recording_path
         self.pixel_status = dict(pixel_status)
         self._maps = maps or {}
+        self._mdc = dict(min_detectable_column or {})
         self.info = dict(info or {})
         self.complete = complete
         self.standard_conditions = dict(STANDARD_CONDITIONS)
@@ -242,6 +244,66 @@ class Result:
                 f"(frames with maps: {sorted(self._maps)[:5]}...)"
             )
         return self._maps[frame]
+
+    @property
+    def min_detectable_column_species(self) -> List[str]:
+        """The species :meth:`min_detectable_column` has a map of (none: truth
+        columns, or a result read back from JSON)."""
+        return list(self._mdc)
+
+    def min_detectable_column(self, species: Optional[str] = None) -> np.ndarray:
+        """The minimum-detectable column map [kg/m2], (H, W) in the recording's
+        pixels: the column a pixel must hold to be seen in 95 % of the frames,
+        ``(k + z) NEC`` at its own background temperature
+        (:func:`qogi.pipeline.detection.min_detectable_column`; inf where the
+        background has no contrast with the gas). ``species`` defaults to the
+        run's first. Each surface's median of it is in its species'
+        ``detection["min_detectable_column_kg_m2"]``."""
+        if not self._mdc:
+            raise ValueError(
+                "this result has no minimum-detectable column map (truth columns, or a "
+                "result read back from JSON): run qogi.quantify with inverted columns"
+            )
+        sp = species if species is not None else next(iter(self._mdc))
+        if sp not in self._mdc:
+            raise ValueError(f"no map for {sp!r}; species: {sorted(self._mdc)}")
+        return self._mdc[sp]
+
+    def draw_min_detectable_column(self, ax, species: Optional[str] = None, fontsize=8.0) -> None:
+        """Draws :meth:`min_detectable_column` [g/m2] on matplotlib axes ``ax``
+        with a colour bar and the surfaces, each labelled with its median
+        (grey: no contrast, infinite)."""
+        import matplotlib
+
+        mdc = self.min_detectable_column(species)
+        sp = species if species is not None else next(iter(self._mdc))
+        g = np.where(np.isfinite(mdc), mdc * 1e3, np.nan)  # g/m2
+        cmap = matplotlib.colormaps["cividis_r"].with_extremes(bad="0.75")
+        im = ax.imshow(g, cmap=cmap, interpolation="nearest")
+        cb = ax.figure.colorbar(im, ax=ax, fraction=0.035, pad=0.02)
+        cb.set_label(f"{sp} minimum-detectable column [g/m2]", fontsize=fontsize)
+        cb.ax.tick_params(labelsize=fontsize - 1)
+        for k, s in enumerate(self.surfaces):
+            p = np.asarray(s.surface.points)
+            ax.plot(p[:, 0], p[:, 1], "-", color=f"C{k % 10}", lw=1.8)
+            det = s.species[sp].detection if sp in s.species else None
+            med = (det or {}).get("min_detectable_column_kg_m2")
+            ax.annotate(
+                s.surface.name + (f": {med * 1e3:.3g} g/m2" if med else ""),
+                p[np.argmax(p[:, 0])],
+                color=f"C{k % 10}",
+                fontsize=fontsize,
+                xytext=(4, 0),
+                textcoords="offset points",
+                va="center",
+            )
+        ax.set_xlim(-0.5, mdc.shape[1] - 0.5)
+        ax.set_ylim(mdc.shape[0] - 0.5, -0.5)
+        ax.set_title(
+            f"{sp}: the column a pixel must hold to be seen in 95 % of frames",
+            fontsize=fontsize + 0.5,
+        )
+        ax.tick_params(labelsize=fontsize - 1)
 
     @property
     def map_frames(self) -> List[int]:
@@ -423,7 +485,9 @@ class Result:
     def plot(self, path: Optional[PathLike] = None, kind: str = "rates"):
         """A matplotlib figure: ``kind="rates"`` the emission-rate time series per
         surface and species with the mean and its 90 % band (and the truth);
-        ``kind="maps"`` the column density and velocity of a kept frame."""
+        ``kind="maps"`` the column density and velocity of a kept frame;
+        ``kind="detectability"`` the minimum-detectable column map with the
+        surfaces (:meth:`min_detectable_column`)."""
         import matplotlib
 
         if path is not None:
@@ -515,8 +579,17 @@ class Result:
                 else "velocity (arrows: gas pixels)"
             )
             fig.tight_layout()
+        elif kind == "detectability":
+            if not self._mdc:
+                self.min_detectable_column()  # raises, saying why there is no map
+            fig, axes = plt.subplots(
+                1, len(self._mdc), figsize=(6 * len(self._mdc), 4.4), squeeze=False
+            )
+            for ax, sp in zip(axes[0], self._mdc):
+                self.draw_min_detectable_column(ax, sp)
+            fig.tight_layout()
         else:
-            raise ValueError(f"kind must be 'rates' or 'maps'; got {kind!r}")
+            raise ValueError(f"kind must be 'rates', 'maps' or 'detectability'; got {kind!r}")
         if path is not None:
             with atomic_path(path) as tmp:
                 fig.savefig(tmp, dpi=110)
