@@ -26,6 +26,8 @@ Cases (each over seeds 0..N-1; recordings are cached under --cache):
 * ``laminar``: lab-ch4-5slpm-laminar-gf320 (the same release as a quiet,
   nearly laminar column accelerating as it rises, with a speed wave slower
   than the gas; GF320-like at 100 Hz, 3 s), defaults, only the source given;
+* ``textured-lab``: lab-ch4-5slpm-textured-gf320 (the gf320 release in front
+  of a plate with a 0.3 K RMS texture), defaults, only the source given;
 * ``textured-sky``, ``clouds``, ``wall-absorption``, ``tank-emission``,
   ``piperack``: the scenes with structure (:data:`STRUCTURED`), vertical
   surfaces 0.5, 1.0, 1.5 m downwind (to the left where the wind blows so).
@@ -120,6 +122,13 @@ CASES = {
         preset="lab-ch4-5slpm-laminar-gf320",
         camera=None,
         duration_s=3.0,
+        gas_temperature="ambient",
+        composition=None,
+    ),
+    "textured-lab": dict(
+        preset="lab-ch4-5slpm-textured-gf320",
+        camera=None,
+        duration_s=10.0,
         gas_temperature="ambient",
         composition=None,
     ),

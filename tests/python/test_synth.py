@@ -79,6 +79,7 @@ PRESETS = [
     "stack-5kgh-wind3-tank-emission-gf320",
     "stack-10kgh-wind4-piperack-gf320",
     "lab-ch4-5slpm-laminar-gf320",
+    "lab-ch4-5slpm-textured-gf320",
 ]
 
 
