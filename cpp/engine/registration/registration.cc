@@ -15,7 +15,7 @@
 #include <vector>
 
 #include "engine/util/check.h"
-#include "engine/util/cubic.h"
+#include "engine/util/interpolation.h"
 
 namespace qogi {
 namespace {

@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "engine/util/check.h"
-#include "engine/util/cubic.h"
+#include "engine/util/interpolation.h"
 #include "engine/util/portability.h"
 
 namespace qogi {
