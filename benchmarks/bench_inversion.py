@@ -196,13 +196,10 @@ def main():
 
     # --- four channels -------------------------------------------------------
     t0 = time.perf_counter()
-    inv4 = qogi.Inversion(
-        model,
-        T_AMB,
-        netd_K=0.017,
-        temperature=free(T_AMB - 10, T_AMB + 90),
-        sigma_m=prior(0.015, 0.01),
-    )
+    # The free four-channel fit: T_peak free in [T_amb - 10, T_amb + 90] K,
+    # the depth with a 1.5 +- 1 cm prior.
+    free4 = dict(netd_K=0.017, temperature=free(T_AMB - 10, T_AMB + 90), sigma_m=prior(0.015, 0.01))
+    inv4 = qogi.Inversion(model, T_AMB, **free4)
     tab = inv4.table
     print(
         f"four-channel table: built in {time.perf_counter() - t0:.1f} s "
@@ -219,14 +216,7 @@ def main():
     inv4.invert(rad[:, :2, :], background_temperature_K=T_BG, sigma_m=sg[:2])  # warm-up
     cold, wall, cpu = timed(lambda: inv4.invert(rad, background_temperature_K=T_BG))
     eng_cold, cold_cpu = n4 / wall, n4 / cpu
-    warm_inv = qogi.Inversion(
-        model,
-        T_AMB,
-        netd_K=0.017,
-        temperature=free(T_AMB - 10, T_AMB + 90),
-        sigma_m=prior(0.015, 0.01),
-        initial_guess="neighbour",
-    )
+    warm_inv = qogi.Inversion(model, T_AMB, initial_guess="neighbour", **free4)
     warm, wall, cpu = timed(lambda: warm_inv.invert(rad, background_temperature_K=T_BG))
     eng_warm, warm_cpu = n4 / wall, n4 / cpu
     known = qogi.Inversion(

@@ -22,6 +22,7 @@ import zlib
 from pathlib import Path
 
 import numpy as np
+from _timing import best_time
 
 import qogi
 from qogi import _engine
@@ -31,12 +32,7 @@ SHARED = Path(os.environ.get("QOGI_SHARED_DIR", Path(__file__).resolve().parents
 
 
 def best(fn, repeat=5):
-    t = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        t.append(time.perf_counter() - t0)
-    return min(t)
+    return best_time(fn, repeat)
 
 
 def csq_frame():

@@ -26,6 +26,7 @@ import tempfile
 import time
 
 import numpy as np
+from _timing import best_time
 
 import qogi
 from qogi.physics import spectra
@@ -34,15 +35,6 @@ SHARED = pathlib.Path(
     os.environ.get("QOGI_SHARED_DIR", pathlib.Path(__file__).resolve().parents[2] / "shared")
 )
 HITRAN = SHARED / "hitran"
-
-
-def best_of(fn, repeat: int) -> float:
-    best = np.inf
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def hapi_case(nu_range, step, temperature):
@@ -86,7 +78,7 @@ def main() -> None:
     lines = qogi.load_line_list("CH4", HITRAN / "CH4.par")
     t_read = time.perf_counter() - t0
     sigma = qogi.cross_section("CH4", nu, temp, line_list=lines, cutoff="hapi")
-    t_qogi = best_of(
+    t_qogi = best_time(
         lambda: qogi.cross_section("CH4", nu, temp, line_list=lines, cutoff="hapi"), 20
     )
     print(

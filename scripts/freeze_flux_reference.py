@@ -39,27 +39,10 @@ def main() -> None:
             out[f"cal_{name}_{level_name}_v"] = fc.digest(v)
             out[f"cal_{name}_{level_name}_scale"] = scale
     # A flow sequence and a given transport of a sub-stretch, smoothing off.
-    frames = fc.puffing_plume(7)
-    fu, fv = fc.frame_velocities(7, frames.shape, "up", 1.8)
-    seq = vel.FlowSequence(
-        fu[1:],
-        fv[1:],
-        np.ones_like(fu[1:]),
-        np.ones(fu[1:].shape, bool),
-        np.zeros(fu.shape[0] - 1),
-        "exact",
-    )
+    frames, fu, fv, seq = fc.flow_sequence_case()
     u, v, scale = vel.calibrate_flux_level(seq, frames, "up", None, smooth_px=0.0)
     out["cal_seq_u"], out["cal_seq_v"], out["cal_seq_scale"] = fc.digest(u), fc.digest(v), scale
-    full = vel.transport_flux(frames, "up")
-    part = full.lines(slice(20, 64), scale=1.3)
-    u, v, scale = vel.calibrate_flux_level(
-        None,
-        frames[:, 20:],
-        "up",
-        transport=part,
-        frame_velocities=(fu[:, 20:].copy(), fv[:, 20:].copy()),
-    )
+    u, v, scale = fc.calibrate_given_transport(frames, fu, fv)
     out["cal_part_u"], out["cal_part_v"], out["cal_part_scale"] = fc.digest(u), fc.digest(v), scale
     for seed in (1, 2):
         c, sig, vn, dl = fc.surface_case(seed)

@@ -41,6 +41,15 @@ MOLECULES = (1, 2, 4, 5, 6)
 OUT = pathlib.Path(__file__).resolve().parents[1] / "cpp" / "engine" / "spectra" / "data"
 
 
+@contextlib.contextmanager
+def _table(name: str, comment: str, columns: str):
+    """A CSV file of OUT open for writing, its comment and column lines written."""
+    with open(OUT / name, "w") as fh:
+        fh.write(f"# {comment}\n")
+        fh.write(f"{columns}\n")
+        yield fh
+
+
 def main() -> None:
     with contextlib.redirect_stdout(io.StringIO()):  # HAPI prints a banner
         import hapi
@@ -53,19 +62,21 @@ def main() -> None:
     names = {}
     for (m, _i), row in iso.items():
         names[m] = row[idx["mol_name"]]
-    with open(OUT / "molecules.csv", "w") as fh:
-        fh.write("# HITRAN molecule codes (from HAPI 1.3.0.0's ISO table)\n")
-        fh.write("molecule_id,formula\n")
+    with _table(
+        "molecules.csv",
+        "HITRAN molecule codes (from HAPI 1.3.0.0's ISO table)",
+        "molecule_id,formula",
+    ) as fh:
         for m in sorted(names):
             fh.write(f"{m},{names[m]}\n")
 
     keys = sorted(k for k in iso if k[0] in MOLECULES)
-    with open(OUT / "isotopologues.csv", "w") as fh:
-        fh.write(
-            "# HITRAN isotopologues: natural abundance and molar mass "
-            "(HITRAN, via HAPI 1.3.0.0's ISO table)\n"
-        )
-        fh.write("molecule_id,local_id,global_id,formula,abundance,molar_mass_g_mol\n")
+    with _table(
+        "isotopologues.csv",
+        "HITRAN isotopologues: natural abundance and molar mass "
+        "(HITRAN, via HAPI 1.3.0.0's ISO table)",
+        "molecule_id,local_id,global_id,formula,abundance,molar_mass_g_mol",
+    ) as fh:
         for m, i in keys:
             row = iso[(m, i)]
             fh.write(
@@ -73,12 +84,12 @@ def main() -> None:
                 f"{float(row[idx['abundance']])!r},{float(row[idx['mass']])!r}\n"
             )
 
-    with open(OUT / "tips_2025.csv", "w") as fh:
-        fh.write(
-            "# Total internal partition sums Q(T), TIPS-2025 (Gamache et al., "
-            "JQSRT 345 (2025) 109568), as shipped in HAPI 1.3.0.0\n"
-        )
-        fh.write("molecule_id,local_id,temperature_K,q\n")
+    with _table(
+        "tips_2025.csv",
+        "Total internal partition sums Q(T), TIPS-2025 (Gamache et al., "
+        "JQSRT 345 (2025) 109568), as shipped in HAPI 1.3.0.0",
+        "molecule_id,local_id,temperature_K,q",
+    ) as fh:
         for m, i in keys:
             temps = hapi.TIPS_2025_ISOT_HASH[(m, i)]
             qs = hapi.TIPS_2025_ISOQ_HASH[(m, i)]

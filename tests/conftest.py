@@ -1,5 +1,6 @@
-"""Shared fixtures: the line lists the package ships, and the third-party
-sample files that tests use only when they are present beside the checkout."""
+"""Shared fixtures: the line lists the package ships, the third-party sample
+files that tests use only when they are present beside the checkout, and the
+synthetic lab release that several pipeline tests quantify."""
 
 from __future__ import annotations
 
@@ -32,3 +33,24 @@ def hitran_dir() -> Path:
     from qogi.physics.spectra import bundled_hitran_dir
 
     return bundled_hitran_dir()
+
+
+@pytest.fixture(scope="session")
+def lab_clip(tmp_path_factory):
+    """The lab CH4 release (preset lab-ch4-5slpm-gf320, seed 4, with truth
+    maps) as a file, rendered once per session for each length asked:
+    ``lab_clip(duration_s) -> Path``."""
+    from qogi.synth import render  # on first use: most sessions render nothing
+
+    paths = {}
+
+    def clip(duration_s: float) -> Path:
+        if duration_s not in paths:
+            path = tmp_path_factory.mktemp("lab") / "lab.h5"
+            render.synthesize(
+                "lab-ch4-5slpm-gf320", path, duration_s=duration_s, seed=4, truth_maps=True
+            )
+            paths[duration_s] = path
+        return paths[duration_s]
+
+    return clip

@@ -66,16 +66,13 @@ void BindBackground(py::module_& m) {
           py::gil_scoped_release release;
           r = MeasureDrift(f, t, options);
         }
-        py::dict d;
-        d["vx_px_s"] = r.vx_px_s;
-        d["vy_px_s"] = r.vy_px_s;
-        d["spread_vx_px_s"] = r.spread_vx_px_s;
-        d["spread_vy_px_s"] = r.spread_vy_px_s;
-        d["pairs"] = r.pairs;
-        d["converged"] = r.converged;
-        d["inlier_fraction"] = r.inlier_fraction;
-        d["measured"] = r.measured;
-        return d;
+        using R = DriftResult;
+        return ToDict(r, Field("vx_px_s", &R::vx_px_s), Field("vy_px_s", &R::vy_px_s),
+                      Field("spread_vx_px_s", &R::spread_vx_px_s),
+                      Field("spread_vy_px_s", &R::spread_vy_px_s), Field("pairs", &R::pairs),
+                      Field("converged", &R::converged),
+                      Field("inlier_fraction", &R::inlier_fraction),
+                      Field("measured", &R::measured));
       },
       py::arg("frames"), py::arg("times_s"), py::arg("options") = DriftOptions{},
       "The drift velocity of the background of frames ((T, H, W) float32, one channel, "

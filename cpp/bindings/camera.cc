@@ -380,26 +380,14 @@ void BindRadiometricTable(py::module_& m) {
       .def(
           "radiance",
           [](const RadiometricTable& t, const DoubleArray& temperature_K) {
-            py::array_t<double> out(temperature_K.request().shape);
-            const double* in = temperature_K.data();
-            double* o = out.mutable_data();
-            const std::size_t n = static_cast<std::size_t>(temperature_K.size());
-            py::gil_scoped_release release;
-            for (std::size_t i = 0; i < n; ++i) o[i] = t.Radiance(in[i]);
-            return out;
+            return MapValues(temperature_K, [&](double x) { return t.Radiance(x); });
           },
           py::arg("temperature_K"),
           "Band radiance [W/(m2 sr)] of blackbodies at temperature_K [K] (any shape, float64).")
       .def(
           "temperature",
           [](const RadiometricTable& t, const DoubleArray& radiance) {
-            py::array_t<double> out(radiance.request().shape);
-            const double* in = radiance.data();
-            double* o = out.mutable_data();
-            const std::size_t n = static_cast<std::size_t>(radiance.size());
-            py::gil_scoped_release release;
-            for (std::size_t i = 0; i < n; ++i) o[i] = t.Temperature(in[i]);
-            return out;
+            return MapValues(radiance, [&](double x) { return t.Temperature(x); });
           },
           py::arg("radiance"),
           "Radiometric temperature [K] of band radiances [W/(m2 sr)] (any shape, float64; NaN "

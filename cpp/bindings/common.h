@@ -41,7 +41,8 @@
 // DoubleArray converts any input to contiguous float64 (a copy only when
 // needed); FloatArray takes float32 C-contiguous frames without a copy (and
 // may be written in place). ToVector / FlatVector copy an array into a
-// std::vector, ToArray copies a std::vector into a new array, OutputArrays
+// std::vector, ToArray copies a std::vector into a new array, MapValues
+// applies a function to every value of an array, OutputArrays
 // allocates the arrays an engine call fills and returns them as a dict.
 #pragma once
 
@@ -97,6 +98,24 @@ auto ToArray(const std::vector<T>& v, const std::vector<py::ssize_t>& shape) {
   py::array_t<O> out(shape);
   O* p = out.mutable_data();
   for (std::size_t i = 0; i < v.size(); ++i) p[i] = static_cast<O>(v[i]);
+  return out;
+}
+
+// fn(value) for every value of `in` (any shape), as a new float64 array of
+// in's shape; runs in parallel with the GIL released (fn must not touch
+// Python).
+template <typename Fn>
+py::array_t<double> MapValues(const DoubleArray& in, Fn fn) {
+  py::array_t<double> out(in.request().shape);
+  const double* src = in.data();
+  double* dst = out.mutable_data();
+  const std::size_t n = static_cast<std::size_t>(in.size());
+  {
+    py::gil_scoped_release release;
+    ParallelFor(n, 8192, [&](std::size_t b, std::size_t e) {
+      for (std::size_t i = b; i < e; ++i) dst[i] = fn(src[i]);
+    });
+  }
   return out;
 }
 

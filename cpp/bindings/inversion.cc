@@ -399,13 +399,12 @@ namespace {
 
 // --- the mixing line's slope (engine/inversion/mixing_line_slope.h) ----------
 py::dict SlopeDict(const MixingLineSlope& r) {
-  py::dict d;
-  d["found"] = r.found;
-  d["slope_K_per_fraction"] = r.slope_K_per_fraction;
-  d["sigma_K_per_fraction"] = r.sigma_K_per_fraction;
-  d["num_candidates"] = r.num_candidates;
-  d["num_samples"] = r.num_samples;
-  d["num_fitted"] = r.num_fitted;
+  using R = MixingLineSlope;
+  py::dict d =
+      ToDict(r, Field("found", &R::found), Field("slope_K_per_fraction", &R::slope_K_per_fraction),
+             Field("sigma_K_per_fraction", &R::sigma_K_per_fraction),
+             Field("num_candidates", &R::num_candidates), Field("num_samples", &R::num_samples),
+             Field("num_fitted", &R::num_fitted));
   d["grid_K_per_fraction"] =
       py::array_t<double>(r.grid_K_per_fraction.size(), r.grid_K_per_fraction.data());
   d["total_chi2"] = py::array_t<double>(r.total_chi2.size(), r.total_chi2.data());

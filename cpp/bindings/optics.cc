@@ -7,22 +7,6 @@
 namespace qogi {
 namespace {
 
-// Applies fn elementwise over a flat float64 array with the GIL released.
-template <typename Fn>
-py::array_t<double> Map(const DoubleArray& in, Fn fn) {
-  py::array_t<double> out(in.size());
-  const double* src = in.data();
-  double* dst = out.mutable_data();
-  const std::size_t n = static_cast<std::size_t>(in.size());
-  {
-    py::gil_scoped_release release;
-    ParallelFor(n, 8192, [&](std::size_t b, std::size_t e) {
-      for (std::size_t i = b; i < e; ++i) dst[i] = fn(src[i]);
-    });
-  }
-  return out;
-}
-
 // fn(nu, t, out, n) over blocks of equal-length 1-D arrays nu_cm1 and
 // temperature_K, in parallel with the GIL released.
 template <typename Fn>
@@ -98,19 +82,19 @@ name : str
                              "Response-weighted mean wavenumber [cm-1].")
       .def("_evaluate",
            [](const SpectralResponse& s, const DoubleArray& nu) {
-             return Map(nu, [&](double x) { return s.Evaluate(x); });
+             return MapValues(nu, [&](double x) { return s.Evaluate(x); });
            })
       .def("_band_radiance",
            [](const SpectralResponse& s, const DoubleArray& t) {
-             return Map(t, [&](double x) { return s.BandRadiance(x); });
+             return MapValues(t, [&](double x) { return s.BandRadiance(x); });
            })
       .def("_band_radiance_derivative",
            [](const SpectralResponse& s, const DoubleArray& t) {
-             return Map(t, [&](double x) { return s.BandRadianceDerivative(x); });
+             return MapValues(t, [&](double x) { return s.BandRadianceDerivative(x); });
            })
       .def("_radiometric_temperature",
            [](const SpectralResponse& s, const DoubleArray& l) {
-             return Map(l, [&](double x) { return s.RadiometricTemperature(x); });
+             return MapValues(l, [&](double x) { return s.RadiometricTemperature(x); });
            })
       .def(py::pickle(
           [](const SpectralResponse& s) {

@@ -88,6 +88,26 @@ Path MakePath(const DoubleArray& position, const DoubleArray& temperature,
   return p;
 }
 
+// A forward model's class with what both models share: the constructor
+// (channels, tables, options; built with the GIL released) and the
+// properties species, molar_masses, num_channels and the temperature range.
+template <typename Model, typename Options>
+py::class_<Model> BindForwardModel(py::module_& m, const char* name) {
+  py::class_<Model> cls(m, name);
+  cls.def(py::init([](std::vector<SpectralResponse> ch, std::vector<AbsorberTable> tabs,
+                      const Options& o) {
+            py::gil_scoped_release release;
+            return Model(std::move(ch), std::move(tabs), o);
+          }),
+          py::arg("channels"), py::arg("tables"), py::arg("options") = Options())
+      .def_property_readonly("species", &Model::species)
+      .def_property_readonly("molar_masses", &Model::molar_masses)
+      .def_property_readonly("num_channels", &Model::num_channels)
+      .def_property_readonly("min_temperature_K", &Model::min_temperature_K)
+      .def_property_readonly("max_temperature_K", &Model::max_temperature_K);
+  return cls;
+}
+
 }  // namespace
 
 void BindRte(py::module_& m) {
@@ -261,18 +281,7 @@ builds (or fetches) one table; default XsecTable.build. progress(fraction) -> bo
       py::arg("peak_fractions"), py::arg("peak_temperature_K"), py::arg("ambient_temperature_K"),
       py::arg("sigma_m"), py::arg("pressure_Pa"), py::arg("molar_masses_kg_mol"));
 
-  py::class_<ExactModel>(m, "ExactModel")
-      .def(py::init([](std::vector<SpectralResponse> ch, std::vector<AbsorberTable> tabs,
-                       const ExactModelOptions& o) {
-             py::gil_scoped_release release;
-             return ExactModel(std::move(ch), std::move(tabs), o);
-           }),
-           py::arg("channels"), py::arg("tables"), py::arg("options") = ExactModelOptions())
-      .def_property_readonly("species", &ExactModel::species)
-      .def_property_readonly("molar_masses", &ExactModel::molar_masses)
-      .def_property_readonly("num_channels", &ExactModel::num_channels)
-      .def_property_readonly("min_temperature_K", &ExactModel::min_temperature_K)
-      .def_property_readonly("max_temperature_K", &ExactModel::max_temperature_K)
+  BindForwardModel<ExactModel, ExactModelOptions>(m, "ExactModel")
       .def(
           "band_radiance",
           [](const ExactModel& mdl, const DoubleArray& x, const DoubleArray& tp,
@@ -350,19 +359,8 @@ builds (or fetches) one table; default XsecTable.build. progress(fraction) -> bo
           py::arg("peak_fractions"), py::arg("peak_temperature_K"),
           py::arg("ambient_temperature_K"), py::arg("sigma_m"), py::arg("pressure_Pa"));
 
-  py::class_<BinnedModel>(m, "BinnedModel")
-      .def(py::init([](std::vector<SpectralResponse> ch, std::vector<AbsorberTable> tabs,
-                       const BinnedModelOptions& o) {
-             py::gil_scoped_release release;
-             return BinnedModel(std::move(ch), std::move(tabs), o);
-           }),
-           py::arg("channels"), py::arg("tables"), py::arg("options") = BinnedModelOptions())
-      .def_property_readonly("species", &BinnedModel::species)
-      .def_property_readonly("molar_masses", &BinnedModel::molar_masses)
-      .def_property_readonly("num_channels", &BinnedModel::num_channels)
+  BindForwardModel<BinnedModel, BinnedModelOptions>(m, "BinnedModel")
       .def_property_readonly("pressure_Pa", &BinnedModel::pressure_Pa)
-      .def_property_readonly("min_temperature_K", &BinnedModel::min_temperature_K)
-      .def_property_readonly("max_temperature_K", &BinnedModel::max_temperature_K)
       .def_property_readonly("planck_interpolation_error", &BinnedModel::planck_interpolation_error)
       .def("num_bins", &BinnedModel::num_bins, py::arg("channel"))
       .def_property_readonly("options", &BinnedModel::options, py::return_value_policy::copy)

@@ -133,6 +133,7 @@ def _default_mode() -> int:
 
 
 def _fsync_file(path: pathlib.Path) -> None:
+    """Flushes a file (or folder) to disk; best effort (OSError ignored)."""
     with contextlib.suppress(OSError):
         fd = os.open(path, os.O_RDONLY)
         try:
@@ -142,14 +143,9 @@ def _fsync_file(path: pathlib.Path) -> None:
 
 
 def _fsync_dir(folder: pathlib.Path) -> None:
-    if os.name != "posix":
-        return
-    with contextlib.suppress(OSError):
-        fd = os.open(folder, os.O_RDONLY)
-        try:
-            os.fsync(fd)
-        finally:
-            os.close(fd)
+    """Flushes a folder's entries (a rename into it) where the OS allows it."""
+    if os.name == "posix":
+        _fsync_file(folder)
 
 
 def _free_bytes(folder: pathlib.Path) -> Optional[int]:

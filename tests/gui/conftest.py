@@ -1,7 +1,11 @@
-"""Fixtures for the viewer's tests: a per-test user store and small recordings
-whose frames are blackbody radiances of known temperatures (exact truth)."""
+"""Fixtures for the viewer's tests: a per-test user store, small recordings
+whose frames are blackbody radiances of known temperatures (exact truth), and
+a view-model on the real API, watched (Instrumented)."""
 
 from __future__ import annotations
+
+import threading
+import time
 
 import numpy as np
 import pytest
@@ -60,3 +64,86 @@ def store(tmp_path):
     from qogi_gui.store import UserStore
 
     return UserStore(tmp_path / "config")
+
+
+def wait_for(cond, timeout=5.0):
+    """Waits until cond() holds (an assertion error after ``timeout`` s)."""
+    end = time.monotonic() + timeout
+    while not cond():
+        assert time.monotonic() < end, "timed out"
+        time.sleep(0.002)
+
+
+class Clock:
+    def __init__(self):
+        self.t = 100.0
+
+    def __call__(self):
+        return self.t
+
+
+class Instrumented:
+    """The real ``qogi`` API, watched: every ``quantify`` call is recorded, and
+    a test may hold the run before each progress report until it lets one
+    through (``hold()``, ``step()``, ``release()``) or make it fail at the
+    ``fail_at``-th report (``fail_with``), to reach the viewer's running,
+    cancelling and failure states deterministically. The numbers are the real
+    pipeline's."""
+
+    def __init__(self):
+        self.calls = []
+        self.gate = None  # a Semaphore: one permit per progress report
+        self.reports = []  # (fraction, message) of the reports let through
+        self.fail_at = None
+        self.fail_with = RuntimeError("engine exploded")
+
+    def hold(self):
+        self.gate = threading.Semaphore(0)
+
+    def step(self, timeout=10.0):
+        """Let one progress report through and wait until the viewer has seen it."""
+        n = len(self.reports)
+        self.gate.release()
+        wait_for(lambda: len(self.reports) > n, timeout)
+        return self.reports[-1]
+
+    def release(self):
+        gate, self.gate = self.gate, None
+        if gate is not None:
+            gate.release(1000)
+
+    def __getattr__(self, name):
+        return getattr(qogi, name)
+
+    def quantify(self, recording, surfaces, config=None, progress=None, keep_maps=False):
+        self.calls.append((surfaces, config, keep_maps))
+        seen = [0]
+
+        def watched(fraction, message):
+            seen[0] += 1
+            gate = self.gate
+            if gate is not None:
+                gate.acquire(timeout=10)
+            if self.fail_at is not None and seen[0] >= self.fail_at:
+                raise self.fail_with
+            go = progress(fraction, message) if progress is not None else None
+            self.reports.append((fraction, message))
+            return go
+
+        return qogi.quantify(recording, surfaces, config, progress=watched, keep_maps=keep_maps)
+
+
+@pytest.fixture
+def api():
+    a = Instrumented()
+    yield a
+    a.release()
+
+
+@pytest.fixture
+def vm(api, store, rec_path):
+    from qogi_gui.viewmodel import ViewModel
+
+    v = ViewModel(api=api, store=store, demo_provider=lambda progress: str(rec_path), clock=Clock())
+    yield v
+    v.close()

@@ -6,29 +6,19 @@ form's bounds are the pipeline's, and the Results tab shows every budget term
 from __future__ import annotations
 
 import pytest
-from test_viewmodel import Clock, Instrumented, run_to_end
+from test_viewmodel import run_to_end
 
 import qogi
 from qogi.physics.forward import LineShape
 from qogi_gui import results
 from qogi_gui.settings import AnalysisSettings
-from qogi_gui.viewmodel import ViewModel
 
 
 @pytest.fixture
-def api():
-    a = Instrumented()
-    yield a
-    a.release()
-
-
-@pytest.fixture
-def opened(api, store, rec_path):
-    v = ViewModel(api=api, store=store, demo_provider=lambda progress: str(rec_path), clock=Clock())
-    assert v.open(rec_path), v.last_message
-    assert v.add_surface([(4, 12), (28, 12)], name="A")
-    yield v
-    v.close()
+def opened(vm, rec_path):
+    assert vm.open(rec_path), vm.last_message
+    assert vm.add_surface([(4, 12), (28, 12)], name="A")
+    return vm
 
 
 def _run(vm, **fields):

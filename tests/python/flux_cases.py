@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from qogi.measure import velocimetry as vel
+
 
 def puffing_plume(
     seed: int, frames: int = 40, height: int = 64, width: int = 48, speed_px: float = 2.3
@@ -102,4 +104,34 @@ def digest(a: np.ndarray) -> np.ndarray:
     a = np.asarray(a, np.float64)
     return np.concatenate(
         [a.sum(axis=(1, 2)), a.sum(axis=(0, 2)), a.sum(axis=(0, 1)), a[-1, a.shape[1] // 2]]
+    )
+
+
+def flow_sequence_case() -> tuple:
+    """The flux level's sequence input: the puffing plume of seed 7, its frame
+    velocities (fu, fv) upwards at level 1.8, and those from frame 1 on as an
+    exact FlowSequence (quality 1, every vector valid, residual 0)."""
+    frames = puffing_plume(7)
+    fu, fv = frame_velocities(7, frames.shape, "up", 1.8)
+    seq = vel.FlowSequence(
+        fu[1:],
+        fv[1:],
+        np.ones_like(fu[1:]),
+        np.ones(fu[1:].shape, bool),
+        np.zeros(fu.shape[0] - 1),
+        "exact",
+    )
+    return frames, fu, fv, seq
+
+
+def calibrate_given_transport(frames, fu, fv) -> tuple:
+    """The flux level (u, v, scale) of the sequence case's rows 20 on, given
+    the transport of the whole plume's rows 20-63 scaled by 1.3."""
+    part = vel.transport_flux(frames, "up").lines(slice(20, 64), scale=1.3)
+    return vel.calibrate_flux_level(
+        None,
+        frames[:, 20:],
+        "up",
+        transport=part,
+        frame_velocities=(fu[:, 20:].copy(), fv[:, 20:].copy()),
     )

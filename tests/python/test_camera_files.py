@@ -56,6 +56,19 @@ def _surface_args(h5):
 # ------------------------------------------------------------------ the writer
 
 
+def _metadata_3030(width, height, timestamp_s=0.0, frame_rate_hz=15):
+    """FLIR metadata of a width x height camera with the 3030 cm-1 one-line
+    Planck calibration and a 20 degree field of view."""
+    return flir_metadata(
+        width=width,
+        height=height,
+        timestamp_s=timestamp_s,
+        planck=planck_calibration_for(3030.0),
+        field_of_view_deg=20.0,
+        frame_rate_hz=frame_rate_hz,
+    )
+
+
 def test_writer_lays_out_fff_blocks_at_the_documented_offsets(tmp_path):
     planck = planck_calibration_for(3030.0)
     m = flir_metadata(
@@ -94,14 +107,7 @@ def test_writer_lays_out_fff_blocks_at_the_documented_offsets(tmp_path):
 
 @pytest.mark.parametrize("order", ["<", ">"])
 def test_little_and_big_endian_raw_data_read_the_same_counts(tmp_path, order):
-    m = flir_metadata(
-        width=5,
-        height=2,
-        timestamp_s=1.7e9,
-        planck=planck_calibration_for(3030.0),
-        field_of_view_deg=20.0,
-        frame_rate_hz=30,
-    )
+    m = _metadata_3030(5, 2, timestamp_s=1.7e9, frame_rate_hz=30)
     raw = np.array([[0, 1, 258, 40000, 65535], [7, 8, 9, 10, 11]], np.uint16)
     p = tmp_path / f"{'le' if order == '<' else 'be'}.seq"
     write_flir_seq(p, [raw], [m], byte_order=order, header_order=order)
@@ -113,14 +119,7 @@ def test_little_and_big_endian_raw_data_read_the_same_counts(tmp_path, order):
 
 
 def test_counts_invert_the_one_line_planck_law_to_the_count():
-    m = flir_metadata(
-        width=1,
-        height=1,
-        timestamp_s=0.0,
-        planck=planck_calibration_for(3030.0),
-        field_of_view_deg=20.0,
-        frame_rate_hz=15,
-    )
+    m = _metadata_3030(1, 1)
     t = np.linspace(270.0, 340.0, 701)
     raw = raw_from_apparent_temperature(t, m)
     back = flir_apparent_temperature(raw, m)
@@ -132,14 +131,7 @@ def test_counts_invert_the_one_line_planck_law_to_the_count():
 def test_a_block_without_camera_info_is_refused_by_name(tmp_path):
     from qogi.io.flir_writer import fff_block
 
-    m = flir_metadata(
-        width=2,
-        height=2,
-        timestamp_s=0.0,
-        planck=planck_calibration_for(3030.0),
-        field_of_view_deg=20.0,
-        frame_rate_hz=15,
-    )
+    m = _metadata_3030(2, 2)
     block = bytearray(fff_block(np.zeros((2, 2), np.uint16), m))
     struct.pack_into(">H", block, 0x60, 0x22)  # the CameraInfo entry becomes another type
     p = tmp_path / "nocal.seq"

@@ -77,28 +77,12 @@ def test_transport_flux_and_flux_level_agree_with_the_numpy_implementation(ref, 
 
 
 def test_flux_level_from_a_sequence_and_a_given_transport_agrees_with_numpy(ref):
-    frames = fc.puffing_plume(7)
-    fu, fv = fc.frame_velocities(7, frames.shape, "up", 1.8)
-    seq = vel.FlowSequence(
-        fu[1:],
-        fv[1:],
-        np.ones_like(fu[1:]),
-        np.ones(fu[1:].shape, bool),
-        np.zeros(fu.shape[0] - 1),
-        "exact",
-    )
+    frames, fu, fv, seq = fc.flow_sequence_case()
     u, v, scale = vel.calibrate_flux_level(seq, frames, "up", None, smooth_px=0.0)
     _close(scale, ref["cal_seq_scale"], "seq scale", rtol=TRANSPORT_RTOL)
     _close_digest(u, ref["cal_seq_u"], "seq u")
     _close_digest(v, ref["cal_seq_v"], "seq v")
-    part = vel.transport_flux(frames, "up").lines(slice(20, 64), scale=1.3)
-    u, v, scale = vel.calibrate_flux_level(
-        None,
-        frames[:, 20:],
-        "up",
-        transport=part,
-        frame_velocities=(fu[:, 20:].copy(), fv[:, 20:].copy()),
-    )
+    u, v, scale = fc.calibrate_given_transport(frames, fu, fv)
     _close(scale, ref["cal_part_scale"], "part scale", rtol=TRANSPORT_RTOL)
     _close_digest(u, ref["cal_part_u"], "part u")
     _close_digest(v, ref["cal_part_v"], "part v")

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import qogi
-from qogi.measure.inversion import fixed, free
+from qogi.measure.inversion import fixed, free, scene_table
 
 T_AMB = 293.15  # 20 C
 NETD_M150, NETD_GF320 = 0.017, 0.015
@@ -27,6 +27,54 @@ def m150(hitran_dir):
         exact_options=qogi._engine.ExactModelOptions(num_nodes=101),
     )
     return cam, model
+
+
+def _noisy_draws(cam, model, rng, x, tp, sg, tbg, draws):
+    """Exact-model radiances of plumes (x, tp, sg) before backgrounds tbg,
+    each repeated ``draws`` times with independent NETD noise: (radiances
+    (n*draws, 4), the backgrounds' radiances (n, 4), each draw's largest
+    |contrast| / noise over the channels, the true column densities)."""
+    exact = model.band_radiance(x, tp, sg, T_AMB, tbg[:, None].repeat(4, 1), exact=True)
+    noise = np.stack([qogi.netd_radiance_sigma(cam, NETD_M150, t) for t in tbg])
+    rad = np.repeat(exact, draws, 0) + rng.standard_normal((len(x) * draws, 4)) * np.repeat(
+        noise, draws, 0
+    )
+    bg = np.stack([c.band_radiance(tbg) for c in cam.channels], axis=1)
+    snr = np.abs(np.repeat((exact - bg) / noise, draws, 0)).max(axis=1)
+    truth = model.column_density(
+        np.repeat(x, draws, 0), np.repeat(tp, draws), np.repeat(sg, draws), T_AMB
+    )
+    return rad, bg, snr, truth
+
+
+def _column_errors_within_noise(res, truth, ok):
+    """Asserts, for CH4 and CO2, a median |column error| < 2 % over the
+    pixels ``ok`` and a z-score std in [0.7, 1.4] over the valid ones; returns
+    a summary line per species."""
+    lines = []
+    for s in ("CH4", "CO2"):
+        err = res.column_density[s] - truth[s]
+        med = np.median(np.abs(err[ok] / truth[s][ok]))
+        z = err[res.valid] / res.column_density_sigma[s][res.valid]
+        lines.append(
+            f"{s}: median |error| {100 * med:.2f} %, z std {z.std():.3f}, "
+            f"z mean {z.mean():+.3f}, max |z| {np.abs(z).max():.2f}"
+        )
+        assert med < 0.02
+        assert 0.7 <= z.std() <= 1.4
+    return lines
+
+
+def _hot_scene_table(model):
+    """The mixing-line scene table of the hot-release tests: T_peak from
+    T_amb - 10 K to T_amb + 150 K every 10 K."""
+    return scene_table(
+        model,
+        T_AMB,
+        min_peak_temperature_K=T_AMB - 10,
+        max_peak_temperature_K=T_AMB + 150,
+        temperature_step_K=10.0,
+    )
 
 
 def test_round_trip_through_the_exact_model(m150, capsys):
@@ -49,15 +97,8 @@ def test_round_trip_through_the_exact_model(m150, capsys):
     total = rng.permutation(np.geomspace(2e-3, 0.4, m))
     x = np.stack([total / 2, total / 2], axis=1)
     sg = rng.uniform(0.02, 0.1, m)
-    exact = model.band_radiance(x, tp, sg, T_AMB, tbg[:, None].repeat(4, 1), exact=True)
-    noise = np.stack([qogi.netd_radiance_sigma(cam, NETD_M150, t) for t in tbg])
-    rad = np.repeat(exact, draws, 0) + rng.standard_normal((m * draws, 4)) * np.repeat(
-        noise, draws, 0
-    )
-    bg = np.stack([c.band_radiance(tbg) for c in cam.channels], axis=1)
-    snr = np.abs(np.repeat((exact - bg) / noise, draws, 0)).max(axis=1)
+    rad, _, snr, truth = _noisy_draws(cam, model, rng, x, tp, sg, tbg, draws)
     TP, TB, SG = (np.repeat(a, draws) for a in (tp, tbg, sg))
-    truth = model.column_density(np.repeat(x, draws, 0), TP, SG, T_AMB)
 
     inv = qogi.Inversion(
         model,
@@ -72,17 +113,7 @@ def test_round_trip_through_the_exact_model(m150, capsys):
     assert res.counts()["failed"] == 0 and res.counts()["below_detection"] == 0
     ok = res.valid & (snr > 10)
     assert ok.sum() > 900
-    lines = []
-    for s in ("CH4", "CO2"):
-        err = res.column_density[s] - truth[s]
-        med = np.median(np.abs(err[ok] / truth[s][ok]))
-        z = err[res.valid] / res.column_density_sigma[s][res.valid]
-        lines.append(
-            f"{s}: median |error| {100 * med:.2f} %, z std {z.std():.3f}, "
-            f"z mean {z.mean():+.3f}, max |z| {np.abs(z).max():.2f}"
-        )
-        assert med < 0.02
-        assert 0.7 <= z.std() <= 1.4
+    lines = _column_errors_within_noise(res, truth, ok)
     with capsys.disabled():
         print("\nround trip (exact model + 17 mK, T known): " + "; ".join(lines))
 
@@ -197,22 +228,9 @@ def test_mixing_line_round_trip_through_the_exact_model(m150, capsys):
     tbg = T_AMB - rng.uniform(10.0, 20.0, m)
     sg = rng.uniform(0.01, 0.05, m)
     x = np.stack([big_x / 2, big_x / 2], axis=1)
-    exact = model.band_radiance(x, tp, sg, T_AMB, tbg[:, None].repeat(4, 1), exact=True)
-    noise = np.stack([qogi.netd_radiance_sigma(cam, NETD_M150, t) for t in tbg])
-    rad = np.repeat(exact, draws, 0) + rng.standard_normal((m * draws, 4)) * np.repeat(
-        noise, draws, 0
-    )
-    bg = np.stack([c.band_radiance(tbg) for c in cam.channels], axis=1)
-    snr = np.abs(np.repeat((exact - bg) / noise, draws, 0)).max(axis=1)
-    TP, SG = np.repeat(tp, draws), np.repeat(sg, draws)
-    truth = model.column_density(np.repeat(x, draws, 0), TP, SG, T_AMB)
-    table = inv.scene_table(
-        model,
-        T_AMB,
-        min_peak_temperature_K=T_AMB - 10,
-        max_peak_temperature_K=T_AMB + 150,
-        temperature_step_K=10.0,
-    )
+    rad, bg, snr, truth = _noisy_draws(cam, model, rng, x, tp, sg, tbg, draws)
+    SG = np.repeat(sg, draws)
+    table = _hot_scene_table(model)
     bgr = np.repeat(bg, draws, 0)
     res = inv.invert_on_mixing_line(
         model, table, k, rad.T, bgr.T, SG, netd_K=NETD_M150, composition={"CH4": 0.5, "CO2": 0.5}
@@ -220,14 +238,7 @@ def test_mixing_line_round_trip_through_the_exact_model(m150, capsys):
     assert res.counts()["failed"] == 0
     ok = res.valid & (snr > 10)
     assert ok.sum() > 500
-    lines = []
-    for s in ("CH4", "CO2"):
-        err = res.column_density[s] - truth[s]
-        med = np.median(np.abs(err[ok] / truth[s][ok]))
-        z = err[res.valid] / res.column_density_sigma[s][res.valid]
-        lines.append(f"{s}: median |error| {100 * med:.2f} %, z std {z.std():.3f}")
-        assert med < 0.02
-        assert 0.7 <= z.std() <= 1.4
+    lines = _column_errors_within_noise(res, truth, ok)
     # The temperature follows the line.
     np.testing.assert_allclose(
         res.peak_temperature_K[ok],
@@ -275,13 +286,7 @@ def test_mixing_line_slope_recovers_the_release_slope(m150):
         noise, draws, 0
     )
     bg = np.repeat(np.stack([c.band_radiance(tbg) for c in cam.channels], axis=1), draws, 0)
-    table = inv.scene_table(
-        model,
-        T_AMB,
-        min_peak_temperature_K=T_AMB - 10,
-        max_peak_temperature_K=T_AMB + 150,
-        temperature_step_K=10.0,
-    )
+    table = _hot_scene_table(model)
     comp = {"CH4": 0.5, "CO2": 0.5}
     r = inv.mixing_line_slope(
         model, table, rad.T, bg.T, np.repeat(sg, draws), netd_K=NETD_M150, composition=comp

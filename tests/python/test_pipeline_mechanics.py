@@ -10,14 +10,11 @@ import pytest
 import qogi
 from qogi.pipeline import Cancelled, QuantifyConfig, quantify
 from qogi.pipeline.surfaces import Region, Surface
-from qogi.synth import render
 
 
 @pytest.fixture(scope="module")
-def lab(tmp_path_factory):
-    path = tmp_path_factory.mktemp("lab") / "lab.h5"
-    render.synthesize("lab-ch4-5slpm-gf320", path, duration_s=2.0, seed=4, truth_maps=True)
-    return qogi.open_recording(path)
+def lab(lab_clip):
+    return qogi.open_recording(lab_clip(2.0))
 
 
 def truth_cfg(**kw):

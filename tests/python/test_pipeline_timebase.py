@@ -10,16 +10,13 @@ from qogi.io.recording import Recording, Truth
 from qogi.pipeline import QuantifyConfig, quantify
 from qogi.pipeline.surfaces import Surface
 from qogi.pipeline.timebase import frame_timebase, stream_blocks
-from qogi.synth import render
 
 SURFACE = [Surface([(100.0, 200.0), (220.0, 200.0)])]
 
 
 @pytest.fixture(scope="module")
-def lab(tmp_path_factory):
-    path = tmp_path_factory.mktemp("lab") / "lab.h5"
-    render.synthesize("lab-ch4-5slpm-gf320", path, duration_s=4.0, seed=4, truth_maps=True)
-    return qogi.open_recording(path).load()
+def lab(lab_clip):
+    return qogi.open_recording(lab_clip(4.0)).load()
 
 
 def cfg(**kw):

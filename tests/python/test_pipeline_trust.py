@@ -10,16 +10,13 @@ from qogi.errors import DataError, UsageError
 from qogi.io.recording import Recording
 from qogi.pipeline import QuantifyConfig, quantify
 from qogi.pipeline.surfaces import Surface
-from qogi.synth import render
 
 SURFACE = [Surface([(100.0, 200.0), (220.0, 200.0)])]
 
 
 @pytest.fixture(scope="module")
-def lab(tmp_path_factory):
-    path = tmp_path_factory.mktemp("lab") / "lab.h5"
-    render.synthesize("lab-ch4-5slpm-gf320", path, duration_s=2.0, seed=4, truth_maps=True)
-    return qogi.open_recording(path).load()
+def lab(lab_clip):
+    return qogi.open_recording(lab_clip(2.0)).load()
 
 
 def cfg(**kw):

@@ -130,18 +130,17 @@ def test_incremental_writer_infers_the_frame_rate(tmp_path):
     assert rec.truth.emission_rate_kg_s["CH4"] == 1e-3
 
 
+def _small_writer(path, **options):
+    """A radiance writer of (2, 3, 3) frames with the test camera and scene."""
+    return qogi.RecordingWriter(
+        path, quantity="radiance", camera=camera(), scene=scene(), frame_shape=(2, 3, 3), **options
+    )
+
+
 def test_writer_keeps_the_frames_written_before_a_failure_only_on_request(tmp_path):
     p = tmp_path / "partial.h5"
     with pytest.raises(RuntimeError):  # noqa: PT012 (the writer's exit is under test)
-        with qogi.RecordingWriter(
-            p,
-            quantity="radiance",
-            camera=camera(),
-            scene=scene(),
-            frame_shape=(2, 3, 3),
-            expected_frames=100,
-            keep_partial=True,
-        ) as w:
+        with _small_writer(p, expected_frames=100, keep_partial=True) as w:
             for i in range(4):
                 w.append(np.ones((2, 3, 3)), i / 15.0)
             raise RuntimeError("generator crashed")
@@ -154,21 +153,12 @@ def test_writer_keeps_the_frames_written_before_a_failure_only_on_request(tmp_pa
 
 def test_writer_failure_leaves_the_previous_file_untouched(tmp_path):
     p = tmp_path / "old.h5"
-    with qogi.RecordingWriter(
-        p, quantity="radiance", camera=camera(), scene=scene(), frame_shape=(2, 3, 3)
-    ) as w:
+    with _small_writer(p) as w:
         for i in range(6):
             w.append(np.full((2, 3, 3), 2.0), i / 15.0)
     before = p.read_bytes()
     with pytest.raises(KeyboardInterrupt):  # noqa: PT012 (the writer's exit is under test)
-        with qogi.RecordingWriter(
-            p,
-            quantity="radiance",
-            camera=camera(),
-            scene=scene(),
-            frame_shape=(2, 3, 3),
-            expected_frames=100,
-        ) as w:
+        with _small_writer(p, expected_frames=100) as w:
             for i in range(3):
                 w.append(np.ones((2, 3, 3)), i / 15.0)
             raise KeyboardInterrupt
@@ -179,13 +169,7 @@ def test_writer_failure_leaves_the_previous_file_untouched(tmp_path):
 
 
 def test_writer_rejects_time_going_backwards(tmp_path):
-    with qogi.RecordingWriter(
-        tmp_path / "w.h5",
-        quantity="radiance",
-        camera=camera(),
-        scene=scene(),
-        frame_shape=(2, 3, 3),
-    ) as w:
+    with _small_writer(tmp_path / "w.h5") as w:
         w.append(np.ones((2, 3, 3)), 1.0)
         with pytest.raises(qogi.RecordingError, match="time_s"):
             w.append(np.ones((2, 3, 3)), 0.5)
@@ -305,14 +289,16 @@ def test_invalid_channel_response(good_file):
         qogi.open_recording(good_file)
 
 
-def test_nan_in_frames_is_an_error_naming_count_and_first_location(good_file):
-    def fn(f):
-        d = f["frames"][()]
-        d[7, 1, 2, 3] = np.nan
-        d[9, 0, 0, 0] = np.inf
-        f["frames"][...] = d
+def _two_nonfinite_pixels(f):
+    """NaN at (t=7, c=1, y=2, x=3) and inf at (t=9, c=0, y=0, x=0)."""
+    d = f["frames"][()]
+    d[7, 1, 2, 3] = np.nan
+    d[9, 0, 0, 0] = np.inf
+    f["frames"][...] = d
 
-    edit(good_file, fn)
+
+def test_nan_in_frames_is_an_error_naming_count_and_first_location(good_file):
+    edit(good_file, _two_nonfinite_pixels)
     with pytest.raises(
         qogi.RecordingError, match=r"/frames: 2 non-finite values.*\(t=7, c=1, y=2, x=3\)"
     ):
@@ -320,13 +306,7 @@ def test_nan_in_frames_is_an_error_naming_count_and_first_location(good_file):
 
 
 def test_nan_can_be_treated_as_invalid_pixels(good_file):
-    def fn(f):
-        d = f["frames"][()]
-        d[7, 1, 2, 3] = np.nan
-        d[9, 0, 0, 0] = np.inf
-        f["frames"][...] = d
-
-    edit(good_file, fn)
+    edit(good_file, _two_nonfinite_pixels)
     rec = qogi.open_recording(good_file, nonfinite="invalid")
     assert rec.n_invalid == 2
     assert np.isnan(rec.frame(9)[0, 0, 0]) and np.isnan(rec.frame(7)[1, 2, 3])

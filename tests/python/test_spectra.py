@@ -423,61 +423,28 @@ def test_fetch_hitran_builds_the_query_and_validates(tmp_path, monkeypatch, hitr
 def test_cli_xsec_and_hitran_list(tmp_path, hitran_dir):
     out = tmp_path / "x.npz"
     env = dict(os.environ, QOGI_CACHE_DIR=str(tmp_path / "cache"))
-    r = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "qogi",
-            "xsec",
-            "CH4",
-            "--range",
-            "3000",
-            "3010",
-            "--step",
-            "0.01",
-            "--temperature",
-            "296",
-            "--out",
-            str(out),
-        ],
-        capture_output=True,
-        text=True,
-        check=True,
-        env=env,
-    )
+
+    def qogi_cli(*args, check=True):
+        return subprocess.run(
+            [sys.executable, "-m", "qogi", *args],
+            capture_output=True,
+            text=True,
+            check=check,
+            env=env,
+        )
+
+    xsec = ["xsec", "CH4", "--range", "3000", "3010"]
+    r = qogi_cli(*xsec, "--step", "0.01", "--temperature", "296", "--out", str(out))
     assert "25126 lines" in r.stdout
     d = np.load(out)
     assert d["nu_cm1"].size == 1001
     expect = qogi.cross_section("CH4", d["nu_cm1"], 296.0)
     np.testing.assert_allclose(d["sigma_cm2_per_molecule"], expect, rtol=1e-12)
-    r = subprocess.run(
-        [sys.executable, "-m", "qogi", "hitran", "list", "CH4"],
-        capture_output=True,
-        text=True,
-        check=True,
-        env=env,
-    )
+    r = qogi_cli("hitran", "list", "CH4")
     assert "CH4.par" in r.stdout and "2832.8614-3246.3010" in r.stdout
     assert "shipped with qogi" in r.stdout and "HITRAN2020" in r.stdout
     assert "doi:10.1016/j.jqsrt.2021.107949" in r.stdout
-    r = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "qogi",
-            "xsec",
-            "CH4",
-            "--range",
-            "3000",
-            "3010",
-            "--cutoff",
-            "wide",
-        ],
-        capture_output=True,
-        check=False,
-        text=True,
-        env=env,
-    )
+    r = qogi_cli(*xsec, "--cutoff", "wide", check=False)
     assert r.returncode != 0 and "--cutoff" in r.stderr
 
 

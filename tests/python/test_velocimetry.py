@@ -59,7 +59,17 @@ def epe(f, tu, tv, margin=16):
 
 # --- options -----------------------------------------------------------------
 
-# The C++ field names, as documented in the engine headers.
+# The C++ field names, as documented in the engine headers; the variational
+# methods (fluid, Horn-Schunck) share their pyramid's.
+PYRAMID_FIELDS = (
+    "levels",
+    "min_level_size",
+    "finest_level",
+    "warm_levels",
+    "warps",
+    "iterations",
+    "tolerance",
+)
 FIELDS = {
     "fluid": (
         "alpha",
@@ -72,23 +82,11 @@ FIELDS = {
         "patch_stride",
         "patch_iterations",
         "patch_search_warm",
-        "levels",
-        "min_level_size",
-        "finest_level",
-        "warm_levels",
-        "warps",
-        "iterations",
-        "tolerance",
+        *PYRAMID_FIELDS,
     ),
     "horn_schunck": (
         "alpha",
-        "levels",
-        "min_level_size",
-        "finest_level",
-        "warm_levels",
-        "warps",
-        "iterations",
-        "tolerance",
+        *PYRAMID_FIELDS,
     ),
     "lucas_kanade": (
         "window_sigma",

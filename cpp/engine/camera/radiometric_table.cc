@@ -166,24 +166,30 @@ double RadiometricTable::Temperature(double l) const {
   return 1.0 / inverse_.Eval(std::log(l));
 }
 
-void RadiometricTable::Radiance(const float* in, float* out, std::size_t n, int num_threads,
-                                const RunControl* control) const {
+namespace {
+
+// out[i] = f(in[i]) as float for i < n, in parallel.
+template <typename F>
+void MapFloats(const float* in, float* out, std::size_t n, int num_threads,
+               const RunControl* control, F f) {
   ParallelFor(
       n, 16384,
       [&](std::size_t b, std::size_t e) {
-        for (std::size_t i = b; i < e; ++i) out[i] = static_cast<float>(Radiance(in[i]));
+        for (std::size_t i = b; i < e; ++i) out[i] = static_cast<float>(f(in[i]));
       },
       num_threads, control);
 }
 
+}  // namespace
+
+void RadiometricTable::Radiance(const float* in, float* out, std::size_t n, int num_threads,
+                                const RunControl* control) const {
+  MapFloats(in, out, n, num_threads, control, [this](double t) { return Radiance(t); });
+}
+
 void RadiometricTable::Temperature(const float* in, float* out, std::size_t n, int num_threads,
                                    const RunControl* control) const {
-  ParallelFor(
-      n, 16384,
-      [&](std::size_t b, std::size_t e) {
-        for (std::size_t i = b; i < e; ++i) out[i] = static_cast<float>(Temperature(in[i]));
-      },
-      num_threads, control);
+  MapFloats(in, out, n, num_threads, control, [this](double l) { return Temperature(l); });
 }
 
 }  // namespace qogi

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "engine/util/check.h"
+#include "engine/util/interpolation.h"
 
 namespace qogi {
 namespace {
@@ -55,16 +56,6 @@ cv::Mat Smoothed(const cv::Mat& a, double sigma) {
   cv::Mat out;
   cv::GaussianBlur(f, out, cv::Size(0, 0), sigma, sigma, cv::BORDER_REPLICATE);
   return out;
-}
-
-// Keys' cubic convolution weights (a = -0.5, exact for quadratics) of the
-// four taps x0 - 1 .. x0 + 2 at fraction t = x - x0 in [0, 1).
-inline void CubicWeights(double t, double w[4]) {
-  const double t2 = t * t, t3 = t2 * t;
-  w[0] = -0.5 * t3 + t2 - 0.5 * t;
-  w[1] = 1.5 * t3 - 2.5 * t2 + 1.0;
-  w[2] = -1.5 * t3 + 2.0 * t2 + 0.5 * t;
-  w[3] = 0.5 * t3 - 0.5 * t2;
 }
 
 // Bicubic resampling out(x, y) = src(map(x, y)), the border replicated.

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "engine/util/check.h"
+#include "engine/util/interpolation.h"
 
 namespace qogi {
 
@@ -77,19 +78,7 @@ TemperatureStencil MakeTemperatureStencil(const std::vector<double>& grid, doubl
   st.dfrac = 1.0 / h;
   st.count = static_cast<int>(std::min<std::size_t>(4, n));
   st.first = n >= 4 ? std::min(i == 0 ? 0 : i - 1, n - 4) : 0;
-  for (int a = 0; a < st.count; ++a) {
-    const double ta = grid[st.first + a];
-    double w = 1.0, dw = 0.0;
-    for (int b = 0; b < st.count; ++b) {
-      if (b == a) continue;
-      const double tb = grid[st.first + b];
-      const double f = (t - tb) / (ta - tb);
-      dw = dw * f + w / (ta - tb);
-      w *= f;
-    }
-    st.weight[a] = w;
-    st.dweight[a] = dw;
-  }
+  LagrangeWeights(grid.data() + st.first, st.count, t, st.weight, st.dweight);
   return st;
 }
 

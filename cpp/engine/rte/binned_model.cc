@@ -569,14 +569,7 @@ std::vector<double> BinnedModel::BandRadiance(const GaussianPlume& plume,
 std::vector<double> BinnedModel::BandRadiance(const Path& path,
                                               const std::vector<double>& t_bg_in) const {
   CheckPath(path);
-  Require(t_bg_in.size() == 1 || t_bg_in.size() == channels_.size(),
-          "background_temperature_K needs 1 value or one per channel (" +
-              std::to_string(channels_.size()) + "); got " + std::to_string(t_bg_in.size()));
-  std::vector<double> t_bg(channels_.size(), t_bg_in[0]);
-  for (std::size_t c = 0; c < t_bg.size(); ++c) {
-    if (t_bg_in.size() > 1) t_bg[c] = t_bg_in[c];
-    CheckInRange(t_bg[c], 100.0, 2000.0, "background_temperature_K", "K");
-  }
+  const std::vector<double> t_bg = BackgroundTemperaturesPerChannel(t_bg_in, channels_.size());
   std::vector<double> out(channels_.size());
   Contrast<double>(path, t_bg.data(), out.data());
   for (std::size_t c = 0; c < out.size(); ++c) out[c] += channels_[c].BandRadiance(t_bg[c]);

@@ -137,18 +137,6 @@ std::vector<double> ExactModel::molar_masses() const {
   return out;
 }
 
-std::vector<double> ExactModel::BackgroundTemperatures(const std::vector<double>& t_bg) const {
-  Require(t_bg.size() == 1 || t_bg.size() == channels_.size(),
-          "background_temperature_K needs 1 value or one per channel (" +
-              std::to_string(channels_.size()) + "); got " + std::to_string(t_bg.size()));
-  std::vector<double> out(channels_.size(), t_bg[0]);
-  for (std::size_t c = 0; c < out.size(); ++c) {
-    if (t_bg.size() > 1) out[c] = t_bg[c];
-    CheckInRange(out[c], 100.0, 2000.0, "background_temperature_K", "K");
-  }
-  return out;
-}
-
 void ExactModel::CheckPathAgainstTables(const Path& path) const {
   CheckPath(path);
   Require(path.num_species == tables_.size(), "the path has " + std::to_string(path.num_species) +
@@ -290,7 +278,7 @@ std::vector<double> ExactModel::BandRadiance(const Path& path, const std::vector
                                              const RunControl* control) const {
   CheckPathAgainstTables(path);
   atmosphere.Check();
-  const std::vector<double> t_bg = BackgroundTemperatures(t_bg_in);
+  const std::vector<double> t_bg = BackgroundTemperaturesPerChannel(t_bg_in, channels_.size());
   std::vector<double> out(channels_.size());
   for (std::size_t c = 0; c < channels_.size(); ++c) {
     const ChannelGrid& g = grids_[c];

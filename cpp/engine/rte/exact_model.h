@@ -103,7 +103,6 @@ class ExactModel {
   Path GaussianPath(const GaussianPlume& plume) const;
 
  private:
-  std::vector<double> BackgroundTemperatures(const std::vector<double>& t_bg) const;
   void CheckPathAgainstTables(const Path& path) const;
   // Contrast sum_i weight_i Delta L_i over grid points [begin, end) of a channel.
   double ContrastSum(std::size_t channel, const Path& path, double t_bg, std::size_t begin,

@@ -6,6 +6,19 @@
 
 namespace qogi {
 
+std::vector<double> BackgroundTemperaturesPerChannel(const std::vector<double>& t_bg,
+                                                     std::size_t num_channels) {
+  Require(t_bg.size() == 1 || t_bg.size() == num_channels,
+          "background_temperature_K needs 1 value or one per channel (" +
+              std::to_string(num_channels) + "); got " + std::to_string(t_bg.size()));
+  std::vector<double> out(num_channels, t_bg[0]);
+  for (std::size_t c = 0; c < out.size(); ++c) {
+    if (t_bg.size() > 1) out[c] = t_bg[c];
+    CheckInRange(out[c], 100.0, 2000.0, "background_temperature_K", "K");
+  }
+  return out;
+}
+
 void CheckPath(const Path& path) {
   const std::size_t n = path.size();
   Require(n >= 2, "path needs at least 2 nodes; got " + std::to_string(n));

@@ -44,6 +44,13 @@ using Path = PathT<double>;
 // temperatures > 0, fractions in [0, 1] summing to <= 1, pressure > 0.
 void CheckPath(const Path& path);
 
+// The background temperature behind the path in each of `num_channels`
+// channels [K], from one value (every channel) or one per channel; each
+// within [100, 2000] K (std::invalid_argument naming background_temperature_K
+// otherwise).
+std::vector<double> BackgroundTemperaturesPerChannel(const std::vector<double>& t_bg,
+                                                     std::size_t num_channels);
+
 struct GaussianPlume {
   std::vector<double> peak_fractions;    // x_i,peak per species, in [0, 1], sum <= 1
   double peak_temperature_K = 296.0;     // T_peak [K]

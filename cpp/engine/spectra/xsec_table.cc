@@ -10,6 +10,7 @@
 #include <utility>
 
 #include "engine/util/check.h"
+#include "engine/util/interpolation.h"
 
 namespace qogi {
 
@@ -112,19 +113,7 @@ XsecTable::Stencil XsecTable::StencilAt(double temperature_K) const {
     s.first = std::min(i == 0 ? 0 : i - 1, nt - 4);
   else
     s.first = 0;
-  for (int k = 0; k < s.count; ++k) {
-    const double tk = t[s.first + k];
-    double w = 1.0, dw = 0.0;
-    for (int m = 0; m < s.count; ++m) {
-      if (m == k) continue;
-      const double tm = t[s.first + m];
-      const double f = (temperature_K - tm) / (tk - tm);
-      dw = dw * f + w / (tk - tm);  // product rule, accumulated
-      w *= f;
-    }
-    s.w[k] = w;
-    s.dw[k] = dw;
-  }
+  LagrangeWeights(t.data() + s.first, s.count, temperature_K, s.w, s.dw);
   return s;
 }
 

@@ -42,40 +42,40 @@ void ParallelFor(std::size_t n, std::size_t chunk,
     if (!error) error = e;
     stop = true;
   };
+  // Runs f; false when it threw (the error recorded, the others stopped). A
+  // thread being torn down (pthread_exit / pthread_cancel, e.g. a Python
+  // thread that takes the GIL while the interpreter exits) stops the others
+  // and lets the unwind continue: swallowing it aborts the process ("FATAL:
+  // exception not rethrown").
+  auto guarded = [&](const auto& f) {
+    try {
+      f();
+      return true;
+    } catch (abi::__forced_unwind&) {
+      stop = true;
+      throw;
+    } catch (...) {
+      record_error(std::current_exception());
+      return false;
+    }
+  };
   auto worker = [&](bool is_caller) {
     auto last_hook = std::chrono::steady_clock::now() - std::chrono::seconds(1);
     while (!stop) {
       const std::size_t c = next.fetch_add(1);
       if (c >= num_chunks) break;
       const std::size_t b = c * chunk, e = std::min(n, b + chunk);
-      try {
-        body(b, e);
-      } catch (abi::__forced_unwind&) {
-        // The thread is being torn down (pthread_exit / pthread_cancel, e.g.
-        // a Python thread that takes the GIL while the interpreter exits):
-        // stop the others and let the unwind continue; swallowing it aborts
-        // the process ("FATAL: exception not rethrown").
-        stop = true;
-        throw;
-      } catch (...) {
-        record_error(std::current_exception());
-        break;
-      }
+      if (!guarded([&] { body(b, e); })) break;
       const std::size_t finished = done.fetch_add(1) + 1;
       if (is_caller && control) {
         const auto now = std::chrono::steady_clock::now();
         if (now - last_hook < std::chrono::milliseconds(50) && finished < num_chunks) continue;
         last_hook = now;
-        try {
+        const bool ok = guarded([&] {
           if (control->cancelled && control->cancelled()) throw Cancelled();
           if (control->progress) control->progress(static_cast<double>(finished) / num_chunks);
-        } catch (abi::__forced_unwind&) {
-          stop = true;
-          throw;
-        } catch (...) {
-          record_error(std::current_exception());
-          break;
-        }
+        });
+        if (!ok) break;
       }
     }
   };

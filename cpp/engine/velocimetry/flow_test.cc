@@ -48,6 +48,18 @@ void ExpectInvalidArgument(const std::function<void()>& f, const std::string& wo
   }
 }
 
+// Expects Options, as `edit` changes them, to fail Check() with `words`.
+template <typename Options, typename Edit>
+void ExpectCheckFails(Edit edit, const std::string& words) {
+  ExpectInvalidArgument(
+      [&] {
+        Options o;
+        edit(o);
+        o.Check();
+      },
+      words);
+}
+
 TEST(FlowMethod, NamesRoundTrip) {
   for (auto& m : AllMethods()) EXPECT_EQ(ParseFlowMethod(FlowMethodName(m->method())), m->method());
   ExpectInvalidArgument([] { ParseFlowMethod("tvl1"); }, "horn_schunck, lucas_kanade");
@@ -86,62 +98,21 @@ TEST(Calc, RejectsBadFramesAndMasksWithClearMessages) {
 }
 
 TEST(Options, OutOfRangeFieldsAreNamed) {
-  ExpectInvalidArgument(
-      [] {
-        HornSchunckOptions o;
-        o.alpha = 0;
-        o.Check();
-      },
-      "HornSchunckOptions.alpha");
-  ExpectInvalidArgument(
-      [] {
-        FluidFlowOptions o;
-        o.levels = 0;
-        o.Check();
-      },
-      "FluidFlowOptions.levels must be within [1, 12]; got 0");
-  ExpectInvalidArgument(
-      [] {
-        FluidFlowOptions o;
-        o.alpha_div = -1;
-        o.Check();
-      },
-      "FluidFlowOptions.alpha_div");
-  ExpectInvalidArgument(
-      [] {
-        LucasKanadeOptions o;
-        o.window_sigma = 0.1;
-        o.Check();
-      },
-      "LucasKanadeOptions.window_sigma");
-  ExpectInvalidArgument(
-      [] {
-        FarnebackOptions o;
-        o.poly_n = 6;
-        o.Check();
-      },
-      "FarnebackOptions.poly_n must be 5 or 7; got 6");
-  ExpectInvalidArgument(
-      [] {
-        DisOptions o;
-        o.patch_stride = 8;
-        o.Check();
-      },
-      "DisOptions.patch_stride must be < patch_size");
-  ExpectInvalidArgument(
-      [] {
-        PivOptions o;
-        o.window_size = 15;
-        o.Check();
-      },
-      "PivOptions.window_size must be even; got 15");
-  ExpectInvalidArgument(
-      [] {
-        PivOptions o;
-        o.initial_window_size = 8;
-        o.Check();
-      },
-      "PivOptions.initial_window_size must be >= window_size");
+  ExpectCheckFails<HornSchunckOptions>([](auto& o) { o.alpha = 0; }, "HornSchunckOptions.alpha");
+  ExpectCheckFails<FluidFlowOptions>([](auto& o) { o.levels = 0; },
+                                     "FluidFlowOptions.levels must be within [1, 12]; got 0");
+  ExpectCheckFails<FluidFlowOptions>([](auto& o) { o.alpha_div = -1; },
+                                     "FluidFlowOptions.alpha_div");
+  ExpectCheckFails<LucasKanadeOptions>([](auto& o) { o.window_sigma = 0.1; },
+                                       "LucasKanadeOptions.window_sigma");
+  ExpectCheckFails<FarnebackOptions>([](auto& o) { o.poly_n = 6; },
+                                     "FarnebackOptions.poly_n must be 5 or 7; got 6");
+  ExpectCheckFails<DisOptions>([](auto& o) { o.patch_stride = 8; },
+                               "DisOptions.patch_stride must be < patch_size");
+  ExpectCheckFails<PivOptions>([](auto& o) { o.window_size = 15; },
+                               "PivOptions.window_size must be even; got 15");
+  ExpectCheckFails<PivOptions>([](auto& o) { o.initial_window_size = 8; },
+                               "PivOptions.initial_window_size must be >= window_size");
   // Constructors check too.
   EXPECT_THROW(PivFlow([] {
                  PivOptions o;

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "engine/util/check.h"
+#include "engine/velocimetry/image_ops.h"
 
 namespace qogi {
 
@@ -14,19 +15,9 @@ void FluidFlowOptions::Check() const {
   CheckPositive(div_curl_scale, "FluidFlowOptions.div_curl_scale", "px");
   CheckNonNegative(smoothness_scale, "FluidFlowOptions.smoothness_scale", "px");
   CheckInRange(patch_search_scale, -1, 10, "FluidFlowOptions.patch_search_scale");
-  CheckInRange(patch_size, 4, 64, "FluidFlowOptions.patch_size", "px");
-  CheckInRange(patch_stride, 1, 63, "FluidFlowOptions.patch_stride", "px");
-  Require(patch_stride < patch_size, "FluidFlowOptions.patch_stride must be < patch_size; got " +
-                                         std::to_string(patch_stride) +
-                                         " >= " + std::to_string(patch_size));
+  flow_ops::CheckPatchGrid(patch_size, patch_stride, "FluidFlowOptions");
   CheckInRange(patch_iterations, 1, 1000, "FluidFlowOptions.patch_iterations");
-  CheckInRange(levels, 1, 12, "FluidFlowOptions.levels");
-  CheckInRange(min_level_size, 4, 4096, "FluidFlowOptions.min_level_size", "px");
-  CheckInRange(finest_level, 0, 10, "FluidFlowOptions.finest_level");
-  CheckInRange(warm_levels, 0, 12, "FluidFlowOptions.warm_levels");
-  CheckInRange(warps, 1, 50, "FluidFlowOptions.warps");
-  CheckInRange(iterations, 1, 1000, "FluidFlowOptions.iterations");
-  CheckInRange(tolerance, 0, 0.999999, "FluidFlowOptions.tolerance");
+  flow_ops::CheckPyramidFields(*this, "FluidFlowOptions");
 }
 
 FluidFlow::FluidFlow(const FluidFlowOptions& options) : options_(options) {
@@ -55,20 +46,12 @@ void FluidFlow::CalcChecked(const cv::Mat& prev, const cv::Mat& next, const cv::
           "source_mask must have the frames' size " + std::to_string(prev.cols) + " x " +
               std::to_string(prev.rows) + "; got " + std::to_string(source_mask_.cols) + " x " +
               std::to_string(source_mask_.rows));
-  flow_ops::VariationalSettings s;
-  s.data = flow_ops::DataModel::kContinuity;
-  s.alpha = options_.alpha;
+  flow_ops::VariationalSettings s =
+      flow_ops::PyramidSettings(options_, flow_ops::DataModel::kContinuity);
   s.alpha_div = options_.alpha_div;
   s.alpha_curl = options_.alpha_curl;
   s.div_curl_scale = options_.div_curl_scale;
   s.smoothness_scale = options_.smoothness_scale;
-  s.levels = options_.levels;
-  s.min_level_size = options_.min_level_size;
-  s.finest_level = options_.finest_level;
-  s.warps = options_.warps;
-  s.warm_levels = options_.warm_levels;
-  s.iterations = options_.iterations;
-  s.tolerance = options_.tolerance;
   // The mask only marks valid output here: the scaling (hence the balance of
   // data and regularisation) must not depend on it either.
   s.scale_over_mask = false;

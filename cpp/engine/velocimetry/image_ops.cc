@@ -10,6 +10,8 @@
 #include <limits>
 #include <vector>
 
+#include "engine/util/check.h"
+#include "engine/util/interpolation.h"
 #include "engine/util/portability.h"
 
 namespace qogi {
@@ -101,6 +103,38 @@ double PairStdDev(const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask) {
   return std::sqrt(var);
 }
 
+bool NormalisePair(const cv::Mat& prev, const cv::Mat& next, const cv::Mat& mask, cv::Mat& i0,
+                   cv::Mat& i1, FlowField& flow, double* mean_out) {
+  const double sd = PairStdDev(prev, next, mask);
+  if (!(sd > 0)) {
+    flow.quality.setTo(0);
+    flow.valid.setTo(0);
+    return false;
+  }
+  prev.convertTo(i0, CV_32F, 1.0 / sd);
+  next.convertTo(i1, CV_32F, 1.0 / sd);
+  if (mean_out) *mean_out = 0.5 * (cv::mean(i0)[0] + cv::mean(i1)[0]);
+  return true;
+}
+
+void CheckPatchGrid(int patch_size, int patch_stride, const std::string& type) {
+  CheckInRange(patch_size, 4, 64, (type + ".patch_size").c_str(), "px");
+  CheckInRange(patch_stride, 1, 63, (type + ".patch_stride").c_str(), "px");
+  Require(patch_stride < patch_size, type + ".patch_stride must be < patch_size; got " +
+                                         std::to_string(patch_stride) +
+                                         " >= " + std::to_string(patch_size));
+}
+
+void StartFlow(const FlowField& flow, bool warm, cv::Size size, cv::Mat& u, cv::Mat& v) {
+  if (warm) {
+    flow.u.copyTo(u);
+    flow.v.copyTo(v);
+  } else {
+    u = cv::Mat::zeros(size, CV_32FC1);
+    v = cv::Mat::zeros(size, CV_32FC1);
+  }
+}
+
 int NumLevels(cv::Size size, int max_levels, int min_size) {
   int levels = 1;
   int w = size.width, h = size.height;
@@ -118,19 +152,6 @@ void BuildPyramid(const cv::Mat& img, int levels, std::vector<cv::Mat>& pyr) {
   pyr[0] = img;
   for (int l = 1; l < levels; ++l) cv::pyrDown(pyr[l - 1], pyr[l]);
 }
-
-namespace {
-
-// Catmull-Rom (Keys, a = -0.5) weights for samples at -1, 0, 1, 2.
-inline void CubicWeights(float t, float w[4]) {
-  const float t2 = t * t, t3 = t2 * t;
-  w[0] = -0.5f * t3 + t2 - 0.5f * t;
-  w[1] = 1.5f * t3 - 2.5f * t2 + 1.0f;
-  w[2] = -1.5f * t3 + 2.0f * t2 + 0.5f * t;
-  w[3] = 0.5f * t3 - 0.5f * t2;
-}
-
-}  // namespace
 
 namespace {
 

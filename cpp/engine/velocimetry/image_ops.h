@@ -7,6 +7,7 @@
 #include <opencv2/core.hpp>
 
 #include <functional>
+#include <string>
 #include <vector>
 
 #include "engine/util/portability.h"
@@ -37,6 +38,23 @@ void ParallelStripes(int rows, int cols, const std::function<void(int, int, int)
 // nonzero pixels when `mask` is non-empty and covers >= 16 pixels, else over
 // all pixels. Returns 0 for constant images.
 double PairStdDev(const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask);
+
+// prev and next divided by their PairStdDev (over `mask`) into i0 and i1
+// (CV_32F), and, when mean_out is given, the mean of the scaled pair. Two
+// constant frames carry no information on motion: then every vector of
+// `flow` is reported invalid (quality and valid 0; u and v keep their start)
+// and the result is false.
+bool NormalisePair(const cv::Mat& prev, const cv::Mat& next, const cv::Mat& mask, cv::Mat& i0,
+                   cv::Mat& i1, FlowField& flow, double* mean_out = nullptr);
+
+// The range checks of a patch search's grid (DIS and the fluid flow's
+// search): patch side in [4, 64] px, stride in [1, 63] px and < the side;
+// messages name "<type>.patch_size" and "<type>.patch_stride".
+void CheckPatchGrid(int patch_size, int patch_stride, const std::string& type);
+
+// The flow a method starts from at full resolution: a copy of flow's u and
+// v when warm-started, else zeros of `size` (CV_32FC1).
+void StartFlow(const FlowField& flow, bool warm, cv::Size size, cv::Mat& u, cv::Mat& v);
 
 // Number of pyramid levels (>= 1, level 0 = full resolution) such that the
 // coarsest level's smaller side is >= min_size px, at most max_levels.

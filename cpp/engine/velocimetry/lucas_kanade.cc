@@ -39,14 +39,7 @@ inline float MinEigen(float a, float b, float c) {
 void LucasKanadeFlow::CalcChecked(const cv::Mat& prev, const cv::Mat& next, const cv::Mat& mask,
                                   bool warm, FlowField& flow) {
   const LucasKanadeOptions& o = options_;
-  const double sd = PairStdDev(prev, next, mask);
-  if (!(sd > 0)) {
-    flow.quality.setTo(0);
-    flow.valid.setTo(0);
-    return;
-  }
-  prev.convertTo(i0n_, CV_32F, 1.0 / sd);
-  next.convertTo(i1n_, CV_32F, 1.0 / sd);
+  if (!NormalisePair(prev, next, mask, i0n_, i1n_, flow)) return;
   const int levels = NumLevels(prev.size(), o.levels, o.min_level_size);
   const int finest = std::min(o.finest_level, levels - 1);
   BuildPyramid(i0n_, levels, p0_);
@@ -66,13 +59,7 @@ void LucasKanadeFlow::CalcChecked(const cv::Mat& prev, const cv::Mat& next, cons
   const float tikhonov = static_cast<float>(o.min_eigenvalue);
   // Start of every pixel (warm start or zero), kept where the window turns
   // out not to support a vector (below).
-  if (warm) {
-    flow.u.copyTo(start_u_);
-    flow.v.copyTo(start_v_);
-  } else {
-    start_u_ = cv::Mat::zeros(prev.size(), CV_32FC1);
-    start_v_ = cv::Mat::zeros(prev.size(), CV_32FC1);
-  }
+  StartFlow(flow, warm, prev.size(), start_u_, start_v_);
   const double sigma = o.window_sigma;
   for (int l = top; l >= finest; --l) {
     if (l < top) {

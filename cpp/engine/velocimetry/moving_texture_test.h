@@ -153,16 +153,41 @@ struct Scene {
   cv::Mat true_u, true_v;  // CV_32F, truth at each pixel of prev
 };
 
-// Brightness-constancy pair: I = offset + gain * f(T) with f = exp(0.4 T)
-// (positive, skewed like plume intermittency), plus seeded white noise of
-// standard deviation noise * std(I).
-inline Scene RenderTexture(cv::Size size, const Texture& t, const Motion& m, double noise = 0.0,
-                           unsigned noise_seed = 1) {
+// A scene of `size` whose four images are allocated (CV_32F), not filled.
+inline Scene NewScene(cv::Size size) {
   Scene s;
   s.prev.create(size, CV_32F);
   s.next.create(size, CV_32F);
   s.true_u.create(size, CV_32F);
   s.true_v.create(size, CV_32F);
+  return s;
+}
+
+// Adds seeded white noise of standard deviation sigma to both frames (the
+// same stream: prev's draws first).
+inline void AddPairNoise(Scene& s, double sigma, unsigned seed) {
+  cv::RNG rng(seed);
+  cv::Mat n(s.prev.size(), CV_32F);
+  rng.fill(n, cv::RNG::NORMAL, 0.0, sigma);
+  s.prev += n;
+  rng.fill(n, cv::RNG::NORMAL, 0.0, sigma);
+  s.next += n;
+}
+
+// Noise relative to the first frame's peak (density frames).
+inline void AddPeakRelativeNoise(Scene& s, double noise, unsigned seed) {
+  if (!(noise > 0)) return;
+  double peak;
+  cv::minMaxLoc(s.prev, nullptr, &peak);
+  AddPairNoise(s, noise * peak, seed);
+}
+
+// Brightness-constancy pair: I = offset + gain * f(T) with f = exp(0.4 T)
+// (positive, skewed like plume intermittency), plus seeded white noise of
+// standard deviation noise * std(I).
+inline Scene RenderTexture(cv::Size size, const Texture& t, const Motion& m, double noise = 0.0,
+                           unsigned noise_seed = 1) {
+  Scene s = NewScene(size);
   for (int y = 0; y < size.height; ++y)
     for (int x = 0; x < size.width; ++x) {
       s.prev.at<float>(y, x) = static_cast<float>(std::exp(0.4 * t(x, y)));
@@ -177,12 +202,7 @@ inline Scene RenderTexture(cv::Size size, const Texture& t, const Motion& m, dou
   if (noise > 0) {
     cv::Scalar mean, sd;
     cv::meanStdDev(s.prev, mean, sd);
-    cv::RNG rng(noise_seed);
-    cv::Mat n(size, CV_32F);
-    rng.fill(n, cv::RNG::NORMAL, 0.0, noise * sd[0]);
-    s.prev += n;
-    rng.fill(n, cv::RNG::NORMAL, 0.0, noise * sd[0]);
-    s.next += n;
+    AddPairNoise(s, noise * sd[0], noise_seed);
   }
   return s;
 }
@@ -199,11 +219,7 @@ inline Scene RenderDensity(cv::Size size, const Texture& t, const Motion& m, dou
       env = std::exp(-((x - cx) * (x - cx) + (y - cy) * (y - cy)) / (2 * sigma_env * sigma_env));
     return env * std::exp(contrast * t(x, y));
   };
-  Scene s;
-  s.prev.create(size, CV_32F);
-  s.next.create(size, CV_32F);
-  s.true_u.create(size, CV_32F);
-  s.true_v.create(size, CV_32F);
+  Scene s = NewScene(size);
   for (int y = 0; y < size.height; ++y)
     for (int x = 0; x < size.width; ++x) {
       s.prev.at<float>(y, x) = static_cast<float>(rho0(x, y));
@@ -215,16 +231,7 @@ inline Scene RenderDensity(cv::Size size, const Texture& t, const Motion& m, dou
       s.true_u.at<float>(y, x) = static_cast<float>(u);
       s.true_v.at<float>(y, x) = static_cast<float>(v);
     }
-  if (noise > 0) {
-    double peak;
-    cv::minMaxLoc(s.prev, nullptr, &peak);
-    cv::RNG rng(noise_seed);
-    cv::Mat n(size, CV_32F);
-    rng.fill(n, cv::RNG::NORMAL, 0.0, noise * peak);
-    s.prev += n;
-    rng.fill(n, cv::RNG::NORMAL, 0.0, noise * peak);
-    s.next += n;
-  }
+  AddPeakRelativeNoise(s, noise, noise_seed);
   return s;
 }
 
@@ -270,16 +277,7 @@ inline Scene RenderSteadyColumn(cv::Size size, const Texture& t, double exit_y, 
       if (z >= 0)
         s.true_v.at<float>(y, x) = static_cast<float>(-(u0 / decel - z) * (1.0 - std::exp(-decel)));
     }
-  if (noise > 0) {
-    double peak;
-    cv::minMaxLoc(s.prev, nullptr, &peak);
-    cv::RNG rng(noise_seed);
-    cv::Mat n(size, CV_32F);
-    rng.fill(n, cv::RNG::NORMAL, 0.0, noise * peak);
-    s.prev += n;
-    rng.fill(n, cv::RNG::NORMAL, 0.0, noise * peak);
-    s.next += n;
-  }
+  AddPeakRelativeNoise(s, noise, noise_seed);
   return s;
 }
 

@@ -11,17 +11,6 @@ using namespace flow_ops;
 
 namespace {
 
-// Normalises the pair by its standard deviation; false for constant frames.
-bool Normalise(const cv::Mat& prev, const cv::Mat& next, const cv::Mat& mask, cv::Mat& i0,
-               cv::Mat& i1, double* mean_out = nullptr) {
-  const double sd = PairStdDev(prev, next, mask);
-  if (!(sd > 0)) return false;
-  prev.convertTo(i0, CV_32F, 1.0 / sd);
-  next.convertTo(i1, CV_32F, 1.0 / sd);
-  if (mean_out) *mean_out = 0.5 * (cv::mean(i0)[0] + cv::mean(i1)[0]);
-  return true;
-}
-
 void Merge(const cv::Mat& u, const cv::Mat& v, cv::Mat& uv) {
   cv::Mat parts[] = {u, v};
   cv::merge(parts, 2, uv);
@@ -58,11 +47,7 @@ FarnebackFlow::FarnebackFlow(const FarnebackOptions& options) : options_(options
 
 void FarnebackFlow::CalcChecked(const cv::Mat& prev, const cv::Mat& next, const cv::Mat& mask,
                                 bool warm, FlowField& flow) {
-  if (!Normalise(prev, next, mask, i0n_, i1n_)) {
-    flow.quality.setTo(0);
-    flow.valid.setTo(0);
-    return;
-  }
+  if (!NormalisePair(prev, next, mask, i0n_, i1n_, flow)) return;
   const FarnebackOptions& o = options_;
   int flags = o.gaussian_window ? cv::OPTFLOW_FARNEBACK_GAUSSIAN : 0;
   if (warm) {
@@ -81,11 +66,7 @@ void FarnebackFlow::CalcChecked(const cv::Mat& prev, const cv::Mat& next, const 
 
 void DisOptions::Check() const {
   CheckInRange(finest_scale, 0, 10, "DisOptions.finest_scale");
-  CheckInRange(patch_size, 4, 64, "DisOptions.patch_size", "px");
-  CheckInRange(patch_stride, 1, 63, "DisOptions.patch_stride", "px");
-  Require(patch_stride < patch_size, "DisOptions.patch_stride must be < patch_size; got " +
-                                         std::to_string(patch_stride) +
-                                         " >= " + std::to_string(patch_size));
+  flow_ops::CheckPatchGrid(patch_size, patch_stride, "DisOptions");
   CheckInRange(gradient_descent_iterations, 1, 1000, "DisOptions.gradient_descent_iterations");
   CheckInRange(variational_refinement_iterations, 0, 1000,
                "DisOptions.variational_refinement_iterations");
@@ -112,11 +93,7 @@ DisFlow::DisFlow(const DisOptions& options) : options_(options) {
 void DisFlow::CalcChecked(const cv::Mat& prev, const cv::Mat& next, const cv::Mat& mask, bool warm,
                           FlowField& flow) {
   double mean = 0;
-  if (!Normalise(prev, next, mask, i0n_, i1n_, &mean)) {
-    flow.quality.setTo(0);
-    flow.valid.setTo(0);
-    return;
-  }
+  if (!NormalisePair(prev, next, mask, i0n_, i1n_, flow, &mean)) return;
   // 8-bit frames: 40 grey levels per standard deviation around the mean.
   i0n_.convertTo(i08_, CV_8U, 40.0, 128.0 - 40.0 * mean);
   i1n_.convertTo(i18_, CV_8U, 40.0, 128.0 - 40.0 * mean);

@@ -195,21 +195,8 @@ void PivFlow::CalcChecked(const cv::Mat& prev, const cv::Mat& next, const cv::Ma
                                                std::to_string(o.window_size) +
                                                " px) must not exceed the frame's smaller side (" +
                                                std::to_string(std::min(W, H)) + " px)");
-  const double sd = PairStdDev(prev, next, mask);
-  if (!(sd > 0)) {
-    flow.quality.setTo(0);
-    flow.valid.setTo(0);
-    return;
-  }
-  prev.convertTo(i0n_, CV_32F, 1.0 / sd);
-  next.convertTo(i1n_, CV_32F, 1.0 / sd);
-  if (warm) {
-    flow.u.copyTo(pu_);
-    flow.v.copyTo(pv_);
-  } else {
-    pu_ = cv::Mat::zeros(prev.size(), CV_32FC1);
-    pv_ = cv::Mat::zeros(prev.size(), CV_32FC1);
-  }
+  if (!NormalisePair(prev, next, mask, i0n_, i1n_, flow)) return;
+  StartFlow(flow, warm, prev.size(), pu_, pv_);
   // Window sizes: halving from the initial size (those that fit the frame)
   // down to the final size, then the extra final passes.
   std::vector<int> sizes;

@@ -321,16 +321,7 @@ void VariationalSolver::Solve(const cv::Mat& prev, const cv::Mat& next, const cv
   div_curl_scale_ = s.div_curl_scale;
   smoothness_scale_ = s.smoothness_scale;
   const cv::Size full = prev.size();
-  const double sd = PairStdDev(prev, next, s.scale_over_mask ? mask : cv::Mat());
-  if (!(sd > 0)) {
-    // Two constant frames carry no information on motion: keep the start
-    // (warm or zero) and report every vector invalid.
-    flow.quality.setTo(0);
-    flow.valid.setTo(0);
-    return;
-  }
-  prev.convertTo(i0n_, CV_32F, 1.0 / sd);
-  next.convertTo(i1n_, CV_32F, 1.0 / sd);
+  if (!NormalisePair(prev, next, s.scale_over_mask ? mask : cv::Mat(), i0n_, i1n_, flow)) return;
   const int levels = NumLevels(full, s.levels, s.min_level_size);
   const int finest = std::min(s.finest_level, levels - 1);
   BuildPyramid(i0n_, levels, p0_);

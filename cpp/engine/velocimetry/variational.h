@@ -38,8 +38,10 @@
 
 #include <opencv2/core.hpp>
 
+#include <string>
 #include <vector>
 
+#include "engine/util/check.h"
 #include "engine/velocimetry/flow.h"
 
 namespace qogi {
@@ -69,6 +71,36 @@ struct VariationalSettings {
   // given) rather than over the whole frame.
   bool scale_over_mask = true;
 };
+
+// The pyramid and solver fields that the options of both variational
+// methods (HornSchunckOptions, FluidFlowOptions) carry under the same names:
+// their range checks (messages name "<type>.<field>") and their copy into
+// the solver's settings.
+template <typename Options>
+void CheckPyramidFields(const Options& o, const std::string& type) {
+  CheckInRange(o.levels, 1, 12, (type + ".levels").c_str());
+  CheckInRange(o.min_level_size, 4, 4096, (type + ".min_level_size").c_str(), "px");
+  CheckInRange(o.finest_level, 0, 10, (type + ".finest_level").c_str());
+  CheckInRange(o.warm_levels, 0, 12, (type + ".warm_levels").c_str());
+  CheckInRange(o.warps, 1, 50, (type + ".warps").c_str());
+  CheckInRange(o.iterations, 1, 1000, (type + ".iterations").c_str());
+  CheckInRange(o.tolerance, 0, 0.999999, (type + ".tolerance").c_str());
+}
+
+template <typename Options>
+VariationalSettings PyramidSettings(const Options& o, DataModel data) {
+  VariationalSettings s;
+  s.data = data;
+  s.alpha = o.alpha;
+  s.levels = o.levels;
+  s.min_level_size = o.min_level_size;
+  s.finest_level = o.finest_level;
+  s.warps = o.warps;
+  s.warm_levels = o.warm_levels;
+  s.iterations = o.iterations;
+  s.tolerance = o.tolerance;
+  return s;
+}
 
 class VariationalSolver {
  public:

@@ -47,29 +47,26 @@ class Exporter:
         self.vm.store.set_last_dir(Path(paths[0]).parent)
         return True
 
-    def export_csv(self, path) -> bool:
-        """The rate time series as CSV (``Result.to_csv``)."""
+    def _export_result(self, path, what: str, write) -> bool:
+        """The run's result written to ``path`` (checked writable first) by
+        ``write(result, path)``."""
         if not self._need_result():
             return False
 
         def go():
             p = check_writable(path)
-            self.vm.run.result.to_csv(str(p))
+            write(self.vm.run.result, str(p))
             return p
 
-        return self._export("CSV", go)
+        return self._export(what, go)
+
+    def export_csv(self, path) -> bool:
+        """The rate time series as CSV (``Result.to_csv``)."""
+        return self._export_result(path, "CSV", lambda result, p: result.to_csv(p))
 
     def export_json(self, path) -> bool:
         """The whole result as JSON (``Result.to_json``)."""
-        if not self._need_result():
-            return False
-
-        def go():
-            p = check_writable(path)
-            self.vm.run.result.to_json(str(p))
-            return p
-
-        return self._export("JSON", go)
+        return self._export_result(path, "JSON", lambda result, p: result.to_json(p))
 
     def export_plots(self, path) -> bool:
         """The rate plot as PNG (and the maps plot beside it when the run kept maps)."""

@@ -9,6 +9,7 @@ reach any widget through :meth:`App.press`.
 
 ==================  ====================================================
 theme.py            colours, plot themes, colour maps
+panel.py            Panel: what every panel holds (the App, its view-model)
 recording_tab.py    Recording tab: open, demo, recent files, metadata
 display_tab.py      Display tab: channel, quantity, colours, range, overlay
 surfaces_tab.py     Surfaces tab: click mode, surface list, region

@@ -13,6 +13,7 @@ from ..settings import (
     LINE_SHAPE_WINGS,
     velocity_choices,
 )
+from .panel import Panel
 from .theme import GREY, LEFT_WIDTH, RED
 
 __all__ = ["AnalysisTab"]
@@ -48,11 +49,7 @@ CHOICE_FIELDS = {
 }
 
 
-class AnalysisTab:
-    def __init__(self, app):
-        self.app = app
-        self.vm = app.vm
-
+class AnalysisTab(Panel):
     def build(self) -> None:
         s = self.app.safe
         w = 130

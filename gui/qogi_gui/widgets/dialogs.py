@@ -7,16 +7,18 @@ import os
 
 import dearpygui.dearpygui as dpg
 
+from .panel import Panel
 from .theme import RED
 
 __all__ = ["Dialogs"]
 
 
-class Dialogs:
-    def __init__(self, app):
-        self.app = app
-        self.vm = app.vm
+def _modal_window(tag: str, label: str, **options):
+    """A modal window, hidden until shown, that cannot be collapsed."""
+    return dpg.window(tag=tag, label=label, show=False, modal=True, no_collapse=True, **options)
 
+
+class Dialogs(Panel):
     def build(self) -> None:
         s = self.app.safe
         with dpg.file_dialog(
@@ -50,15 +52,7 @@ class Dialogs:
             directory_selector=True,
             callback=s(lambda sd, a, u: dpg.set_value("export_dir", a.get("file_path_name", ""))),
         )
-        with dpg.window(
-            tag="popup",
-            show=False,
-            modal=True,
-            no_collapse=True,
-            width=560,
-            label="qogi",
-            pos=(300, 200),
-        ):
+        with _modal_window("popup", "qogi", width=560, pos=(300, 200)):
             dpg.add_text("", tag="popup_text", wrap=530)
             dpg.add_button(label="OK", width=80, callback=lambda: dpg.hide_item("popup"))
 
@@ -78,13 +72,10 @@ class Dialogs:
         from ..scene_form import FIELDS
 
         s, file = self.app.safe, self.vm.file
-        with dpg.window(
-            tag="scene_form",
-            show=False,
-            modal=True,
-            no_collapse=True,
+        with _modal_window(
+            "scene_form",
+            "Scene facts",
             width=620,
-            label="Scene facts",
             pos=(260, 180),
             on_close=s(lambda *a: file.cancel_scene()),
         ):

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dearpygui.dearpygui as dpg
 
 from .. import display
+from .panel import Panel
 from .theme import GREY, LEFT_WIDTH
 
 __all__ = ["DisplayTab", "QUANTITY_CHOICES", "RANGE_CHOICES"]
@@ -20,11 +21,7 @@ RANGE_CHOICES = {
 }
 
 
-class DisplayTab:
-    def __init__(self, app):
-        self.app = app
-        self.vm = app.vm
-
+class DisplayTab(Panel):
     def build(self) -> None:
         s, video = self.app.safe, self.vm.video
         dpg.add_combo([], label="channel", tag="d_channel", width=260, callback=s(self._on_channel))
@@ -48,22 +45,15 @@ class DisplayTab:
             callback=s(lambda sd, a, u: video.set_display(range_mode=RANGE_CHOICES[a])),
         )
         with dpg.group(horizontal=True):
-            dpg.add_input_double(
-                label="min",
-                tag="d_min",
-                width=120,
-                format="%.6g",
-                on_enter=True,
-                callback=s(self._on_fixed_range),
-            )
-            dpg.add_input_double(
-                label="max",
-                tag="d_max",
-                width=120,
-                format="%.6g",
-                on_enter=True,
-                callback=s(self._on_fixed_range),
-            )
+            for end in ("min", "max"):
+                dpg.add_input_double(
+                    label=end,
+                    tag=f"d_{end}",
+                    width=120,
+                    format="%.6g",
+                    on_enter=True,
+                    callback=s(self._on_fixed_range),
+                )
         dpg.add_button(
             label="Fix the range shown now", tag="d_fix_now", callback=s(self._on_fix_now)
         )

@@ -12,15 +12,15 @@ import numpy as np
 from .. import display, results
 from ..surfaces import flow_arrow
 from .display_tab import RANGE_CHOICES
+from .panel import Panel
 from .theme import rgb
 
 __all__ = ["ImageView", "format_readout"]
 
 
-class ImageView:
+class ImageView(Panel):
     def __init__(self, app):
-        self.app = app
-        self.vm = app.vm
+        super().__init__(app)
         self._tex_shape = None
         self._overlay_items = []
         self._drag_points = []
@@ -79,41 +79,26 @@ class ImageView:
             for tag in ("frame_series", "overlay_series", "frame_tex", "overlay_tex"):
                 if dpg.does_item_exist(tag):
                     dpg.delete_item(tag)
-            dpg.add_raw_texture(
-                rec.width,
-                rec.height,
-                np.zeros(rec.width * rec.height * 4, np.float32),
-                format=dpg.mvFormat_Float_rgba,
-                tag="frame_tex",
-                parent="textures",
-            )
-            dpg.add_raw_texture(
-                rec.width,
-                rec.height,
-                np.zeros(rec.width * rec.height * 4, np.float32),
-                format=dpg.mvFormat_Float_rgba,
-                tag="overlay_tex",
-                parent="textures",
-            )
             # Texture row 0 is the image's top row; the y axis runs down (inverted),
             # so flip v to keep pixel (x, y) at plot (x, y).
             kw = dict(uv_min=(0.0, 1.0), uv_max=(1.0, 0.0), parent="img_y")
-            dpg.add_image_series(
-                "frame_tex",
-                (-0.5, -0.5),
-                (rec.width - 0.5, rec.height - 0.5),
-                tag="frame_series",
-                before="vectors",
-                **kw,
-            )
-            dpg.add_image_series(
-                "overlay_tex",
-                (-0.5, -0.5),
-                (rec.width - 0.5, rec.height - 0.5),
-                tag="overlay_series",
-                before="vectors",
-                **kw,
-            )
+            for layer in ("frame", "overlay"):
+                dpg.add_raw_texture(
+                    rec.width,
+                    rec.height,
+                    np.zeros(rec.width * rec.height * 4, np.float32),
+                    format=dpg.mvFormat_Float_rgba,
+                    tag=f"{layer}_tex",
+                    parent="textures",
+                )
+                dpg.add_image_series(
+                    f"{layer}_tex",
+                    (-0.5, -0.5),
+                    (rec.width - 0.5, rec.height - 0.5),
+                    tag=f"{layer}_series",
+                    before="vectors",
+                    **kw,
+                )
             self._tex_shape = shape
 
     def fit_image(self) -> None:

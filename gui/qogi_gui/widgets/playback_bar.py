@@ -5,15 +5,12 @@ from __future__ import annotations
 import dearpygui.dearpygui as dpg
 
 from ..panels.playback import SPEEDS
+from .panel import Panel
 
 __all__ = ["PlaybackBar"]
 
 
-class PlaybackBar:
-    def __init__(self, app):
-        self.app = app
-        self.vm = app.vm
-
+class PlaybackBar(Panel):
     def build(self) -> None:
         s, player = self.app.safe, self.vm.player
         with dpg.group(horizontal=True):

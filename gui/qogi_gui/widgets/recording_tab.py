@@ -6,16 +6,13 @@ import os
 
 import dearpygui.dearpygui as dpg
 
+from .panel import Panel
 from .theme import GREY, LEFT_WIDTH
 
 __all__ = ["RecordingTab"]
 
 
-class RecordingTab:
-    def __init__(self, app):
-        self.app = app
-        self.vm = app.vm
-
+class RecordingTab(Panel):
     def build(self) -> None:
         s = self.app.safe
         with dpg.group(horizontal=True):

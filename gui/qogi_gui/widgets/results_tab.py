@@ -16,6 +16,7 @@ import dearpygui.dearpygui as dpg
 
 from .. import results
 from ..surfaces import SURFACE_COLOURS
+from .panel import Panel
 from .theme import GREY, YELLOW
 
 __all__ = ["ResultsTab", "build_results_panel", "build_rates_plot"]
@@ -234,12 +235,8 @@ def build_rates_plot(app, axis) -> None:
     dpg.fit_axis_data(axis)
 
 
-class ResultsTab:
+class ResultsTab(Panel):
     """The Results tab and the rate time series under the image."""
-
-    def __init__(self, app):
-        self.app = app
-        self.vm = app.vm
 
     def build(self) -> None:
         dpg.add_group(tag="results_group")

@@ -7,15 +7,15 @@ import time
 
 import dearpygui.dearpygui as dpg
 
+from .panel import Panel
 from .theme import GREEN, GREY, RED, YELLOW
 
 __all__ = ["StatusBar"]
 
 
-class StatusBar:
+class StatusBar(Panel):
     def __init__(self, app):
-        self.app = app
-        self.vm = app.vm
+        super().__init__(app)
         self._n_messages = 0
 
     def build(self) -> None:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import dearpygui.dearpygui as dpg
 
 from ..panels.drawing import MODES
+from .panel import Panel
 from .theme import GREY, LEFT_WIDTH, rgb
 
 __all__ = ["SurfacesTab", "MODE_LABELS"]
@@ -20,11 +21,7 @@ MODE_LABELS = {
 }
 
 
-class SurfacesTab:
-    def __init__(self, app):
-        self.app = app
-        self.vm = app.vm
-
+class SurfacesTab(Panel):
     def build(self) -> None:
         s, editor = self.app.safe, self.vm.editor
         dpg.add_text("What a click on the image does:")

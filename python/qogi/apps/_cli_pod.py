@@ -27,6 +27,41 @@ def _table(curve, which: str) -> str:
     return "\n".join(lines)
 
 
+#: The scene's options: PodScene field -> (flag, type, metavar, help with
+#: the default's place); the defaults are PodScene's (declared once, there).
+_SCENE_OPTIONS = {
+    "camera": ("--camera", None, None, "camera preset (default {})"),
+    "distance_m": ("--distance", positive_float, "M", "camera to plume (default {:g} m)"),
+    "delta_T_K": (
+        "--delta-t",
+        finite_float,
+        "K",
+        "gas minus background temperature (negative: absorption; default {:g} K)",
+    ),
+    "wind_speed_m_s": (
+        "--wind-speed",
+        positive_float,
+        "M_S",
+        "gas speed across the surface (default {:g} m/s)",
+    ),
+    "plume_sigma_m": (
+        "--plume-sigma",
+        positive_float,
+        "M",
+        "the plume's standard deviation across the surface (default {:g} m)",
+    ),
+    "record_s": ("--record", positive_float, "S", "record length (default {:g} s)"),
+    "ambient_temperature_K": (
+        "--ambient-temperature",
+        positive_float,
+        "K",
+        "air and gas temperature (default {:g} K)",
+    ),
+    "species": ("--species", None, None, "default {}"),
+    "netd_K": ("--netd", positive_float, "K", "camera noise (preset's)"),
+}
+
+
 def cmd_map(args: argparse.Namespace) -> int:
     """``qogi pod --map REC``: the recording's minimum-detectable column map."""
     import numpy as np
@@ -77,17 +112,7 @@ def cmd_pod(args: argparse.Namespace) -> int:
         return cmd_map(args)
     if args.json and args.json != "-":
         check_outputs({"--json": args.json})
-    scene = PodScene(
-        camera=args.camera,
-        distance_m=args.distance,
-        delta_T_K=args.delta_t,
-        wind_speed_m_s=args.wind_speed,
-        plume_sigma_m=args.plume_sigma,
-        record_s=args.record,
-        ambient_temperature_K=args.ambient_temperature,
-        species=args.species,
-        netd_K=args.netd,
-    )
+    scene = PodScene(**{name: getattr(args, name) for name in _SCENE_OPTIONS})
     if args.seeds < 1:
         raise UsageError("--seeds must be at least 1 (the trials the curve is fitted on)")
     rates = None if args.rates is None else [q / 1e3 for q in args.rates]
@@ -152,55 +177,10 @@ def add_commands(sub) -> None:
         "detection fractions on held-out seeds against the curve (docs/detection_limit.md). "
         "The default run is 56-72 small quantifications (5-10 minutes with a GF320 here).",
     )
-    p.add_argument("--camera", default=d["camera"], help=f"camera preset (default {d['camera']})")
-    p.add_argument(
-        "--distance",
-        type=positive_float,
-        default=d["distance_m"],
-        metavar="M",
-        help=f"camera to plume (default {d['distance_m']:g} m)",
-    )
-    p.add_argument(
-        "--delta-t",
-        type=finite_float,
-        default=d["delta_T_K"],
-        metavar="K",
-        help="gas minus background temperature (negative: absorption; default "
-        f"{d['delta_T_K']:g} K)",
-    )
-    p.add_argument(
-        "--wind-speed",
-        type=positive_float,
-        default=d["wind_speed_m_s"],
-        metavar="M_S",
-        help=f"gas speed across the surface (default {d['wind_speed_m_s']:g} m/s)",
-    )
-    p.add_argument(
-        "--plume-sigma",
-        type=positive_float,
-        default=d["plume_sigma_m"],
-        metavar="M",
-        help="the plume's standard deviation across the surface (default "
-        f"{d['plume_sigma_m']:g} m)",
-    )
-    p.add_argument(
-        "--record",
-        type=positive_float,
-        default=d["record_s"],
-        metavar="S",
-        help=f"record length (default {d['record_s']:g} s)",
-    )
-    p.add_argument(
-        "--ambient-temperature",
-        type=positive_float,
-        default=d["ambient_temperature_K"],
-        metavar="K",
-        help=f"air and gas temperature (default {d['ambient_temperature_K']:g} K)",
-    )
-    p.add_argument("--species", default=d["species"], help=f"default {d['species']}")
-    p.add_argument(
-        "--netd", type=positive_float, default=None, metavar="K", help="camera noise (preset's)"
-    )
+    for name, (flag, kind, metavar, text) in _SCENE_OPTIONS.items():
+        p.add_argument(
+            flag, dest=name, type=kind, default=d[name], metavar=metavar, help=text.format(d[name])
+        )
     p.add_argument(
         "--rates",
         type=nonnegative_float,

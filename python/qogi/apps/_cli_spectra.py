@@ -168,6 +168,18 @@ def cmd_hitran_fetch(args: argparse.Namespace) -> int:
     return 0
 
 
+def _add_range(parser) -> None:
+    """The wavenumber range option (xsec and hitran fetch)."""
+    parser.add_argument(
+        "--range",
+        nargs=2,
+        type=nonnegative_float,
+        required=True,
+        metavar=("MIN", "MAX"),
+        help="wavenumber range [cm-1]",
+    )
+
+
 def add_commands(sub) -> None:
     """Registers the spectroscopy commands on the CLI's subparsers."""
     x = sub.add_parser(
@@ -177,14 +189,7 @@ def add_commands(sub) -> None:
         "its HITRAN line list (see qogi.cross_section).",
     )
     x.add_argument("species", help="gas formula, e.g. CH4, CO2, H2O")
-    x.add_argument(
-        "--range",
-        nargs=2,
-        type=nonnegative_float,
-        required=True,
-        metavar=("MIN", "MAX"),
-        help="wavenumber range [cm-1]",
-    )
+    _add_range(x)
     x.add_argument(
         "--step", type=positive_float, default=0.01, help="grid step [cm-1] (default 0.01)"
     )
@@ -231,14 +236,7 @@ def add_commands(sub) -> None:
     ls.set_defaults(func=cmd_hitran_list)
     f = hs.add_parser("fetch", help="download lines from HITRANonline (needs the internet)")
     f.add_argument("species")
-    f.add_argument(
-        "--range",
-        nargs=2,
-        type=nonnegative_float,
-        required=True,
-        metavar=("MIN", "MAX"),
-        help="wavenumber range [cm-1]",
-    )
+    _add_range(f)
     f.add_argument(
         "--isotopologues",
         help="comma-separated local isotopologue numbers (default: all qogi knows)",

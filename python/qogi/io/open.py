@@ -180,6 +180,22 @@ def _missing(path: str, what: str, why: str, flag: str) -> UsageError:
     return e
 
 
+def _ifov(p, given, in_file, cam, origins: dict, why_missing: str) -> float:
+    """A camera file's IFOV [rad]: the one given, else the file's (its field
+    of view / width; None where it holds none), else the camera preset's;
+    its origin goes into ``origins``. Without any, the usage error naming
+    ``ifov_rad`` (``why_missing``: why the file does not hold it)."""
+    if given is not None:
+        ifov, origins["ifov_rad"] = float(given), "given"
+    elif in_file is not None:
+        ifov, origins["ifov_rad"] = in_file, "file (field of view / width)"
+    elif cam.ifov_rad > 0:
+        ifov, origins["ifov_rad"] = cam.ifov_rad, "camera preset"
+    else:
+        raise _missing(p, "the IFOV", why_missing, "ifov_rad=... (angular size of one pixel, rad)")
+    return ifov
+
+
 def _no_camera(path: str, kind: str) -> UsageError:
 
     return _missing(
@@ -200,7 +216,20 @@ def _band_um(ch: SpectralResponse) -> str:
 # --------------------------------------------------------------------------- lazy sources
 
 
-class _FlirFrames:
+class _FileFrames:
+    """A lazy frame source over an open camera file, which ``close`` closes."""
+
+    def close(self) -> None:
+        raise NotImplementedError
+
+    def __del__(self) -> None:  # a recording dropped without close() releases its file
+        try:
+            self.close()
+        except Exception:  # noqa: BLE001 (never raise from __del__)
+            pass
+
+
+class _FlirFrames(_FileFrames):
     """Apparent (or object) radiometric temperature of a FLIR file's frames,
     (T, 1, H, W) float32, decoded per block with each frame's own Planck
     constants."""
@@ -232,14 +261,8 @@ class _FlirFrames:
     def close(self) -> None:
         self.flir.close()
 
-    def __del__(self) -> None:  # a recording dropped without close() releases its file
-        try:
-            self.close()
-        except Exception:  # noqa: BLE001 (never raise from __del__)
-            pass
 
-
-class _HccFrames:
+class _HccFrames(_FileFrames):
     """Calibrated values of a Telops file's frames grouped per wheel turn,
     (T, C, H, W) float32, each frame with its own scaling; ``factor``
     converts the stored unit to the recording's quantity."""
@@ -256,12 +279,6 @@ class _HccFrames:
 
     def close(self) -> None:
         self.hcc.close()
-
-    def __del__(self) -> None:  # a recording dropped without close() releases its file
-        try:
-            self.close()
-        except Exception:  # noqa: BLE001 (never raise from __del__)
-            pass
 
 
 # --------------------------------------------------------------------------- the opener
@@ -406,6 +423,29 @@ def _open_h5(p, camera, distance_m, ambient_K, pressure_Pa, nonfinite, check_fra
         origins.update(dict.fromkeys(given, "given"))
     rec.scene_origin = origins  # type: ignore[attr-defined]
     rec.warnings = Diagnostics()  # type: ignore[attr-defined]
+    return rec
+
+
+def _camera_file_recording(
+    p, source, times, quantity: str, camera: Camera, scene: Scene, nonfinite: str, attrs: dict
+) -> Recording:
+    """A recording of a camera file (FLIR, Telops): no truth, frames read from
+    ``source`` (closed with the recording), ``nonfinite="error"`` (the
+    default) taken as ``"invalid"`` as for every camera file; its metadata
+    validated."""
+    rec = Recording(
+        source=source,
+        time_s=np.asarray(times, np.float64),
+        quantity=quantity,
+        camera=camera,
+        scene=scene,
+        truth=None,
+        path=p,
+        nonfinite="invalid" if nonfinite == "error" else nonfinite,
+        h5file=source,
+        attrs=attrs,
+    )
+    rec._validate_metadata()
     return rec
 
 
@@ -571,22 +611,15 @@ def _open_flir(
                     value=float(held),
                 )
         facts["pressure_Pa"] = _pressure(p, pressure_Pa, origins, warns)
-        if ifov_rad is not None:
-            ifov, origins["ifov_rad"] = float(ifov_rad), "given"
-        elif m0.field_of_view_deg > 0 and m0.width > 0:
-            ifov, origins["ifov_rad"] = (
-                np.deg2rad(m0.field_of_view_deg) / m0.width,
-                "file (field of view / width)",
-            )
-        elif cam.ifov_rad > 0:
-            ifov, origins["ifov_rad"] = cam.ifov_rad, "camera preset"
-        else:
-            raise _missing(
-                p,
-                "the IFOV",
-                "the file has no field of view and the camera none",
-                "ifov_rad=... (angular size of one pixel, rad)",
-            )
+        in_file = m0.field_of_view_deg > 0 and m0.width > 0
+        ifov = _ifov(
+            p,
+            ifov_rad,
+            np.deg2rad(m0.field_of_view_deg) / m0.width if in_file else None,
+            cam,
+            origins,
+            "the file has no field of view and the camera none",
+        )
         camera_out = Camera(
             " ".join(s for s in (m0.camera_model, m0.lens_model) if s) or cam.name,
             float(ifov),
@@ -596,17 +629,15 @@ def _open_flir(
         )
         scene = _scene(p, facts, species)
         source = _FlirFrames(f, len(metas), m0.height, m0.width, object_parameters)
-        rec = Recording(
-            source=source,
-            time_s=np.asarray(times, np.float64),
-            quantity="radiometric_temperature",
-            camera=camera_out,
-            scene=scene,
-            truth=None,
-            path=p,
-            nonfinite="invalid" if nonfinite == "error" else nonfinite,
-            h5file=source,
-            attrs={
+        rec = _camera_file_recording(
+            p,
+            source,
+            times,
+            "radiometric_temperature",
+            camera_out,
+            scene,
+            nonfinite,
+            {
                 "source": name,
                 "source_format": f"FLIR {f.kind} ({m0.raw_format})",
                 "start_time_posix_s": float(m0.timestamp_s),
@@ -619,7 +650,6 @@ def _open_flir(
                 "flir_planck_o": m0.planck_o,
             },
         )
-        rec._validate_metadata()
     except BaseException:
         f.close()
         raise
@@ -716,17 +746,7 @@ def _open_hcc(
                 )
             facts[key], origins[key] = float(given), "given"
         facts["pressure_Pa"] = _pressure(p, pressure_Pa, origins, warns)
-        if ifov_rad is not None:
-            ifov, origins["ifov_rad"] = float(ifov_rad), "given"
-        elif cam.ifov_rad > 0:
-            ifov, origins["ifov_rad"] = cam.ifov_rad, "camera preset"
-        else:
-            raise _missing(
-                p,
-                "the IFOV",
-                "a Telops file does not record the lens",
-                "ifov_rad=... (angular size of one pixel, rad)",
-            )
+        ifov = _ifov(p, ifov_rad, None, cam, origins, "a Telops file does not record the lens")
         factor = 1.0
         if quantity == "irradiance":
             # An extended source filling the pixel: E = L x (pixel solid angle).
@@ -742,17 +762,15 @@ def _open_hcc(
         scene = _scene(p, facts, species)
         source = _HccFrames(h, turns, factor)
         offsets = (ch_times - ch_times.mean(axis=1, keepdims=True)).mean(axis=0)
-        rec = Recording(
-            source=source,
-            time_s=np.asarray(times, np.float64),
-            quantity=quantity,
-            camera=camera_out,
-            scene=scene,
-            truth=None,
-            path=p,
-            nonfinite="invalid" if nonfinite == "error" else nonfinite,
-            h5file=source,
-            attrs={
+        rec = _camera_file_recording(
+            p,
+            source,
+            times,
+            quantity,
+            camera_out,
+            scene,
+            nonfinite,
+            {
                 "source": name,
                 "source_format": f"Telops hcc v{h.version[0]}.{h.version[1]} ({mname})",
                 "start_time_posix_s": t0,
@@ -762,7 +780,6 @@ def _open_hcc(
                 "channel_time_offset_s": offsets,
             },
         )
-        rec._validate_metadata()
     except BaseException:
         h.close()
         raise

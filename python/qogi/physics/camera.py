@@ -368,14 +368,13 @@ class Calibration:
     """
 
     def __init__(self, channels: Sequence[Any]):
-        chans = list(channels)
-        if not chans:
-            raise ValueError("a Calibration needs at least one channel")
-        for k, c in enumerate(chans):
-            if not isinstance(c, _engine.ChannelCalibration):
-                raise TypeError(
-                    f"channels[{k}] must be a ChannelCalibration; got {type(c).__name__}"
-                )
+        chans = _typed_list(
+            channels,
+            _engine.ChannelCalibration,
+            "channels",
+            "a ChannelCalibration",
+            "a Calibration needs at least one channel",
+        )
         shapes = {(c.height, c.width) for c in chans}
         if len(shapes) > 1:
             raise ValueError(f"channel calibrations must share one frame size; got {shapes}")
@@ -938,14 +937,25 @@ def camera_optics(name: str) -> list:
 def _optics_list(optics) -> list:
     if isinstance(optics, _engine.ChannelOptics):
         optics = [optics]
-    out = list(optics)
+    return _typed_list(
+        optics,
+        _engine.ChannelOptics,
+        "optics",
+        "a qogi.camera.ChannelOptics",
+        "at least one ChannelOptics is needed; got none",
+    )
+
+
+def _typed_list(items, kind: type, name: str, what: str, if_empty: str) -> list:
+    """The items as a list, each an instance of ``kind``: ValueError
+    ``if_empty`` for none, TypeError "<name>[k] must be <what>; got <type>"
+    for the first that is not."""
+    out = list(items)
     if not out:
-        raise ValueError("at least one ChannelOptics is needed; got none")
+        raise ValueError(if_empty)
     for k, o in enumerate(out):
-        if not isinstance(o, _engine.ChannelOptics):
-            raise TypeError(
-                f"optics[{k}] must be a qogi.camera.ChannelOptics; got {type(o).__name__}"
-            )
+        if not isinstance(o, kind):
+            raise TypeError(f"{name}[{k}] must be {what}; got {type(o).__name__}")
     return out
 
 
@@ -971,18 +981,26 @@ def warm_optics_radiance(
 
 def _warm_term(
     optics,
-    shape_ndim: int,
+    values: np.ndarray,
+    name: str,
     axis: int,
     lens_temperature_K,
     filter_temperature_K,
     reflected_temperature_K,
 ):
+    """W shaped to broadcast against ``values`` (channels on ``axis``), which
+    must hold one channel per optics (ValueError naming ``name`` otherwise)."""
     opt = _optics_list(optics)
+    shape_ndim = values.ndim
     if not -shape_ndim <= axis < shape_ndim:
         raise ValueError(f"axis {axis} is out of range for an array of {shape_ndim} dims")
     ax = axis - shape_ndim if axis >= 0 else axis
     w = warm_optics_radiance(opt, lens_temperature_K, filter_temperature_K, reflected_temperature_K)
-    return w.reshape(w.shape + (1,) * (-ax - 1)), len(opt), ax
+    if values.shape[ax] != len(opt):
+        raise ValueError(
+            f"{name} has {values.shape[ax]} channels on axis {axis}; {len(opt)} optics were given"
+        )
+    return w.reshape(w.shape + (1,) * (-ax - 1))
 
 
 def add_warm_optics(
@@ -1008,13 +1026,15 @@ def add_warm_optics(
         axis (e.g. one temperature per frame).
     """
     a = np.asarray(radiance)
-    w, nc, ax = _warm_term(
-        optics, a.ndim, axis, lens_temperature_K, filter_temperature_K, reflected_temperature_K
+    w = _warm_term(
+        optics,
+        a,
+        "radiance",
+        axis,
+        lens_temperature_K,
+        filter_temperature_K,
+        reflected_temperature_K,
     )
-    if a.shape[ax] != nc:
-        raise ValueError(
-            f"radiance has {a.shape[ax]} channels on axis {axis}; {nc} optics were given"
-        )
     out = a + w
     return out.astype(a.dtype, copy=False) if a.dtype == np.float32 else out
 
@@ -1042,21 +1062,24 @@ def correct_warm_optics(
     Parameters as in :func:`add_warm_optics`.
     """
     a = np.asarray(measured)
-    w, nc, ax = _warm_term(
-        optics, a.ndim, axis, lens_temperature_K, filter_temperature_K, reflected_temperature_K
+    w = _warm_term(
+        optics,
+        a,
+        "measured",
+        axis,
+        lens_temperature_K,
+        filter_temperature_K,
+        reflected_temperature_K,
     )
-    if a.shape[ax] != nc:
-        raise ValueError(
-            f"measured has {a.shape[ax]} channels on axis {axis}; {nc} optics were given"
-        )
     if (reference_lens_temperature_K is None) != (reference_filter_temperature_K is None):
         raise ValueError(
             "give both reference_lens_temperature_K and reference_filter_temperature_K, or neither"
         )
     if reference_lens_temperature_K is not None:
-        w_ref, _, _ = _warm_term(
+        w_ref = _warm_term(
             optics,
-            a.ndim,
+            a,
+            "measured",
             axis,
             reference_lens_temperature_K,
             reference_filter_temperature_K,

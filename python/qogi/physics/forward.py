@@ -342,19 +342,25 @@ class ForwardModel:
         self.molar_masses_kg_mol = [t.molar_mass_kg_mol for t in self.tables]
 
     # -- the engine models, built on first use ---------------------------------
+    def _built(self, name: str, build):
+        """The engine model kept as attribute ``name``, made by ``build()`` on
+        first use (by one thread)."""
+        with self._lock:
+            if getattr(self, name) is None:
+                setattr(self, name, build())
+            return getattr(self, name)
+
     @property
     def fast(self) -> _engine.BinnedModel:
-        with self._lock:
-            if self._fast is None:
-                self._fast = _engine.BinnedModel(self.channels, self.tables, self._fast_options)
-            return self._fast
+        return self._built(
+            "_fast", lambda: _engine.BinnedModel(self.channels, self.tables, self._fast_options)
+        )
 
     @property
     def exact(self) -> _engine.ExactModel:
-        with self._lock:
-            if self._exact is None:
-                self._exact = _engine.ExactModel(self.channels, self.tables, self._exact_options)
-            return self._exact
+        return self._built(
+            "_exact", lambda: _engine.ExactModel(self.channels, self.tables, self._exact_options)
+        )
 
     @property
     def temperature_range_K(self) -> tuple:

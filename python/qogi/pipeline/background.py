@@ -14,7 +14,7 @@ import numpy as np
 
 from .. import _engine
 from ..io.recording import Recording
-from .background_choice import _noise, choose, inpaint_held
+from .background_choice import _noise, _relative_to_contrast, choose, inpaint_held
 from .config import QuantifyConfig
 from .sampling import _bilinear
 from .state import RunState
@@ -213,14 +213,7 @@ class Background:
             contrast = (_bilinear(f - bg, xy - origin) * self.channel_sign[None, :, None]).mean(
                 axis=0
             )  # (C, N)
-            weight = np.clip(contrast, 0, None)
-            total = weight.sum(axis=1)
-            if not total.max() > 0:
-                rel[j] = 0.0
-                continue
-            c = int(np.argmax(total))
-            mean_contrast = float((contrast[c] * weight[c]).sum() / total[c])
-            rel[j] = float(delta[c] / max(mean_contrast, 1e-30))
+            rel[j] = _relative_to_contrast(delta, contrast)
         return rel
 
     def region_mean(self, frame: np.ndarray, region: Region) -> np.ndarray:

@@ -225,6 +225,19 @@ def _noise(frames: np.ndarray) -> np.ndarray:
     return np.median(mad.reshape(mad.shape[0], -1), axis=1)
 
 
+def _relative_to_contrast(delta: np.ndarray, contrast: np.ndarray) -> float:
+    """A background's uncertainty relative to the surface's contrast: ``delta``
+    (C,) of the channel whose positive contrast (C, N) sums highest, over that
+    channel's contrast-weighted mean contrast; 0 where no channel sees gas."""
+    weight = np.clip(contrast, 0, None)
+    total = weight.sum(axis=1)  # (C,)
+    if not total.max() > 0:
+        return 0.0
+    c = int(np.argmax(total))
+    mean_contrast = float((contrast[c] * weight[c]).sum() / total[c])
+    return float(delta[c] / max(mean_contrast, 1e-30))
+
+
 def choose(
     frames: np.ndarray,
     surfaces: Sequence,
@@ -331,15 +344,7 @@ def choose(
             if held_fraction > HELD_WARN_FRACTION:
                 not_free.append((s.name or str(j), held_fraction))
             delta = (1.3 / np.sqrt(t) + held_fraction * max(1.0, structure[j])) * noise[:, 0]
-        contrast = sign * (at.mean(axis=0) - bg)  # (C, N)
-        weight = np.clip(contrast, 0, None)
-        total = weight.sum(axis=1)  # (C,)
-        if not total.max() > 0:
-            rel[j] = 0.0
-            continue
-        c_best = int(np.argmax(total))
-        mean_contrast = float((contrast[c_best] * weight[c_best]).sum() / total[c_best])
-        rel[j] = float(delta[c_best] / max(mean_contrast, 1e-30))
+        rel[j] = _relative_to_contrast(delta, sign * (at.mean(axis=0) - bg))
     reason = (
         "the strips beside every surface are gas-free (time-mean within "
         f"{GAS_EXCESS_SIGMA} noise of their low percentile) and the background is "

@@ -59,6 +59,12 @@ __all__ = [
 VELOCITY_SOURCES = _settings.choices("velocity")
 
 
+def _from_table(name: str) -> Any:
+    """A role object's field whose default is the settings table's (a new
+    value for each object, so that lists and dicts are not shared)."""
+    return dataclasses.field(default_factory=partial(_settings.default, name))
+
+
 def _check_fields(obj) -> None:
     """Each field of a role object checked, and put in its canonical form,
     by the settings table (qogi.pipeline.settings.check)."""
@@ -70,37 +76,17 @@ def _check_fields(obj) -> None:
 class SceneConditions:
     """Facts about the scene and the gas (None: the recording's)."""
 
-    species: List[str] = dataclasses.field(default_factory=partial(_settings.default, "species"))
-    gas_temperature: Union[str, float] = dataclasses.field(
-        default_factory=partial(_settings.default, "gas_temperature")
-    )
-    composition: Optional[Dict[str, float]] = dataclasses.field(
-        default_factory=partial(_settings.default, "composition")
-    )
-    exit_temperature_K: Optional[float] = dataclasses.field(
-        default_factory=partial(_settings.default, "exit_temperature_K")
-    )
-    distance_m: Optional[float] = dataclasses.field(
-        default_factory=partial(_settings.default, "distance_m")
-    )
-    ambient_temperature_K: Optional[float] = dataclasses.field(
-        default_factory=partial(_settings.default, "ambient_temperature_K")
-    )
-    pressure_Pa: Optional[float] = dataclasses.field(
-        default_factory=partial(_settings.default, "pressure_Pa")
-    )
-    source: Optional[Tuple[float, float]] = dataclasses.field(
-        default_factory=partial(_settings.default, "source")
-    )
-    sigma_m: Optional[float] = dataclasses.field(
-        default_factory=partial(_settings.default, "sigma_m")
-    )
-    wind_speed_m_s: Optional[float] = dataclasses.field(
-        default_factory=partial(_settings.default, "wind_speed_m_s")
-    )
-    exit_velocity_m_s: Optional[float] = dataclasses.field(
-        default_factory=partial(_settings.default, "exit_velocity_m_s")
-    )
+    species: List[str] = _from_table("species")
+    gas_temperature: Union[str, float] = _from_table("gas_temperature")
+    composition: Optional[Dict[str, float]] = _from_table("composition")
+    exit_temperature_K: Optional[float] = _from_table("exit_temperature_K")
+    distance_m: Optional[float] = _from_table("distance_m")
+    ambient_temperature_K: Optional[float] = _from_table("ambient_temperature_K")
+    pressure_Pa: Optional[float] = _from_table("pressure_Pa")
+    source: Optional[Tuple[float, float]] = _from_table("source")
+    sigma_m: Optional[float] = _from_table("sigma_m")
+    wind_speed_m_s: Optional[float] = _from_table("wind_speed_m_s")
+    exit_velocity_m_s: Optional[float] = _from_table("exit_velocity_m_s")
 
     def __post_init__(self):
         _check_fields(self)
@@ -123,25 +109,15 @@ class SceneConditions:
 class Methods:
     """The analysis choices (each changes the result; docs/pipeline_api.md)."""
 
-    velocity: str = dataclasses.field(default_factory=partial(_settings.default, "velocity"))
-    averaging: str = dataclasses.field(default_factory=partial(_settings.default, "averaging"))
-    background: Union[str, Region] = dataclasses.field(
-        default_factory=partial(_settings.default, "background")
-    )
-    background_percentile: float = dataclasses.field(
-        default_factory=partial(_settings.default, "background_percentile")
-    )
-    column_density: str = dataclasses.field(
-        default_factory=partial(_settings.default, "column_density")
-    )
-    velocity_systematic: Optional[float] = dataclasses.field(
-        default_factory=partial(_settings.default, "velocity_systematic")
-    )
-    column_systematic: Optional[float] = dataclasses.field(
-        default_factory=partial(_settings.default, "column_systematic")
-    )
-    flux_level: bool = dataclasses.field(default_factory=partial(_settings.default, "flux_level"))
-    line_shape: str = dataclasses.field(default_factory=partial(_settings.default, "line_shape"))
+    velocity: str = _from_table("velocity")
+    averaging: str = _from_table("averaging")
+    background: Union[str, Region] = _from_table("background")
+    background_percentile: float = _from_table("background_percentile")
+    column_density: str = _from_table("column_density")
+    velocity_systematic: Optional[float] = _from_table("velocity_systematic")
+    column_systematic: Optional[float] = _from_table("column_systematic")
+    flux_level: bool = _from_table("flux_level")
+    line_shape: str = _from_table("line_shape")
 
     def __post_init__(self):
         _check_fields(self)
@@ -170,16 +146,10 @@ class Methods:
 class Execution:
     """How the run is carried out (frames analysed, threads, streaming)."""
 
-    frames: Optional[Tuple[int, int]] = dataclasses.field(
-        default_factory=partial(_settings.default, "frames")
-    )
-    num_threads: int = dataclasses.field(default_factory=partial(_settings.default, "num_threads"))
-    pair_stride: Optional[int] = dataclasses.field(
-        default_factory=partial(_settings.default, "pair_stride")
-    )
-    block_frames: Optional[int] = dataclasses.field(
-        default_factory=partial(_settings.default, "block_frames")
-    )
+    frames: Optional[Tuple[int, int]] = _from_table("frames")
+    num_threads: int = _from_table("num_threads")
+    pair_stride: Optional[int] = _from_table("pair_stride")
+    block_frames: Optional[int] = _from_table("block_frames")
 
     def __post_init__(self):
         _check_fields(self)
@@ -190,16 +160,10 @@ class Record:
     """Who measured what, where (each optional): written into the result's
     audit record (``Result.audit``); they change nothing computed."""
 
-    site: Optional[str] = dataclasses.field(default_factory=partial(_settings.default, "site"))
-    component: Optional[str] = dataclasses.field(
-        default_factory=partial(_settings.default, "component")
-    )
-    operator: Optional[str] = dataclasses.field(
-        default_factory=partial(_settings.default, "operator")
-    )
-    location: Optional[str] = dataclasses.field(
-        default_factory=partial(_settings.default, "location")
-    )
+    site: Optional[str] = _from_table("site")
+    component: Optional[str] = _from_table("component")
+    operator: Optional[str] = _from_table("operator")
+    location: Optional[str] = _from_table("location")
 
     def __post_init__(self):
         _check_fields(self)
