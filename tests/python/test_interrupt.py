@@ -380,16 +380,7 @@ def test_ctrl_c_while_qogi_info_loads_its_modules_exits_130(rec, module):
     (the whole package, about 0.15 s) and printed a KeyboardInterrupt
     traceback; inside the engine's or numpy's initialisation it arrives as
     an ImportError caused by it. Now: exit 130 and one line."""
-    r = subprocess.run(
-        [sys.executable, "-c", CTRL_C_IN_IMPORT, module, "info", str(rec)],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=False,
-        preexec_fn=_ctrl_c_on,
-    )
-    assert r.returncode == 130, f"exit {r.returncode}\n{r.stderr}"
-    assert "Traceback" not in r.stderr, r.stderr
+    r = _info_interrupted(rec, CTRL_C_IN_IMPORT, module)
     assert r.stderr.strip() in ("qogi: interrupted", "qogi info: interrupted"), r.stderr
 
 
@@ -418,8 +409,13 @@ sys.exit(main())
 
 
 def test_a_ctrl_c_lost_inside_an_import_still_exits_130(rec):
+    _info_interrupted(rec, CTRL_C_LOST_IN_IMPORT)
+
+
+def _info_interrupted(rec, script: str, *args: str):
+    """``qogi info REC`` run by ``script`` (which delivers a Ctrl-C): exit 130, no traceback."""
     r = subprocess.run(
-        [sys.executable, "-c", CTRL_C_LOST_IN_IMPORT, "info", str(rec)],
+        [sys.executable, "-c", script, *args, "info", str(rec)],
         capture_output=True,
         text=True,
         timeout=120,
@@ -428,3 +424,4 @@ def test_a_ctrl_c_lost_inside_an_import_still_exits_130(rec):
     )
     assert r.returncode == 130, f"exit {r.returncode}\n{r.stderr}"
     assert "Traceback" not in r.stderr, r.stderr
+    return r

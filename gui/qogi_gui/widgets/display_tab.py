@@ -30,14 +30,7 @@ class DisplayTab(Panel):
             tag="d_quantity",
             callback=s(lambda sd, a, u: video.set_display(quantity=QUANTITY_CHOICES[a])),
         )
-        dpg.add_combo(
-            list(display.COLORMAPS),
-            label="colour map",
-            tag="d_cmap",
-            width=160,
-            default_value=display.COLORMAPS[0],
-            callback=s(lambda sd, a, u: video.set_display(colormap=a)),
-        )
+        self._choice(display.COLORMAPS, "colour map", "d_cmap", 160, "colormap")
         dpg.add_radio_button(
             list(RANGE_CHOICES),
             tag="d_range",
@@ -70,14 +63,7 @@ class DisplayTab(Panel):
             default_value=True,
             callback=s(lambda sd, a, u: video.set_display(show_overlay=a)),
         )
-        dpg.add_combo(
-            list(display.OVERLAY_KINDS),
-            label="shows",
-            tag="d_overlay_kind",
-            width=200,
-            default_value=display.OVERLAY_KINDS[0],
-            callback=s(lambda sd, a, u: video.set_display(overlay_kind=a)),
-        )
+        self._choice(display.OVERLAY_KINDS, "shows", "d_overlay_kind", 200, "overlay_kind")
         dpg.add_combo(
             [],
             label="species",
@@ -85,13 +71,8 @@ class DisplayTab(Panel):
             width=120,
             callback=s(lambda sd, a, u: video.set_display(overlay_species=a)),
         )
-        dpg.add_combo(
-            list(display.OVERLAY_COLORMAPS),
-            label="overlay colours",
-            width=120,
-            default_value=display.OVERLAY_COLORMAPS[0],
-            tag="d_overlay_cmap",
-            callback=s(lambda sd, a, u: video.set_display(overlay_colormap=a)),
+        self._choice(
+            display.OVERLAY_COLORMAPS, "overlay colours", "d_overlay_cmap", 120, "overlay_colormap"
         )
         dpg.add_checkbox(
             label="velocity vectors",
@@ -174,6 +155,18 @@ class DisplayTab(Panel):
                     "frames: step between them with the buttons above"
                 )
         dpg.set_value("d_overlay_note", note)
+
+    def _choice(self, items, label: str, tag: str, width: int, field: str) -> None:
+        """A list of choices that sets display setting ``field`` (the first is the default)."""
+        video = self.vm.video
+        dpg.add_combo(
+            list(items),
+            label=label,
+            tag=tag,
+            width=width,
+            default_value=items[0],
+            callback=self.app.safe(lambda sd, a, u: video.set_display(**{field: a})),
+        )
 
     def _on_channel(self, sender, value, user_data) -> None:
         self.vm.video.set_display(channel=int(str(value).split(":", 1)[0]))

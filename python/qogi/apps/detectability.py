@@ -537,28 +537,18 @@ def min_detectable_column_map(
     ``NEC`` the noise-equivalent column at that pixel's background
     radiometric temperature (:func:`qogi.pipeline.detection.noise_equivalent_column`).
 
+    The other parameters and the result are those of
+    :func:`qogi.pipeline.detection.min_detectable_column` (``background_K``
+    finite, (H, W), e.g. a gas-free frame or a temporal median of the first
+    channel); this builds the camera's forward model for ``species`` and
+    takes its NETD.
+
     Parameters
     ----------
-    background_K : array (H, W)
-        The background's radiometric temperature [K] per pixel (the first
-        channel's; e.g. a gas-free frame or a temporal median).
     camera : qogi.Camera or str
         The camera (or a preset name): its channels and NETD.
-    gas_K, ambient_K : float
-        Gas and ambient temperature [K].
-    species : str
     netd_K : float, optional
         Camera noise [K]; None: the camera's.
-    confidence : float
-        Fraction of frames (one-sided normal quantile z).
-    detection_sigma : float
-        The per-pixel threshold k in noise units.
-
-    Returns
-    -------
-    array (H, W)
-        Minimum-detectable column [kg/m2]; inf where the background has no
-        contrast with the gas.
     """
 
     cam = camera_preset(camera) if isinstance(camera, str) else camera
