@@ -780,7 +780,7 @@ class InvertedColumns:
         # The gas's sign per sample from its background (a hot pipe: absorbed).
         sign = pixel_sign(
             bg[None, :, c, :],
-            [self.rec.channels[c].band_radiance(self.scene.gas_K)],
+            np.array([self.rec.channels[c].band_radiance(self.scene.gas_K)]),
             self.background.channel_sign[c : c + 1],
         )[0]
         contrast = (rad[:, c, :] - bg[:, c, :]) * (sign / noise)
