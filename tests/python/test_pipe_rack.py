@@ -68,15 +68,23 @@ def test_the_proxy_weight_undoes_the_pipes_sign_and_sensitivity():
     # Over the median background (the rack) the gas reads as there: 0.2
     # everywhere, the pipe's absorption brought to the rack's emission.
     np.testing.assert_allclose(contrast * w, 0.2, rtol=1e-5)
-    # A uniform background leaves the signed contrast as it was.
-    np.testing.assert_array_equal(sensitivity_weight(np.full((4, 5), L_RACK), L_GAS, -1.0), -1.0)
-    # A pipe as hot as the gas carries no gas signal, only noise: tapered to
-    # zero, never beyond 1 / PROXY_MIN_SENSITIVITY.
+    # A uniform background leaves the signed contrast as it was (the gas
+    # colder than a warm wall: the channel's sign -1, the factor 1).
+    np.testing.assert_array_equal(sensitivity_weight(np.full((4, 5), L_PIPE), L_GAS, -1.0), 1.0)
+    # A cold pipe (twice as sensitive) is brought down to the rack's; a
+    # pipe half as sensitive is not raised (its background's error would be).
+    bg[:, 2] = L_RACK - 2.0
+    bg[:, 3] = L_RACK + 1.0
+    w = sensitivity_weight(bg, L_GAS, 1.0)
+    assert w[0, 2] == pytest.approx(0.5) and w[0, 3] == pytest.approx(1.0)
+    # A pipe as hot as the gas carries no gas signal, only noise: tapered
+    # linearly to zero below PROXY_MIN_SENSITIVITY of the rack's.
     bg[:, 30] = L_GAS
-    bg[:, 31] = L_GAS - 0.1 * PROXY_MIN_SENSITIVITY * (L_GAS - L_RACK)
+    bg[:, 31] = L_GAS - 0.5 * PROXY_MIN_SENSITIVITY * (L_GAS - L_RACK)
     w = sensitivity_weight(bg, L_GAS, 1.0)
     assert (w[:, 30] == 0).all()
-    assert np.abs(w).max() <= 1.0 / PROXY_MIN_SENSITIVITY + 1e-5
+    assert w[0, 31] == pytest.approx(0.5)
+    assert np.abs(w).max() <= 1.0
 
 
 def test_columns_over_a_background_as_hot_as_the_gas_are_interpolated_and_counted():

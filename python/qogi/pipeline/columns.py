@@ -49,7 +49,8 @@ __all__ = [
 
 #: Below this fraction of the typical background's sensitivity (the gas's
 #: contrast per column) a pixel's proxy is tapered to zero
-#: (:meth:`InvertedColumns.sensitivity_weight`): its weight is at most 4.
+#: (:func:`sensitivity_weight`), and a surface sample's column is
+#: interpolated from its neighbours (:func:`fill_insensitive`).
 PROXY_MIN_SENSITIVITY = 0.25
 
 
@@ -79,21 +80,27 @@ def sensitivity_weight(
 ) -> np.ndarray:
     """Per pixel, the factor that brings a signed contrast (gas positive by
     ``channel_sign``) over a background of band radiance ``background``
-    (..., h, w) [W/(m2 sr)] to what the same thin gas of band radiance
-    ``gas_radiance`` gives over the field's median background
-    (:meth:`InvertedColumns.sensitivity_weight`):
-    ``|L_g - L_ref| / (L_g - L_bg)``, tapered linearly to 0 where
-    ``|L_g - L_bg| < min_sensitivity |L_g - L_ref|``. Returns float32 of
-    ``background``'s shape (``channel_sign`` everywhere on a uniform
-    background)."""
+    (..., h, w) [W/(m2 sr)] towards what the same thin gas of band radiance
+    ``gas_radiance`` gives over the field's median background L_ref
+    (:meth:`InvertedColumns.sensitivity_weight`): the pixel's own sign
+    ``sign(L_g - L_bg)`` against the channel's, times
+    ``min(1, |L_g - L_ref| / |L_g - L_bg|)`` (a pixel more sensitive than
+    L_ref's is brought down to it, a less sensitive one is *not* raised:
+    raising multiplies its background's error too, and on the wall
+    preset's shadow, half as sensitive, a weight of 2 turned +9 % into
+    -91 % at 0.5 m on seed 0), tapered linearly to 0 where
+    ``|L_g - L_bg| < min_sensitivity |L_g - L_ref|`` (the gas invisible,
+    the noise left). Returns float32 of ``background``'s shape (1 on a
+    uniform background)."""
     den = np.float32(gas_radiance) - np.asarray(background, np.float32)
     num = abs(float(np.median(den)))
     if not num > 0:
-        return np.full(den.shape, np.float32(channel_sign))
-    eps2 = np.float32((min_sensitivity * num) ** 2)
-    w = den * np.float32(num * channel_sign)
-    w /= np.maximum(den * den, eps2)
-    return w
+        return np.ones(den.shape, np.float32)
+    a = np.abs(den)
+    eps = np.float32(min_sensitivity * num)
+    mag = np.minimum(np.float32(1.0), np.float32(num) / np.maximum(a, eps))
+    np.minimum(mag, a / eps, out=mag)  # the taper below eps (there num / eps > 1)
+    return (np.sign(den) * np.float32(channel_sign) * mag).astype(np.float32)
 
 
 def fill_insensitive(cols: Dict[str, np.ndarray], sigs: Dict[str, np.ndarray], weak, first: str):
@@ -493,7 +500,8 @@ class InvertedColumns:
     def sensitivity_weight(self, background: np.ndarray) -> np.ndarray:
         """Per pixel, the factor that brings the signed proxy contrast over a
         background of band radiance ``background`` (..., h, w) [W/(m2 sr)] to
-        what the same gas gives over the region's typical background.
+        what the same gas gives over the region's typical background (within
+        the limits of :func:`sensitivity_weight`).
 
         A thin gas layer at temperature T_g changes the radiance by
         tau (L(T_g) - L_bg) (thesis eq. 4, optically thin): over a pixel
@@ -502,14 +510,13 @@ class InvertedColumns:
         lookup for the whole field (:meth:`contrast_to_column`) then reads
         such gas as a negative column, and a background near the gas's
         temperature as none: a static pattern of the background's that the
-        velocimetry follows. The factor is
-        ``w = |L(T_g) - L_ref| / (L(T_g) - L_bg)`` with L_ref the field's
-        median background (1 on a uniform background, as before), tapered
-        to ``|L(T_g) - L_ref| (L(T_g) - L_bg) / eps^2`` where
-        ``|L(T_g) - L_bg| < eps = PROXY_MIN_SENSITIVITY |L(T_g) - L_ref|``
-        (a pixel the gas hardly changes carries its noise, not gas: at most
-        1 / PROXY_MIN_SENSITIVITY, falling to 0 at no sensitivity). The
-        channel's sign is folded in (the field is already signed).
+        velocimetry follows. The factor (:func:`sensitivity_weight`, L_ref
+        the field's median background; 1 on a uniform background, as
+        before) flips the sign where the gas absorbs instead of emitting,
+        brings a more sensitive pixel down to L_ref's sensitivity and tapers
+        a pixel the gas hardly changes (below
+        :data:`PROXY_MIN_SENSITIVITY` of L_ref's) to zero. The field is
+        already signed by the channel; the factor is relative to that.
         Returns float32 of ``background``'s shape."""
         c = self.proxy_channel
         return sensitivity_weight(
