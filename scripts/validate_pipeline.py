@@ -227,7 +227,14 @@ def run_case(cache: Path, case: str, seed: int, no_source: bool = False) -> dict
     placed = []
     true_source = source
     if no_source:
-        surfaces, source, placed = placed_without_source(rec, surfaces, source)
+        try:
+            surfaces, source, placed = placed_without_source(rec, surfaces, source)
+        except ValueError as e:
+            # What `qogi quantify --auto-surfaces` refuses (exit 2): recorded,
+            # not quantified.
+            d = dict(case=case, seed=seed, placement_error=str(e), surfaces=[], warnings=[])
+            out_json.write_text(json.dumps(d, indent=1))
+            return d
     cfg = QuantifyConfig(
         species=list(rec.scene.species),
         gas_temperature=c["gas_temperature"],
@@ -291,7 +298,10 @@ def report(cache: Path, cases, seeds: int, img_dir: Path | None, no_source: bool
             for p in sorted(cache.glob(f"{case}-{dur}-seed*{tag}.result.json"))
             if no_source or ".nosource." not in p.name
         ]
-        runs = [r for r in runs if r["seed"] < seeds]
+        refused = [r for r in runs if r["seed"] < seeds and "placement_error" in r]
+        for r in refused:
+            print(f"{case} seed {r['seed']}: surfaces not placed: {r['placement_error']}")
+        runs = [r for r in runs if r["seed"] < seeds and "placement_error" not in r]
         if not runs:
             continue
         names = [s["surface"] for s in runs[0]["surfaces"]]
@@ -413,9 +423,14 @@ def main(argv=None) -> int:
             d = run_case(a.cache, case, seed, a.no_source)
             print(
                 f"{case} seed {seed}: "
-                + ", ".join(
-                    f"{s['surface']} {100 * s['error']:+.1f} %{'' if s['covered'] else ' (miss)'}"
-                    for s in d["surfaces"]
+                + (
+                    f"surfaces not placed: {d['placement_error']}"
+                    if "placement_error" in d
+                    else ", ".join(
+                        f"{s['surface']} {100 * s['error']:+.1f} %"
+                        f"{'' if s['covered'] else ' (miss)'}"
+                        for s in d["surfaces"]
+                    )
                 ),
                 flush=True,
             )
