@@ -29,7 +29,7 @@ CameraModel CameraPreset(const std::string& name);
 
 // The wavenumbers lo_cm1, lo_cm1 + step_cm1, ... up to hi_cm1 (within
 // 1e-9 cm-1) on which the presets sample their curves [cm-1].
-std::vector<double> WavenumberGrid(double lo_cm1, double hi_cm1, double step_cm1);
+std::vector<double> PresetWavenumbers(double lo_cm1, double hi_cm1, double step_cm1);
 
 // Building blocks for channel responses, sampled every `step_cm1` over
 // [nu_min, nu_max]:

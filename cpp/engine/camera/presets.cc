@@ -9,7 +9,7 @@
 #include "engine/util/check.h"
 
 namespace qogi {
-std::vector<double> WavenumberGrid(double lo_cm1, double hi_cm1, double step_cm1) {
+std::vector<double> PresetWavenumbers(double lo_cm1, double hi_cm1, double step_cm1) {
   std::vector<double> nu;
   for (double x = lo_cm1; x <= hi_cm1 + 1e-9; x += step_cm1) nu.push_back(x);
   return nu;
@@ -44,7 +44,7 @@ CameraModel Gf320() {
   c.ifov_rad = 24.0 * constants::kPi / 180.0 / 320.0;
   c.frame_rate_hz = 15.0;
   c.netd_K = 0.015;
-  const std::vector<double> nu = WavenumberGrid(2800.0, 3300.0, 0.5);
+  const std::vector<double> nu = PresetWavenumbers(2800.0, 3300.0, 0.5);
   c.channels.push_back(Channel("gf320 3.2-3.4 um", nu,
                                BandpassTransmittance(nu, 3.20, 3.40, 0.85, 0.02), true, true));
   return c;
@@ -71,7 +71,7 @@ CameraModel FastM150() {
   c.ifov_rad = 0.6e-3;
   c.frame_rate_hz = 100.0;
   c.netd_K = 0.017;
-  const std::vector<double> nu = WavenumberGrid(1800.0, 6700.0, 1.0);
+  const std::vector<double> nu = PresetWavenumbers(1800.0, 6700.0, 1.0);
   const std::vector<double> open(nu.size(), 1.0);
   c.channels.push_back(Channel("open", nu, open, true, true));
   c.channels.push_back(Channel("CO2 4.17-4.45 um", nu,

@@ -160,11 +160,11 @@ std::vector<ChannelOptics> CameraPresetOptics(const std::string& name) {
   if (name == "gf320") {
     // The preset samples 2800-3300 cm-1 every 0.5 cm-1; the same step over
     // the whole InSb range contains those samples exactly.
-    const std::vector<double> nu = WavenumberGrid(1800.0, 6700.0, 0.5);
+    const std::vector<double> nu = PresetWavenumbers(1800.0, 6700.0, 0.5);
     out.push_back(
         Optics(preset.channels[0].name(), nu, BandpassTransmittance(nu, 3.20, 3.40, 0.85, 0.02)));
   } else if (name == "fast-m150") {
-    const std::vector<double> nu = WavenumberGrid(1800.0, 6700.0, 1.0);
+    const std::vector<double> nu = PresetWavenumbers(1800.0, 6700.0, 1.0);
     out.push_back(Optics(preset.channels[0].name(), nu, std::vector<double>(nu.size(), 1.0)));
     out.push_back(
         Optics(preset.channels[1].name(), nu, BandpassTransmittance(nu, 4.17, 4.45, 0.80, 0.03)));
