@@ -45,10 +45,13 @@ frames: the map of where in the frame the camera can see this gas at all.
 from __future__ import annotations
 
 import math
+import warnings
 from statistics import NormalDist
 from typing import Optional
 
 import numpy as np
+
+from ..physics.radiometry import band_table
 
 __all__ = [
     "CONFIDENCE",
@@ -196,14 +199,22 @@ def median_background_K(
     frames = range(recording.n_frames) if frames is None else frames
     n = len(frames)
     pick = np.unique(np.linspace(0, n - 1, min(n, max(1, int(max_frames)))).astype(int))
-    stack = np.stack(
-        [recording.frame(frames[int(i)], quantity="radiometric_temperature")[0] for i in pick]
-    )
-    with np.errstate(all="ignore"):
-        bg = np.nanpercentile(stack, percentile, axis=0)
-    bad = ~np.isfinite(bg)
-    if bad.any() and not bad.all():
-        bg[bad] = np.median(bg[~bad])
+    # The frames as stored (a dead pixel's zero radiance has no temperature):
+    # the percentile of the valid values, then one conversion; radiance and
+    # temperature rise together, so the order is the same.
+    stack = np.stack([recording.frame(frames[int(i)])[0] for i in pick]).astype(float)
+    stack[~(np.isfinite(stack) & (stack > 0))] = np.nan
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN pixels: filled below
+        level = np.nanpercentile(stack, percentile, axis=0)
+    good = np.isfinite(level)
+    bg = np.full(level.shape, np.nan)
+    if recording.quantity == "radiance":
+        bg[good] = band_table(recording.channels[0]).temperature(level[good])
+    else:
+        bg[good] = level[good]
+    if good.any() and not good.all():
+        bg[~good] = np.median(bg[good])
     return bg
 
 
