@@ -82,9 +82,11 @@ consumer: $(STAMPS)/consumer
 # The Python tests on PYTEST_WORKERS processes (pytest-xdist), a test file per
 # process at a time (its module fixtures, the rendered scenes, built once);
 # the slowest are listed at the end. PYTEST_WORKERS=0 runs them in this process.
+# PYTEST_ARGS selects (e.g. PYTEST_ARGS='-m shared_data').
 PYTEST_WORKERS ?= $(JOBS)
+PYTEST_ARGS ?=
 test-python: $(STAMPS)/built
-	$(VPY) -m pytest -q -n $(PYTEST_WORKERS) --dist loadfile --durations=15
+	$(VPY) -m pytest -q -n $(PYTEST_WORKERS) --dist loadfile --durations=15 $(PYTEST_ARGS)
 
 # Linters and the type checker (settings: pyproject.toml [tool.ruff]/[tool.mypy],
 # .clang-format). Every check runs and reports; the target fails if any failed.

@@ -16,6 +16,15 @@ REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("QOGI_SHARED_DIR", REPO.parent / "shared"))
 
 
+def pytest_collection_modifyitems(items) -> None:
+    """Mark every test that needs the third-party samples ``shared_data``, so
+    that CI, whose bare clone has nothing beside it, can run just these in the
+    checkout that has them (``pytest -m shared_data``)."""
+    for item in items:
+        if "shared_dir" in getattr(item, "fixturenames", ()):
+            item.add_marker(pytest.mark.shared_data)
+
+
 @pytest.fixture(scope="session")
 def shared_dir() -> Path:
     if not (SHARED / "samples").is_dir():
