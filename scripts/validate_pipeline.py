@@ -54,8 +54,9 @@ from pathlib import Path
 import numpy as np
 
 import qogi
+from qogi.diagnostics import Diagnostics
 from qogi.pipeline import QuantifyConfig, quantify
-from qogi.pipeline.surfaces import Surface, truth_surfaces
+from qogi.pipeline.surfaces import Surface, auto_surfaces, plume_image, truth_surfaces
 from qogi.synth import render
 
 CASES = {
@@ -203,13 +204,46 @@ def surfaces_for(rec, case: str):
     )
 
 
-def run_case(cache: Path, case: str, seed: int) -> dict:
-    out_json = cache / f"{case}-{CASES[case]['duration_s']:g}s-seed{seed}.result.json"
+def result_path(cache: Path, case: str, seed: int, no_source: bool = False) -> Path:
+    tag = ".nosource" if no_source else ""
+    return cache / f"{case}-{CASES[case]['duration_s']:g}s-seed{seed}{tag}.result.json"
+
+
+def placed_without_source(rec, surfaces, source):
+    """What ``qogi quantify --auto-surfaces`` does without ``--source``: the
+    plume and its source detected (:func:`plume_image`, :func:`auto_surfaces`),
+    surfaces placed at the case's distances from the true source (each
+    surface's midpoint's), and the detected source given to the run.
+    Returns ``(surfaces, detected source, placement warnings)``."""
+    dists = [
+        float(np.hypot(*(np.asarray(s.points, float).mean(axis=0) - np.asarray(source))))
+        for s in surfaces
+    ]
+    placed = Diagnostics()
+    auto, detected = auto_surfaces(
+        plume_image(rec), dists, source=None, return_source=True, warnings=placed
+    )
+    return auto, detected, placed
+
+
+def run_case(cache: Path, case: str, seed: int, no_source: bool = False) -> dict:
+    out_json = result_path(cache, case, seed, no_source)
     if out_json.exists():
         return json.loads(out_json.read_text())
     c = CASES[case]
     rec = qogi.open_recording(ensure_recording(cache, case, seed))
     surfaces, source = surfaces_for(rec, case)
+    placed = []
+    true_source = source
+    if no_source:
+        try:
+            surfaces, source, placed = placed_without_source(rec, surfaces, source)
+        except ValueError as e:
+            # What `qogi quantify --auto-surfaces` refuses (exit 2): recorded,
+            # not quantified.
+            d = dict(case=case, seed=seed, placement_error=str(e), surfaces=[], warnings=[])
+            out_json.write_text(json.dumps(d, indent=1))
+            return d
     cfg = QuantifyConfig(
         species=list(rec.scene.species),
         gas_temperature=c["gas_temperature"],
@@ -220,6 +254,8 @@ def run_case(cache: Path, case: str, seed: int) -> dict:
     t = time.perf_counter()
     res = quantify(rec, surfaces, cfg)
     seconds = time.perf_counter() - t
+    if placed:
+        res.warnings.extend_unique(placed)
     rows = []
     for s in res.surfaces:
         r = s.species["CH4"]
@@ -249,12 +285,15 @@ def run_case(cache: Path, case: str, seed: int) -> dict:
         surfaces=rows,
         info=info,
         warnings=[w.to_dict() for w in res.warnings],
+        source=list(source),
+        true_source=list(true_source),
+        given_source=not no_source,
     )
     out_json.write_text(json.dumps(d, indent=1))
     return d
 
 
-def report(cache: Path, cases, seeds: int, img_dir: Path | None) -> None:
+def report(cache: Path, cases, seeds: int, img_dir: Path | None, no_source: bool = False) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -262,10 +301,16 @@ def report(cache: Path, cases, seeds: int, img_dir: Path | None) -> None:
 
     for case in cases:
         dur = f"{CASES[case]['duration_s']:g}s"
+        tag = ".nosource" if no_source else ""
         runs = [
-            json.loads(p.read_text()) for p in sorted(cache.glob(f"{case}-{dur}-seed*.result.json"))
+            json.loads(p.read_text())
+            for p in sorted(cache.glob(f"{case}-{dur}-seed*{tag}.result.json"))
+            if no_source or ".nosource." not in p.name
         ]
-        runs = [r for r in runs if r["seed"] < seeds]
+        refused = [r for r in runs if r["seed"] < seeds and "placement_error" in r]
+        for r in refused:
+            print(f"{case} seed {r['seed']}: surfaces not placed: {r['placement_error']}")
+        runs = [r for r in runs if r["seed"] < seeds and "placement_error" not in r]
         if not runs:
             continue
         names = [s["surface"] for s in runs[0]["surfaces"]]
@@ -273,6 +318,7 @@ def report(cache: Path, cases, seeds: int, img_dir: Path | None) -> None:
             f"\n{case}: {len(runs)} seeds, {CASES[case]['preset']}"
             f"{' via ' + CASES[case]['camera'] if CASES[case]['camera'] else ''}, "
             f"gas temperature {CASES[case]['gas_temperature']}"
+            f"{', source detected (not given)' if no_source else ''}"
         )
         print(
             "| surface | mean error | seeds' range | 90 % interval covers truth | dominant term |"
@@ -344,7 +390,7 @@ def report(cache: Path, cases, seeds: int, img_dir: Path | None) -> None:
             ax.set_ylabel("estimate / truth (90 % interval)")
             ax.set_title(f"{case}: {len(runs)} seeds (red: interval misses truth)")
             fig.tight_layout()
-            fig.savefig(img_dir / f"validation-{case}.png", dpi=90)
+            fig.savefig(img_dir / f"validation-{case}{tag}.png", dpi=90)
             plt.close(fig)
 
 
@@ -363,10 +409,16 @@ def main(argv=None) -> int:
     ap.add_argument("--report", action="store_true", help="tables and plots from the cache")
     ap.add_argument("--images", type=Path, default=None, help="write plots into this folder")
     ap.add_argument("--redo", action="store_true", help="re-quantify (keep the recordings)")
+    ap.add_argument(
+        "--no-source",
+        action="store_true",
+        help="leave the source out, as `qogi quantify --auto-surfaces` does: the "
+        "plume's source detected and surfaces placed at the cases' distances from it",
+    )
     a = ap.parse_args(argv)
     a.cache.mkdir(parents=True, exist_ok=True)
     if a.report:
-        report(a.cache, a.cases, a.seeds, a.images)
+        report(a.cache, a.cases, a.seeds, a.images, a.no_source)
         return 0
     for seed in range(a.seeds):
         for case in a.cases:
@@ -374,19 +426,24 @@ def main(argv=None) -> int:
                 ensure_recording(a.cache, case, seed)
                 continue
             if a.redo:
-                p = a.cache / f"{case}-{CASES[case]['duration_s']:g}s-seed{seed}.result.json"
+                p = result_path(a.cache, case, seed, a.no_source)
                 if p.exists():
                     p.unlink()
-            d = run_case(a.cache, case, seed)
+            d = run_case(a.cache, case, seed, a.no_source)
             print(
                 f"{case} seed {seed}: "
-                + ", ".join(
-                    f"{s['surface']} {100 * s['error']:+.1f} %{'' if s['covered'] else ' (miss)'}"
-                    for s in d["surfaces"]
+                + (
+                    f"surfaces not placed: {d['placement_error']}"
+                    if "placement_error" in d
+                    else ", ".join(
+                        f"{s['surface']} {100 * s['error']:+.1f} %"
+                        f"{'' if s['covered'] else ' (miss)'}"
+                        for s in d["surfaces"]
+                    )
                 ),
                 flush=True,
             )
-    report(a.cache, a.cases, a.seeds, a.images)
+    report(a.cache, a.cases, a.seeds, a.images, a.no_source)
     return 0
 
 

@@ -198,6 +198,35 @@ def test_textured_sky_auto_background_takes_the_inpainted_percentile(textured_sk
         r = s.species["CH4"]
         assert abs(r.error_vs_truth) < 0.25, r.error_vs_truth
         assert r.ci90_kg_h[0] <= r.truth_kg_h <= r.ci90_kg_h[1], (r.mean_kg_h, r.ci90_kg_h)
+    # Every surface's background holds: none flags another's velocity.
+    assert not {w.code for w in res.warnings} & {"background-residual-plume", "background-residual"}
+
+
+@pytest.mark.slow
+def test_a_background_wrong_on_one_surface_flags_the_velocity_of_the_other(tmp_path):
+    from qogi.pipeline import QuantifyConfig, quantify
+    from qogi.synth import render
+
+    # A pipe rack (hot pipes 25 K above the structure, cold ones 8 K below):
+    # where the gas never leaves the pixels near the source, the inpainted
+    # background misses the pipes behind them.
+    bg = render.Background(
+        "pipe-rack", 278.15, pipe_hot_K=25.0, pipe_cold_K=8.0, texture_K=0.1, texture_px=3.0
+    )
+    rec, exit_px = _crosswind(tmp_path, bg)
+    res = quantify(rec, _surfaces(exit_px), QuantifyConfig(source=exit_px))
+    checks = res.info["self_checks"]
+    limit = selfchecks.THRESHOLDS["background_residual_noise"]
+    # The far surface's own background reads right, the near one's does not.
+    assert checks["30 px"]["background_residual_noise"] < limit
+    assert checks["15 px"]["background_residual_noise"] > limit
+    assert checks["30 px"]["plume_residual_noise"] == checks["15 px"]["background_residual_noise"]
+    far = {w.code for w in res.warnings if w.surface == "30 px"}
+    assert "background-residual-plume" in far
+    # The rule: every surface off by more than 25 % carries a warning of its own.
+    for s in res.surfaces:
+        codes = {w.code for w in res.warnings if w.surface == s.surface.name}
+        assert abs(s.species["CH4"].error_vs_truth) <= 0.25 or codes, s.surface.name
 
 
 def test_upwind_region_lies_behind_the_source_and_its_contrast_is_measured():

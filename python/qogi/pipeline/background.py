@@ -14,7 +14,7 @@ import numpy as np
 
 from .. import _engine
 from ..io.recording import Recording
-from .background_choice import _noise, _relative_to_contrast, choose, inpaint_held
+from .background_choice import _noise, _relative_to_contrast, choose, percentile_background
 from .config import QuantifyConfig
 from .sampling import _bilinear
 from .state import RunState
@@ -37,6 +37,7 @@ def prepare(run: RunState) -> None:
         run.channel_sign,
         run.say,
         run.background_temperature_K,
+        run.scene.gas_K,
     )
     if bg_cfg.background == "drifting":
         run.info["background_drift"] = background.drift
@@ -96,6 +97,7 @@ class Background:
         channel_sign: np.ndarray,
         say,
         typical_temperature_K: float,
+        gas_temperature_K: Optional[float] = None,
     ):
         self.cfg = cfg
         self.roi = roi
@@ -127,14 +129,13 @@ class Background:
                 stack.append(rec.frame(f, quantity="radiance")[:, sl[0], sl[1]])
                 if k % 50 == 0:
                     say(0.02 * k / len(use), "background (temporal percentile)")
-            stacked = np.asarray(stack)
-            lo = np.percentile(stacked, cfg.background_percentile, axis=0)
-            hi = np.percentile(stacked, 100 - cfg.background_percentile, axis=0)
-            img = np.where(channel_sign[:, None, None] >= 0, lo, hi)
-            # Where the gas never leaves a pixel, its percentile holds gas:
-            # the background's structure there from the free neighbours.
-            self.percentile_img, self.held = inpaint_held(
-                stacked, img, channel_sign, cfg.background_percentile
+            self.percentile_img, self.held = percentile_background(
+                np.asarray(stack),
+                channel_sign,
+                cfg.background_percentile,
+                None
+                if gas_temperature_K is None
+                else np.array([ch.band_radiance(gas_temperature_K) for ch in rec.channels]),
             )
 
     def _make_drifting(self, rec: Recording, frames: range, say) -> None:

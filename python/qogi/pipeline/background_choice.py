@@ -47,6 +47,8 @@ __all__ = [
     "DRIFT_SIGMA",
     "strip_points",
     "inpaint_held",
+    "pixel_sign",
+    "percentile_background",
     "GAS_EXCESS_SIGMA",
     "STRUCTURE_SIGMA",
     "HELD_SPREAD_SIGMA",
@@ -139,6 +141,55 @@ def _structure(f, surface, xy, tt, sign, noise, lo_pct) -> float:
 HELD_SPREAD_SIGMA = 1.5
 
 
+def pixel_sign(
+    median: np.ndarray, gas_radiance: np.ndarray, channel_sign: np.ndarray
+) -> np.ndarray:
+    """The gas's sign per pixel and channel (C, ...): +1 where a gas at
+    band radiance ``gas_radiance`` (C,) [W/(m2 sr)] raises the pixel's
+    radiance (the background is colder than the gas), -1 where it lowers it
+    (a hot pipe behind a plume that emits elsewhere), from the pixel's
+    temporal ``median`` (C, ...) (its background where the gas is there
+    less than half the time; or the background itself; thesis eq. 4: the contrast is
+    tau (L(T_gas) - L_bg)). Where the median is within a tenth of the
+    typical contrast of the gas's radiance (the gas nearly invisible) the
+    channel's sign ``channel_sign`` (C,) is kept."""
+    med = np.asarray(median, float)
+    tail = (1,) * (med.ndim - 1)
+    lg = np.asarray(gas_radiance, float).reshape((-1,) + tail)
+    sign = np.asarray(channel_sign, float).reshape((-1,) + tail)
+    den = lg - med
+    typical = np.abs(np.median(den.reshape(den.shape[0], -1), axis=1))[:, None, None]
+    return np.where(np.abs(den) > 0.1 * typical, np.sign(den), sign) * np.ones_like(med)
+
+
+def percentile_background(
+    stacked: np.ndarray,
+    channel_sign: np.ndarray,
+    percentile: float,
+    gas_radiance=None,
+) -> Tuple[np.ndarray, np.ndarray]:
+    """The sign-aware temporal percentile background (C, h, w) of frames
+    ``stacked`` (T, C, h, w) and its held pixels (:func:`inpaint_held`):
+    per pixel the low ``percentile`` where the gas raises the radiance, the
+    high one where it lowers it. The sign is the channel's
+    ``channel_sign`` (C,), or with ``gas_radiance`` (C,) [W/(m2 sr)] given,
+    each pixel's own (:func:`pixel_sign`): a gas that emits in front of a
+    cold wall absorbs in front of a pipe hotter than itself, and one sign
+    for the channel takes the gas's own frames as the hot pipe's
+    background."""
+    lo, med, hi = np.percentile(stacked, (percentile, 50.0, 100 - percentile), axis=0)
+    sign = np.asarray(channel_sign, float)
+    sign = (
+        np.broadcast_to(sign[:, None, None], med.shape)
+        if gas_radiance is None
+        else pixel_sign(med, gas_radiance, sign)
+    )
+    img = np.where(sign >= 0, lo, hi)
+    # Where the gas never leaves a pixel, its percentile holds gas: the
+    # background's structure there from the free neighbours.
+    return inpaint_held(stacked, img, sign, percentile)
+
+
 def inpaint_held(
     stacked: np.ndarray, img: np.ndarray, channel_sign: np.ndarray, percentile: float
 ) -> Tuple[np.ndarray, np.ndarray]:
@@ -155,6 +206,8 @@ def inpaint_held(
     :data:`HELD_SPREAD_SIGMA` noise (gas present in nearly every frame
     lifts the low tail and widens it; noise alone does not).
 
+    ``channel_sign`` is (C,), or (C, h, w) per pixel (:func:`pixel_sign`).
+
     Returns ``(background (C, h, w), held (h, w) bool)``; the input image
     when no pixel is held or fewer than a quarter are free.
     """
@@ -163,16 +216,17 @@ def inpaint_held(
     f = np.asarray(stacked, np.float32)
     nc = f.shape[1]
     sign = np.asarray(channel_sign, float)
+    if sign.ndim == 1:
+        sign = sign[:, None, None]
+    sign = np.broadcast_to(sign, img.shape)
     noise = np.maximum(_noise(f), 1e-30)
     held = np.zeros(img.shape[1:], bool)
     for c in range(nc):
-        q = (
-            (percentile, 2.0 * percentile)
-            if sign[c] >= 0
-            else (100 - percentile, 100 - 2 * percentile)
+        lo1, lo2, hi2, hi1 = np.percentile(
+            f[:, c], (percentile, 2.0 * percentile, 100 - 2 * percentile, 100 - percentile), axis=0
         )
-        a, b = np.percentile(f[:, c], q, axis=0)
-        held |= sign[c] * (b - a) > HELD_SPREAD_SIGMA * noise[c]
+        spread = np.where(sign[c] >= 0, lo2 - lo1, hi1 - hi2)
+        held |= spread > HELD_SPREAD_SIGMA * noise[c]
     if not held.any() or (~held).sum() < 0.25 * held.size:
         return img, held
     h, w = held.shape

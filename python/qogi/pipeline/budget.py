@@ -389,8 +389,11 @@ def _self_checks(st: RunState, j: int, surface: str, sp: str, summary, relative,
         for b in st.blocks
         if isinstance(f := b.velocity_info.get("column_fluctuation"), float) and math.isfinite(f)
     ]
+    plume, plume_contrast = selfchecks.plume_residual(columns.evidence, j)
     ev = dataclasses.replace(
         columns.evidence[j],
+        plume_residual=plume,
+        plume_contrast=plume_contrast,
         flux_against=summary.flux_against,
         flux_abs=summary.flux_abs,
         upwind_sq=columns.upwind_sums[0],
@@ -412,6 +415,12 @@ def _self_checks(st: RunState, j: int, surface: str, sp: str, summary, relative,
         "upwind_contrast_noise": "noise RMS contrast behind the source, where the gas "
         "does not go: the background moves (drifting clouds) or the estimate misses "
         "the scene's structure",
+        "plume_residual_noise": "noise: the background's error along another surface "
+        "of the run; the velocity, one field along the whole plume, follows the static "
+        "pattern it leaves",
+        "insensitive_fraction": "of the surface's column lies where its background is "
+        "so near the gas's temperature that the gas hardly changes the radiance (a pipe as "
+        "hot as the gas); it is interpolated from the neighbouring samples",
         "column_fluctuation": "RMS fluctuation of the plume's most fluctuating lines: a "
         "steady, nearly laminar column, whose pattern (instability waves) may travel "
         "slower than its gas, and the flux level follows the pattern",

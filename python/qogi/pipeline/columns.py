@@ -29,6 +29,7 @@ from ..measure.mixing_line import MixingLineSolver
 from ..physics.forward import forward_model
 from ..progress import fraction_part
 from .background import Background
+from .background_choice import pixel_sign
 from .budget_terms import AlternativeModels, fractions_of, line_shape_ratios
 from .config import QuantifyConfig
 from .sampling import _bilinear
@@ -36,7 +37,21 @@ from .selfchecks import SurfaceEvidence, upwind_mask
 from .state import BlockColumns, RunState, Scene
 from .surfaces import Region, Surface
 
-__all__ = ["prepare", "block_columns", "TruthColumns", "InvertedColumns"]
+__all__ = [
+    "prepare",
+    "block_columns",
+    "TruthColumns",
+    "InvertedColumns",
+    "PROXY_MIN_SENSITIVITY",
+    "sensitivity_weight",
+    "fill_insensitive",
+]
+
+#: Below this fraction of the typical background's sensitivity (the gas's
+#: contrast per column) a pixel's proxy is tapered to zero
+#: (:func:`sensitivity_weight`), and a surface sample's column is
+#: interpolated from its neighbours (:func:`fill_insensitive`).
+PROXY_MIN_SENSITIVITY = 0.25
 
 
 def prepare(run: RunState) -> None:
@@ -55,6 +70,59 @@ def prepare(run: RunState) -> None:
         if mask is not None:
             sl = run.roi.slices()
             run.columns.upwind_mask = mask[sl[0], sl[1]]
+
+
+def sensitivity_weight(
+    background: np.ndarray,
+    gas_radiance: float,
+    channel_sign: float,
+    min_sensitivity: float = PROXY_MIN_SENSITIVITY,
+) -> np.ndarray:
+    """Per pixel, the factor that brings a signed contrast (gas positive by
+    ``channel_sign``) over a background of band radiance ``background``
+    (..., h, w) [W/(m2 sr)] towards what the same thin gas of band radiance
+    ``gas_radiance`` gives over the field's median background L_ref
+    (:meth:`InvertedColumns.sensitivity_weight`): the pixel's own sign
+    ``sign(L_g - L_bg)`` against the channel's, times
+    ``min(1, |L_g - L_ref| / |L_g - L_bg|)`` (a pixel more sensitive than
+    L_ref's is brought down to it, a less sensitive one is *not* raised:
+    raising multiplies its background's error too, and on the wall
+    preset's shadow, half as sensitive, a weight of 2 turned +9 % into
+    -91 % at 0.5 m on seed 0), tapered linearly to 0 where
+    ``|L_g - L_bg| < min_sensitivity |L_g - L_ref|`` (the gas invisible,
+    the noise left). Returns float32 of ``background``'s shape (1 on a
+    uniform background)."""
+    den = np.float32(gas_radiance) - np.asarray(background, np.float32)
+    num = abs(float(np.median(den)))
+    if not num > 0:
+        return np.ones(den.shape, np.float32)
+    a = np.abs(den)
+    eps = np.float32(min_sensitivity * num)
+    mag = np.minimum(np.float32(1.0), np.float32(num) / np.maximum(a, eps))
+    np.minimum(mag, a / eps, out=mag)  # the taper below eps (there num / eps > 1)
+    return (np.sign(den) * np.float32(channel_sign) * mag).astype(np.float32)
+
+
+def fill_insensitive(cols: Dict[str, np.ndarray], sigs: Dict[str, np.ndarray], weak, first: str):
+    """Replaces, in place, each frame's columns and sigmas (T, N) per
+    species at the samples ``weak`` (T, N) bool by the linear interpolation
+    along the surface of the other finite samples (a frame with fewer than
+    two is left as it is). Returns ``(filled, total)``: the positive
+    column of species ``first`` summed over the weak samples and over all
+    (after filling)."""
+    wk = np.asarray(weak, bool)
+    idx = np.arange(wk.shape[1])
+    for t in np.nonzero(wk.any(axis=1))[0]:
+        for sp in cols:
+            x = cols[sp][t]
+            good = ~wk[t] & np.isfinite(x)
+            if good.sum() < 2:
+                continue
+            x[wk[t]] = np.interp(idx[wk[t]], idx[good], x[good])
+            sg = sigs[sp][t]
+            sg[wk[t]] = np.interp(idx[wk[t]], idx[good], sg[good])
+    col = np.clip(np.nan_to_num(cols[first]), 0.0, None)
+    return float(col[wk].sum()), float(col.sum())
 
 
 class TruthColumns:
@@ -428,6 +496,44 @@ class InvertedColumns:
         """The signed proxy-channel contrast of frames (..., C, H, W) over the
         region -> (..., h, w) float32 (into ``out`` when given); ``frame_ids``
         the frames' indices (a drifting background changes with time)."""
+        return self._signed_contrast(frame, out, frame_ids)[0]
+
+    def sensitivity_weight(self, background: np.ndarray) -> np.ndarray:
+        """Per pixel, the factor that brings the signed proxy contrast over a
+        background of band radiance ``background`` (..., h, w) [W/(m2 sr)] to
+        what the same gas gives over the region's typical background (within
+        the limits of :func:`sensitivity_weight`).
+
+        A thin gas layer at temperature T_g changes the radiance by
+        tau (L(T_g) - L_bg) (thesis eq. 4, optically thin): over a pixel
+        whose background is hotter than the gas (a hot pipe behind a plume
+        that emits elsewhere) the same column absorbs. One contrast -> column
+        lookup for the whole field (:meth:`contrast_to_column`) then reads
+        such gas as a negative column, and a background near the gas's
+        temperature as none: a static pattern of the background's that the
+        velocimetry follows. The factor (:func:`sensitivity_weight`, L_ref
+        the field's median background; 1 on a uniform background, as
+        before) flips the sign where the gas absorbs instead of emitting,
+        brings a more sensitive pixel down to L_ref's sensitivity and tapers
+        a pixel the gas hardly changes (below
+        :data:`PROXY_MIN_SENSITIVITY` of L_ref's) to zero. The field is
+        already signed by the channel; the factor is relative to that.
+        Returns float32 of ``background``'s shape."""
+        c = self.proxy_channel
+        return sensitivity_weight(
+            background,
+            float(self.rec.channels[c].band_radiance(self.scene.gas_K)),
+            float(self.background.channel_sign[c]),
+        )
+
+    def _signed_contrast(
+        self,
+        frame: np.ndarray,
+        out: Optional[np.ndarray] = None,
+        frame_ids: Optional[Sequence[int]] = None,
+    ):
+        """:meth:`proxy_field` and the proxy channel's background behind it
+        (h, w) or (..., h, w)."""
         sl = self.roi.slices()
         c = self.proxy_channel
         # In float32 (the frames' own precision; its rounding, ~1e-7 of the
@@ -441,7 +547,7 @@ class InvertedColumns:
         # velocimetry's flux level takes along the plume.
         dl = np.subtract(fr, bg, out=out, dtype=np.float32)
         dl *= np.float32(self.background.channel_sign[c])
-        return dl
+        return dl, bg
 
     def collect(
         self,
@@ -458,7 +564,7 @@ class InvertedColumns:
         the radiance and the background at the surface samples for
         :meth:`finish`."""
         ids = range(first, first + len(frames))
-        field = self.proxy_field(frames, out, frame_ids=ids)
+        field, bg_field = self._signed_contrast(frames, out, frame_ids=ids)
         if self.upwind_mask is not None:
             c = self.proxy_channel
             noise = float(
@@ -467,6 +573,10 @@ class InvertedColumns:
             up = field[..., self.upwind_mask].astype(float) / noise
             self.upwind_sums[0] += float(np.sum(up * up))
             self.upwind_sums[1] += int(up.size)
+        # The contrast as over the typical background (a pipe hotter than the
+        # gas, a wall near its temperature): the column's pattern, not the
+        # background's, for the velocimetry and the surfaces' depth.
+        field *= self.sensitivity_weight(bg_field)
         origin = [self.roi.x0, self.roi.y0]
         rad, bg, prof = [], [], []
         for s, (xy, _n, _dl, t) in zip(surfaces, samples):
@@ -568,6 +678,7 @@ class InvertedColumns:
             }
             sigs = {sp: np.where(ok[:, a:b], res_sig[sp][:, a:b], 0.0) for sp in self.cfg.species}
             out.append((cols, sigs))
+        self._fill_insensitive(out, bg, edges)
         if alongside is not None:
             alongside()
         return out, counts
@@ -636,7 +747,35 @@ class InvertedColumns:
             sigs = {sp: np.where(ok[:, a:b], res_sig[sp][:, a:b], 0.0) for sp in cfg.species}
             out.append((cols, sigs))
         self._note_evidence(rad, bg, flat.status.reshape(nt, n), edges)
+        self._fill_insensitive(out, bg, edges)
         return out, flat.counts()
+
+    def _fill_insensitive(self, out, bg, edges) -> None:
+        """Where a surface sample's background is so near the gas's own
+        radiance that the gas hardly changes it (``|L(T_g) - L_bg|`` below
+        :data:`PROXY_MIN_SENSITIVITY` of the typical background's, in the
+        proxy channel: the edge of a pipe as hot as the gas), its column is
+        the noise amplified (thesis eq. 4: the contrast is
+        tau (L(T_g) - L_bg)); it is replaced, per frame, by the linear
+        interpolation along the surface of its neighbours' (columns and
+        sigmas), and the share of the surface's column so filled is noted
+        in the evidence (``insensitive_fraction``, a self-check). ``out``
+        the per-surface ``(columns, sigmas)`` (T, N_j) per species, changed
+        in place; ``bg`` (T, C, N) the background at the samples."""
+        c = self.proxy_channel
+        ch = self.rec.channels[c]
+        l_gas = float(ch.band_radiance(self.scene.gas_K))
+        ref = abs(l_gas - float(ch.band_radiance(self._bg_t)))
+        if not ref > 0:
+            return
+        weak = np.abs(l_gas - bg[:, c, :]) < PROXY_MIN_SENSITIVITY * ref  # (T, N)
+        first = self.cfg.species[0]
+        for j, (cols, sigs) in enumerate(out):
+            wk = weak[:, edges[j] : edges[j + 1]]
+            filled, total = fill_insensitive(cols, sigs, wk, first)
+            ev = self.evidence.setdefault(j, SurfaceEvidence())
+            ev.insensitive_column += filled
+            ev.column_sum += total
 
     def _note_evidence(self, rad, bg, status, edges) -> None:
         """Adds a block's self-diagnostic sums per surface
@@ -646,7 +785,13 @@ class InvertedColumns:
         c = self.proxy_channel
         netd = float(np.broadcast_to(np.asarray(self._inv_kw["netd_K"], float), (rad.shape[1],))[c])
         noise = netd * float(self.rec.channels[c].band_radiance_derivative(self._bg_t))
-        contrast = (rad[:, c, :] - bg[:, c, :]) * (self.background.channel_sign[c] / noise)
+        # The gas's sign per sample from its background (a hot pipe: absorbed).
+        sign = pixel_sign(
+            bg[None, :, c, :],
+            np.array([self.rec.channels[c].band_radiance(self.scene.gas_K)]),
+            self.background.channel_sign[c : c + 1],
+        )[0]
+        contrast = (rad[:, c, :] - bg[:, c, :]) * (sign / noise)
         at_bound = status == self.inv_module.AT_BOUND
         for j in range(len(edges) - 1):
             a, b = edges[j], edges[j + 1]
