@@ -13,6 +13,10 @@ import pytest
 import qogi
 
 W, H, T, RATE_HZ = 32, 24, 8, 10.0
+# The air (and the gas, at ambient) is warmer than every pixel of the plate and
+# its blob (at most 310.5 K), so the blob reads as hot gas in emission: a blob
+# hotter than the gas could not be gas at all (qogi's proxy reads it as none).
+AMBIENT_K = 320.0
 
 
 def channels():
@@ -23,7 +27,8 @@ def channels():
 
 
 def temperature_field(n_frames=T, height=H, width=W):
-    """Blackbody temperatures [K] (T, H, W): a warm blob drifting up the frame."""
+    """Blackbody temperatures [K] (T, H, W): a warm blob drifting up the frame
+    (as gas at AMBIENT_K, hotter than the 285 K plate, would look)."""
     t = np.arange(n_frames)[:, None, None]
     y = np.arange(height)[None, :, None]
     x = np.arange(width)[None, None, :]
@@ -39,7 +44,10 @@ def make_recording(n_channels=2, species=("CH4",), truth_kg_s=None, n_frames=T, 
         frames[3, 0, 5, 7] = np.nan
     cam = qogi.Camera("test camera", 1e-3, chs, frame_rate_hz=RATE_HZ, netd_K=0.02)
     scene = qogi.Scene(
-        distance_m=3.0, ambient_temperature_K=288.0, pressure_Pa=101325.0, species=tuple(species)
+        distance_m=3.0,
+        ambient_temperature_K=AMBIENT_K,
+        pressure_Pa=101325.0,
+        species=tuple(species),
     )
     truth = qogi.Truth({"CH4": truth_kg_s}) if truth_kg_s else None
     return qogi.Recording.from_arrays(

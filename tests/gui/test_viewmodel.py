@@ -10,6 +10,7 @@ import h5py
 import numpy as np
 import pytest
 from conftest import (
+    AMBIENT_K,
     RATE_HZ,
     H,
     T,
@@ -404,7 +405,7 @@ def test_valid_form_builds_the_contract_config(opened):
     assert cfg.averaging == "time-averaged" and cfg.sigma_m == 0.05
     assert cfg.background == qogi.Region(0, 0, 6, 6)
     assert cfg.frames == (1, 7) and cfg.num_threads == 1
-    assert cfg.distance_m == 3.0 and cfg.ambient_temperature_K == 288.0
+    assert cfg.distance_m == 3.0 and cfg.ambient_temperature_K == AMBIENT_K
 
 
 # ---------------------------------------------------------------------- run

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import H, W, make_recording
+from conftest import AMBIENT_K, H, W, make_recording
 
 from qogi.io.flir_writer import write_recording_as_seq
 from qogi.io.telops import write_hcc
@@ -92,7 +92,7 @@ def test_quantifying_the_seq_in_the_viewer_reads_the_hdf5_rate(tmp_path, seq_and
     rates = []
     for path, facts in (
         (h5, None),
-        (seq, {"camera": "gf320", "distance_m": "3", "ambient_temperature_K": "288"}),
+        (seq, {"camera": "gf320", "distance_m": "3", "ambient_temperature_K": str(AMBIENT_K)}),
     ):
         vm = ViewModel(store=UserStore(tmp_path / f"config-{path.suffix}"))
         if facts is None:
