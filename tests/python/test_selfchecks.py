@@ -129,6 +129,50 @@ def test_inpainting_fills_the_structure_where_the_gas_never_leaves():
     np.testing.assert_array_equal(out[0][~held], pct[0][~held])
 
 
+def _band_of_gas(texture_noise: float, seed: int = 3):
+    """Frames (T, 1, h, w) of a gradient (plus a static pixel texture of
+    ``texture_noise`` RMS, in noise units) with gas in every frame over
+    columns 20-31 (5-65 noise), and their 5th-percentile background."""
+    rng = np.random.default_rng(seed)
+    t, h, w = 150, 40, 60
+    y, _x = np.mgrid[0:h, 0:w]
+    noise = 0.01
+    bg = 10.0 + 0.003 * y + texture_noise * noise * rng.standard_normal((h, w))
+    frames = bg[None, None] + noise * rng.standard_normal((t, 1, h, w))
+    frames[:, :, :, 20:32] += noise * rng.uniform(5, 65, (t, 1, h, 12))
+    return frames, np.percentile(frames, 5, axis=0)
+
+
+def test_the_held_pixels_background_error_is_tried_on_a_ring_of_known_pixels():
+    from qogi.pipeline.background_choice import held_background_error, inpaint_held
+
+    errors = {}
+    for texture in (0.0, 100.0):
+        frames, pct = _band_of_gas(texture)
+        out, held = inpaint_held(frames, pct, np.array([1.0]), 5.0)
+        assert held[:, 20:32].mean() > 0.9
+        errors[texture] = held_background_error(frames, out, held)
+    # Behind a smooth gradient the inpainting is right to the noise, a small
+    # part of the gas's ~35-noise contrast; behind a texture of 100 noise
+    # that no neighbour predicts it is as wrong as the gas is strong.
+    assert errors[0.0] < 0.2
+    assert errors[100.0] > 1.0
+    # Nothing held: nothing to try.
+    frames, pct = _band_of_gas(0.0)
+    assert np.isnan(held_background_error(frames, pct, np.zeros(pct.shape[1:], bool)))
+
+
+def test_a_held_background_as_wrong_as_the_gas_is_strong_means_the_rate_is_not_measured():
+    key = "held_background_error"
+    limit = selfchecks.THRESHOLDS[key]
+    for value, flagged in ((0.5 * limit, False), (float("nan"), False), (1.3 * limit, True)):
+        _m, failed = selfchecks.failure_terms(SurfaceEvidence(held_error=value))
+        terms = dict(failed)
+        assert (key in terms) is flagged
+        if flagged:
+            assert terms[key] == 1.0 and selfchecks.CODES[key] == "background-held"
+
+
 # -- end to end on small scenes ------------------------------------------------------
 
 

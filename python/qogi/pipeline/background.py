@@ -14,7 +14,13 @@ import numpy as np
 
 from .. import _engine
 from ..io.recording import Recording
-from .background_choice import _noise, _relative_to_contrast, choose, percentile_background
+from .background_choice import (
+    _noise,
+    _relative_to_contrast,
+    choose,
+    held_background_error,
+    percentile_background,
+)
 from .config import QuantifyConfig
 from .sampling import _bilinear
 from .state import RunState
@@ -106,6 +112,9 @@ class Background:
         self.percentile_img: Optional[np.ndarray] = None
         #: Pixels of the region the gas never leaves (percentile background).
         self.held: Optional[np.ndarray] = None
+        #: The held pixels' background error relative to the gas's contrast
+        #: there (:func:`held_background_error`; NaN when none is held).
+        self.held_error = float("nan")
         # The background's static shape beyond a straight line across the
         # region (set by the run from its time-averaged frames).
         self.shape_correction: Optional[Dict[bool, np.ndarray]] = None
@@ -129,14 +138,16 @@ class Background:
                 stack.append(rec.frame(f, quantity="radiance")[:, sl[0], sl[1]])
                 if k % 50 == 0:
                     say(0.02 * k / len(use), "background (temporal percentile)")
+            stacked = np.asarray(stack)
             self.percentile_img, self.held = percentile_background(
-                np.asarray(stack),
+                stacked,
                 channel_sign,
                 cfg.background_percentile,
                 None
                 if gas_temperature_K is None
                 else np.array([ch.band_radiance(gas_temperature_K) for ch in rec.channels]),
             )
+            self.held_error = held_background_error(stacked, self.percentile_img, self.held)
 
     def _make_drifting(self, rec: Recording, frames: range, say) -> None:
         """The static and drifting layers of each channel over the region

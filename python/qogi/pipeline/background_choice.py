@@ -52,6 +52,9 @@ __all__ = [
     "GAS_EXCESS_SIGMA",
     "STRUCTURE_SIGMA",
     "HELD_SPREAD_SIGMA",
+    "held_background_error",
+    "HELD_RING_GAP_PX",
+    "HELD_RING_PX",
 ]
 
 #: (time mean - 5th percentile) / noise above which a strip carries gas
@@ -139,6 +142,13 @@ def _structure(f, surface, xy, tt, sign, noise, lo_pct) -> float:
 #: for the percentile to be its background (pure noise: 0.36 for the 5th
 #: and 10th; the estimates' own scatter over 150 frames ~0.25).
 HELD_SPREAD_SIGMA = 1.5
+#: The ring of gas-free pixels on which :func:`held_background_error` tries
+#: the held pixels' inpainting: from HELD_RING_GAP_PX beyond the held region
+#: (nearer, the gas biases the percentile: on the laminar lab column a ring
+#: touching the held pixels read 0.5-1.7 of the gas's contrast, from 4 px
+#: out 0.08-0.29) to HELD_RING_GAP_PX + HELD_RING_PX.
+HELD_RING_GAP_PX = 4
+HELD_RING_PX = 3
 
 
 def pixel_sign(
@@ -211,8 +221,6 @@ def inpaint_held(
     Returns ``(background (C, h, w), held (h, w) bool)``; the input image
     when no pixel is held or fewer than a quarter are free.
     """
-    import cv2
-
     f = np.asarray(stacked, np.float32)
     nc = f.shape[1]
     sign = np.asarray(channel_sign, float)
@@ -229,23 +237,92 @@ def inpaint_held(
         held |= spread > HELD_SPREAD_SIGMA * noise[c]
     if not held.any() or (~held).sum() < 0.25 * held.size:
         return img, held
-    h, w = held.shape
+    out = np.array(img, dtype=float, copy=True)
+    for c in range(nc):
+        out[c] = _inpaint_structure(out[c], held, float(noise[c]))
+    return out.astype(img.dtype, copy=False), held
+
+
+def _inpaint_structure(image: np.ndarray, mask: np.ndarray, noise: float) -> np.ndarray:
+    """``image`` (h, w) with its ``mask`` pixels filled from the others: a
+    smooth quadratic surface fitted to the unmasked pixels, plus their
+    residual about it inpainted into the mask (``cv2.INPAINT_NS``)."""
+    import cv2
+
+    h, w = mask.shape
     y, x = np.mgrid[0:h, 0:w]
     xs, ys = (x.ravel() - 0.5 * w) / w, (y.ravel() - 0.5 * h) / h
     basis = np.stack([np.ones_like(xs), xs, ys, xs * xs, xs * ys, ys * ys], axis=1)
-    free = ~held.ravel()
-    out = np.array(img, dtype=float, copy=True)
-    mask = held.astype(np.uint8)
-    for c in range(nc):
-        coef, *_ = np.linalg.lstsq(basis[free], out[c].ravel()[free], rcond=None)
-        smooth = (basis @ coef).reshape(h, w)
-        # In noise units: OpenCV's inpainting of float images is made for
-        # values of order one and more (Telea's method fails on radiances
-        # of 1e-3; Navier-Stokes holds at any scale once so scaled).
-        resid = ((out[c] - smooth) / noise[c]).astype(np.float32)
-        filled = cv2.inpaint(resid, mask, 3.0, cv2.INPAINT_NS).astype(float) * noise[c]
-        out[c] = np.where(held, smooth + filled, out[c])
-    return out.astype(img.dtype, copy=False), held
+    free = ~mask.ravel()
+    im = np.asarray(image, float)
+    coef, *_ = np.linalg.lstsq(basis[free], im.ravel()[free], rcond=None)
+    smooth = (basis @ coef).reshape(h, w)
+    # In noise units: OpenCV's inpainting of float images is made for
+    # values of order one and more (Telea's method fails on radiances
+    # of 1e-3; Navier-Stokes holds at any scale once so scaled).
+    resid = ((im - smooth) / noise).astype(np.float32)
+    filled = cv2.inpaint(resid, mask.astype(np.uint8), 3.0, cv2.INPAINT_NS).astype(float) * noise
+    return np.where(mask, smooth + filled, im)
+
+
+def _disk(radius: int) -> np.ndarray:
+    """A disk structuring element of ``radius`` px (uint8)."""
+    import cv2
+
+    return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
+
+
+def held_background_error(
+    stacked: np.ndarray,
+    background: np.ndarray,
+    held: np.ndarray,
+    gap_px: int = HELD_RING_GAP_PX,
+    ring_px: int = HELD_RING_PX,
+) -> float:
+    """How wrong the inpainted background of the held pixels (the gas never
+    leaves them: the plume's core near the source) may be, relative to the
+    gas's contrast there (a float; NaN with no held pixel, or too few free
+    ones to test on).
+
+    The inpainting is tried where the answer is known: a ring of gas-free
+    pixels ``gap_px`` to ``gap_px + ring_px`` beyond the held region (the
+    first ``gap_px`` left out: the gas reaches them often enough to bias
+    their percentile) is filled as the held pixels are, from the pixels
+    beyond it (:func:`_inpaint_structure`), and compared with the
+    background there. Its RMS error [noise] over the held pixels' median
+    contrast ``|median frame - background|`` [noise], in the channel where
+    that contrast is largest, is returned: 0.1-0.3 on a textured sky and a
+    tank, 0.4-1.6 on a wall whose seams and shadow edge run under the
+    plume's base, 0.9-4.4 across a pipe rack (docs/validation.md). Above
+    1 the background under the plume's base is not known to better than
+    the gas's own contrast, and neither are the columns there, which the
+    flux level follows along the whole plume (``background-held``).
+
+    ``stacked`` (T, C, h, w) the frames the background was taken on,
+    ``background`` (C, h, w) the background with the held pixels
+    inpainted (:func:`inpaint_held`), ``held`` (h, w) bool."""
+    import cv2
+
+    held = np.asarray(held, bool)
+    if not held.any():
+        return float("nan")
+    inner = cv2.dilate(held.astype(np.uint8), _disk(gap_px)).astype(bool) if gap_px else held
+    outer = cv2.dilate(held.astype(np.uint8), _disk(gap_px + ring_px)).astype(bool)
+    ring = outer & ~inner
+    if not ring.any() or (~outer).sum() < 0.25 * outer.size:
+        return float("nan")
+    f = np.asarray(stacked, np.float32)
+    noise = np.maximum(_noise(f), 1e-30)
+    med = np.median(f, axis=0)
+    best = (-1.0, float("nan"))
+    for c in range(f.shape[1]):
+        bg = np.asarray(background[c], float)
+        contrast = float(np.median(np.abs(med[c] - bg)[held])) / noise[c]
+        if contrast > best[0]:
+            err = (_inpaint_structure(bg, outer, float(noise[c])) - bg)[ring] / noise[c]
+            rms = float(np.sqrt(np.mean(err * err)))
+            best = (contrast, rms / contrast if contrast > 0 else float("inf"))
+    return best[1]
 
 
 def strip_points(points: np.ndarray, width: int, height: int) -> List[np.ndarray]:

@@ -394,6 +394,7 @@ def _self_checks(st: RunState, j: int, surface: str, sp: str, summary, relative,
         columns.evidence[j],
         plume_residual=plume,
         plume_contrast=plume_contrast,
+        held_error=columns.background.held_error,
         flux_against=summary.flux_against,
         flux_abs=summary.flux_abs,
         upwind_sq=columns.upwind_sums[0],
@@ -418,6 +419,11 @@ def _self_checks(st: RunState, j: int, surface: str, sp: str, summary, relative,
         "plume_residual_noise": "noise: the background's error along another surface "
         "of the run; the velocity, one field along the whole plume, follows the static "
         "pattern it leaves",
+        "held_background_error": "of the gas's contrast is the error of the background "
+        "where the gas never leaves the pixels (the plume's base, inpainted from the "
+        "gas-free pixels around; the inpainting tried on a ring of known pixels there): "
+        "the columns of the plume's base are not measured, and the velocity, one field "
+        "along the whole plume, follows them",
         "insensitive_fraction": "of the surface's column lies where its background is "
         "so near the gas's temperature that the gas hardly changes the radiance (a pipe as "
         "hot as the gas); it is interpolated from the neighbouring samples",
@@ -432,6 +438,9 @@ def _self_checks(st: RunState, j: int, surface: str, sp: str, summary, relative,
             "measure where the plume has turned turbulent (surfaces higher up, a longer "
             "view of the plume)"
             if key == "column_fluctuation"
+            else "film the release from where its base is seen against a uniform "
+            "background (the gas hides the structure behind it)"
+            if key == "held_background_error"
             else "try another background (a gas-free region, or 'percentile') or "
             "surfaces where the background is uniform"
         )
