@@ -31,6 +31,7 @@ which :func:`qogi.quantify` copies into ``Result.warnings``.
 
 from __future__ import annotations
 
+import abc
 import dataclasses
 import os
 from typing import Any, Dict, List, Optional, Tuple, Union
@@ -216,11 +217,12 @@ def _band_um(ch: SpectralResponse) -> str:
 # --------------------------------------------------------------------------- lazy sources
 
 
-class _FileFrames:
+class _FileFrames(abc.ABC):
     """A lazy frame source over an open camera file, which ``close`` closes."""
 
+    @abc.abstractmethod
     def close(self) -> None:
-        raise NotImplementedError
+        """Closes the camera file (each source its own)."""
 
     def __del__(self) -> None:  # a recording dropped without close() releases its file
         try:
