@@ -110,6 +110,11 @@ LAB_PRESET = "lab-ch4-5slpm-gf320"
 STACK_PRESET = "stack-10kgh-wind4-sky-gf320"
 #: The structured background's features (seams, bolts, shadow, texture).
 STRUCTURED_PRESET = "stack-5kgh-wind3-tank-emission-gf320"
+#: The slowest exit of the windy scene [m/s] and its narrowest outlet [m]: a
+#: small leak in wind is a small hole (a 6 cm outlet at 1 g/h makes the plume
+#: model creep along in minute steps; below 2 cm it needs 10^4 puffs per second).
+MIN_EXIT_SPEED_M_S = 1.0
+MIN_EXIT_DIAMETER_M = 0.02
 #: A lab backdrop's size [m]: a plate cell needs the frame to fit on it.
 PLATE_SIZE_M = 2.0
 #: The fastest exit the plume model holds, as a fraction of the speed of sound.
@@ -321,6 +326,11 @@ def load_grid(grid: Union[str, os.PathLike]) -> Grid:
     return Grid(name, kept, excluded, str(doc.get("description", "")))
 
 
+def excluded_scenes(g: Grid) -> List[Tuple[str, str]]:
+    """The cells left out, once per scene (all seeds), with the reason."""
+    return list({c.scene: why for c, why in g.excluded}.items())
+
+
 # -- the scene of a cell ------------------------------------------------------
 
 
@@ -337,6 +347,10 @@ def scene(cell: Cell):
     rel = synth.Release(**p["release"]).replace(
         rate=float(cell.rate_kg_h), rate_unit="kg/h", wind_speed_m_s=float(cell.wind_m_s)
     )
+    if cell.wind_m_s > 0:
+        d = _exit_diameter_m(rel)
+        if d < rel.exit_diameter_m:
+            rel = rel.replace(exit_diameter_m=d)
     pw, ph = p["camera"]["width_px"], p["camera"]["height_px"]
     ex, ey = p["scene"]["exit_pixel"]
     exit_px = ((ex + 0.5) / pw * w - 0.5, (ey + 0.5) / ph * h - 0.5)
@@ -363,13 +377,24 @@ def scene(cell: Cell):
     return rel, view, bg, cam
 
 
+def _exit_diameter_m(rel) -> float:
+    """The outlet whose exit speed is :data:`MIN_EXIT_SPEED_M_S` (at least
+    :data:`MIN_EXIT_DIAMETER_M`): ``sqrt(4 Q / (pi rho v))``."""
+    rho = rel.pressure_Pa * _M_CH4 / (_R_GAS * rel.exit_temperature_K)
+    flow_m3_s = rel.mass_rate_kg_s() / rho
+    return max(MIN_EXIT_DIAMETER_M, math.sqrt(4.0 * flow_m3_s / (math.pi * MIN_EXIT_SPEED_M_S)))
+
+
+_R_GAS = 8.314462618  # J/(mol K)
+_M_CH4 = 0.01604246  # kg/mol
+_GAMMA_CH4 = 1.304  # heat capacity ratio at 20 C
+
+
 def _exit_mach(rel) -> float:
     """Exit speed over the speed of sound of pure CH4 at the exit temperature."""
-    r_gas, m_ch4, gamma = 8.314462618, 0.01604246, 1.304
-    rho = rel.pressure_Pa * m_ch4 / (r_gas * rel.exit_temperature_K)
-    q = rel.mass_rate_kg_s()
-    speed = q / rho / (math.pi * rel.exit_diameter_m**2 / 4.0)
-    return speed / math.sqrt(gamma * r_gas * rel.exit_temperature_K / m_ch4)
+    rho = rel.pressure_Pa * _M_CH4 / (_R_GAS * rel.exit_temperature_K)
+    speed = rel.mass_rate_kg_s() / rho / (math.pi * rel.exit_diameter_m**2 / 4.0)
+    return speed / math.sqrt(_GAMMA_CH4 * _R_GAS * rel.exit_temperature_K / _M_CH4)
 
 
 def surfaces(cell: Cell, rel=None, view=None) -> Tuple[List[list], Tuple[float, float]]:
@@ -535,12 +560,15 @@ CELL_COLUMNS = [
 ]
 
 
-def cell_rows(cell: Cell, result: Optional[dict], failure: Optional[str] = None) -> List[dict]:
+def cell_rows(
+    cell: Cell, result: Optional[dict], failure: Optional[str] = None, status: str = "failed"
+) -> List[dict]:
     """``cells.csv`` rows of one rendering: one per surface from its result
-    JSON (``Result.to_dict``), or one failed row."""
+    JSON (``Result.to_dict``), or one row with ``status`` (``failed``, ``not
+    done``) and ``failure`` as its error."""
     head = {"scene": cell.scene, "block": cell.block, **cell.axes()}
     if result is None:
-        return [{**head, "status": "failed", "error": failure or "no result"}]
+        return [{**head, "status": status, "error": failure or "no result"}]
     warnings = result.get("warnings") or []
     rows = []
     for s in result["surfaces"]:
@@ -588,6 +616,7 @@ def aggregate(rows: Sequence[dict]) -> List[dict]:
     out = []
     for sc, rr in by.items():
         ok = [r for r in rr if r["status"] == "ok"]
+        failed = [r for r in rr if r["status"] == "failed"]
         err = np.array([r["error_pct"] for r in ok if r["error_pct"] is not None], float)
         snr = np.array([r["snr"] for r in ok], float)
         out.append(
@@ -597,7 +626,8 @@ def aggregate(rows: Sequence[dict]) -> List[dict]:
                 **{a: rr[0][a] for a in AXES if a != "seed"},
                 "seeds": len({r["seed"] for r in rr}),
                 "rows": len(rr),
-                "failed": len(rr) - len(ok),
+                "failed": len({r["seed"] for r in failed}),
+                "not_done": len({r["seed"] for r in rr if r["status"] == "not done"}),
                 "mean_error_pct": float(err.mean()) if err.size else math.nan,
                 "spread_pct": float(err.std(ddof=1)) if err.size > 1 else math.nan,
                 "coverage": _frac(r["covers"] for r in ok),
@@ -670,47 +700,79 @@ def run(
             f"-o {out}: already holds an envelope ({CELLS_CSV}); give --resume to continue "
             "it (renderings and results done are kept) or choose another folder"
         )
-    for c, why in g.excluded:
-        say(f"qogi envelope: left out {c.name}: {why}")
+    for scene_name, why in excluded_scenes(g):
+        say(f"qogi envelope: left out {scene_name}: {why}")
     if not g.cells:
         raise UsageError(f"grid {g.name}: every cell was left out (see above); nothing to run")
     renders = out / "renders"
     renders.mkdir(parents=True, exist_ok=True)
+    bdir = out / "batch"
+    bdir.mkdir(exist_ok=True)
     todo = [c for c in g.cells if not (renders / f"{c.name}.h5").exists()]
     say(
         f"qogi envelope: {len(g.cells)} renderings ({len(g.excluded)} cells left out), "
         f"{len(g.cells) - len(todo)} already rendered"
     )
-    bar = ProgressBar("qogi envelope: rendering ", enabled=progress and bool(todo))
-    try:
-        for k, c in enumerate(todo):
+    # In chunks: each chunk rendered, then everything rendered so far
+    # quantified (batch --resume keeps what is done) and the tables written,
+    # so that a long grid has results on disk while it runs.
+    size = max(8, 4 * (workers or 1))
+    render_failed: Dict[str, str] = {}
+    rows: List[dict] = []
+    env: List[dict] = []
+    for start in range(0, max(len(todo), 1), size):
+        chunk = todo[start : start + size]
+        bar = ProgressBar("qogi envelope: rendering ", enabled=progress and bool(chunk))
+        try:
+            for k, c in enumerate(chunk):
 
-            def step(f, m, k=k, c=c):
-                return bar((k + f) / len(todo), f"{c.name}: {m}")
+                def step(f, m, k=k, c=c):
+                    return bar((start + k + f) / len(todo), f"{c.name}: {m}")
 
-            render_cell(c, renders / f"{c.name}.h5", num_threads=threads or 1, progress=step)
-        if todo:
-            bar(1.0, "done")
-    finally:
-        bar.close()
-    bdir = out / "batch"
-    bdir.mkdir(exist_ok=True)
-    manifest = out / "manifest.csv"
-    write_manifest(g.cells, renders, manifest)
-    batch.run(
-        manifest,
-        bdir,
-        workers=workers,
-        threads=threads,
-        resume=True,  # results of this grid's renderings, kept by their settings' hash
-        progress=progress,
-        log=log,
-    )
+                try:
+                    render_cell(
+                        c, renders / f"{c.name}.h5", num_threads=threads or 1, progress=step
+                    )
+                except ValueError as e:  # the simulator refused the scene
+                    render_failed[c.name] = f"rendering failed: {e}"
+                    say(f"\nqogi envelope: {c.name}: rendering failed: {e}")
+        finally:
+            bar.close()
+        rows, env = _quantify_rendered(
+            g, out, renders, bdir, render_failed, workers, threads, progress, log
+        )
+    if plots:
+        plot(rows, out)
+    say(f"qogi envelope: {len(rows)} rows in {out / CELLS_CSV}, {len(env)} cells in {ENVELOPE_CSV}")
+    return rows, env
+
+
+def _quantify_rendered(g, out, renders, bdir, render_failed, workers, threads, progress, log):
+    """Quantify every rendering on disk through qogi batch (--resume: what is
+    done is kept) and write ``cells.csv`` and ``envelope.csv``; a cell not
+    rendered yet is a ``not done`` row."""
+    done = [c for c in g.cells if (renders / f"{c.name}.h5").exists()]
+    if done:
+        manifest = out / "manifest.csv"
+        write_manifest(done, renders, manifest)
+        batch.run(
+            manifest,
+            bdir,
+            workers=workers,
+            threads=threads,
+            resume=True,  # results of this grid's renderings, kept by their settings' hash
+            progress=progress,
+            log=log,
+        )
     rows: List[dict] = []
     for c in g.cells:
         res = bdir / c.name / batch.RESULT_JSON
         fail = bdir / c.name / batch.FAILURE_JSON
-        if res.exists():
+        if c.name in render_failed:
+            rows += cell_rows(c, None, render_failed[c.name])
+        elif not (renders / f"{c.name}.h5").exists():
+            rows += cell_rows(c, None, "not rendered yet", status="not done")
+        elif res.exists():
             rows += cell_rows(c, json.loads(res.read_text()))
         else:
             why = json.loads(fail.read_text()).get("error") if fail.exists() else None
@@ -718,9 +780,6 @@ def run(
     env = aggregate(rows)
     _write_csv(out / CELLS_CSV, rows, CELL_COLUMNS)
     _write_csv(out / ENVELOPE_CSV, env, list(env[0]) if env else ["scene"])
-    if plots:
-        plot(rows, out)
-    say(f"qogi envelope: {len(rows)} rows in {out / CELLS_CSV}, {len(env)} cells in {ENVELOPE_CSV}")
     return rows, env
 
 
