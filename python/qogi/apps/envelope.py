@@ -41,7 +41,7 @@ fractions of the frame. The camera sees the plume at ``distance_m`` with its
 own pixel size.
 
 Cells the simulator cannot express physically are left out and listed with
-the reason (:func:`expand`): a plate that does not fill the frame (a lab
+the reason (:func:`load_grid`): a plate that does not fill the frame (a lab
 backdrop :data:`PLATE_SIZE_M` across), a sky warmer than the gas, an exit
 faster than 0.3 of the speed of sound (the plume model is incompressible),
 a control surface outside the frame.
@@ -83,13 +83,13 @@ from typing import Dict, List, Optional, Sequence, Tuple, Union
 import numpy as np
 
 from .. import synth
-from . import batch
 from .._progress import ProgressBar
 from ..errors import UsageError
 from ..files import atomic_open, atomic_path
 from ..physics.presets import camera_preset, camera_preset_names
 from ..pipeline.config_io import _loads_toml
 from ..synth import render
+from . import batch
 
 __all__ = [
     "AXES",
@@ -97,7 +97,11 @@ __all__ = [
     "Cell",
     "Grid",
     "load_grid",
-    "expand",
+    "excluded_scenes",
+    "scene",
+    "surfaces",
+    "render_cell",
+    "write_manifest",
     "scene_snr",
     "cell_rows",
     "aggregate",
@@ -226,7 +230,7 @@ def _values(where: str, axis: str, v) -> list:
     if not vals:
         raise UsageError(f"{where}: {axis} has no values; give at least one")
     spec = AXES[axis] if axis in AXES else SETTINGS[axis]
-    out = []
+    out: List[Union[str, int, float]] = []
     for x in vals:
         if axis in ("background", "camera"):
             choices = camera_preset_names() if axis == "camera" else spec
@@ -303,9 +307,9 @@ def load_grid(grid: Union[str, os.PathLike]) -> Grid:
         "width_px": None,
         "height_px": None,
     }
-    for k in ("width_px", "height_px"):
-        if k in base:
-            (settings[k],) = _values(f"grid {grid} [base]", k, base[k])
+    for key in ("width_px", "height_px"):
+        if key in base:
+            (settings[key],) = _values(f"grid {grid} [base]", key, base[key])
     if (settings["width_px"] is None) != (settings["height_px"] is None):
         raise UsageError(f"grid {grid}: [base] gives width_px and height_px together or neither")
     cells: Dict[Cell, Cell] = {}  # without its block label -> labelled (first block wins)
@@ -372,8 +376,8 @@ def scene(cell: Cell):
             "sky", None, sky_top_K=t_bg - half, sky_bottom_K=t_bg + half, seed=cell.seed
         )
     else:
-        d = dict(synth.preset(STRUCTURED_PRESET)["scene"]["background"], temperature_K=t_bg)
-        bg = render.Background.from_dict(d, seed=cell.seed)
+        features = synth.preset(STRUCTURED_PRESET)["scene"]["background"]
+        bg = render.Background.from_dict(dict(features, temperature_K=t_bg), seed=cell.seed)
     return rel, view, bg, cam
 
 
@@ -418,7 +422,9 @@ def surfaces(cell: Cell, rel=None, view=None) -> Tuple[List[list], Tuple[float, 
     out = []
     for d in cell.surfaces_px:
         if d > s_px[-1]:
-            raise ValueError(f"the mean plume axis ends {s_px[-1]:.0f} px from the exit, before {d:g} px")
+            raise ValueError(
+                f"the mean plume axis ends {s_px[-1]:.0f} px from the exit, before {d:g} px"
+            )
 
         def at(key, d=d):
             return float(np.interp(d, s_px, np.asarray(mf[key])))
@@ -448,7 +454,9 @@ def surfaces(cell: Cell, rel=None, view=None) -> Tuple[List[list], Tuple[float, 
 def _not_expressible(cell: Cell) -> Optional[str]:
     """Why the simulator cannot render this cell physically (None: it can)."""
     if cell.background == "sky" and cell.contrast_K <= 0:
-        return "a sky as warm as or warmer than gas at the ambient temperature is not a physical sky"
+        return (
+            "a sky as warm as or warmer than gas at the ambient temperature is not a physical sky"
+        )
     try:
         rel, view, _, _ = scene(cell)
     except ValueError as e:
@@ -545,6 +553,7 @@ CELL_COLUMNS = [
     "block",
     *AXES,
     "surface",
+    "surface_px",
     "status",
     "truth_kg_h",
     "mean_kg_h",
@@ -571,18 +580,17 @@ def cell_rows(
         return [{**head, "status": status, "error": failure or "no result"}]
     warnings = result.get("warnings") or []
     rows = []
-    for s in result["surfaces"]:
+    for k, s in enumerate(result["surfaces"]):
         r = s["species"]["CH4"]
         truth, mean = r.get("truth_kg_h"), r.get("mean_kg_h")
         lo, hi = r["ci90_kg_h"]
         ok = truth is not None and mean is not None
-        codes = sorted(
-            {w["code"] for w in warnings if w.get("surface") in (None, s.get("name"))}
-        )
+        codes = sorted({w["code"] for w in warnings if w.get("surface") in (None, s.get("name"))})
         rows.append(
             {
                 **head,
                 "surface": s.get("name"),
+                "surface_px": cell.surfaces_px[k] if k < len(cell.surfaces_px) else None,
                 "status": "ok",
                 "truth_kg_h": truth,
                 "mean_kg_h": mean,
@@ -726,8 +734,8 @@ def run(
         try:
             for k, c in enumerate(chunk):
 
-                def step(f, m, k=k, c=c):
-                    return bar((start + k + f) / len(todo), f"{c.name}: {m}")
+                def step(f, m, k=start + k, c=c, bar=bar):
+                    return bar((k + f) / len(todo), f"{c.name}: {m}")
 
                 try:
                     render_cell(
