@@ -29,7 +29,11 @@ control surfaces cross the mean plume axis, px of arc length from the exit),
 **Scenes.** A still cell (``wind_m_s = 0``) is the GF320 lab release
 (``lab-ch4-5slpm-gf320``: a 1.9 cm exit at floor level, a 0.02 m/s draft);
 a windy cell the stack release (``stack-10kgh-wind4-sky-gf320``: a 6 cm
-outlet on a 3.18 m stack, 20 % turbulence), each with only the axes changed.
+outlet on a 3.18 m stack, 20 % turbulence), each with only the axes changed,
+except that the windy scene's outlet narrows for small rates so the gas
+leaves at :data:`MIN_EXIT_SPEED_M_S` (no narrower than
+:data:`MIN_EXIT_DIAMETER_M`): a small leak is a small hole, and a 6 cm outlet
+at 1 g/h stalls the plume model.
 The gas is at the ambient temperature; the background is set to
 ``T_gas - contrast_K``: a uniform ``plate``; a ``sky`` whose apparent
 temperature rises by ``|contrast| / 2`` from the top row to the bottom (the
@@ -659,6 +663,7 @@ def _write_csv(path: pathlib.Path, rows: Sequence[dict], columns: Sequence[str])
 
 CELLS_CSV = "cells.csv"
 ENVELOPE_CSV = "envelope.csv"
+ENVELOPE_MD = "envelope.md"
 
 
 def run(
@@ -680,8 +685,8 @@ def run(
         A built-in grid name (:data:`GRIDS`), a TOML file, or a loaded grid.
     outdir : path
         ``renders/<cell>.h5``, ``batch/`` (:func:`qogi.apps.batch.run`'s
-        outputs and ``manifest.csv``), ``cells.csv``, ``envelope.csv``, and
-        with ``plots`` the heat maps ``envelope_*.png``.
+        outputs), ``manifest.csv``, ``cells.csv``, ``envelope.csv`` (its
+        table also in ``envelope.md``), and with ``plots`` the heat maps ``envelope_*.png``.
     workers, threads : int, optional
         Dask worker processes for the quantification and engine threads per
         task (rendering runs in this process with ``threads`` engine threads).
@@ -788,7 +793,45 @@ def _quantify_rendered(g, out, renders, bdir, render_failed, workers, threads, p
     env = aggregate(rows)
     _write_csv(out / CELLS_CSV, rows, CELL_COLUMNS)
     _write_csv(out / ENVELOPE_CSV, env, list(env[0]) if env else ["scene"])
+    with atomic_open(out / ENVELOPE_MD) as fh:
+        fh.write(markdown(env) + "\n")
     return rows, env
+
+
+def _pct(v: float, signed: bool = True) -> str:
+    if not math.isfinite(v):
+        return "-"
+    return f"{v:+.0f} %" if signed else f"{v:.0f} %"
+
+
+def markdown(env: Sequence[dict]) -> str:
+    """``envelope.md``: the per-cell table (:func:`aggregate`) in Markdown,
+    one section per block."""
+    lines = []
+    for block in dict.fromkeys(e["block"] for e in env):
+        lines += [
+            f"**{block}**",
+            "",
+            "| rate [kg/h] | distance [m] | contrast [K] | wind [m/s] | background | camera "
+            "| record [s] | seeds | mean error | spread | interval covers | detected "
+            "| warned | median SNR |",
+            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        ]
+        for e in (e for e in env if e["block"] == block):
+            undone = f" ({e['failed']} failed)" if e["failed"] else ""
+            if e["not_done"]:
+                undone += f" ({e['not_done']} not done)"
+            lines.append(
+                f"| {e['rate_kg_h']:.3g} | {e['distance_m']:g} | {e['contrast_K']:+g} "
+                f"| {e['wind_m_s']:g} | {e['background']} | {e['camera']} "
+                f"| {e['duration_s']:g} | {e['seeds']}{undone} | {_pct(e['mean_error_pct'])} "
+                f"| {_pct(e['spread_pct'], False)} | {_pct(100 * e['coverage'], False)} "
+                f"| {_pct(100 * e['detection_fraction'], False)} "
+                f"| {_pct(100 * e['warning_fraction'], False)} "
+                + (f"| {e['median_snr']:.3g} |" if math.isfinite(e["median_snr"]) else "| - |")
+            )
+        lines.append("")
+    return "\n".join(lines).rstrip("\n")
 
 
 # -- plots ----------------------------------------------------------------------
@@ -830,7 +873,17 @@ def _heat(ax, data, xs, ys, n, title, cmap, vmin, vmax, fmt):
     for i in range(len(ys)):
         for j in range(len(xs)):
             if n[i, j]:
-                ax.text(j, i, fmt(data[i, j]), ha="center", va="center", fontsize=7)
+                shade = im.cmap(im.norm(data[i, j]))
+                dark = 0.299 * shade[0] + 0.587 * shade[1] + 0.114 * shade[2] < 0.5
+                ax.text(
+                    j,
+                    i,
+                    fmt(data[i, j]),
+                    ha="center",
+                    va="center",
+                    fontsize=7,
+                    color="white" if dark else "black",
+                )
     ax.set_title(title, fontsize=9)
     return im
 
