@@ -33,6 +33,8 @@ DEFERRED = {
     "qogi.apps.console": "start-up",
     # qogi batch needs the optional Dask, pandas and pyarrow (qogi[batch]).
     "qogi.apps._cli_batch": "optional",
+    # qogi envelope quantifies through qogi batch: the same optional packages.
+    "qogi.apps._cli_envelope": "optional",
 }
 
 

@@ -72,6 +72,7 @@ def build_parser() -> argparse.ArgumentParser:
         _cli_batch,
         _cli_camera,
         _cli_convert,
+        _cli_envelope,
         _cli_info,
         _cli_pod,
         _cli_quantify,
@@ -111,6 +112,8 @@ def build_parser() -> argparse.ArgumentParser:
     _cli_quantify.add_demo_command(sub)
 
     _cli_batch.add_commands(sub)
+
+    _cli_envelope.add_commands(sub)
 
     _cli_convert.add_commands(sub)
 
