@@ -139,6 +139,7 @@ class Background:
                 if k % 50 == 0:
                     say(0.02 * k / len(use), "background (temporal percentile)")
             stacked = np.asarray(stack)
+            noise = _noise(stacked)  # once, for the inpainting and its check
             self.percentile_img, self.held = percentile_background(
                 stacked,
                 channel_sign,
@@ -146,8 +147,9 @@ class Background:
                 None
                 if gas_temperature_K is None
                 else np.array([ch.band_radiance(gas_temperature_K) for ch in rec.channels]),
+                noise,
             )
-            self.held_error = held_background_error(stacked, self.percentile_img, self.held)
+            self.held_error = held_background_error(stacked, self.percentile_img, self.held, noise)
 
     def _make_drifting(self, rec: Recording, frames: range, say) -> None:
         """The static and drifting layers of each channel over the region

@@ -37,7 +37,7 @@ where it is thick).
 
 from __future__ import annotations
 
-from typing import Dict, List, Sequence, Tuple
+from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -177,6 +177,7 @@ def percentile_background(
     channel_sign: np.ndarray,
     percentile: float,
     gas_radiance=None,
+    noise: Optional[np.ndarray] = None,
 ) -> Tuple[np.ndarray, np.ndarray]:
     """The sign-aware temporal percentile background (C, h, w) of frames
     ``stacked`` (T, C, h, w) and its held pixels (:func:`inpaint_held`):
@@ -186,7 +187,8 @@ def percentile_background(
     each pixel's own (:func:`pixel_sign`): a gas that emits in front of a
     cold wall absorbs in front of a pipe hotter than itself, and one sign
     for the channel takes the gas's own frames as the hot pipe's
-    background."""
+    background. ``noise`` (C,): the channels' noise, when the caller has
+    it (:func:`_noise` of ``stacked`` otherwise)."""
     lo, med, hi = np.percentile(stacked, (percentile, 50.0, 100 - percentile), axis=0)
     sign = np.asarray(channel_sign, float)
     sign = (
@@ -197,11 +199,15 @@ def percentile_background(
     img = np.where(sign >= 0, lo, hi)
     # Where the gas never leaves a pixel, its percentile holds gas: the
     # background's structure there from the free neighbours.
-    return inpaint_held(stacked, img, sign, percentile)
+    return inpaint_held(stacked, img, sign, percentile, noise)
 
 
 def inpaint_held(
-    stacked: np.ndarray, img: np.ndarray, channel_sign: np.ndarray, percentile: float
+    stacked: np.ndarray,
+    img: np.ndarray,
+    channel_sign: np.ndarray,
+    percentile: float,
+    noise: Optional[np.ndarray] = None,
 ) -> Tuple[np.ndarray, np.ndarray]:
     """The temporal percentile background ``img`` (C, h, w) of frames
     ``stacked`` (T, C, h, w), with the pixels the gas never leaves filled
@@ -227,7 +233,7 @@ def inpaint_held(
     if sign.ndim == 1:
         sign = sign[:, None, None]
     sign = np.broadcast_to(sign, img.shape)
-    noise = np.maximum(_noise(f), 1e-30)
+    noise = np.maximum(_noise(f) if noise is None else np.asarray(noise, float), 1e-30)
     held = np.zeros(img.shape[1:], bool)
     for c in range(nc):
         lo1, lo2, hi2, hi1 = np.percentile(
@@ -276,6 +282,7 @@ def held_background_error(
     stacked: np.ndarray,
     background: np.ndarray,
     held: np.ndarray,
+    noise: Optional[np.ndarray] = None,
     gap_px: int = HELD_RING_GAP_PX,
     ring_px: int = HELD_RING_PX,
 ) -> float:
@@ -300,7 +307,8 @@ def held_background_error(
 
     ``stacked`` (T, C, h, w) the frames the background was taken on,
     ``background`` (C, h, w) the background with the held pixels
-    inpainted (:func:`inpaint_held`), ``held`` (h, w) bool."""
+    inpainted (:func:`inpaint_held`), ``held`` (h, w) bool; ``noise`` (C,)
+    the channels' noise (:func:`_noise` of ``stacked`` when not given)."""
     import cv2
 
     held = np.asarray(held, bool)
@@ -312,12 +320,12 @@ def held_background_error(
     if not ring.any() or (~outer).sum() < 0.25 * outer.size:
         return float("nan")
     f = np.asarray(stacked, np.float32)
-    noise = np.maximum(_noise(f), 1e-30)
-    med = np.median(f, axis=0)
+    noise = np.maximum(_noise(f) if noise is None else np.asarray(noise, float), 1e-30)
     best = (-1.0, float("nan"))
     for c in range(f.shape[1]):
         bg = np.asarray(background[c], float)
-        contrast = float(np.median(np.abs(med[c] - bg)[held])) / noise[c]
+        med = np.median(f[:, c][:, held], axis=0)  # the held pixels' only
+        contrast = float(np.median(np.abs(med - bg[held]))) / noise[c]
         if contrast > best[0]:
             err = (_inpaint_structure(bg, outer, float(noise[c])) - bg)[ring] / noise[c]
             rms = float(np.sqrt(np.mean(err * err)))
