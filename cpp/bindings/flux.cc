@@ -67,11 +67,12 @@ void BindFlux(py::module_& m) {
                              options, &control);
         }
         return py::make_tuple(ToArray(tf.flux), ToArray(tf.line_column), ToArray(tf.velocity),
-                              ToArray(tf.displacement));
+                              ToArray(tf.displacement), ToArray(tf.unexplained));
       },
       py::arg("frames"), py::arg("axis") = "up", py::arg("source_index") = py::none(),
       py::arg("intervals") = py::none(), py::arg("window") = 0, py::arg("num_threads") = 0,
-      "(flux, line_column, velocity, displacement) per line of a float32 (T, H, W) stack "
+      "(flux, line_column, velocity, displacement, unexplained) per line of a float32 (T, H, "
+      "W) stack "
       "(engine/flux/transport_flux.h).");
 
   m.def(

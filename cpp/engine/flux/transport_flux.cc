@@ -128,6 +128,34 @@ Eigen::VectorXd CoarseDisplacements(const Matrix& I, const std::vector<std::size
   return out.cwiseMax(0.5);
 }
 
+// One whole-pixel displacement for every level: the shift d whose
+// correlation of I_{t+1}(j) and I_t(j + d) (temporal anomalies) over all the
+// lines j >= K[0] with j + d <= k_end is largest. Where the gas crosses a
+// good part of the frame between frames (an 8 m/s wind at 15 Hz: ~52 px
+// per frame of 1.3 cm), the levels near the source see little of the
+// structures they must match and their own searches lock on slow changes
+// (a few px); all the levels together still find the shift.
+double CommonDisplacement(const Matrix& I, const std::vector<std::size_t>& K, std::size_t k_end) {
+  const std::size_t H = I.cols();
+  const Matrix A = I.rowwise() - I.colwise().mean();
+  const std::size_t d_max = std::min<std::size_t>(k_end - std::min(K[0], k_end), H - 1);
+  double best = -kInf, out = 1.0;
+  Eigen::VectorXd ab, aa, bb;
+  for (std::size_t d = 0; d <= d_max; ++d) {
+    if (k_end < d + K[0] + 2) break;  // fewer than 3 lines left
+    ShiftProducts(A, d, ab, aa, bb);
+    const std::size_t lo = K[0], hi = std::min<std::size_t>(k_end - d, H - d - 1);
+    const double sab = ab.segment(lo, hi - lo + 1).sum(), saa = aa.segment(lo, hi - lo + 1).sum(),
+                 sbb = bb.segment(lo, hi - lo + 1).sum();
+    const double x = sab / std::sqrt(saa * sbb);
+    if (std::isfinite(x) && x > best) {
+      best = x;
+      out = double(d);
+    }
+  }
+  return std::max(out, 0.5);
+}
+
 // The column summed over the lines before level y, C_t(y), and its slope
 // dC_t/dy, between the levels by cubic Hermite interpolation: exact at the
 // levels (C_t(k) = sum of lines 0 ... k - 1; C has one column more than I),
@@ -180,22 +208,12 @@ double Median(std::vector<double> v) {
 // current levels (variable projection: the reduced system is the Schur
 // complement of the O block). `ok`: the levels whose displacement stays
 // within the lines before the source.
-Eigen::VectorXd SolveLevels(const Matrix& C, const Matrix& I, const std::vector<std::size_t>& K,
-                            std::size_t k_end, const std::vector<double>& r,
-                            const TransportFluxOptions& opt, std::vector<char>& ok,
-                            const RunControl* control, const Eigen::VectorXd* start = nullptr) {
-  const Eigen::Index P = I.rows() - 1, n = Eigen::Index(K.size());
+Eigen::VectorXd RefineLevels(const Matrix& Cs, const Matrix& Is, const Matrix& target,
+                             const std::vector<std::size_t>& K, std::size_t k_end,
+                             const std::vector<double>& r, const TransportFluxOptions& opt,
+                             std::vector<char>& ok, const RunControl* control, Eigen::VectorXd d) {
+  const Eigen::Index P = Is.rows() - 1, n = Eigen::Index(K.size());
   const double r_max = *std::max_element(r.begin(), r.end());
-  const double scale = std::max(I.cwiseAbs().maxCoeff(), 1e-300);
-  const Matrix Cs = C / scale, Is = I / scale;
-  Matrix target(P, n);
-  for (Eigen::Index t = 0; t < P; ++t)
-    for (Eigen::Index i = 0; i < n; ++i) target(t, i) = Cs(t + 1, K[i]);
-  Eigen::VectorXd d =
-      start ? *start
-            : Eigen::VectorXd(CoarseDisplacements(I, K, k_end, std::size_t(opt.half_window),
-                                                  opt.num_threads, control) /
-                              Median(r));
   ok.assign(n, 1);
   Matrix g(P, n), e(P, n);
   Eigen::VectorXd okv(n);
@@ -231,6 +249,92 @@ Eigen::VectorXd SolveLevels(const Matrix& C, const Matrix& I, const std::vector<
   return d;
 }
 
+// The share of the solved levels' column anomaly that the displacements d
+// leave unexplained (see TransportFluxResult): the fit's residual after each
+// pair's outflow, squared, over the squared anomaly of its target about its
+// mean over the pairs and, as the outflows do for the fit, about each pair's
+// mean over the levels (the null model "nothing is carried" gets the same
+// outflows), each per degree of freedom: m levels over P pairs leave
+// m P - P - m to the residual and (m - 1)(P - 1) to the anomaly, so that few
+// levels whose misfit the outflows absorb are not taken as explained. +inf
+// with no level solved, or too few to tell.
+double Unexplained(const Matrix& C, const Matrix& I, const std::vector<std::size_t>& K,
+                   const std::vector<double>& r, const Eigen::VectorXd& d,
+                   const std::vector<char>& ok, std::vector<double>* miss_sum = nullptr,
+                   std::vector<double>* anomaly_sum = nullptr) {
+  const Eigen::Index P = I.rows() - 1, m = Eigen::Index(K.size());
+  Matrix e(P, m), a(P, m);
+  Eigen::VectorXd outflow = Eigen::VectorXd::Zero(P), common = Eigen::VectorXd::Zero(P);
+  double n_ok = 0.0;
+  for (Eigen::Index i = 0; i < m; ++i) {
+    if (!ok[i]) continue;
+    n_ok += 1.0;
+    double mean = 0.0;
+    for (Eigen::Index t = 0; t < P; ++t) mean += C(t + 1, K[i]);
+    mean /= double(P);
+    for (Eigen::Index t = 0; t < P; ++t) {
+      e(t, i) = Cumulative(C, I, t, double(K[i]) + d[i] * r[t]) - C(t + 1, K[i]);
+      a(t, i) = C(t + 1, K[i]) - mean;
+      outflow[t] += e(t, i);
+      common[t] += a(t, i);
+    }
+  }
+  const double dof = n_ok * double(P) - double(P) - n_ok;
+  if (n_ok < 2.0 || dof <= 0.0) return kInf;
+  const double per_dof = (n_ok - 1.0) * double(P - 1) / dof;
+  outflow /= n_ok;
+  common /= n_ok;
+  double miss = 0.0, anomaly = 0.0;
+  for (Eigen::Index i = 0; i < m; ++i) {
+    if (!ok[i]) continue;
+    double mi = 0.0, ai = 0.0;
+    for (Eigen::Index t = 0; t < P; ++t) {
+      mi += (e(t, i) - outflow[t]) * (e(t, i) - outflow[t]);
+      ai += (a(t, i) - common[t]) * (a(t, i) - common[t]);
+    }
+    miss += mi * per_dof;
+    anomaly += ai;
+    if (miss_sum) (*miss_sum)[K[i]] += mi * per_dof;
+    if (anomaly_sum) (*anomaly_sum)[K[i]] += ai;
+  }
+  return anomaly > 0 ? miss / anomaly : kInf;
+}
+
+// The level displacements from `start`, or, without one, from each level's
+// own coarse search and from the levels' common shift
+// (CommonDisplacement), whichever leaves less of the column unexplained.
+Eigen::VectorXd SolveLevels(const Matrix& C, const Matrix& I, const std::vector<std::size_t>& K,
+                            std::size_t k_end, const std::vector<double>& r,
+                            const TransportFluxOptions& opt, std::vector<char>& ok,
+                            const RunControl* control, const Eigen::VectorXd* start = nullptr) {
+  const Eigen::Index P = I.rows() - 1, n = Eigen::Index(K.size());
+  const double scale = std::max(I.cwiseAbs().maxCoeff(), 1e-300);
+  const Matrix Cs = C / scale, Is = I / scale;
+  Matrix target(P, n);
+  for (Eigen::Index t = 0; t < P; ++t)
+    for (Eigen::Index i = 0; i < n; ++i) target(t, i) = Cs(t + 1, K[i]);
+  if (start) return RefineLevels(Cs, Is, target, K, k_end, r, opt, ok, control, *start);
+  const double median_r = Median(r);
+  const Eigen::VectorXd own =
+      CoarseDisplacements(I, K, k_end, std::size_t(opt.half_window), opt.num_threads, control) /
+      median_r;
+  Eigen::VectorXd d = RefineLevels(Cs, Is, target, K, k_end, r, opt, ok, control, own);
+  const Eigen::VectorXd common =
+      Eigen::VectorXd::Constant(n, CommonDisplacement(I, K, k_end) / median_r);
+  if ((common - own).cwiseAbs().maxCoeff() < 0.5) return d;
+  std::vector<char> ok_common;
+  Eigen::VectorXd d_common =
+      RefineLevels(Cs, Is, target, K, k_end, r, opt, ok_common, control, common);
+  // Compared on the levels both solved.
+  std::vector<char> both(static_cast<std::size_t>(n));
+  for (Eigen::Index i = 0; i < n; ++i) both[i] = ok[i] && ok_common[i];
+  if (Unexplained(Cs, Is, K, r, d_common, both) < Unexplained(Cs, Is, K, r, d, both)) {
+    ok.swap(ok_common);
+    return d_common;
+  }
+  return d;
+}
+
 // One window's time of flight (all its frames, I and C (T_w, ...) with its
 // T_w - 1 pair durations r): the flux through each level K_i, as the mass
 // crossing it summed over the window's pairs, added to flux_sum[K_i] with the
@@ -244,7 +348,8 @@ void WindowFlux(const Matrix& I, const Matrix& C, const std::vector<double>& r,
                 const TransportFluxOptions& options, const RunControl* control,
                 const Eigen::VectorXd* start, std::vector<double>& flux_sum,
                 std::vector<double>& flux_w, std::vector<double>& disp_sum,
-                std::vector<double>& disp_w) {
+                std::vector<double>& disp_w, std::vector<double>& miss_sum,
+                std::vector<double>& anomaly_sum) {
   const Eigen::Index T = I.rows(), P = T - 1, m = Eigen::Index(K.size());
   if (!Changes(I, K[0], k_end)) return;
   std::vector<char> ok;
@@ -261,6 +366,7 @@ void WindowFlux(const Matrix& I, const Matrix& C, const std::vector<double>& r,
   for (Eigen::Index i = 0; i < m; ++i)
     if (ok[i]) jr = i;
   if (jr < 0) return;
+  Unexplained(C, I, K, r, d, ok, &miss_sum, &anomaly_sum);
   for (Eigen::Index i = 0; i < m; ++i) {
     if (ok[i]) {
       flux_sum[K[i]] += crossed[i];
@@ -379,7 +485,7 @@ TransportFluxResult TransportFlux(const float* frames, std::size_t T, std::size_
   // At the top of line k: the flux summed over the windows' durations, the
   // durations it was measured over, and the same for the displacement.
   std::vector<double> flux_sum(n + 1, 0.0), flux_w(n + 1, 0.0), disp_sum(n + 1, 0.0),
-      disp_w(n + 1, 0.0);
+      disp_w(n + 1, 0.0), miss_sum(n + 1, 0.0), anomaly_sum(n + 1, 0.0);
   if (first_gas < k_end) {
     std::vector<std::size_t> K(k_end + 1 - first_gas);
     std::iota(K.begin(), K.end(), first_gas);
@@ -401,13 +507,15 @@ TransportFluxResult TransportFlux(const float* frames, std::size_t T, std::size_
       const std::size_t a = w * P / windows, b = (w + 1) * P / windows;
       const std::vector<double> rw(r.begin() + long(a), r.begin() + long(b));
       WindowFlux(I.middleRows(a, b - a + 1), C.middleRows(a, b - a + 1), rw, K, k_end, options,
-                 control, windows > 1 ? &whole : nullptr, flux_sum, flux_w, disp_sum, disp_w);
+                 control, windows > 1 ? &whole : nullptr, flux_sum, flux_w, disp_sum, disp_w,
+                 miss_sum, anomaly_sum);
     }
   }
-  std::vector<double> flux_b(n + 1, kNaN), disp_b(n + 1, kNaN);
+  std::vector<double> flux_b(n + 1, kNaN), disp_b(n + 1, kNaN), miss_b(n + 1, kNaN);
   for (std::size_t k = 0; k <= n; ++k) {
     if (flux_w[k] > 0) flux_b[k] = flux_sum[k] / flux_w[k];
     if (disp_w[k] > 0) disp_b[k] = disp_sum[k] / disp_w[k];
+    if (disp_w[k] > 0 && anomaly_sum[k] > 0) miss_b[k] = miss_sum[k] / anomaly_sum[k];
   }
   TransportFluxResult out;
   out.axis = axis;
@@ -415,15 +523,18 @@ TransportFluxResult TransportFlux(const float* frames, std::size_t T, std::size_
   out.line_column.resize(n);
   out.velocity.resize(n);
   out.displacement.resize(n);
+  out.unexplained.resize(n);
   for (std::size_t k = 0; k < n; ++k) {
     const double f = k < k_end ? 0.5 * (flux_b[k] + flux_b[k + 1]) : kNaN;
     out.flux[k] = f;
     out.line_column[k] = mean_line[k];
     out.velocity[k] = mean_line[k] > 0 ? f / mean_line[k] : kNaN;
     out.displacement[k] = 0.5 * (disp_b[k] + disp_b[k + 1]);
+    out.unexplained[k] = 0.5 * (miss_b[k] + miss_b[k + 1]);
   }
   if (axis == FluxAxis::kDown || axis == FluxAxis::kRight)
-    for (auto* a : {&out.flux, &out.line_column, &out.velocity, &out.displacement})
+    for (auto* a :
+         {&out.flux, &out.line_column, &out.velocity, &out.displacement, &out.unexplained})
       std::reverse(a->begin(), a->end());
   return out;
 }

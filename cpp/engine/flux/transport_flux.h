@@ -79,6 +79,14 @@ struct TransportFluxResult {
   // Steady displacement of each line's level over one frame [px/frame]; NaN
   // where not solved.
   std::vector<double> displacement;
+  // How little of each solved level's column the time of flight explains:
+  // over the pairs, the residual of C_t(k + d_k) = C_{t+1}(k) + O_t (after
+  // the outflows) squared, over the squared anomaly of C_{t+1}(k) about its
+  // mean (summed over the windows). 0: the structures are carried exactly;
+  // about 1 or more: the displacement explains no more than the column's own
+  // mean (structures that change beyond recognition between frames, or move
+  // further than the fit can follow). NaN where not solved.
+  std::vector<double> unexplained;
   FluxAxis axis = FluxAxis::kUp;
 };
 

@@ -771,6 +771,14 @@ class TransportFlux:
         [px/frame]; NaN where it was not solved (the gas crossing the line
         within one frame came from the source).
     axis : str
+    unexplained : ndarray
+        How little of each solved level's column the time of flight
+        explains: the fit's residual (after each pair's outflow) squared over
+        the squared temporal anomaly of the column beyond the level, summed
+        over the pairs. 0 for structures carried unchanged; near 1 or above
+        when the displacement explains no more than the column's mean (the
+        structures changed beyond recognition between frames, or moved
+        further than the fit follows). NaN where not solved.
     """
 
     flux: np.ndarray
@@ -778,6 +786,7 @@ class TransportFlux:
     velocity: np.ndarray
     displacement: np.ndarray
     axis: str
+    unexplained: Optional[np.ndarray] = None
 
     def lines(self, sl: slice, scale: float = 1.0) -> TransportFlux:
         """The lines ``sl`` (rows for "up"/"down", columns otherwise) of this
@@ -789,6 +798,7 @@ class TransportFlux:
             self.velocity[sl],
             self.displacement[sl],
             self.axis,
+            None if self.unexplained is None else self.unexplained[sl],
         )
 
 
@@ -881,10 +891,10 @@ def transport_flux(
     if r is not None and (r.shape != (T - 1,) or not np.all(np.isfinite(r) & (r > 0))):
         raise ValueError(f"intervals must be {T - 1} positive frame intervals; got shape {r.shape}")
     # The engine checks source_index (a row or column inside the frame).
-    flux, line_column, velocity, displacement = _engine.transport_flux(
+    flux, line_column, velocity, displacement, unexplained = _engine.transport_flux(
         stack, axis, None if source_index is None else float(source_index), r, int(window)
     )
-    return TransportFlux(flux, line_column, velocity, displacement, axis)
+    return TransportFlux(flux, line_column, velocity, displacement, axis, unexplained)
 
 
 def transport_band(
