@@ -389,6 +389,14 @@ def _self_checks(st: RunState, j: int, surface: str, sp: str, summary, relative,
         for b in st.blocks
         if isinstance(f := b.velocity_info.get("column_fluctuation"), float) and math.isfinite(f)
     ]
+    unexplained, in_view = (
+        [
+            float(f)
+            for b in st.blocks
+            if isinstance(f := b.velocity_info.get(key), float) and math.isfinite(f)
+        ]
+        for key in ("transport_unexplained", "transport_frames_in_view")
+    )
     plume, plume_contrast = selfchecks.plume_residual(columns.evidence, j)
     ev = dataclasses.replace(
         columns.evidence[j],
@@ -401,6 +409,10 @@ def _self_checks(st: RunState, j: int, surface: str, sp: str, summary, relative,
         upwind_n=int(columns.upwind_sums[1]),
         fluctuation_sum=sum(fluct),
         fluctuation_n=len(fluct),
+        unexplained_sum=sum(unexplained),
+        unexplained_n=len(unexplained),
+        in_view_sum=sum(in_view),
+        in_view_n=len(in_view),
     )
     measures, failed = selfchecks.failure_terms(ev)
     what = {
@@ -430,10 +442,14 @@ def _self_checks(st: RunState, j: int, surface: str, sp: str, summary, relative,
         "column_fluctuation": "RMS fluctuation of the plume's most fluctuating lines: a "
         "steady, nearly laminar column, whose pattern (instability waves) may travel "
         "slower than its gas, and the flux level follows the pattern",
+        "transport_frames_in_view": "frames is how long the gas stays in view (the frame "
+        "beyond the source over the flux level's displacement per frame): its structures "
+        "change beyond recognition between frames, and neither the flow nor the time of "
+        "flight that sets the flux level follows them, so the speed is not measured",
     }
     for key, term in failed:
         v = measures[key]
-        size = f"{v:.1f}" if key.endswith("_noise") else f"{100 * v:.0f} %"
+        size = f"{v:.1f}" if key.endswith(("_noise", "_in_view")) else f"{100 * v:.0f} %"
         fix = (
             "measure where the plume has turned turbulent (surfaces higher up, a longer "
             "view of the plume)"
@@ -441,6 +457,9 @@ def _self_checks(st: RunState, j: int, surface: str, sp: str, summary, relative,
             else "film the release from where its base is seen against a uniform "
             "background (the gas hides the structure behind it)"
             if key == "held_background_error"
+            else "film at a higher frame rate, or from farther away or with a wider view, "
+            "so that the gas stays in the frame for more frames"
+            if key == "transport_frames_in_view"
             else "try another background (a gas-free region, or 'percentile') or "
             "surfaces where the background is uniform"
         )

@@ -256,6 +256,8 @@ def _block_velocity(
         try:
             assert job is not None  # submitted above when plan.on
             tf = job.result()  # its error is reported as the level's note
+            velocity_info["transport_unexplained"] = transport_unexplained(tf)
+            velocity_info["transport_frames_in_view"] = frames_in_view(tf, region_index)
             # In the flow field's units and lines.
             lines = crop[0] if axis in ("up", "down") else crop[1]
             tf = tf.lines(lines, scale=1.0 / scale if scale > 0 else 1.0)
@@ -285,6 +287,35 @@ def _block_velocity(
         reverse = _reverse_transport_speed(velocity_frames, axis, intervals)
     # The analysed part and its origin in the region (no velocity outside it).
     return Flow(uv[0], uv[1], (crop[1].start, crop[0].start), reverse)
+
+
+def transport_unexplained(tf: vel.TransportFlux) -> float:
+    """The share of the plume's column the flux level's time of flight does
+    not explain (:attr:`qogi.measure.velocimetry.TransportFlux.unexplained`
+    averaged over the solved lines, weighted by their time-averaged column);
+    NaN when no line was solved. Its self-check is
+    :mod:`qogi.pipeline.selfchecks`' ``transport_unexplained``."""
+    u = tf.unexplained
+    if u is None:
+        return float("nan")
+    w = np.asarray(tf.line_column, float)
+    ok = np.isfinite(u) & np.isfinite(w) & (w > 0)
+    return float(np.sum(u[ok] * w[ok]) / np.sum(w[ok])) if ok.any() else float("nan")
+
+
+def frames_in_view(tf: vel.TransportFlux, source_index: float) -> float:
+    """How many frames the gas stays in view: the lines from the source's
+    line ``source_index`` to the frame's far edge along the transport's axis
+    over the transport's displacement per frame (the median over its solved
+    lines) [frames]; NaN when no line was solved. Its self-check is
+    :mod:`qogi.pipeline.selfchecks`' ``transport_frames_in_view``."""
+    d = np.asarray(tf.displacement, float)
+    d = d[np.isfinite(d)]
+    if not d.size or not float(np.median(d)) > 0:
+        return float("nan")
+    n = len(tf.displacement)
+    path = float(source_index) if tf.axis in ("up", "left") else n - 1 - float(source_index)
+    return max(path, 0.0) / float(np.median(d))
 
 
 _OPPOSITE = {"up": "down", "down": "up", "left": "right", "right": "left"}
