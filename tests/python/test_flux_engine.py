@@ -88,6 +88,21 @@ def test_flux_level_from_a_sequence_and_a_given_transport_agrees_with_numpy(ref)
     _close_digest(v, ref["cal_part_v"], "part v")
 
 
+@pytest.mark.parametrize("axis", ["up", "left"])
+def test_transport_flux_with_a_mask_is_that_of_the_masked_frames_to_the_bit(axis):
+    # The pipeline gives the plume's band as a mask instead of a second stack.
+    rng = np.random.default_rng(3)
+    frames = rng.normal(size=(12, 30, 26)).astype(np.float32)
+    frames += np.linspace(0.0, 4.0, 12)[:, None, None].astype(np.float32)  # a changing plume
+    mask = rng.random((30, 26)) > 0.3
+    plain = vel.transport_flux(frames * mask, axis)
+    masked = vel.transport_flux(frames, axis, mask=mask)
+    for name in ("flux", "line_column", "velocity", "displacement"):
+        np.testing.assert_array_equal(getattr(masked, name), getattr(plain, name))
+    with pytest.raises(ValueError, match="mask must have the frames' shape"):
+        vel.transport_flux(frames, axis, mask=mask[1:])
+
+
 @pytest.mark.parametrize("seed", [1, 2])
 def test_surface_rate_agrees_with_the_pipelines_surface_flux(ref, seed):
     c, sig, vn, dl = fc.surface_case(seed)
