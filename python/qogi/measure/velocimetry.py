@@ -970,8 +970,8 @@ def transport_flux(
     stack = np.ascontiguousarray(frames, dtype=np.float32)
     if stack.ndim != 3 or stack.shape[0] < 3:
         raise ValueError(f"frames must be a (T, H, W) stack with T >= 3; got shape {stack.shape}")
-    if not np.all(np.isfinite(stack)):
-        raise ValueError("frames must be finite (replace NaN pixels by 0 or an estimate)")
+    # The engine refuses frames that are not finite ("frames must be finite
+    # (replace NaN pixels by 0 or an estimate)") without a (T, H, W) mask.
     T = stack.shape[0]
     r = None if intervals is None else np.asarray(intervals, dtype=float)
     if r is not None and (r.shape != (T - 1,) or not np.all(np.isfinite(r) & (r > 0))):
@@ -1204,8 +1204,10 @@ def calibrate_flux_level(
     frame_velocities : (u, v), optional
         The velocity at every frame of ``frames`` [px/frame], (T, H, W) each,
         e.g. :func:`interpolate_frame_velocity` of a sequence of every n-th
-        frame; they are scaled in place. Default: :func:`frame_velocity` of
-        ``seq`` (then ``seq`` may be None with them given).
+        frame; they are scaled in place (and where the flow is not used,
+        overwritten by the transport's velocity: no second pair of stacks).
+        Default: :func:`frame_velocity` of ``seq`` (then ``seq`` may be None
+        with them given).
 
     Returns
     -------
@@ -1266,7 +1268,13 @@ def calibrate_flux_level(
         float(max_reversed),
     )
     if not flow_used:
-        return _transport_velocity(tf, stack.shape) + (scale,)
+        if frame_velocities is None:
+            return _transport_velocity(tf, stack.shape) + (scale,)
+        # The same at every frame: one frame's, written over the given stacks.
+        tu, tv = _transport_velocity(tf, (1,) + stack.shape[1:])
+        fu[...] = tu
+        fv[...] = tv
+        return fu, fv, scale
     s = scale.reshape((1, -1, 1) if axis in ("up", "down") else (1, 1, -1))
     fu *= s
     fv *= s
