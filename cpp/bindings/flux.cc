@@ -48,9 +48,17 @@ void BindFlux(py::module_& m) {
   m.def(
       "transport_flux",
       [](const FloatArray& frames, const std::string& axis, py::object source_index,
-         py::object intervals, int window, int num_threads) {
+         py::object intervals, int window, int num_threads, py::object mask) {
         CheckNdim(frames, 3, "frames");
         TransportFluxOptions options;
+        if (!mask.is_none()) {
+          const auto m =
+              mask.cast<py::array_t<std::uint8_t, py::array::c_style | py::array::forcecast>>();
+          Require(m.ndim() == 2 && m.shape(0) == frames.shape(1) && m.shape(1) == frames.shape(2),
+                  "mask must be (H, W) = (" + std::to_string(frames.shape(1)) + ", " +
+                      std::to_string(frames.shape(2)) + "), the frames' size");
+          options.mask.assign(m.data(), m.data() + m.size());
+        }
         options.window = window;
         options.axis = ParseFluxAxis(axis);
         if (!source_index.is_none()) options.source_index = source_index.cast<double>();
@@ -71,8 +79,9 @@ void BindFlux(py::module_& m) {
       },
       py::arg("frames"), py::arg("axis") = "up", py::arg("source_index") = py::none(),
       py::arg("intervals") = py::none(), py::arg("window") = 0, py::arg("num_threads") = 0,
+      py::arg("mask") = py::none(),
       "(flux, line_column, velocity, displacement, unexplained) per line of a float32 (T, H, "
-      "W) stack "
+      "W) stack, summed across the lines over the pixels of mask (H, W) when given "
       "(engine/flux/transport_flux.h).");
 
   m.def(

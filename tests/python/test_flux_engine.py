@@ -88,6 +88,37 @@ def test_flux_level_from_a_sequence_and_a_given_transport_agrees_with_numpy(ref)
     _close_digest(v, ref["cal_part_v"], "part v")
 
 
+def test_a_flow_against_the_transport_is_replaced_in_the_given_stacks_to_the_bit():
+    # The transport's velocity is written over the caller's frame velocities
+    # (no second pair of stacks), the same values as the (T, H, W) result.
+    frames = fc.puffing_plume(2)
+    fu, fv = fc.frame_velocities(2, frames.shape, "up", -3.0)
+    u, v, scale = vel.calibrate_flux_level(None, frames, "up", frame_velocities=(fu, fv))
+    assert np.isnan(scale).all() and u is fu and v is fv
+    tu, tv = vel._transport_velocity(vel.transport_flux(frames, "up"), frames.shape)
+    np.testing.assert_array_equal(u, tu)
+    np.testing.assert_array_equal(v, tv)
+
+
+@pytest.mark.parametrize("axis", ["up", "left"])
+def test_transport_flux_with_a_mask_is_that_of_the_masked_frames_to_the_bit(axis):
+    # The pipeline gives the plume's band as a mask instead of a second stack.
+    rng = np.random.default_rng(3)
+    frames = rng.normal(size=(12, 30, 26)).astype(np.float32)
+    frames += np.linspace(0.0, 4.0, 12)[:, None, None].astype(np.float32)  # a changing plume
+    mask = rng.random((30, 26)) > 0.3
+    plain = vel.transport_flux(frames * mask, axis)
+    masked = vel.transport_flux(frames, axis, mask=mask)
+    for name in ("flux", "line_column", "velocity", "displacement"):
+        np.testing.assert_array_equal(getattr(masked, name), getattr(plain, name))
+    with pytest.raises(ValueError, match="mask must have the frames' shape"):
+        vel.transport_flux(frames, axis, mask=mask[1:])
+    frames[4, 2, 2] = np.nan  # refused also where the mask leaves the pixel out
+    mask[2, 2] = False
+    with pytest.raises(ValueError, match=r"frames must be finite \(replace NaN pixels"):
+        vel.transport_flux(frames, axis, mask=mask)
+
+
 @pytest.mark.parametrize("seed", [1, 2])
 def test_surface_rate_agrees_with_the_pipelines_surface_flux(ref, seed):
     c, sig, vn, dl = fc.surface_case(seed)

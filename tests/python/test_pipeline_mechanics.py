@@ -3,12 +3,14 @@ column densities from the recording's truth maps (validation mode). The flux
 sum, its sign convention, partial results on cancel and bad input."""
 
 import json
+import tracemalloc
 
 import numpy as np
 import pytest
 
 import qogi
 from qogi.pipeline import Cancelled, QuantifyConfig, quantify
+from qogi.pipeline import velocity as velocity_stage
 from qogi.pipeline.surfaces import Region, Surface
 
 
@@ -54,6 +56,37 @@ def test_sign_convention_left_hand_normal_and_source(lab):
     one = quantify(lab, [s], src).surfaces[0].species["CH4"].mean_kg_h
     other = quantify(lab, [back], src).surfaces[0].species["CH4"].mean_kg_h
     assert one > 0 and one == pytest.approx(other, rel=1e-9)
+
+
+def test_a_blocks_velocity_stage_holds_three_stacks_of_the_flows_part_at_most(lab, monkeypatch):
+    # The velocity stage gets the block's column field (frames, h, w) float32
+    # and adds the flow's normalised part and the two frame-velocity stacks
+    # over that part: no banded copy of the field for the transport, no
+    # quality and validity, no second pair of velocity stacks (numpy's
+    # allocations, traced: before, 6.25 such stacks and one of the field).
+    seen = []
+    stage = velocity_stage.block_velocity
+
+    def traced(st, cols, blk, say):
+        tracemalloc.start()
+        try:
+            base = tracemalloc.get_traced_memory()[0]
+            flows = stage(st, cols, blk, say)
+            peak = tracemalloc.get_traced_memory()[1] - base
+            seen.append((peak, flows.u.nbytes, cols.fields.nbytes, cols.fields.shape[0]))
+        finally:
+            tracemalloc.stop()
+        return flows
+
+    monkeypatch.setattr(velocity_stage, "block_velocity", traced)
+    s = Surface([(100.0, 200.0), (220.0, 200.0)])
+    res = quantify(lab, [s], truth_cfg(velocity="fluid", source=(159.5, 227.0)))
+    assert res.info["flux_level"].startswith("on")
+    ((peak, stack, field, frames),) = seen
+    # Scratch beyond the three stacks: the band's line sums take 32 frames of
+    # the field at a time, the flow's scale and stride a stack for a moment.
+    chunk = field * min(1.0, velocity_stage.BAND_CHUNK_FRAMES / frames)
+    assert 2 * stack < peak < 4 * stack + chunk, (peak / stack, chunk / stack)
 
 
 def test_normal_of_a_left_to_right_line_points_up():

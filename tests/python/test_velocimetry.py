@@ -386,6 +386,47 @@ def test_frame_velocity_is_exact_for_accelerating_gas_where_pairs_lag():
         vel.frame_velocity(v, v[:, :10])
 
 
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_sequence_into_given_arrays_without_quality_has_the_same_displacements(workers):
+    # The pipeline's memory-lean form: the displacements written into the
+    # first T - 1 frames of (T, H, W) buffers, quality and validity not kept.
+    t = texture(seed=4)
+    x, y = grid()
+    frames = np.array([np.exp(0.4 * t(x - 0.7 * k, y + 0.4 * k)) for k in range(6)], np.float32)
+    full = qogi.optical_flow_sequence(frames, workers=workers)
+    buf = np.full((2, 6, H, W), np.nan, np.float32)
+    lean = qogi.optical_flow_sequence(
+        frames, workers=workers, out=(buf[0, :-1], buf[1, :-1]), keep_quality=False
+    )
+    assert lean.u.base is buf or np.shares_memory(lean.u, buf)
+    np.testing.assert_array_equal(buf[0, :-1], full.u)
+    np.testing.assert_array_equal(buf[1, :-1], full.v)
+    np.testing.assert_array_equal(lean.residual_ratio, full.residual_ratio)
+    assert lean.quality is None and lean.valid is None
+    assert np.isnan(buf[:, -1]).all()  # the frame of room is left alone
+    with pytest.raises(ValueError, match="keep_quality=False"):
+        lean[0]
+    with pytest.raises(ValueError, match=r"out's u must be a C-contiguous float32 array"):
+        qogi.optical_flow_sequence(frames, out=(buf[0], buf[1]))
+
+
+@pytest.mark.parametrize("frames", [2, 3, 17, vel.FRAME_VELOCITY_CHUNK * 2 + 3])
+def test_frame_velocity_in_place_equals_frame_velocity(frames):
+    rng = np.random.default_rng(frames)
+    u = (3 * rng.normal(size=(frames - 1, 24, 30))).astype(np.float32)
+    v = (3 * rng.normal(size=(frames - 1, 24, 30))).astype(np.float32)
+    ref_u, ref_v = vel.frame_velocity(u, v)
+    bu = np.empty((frames, 24, 30), np.float32)
+    bv = np.empty_like(bu)
+    bu[:-1], bv[:-1] = u, v
+    got_u, got_v = vel.frame_velocity_in_place(bu, bv)
+    assert got_u is bu and got_v is bv
+    np.testing.assert_array_equal(bu, ref_u)
+    np.testing.assert_array_equal(bv, ref_v)
+    with pytest.raises(ValueError, match="writeable C-contiguous float32"):
+        vel.frame_velocity_in_place(bu.astype(float), bv)
+
+
 def test_invert_displacement_undoes_a_rotation():
     x, y = grid()
     th, cx, cy = 0.04, 63.5, 47.5

@@ -279,6 +279,35 @@ TEST(TransportFlux, TheSamePlumeMovingRightGivesTheSameProfile) {
     EXPECT_NEAR(b.velocity[H - 1 - y], a.velocity[y], 1e-6 * a.velocity[y]);
 }
 
+TEST(TransportFlux, AMaskSumsTheLinesAsTheFramesMultipliedByItDo) {
+  // A band around the plume plus noise outside it: the masked sums are
+  // those of the frames with the pixels outside the band set to zero (also
+  // negative ones, whose product with the mask is -0), to the last bit.
+  const std::size_t T = 40, H = 30, W = 20;
+  std::vector<float> f = TranslatingColumn(2.0, T, H, W);
+  for (std::size_t i = 0; i < f.size(); ++i) f[i] += 1e-3f * float(int(i * 7919 % 13) - 6);
+  std::vector<std::uint8_t> mask(H * W);
+  for (std::size_t y = 0; y < H; ++y)
+    for (std::size_t x = 0; x < W; ++x) mask[y * W + x] = x >= 4 + y / 10 && x < 16;
+  std::vector<float> banded(f.size());
+  for (std::size_t i = 0; i < f.size(); ++i) banded[i] = f[i] * float(mask[i % (H * W)]);
+  for (FluxAxis axis : {FluxAxis::kUp, FluxAxis::kRight}) {
+    TransportFluxOptions opt;
+    opt.axis = axis;
+    const TransportFluxResult plain = TransportFlux(banded.data(), T, H, W, opt);
+    opt.mask = mask;
+    const TransportFluxResult masked = TransportFlux(f.data(), T, H, W, opt);
+    for (std::size_t k = 0; k < plain.flux.size(); ++k) {
+      EXPECT_EQ(std::isnan(masked.flux[k]), std::isnan(plain.flux[k])) << "line " << k;
+      if (!std::isnan(plain.flux[k])) EXPECT_EQ(masked.flux[k], plain.flux[k]) << "line " << k;
+      EXPECT_EQ(masked.line_column[k], plain.line_column[k]) << "line " << k;
+    }
+  }
+  TransportFluxOptions bad;
+  bad.mask.assign(H * W - 1, 1);
+  EXPECT_THROW(TransportFlux(f.data(), T, H, W, bad), std::invalid_argument);
+}
+
 TEST(TransportFlux, LinesInsideTheSourceHaveNoFlux) {
   const std::size_t T = 80, H = 60, W = 24;
   const std::vector<float> f = TranslatingColumn(2.0, T, H, W);

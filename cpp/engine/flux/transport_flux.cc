@@ -414,11 +414,20 @@ void TransportFluxOptions::Check(std::size_t T, std::size_t H, std::size_t W) co
           "window must be 0 (the whole record) or >= 4 frame pairs; got " + std::to_string(window));
   Require(iterations >= 1, "iterations must be >= 1; got " + std::to_string(iterations));
   Require(half_window >= 0, "half_window must be >= 0; got " + std::to_string(half_window));
+  Require(mask.empty() || mask.size() == H * W,
+          "mask must be empty or hold the frames' " + std::to_string(H) + " x " +
+              std::to_string(W) + " pixels; got " + std::to_string(mask.size()) + " values");
   SourceLine(source_index, axis, Lines(axis, H, W));
 }
 
 std::vector<double> LineSums(const float* frames, std::size_t T, std::size_t H, std::size_t W,
-                             FluxAxis axis, int num_threads, const RunControl* control) {
+                             FluxAxis axis, int num_threads, const RunControl* control,
+                             const std::uint8_t* mask) {
+  // A pixel left out adds 0.0: the sums are those of the frames multiplied
+  // by the mask, to the last bit.
+  const auto value = [mask](const float* f, std::size_t i) {
+    return mask == nullptr || mask[i] ? double(f[i]) : 0.0;
+  };
   const std::size_t n = Lines(axis, H, W);
   const bool reversed = axis == FluxAxis::kDown || axis == FluxAxis::kRight;
   std::vector<double> out(T * n, 0.0);
@@ -432,12 +441,12 @@ std::vector<double> LineSums(const float* frames, std::size_t T, std::size_t H, 
           if (AlongRows(axis)) {
             for (std::size_t y = 0; y < H; ++y) {
               double s = 0.0;
-              for (std::size_t x = 0; x < W; ++x) s += double(f[y * W + x]);
+              for (std::size_t x = 0; x < W; ++x) s += value(f, y * W + x);
               acc[y] = s;
             }
           } else {
             for (std::size_t y = 0; y < H; ++y)
-              for (std::size_t x = 0; x < W; ++x) acc[x] += double(f[y * W + x]);
+              for (std::size_t x = 0; x < W; ++x) acc[x] += value(f, y * W + x);
           }
           double* o = out.data() + t * n;
           for (std::size_t i = 0; i < n; ++i) o[i] = acc[reversed ? n - 1 - i : i];
@@ -459,7 +468,8 @@ TransportFluxResult TransportFlux(const float* frames, std::size_t T, std::size_
   Require(finite, "frames must be finite (replace NaN pixels by 0 or an estimate)");
   std::vector<double> r = options.intervals;
   if (r.empty()) r.assign(T - 1, 1.0);
-  const std::vector<double> sums = LineSums(frames, T, H, W, axis, options.num_threads, control);
+  const std::vector<double> sums = LineSums(frames, T, H, W, axis, options.num_threads, control,
+                                            options.mask.empty() ? nullptr : options.mask.data());
   const Matrix I = Eigen::Map<const Matrix>(sums.data(), T, n);
 
   // A plume that does not change fits any flux level.

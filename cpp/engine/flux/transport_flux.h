@@ -11,6 +11,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <limits>
 #include <string>
 #include <vector>
@@ -59,6 +60,10 @@ struct TransportFluxOptions {
   int half_window = 8;
   // Worker threads (0 = all cores).
   int num_threads = 0;
+  // The pixels summed across each line (H x W, row-major, nonzero = summed),
+  // e.g. the plume's band: the same as giving the frames multiplied by it,
+  // without that second stack. Empty (default): every pixel.
+  std::vector<std::uint8_t> mask;
 
   // Throws std::invalid_argument for a bad field or one that does not fit
   // frames of (T, H, W).
@@ -91,10 +96,12 @@ struct TransportFluxResult {
 };
 
 // Sums of the frames across each line, turned so that line 0 is the far end
-// along the axis: (T, n) row-major, n = H (kUp/kDown) or W.
+// along the axis: (T, n) row-major, n = H (kUp/kDown) or W; only the pixels
+// where `mask` (H x W, or null: all) is nonzero.
 std::vector<double> LineSums(const float* frames, std::size_t T, std::size_t H, std::size_t W,
                              FluxAxis axis, int num_threads = 0,
-                             const RunControl* control = nullptr);
+                             const RunControl* control = nullptr,
+                             const std::uint8_t* mask = nullptr);
 
 // The transport flux of T >= 3 finite frames. Throws std::invalid_argument
 // for bad input and for frames that do not change over time (a steady plume

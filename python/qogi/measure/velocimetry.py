@@ -89,6 +89,7 @@ __all__ = [
     "validate",
     "temporal_filter",
     "frame_velocity",
+    "frame_velocity_in_place",
     "invert_displacement",
     "AXES",
     "TransportFlux",
@@ -357,16 +358,19 @@ class FlowSequence:
 
     Attributes
     ----------
-    u, v, quality : ndarray (T - 1, H, W) float32
-    valid : ndarray (T - 1, H, W) bool
+    u, v : ndarray (T - 1, H, W) float32
+    quality : ndarray (T - 1, H, W) float32, or None
+    valid : ndarray (T - 1, H, W) bool, or None
+        None when the sequence was computed without them
+        (:func:`optical_flow_sequence`'s ``keep_quality``).
     residual_ratio : ndarray (T - 1,)
     method : str
     """
 
     u: np.ndarray
     v: np.ndarray
-    quality: np.ndarray
-    valid: np.ndarray
+    quality: Optional[np.ndarray]
+    valid: Optional[np.ndarray]
     residual_ratio: np.ndarray
     method: str
 
@@ -374,6 +378,11 @@ class FlowSequence:
         return self.u.shape[0]
 
     def __getitem__(self, k: int) -> Flow:
+        if self.quality is None or self.valid is None:
+            raise ValueError(
+                "this FlowSequence was computed with keep_quality=False: it holds u and v "
+                "only (index them directly, or compute it with keep_quality=True)"
+            )
         return Flow(
             self.u[k],
             self.v[k],
@@ -393,6 +402,8 @@ def optical_flow_sequence(
     warm_start: bool = True,
     workers: int = 1,
     progress: Optional[Callable[[float], Optional[bool]]] = None,
+    out: Optional[Tuple[np.ndarray, np.ndarray]] = None,
+    keep_quality: bool = True,
 ) -> FlowSequence:
     """Displacements of every consecutive pair of a frame stack.
 
@@ -421,6 +432,16 @@ def optical_flow_sequence(
     progress : callable(fraction) -> bool or None, optional
         Called after each pair (from the calling thread); returning False
         stops with qogi.Cancelled (Ctrl-C: KeyboardInterrupt).
+    out : (u, v), optional
+        C-contiguous float32 arrays (T - 1, H, W) the displacements are
+        written into (the sequence's ``u`` and ``v`` are then these), e.g.
+        the first T - 1 frames of (T, H, W) buffers that
+        :func:`frame_velocity_in_place` turns into frame velocities.
+    keep_quality : bool, default True
+        False: the per-vector quality and validity are not kept (each
+        worker writes them into one scratch frame; ``quality`` and
+        ``valid`` are None): the sequence then takes 2 instead of 3.25
+        float32 stacks of memory. The displacements are the same.
 
     Returns
     -------
@@ -445,10 +466,25 @@ def optical_flow_sequence(
     if workers == 0:
         workers = max(1, _engine.resolve_threads(0))
     workers = min(workers, n_pairs)
-    out_u = np.empty((n_pairs, H, W), np.float32)
-    out_v = np.empty_like(out_u)
-    out_q = np.empty_like(out_u)
-    out_valid = np.empty((n_pairs, H, W), bool)
+    if out is None:
+        out_u = np.empty((n_pairs, H, W), np.float32)
+        out_v = np.empty_like(out_u)
+    else:
+        out_u, out_v = out
+        for name, a in (("u", out_u), ("v", out_v)):
+            if (
+                not isinstance(a, np.ndarray)
+                or a.shape != (n_pairs, H, W)
+                or a.dtype != np.float32
+                or not a.flags.c_contiguous
+            ):
+                raise ValueError(
+                    f"out's {name} must be a C-contiguous float32 array of shape "
+                    f"{(n_pairs, H, W)}; got {getattr(a, 'dtype', type(a).__name__)} "
+                    f"{np.shape(a)}"
+                )
+    out_q = np.empty_like(out_u) if keep_quality else None
+    out_valid = np.empty((n_pairs, H, W), bool) if keep_quality else None
     ratio = np.empty(n_pairs)
     bounds = np.linspace(0, n_pairs, workers + 1).round().astype(int)
     estimators = [FlowEstimator(method, options, source_mask) for _ in range(workers)]
@@ -458,14 +494,25 @@ def optical_flow_sequence(
     def run(chunk: int) -> None:
         est, first, stop = estimators[chunk], bounds[chunk], bounds[chunk + 1]
         start = max(0, first - WARM_UP_PAIRS) if (warm_start and chunk > 0) else first
-        # The warm-up pairs' results (discarded) go to this chunk's own arrays.
-        scratch = tuple(np.empty_like(a[0]) for a in (out_u, out_v, out_q, out_valid))
+        # The warm-up pairs' results (discarded) go to this chunk's own
+        # frames, and so do quality and validity when they are not kept.
+        scratch = (
+            np.empty((H, W), np.float32),
+            np.empty((H, W), np.float32),
+            np.empty((H, W), np.float32),
+            np.empty((H, W), bool),
+        )
         for k in range(start, stop):
             if cancelled[0]:
                 return
             m = None if mask_stack is None else mask_stack[k]
-            out = scratch if k < first else (out_u[k], out_v[k], out_q[k], out_valid[k])
-            r = est._calc_into(stack[k], stack[k + 1], m, warm_start and k > start, out)
+            if k < first:
+                dst = scratch
+            elif out_q is None or out_valid is None:
+                dst = (out_u[k], out_v[k], scratch[2], scratch[3])
+            else:
+                dst = (out_u[k], out_v[k], out_q[k], out_valid[k])
+            r = est._calc_into(stack[k], stack[k + 1], m, warm_start and k > start, dst)
             if k < first:
                 continue
             ratio[k] = r
@@ -661,9 +708,8 @@ def temporal_filter(
     )
     fu, fv, fk = _engine.temporal_filter(uu, vv, kk, opts)
     if seq is not None:
-        return FlowSequence(
-            fu, fv, seq.quality.copy(), fk.astype(bool), seq.residual_ratio.copy(), seq.method
-        )
+        quality = None if seq.quality is None else seq.quality.copy()
+        return FlowSequence(fu, fv, quality, fk.astype(bool), seq.residual_ratio.copy(), seq.method)
     return fu, fv, fk.astype(bool)
 
 
@@ -731,6 +777,52 @@ def frame_velocity(u, v=None) -> tuple[np.ndarray, np.ndarray]:
             f"got {uu.shape} and {vv.shape}"
         )
     return _engine.frame_velocity(uu, vv)
+
+
+#: Frames per call of :func:`frame_velocity_in_place` (its scratch: two
+#: such stacks and one frame more).
+FRAME_VELOCITY_CHUNK = 16
+
+
+def frame_velocity_in_place(u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`frame_velocity` written over its input: ``u``, ``v`` (T, H, W)
+    float32, C-contiguous, whose first T - 1 frames hold the pairs'
+    displacements [px/frame] (e.g. :func:`optical_flow_sequence` with ``out``
+    the first T - 1 frames), become the velocity at each of the T frames.
+
+    The same values as :func:`frame_velocity` (each frame's velocity is made
+    from pairs t - 1 and t alone), computed from the last frame backwards
+    :data:`FRAME_VELOCITY_CHUNK` frames at a time, so that no second pair of
+    (T, H, W) stacks is held: frame t's velocity overwrites pair t, which no
+    earlier frame needs. Returns ``(u, v)``.
+    """
+    for name, arr in (("u", u), ("v", v)):
+        if not (
+            isinstance(arr, np.ndarray)
+            and arr.ndim == 3
+            and arr.shape[0] >= 2
+            and arr.dtype == np.float32
+            and arr.flags.c_contiguous
+            and arr.flags.writeable
+        ):
+            raise ValueError(
+                f"{name} must be a writeable C-contiguous float32 (T, H, W) array with T >= 2 "
+                f"(T - 1 pairs' displacements, then a frame of room); got "
+                f"{getattr(arr, 'dtype', type(arr).__name__)} {np.shape(arr)}"
+            )
+    if v.shape != u.shape:
+        raise ValueError(f"u and v must have one shape; got {u.shape} and {v.shape}")
+    T = u.shape[0]
+    b = T
+    while b > 0:
+        # Frames a ... b - 1 need pairs a - 1 ... b - 1 (the last frame pair T - 2 only).
+        a = max(0, b - FRAME_VELOCITY_CHUNK)
+        lo, hi = max(0, a - 1), min(b, T - 1)
+        fu, fv = _engine.frame_velocity(u[lo:hi], v[lo:hi])
+        u[a:b] = fu[a - lo : b - lo]
+        v[a:b] = fv[a - lo : b - lo]
+        b = a
+    return u, v
 
 
 # -- flux level from the transport of the line-integrated column -------------
@@ -818,6 +910,7 @@ def transport_flux(
     source_index: Optional[float] = None,
     intervals: Optional[ArrayLike] = None,
     window: int = 0,
+    mask: Optional[ArrayLike] = None,
 ) -> TransportFlux:
     """Time-averaged flux of a plume along an image axis, from the transport
     of its line-integrated column (time of flight of its structures).
@@ -875,6 +968,9 @@ def transport_flux(
         (each window's fit starts from the whole record's). Very short
         windows read high
         (:data:`TRANSPORT_WINDOW_S`, docs/velocimetry.md).
+    mask : array (H, W) of bool, optional
+        Only these pixels of each line are summed (e.g. :func:`transport_band`):
+        the same result as ``frames * mask`` without that second stack.
 
     Returns
     -------
@@ -884,15 +980,26 @@ def transport_flux(
     stack = np.ascontiguousarray(frames, dtype=np.float32)
     if stack.ndim != 3 or stack.shape[0] < 3:
         raise ValueError(f"frames must be a (T, H, W) stack with T >= 3; got shape {stack.shape}")
-    if not np.all(np.isfinite(stack)):
-        raise ValueError("frames must be finite (replace NaN pixels by 0 or an estimate)")
+    # The engine refuses frames that are not finite ("frames must be finite
+    # (replace NaN pixels by 0 or an estimate)") without a (T, H, W) mask.
     T = stack.shape[0]
     r = None if intervals is None else np.asarray(intervals, dtype=float)
     if r is not None and (r.shape != (T - 1,) or not np.all(np.isfinite(r) & (r > 0))):
         raise ValueError(f"intervals must be {T - 1} positive frame intervals; got shape {r.shape}")
+    m = None
+    if mask is not None:
+        m = np.asarray(mask)
+        if m.shape != stack.shape[1:]:
+            raise ValueError(f"mask must have the frames' shape {stack.shape[1:]}; got {m.shape}")
+        m = np.ascontiguousarray(m != 0, dtype=np.uint8)
     # The engine checks source_index (a row or column inside the frame).
     flux, line_column, velocity, displacement, unexplained = _engine.transport_flux(
-        stack, axis, None if source_index is None else float(source_index), r, int(window)
+        stack,
+        axis,
+        None if source_index is None else float(source_index),
+        r,
+        int(window),
+        mask=m,
     )
     return TransportFlux(flux, line_column, velocity, displacement, axis, unexplained)
 
@@ -1037,7 +1144,7 @@ def interpolate_frame_velocity(
 
 
 def calibrate_flux_level(
-    seq: FlowSequence,
+    seq: Optional[FlowSequence],
     frames: ArrayLike,
     axis: str = "up",
     source_index: Optional[float] = None,
@@ -1086,8 +1193,9 @@ def calibrate_flux_level(
 
     Parameters
     ----------
-    seq : FlowSequence
-        Displacements of the T - 1 pairs of ``frames``.
+    seq : FlowSequence or None
+        Displacements of the T - 1 pairs of ``frames`` (None with
+        ``frame_velocities`` given).
     frames : array (T, H, W)
         The column-density frames the sequence was computed from.
     axis, source_index
@@ -1106,8 +1214,10 @@ def calibrate_flux_level(
     frame_velocities : (u, v), optional
         The velocity at every frame of ``frames`` [px/frame], (T, H, W) each,
         e.g. :func:`interpolate_frame_velocity` of a sequence of every n-th
-        frame; they are scaled in place. Default: :func:`frame_velocity` of
-        ``seq`` (then ``seq`` may be None with them given).
+        frame; they are scaled in place (and where the flow is not used,
+        overwritten by the transport's velocity: no second pair of stacks).
+        Default: :func:`frame_velocity` of ``seq`` (then ``seq`` may be None
+        with them given).
 
     Returns
     -------
@@ -1126,6 +1236,8 @@ def calibrate_flux_level(
                 f"frame_velocities must be two arrays of the frames' shape "
                 f"{stack.shape}; got {np.shape(fu)} and {np.shape(fv)}"
             )
+    elif seq is None:
+        raise ValueError("calibrate_flux_level needs seq, or frame_velocities with it None")
     elif stack.ndim != 3 or seq.u.shape != (T - 1,) + stack.shape[1:]:
         raise ValueError(
             f"frames must be the (T, H, W) stack of the sequence's T - 1 = "
@@ -1152,6 +1264,7 @@ def calibrate_flux_level(
     if not 0 < max_reversed <= 1:
         raise ValueError(f"max_reversed must be in (0, 1]; got {max_reversed}")
     if frame_velocities is None:
+        assert seq is not None  # checked above
         fu, fv = frame_velocity(seq)
     scale, flow_used = _engine.flux_level_scale(
         np.ascontiguousarray(stack),
@@ -1165,7 +1278,13 @@ def calibrate_flux_level(
         float(max_reversed),
     )
     if not flow_used:
-        return _transport_velocity(tf, stack.shape) + (scale,)
+        if frame_velocities is None:
+            return _transport_velocity(tf, stack.shape) + (scale,)
+        # The same at every frame: one frame's, written over the given stacks.
+        tu, tv = _transport_velocity(tf, (1,) + stack.shape[1:])
+        fu[...] = tu
+        fv[...] = tv
+        return fu, fv, scale
     s = scale.reshape((1, -1, 1) if axis in ("up", "down") else (1, 1, -1))
     fu *= s
     fv *= s

@@ -186,17 +186,17 @@ def _block_velocity(
     if plan.on:
         # Only the plume's part of each line (vel.transport_band): noise
         # common to a line would draw the flux level low in faint plumes.
-        banded = velocity_frames * vel.transport_band(velocity_frames.mean(axis=0), axis)
+        band = vel.transport_band(velocity_frames.mean(axis=0), axis)
         # How much the plume's column fluctuates (qogi.pipeline.selfchecks): a
         # steady column's pattern need not travel at the gas's speed.
         velocity_info["column_fluctuation"] = selfchecks.column_fluctuation(
-            banded.sum(axis=2 if axis in ("up", "down") else 1)
+            _band_line_sums(velocity_frames, band, axis)
         )
         window = _transport_window(st.scene.frame_rate, done)
         velocity_info["transport_window"] = window
         job = _workers_mod.current().submit(
             lambda: vel.transport_flux(
-                banded, axis, region_index, intervals=intervals, window=window
+                velocity_frames, axis, region_index, intervals=intervals, window=window, mask=band
             ),
             "qogi-transport",
         )
@@ -224,15 +224,22 @@ def _block_velocity(
             used=int(stride),
         )
     velocity_info["pair_stride"] = stride
-    fvel = None
     try:
+        # The pairs' displacements go into the first frames of two (frames,
+        # h, w) stacks that then become the frame velocities in place: the
+        # block holds two velocity stacks, not the sequence's u, v, quality
+        # and validity beside the frame velocities' u and v.
+        paired = norm[::stride]
+        fvel = (np.empty(paired.shape, np.float32), np.empty(paired.shape, np.float32))
         seq = vel.optical_flow_sequence(
-            norm[::stride],
+            paired,
             method=cfg.velocity,
             source_mask=mask,
             warm_start=True,
             workers=0,
             progress=lambda fr_: say(0.6 + 0.3 * fr_, "velocimetry"),
+            out=(fvel[0][:-1], fvel[1][:-1]),
+            keep_quality=False,
         )
         # Each pair's displacement over its real duration (time_s), in px per
         # `stride` nominal frame intervals.
@@ -240,8 +247,9 @@ def _block_velocity(
         if not np.all(per == 1.0):
             seq.u *= per[:, None, None]
             seq.v *= per[:, None, None]
+        fvel = vel.frame_velocity_in_place(*fvel)
         if stride > 1:
-            fvel = vel.interpolate_frame_velocity(*vel.frame_velocity(seq), stride, norm.shape[0])
+            fvel = vel.interpolate_frame_velocity(*fvel, stride, norm.shape[0])
     except KeyboardInterrupt:
         # Ctrl-C inside the velocimetry (or its own loops' stop): the block
         # is dropped and the run returns the blocks finished before it.
@@ -262,7 +270,7 @@ def _block_velocity(
             lines = crop[0] if axis in ("up", "down") else crop[1]
             tf = tf.lines(lines, scale=1.0 / scale if scale > 0 else 1.0)
             u, v, level = vel.calibrate_flux_level(
-                seq, norm, axis, index, transport=tf, frame_velocities=fvel
+                None, norm, axis, index, transport=tf, frame_velocities=fvel
             )
             uv = (u, v)
             level_found = bool(np.isfinite(level).any())
@@ -276,7 +284,7 @@ def _block_velocity(
         except ValueError as e:
             flux_note = f"off: {e}"
     if uv is None:
-        uv = fvel if fvel is not None else vel.frame_velocity(seq)
+        uv = fvel
     velocity_info["flux_level"] = flux_note
     # No transport along the axis from the source, or a flow that does not
     # follow it: the gas may move the other way (a source given at the
@@ -316,6 +324,23 @@ def frames_in_view(tf: vel.TransportFlux, source_index: float) -> float:
     n = len(tf.displacement)
     path = float(source_index) if tf.axis in ("up", "left") else n - 1 - float(source_index)
     return max(path, 0.0) / float(np.median(d))
+
+
+#: Frames per step of :func:`_band_line_sums` (its scratch: this many frames).
+BAND_CHUNK_FRAMES = 32
+
+
+def _band_line_sums(frames: np.ndarray, band: np.ndarray, axis: str) -> np.ndarray:
+    """The sums of ``frames * band`` (T, H, W) across each line along
+    ``axis`` (T, lines), float32, made :data:`BAND_CHUNK_FRAMES` frames at a
+    time (the same sums, without a second stack of the block's frames)."""
+    across = 2 if axis in ("up", "down") else 1
+    return np.concatenate(
+        [
+            (frames[k : k + BAND_CHUNK_FRAMES] * band).sum(axis=across)
+            for k in range(0, frames.shape[0], BAND_CHUNK_FRAMES)
+        ]
+    )
 
 
 _OPPOSITE = {"up": "down", "down": "up", "left": "right", "right": "left"}
