@@ -24,7 +24,7 @@ endif
 ENGINE_SOURCES := $(shell find cpp cmake -type f 2>/dev/null) CMakeLists.txt pyproject.toml
 CONSUMER_SOURCES := $(shell find examples/cpp_consumer -type f 2>/dev/null)
 
-.PHONY: all setup build demo test test-cpp test-python consumer bench gui wheel check-clang fuzz lint clean distclean
+.PHONY: FORCE all setup build demo test test-cpp test-python consumer bench gui wheel check-clang fuzz lint clean distclean
 
 all: build
 
@@ -48,8 +48,14 @@ $(STAMPS)/pydeps: $(STAMPS)/system requirements/dev.txt requirements/constraints
 # The package in editable mode: Python sources are used in place; the
 # extension and the C++ tests are built in $(BUILD) (incrementally).
 # WERROR=ON (as CI sets it) makes warnings in qogi's own C++ errors.
+# The setting is remembered in a stamp that changes only when the setting does,
+# so switching it rebuilds (the objects compiled without -Werror are not reused
+# as if they had passed with it).
 WERROR ?= OFF
-$(STAMPS)/built: $(STAMPS)/pydeps $(ENGINE_SOURCES)
+$(STAMPS)/werror: FORCE | $(STAMPS)
+	@echo '$(WERROR)' | cmp -s - $@ || echo '$(WERROR)' > $@
+
+$(STAMPS)/built: $(STAMPS)/pydeps $(STAMPS)/werror $(ENGINE_SOURCES)
 	$(VPY) -m pip install -q --no-build-isolation --no-deps -e . \
 	  -Cbuild-dir=$(BUILD) -Ccmake.define.QOGI_BUILD_TESTS=ON -Ccmake.define.QOGI_WERROR=$(WERROR)
 	@# Type stubs of the extension for editors and mypy (generated, not committed).
@@ -155,3 +161,5 @@ clean:
 
 distclean: clean
 	rm -rf $(VENV)
+
+FORCE:
