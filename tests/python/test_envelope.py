@@ -114,11 +114,55 @@ def test_a_bad_grid_on_the_command_line_exits_2(tmp_path, capsys):
 
 
 def test_the_scene_snr_is_the_true_rate_over_the_noise_equivalent_rate():
-    det = {"noise_equivalent_column_kg_m2": 2e-6, "velocity_m_s": -0.5, "width_m": 0.04}
-    # Q = 3.6 g/h = 1e-6 kg/s; NEC v w = 4e-8 kg/s
-    assert envelope.scene_snr(0.0036, det) == pytest.approx(25.0)
-    assert math.isnan(envelope.scene_snr(0.0036, None))
-    assert math.isnan(envelope.scene_snr(None, det))
+    # Q = 3.6 g/h = 1e-6 kg/s; NEC v w = 2e-6 x 0.5 x 0.04 = 4e-8 kg/s
+    assert envelope.scene_snr(0.0036, 2e-6, -0.5, 0.04) == pytest.approx(25.0)
+    assert math.isnan(envelope.scene_snr(0.0036, None, 0.5, 0.04))
+    assert math.isnan(envelope.scene_snr(None, 2e-6, 0.5, 0.04))
+    assert math.isnan(envelope.scene_snr(0.0036, 2e-6, 0.0, 0.04))
+
+
+def test_the_snr_takes_the_true_plumes_speed_and_width_not_the_runs():
+    """A run whose velocity reads 0.07 of the truth's (the 1.5 m case in a
+    2 m/s wind, docs/validation.md) would sit 14x higher on the SNR axis by
+    its own measurement: ``snr`` takes the simulator's mean plume, and
+    ``snr_measured`` keeps the run's."""
+    cell = envelope.Cell(
+        1.0, 10.0, -20.0, 4.0, "structured", "gf320", 3.0, 0, width_px=160, height_px=120
+    )
+    truth = envelope.surface_truth(cell)
+    assert len(truth) == len(cell.surfaces_px)
+    for speed, width in truth:
+        # 4 m/s crosswind, a plume a few cm wide at 30-60 px of 1.3 cm downwind.
+        assert speed == pytest.approx(4.0, rel=0.05)
+        assert 0.01 < width < 0.1
+    widths = [w for _, w in truth]
+    assert widths == sorted(widths)  # it widens downwind
+    nec = 3e-6
+    result = {
+        "surfaces": [
+            {
+                "name": f"S{k}",
+                "species": {
+                    "CH4": {
+                        "truth_kg_h": 1.0,
+                        "mean_kg_h": 0.5,
+                        "ci90_kg_h": [0.4, 0.6],
+                        "detection": {
+                            "noise_equivalent_column_kg_m2": nec,
+                            "velocity_m_s": 0.07 * speed,
+                            "width_m": width,
+                        },
+                    }
+                },
+            }
+            for k, (speed, width) in enumerate(truth)
+        ],
+        "warnings": [],
+    }
+    rows = envelope.cell_rows(cell, result)
+    for row, (speed, width) in zip(rows, truth):
+        assert row["snr"] == pytest.approx(1.0 / 3600 / (nec * speed * width))
+        assert row["snr_measured"] == pytest.approx(row["snr"] / 0.07)
 
 
 @pytest.mark.slow

@@ -64,10 +64,12 @@ whose peak column equals the camera's noise-equivalent column,
 
 with ``NEC`` the noise-equivalent column [kg/m2] (the most sensitive
 channel's, :mod:`qogi.pipeline.detection`), ``v`` the gas speed normal to the
-surface and ``w`` the plume's effective width along it, as the result's
-detection record measured them. It is the mean plume's peak column in units
-of the noise; the stated detection limit sits at ``snr`` = ``k + z`` (3 +
-1.64 at the defaults).
+surface and ``w`` the plume's effective width along it, the simulator's mean
+plume's (:func:`surface_truth`), so that a run whose velocity is off does
+not move its own place on the axis; ``snr_measured`` takes ``v`` and ``w``
+as the result's detection record measured them. It is the mean plume's peak
+column in units of the noise; the stated detection limit sits at ``snr`` =
+``k + z`` (3 + 1.64 at the defaults).
 """
 
 from __future__ import annotations
@@ -82,7 +84,7 @@ import pathlib
 import re
 import sys
 from importlib import resources
-from typing import Dict, List, Optional, Sequence, Tuple, Union
+from typing import Callable, Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -107,6 +109,7 @@ __all__ = [
     "render_cell",
     "write_manifest",
     "scene_snr",
+    "surface_truth",
     "cell_rows",
     "aggregate",
     "run",
@@ -420,19 +423,8 @@ def surfaces(cell: Cell, rel=None, view=None) -> Tuple[List[list], Tuple[float, 
     cx, cy = 0.5 * (view.width_px - 1), 0.5 * (view.height_px - 1)
     ex = cx + (rel.exit_x_m - view.center_x_m) / fp
     ey = cy - (rel.stack_height_m - view.center_z_m) / fp
-    extent = 1.5 * max(cell.surfaces_px) * fp + 0.1
-    mf = synth.mean_flow(rel, extent_m=extent)
-    s_px = np.asarray(mf["s_m"]) / fp
     out = []
-    for d in cell.surfaces_px:
-        if d > s_px[-1]:
-            raise ValueError(
-                f"the mean plume axis ends {s_px[-1]:.0f} px from the exit, before {d:g} px"
-            )
-
-        def at(key, d=d):
-            return float(np.interp(d, s_px, np.asarray(mf[key])))
-
+    for d, at in zip(cell.surfaces_px, _mean_axis(cell, rel, view)):
         x = ex + (at("x_m") - rel.exit_x_m) / fp
         y = ey - (at("z_m") - rel.stack_height_m) / fp
         tx, ty = at("tangent_x"), -at("tangent_z")
@@ -453,6 +445,46 @@ def surfaces(cell: Cell, rel=None, view=None) -> Tuple[List[list], Tuple[float, 
             ends.append((x + sgn * t * nx, y + sgn * t * ny))
         out.append([round(v, 2) for xy in ends for v in xy])
     return out, (round(ex, 2), round(ey, 2))
+
+
+def _mean_axis(cell: Cell, rel, view) -> List[Callable[[str], float]]:
+    """Per surface distance (``cell.surfaces_px``), a lookup of the
+    simulator's mean plume (:func:`qogi.synth.mean_flow`) where its axis has
+    run that far from the exit: ``at(key)``. Raises ValueError when the axis
+    ends before."""
+    fp = view.distance_m * view.ifov_rad
+    extent = 1.5 * max(cell.surfaces_px) * fp + 0.1
+    mf = synth.mean_flow(rel, extent_m=extent)
+    s_px = np.asarray(mf["s_m"]) / fp
+
+    def lookup(d: float) -> Callable[[str], float]:
+        def at(key: str) -> float:
+            return float(np.interp(d, s_px, np.asarray(mf[key])))
+
+        return at
+
+    out: List[Callable[[str], float]] = []
+    for d in cell.surfaces_px:
+        if d > s_px[-1]:
+            raise ValueError(
+                f"the mean plume axis ends {s_px[-1]:.0f} px from the exit, before {d:g} px"
+            )
+        out.append(lookup(d))
+    return out
+
+
+def surface_truth(cell: Cell, rel=None, view=None) -> List[Tuple[float, float]]:
+    """The true mean plume at each of the cell's surfaces: ``(speed_m_s,
+    width_m)``, the mass-weighted speed along the axis (the surfaces are
+    perpendicular to it, so it is the normal speed) and the effective width
+    ``sqrt(2 pi) sigma_c`` of the mean column profile across it (``sum c dl /
+    max c`` of a Gaussian of the mean concentration width ``sigma_c``)."""
+    if rel is None or view is None:
+        rel, view, _, _ = scene(cell)
+    return [
+        (at("mass_weighted_speed_m_s"), math.sqrt(2.0 * math.pi) * at("sigma_c_m"))
+        for at in _mean_axis(cell, rel, view)
+    ]
 
 
 def _not_expressible(cell: Cell) -> Optional[str]:
@@ -530,21 +562,23 @@ def write_manifest(cells: Sequence[Cell], renders: pathlib.Path, path: pathlib.P
 # -- evaluation -----------------------------------------------------------------
 
 
-def scene_snr(truth_kg_h: Optional[float], detection: Optional[dict]) -> float:
-    """``Q_true / (NEC v w)`` from a rate's detection record (NaN when unknown).
+def scene_snr(truth_kg_h: Optional[float], nec_kg_m2: Optional[float], speed_m_s, width_m) -> float:
+    """``Q_true / (NEC v w)`` (NaN when a factor is unknown or not positive).
 
     Parameters
     ----------
     truth_kg_h : float, kg/h
-    detection : dict
-        ``SpeciesRate.detection``: ``noise_equivalent_column_kg_m2``,
-        ``velocity_m_s`` (normal to the surface), ``width_m`` (effective width).
+    nec_kg_m2 : float
+        The noise-equivalent column (``SpeciesRate.detection``).
+    speed_m_s, width_m : float
+        The gas speed normal to the surface (its magnitude is taken) and the
+        plume's effective width along it: the true mean plume's
+        (:func:`surface_truth`) for ``snr``, the result's detection record for
+        ``snr_measured``.
     """
     try:
-        nec = float(detection["noise_equivalent_column_kg_m2"])  # type: ignore[index]
-        v = abs(float(detection["velocity_m_s"]))  # type: ignore[index]
-        w = float(detection["width_m"])  # type: ignore[index]
-    except (TypeError, KeyError, ValueError):
+        nec, v, w = float(nec_kg_m2), abs(float(speed_m_s)), float(width_m)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
         return math.nan
     if truth_kg_h is None or not nec * v * w > 0:
         return math.nan
@@ -568,6 +602,7 @@ CELL_COLUMNS = [
     "detected",
     "detection_limit_kg_h",
     "snr",
+    "snr_measured",
     "warnings",
     "error",
 ]
@@ -583,9 +618,15 @@ def cell_rows(
     if result is None:
         return [{**head, "status": status, "error": failure or "no result"}]
     warnings = result.get("warnings") or []
+    try:
+        truth_axis = surface_truth(cell)
+    except ValueError:  # the mean axis ends before a surface (none was placed there)
+        truth_axis = []
     rows = []
     for k, s in enumerate(result["surfaces"]):
         r = s["species"]["CH4"]
+        det = r.get("detection") or {}
+        speed, width = truth_axis[k] if k < len(truth_axis) else (math.nan, math.nan)
         truth, mean = r.get("truth_kg_h"), r.get("mean_kg_h")
         lo, hi = r["ci90_kg_h"]
         ok = truth is not None and mean is not None
@@ -604,7 +645,13 @@ def cell_rows(
                 "covers": bool(lo <= truth <= hi) if ok and lo is not None else None,
                 "detected": r.get("detected"),
                 "detection_limit_kg_h": r.get("detection_limit_kg_h"),
-                "snr": scene_snr(truth, r.get("detection")),
+                "snr": scene_snr(truth, det.get("noise_equivalent_column_kg_m2"), speed, width),
+                "snr_measured": scene_snr(
+                    truth,
+                    det.get("noise_equivalent_column_kg_m2"),
+                    det.get("velocity_m_s"),
+                    det.get("width_m"),
+                ),
                 "warnings": " ".join(codes),
                 "error": "",
             }
