@@ -1024,9 +1024,10 @@ def transport_band(
     plume's part of each line keeps the gas and leaves out most of that
     noise.
 
-    A pixel is significant where the time-averaged field exceeds ``z`` times
-    its noise (1.4826 x the median absolute deviation of the averaged field,
-    most of which holds no gas) and so does a neighbour along its line. A
+    A pixel is significant where the time-averaged field exceeds its median
+    by ``z`` times its noise (1.4826 x the median absolute deviation of the
+    averaged field, most of which holds no gas) and so does a neighbour
+    along its line. A
     line's band runs from the first to the last significant pixel of the
     lines within ``neighbour_lines`` of it,
     widened on each side by its own width, at least ``min_margin_px`` (the
@@ -1054,11 +1055,14 @@ def transport_band(
         raise ValueError(f"mean_field must be a 2-D (H, W) image; got shape {m.shape}")
     view = m if axis in ("up", "down") else m.T  # (lines, across)
     finite = np.where(np.isfinite(view), view, 0.0)
-    noise = 1.4826 * float(np.median(np.abs(finite - np.median(finite))))
+    floor = float(np.median(finite))
+    noise = 1.4826 * float(np.median(np.abs(finite - floor)))
     band = np.ones(view.shape, bool)
     if not noise > 0:
         return band if axis in ("up", "down") else band.T
-    sig = finite > z * noise
+    # Above the field's own floor (its median, most of it holds no gas): a
+    # background offset by a constant does not widen the band.
+    sig = finite - floor > z * noise
     # Isolated pixels (noise) do not stretch a band: a significant pixel
     # needs a significant neighbour along its line.
     pair = sig[:, 1:] & sig[:, :-1]
