@@ -524,6 +524,59 @@ def test_gas_in_view_for_too_few_frames_flags_the_rate_as_not_measured():
     assert failed == []
 
 
+def test_a_time_of_flight_worse_than_unrelated_frames_flags_the_rate_as_not_measured():
+    # The residual of a displaced comparison of two frames unrelated to each
+    # other is twice the anomaly's variance: above that the fit explains
+    # less than no transport at all.
+    rng = np.random.default_rng(0)
+    a, b = rng.standard_normal((2, 100000))
+    assert np.var(a - b) / np.var(b) == pytest.approx(2.0, rel=0.02)
+    limit = selfchecks.THRESHOLDS["transport_unexplained"]
+    assert limit == 2.0
+    assert selfchecks.CODES["transport_unexplained"] == "transport-unresolved"
+    assert "transport_unexplained" not in selfchecks.BELOW
+    # Clean and noisy fits that read the rate within 10 % (the envelope's
+    # wind block): 0.02-1.9.
+    _, failed = selfchecks.failure_terms(SurfaceEvidence(unexplained_sum=1.9, unexplained_n=1))
+    assert failed == []
+    # The wall at -20 K in an 8 m/s wind, seed 2: a fit locked on a slow
+    # displacement, 2.5.
+    m, failed = selfchecks.failure_terms(SurfaceEvidence(unexplained_sum=5.0, unexplained_n=2))
+    assert m["transport_unexplained"] == pytest.approx(2.5)
+    assert failed == [("transport_unexplained", 1.0)]
+
+
+@pytest.mark.slow
+def test_a_fit_locked_on_a_slow_displacement_is_flagged_and_its_interval_covers(tmp_path):
+    """1 kg/h at 10 m in an 8 m/s wind before a structured wall 20 K warmer
+    than the gas (the envelope's cell, seed 2): the flux level's time of
+    flight locked on a displacement a fifth of the gas's (19.7 frames in
+    view, so ``transport_frames_in_view`` passed) and read -90 / -70 / -78 %
+    with no warning; it left 2.5 of the column's fluctuation unexplained,
+    more than unrelated frames would. Flagged, the speed is taken as not
+    measured (term 1); the interval of a rate read at a tenth of the truth
+    still does not reach it (its far side is exp(1.645) = 5.2 times the
+    rate: what a speed nothing measured can be bounded by is open)."""
+    import qogi
+    from qogi.apps import envelope as env
+    from qogi.pipeline import QuantifyConfig, quantify
+
+    cell = env.Cell(
+        1.0, 10.0, -20.0, 8.0, "structured", "gf320", 3.0, 2, width_px=160, height_px=120
+    )
+    env.render_cell(cell, tmp_path / "wall.h5")
+    lines, source = env.surfaces(cell)
+    surfaces = [Surface([(a, b), (c, d)], name=f"S{i}") for i, (a, b, c, d) in enumerate(lines)]
+    res = quantify(
+        qogi.open_recording(tmp_path / "wall.h5"), surfaces, QuantifyConfig(source=source)
+    )
+    for s in res.surfaces:
+        r = s.species["CH4"]
+        codes = {w.code for w in res.warnings if w.surface == s.surface.name}
+        assert "transport-unresolved" in codes, (s.surface.name, r.error_vs_truth, codes)
+        assert r.ci90_kg_h[1] >= 5.0 * r.mean_kg_h, (r.mean_kg_h, r.ci90_kg_h)
+
+
 def _windy(tmp_path, wind_m_s):
     """1 kg/h from the outdoor stack in a ``wind_m_s`` crosswind, 10 m away
     before a plate 20 K colder than the gas, 2 s at 15 Hz in 128x64 px of

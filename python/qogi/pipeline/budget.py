@@ -442,6 +442,10 @@ def _self_checks(st: RunState, j: int, surface: str, sp: str, summary, relative,
         "column_fluctuation": "RMS fluctuation of the plume's most fluctuating lines: a "
         "steady, nearly laminar column, whose pattern (instability waves) may travel "
         "slower than its gas, and the flux level follows the pattern",
+        "transport_unexplained": "of the plume's column fluctuation is left unexplained by "
+        "the flux level's time of flight, more than frames unrelated to each other leave "
+        "(200 %): the displacement it found does not carry the plume's structures, so the "
+        "speed is not measured",
         "transport_frames_in_view": "frames is how long the gas stays in view (the frame "
         "beyond the source over the flux level's displacement per frame): its structures "
         "change beyond recognition between frames, and neither the flow nor the time of "
@@ -459,7 +463,7 @@ def _self_checks(st: RunState, j: int, surface: str, sp: str, summary, relative,
             if key == "held_background_error"
             else "film at a higher frame rate, or from farther away or with a wider view, "
             "so that the gas stays in the frame for more frames"
-            if key == "transport_frames_in_view"
+            if key in ("transport_frames_in_view", "transport_unexplained")
             else "try another background (a gas-free region, or 'percentile') or "
             "surfaces where the background is uniform"
         )
