@@ -546,6 +546,26 @@ def test_a_time_of_flight_worse_than_unrelated_frames_flags_the_rate_as_not_meas
     assert failed == [("transport_unexplained", 1.0)]
 
 
+def _wall_in_absorption(tmp_path, wind_m_s, seed):
+    """The operating envelope's cell of 1 kg/h at 10 m in a ``wind_m_s``
+    crosswind before a structured wall 20 K warmer than the gas (160x120 px
+    of 1.3 cm, 3 s at 15 Hz, ``seed``), quantified with the defaults and the
+    source given."""
+    import qogi
+    from qogi.apps import envelope as env
+    from qogi.pipeline import QuantifyConfig, quantify
+
+    cell = env.Cell(
+        1.0, 10.0, -20.0, wind_m_s, "structured", "gf320", 3.0, seed, width_px=160, height_px=120
+    )
+    env.render_cell(cell, tmp_path / "wall.h5")
+    lines, source = env.surfaces(cell)
+    surfaces = [Surface([(a, b), (c, d)], name=f"S{i}") for i, (a, b, c, d) in enumerate(lines)]
+    return quantify(
+        qogi.open_recording(tmp_path / "wall.h5"), surfaces, QuantifyConfig(source=source)
+    )
+
+
 @pytest.mark.slow
 def test_a_fit_locked_on_a_slow_displacement_is_flagged_and_its_interval_covers(tmp_path):
     """1 kg/h at 10 m in an 8 m/s wind before a structured wall 20 K warmer
@@ -557,19 +577,7 @@ def test_a_fit_locked_on_a_slow_displacement_is_flagged_and_its_interval_covers(
     measured (term 1); the interval of a rate read at a tenth of the truth
     still does not reach it (its far side is exp(1.645) = 5.2 times the
     rate: what a speed nothing measured can be bounded by is open)."""
-    import qogi
-    from qogi.apps import envelope as env
-    from qogi.pipeline import QuantifyConfig, quantify
-
-    cell = env.Cell(
-        1.0, 10.0, -20.0, 8.0, "structured", "gf320", 3.0, 2, width_px=160, height_px=120
-    )
-    env.render_cell(cell, tmp_path / "wall.h5")
-    lines, source = env.surfaces(cell)
-    surfaces = [Surface([(a, b), (c, d)], name=f"S{i}") for i, (a, b, c, d) in enumerate(lines)]
-    res = quantify(
-        qogi.open_recording(tmp_path / "wall.h5"), surfaces, QuantifyConfig(source=source)
-    )
+    res = _wall_in_absorption(tmp_path, 8.0, 2)
     for s in res.surfaces:
         r = s.species["CH4"]
         codes = {w.code for w in res.warnings if w.surface == s.surface.name}
@@ -622,19 +630,7 @@ def test_a_wall_in_absorption_at_4_m_s_reads_within_its_interval(tmp_path):
     average, then took in the whole frame and its line noise, and the three
     surfaces read -33 / -29 / -26 % with intervals missing the truth and no
     warning (docs/validation.md, "The percentile's noise offset")."""
-    import qogi
-    from qogi.apps import envelope as env
-    from qogi.pipeline import QuantifyConfig, quantify
-
-    cell = env.Cell(
-        1.0, 10.0, -20.0, 4.0, "structured", "gf320", 3.0, 0, width_px=160, height_px=120
-    )
-    env.render_cell(cell, tmp_path / "wall.h5")
-    lines, source = env.surfaces(cell)
-    surfaces = [Surface([(a, b), (c, d)], name=f"S{i}") for i, (a, b, c, d) in enumerate(lines)]
-    res = quantify(
-        qogi.open_recording(tmp_path / "wall.h5"), surfaces, QuantifyConfig(source=source)
-    )
+    res = _wall_in_absorption(tmp_path, 4.0, 0)
     for s in res.surfaces:
         r = s.species["CH4"]
         assert abs(r.error_vs_truth) < 0.15, (s.surface.name, r.error_vs_truth)
