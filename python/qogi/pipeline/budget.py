@@ -444,7 +444,7 @@ def _self_checks(st: RunState, j: int, surface: str, sp: str, summary, relative,
         "slower than its gas, and the flux level follows the pattern",
         "transport_unexplained": "of the plume's column fluctuation is left unexplained by "
         "the flux level's time of flight, more than frames unrelated to each other leave "
-        "(200 %): the displacement it found does not carry the plume's structures, so the "
+        "(the threshold): the displacement it found does not carry the plume's structures, so the "
         "speed is not measured",
         "transport_frames_in_view": "frames is how long the gas stays in view (the frame "
         "beyond the source over the flux level's displacement per frame): its structures "
