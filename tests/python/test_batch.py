@@ -274,12 +274,20 @@ def test_a_killed_batch_resumes_with_only_the_missing_rows(clips, tmp_path):
     assert r.returncode == 2 and "--resume" in r.stderr
 
 
-def _wait_for(path, proc, seconds=60):
+def _read_scheduler_file(path, proc, seconds=60):
+    """The scheduler's address once its file holds a whole JSON document.
+
+    Dask creates the file and then writes it, so it can exist and still be
+    empty or partial for a moment: wait for the whole document, not the name.
+    """
     deadline = time.monotonic() + seconds
-    while not path.exists() and time.monotonic() < deadline:
+    while time.monotonic() < deadline:
         assert proc.poll() is None, f"exited {proc.returncode}"
-        time.sleep(0.05)
-    assert path.exists(), f"{path} not written within {seconds} s"
+        try:
+            return json.loads(path.read_text())["address"]
+        except (FileNotFoundError, json.JSONDecodeError, KeyError):
+            time.sleep(0.05)
+    raise AssertionError(f"{path} not written whole within {seconds} s")
 
 
 @pytest.mark.slow
@@ -307,8 +315,7 @@ def test_the_same_batch_on_a_scheduler_started_separately(clips, first_batch, tm
                 stderr=log,
             )
         )
-        _wait_for(sched_file, procs[0])
-        address = json.loads(sched_file.read_text())["address"]
+        address = _read_scheduler_file(sched_file, procs[0])
         assert address.startswith("tcp://127.0.0.1:")
         procs.append(
             subprocess.Popen(
