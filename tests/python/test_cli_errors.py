@@ -366,6 +366,27 @@ def test_a_surface_cut_by_the_image_border_is_shortened_along_itself_and_warned(
     assert np.asarray(low.points)[:, 0].min() > 0  # the low one fits: not warned
 
 
+def test_a_surface_cut_at_the_border_of_an_oblique_plume_stays_inside_the_image():
+    """The textured lab without its source: an end cut at the image's edge
+    landed at x = -1.4e-14 and the run refused the surface (exit 2)."""
+    from qogi.pipeline.surfaces import auto_surfaces
+
+    h, w, src = 240, 320, (200.3, 200.7)
+    y, x = np.mgrid[0:h, 0:w].astype(float)
+    cut = 0
+    for deg in np.arange(100.0, 170.0, 1.7):
+        a = np.radians(deg)
+        along = (x - src[0]) * np.cos(a) - (y - src[1]) * np.sin(a)
+        across = (x - src[0]) * np.sin(a) + (y - src[1]) * np.cos(a)
+        width = 3.0 + 0.4 * np.clip(along, 0.0, None)
+        img = np.where(along >= 0, np.exp(-0.5 * (across / width) ** 2) / width, 0.0)
+        for surf in auto_surfaces(img, [40.0, 80.0, 120.0, 160.0], source=src):
+            p = np.asarray(surf.points)
+            assert np.all((p >= 0) & (p <= [w - 1, h - 1])), (deg, surf.name, p.tolist())
+            cut += int(np.any((p == 0) | (p == [w - 1, h - 1])))
+    assert cut > 10  # the case at hand: ends on the border
+
+
 @pytest.mark.parametrize(
     "value, needle",
     [("5000", "the largest usable distance is"), ("-20", "give distances > 0 px")],

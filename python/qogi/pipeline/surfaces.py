@@ -361,7 +361,9 @@ def auto_surfaces(
                 f"distance {dist:g} px: the plume's width there lies outside the {wd} x {h} "
                 "image; choose a distance where the plume is inside the image"
             )
-        a, b = mid + cut_lo * perp, mid + cut_hi * perp
+        # Onto the image's box: an end cut at its edge lands a rounding
+        # error beyond it (-1e-14 px), which the run refuses.
+        a, b = (np.clip(mid + t * perp, 0.0, [wd - 1, h - 1]) for t in (cut_lo, cut_hi))
         s = Surface([tuple(a), tuple(b)], name=f"A{k + 1} ({dist:g} px)")
         if warnings is not None and (cut_lo > lo or cut_hi < hi):
             warnings.add(
