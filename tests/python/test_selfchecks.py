@@ -546,6 +546,76 @@ def test_a_time_of_flight_worse_than_unrelated_frames_flags_the_rate_as_not_meas
     assert failed == [("transport_unexplained", 1.0)]
 
 
+def test_transport_speed_is_the_median_of_the_solved_lines_displacement():
+    from qogi.measure import velocimetry as vel
+    from qogi.pipeline.velocity import transport_speed
+
+    nan = float("nan")
+    d = np.array([nan, 7.0, 9.0, 8.0, nan])
+    tf = vel.TransportFlux(np.ones(5), np.ones(5), np.ones(5), d, "up")
+    assert transport_speed(tf) == pytest.approx(8.0)
+    tf = vel.TransportFlux(np.ones(5), np.ones(5), np.ones(5), np.full(5, nan), "up")
+    assert np.isnan(transport_speed(tf))
+
+
+def test_columns_that_need_many_times_the_measured_speed_flag_the_rate_as_not_measured():
+    limit = selfchecks.THRESHOLDS["implied_speed_ratio"]
+    assert selfchecks.CODES["implied_speed_ratio"] == "columns-missing"
+    assert "implied_speed_ratio" not in selfchecks.BELOW
+
+    def evidence(speed_num, speed_den, transport=(0.4, 2)):
+        return SurfaceEvidence(
+            surface_speed_num=speed_num,
+            surface_speed_den=speed_den,
+            transport_speed_sum=transport[0],
+            transport_speed_n=transport[1],
+        )
+
+    # A column-weighted speed of 0.3 m/s where the time of flight read 0.2.
+    m, failed = selfchecks.failure_terms(evidence(3.0, 10.0))
+    assert m["implied_speed_ratio"] == pytest.approx(1.5)
+    assert failed == []
+    # The textured lab's 2 cm surface: the percentile took the steady core
+    # into the background and its columns need ~4000 times the speed.
+    m, failed = selfchecks.failure_terms(evidence(0.2 * 4000 * 1e-3, 1e-3))
+    assert m["implied_speed_ratio"] == pytest.approx(4000)
+    assert m["implied_speed_ratio"] > limit
+    assert failed == [("implied_speed_ratio", 1.0)]
+    # A flux through a surface whose columns sum to nothing or less.
+    m, failed = selfchecks.failure_terms(evidence(0.5, -1e-4))
+    assert m["implied_speed_ratio"] == float("inf")
+    assert failed == [("implied_speed_ratio", 1.0)]
+    # No time of flight (no source given, or another velocity), or no flux:
+    # nothing to compare with.
+    for ev in (evidence(3.0, 10.0, transport=(0.0, 0)), evidence(0.0, 10.0)):
+        m, failed = selfchecks.failure_terms(ev)
+        assert np.isnan(m["implied_speed_ratio"])
+        assert failed == []
+
+
+@pytest.mark.slow
+def test_a_steady_core_taken_into_the_background_is_flagged_and_its_interval_covers(tmp_path):
+    # The lab release before a textured plate: the gas never leaves the
+    # pixels of its base, and hardly fluctuates there, so the temporal
+    # percentile holds it and the columns at 2 cm vanish (+195 % on the
+    # 10 s record of seed 0, with no warning before this check).
+    import qogi
+    from qogi.pipeline import QuantifyConfig, quantify
+    from qogi.pipeline.surfaces import truth_surfaces
+    from qogi.synth.render import synthesize
+
+    path = synthesize("lab-ch4-5slpm-textured-gf320", tmp_path / "lab.h5", duration_s=4.0, seed=0)
+    rec = qogi.open_recording(path)
+    surfaces, source = truth_surfaces(rec, heights_m=[0.02, 0.12], half_width_px=40)
+    res = quantify(rec, surfaces, QuantifyConfig(gas_temperature="ambient", source=source))
+    low = res.surfaces[0].species["CH4"]
+    flagged = {w.to_dict().get("surface") for w in res.warnings if w.code == "columns-missing"}
+    assert surfaces[0].name in flagged and surfaces[1].name not in flagged
+    assert low.ci90_kg_h[0] <= low.truth_kg_h <= low.ci90_kg_h[1]
+    ratios = [res.info["self_checks"][s.name]["implied_speed_ratio"] for s in surfaces]
+    assert ratios[0] > 1000 * ratios[1] and ratios[1] < 3.0  # 12 cm holds its gas
+
+
 def _wall_in_absorption(tmp_path, wind_m_s, seed):
     """The operating envelope's cell of 1 kg/h at 10 m in a ``wind_m_s``
     crosswind before a structured wall 20 K warmer than the gas (160x120 px

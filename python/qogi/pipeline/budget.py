@@ -389,13 +389,13 @@ def _self_checks(st: RunState, j: int, surface: str, sp: str, summary, relative,
         for b in st.blocks
         if isinstance(f := b.velocity_info.get("column_fluctuation"), float) and math.isfinite(f)
     ]
-    unexplained, in_view = (
+    unexplained, in_view, speeds = (
         [
             float(f)
             for b in st.blocks
             if isinstance(f := b.velocity_info.get(key), float) and math.isfinite(f)
         ]
-        for key in ("transport_unexplained", "transport_frames_in_view")
+        for key in ("transport_unexplained", "transport_frames_in_view", "transport_speed_m_s")
     )
     plume, plume_contrast = selfchecks.plume_residual(columns.evidence, j)
     ev = dataclasses.replace(
@@ -413,6 +413,10 @@ def _self_checks(st: RunState, j: int, surface: str, sp: str, summary, relative,
         unexplained_n=len(unexplained),
         in_view_sum=sum(in_view),
         in_view_n=len(in_view),
+        surface_speed_num=summary.speed_num,
+        surface_speed_den=summary.speed_den,
+        transport_speed_sum=sum(speeds),
+        transport_speed_n=len(speeds),
     )
     measures, failed = selfchecks.failure_terms(ev)
     what = {
@@ -450,10 +454,15 @@ def _self_checks(st: RunState, j: int, surface: str, sp: str, summary, relative,
         "beyond the source over the flux level's displacement per frame): its structures "
         "change beyond recognition between frames, and neither the flow nor the time of "
         "flight that sets the flux level follows them, so the speed is not measured",
+        "implied_speed_ratio": "times the speed the flux level's time of flight measured "
+        "along the plume is what the surface's own columns would need to carry its rate: "
+        "they hold a small part of the gas (a steady core that never leaves its pixels is "
+        "taken into the background, or the gas is too fast to see), so the rate there is "
+        "not measured",
     }
     for key, term in failed:
         v = measures[key]
-        size = f"{v:.1f}" if key.endswith(("_noise", "_in_view")) else f"{100 * v:.0f} %"
+        size = f"{v:.1f}" if key.endswith(("_noise", "_in_view", "_ratio")) else f"{100 * v:.0f} %"
         fix = (
             "measure where the plume has turned turbulent (surfaces higher up, a longer "
             "view of the plume)"
@@ -464,6 +473,9 @@ def _self_checks(st: RunState, j: int, surface: str, sp: str, summary, relative,
             else "film at a higher frame rate, or from farther away or with a wider view, "
             "so that the gas stays in the frame for more frames"
             if key in ("transport_frames_in_view", "transport_unexplained")
+            else "place the surface farther from the source, where the gas leaves the "
+            "pixels between its puffs, or film the release against a uniform background"
+            if key == "implied_speed_ratio"
             else "try another background (a gas-free region, or 'percentile') or "
             "surfaces where the background is uniform"
         )

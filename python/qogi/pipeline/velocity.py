@@ -11,6 +11,7 @@ makes a block's :class:`~.state.Flow` from its :class:`~.state.BlockColumns`;
 
 from __future__ import annotations
 
+import math
 from typing import Dict, Optional, Tuple
 
 import numpy as np
@@ -266,6 +267,7 @@ def _block_velocity(
             tf = job.result()  # its error is reported as the level's note
             velocity_info["transport_unexplained"] = transport_unexplained(tf)
             velocity_info["transport_frames_in_view"] = frames_in_view(tf, region_index)
+            velocity_info["transport_speed_m_s"] = transport_speed(tf) * st.scene.m_s_per_px_frame
             # In the flow field's units and lines.
             lines = crop[0] if axis in ("up", "down") else crop[1]
             tf = tf.lines(lines, scale=1.0 / scale if scale > 0 else 1.0)
@@ -311,19 +313,28 @@ def transport_unexplained(tf: vel.TransportFlux) -> float:
     return float(np.sum(u[ok] * w[ok]) / np.sum(w[ok])) if ok.any() else float("nan")
 
 
+def transport_speed(tf: vel.TransportFlux) -> float:
+    """The speed the flux level's time of flight measured: the median of
+    its solved lines' displacements [px per nominal frame interval]; NaN
+    when no line was solved (or the median is not positive)."""
+    d = np.asarray(tf.displacement, float)
+    d = d[np.isfinite(d)]
+    m = float(np.median(d)) if d.size else float("nan")
+    return m if m > 0 else float("nan")
+
+
 def frames_in_view(tf: vel.TransportFlux, source_index: float) -> float:
     """How many frames the gas stays in view: the lines from the source's
     line ``source_index`` to the frame's far edge along the transport's axis
-    over the transport's displacement per frame (the median over its solved
-    lines) [frames]; NaN when no line was solved. Its self-check is
+    over the transport's displacement per frame (:func:`transport_speed`)
+    [frames]; NaN when no line was solved. Its self-check is
     :mod:`qogi.pipeline.selfchecks`' ``transport_frames_in_view``."""
-    d = np.asarray(tf.displacement, float)
-    d = d[np.isfinite(d)]
-    if not d.size or not float(np.median(d)) > 0:
+    speed = transport_speed(tf)
+    if not math.isfinite(speed):
         return float("nan")
     n = len(tf.displacement)
     path = float(source_index) if tf.axis in ("up", "left") else n - 1 - float(source_index)
-    return max(path, 0.0) / float(np.median(d))
+    return max(path, 0.0) / speed
 
 
 #: Frames per step of :func:`_band_line_sums` (its scratch: this many frames).
