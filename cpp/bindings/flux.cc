@@ -131,6 +131,30 @@ void BindFlux(py::module_& m) {
       "(scale per line float32, flow_used) (engine/flux/flux_level.h); does not modify u, v.");
 
   m.def(
+      "apply_flux_level",
+      [](FloatArray u, FloatArray v, const FloatArray& scale, const DoubleArray& velocity,
+         const DoubleArray& line_column, const std::string& axis, int num_threads) {
+        CheckNdim(u, 3, "u");
+        Require(v.ndim() == 3 && v.shape(0) == u.shape(0) && v.shape(1) == u.shape(1) &&
+                    v.shape(2) == u.shape(2),
+                "u and v must have one (T, H, W) shape");
+        TransportFluxResult tf;
+        tf.axis = ParseFluxAxis(axis);
+        tf.velocity = FlatVector(velocity);
+        tf.line_column = FlatVector(line_column);
+        const std::vector<float> s(scale.data(), scale.data() + scale.size());
+        float* pu = u.mutable_data();
+        float* pv = v.mutable_data();
+        py::gil_scoped_release release;
+        ApplyFluxLevel(tf, s, u.shape(0), u.shape(1), u.shape(2), pu, pv, num_threads);
+      },
+      py::arg("u"), py::arg("v"), py::arg("scale"), py::arg("velocity"), py::arg("line_column"),
+      py::arg("axis"), py::arg("num_threads") = 0,
+      "Applies the flux level to u and v (T, H, W) float32 in place: lines with a finite "
+      "scale multiplied by it, the others given the transport's line velocity "
+      "(engine/flux/flux_level.h). u and v must be C-contiguous float32 arrays.");
+
+  m.def(
       "transport_velocity",
       [](const DoubleArray& velocity, const DoubleArray& line_column, const std::string& axis,
          py::ssize_t T, py::ssize_t H, py::ssize_t W) {

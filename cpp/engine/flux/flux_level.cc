@@ -148,61 +148,77 @@ FluxLevel FlowFluxLevel(const float* frames, const float* u, const float* v, std
   const std::vector<std::size_t> nearest =
       NearestValid(finite, "no line has a finite flux-level factor");
   out.scale.resize(n);
-  for (std::size_t i = 0; i < n; ++i) out.scale[i] = float(smooth[nearest[i]]);
+  // A line that carries the transport where the flow does not measure it
+  // takes the transport's own velocity (NaN), not a neighbour's factor.
+  for (std::size_t i = 0; i < n; ++i)
+    out.scale[i] = carries[i] && !good[i] ? std::numeric_limits<float>::quiet_NaN()
+                                          : float(smooth[nearest[i]]);
   out.flow_used = true;
   return out;
 }
 
-void ScaleLines(float* u, float* v, std::size_t T, std::size_t H, std::size_t W, FluxAxis axis,
-                const std::vector<float>& scale, int num_threads) {
-  const bool rows = AlongRows(axis);
-  Require(scale.size() == (rows ? H : W), "scale must hold one factor per line");
+void ApplyFluxLevel(const TransportFluxResult& transport, const std::vector<float>& scale,
+                    std::size_t T, std::size_t H, std::size_t W, float* u, float* v,
+                    int num_threads) {
+  const bool rows = AlongRows(transport.axis);
+  const std::size_t n = rows ? H : W;
+  Require(scale.size() == n, "scale must hold one factor per line (" + std::to_string(n) +
+                                 "); got " + std::to_string(scale.size()));
+  std::vector<char> replaced(n);
+  bool any = false;
+  for (std::size_t i = 0; i < n; ++i) {
+    replaced[i] = std::isnan(scale[i]);
+    if (replaced[i]) any = true;
+  }
+  // The transport's velocity along the axis, for the replaced lines.
+  std::vector<float> along(n, 0.0f);
+  if (any) {
+    Require(transport.velocity.size() == n && transport.line_column.size() == n,
+            "transport must have one velocity and line column per line of the frames (" +
+                std::to_string(n) + "); got " + std::to_string(transport.velocity.size()));
+    std::vector<char> ok(n);
+    for (std::size_t i = 0; i < n; ++i)
+      ok[i] = std::isfinite(transport.velocity[i]) && transport.line_column[i] > 0;
+    const std::vector<std::size_t> nearest =
+        NearestValid(ok, "the transport has no line with a velocity and gas");
+    const double sign =
+        transport.axis == FluxAxis::kUp || transport.axis == FluxAxis::kLeft ? -1.0 : 1.0;
+    for (std::size_t i = 0; i < n; ++i) along[i] = float(sign * transport.velocity[nearest[i]]);
+  }
+  float* across_axis = rows ? u : v;
+  float* on_axis = rows ? v : u;
   ParallelFor(
       T, 1,
       [&](std::size_t t0, std::size_t t1) {
         for (std::size_t t = t0; t < t1; ++t)
-          for (float* a : {u + t * H * W, v + t * H * W})
-            for (std::size_t y = 0; y < H; ++y)
-              for (std::size_t x = 0; x < W; ++x) a[y * W + x] *= scale[rows ? y : x];
+          for (std::size_t y = 0; y < H; ++y)
+            for (std::size_t x = 0; x < W; ++x) {
+              const std::size_t l = rows ? y : x;
+              const std::size_t i = (t * H + y) * W + x;
+              if (replaced[l]) {
+                across_axis[i] = 0.0f;
+                on_axis[i] = along[l];
+              } else {
+                u[i] *= scale[l];
+                v[i] *= scale[l];
+              }
+            }
       },
       num_threads);
 }
 
 void TransportVelocity(const TransportFluxResult& transport, std::size_t T, std::size_t H,
                        std::size_t W, float* u, float* v) {
-  const bool rows = AlongRows(transport.axis);
-  const std::size_t n = rows ? H : W;
-  Require(transport.velocity.size() == n && transport.line_column.size() == n,
-          "transport must have one velocity and line column per line of the frames (" +
-              std::to_string(n) + "); got " + std::to_string(transport.velocity.size()));
-  std::vector<char> ok(n);
-  for (std::size_t i = 0; i < n; ++i)
-    ok[i] = std::isfinite(transport.velocity[i]) && transport.line_column[i] > 0;
-  const std::vector<std::size_t> nearest =
-      NearestValid(ok, "the transport has no line with a velocity and gas");
-  const double sign =
-      transport.axis == FluxAxis::kUp || transport.axis == FluxAxis::kLeft ? -1.0 : 1.0;
-  std::vector<float> along(n);
-  for (std::size_t i = 0; i < n; ++i) along[i] = float(sign * transport.velocity[nearest[i]]);
-  float* zero = rows ? u : v;
-  float* line = rows ? v : u;
-  for (std::size_t t = 0; t < T; ++t)
-    for (std::size_t y = 0; y < H; ++y)
-      for (std::size_t x = 0; x < W; ++x) {
-        const std::size_t i = (t * H + y) * W + x;
-        zero[i] = 0.0f;
-        line[i] = along[rows ? y : x];
-      }
+  const std::size_t n = AlongRows(transport.axis) ? H : W;
+  ApplyFluxLevel(transport, std::vector<float>(n, std::numeric_limits<float>::quiet_NaN()), T, H, W,
+                 u, v, 1);
 }
 
 FluxLevel CalibrateFluxLevel(const float* frames, float* u, float* v, std::size_t T, std::size_t H,
                              std::size_t W, const TransportFluxResult& transport,
                              const FluxLevelOptions& options, const RunControl* control) {
   FluxLevel level = FlowFluxLevel(frames, u, v, T, H, W, transport, options, control);
-  if (level.flow_used)
-    ScaleLines(u, v, T, H, W, options.axis, level.scale, options.num_threads);
-  else
-    TransportVelocity(transport, T, H, W, u, v);
+  ApplyFluxLevel(transport, level.scale, T, H, W, u, v, options.num_threads);
   return level;
 }
 

@@ -1,8 +1,8 @@
 // The flux level of a 2-D velocity field taken from the transport flux: per
 // line across the axis, the factor that makes the flow's time-averaged flux
 // equal the transport's (smoothed along the axis, only where the flow
-// measures the transport at all), or, where it does not, the transport's own
-// line velocity in place of the flow.
+// measures the transport at all), or, on the lines that carry the transport
+// where it does not, the transport's own line velocity in place of the flow.
 #pragma once
 
 #include <cstddef>
@@ -41,8 +41,12 @@ struct FluxLevelOptions {
 };
 
 struct FluxLevel {
-  // Factor per line (rows for kUp/kDown, columns otherwise); all NaN when the
-  // flow was not used.
+  // Factor per line (rows for kUp/kDown, columns otherwise). NaN on the
+  // lines whose velocity is the transport's own: the lines carrying the
+  // transport flux whose factor is unusable (beyond max_factor, or a flow
+  // reversing there: near a source the fluid flow ramps up from zero while
+  // the gas crosses at the wind's speed, and a neighbour's factor read a
+  // crosswind 60 % low there); every line when the flow was not used.
   std::vector<float> scale;
   // False when fewer than half of the lines carrying the transport flux had a
   // usable factor: the transport's line velocity replaces the flow.
@@ -57,18 +61,21 @@ FluxLevel FlowFluxLevel(const float* frames, const float* u, const float* v, std
                         std::size_t H, std::size_t W, const TransportFluxResult& transport,
                         const FluxLevelOptions& options = {}, const RunControl* control = nullptr);
 
-// Multiplies u and v (T, H, W) line by line by `scale` (one per line along
-// `axis`).
-void ScaleLines(float* u, float* v, std::size_t T, std::size_t H, std::size_t W, FluxAxis axis,
-                const std::vector<float>& scale, int num_threads = 0);
+// Applies a flux level to u and v (T, H, W) in place, line by line along
+// the transport's axis: a line with a finite `scale` is multiplied by it; a
+// line whose scale is NaN takes the transport's time-averaged line velocity
+// along the axis at every pixel and frame [px/frame] (extended to lines
+// without one from the nearest line that has one), the other component 0.
+void ApplyFluxLevel(const TransportFluxResult& transport, const std::vector<float>& scale,
+                    std::size_t T, std::size_t H, std::size_t W, float* u, float* v,
+                    int num_threads = 0);
 
-// Writes the transport's time-averaged line velocity along its axis into
-// (u, v) (T, H, W) at every pixel and frame [px/frame], extended to lines
-// without one from the nearest line that has one; the other component 0.
+// The transport's line velocity at every line (ApplyFluxLevel with every
+// scale NaN).
 void TransportVelocity(const TransportFluxResult& transport, std::size_t T, std::size_t H,
                        std::size_t W, float* u, float* v);
 
-// FlowFluxLevel, then ScaleLines or TransportVelocity on u and v in place.
+// FlowFluxLevel, then ApplyFluxLevel on u and v in place.
 FluxLevel CalibrateFluxLevel(const float* frames, float* u, float* v, std::size_t T, std::size_t H,
                              std::size_t W, const TransportFluxResult& transport,
                              const FluxLevelOptions& options = {},

@@ -1189,7 +1189,13 @@ def calibrate_flux_level(
     ``max_reversed`` of the flow's frame-by-frame flux through the line
     (|flux| summed over the frames) runs against the transport (a flow that
     lost a fast crosswind for a stretch of the record and reads it backwards
-    there, while its time average lands within the factors). When fewer than half
+    there, while its time average lands within the factors). A line that
+    carries the transport flux without a usable factor takes the transport's
+    own velocity (its scale NaN), not a neighbour's factor: near a source
+    in a crosswind the fluid flow ramps up from zero over tens of pixels
+    while the gas crosses at the wind's speed, and the neighbour's factor
+    read the first surface 62 % low (the operating envelope's +20 K, 2 m/s
+    cell, seed 0; -2.6 % with the transport's velocity). When fewer than half
     of the lines that carry the transport flux have a usable factor, the flow
     is not used at all: the velocity is the transport's own, the time-averaged
     mass-weighted velocity of each line (:attr:`TransportFlux.velocity`),
@@ -1227,8 +1233,9 @@ def calibrate_flux_level(
     -------
     (u, v, scale)
         Velocity at the T frame times [px/frame], (T, H, W) float32, and the
-        factor per line (rows for "up" and "down", columns otherwise; all NaN
-        when the transport velocity replaced the flow).
+        factor per line (rows for "up" and "down", columns otherwise; NaN on
+        the lines given the transport's velocity, all NaN when the transport
+        velocity replaced the flow).
     """
     _check_axis(axis)
     stack = np.asarray(frames, dtype=np.float32)
@@ -1270,7 +1277,7 @@ def calibrate_flux_level(
     if frame_velocities is None:
         assert seq is not None  # checked above
         fu, fv = frame_velocity(seq)
-    scale, flow_used = _engine.flux_level_scale(
+    scale, _flow_used = _engine.flux_level_scale(
         np.ascontiguousarray(stack),
         np.ascontiguousarray(fu, dtype=np.float32),
         np.ascontiguousarray(fv, dtype=np.float32),
@@ -1281,17 +1288,28 @@ def calibrate_flux_level(
         float(max_factor),
         float(max_reversed),
     )
-    if not flow_used:
-        if frame_velocities is None:
-            return _transport_velocity(tf, stack.shape) + (scale,)
-        # The same at every frame: one frame's, written over the given stacks.
-        tu, tv = _transport_velocity(tf, (1,) + stack.shape[1:])
-        fu[...] = tu
-        fv[...] = tv
-        return fu, fv, scale
-    s = scale.reshape((1, -1, 1) if axis in ("up", "down") else (1, 1, -1))
-    fu *= s
-    fv *= s
+    # In place (the engine's): lines with a factor scaled, the others (a
+    # carrying line the flow does not measure, or every line when the flow
+    # was not used) given the transport's line velocity.
+    work = [
+        a
+        if a.dtype == np.float32 and a.flags.c_contiguous and a.flags.writeable
+        else np.ascontiguousarray(a, dtype=np.float32)
+        for a in (fu, fv)
+    ]
+    _engine.apply_flux_level(
+        work[0],
+        work[1],
+        np.ascontiguousarray(scale, dtype=np.float32),
+        np.asarray(tf.velocity, dtype=float),
+        np.asarray(tf.line_column, dtype=float),
+        axis,
+    )
+    if frame_velocities is None:
+        return work[0], work[1], scale
+    for given, done in zip((fu, fv), work):
+        if done is not given:
+            given[...] = done
     return fu, fv, scale
 
 
