@@ -249,6 +249,25 @@ def inpaint_held(
     return out.astype(img.dtype, copy=False), held
 
 
+def held_from_source(held: np.ndarray, source_xy, radius_px: float = 6.0) -> np.ndarray:
+    """The parts of a ``held`` mask (h, w) bool connected to the source: its
+    8-connected components with a pixel within ``radius_px`` of
+    ``source_xy`` (x, y) [px, the mask's coordinates]. The gas never leaves
+    the plume's base, which starts at the source; elsewhere a held pixel
+    may be a background that changes for another reason (a drifting cloud's
+    edge the drifting layer did not follow), whose static structure the
+    inpainting would smooth away."""
+    import cv2
+
+    held = np.asarray(held, bool)
+    _, labels = cv2.connectedComponents(held.astype(np.uint8), connectivity=8)
+    h, w = held.shape
+    y, x = np.mgrid[0:h, 0:w]
+    near = (x - source_xy[0]) ** 2 + (y - source_xy[1]) ** 2 <= radius_px**2
+    keep = np.unique(labels[near & held])
+    return np.isin(labels, keep[keep > 0])
+
+
 def _inpaint_structure(image: np.ndarray, mask: np.ndarray, noise: float) -> np.ndarray:
     """``image`` (h, w) with its ``mask`` pixels filled from the others: a
     smooth quadratic surface fitted to the unmasked pixels, plus their
