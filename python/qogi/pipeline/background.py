@@ -15,12 +15,10 @@ import numpy as np
 from .. import _engine
 from ..io.recording import Recording
 from .background_choice import (
-    _inpaint_structure,
     _noise,
     _relative_to_contrast,
     choose,
     held_background_error,
-    held_from_source,
     inpaint_held,
     percentile_background,
 )
@@ -213,26 +211,21 @@ class Background:
             np.stack([np.stack([d.at(float(t)) for d in self._drifting]) for t in times])
             - static[None]
         )
-        fixed, held = inpaint_held(
-            residual, static, self.channel_sign, float(self.cfg.background_percentile), noise
-        )
+        # Only the plume's base where the source is given: elsewhere the
+        # clouds' edges the drifting layer did not follow widen the
+        # percentile's tail too (a third of the clouds preset's frame), and
+        # the static structure there is the scene's.
         source = self.cfg.source
-        if source is not None and held.any():
-            # Only the plume's base: elsewhere the clouds' edges the drifting
-            # layer did not follow widen the percentile's tail too (a third
-            # of the clouds preset's frame), and the static structure there
-            # is the scene's.
-            near = held_from_source(held, (source[0] - self.roi.x0, source[1] - self.roi.y0))
-            if not np.array_equal(near, held):
-                held = near
-                fixed = np.stack(
-                    [
-                        _inpaint_structure(static[c], held, float(noise[c]))
-                        if held.any()
-                        else static[c]
-                        for c in range(static.shape[0])
-                    ]
-                )
+        fixed, held = inpaint_held(
+            residual,
+            static,
+            self.channel_sign,
+            float(self.cfg.background_percentile),
+            noise,
+            source_xy=None
+            if source is None
+            else (source[0] - self.roi.x0, source[1] - self.roi.y0),
+        )
         self.held = held
         self._static_fix = (fixed - static).astype(np.float32)
         self.held_error = held_background_error(residual, fixed, self.held, noise)

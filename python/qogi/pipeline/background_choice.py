@@ -208,6 +208,7 @@ def inpaint_held(
     channel_sign: np.ndarray,
     percentile: float,
     noise: Optional[np.ndarray] = None,
+    source_xy: Optional[Tuple[float, float]] = None,
 ) -> Tuple[np.ndarray, np.ndarray]:
     """The temporal percentile background ``img`` (C, h, w) of frames
     ``stacked`` (T, C, h, w), with the pixels the gas never leaves filled
@@ -223,6 +224,9 @@ def inpaint_held(
     lifts the low tail and widens it; noise alone does not).
 
     ``channel_sign`` is (C,), or (C, h, w) per pixel (:func:`pixel_sign`).
+
+    With ``source_xy`` (x, y) [px, the image's coordinates] only the held
+    parts connected to the source are kept (:func:`held_from_source`).
 
     Returns ``(background (C, h, w), held (h, w) bool)``; the input image
     when no pixel is held or fewer than a quarter are free.
@@ -241,6 +245,8 @@ def inpaint_held(
         )
         spread = np.where(sign[c] >= 0, lo2 - lo1, hi1 - hi2)
         held |= spread > HELD_SPREAD_SIGMA * noise[c]
+    if source_xy is not None and held.any():
+        held = held_from_source(held, source_xy)
     if not held.any() or (~held).sum() < 0.25 * held.size:
         return img, held
     out = np.array(img, dtype=float, copy=True)
