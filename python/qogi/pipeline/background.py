@@ -8,7 +8,7 @@ pipeline's stage that applies it to a run.)"""
 
 from __future__ import annotations
 
-from typing import Any, Dict, List, Optional, Sequence
+from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -116,6 +116,10 @@ class Background:
         #: The held pixels' background error relative to the gas's contrast
         #: there (:func:`held_background_error`; NaN when none is held).
         self.held_error = float("nan")
+        #: By how much the held pixels' inpainting stood beyond their
+        #: percentile's bound (C, h, w) [radiance, the gas's sign], where
+        #: it was bounded (:func:`inpaint_held`); None without held pixels.
+        self.held_clip: Optional[np.ndarray] = None
         # The background's static shape beyond a straight line across the
         # region (set by the run from its time-averaged frames).
         self.shape_correction: Optional[Dict[bool, np.ndarray]] = None
@@ -144,7 +148,7 @@ class Background:
                     say(0.02 * k / len(use), "background (temporal percentile)")
             stacked = np.asarray(stack)
             noise = _noise(stacked)  # once, for the inpainting and its check
-            self.percentile_img, self.held = percentile_background(
+            self.percentile_img, self.held, self.held_clip = percentile_background(
                 stacked,
                 channel_sign,
                 cfg.background_percentile,
@@ -152,6 +156,8 @@ class Background:
                 if gas_temperature_K is None
                 else np.array([ch.band_radiance(gas_temperature_K) for ch in rec.channels]),
                 noise,
+                source_xy=self._source_in_roi(),
+                return_clip=True,
             )
             self.held_error = held_background_error(stacked, self.percentile_img, self.held, noise)
 
@@ -215,20 +221,30 @@ class Background:
         # clouds' edges the drifting layer did not follow widen the
         # percentile's tail too (a third of the clouds preset's frame), and
         # the static structure there is the scene's.
-        source = self.cfg.source
-        fixed, held = inpaint_held(
+        fixed, held, self.held_clip = inpaint_held(
             residual,
             static,
             self.channel_sign,
             float(self.cfg.background_percentile),
             noise,
-            source_xy=None
-            if source is None
-            else (source[0] - self.roi.x0, source[1] - self.roi.y0),
+            source_xy=self._source_in_roi(),
+            return_clip=True,
         )
         self.held = held
         self._static_fix = (fixed - static).astype(np.float32)
         self.held_error = held_background_error(residual, fixed, self.held, noise)
+
+    def held_clip_at(self, xy: np.ndarray) -> Optional[np.ndarray]:
+        """The held pixels' inpainting clip (:attr:`held_clip`) at samples
+        ``xy`` (N, 2) [px, the image's]: (C, N), or None."""
+        if self.held_clip is None or not np.any(self.held_clip):
+            return None
+        return _bilinear(self.held_clip, np.asarray(xy, float) - [self.roi.x0, self.roi.y0])
+
+    def _source_in_roi(self) -> Optional[Tuple[float, float]]:
+        """The given source (x, y) in the region's pixels, or None."""
+        source = self.cfg.source
+        return None if source is None else (source[0] - self.roi.x0, source[1] - self.roi.y0)
 
     def drifting_images(self, frame_ids: Sequence[int]) -> np.ndarray:
         """The drifting background over the region at the given frames:

@@ -454,6 +454,10 @@ def _self_checks(st: RunState, j: int, surface: str, sp: str, summary, relative,
         "beyond the source over the flux level's displacement per frame): its structures "
         "change beyond recognition between frames, and neither the flow nor the time of "
         "flight that sets the flux level follows them, so the speed is not measured",
+        "surface_frames_in_view": "frames is how long the gas stays in view at the "
+        "surface's own speed, faster than the flux level's time of flight measured (which "
+        "then reads the speed low and counts more frames): its structures change beyond "
+        "recognition between frames, so the speed is not measured",
         "implied_speed_ratio": "times the speed the flux level's time of flight measured "
         "along the plume is what the surface's own columns would need to carry its rate: "
         "they hold a small part of the gas (a steady core that never leaves its pixels is "
@@ -472,7 +476,8 @@ def _self_checks(st: RunState, j: int, surface: str, sp: str, summary, relative,
             if key == "held_background_error"
             else "film at a higher frame rate, or from farther away or with a wider view, "
             "so that the gas stays in the frame for more frames"
-            if key in ("transport_frames_in_view", "transport_unexplained")
+            if key
+            in ("transport_frames_in_view", "transport_unexplained", "surface_frames_in_view")
             else "place the surface farther from the source, where the gas leaves the "
             "pixels between its puffs, or film the release against a uniform background"
             if key == "implied_speed_ratio"

@@ -254,6 +254,9 @@ class InvertedColumns:
         self.evidence: Dict[int, SurfaceEvidence] = {}
         self.upwind_mask: Optional[np.ndarray] = None
         self.upwind_sums = [0.0, 0]
+        #: The held pixels' inpainting clip at the block's surface samples
+        #: (C, N), or None (set by :meth:`finish`).
+        self._held_clip: Optional[np.ndarray] = None
 
     def start_block(self) -> None:
         """Forgets the samples collected for the previous block (the pipeline
@@ -617,6 +620,20 @@ class InvertedColumns:
             sig[edges[j] : edges[j + 1]] = sigma
         rad = np.asarray(self._rad)  # (T, C, N)
         bg = np.asarray(self._bg)
+        # Where the held pixels' inpainting was bounded by their percentile,
+        # by how much (C, N): the background residual's evidence.
+        clips = [self.background.held_clip_at(x[0]) for x in samples]
+        self._held_clip = (
+            None
+            if all(c is None for c in clips)
+            else np.concatenate(
+                [
+                    np.zeros((rad.shape[1], len(x[0]))) if c is None else c
+                    for c, x in zip(clips, samples)
+                ],
+                axis=-1,
+            )
+        )
         # The plume depth: given, or the width of the time-averaged plume
         # across each surface (axisymmetric plume), held fixed with one
         # channel and as a Gaussian prior (50 %) when the temperature is
@@ -792,10 +809,16 @@ class InvertedColumns:
             self.background.channel_sign[c : c + 1],
         )[0]
         contrast = (rad[:, c, :] - bg[:, c, :]) * (sign / noise)
+        # The background's residual is judged on the held pixels'
+        # inpainting before its bound (inpaint_held): the bound makes the
+        # background agree with the frames' floor there, and by how much it
+        # had to is what they show of its error.
+        clip = self._held_clip
+        floor = contrast if clip is None else contrast - clip[c][None, :] / noise
         at_bound = status == self.inv_module.AT_BOUND
         for j in range(len(edges) - 1):
             a, b = edges[j], edges[j + 1]
-            ev = SurfaceEvidence.of(contrast[:, a:b], at_bound[:, a:b])
+            ev = SurfaceEvidence.of(contrast[:, a:b], at_bound[:, a:b], floor[:, a:b])
             self.evidence.setdefault(j, SurfaceEvidence()).__iadd__(ev)
 
     def _invert(self, rad, bg, sigma_pixels, sigma_param, noise_scale, progress):
