@@ -35,13 +35,33 @@ def main() -> None:
     ap.add_argument("--duration", type=float, default=0.2)
     ap.add_argument("--seed", type=int, default=5)
     args = ap.parse_args()
-    d = tempfile.mkdtemp(prefix="qogi-offset-")
+    out, infos, offsets, n = wheel_rates(
+        args.duration, args.seed, tempfile.mkdtemp(prefix="qogi-offset-")
+    )
+    print("turns:", n, "channel offsets [ms]:", np.round(offsets * 1e3, 3))
+    for name, v in out.items():
+        print(f"{name:>18}: " + "  ".join(f"{x:.5g}" for x in v) + " kg/h (4, 8, 12 cm)")
+    for name, v in infos.items():
+        print(f"{name:>18}: {v}")
+    for name in ("wheel, uncorrected", "wheel"):
+        print(
+            f"{name} / simultaneous - 1: "
+            + "  ".join(f"{x:+.2%}" for x in out[name] / out["simultaneous"] - 1)
+        )
+
+
+def wheel_rates(duration_s: float, seed: int, d: str):
+    """The three rates (kg/h at 4, 8 and 12 cm) of the heated release seen
+    through the fast-m150 for ``duration_s`` (rendered at 400 frames/s into
+    the folder ``d``, seed ``seed``): ``{"simultaneous", "wheel, uncorrected",
+    "wheel"}``; their infos (temperature and mixing line, pixel status); the
+    wheel's channel offsets [s]; the number of turns."""
     fast = os.path.join(d, "fast.h5")
     render.synthesize(
         "lab-heated-ch4-55c-gf320",
         fast,
-        duration_s=args.duration,
-        seed=args.seed,
+        duration_s=duration_s,
+        seed=seed,
         camera_name="fast-m150",
         frame_rate_hz=400.0,
         truth_maps=True,
@@ -96,21 +116,7 @@ def main() -> None:
         out[name] = np.array([s.species["CH4"].mean_kg_h for s in res.surfaces])
         infos[name] = {k: v for k, v in res.info.items() if "temperature" in k or "mixing" in k}
         infos[name]["pixels"] = res.pixel_status
-    print(
-        "turns:",
-        n,
-        "channel offsets [ms]:",
-        np.round(wheel.attrs["channel_time_offset_s"] * 1e3, 3),
-    )
-    for name, v in out.items():
-        print(f"{name:>18}: " + "  ".join(f"{x:.5g}" for x in v) + " kg/h (4, 8, 12 cm)")
-    for name, v in infos.items():
-        print(f"{name:>18}: {v}")
-    for name in ("wheel, uncorrected", "wheel"):
-        print(
-            f"{name} / simultaneous - 1: "
-            + "  ".join(f"{x:+.2%}" for x in out[name] / out["simultaneous"] - 1)
-        )
+    return out, infos, np.asarray(wheel.attrs["channel_time_offset_s"], float), n
 
 
 if __name__ == "__main__":
