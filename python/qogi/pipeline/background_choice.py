@@ -129,16 +129,15 @@ def _structure(f, surface, xy, tt, sign, noise, lo_pct) -> float:
       not held by the spread test of :func:`inpaint_held`): their low
       percentile, against the line between the strips' own low percentiles
       (the noise's percentile is in both). A seam under the plume's path is
-      only there
-      (``tank-emission`` seed 3: 0.0 / 0.5 / 2.0 on the gas-free samples,
-      13 / 15 / 3 with these; the strips read -69 to -76 %).
+      only there (``tank-emission`` seed 3: 0.0 / 0.5 / 2.0 on the gas-free
+      samples, 13 / 15 / 3 with these; the strips read -69 to -76 %).
 
     0 with fewer than 4 gas-free samples (nothing to measure; on a
     noise-free test scene whose gas covers the whole surface the visited
     samples' nearest-pixel staircase along a gradient read 296 "noise").
-    Gas can only
-    raise the time-mean and the low percentile, a background's structure
-    departs both ways, so the one side measures it."""
+    Gas can only raise the time-mean and the low percentile, a
+    background's structure departs both ways, so the one side measures
+    it."""
     v = _sample(f, xy)  # (T, C, N)
     mean = v.mean(axis=0)  # (C, N)
     nc = v.shape[1]
