@@ -53,6 +53,8 @@ class RateRow:
     #: is above it (None: no limit).
     detection_limit_kg_h: Optional[float] = None
     detected: Optional[bool] = None
+    #: What "not detected, < X" says (qogi.SpeciesRate.upper_limit_kg_h; None when detected).
+    upper_limit_kg_h: Optional[float] = None
     #: The uncertainty budget: 1-sigma contribution [kg/h] per term
     #: (temporal, velocity, column density, line shape, background ...).
     uncertainty_terms_kg_h: Dict[str, float] = field(default_factory=dict)
@@ -62,8 +64,11 @@ class RateRow:
         """``"0.0011"``, ``"< 0.0011 (not detected)"`` or ``"-"`` (kg/h)."""
         if self.detection_limit_kg_h is None or not math.isfinite(self.detection_limit_kg_h):
             return "-"
-        x = f"{self.detection_limit_kg_h:.3g}"
-        return f"< {x} (not detected)" if self.detected is False else x
+        if self.detected is False:
+            up = self.upper_limit_kg_h
+            bound = up if up is not None and math.isfinite(up) else self.detection_limit_kg_h
+            return f"< {bound:.3g} (not detected)"
+        return f"{self.detection_limit_kg_h:.3g}"
 
     @property
     def error_pct(self) -> Optional[float]:
@@ -112,6 +117,7 @@ def rate_rows(result) -> List[RateRow]:
                     dominant_uncertainty=str(getattr(r, "dominant_uncertainty", "")),
                     detection_limit_kg_h=getattr(r, "detection_limit_kg_h", None),
                     detected=getattr(r, "detected", None),
+                    upper_limit_kg_h=getattr(r, "upper_limit_kg_h", None),
                     uncertainty_terms_kg_h={
                         str(k): _f(v)
                         for k, v in (getattr(r, "uncertainty_terms_kg_h", None) or {}).items()

@@ -41,7 +41,7 @@ def summary_rows(result) -> List[dict]:
     rows = []
     for s in result.surfaces:
         for sp, r in s.species.items():
-            dl = r.detection_limit_kg_h
+            dl, up = r.detection_limit_kg_h, r.upper_limit_kg_h
             rows.append(
                 {
                     "surface": s.surface.name,
@@ -52,10 +52,12 @@ def summary_rows(result) -> List[dict]:
                     "ci90_high": _num(r.in_units(r.ci90_kg_h[1], u)),
                     "detection_limit": None if dl is None else _num(r.in_units(dl, u)),
                     "detected": r.detected,
+                    "upper_limit": None if up is None else _num(r.in_units(up, u)),
                     "mean_kg_h": _num(r.mean_kg_h),
                     "ci90_low_kg_h": _num(r.ci90_kg_h[0]),
                     "ci90_high_kg_h": _num(r.ci90_kg_h[1]),
                     "detection_limit_kg_h": None if dl is None else _num(dl),
+                    "upper_limit_kg_h": None if up is None else _num(up),
                     "n_frames": int(r.n_frames),
                     "dominant_uncertainty": r.dominant_uncertainty,
                     "truth_kg_h": None if r.truth_kg_h is None else _num(r.truth_kg_h),
@@ -127,6 +129,7 @@ def to_xarray(result):
             "ci90_low_kg_h",
             "ci90_high_kg_h",
             "detection_limit_kg_h",
+            "upper_limit_kg_h",
             "truth_kg_h",
         )
     }
@@ -139,6 +142,8 @@ def to_xarray(result):
             per["ci90_low_kg_h"][i, j], per["ci90_high_kg_h"][i, j] = r.ci90_kg_h
             if r.detection_limit_kg_h is not None:
                 per["detection_limit_kg_h"][i, j] = r.detection_limit_kg_h
+            if r.upper_limit_kg_h is not None:
+                per["upper_limit_kg_h"][i, j] = r.upper_limit_kg_h
             if r.truth_kg_h is not None:
                 per["truth_kg_h"][i, j] = r.truth_kg_h
     dims3, dims2 = ("surface", "species", "time"), ("surface", "species")

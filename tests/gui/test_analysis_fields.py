@@ -140,3 +140,27 @@ def test_results_show_every_budget_term_and_the_warnings():
         "[flux-against-surface B] flux runs against the surface",
     ]
     assert results.warning_lines(NS(surfaces=[])) == []
+
+
+def test_a_rate_not_detected_shows_the_bound_the_result_states():
+    # The Results tab says what qogi.SpeciesRate.text says: "< X" with X the
+    # larger of the limit and the interval's upper end (issue 28), not the limit.
+    row = results.RateRow(
+        surface="A",
+        species="CH4",
+        mean_kg_h=0.002,
+        ci90_kg_h=(0.001, 0.006),
+        mean_g_h=2.0,
+        mean_slpm=0.05,
+        truth_kg_h=None,
+        n_frames=30,
+        n_frames_valid=30,
+        pixels_median=3.0,
+        dominant_uncertainty="temporal",
+        detection_limit_kg_h=0.004,
+        detected=False,
+        upper_limit_kg_h=0.006,
+    )
+    assert row.detection_text == "< 0.006 (not detected)"
+    detected = results.RateRow(**{**row.__dict__, "detected": True, "upper_limit_kg_h": None})
+    assert detected.detection_text == "0.004"

@@ -198,3 +198,35 @@ def test_a_tiny_grid_runs_end_to_end_and_its_error_is_the_results_against_the_tr
     assert {p: p.stat().st_mtime_ns for p in stamps} == stamps
     with pytest.raises(UsageError, match="--resume"):
         envelope.run(grid, out, workers=1, threads=1, progress=False)
+
+
+def test_a_not_detected_bound_below_the_truth_is_counted_and_named():
+    # Issue 28's "not detected, < X is never said of a truth above X": each
+    # cell counts its rows that did (aggregate's bound_exceeded), and the
+    # Markdown names the cell under its block's table.
+    cell = envelope.Cell(
+        rate_kg_h=0.002,
+        distance_m=1.5,
+        contrast_K=9.3,
+        wind_m_s=0.0,
+        background="plate",
+        camera="gf320",
+        duration_s=3.0,
+        seed=0,
+        block="weak",
+    )
+    head = {"scene": cell.scene, "block": "weak", **cell.axes(), "status": "ok", "snr": 1.0}
+    rows = [
+        {**head, "truth_kg_h": 0.002, "detected": False, "upper_limit_kg_h": 0.0015},  # wrong
+        {**head, "truth_kg_h": 0.002, "detected": False, "upper_limit_kg_h": 0.003},  # right
+        {**head, "truth_kg_h": 0.002, "detected": True, "upper_limit_kg_h": None},
+        {**head, "truth_kg_h": 0.002, "detected": None, "upper_limit_kg_h": None},
+    ]
+    for r in rows:
+        r.update(error_pct=-10.0, covers=True, warnings="")
+    (e,) = envelope.aggregate(rows)
+    assert e["bound_exceeded"] == 1
+    assert f"{cell.scene} (1 rows)" in envelope.markdown([e])
+    rows[0]["upper_limit_kg_h"] = 0.0025
+    (e,) = envelope.aggregate(rows)
+    assert e["bound_exceeded"] == 0 and "said of a truth above" not in envelope.markdown([e])

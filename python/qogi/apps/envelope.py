@@ -601,6 +601,7 @@ CELL_COLUMNS = [
     "covers",
     "detected",
     "detection_limit_kg_h",
+    "upper_limit_kg_h",
     "snr",
     "snr_measured",
     "warnings",
@@ -645,6 +646,7 @@ def cell_rows(
                 "covers": bool(lo <= truth <= hi) if ok and lo is not None else None,
                 "detected": r.get("detected"),
                 "detection_limit_kg_h": r.get("detection_limit_kg_h"),
+                "upper_limit_kg_h": r.get("upper_limit_kg_h"),
                 "snr": scene_snr(truth, det.get("noise_equivalent_column_kg_m2"), speed, width),
                 "snr_measured": scene_snr(
                     truth,
@@ -664,11 +666,24 @@ def _frac(values) -> float:
     return float(np.mean(v)) if v else math.nan
 
 
+def _bound_exceeded(row: dict) -> bool:
+    """A row that said "not detected, < X" of a truth above X."""
+    up, truth = row.get("upper_limit_kg_h"), row.get("truth_kg_h")
+    return (
+        row.get("detected") is False
+        and up is not None
+        and truth is not None
+        and math.isfinite(float(up))
+        and float(truth) > float(up)
+    )
+
+
 def aggregate(rows: Sequence[dict]) -> List[dict]:
     """``envelope.csv``: per scene (cell without its seed), over its seeds and
     surfaces: rows, failures, mean error and its spread (standard deviation
     over the rows) [%], interval coverage, detection fraction, fraction of
-    rows carrying a warning, median scene signal-to-noise."""
+    rows carrying a warning, median scene signal-to-noise, and the rows that
+    said "not detected, < X" of a truth above X (``bound_exceeded``)."""
     by: Dict[str, List[dict]] = {}
     for r in rows:
         by.setdefault(r["scene"], []).append(r)
@@ -691,6 +706,7 @@ def aggregate(rows: Sequence[dict]) -> List[dict]:
                 "spread_pct": float(err.std(ddof=1)) if err.size > 1 else math.nan,
                 "coverage": _frac(r["covers"] for r in ok),
                 "detection_fraction": _frac(r["detected"] for r in ok),
+                "bound_exceeded": sum(_bound_exceeded(r) for r in ok),
                 "warning_fraction": _frac(bool(r["warnings"]) for r in ok) if ok else math.nan,
                 "median_snr": float(np.nanmedian(snr)) if np.isfinite(snr).any() else math.nan,
             }
@@ -877,7 +893,14 @@ def markdown(env: Sequence[dict]) -> str:
                 f"| {_pct(100 * e['warning_fraction'], False)} "
                 + (f"| {e['median_snr']:.3g} |" if math.isfinite(e["median_snr"]) else "| - |")
             )
+        wrong = [e for e in env if e["block"] == block and e.get("bound_exceeded")]
         lines.append("")
+        if wrong:
+            lines += [
+                '"not detected, < X" said of a truth above X: '
+                + ", ".join(f"{e['scene']} ({e['bound_exceeded']} rows)" for e in wrong),
+                "",
+            ]
     return "\n".join(lines).rstrip("\n")
 
 

@@ -231,8 +231,8 @@ def _rate_rows(result):
                     f"{_fmt(lo)} .. {_fmt(hi)}",
                     "-"
                     if dl is None
-                    else f"< {_fmt(r.in_units(dl, u), 3)}"
-                    if r.detected is False
+                    else f"< {_fmt(r.in_units(r.upper_limit_kg_h, u), 3)}"
+                    if r.upper_limit_kg_h is not None
                     else _fmt(r.in_units(dl, u), 3),
                     str(r.n_frames),
                     r.dominant_uncertainty,

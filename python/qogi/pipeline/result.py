@@ -77,10 +77,28 @@ class SpeciesRate:
     @property
     def detected(self) -> Optional[bool]:
         """False when the mean rate is below the detection limit (the result
-        is then "not detected, < limit"); None when no limit is known."""
+        is then "not detected, < :attr:`upper_limit_kg_h`"); None when no
+        limit is known."""
         if self.detection_limit_kg_h is None or not math.isfinite(self.detection_limit_kg_h):
             return None
         return bool(math.isfinite(self.mean_kg_h) and self.mean_kg_h >= self.detection_limit_kg_h)
+
+    @property
+    def upper_limit_kg_h(self) -> Optional[float]:
+        """What "not detected, < X" says when the rate is not detected (None
+        otherwise): the larger of the detection limit and the upper end of
+        the 90 % interval. The decision compares the *mean* with the limit,
+        and near the limit the mean reads low (the per-pixel test zeroes the
+        plume's faint wings), so a truth up to ~1.4x the limit was read
+        below it (docs/detection_limit.md); the interval's upper end is where
+        the measurement itself puts the truth's bound."""
+        if self.detected is not False:
+            return None
+        assert self.detection_limit_kg_h is not None  # detected is None without a limit
+        hi = self.ci90_kg_h[1]
+        if hi is None or not math.isfinite(hi):
+            return float(self.detection_limit_kg_h)
+        return float(max(self.detection_limit_kg_h, hi))
 
     def in_units(self, value_kg_h, unit: str):
         """A rate [kg/h] (scalar or array) in ``unit`` (qogi.units) for this species."""
@@ -88,10 +106,12 @@ class SpeciesRate:
 
     def text(self, unit: str = "kg/h") -> str:
         """The rate as people should read it: ``"1.23 kg/h [90% 1.1 .. 1.4]"``,
-        or ``"not detected, < 0.05 kg/h"`` below the detection limit."""
+        or ``"not detected, < 0.05 kg/h"`` below the detection limit (the
+        bound is :attr:`upper_limit_kg_h`)."""
         u = parse_unit(unit)
-        if self.detected is False:
-            return f"not detected, < {self.in_units(self.detection_limit_kg_h, u):.3g} {u}"
+        upper = self.upper_limit_kg_h
+        if upper is not None:
+            return f"not detected, < {self.in_units(upper, u):.3g} {u}"
         lo, hi = (self.in_units(v, u) for v in self.ci90_kg_h)
         return f"{self.in_units(self.mean_kg_h, u):.4g} {u} [90% {lo:.4g} .. {hi:.4g}]"
 
@@ -128,6 +148,7 @@ class SpeciesRate:
             "pixels_used": [int(p) for p in self.pixels_used],
             "detection_limit_kg_h": _f(self.detection_limit_kg_h),
             "detected": self.detected,
+            "upper_limit_kg_h": _f(self.upper_limit_kg_h),
             "detection": self.detection,
         }
         if self.truth_kg_h is not None:
@@ -342,6 +363,11 @@ class Result:
                         None
                         if r.detection_limit_kg_h is None
                         else _f(r.in_units(r.detection_limit_kg_h, self.units))
+                    ),
+                    "upper_limit": (
+                        None
+                        if r.upper_limit_kg_h is None
+                        else _f(r.in_units(r.upper_limit_kg_h, self.units))
                     ),
                     "text": r.text(self.units),
                 }
