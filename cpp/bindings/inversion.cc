@@ -76,7 +76,8 @@ void BindInversion(py::module_& m) {
           [](const MixingLineInverter& self, const DoubleArray& radiance,
              const DoubleArray& background, const DoubleArray& sigma, double slope,
              std::vector<double> composition, std::vector<double> netd, double detection_sigma,
-             int max_iterations, int num_threads, int line_nodes_per_unit, py::object progress) {
+             bool signed_below_detection, int max_iterations, int num_threads,
+             int line_nodes_per_unit, py::object progress) {
             const std::size_t nc = self.table().num_channels();
             CheckNdim(radiance, 2, "radiance");
             const std::size_t n = Dim(radiance, 0);
@@ -91,6 +92,7 @@ void BindInversion(py::module_& m) {
             o.composition = std::move(composition);
             o.netd_K = std::move(netd);
             o.detection_sigma = detection_sigma;
+            o.signed_below_detection = signed_below_detection;
             o.max_iterations = max_iterations;
             o.num_threads = num_threads;
             o.line_nodes_per_unit = line_nodes_per_unit;
@@ -110,9 +112,9 @@ void BindInversion(py::module_& m) {
           },
           py::arg("radiance"), py::arg("background_radiance"), py::arg("sigma_m"),
           py::arg("slope_K_per_fraction"), py::arg("composition"), py::arg("netd_K"),
-          py::arg("detection_sigma") = 3.0, py::arg("max_iterations") = 50,
-          py::arg("num_threads") = 0, py::arg("line_nodes_per_unit") = 16,
-          py::arg("progress") = py::none(),
+          py::arg("detection_sigma") = 3.0, py::arg("signed_below_detection") = false,
+          py::arg("max_iterations") = 50, py::arg("num_threads") = 0,
+          py::arg("line_nodes_per_unit") = 16, py::arg("progress") = py::none(),
           "Least-squares total peak fraction X of each pixel (rows of radiance and "
           "background_radiance (N, C)) on T_peak = T_amb + k X with x_s = w_s X. Returns a dict "
           "of (N,) arrays: fraction, fraction_sigma, peak_temperature_K, chi2, status "
@@ -281,6 +283,9 @@ void BindInversion(py::module_& m) {
             "(default [0.017])"),
       Field("detection_sigma", &I::detection_sigma,
             "below detection when |y_c| < detection_sigma x n_c in every channel (default 3)"),
+      Field("signed_below_detection", &I::signed_below_detection,
+            "below detection: the thin-limit least-squares column from the contrasts, signed "
+            "(unbiased when summed over pixels), instead of 0 (default False)"),
       Field("model_error_fraction", &I::model_error_fraction,
             "relative model uncertainty per channel, in quadrature with the noise, [0, 1] "
             "(default 0)"),

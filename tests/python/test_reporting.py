@@ -3,6 +3,7 @@ and the detection limit (issue 22)."""
 
 import hashlib
 import json
+import math
 import shutil
 import subprocess
 import sys
@@ -389,10 +390,14 @@ def _band_recording(
 
 def test_detection_limit_matches_the_lowest_rate_the_pipeline_detects():
     # A sweep of rates through one surface at a known normal speed (1 m/s).
-    # "Actually detected": the pipeline sees gas (a rate > 0) in >= 95 % of the
-    # frames, the confidence the limit is stated at. Measured: the limit
+    # "Actually detected": the result says so (its mean at or above the
+    # limit). Before the plume's faint wings were kept (signed columns below
+    # the per-pixel test, issue 28) this test took "a rate > 0 in >= 95 % of
+    # the frames" (a frame's rate was > 0 only where a pixel passed the
+    # test); now a frame's rate is an unbiased noisy sum, and the mean, no
+    # longer read low near the limit, switches at it. Measured: the limit
     # 0.0036-0.0040 kg/h on every run whose time-averaged contrast shows the
-    # band; detected in every frame from 0.0041 kg/h, in 87 % at 0.0031.
+    # band; detected from 0.0041 kg/h (1.1x the limit; before: 0.0062, 1.7x).
     surf = [Surface([(20, 30), (100, 30)], name="S")]
     cfg = QuantifyConfig(species=["CH4"], velocity="wind", wind_speed_m_s=1.0)
     runs = []
@@ -400,9 +405,8 @@ def test_detection_limit_matches_the_lowest_rate_the_pipeline_detects():
         rec, truth = _band_recording(pf)
         r = quantify(rec, surf, cfg).total("CH4")
         runs.append((truth, r))
-    seen = [truth for truth, r in runs if np.mean(r.rate_kg_h > 0) >= 0.95]
-    lowest = min(seen)
-    assert all(truth >= lowest for truth, r in runs if np.mean(r.rate_kg_h > 0) >= 0.95)
+    lowest = min(truth for truth, r in runs if r.detected)
+    assert all(r.detected for truth, r in runs if truth >= lowest)  # one switch
     for truth, r in runs:
         x = r.detection_limit_kg_h
         assert r.detection["width_from"] == "time-averaged contrast"
@@ -410,9 +414,17 @@ def test_detection_limit_matches_the_lowest_rate_the_pipeline_detects():
         if truth >= 1.5 * x:  # well above the limit: a number
             assert r.detected and "not detected" not in r.text()
         if truth <= x / 1.5:  # well below: "not detected, < X", and X is above the truth
-            assert r.detected is False and r.text().startswith(f"not detected, < {x:.3g} kg/h")
+            up = r.upper_limit_kg_h
+            assert r.detected is False and up >= x and up > truth
+            assert r.text().startswith(f"not detected, < {up:.3g} kg/h")
     assert any(truth >= 1.5 * r.detection_limit_kg_h for truth, r in runs)
     assert any(truth <= r.detection_limit_kg_h / 1.5 for truth, r in runs)
+    # No bias at low signal (issue 28 item 2): from half the limit up, the
+    # mean reads the truth (measured -3 ... +0 %; before, with the wings
+    # zeroed, -80 % at half the limit, -34 % at 1.1x, -19 % at 1.7x).
+    for truth, r in runs:
+        if truth >= 0.5 * r.detection_limit_kg_h:
+            assert abs(r.mean_kg_h / truth - 1.0) <= 0.1, (truth, r.mean_kg_h)
 
 
 def test_detection_limit_without_any_sign_of_gas_is_an_upper_bound():
@@ -435,27 +447,56 @@ def test_detection_limit_without_any_sign_of_gas_is_an_upper_bound():
 
 def test_not_detected_is_never_said_below_a_truth_just_above_the_limit():
     # Issue 28: "not detected, < X" is never said of a truth above X. The
-    # decision compares the mean with the limit, and 1.0-1.35x above the limit
-    # the band's mean read below it (the per-pixel test zeroes its faint
-    # wings: a 4.1 g/h truth read 2.5-2.7 g/h against limits of 3.4-4.0 g/h,
-    # seeds 0-2), so "< limit" was said of these truths in 6 of 27 runs of
-    # a sweep from 0.55x to 2.2x the limit. The bound said is the larger of
-    # the limit and the interval's upper end (SpeciesRate.upper_limit_kg_h).
+    # decision compares the mean with the limit, and a truth just above the
+    # limit can read below it (with the plume's wings zeroed it did in 6 of 27
+    # runs of steady bands 0.55-2.2x the limit, seeds 0-2: 4.1 g/h read
+    # 2.5-2.7 g/h against limits of 3.4-4.0; with them kept, the mean's noise
+    # still can). The bound said is the larger of the limit and the
+    # interval's upper end (SpeciesRate.upper_limit_kg_h).
     surf = [Surface([(20, 30), (100, 30)], name="S")]
     cfg = QuantifyConfig(species=["CH4"], velocity="wind", wind_speed_m_s=1.0)
-    above = 0
+    said = 0
     for seed in (0, 1):
-        for pf in (3.4e-4, 4.0e-4, 4.8e-4):
+        for pf in (3.0e-4, 3.4e-4, 4.0e-4):
             rec, truth = _band_recording(pf, seed=seed)
             res = quantify(rec, surf, cfg)
             r = res.total("CH4")
             if r.detected is not False:
                 assert r.upper_limit_kg_h is None
                 continue
-            above += truth > r.detection_limit_kg_h  # the case the limit alone got wrong
+            said += 1
             x = r.upper_limit_kg_h
             assert x >= r.detection_limit_kg_h and x >= r.ci90_kg_h[1]
             assert x > truth, (truth, r.detection_limit_kg_h, r.ci90_kg_h)
             assert r.text().startswith(f"not detected, < {x:.3g} kg/h")
             assert res.to_dict()["surfaces"][0]["species"]["CH4"]["upper_limit_kg_h"] == x
-    assert above >= 2  # the sweep does hold truths above the limit read "not detected"
+    assert said >= 2
+
+
+def test_the_bound_of_a_rate_not_detected_is_the_limit_or_the_intervals_end():
+    from qogi.pipeline.result import SpeciesRate
+
+    def rate(mean, ci, limit):
+        return SpeciesRate(
+            species="CH4",
+            time_s=np.zeros(1),
+            rate_kg_s=np.array([mean / 3600]),
+            mean_kg_h=mean,
+            ci90_kg_h=ci,
+            n_frames=1,
+            molar_mass_kg_mol=0.016,
+            uncertainty_terms_kg_h={},
+            dominant_uncertainty="temporal",
+            pixels_used=np.zeros(1, int),
+            detection_limit_kg_h=limit,
+        )
+
+    # A truth of 4.1 g/h read 2.7 [1.1 .. 6.3] against a limit of 3.7 g/h:
+    # "< 3.7" would have been false, "< 6.3" holds.
+    r = rate(0.0027, (0.0011, 0.0063), 0.0037)
+    assert r.detected is False and r.upper_limit_kg_h == 0.0063
+    assert r.text("g/h") == "not detected, < 6.3 g/h"
+    assert rate(0.0005, (0.0001, 0.0020), 0.0037).upper_limit_kg_h == 0.0037
+    assert rate(0.0005, (0.0001, math.nan), 0.0037).upper_limit_kg_h == 0.0037
+    assert rate(0.0050, (0.0030, 0.0070), 0.0037).upper_limit_kg_h is None
+    assert rate(0.0050, (0.0030, 0.0070), None).upper_limit_kg_h is None

@@ -849,9 +849,7 @@ def _wall_in_absorption(tmp_path, wind_m_s, seed):
 
 
 @pytest.mark.slow
-def test_a_fit_locked_on_a_slow_displacement_is_flagged_and_so_is_one_reading_it_low(
-    tmp_path, monkeypatch
-):
+def test_a_fit_reading_the_gas_slow_on_a_wall_is_flagged(tmp_path):
     """1 kg/h at 10 m in an 8 m/s wind before a structured wall 20 K warmer
     than the gas (the envelope's cell, seed 2; 2.6 frames in view by the
     truth).
@@ -869,11 +867,16 @@ def test_a_fit_locked_on_a_slow_displacement_is_flagged_and_so_is_one_reading_it
     With the bound the time of flight reads 0.7 of the speed (4.7 frames in
     view by it, and 1.8 unexplained: both pass) and the first two surfaces
     +28 / +26 %: their own speed, 1.7 times the time of flight's, puts the
-    gas in view for 2.8 frames (``surface_frames_in_view``)."""
+    gas in view for 2.8 frames (``surface_frames_in_view``).
+
+    Since the surfaces keep the plume's faint wings (signed columns below the
+    per-pixel test, issue 28) the unbounded inpainting no longer locks the
+    time of flight (5.7 frames in view, +2 / +1 / -5 %), so that half of the
+    scenario is gone from this test; the unexplained share's rule keeps its
+    own tests above (``transport_unexplained``)."""
     import qogi
     from qogi.apps import envelope as env
     from qogi.pipeline import QuantifyConfig, quantify
-    from qogi.pipeline import background_choice as bc
 
     cell = env.Cell(
         1.0, 10.0, -20.0, 8.0, "structured", "gf320", 3.0, 2, width_px=160, height_px=120
@@ -894,19 +897,6 @@ def test_a_fit_locked_on_a_slow_displacement_is_flagged_and_so_is_one_reading_it
             assert flagged(res, s), (s.surface.name, r.error_vs_truth)
             assert r.ci90_kg_h[1] >= 5.0 * r.mean_kg_h, (r.mean_kg_h, r.ci90_kg_h)
     assert any(abs(s.species["CH4"].error_vs_truth) > 0.25 for s in res.surfaces)
-
-    class Unbounded:  # the bound's noise tail made infinite: no bound
-        def inv_cdf(self, p):
-            return -1e30
-
-    monkeypatch.setattr(bc, "NormalDist", Unbounded)
-    res = quantify(rec, surfaces, QuantifyConfig(source=source))
-    for s in res.surfaces:
-        r = s.species["CH4"]
-        assert r.error_vs_truth < -0.5
-        assert flagged(res, s), (s.surface.name, r.error_vs_truth)
-        assert r.ci90_kg_h[1] >= 5.0 * r.mean_kg_h, (r.mean_kg_h, r.ci90_kg_h)
-    assert res.info["self_checks"][surfaces[0].name]["transport_unexplained"] > 2.0
 
 
 def _windy(tmp_path, wind_m_s):

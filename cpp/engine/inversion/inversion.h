@@ -126,6 +126,13 @@ struct InversionOptions {
   std::vector<double> netd_K{0.017};
   // Below detection when |y_c| < detection_sigma x n_c in every channel. Default 3.
   double detection_sigma = 3.0;
+  // A pixel below detection gets column 0 (default), or with this set its
+  // thin-limit weighted least-squares column from the contrasts,
+  // sum_c (y_c / n_c) d_c / sum_c d_c^2 with d_c = d(y_c / n_c)/d(column),
+  // signed and noisy: unbiased, so that summed over many pixels a faint
+  // plume's wings are not lost (the status stays below detection, the
+  // column's sigma the noise-equivalent column).
+  bool signed_below_detection = false;
   // Relative model uncertainty f per channel, added in quadrature to the noise:
   // n_c^2 + (f y_c)^2. Default 0 (measurement noise only), within [0, 1].
   double model_error_fraction = 0.0;

@@ -244,7 +244,7 @@ void Inverter::FillBelowDetection(Pixel* px, Workspace* ws) const {
   for (std::size_t s = 0; s < ns; ++s) {
     if (!px->est[s]) continue;
     const double k = column_factor_[s];
-    double sc = 0, sp = 0;
+    double sc = 0, sp = 0, yc = 0, yp = 0;  // yc, yp: sum_c (y_c / n_c) d_c
     for (std::size_t c = 0; c < nc; ++c) {
       double g = thin[c * ns + s];
       for (std::size_t s2 = 0; s2 < ns; ++s2)
@@ -253,15 +253,29 @@ void Inverter::FillBelowDetection(Pixel* px, Workspace* ws) const {
       const double dp = g / (1e6 * kSqrt2Pi) / px->noise[c];
       sc += dc * dc;
       sp += dp * dp;
+      yc += px->y[c] / px->noise[c] * dc;
+      yp += px->y[c] / px->noise[c] * dp;
     }
     const double cap_c = k * px->upper[s] * px->upper[ns + 1] * kSqrt2Pi / t_min;
     const double cap_p = 1e6 * kSqrt2Pi * px->upper[s] * px->upper[ns + 1];
     px->col_sig[s] = sc > 0 ? std::min(1.0 / std::sqrt(sc), cap_c) : cap_c;
     px->ppm_sig[s] = sp > 0 ? std::min(1.0 / std::sqrt(sp), cap_p) : cap_p;
+    // The thin-limit estimate, where the contrast is sensitive to the column
+    // at all (an insensitive pixel keeps 0: its estimate would be noise
+    // divided by nearly nothing).
+    const bool sensitive = sc > 0 && 1.0 / std::sqrt(sc) < cap_c;
+    if (options_.signed_below_detection && sensitive) {
+      px->col[s] = yc / sc;
+      px->ppm[s] = sp > 0 ? yp / sp : 0.0;
+    }
     for (std::size_t s2 = 0; s2 < ns; ++s2)
       if (px->tie_ref[s2] == static_cast<int>(s)) {
         px->col_sig[s2] = px->tie_ratio[s2] * column_factor_[s2] / k * px->col_sig[s];
         px->ppm_sig[s2] = px->tie_ratio[s2] * px->ppm_sig[s];
+        if (options_.signed_below_detection && sensitive) {
+          px->col[s2] = px->tie_ratio[s2] * column_factor_[s2] / k * px->col[s];
+          px->ppm[s2] = px->tie_ratio[s2] * px->ppm[s];
+        }
       }
   }
 }

@@ -578,6 +578,65 @@ TEST(Inverter, SingleChannelNewtonMatchesTheGeneralSolvers) {
   }
 }
 
+TEST(Inverter, SignedBelowDetectionIsTheThinLimitColumnWithItsSign) {
+  // Faint pixels below the detection test get column 0 by default; with
+  // signed_below_detection their thin-limit least-squares column, which for
+  // a thin plume is the column a full solve finds (detection_sigma 0), and
+  // the negative of it for the opposite contrast (noise either way).
+  const Fixture& f = F();
+  std::vector<SpectralResponse> ch{f.model->channels()[2]};
+  std::vector<AbsorberTable> tabs{LorentzTable("CH4", 2930, 3120, 2955, 3095, 1, true)};
+  auto m = std::make_shared<BinnedModel>(ch, tabs, CoarseOptions());
+  SceneTableOptions so;
+  so.ambient_temperature_K = f.t_amb;
+  so.max_sigma_m = 2.0;
+  auto t = std::make_shared<SceneTable>(m, so);
+  InversionOptions o;
+  o.fractions = {ParameterSpec{ParameterMode::kFree, 1e-3, 0, 0, 1}};
+  o.temperature = ParameterSpec{ParameterMode::kFixed, 320.0, 0, 0, 0};
+  o.sigma = ParameterSpec{ParameterMode::kFixed, 0.04, 0, 0, 0};
+  const std::vector<double> xs = {2e-6, 5e-6, 1e-5, 2e-5};
+  const std::size_t n = 2 * xs.size();
+  std::vector<double> rad(n), tbg(n, 300.0);
+  const double l_bg = m->channels()[0].BandRadiance(300.0);
+  for (std::size_t i = 0; i < xs.size(); ++i) {
+    const Path p = m->GaussianPath<double>(&xs[i], 320.0, f.t_amb, 0.04);
+    double dl;
+    m->Contrast<double>(p, &tbg[i], &dl);
+    rad[i] = l_bg + dl;
+    rad[xs.size() + i] = l_bg - dl;  // the same contrast, the other sign
+  }
+  PixelBatch b;
+  b.num_pixels = n;
+  b.radiance = rad.data();
+  b.background_temperature_K = tbg.data();
+  InversionResult zero, sig, solved;
+  zero.Allocate(n, 1, 1);
+  sig.Allocate(n, 1, 1);
+  solved.Allocate(n, 1, 1);
+  Inverter(m, t, f.t_amb, o).Invert(b, zero.Output());
+  o.signed_below_detection = true;
+  Inverter(m, t, f.t_amb, o).Invert(b, sig.Output());
+  o.signed_below_detection = false;
+  o.detection_sigma = 0.0;
+  Inverter(m, t, f.t_amb, o).Invert(b, solved.Output());
+  int below = 0;
+  for (std::size_t i = 0; i < xs.size(); ++i) {
+    if (zero.status[i] != static_cast<int>(PixelStatus::kBelowDetection)) continue;
+    ++below;
+    const std::size_t j = xs.size() + i;
+    ASSERT_EQ(sig.status[i], static_cast<int>(PixelStatus::kBelowDetection));
+    ASSERT_EQ(solved.status[i], static_cast<int>(PixelStatus::kConverged)) << "x = " << xs[i];
+    EXPECT_EQ(zero.column_density[i], 0.0);
+    EXPECT_EQ(zero.column_density[j], 0.0);
+    EXPECT_NEAR(sig.column_density[i] / solved.column_density[i], 1.0, 1e-2) << "x = " << xs[i];
+    EXPECT_NEAR(sig.column_density[j] / sig.column_density[i], -1.0, 1e-2) << "x = " << xs[i];
+    // The sigma stays the noise-equivalent column.
+    EXPECT_EQ(sig.column_density_sigma[i], zero.column_density_sigma[i]);
+  }
+  EXPECT_GE(below, 2);
+}
+
 TEST(Inverter, WarmStartsReachTheSameAnswers) {
   const Fixture& f = F();
   auto truth = RandomTruth(12, 21, f.t_amb);

@@ -327,7 +327,7 @@ void MixingLineInverter::Invert(const MixingLineOptions& options, std::size_t n,
           LinePixel p{nc, ns, y.data(), noise.data(), phi, sigma_m[i]};
           if (!detected) {
             // The 1-sigma of X in the thin limit (the noise-equivalent column).
-            double info = 0;
+            double info = 0, proj = 0;  // proj: sum_c (y_c / n_c)(a_c / n_c)
             for (std::size_t c = 0; c < nc; ++c) {
               double a = 0;
               for (std::size_t s = 0; s < ns; ++s)
@@ -335,8 +335,10 @@ void MixingLineInverter::Invert(const MixingLineOptions& options, std::size_t n,
                   a += options.composition[s] * p.sigma *
                        table.ThinSlope(c, s, table.ambient_temperature_K(), phi);
               info += (a / noise[c]) * (a / noise[c]);
+              proj += (y[c] / noise[c]) * (a / noise[c]);
             }
             out.fraction_sigma[i] = info > 0 ? 1.0 / std::sqrt(info) : 0.0;
+            if (options.signed_below_detection && info > 0) out.fraction[i] = proj / info;
             out.status[i] = static_cast<std::int32_t>(PixelStatus::kBelowDetection);
             continue;
           }

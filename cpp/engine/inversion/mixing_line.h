@@ -30,6 +30,10 @@ struct MixingLineOptions {
   std::vector<double> composition;    // w_s >= 0 per species of the table (x_s = w_s X), sum > 0
   std::vector<double> netd_K;         // per channel (or one value for all) [K]
   double detection_sigma = 3.0;  // below detection: |y_c| < detection_sigma n_c in every channel
+  // Below detection X is 0 (default), or with this set the thin-limit
+  // least-squares X from the contrasts, signed and noisy (unbiased summed
+  // over pixels; InversionOptions::signed_below_detection).
+  bool signed_below_detection = false;
   double min_fraction = 1e-9;  // lower bound of X
   double max_fraction = 1.0;  // upper bound of X (every x_s <= 1 as well)
   int max_iterations = 50;  // Gauss-Newton iterations per pixel (>= 1)

@@ -470,6 +470,12 @@ class Inversion:
         Largest plume depth the table covers.
     detection_sigma : float, default 3
         k of the detection test |y_c| < k n_c (in every channel).
+    signed_below_detection : bool, default False
+        Below the test, a pixel's column is 0; with this, its thin-limit
+        least-squares column from the contrasts, signed and noisy
+        (unbiased: summed over many pixels, a faint plume's wings are kept).
+        Its status stays below detection, its sigma the noise-equivalent
+        column.
     model_error_fraction : float, default 0
         Relative model uncertainty added in quadrature to each channel's noise.
     initial_guess : {"table", "neighbour", "previous"}, default "table"
@@ -518,6 +524,7 @@ class Inversion:
         temperature_range_K: Optional[Tuple[float, float]] = None,
         max_sigma_m: float = 2.0,
         detection_sigma: float = 3.0,
+        signed_below_detection: bool = False,
         model_error_fraction: float = 0.0,
         initial_guess: str = "table",
         solver: str = "auto",
@@ -658,6 +665,7 @@ class Inversion:
         self._settings = dict(
             num_starts=int(num_starts),
             detection_sigma=float(detection_sigma),
+            signed_below_detection=bool(signed_below_detection),
             model_error_fraction=float(model_error_fraction),
             max_iterations=int(max_iterations),
             tolerance_chi2=float(tolerance_chi2),
@@ -1079,6 +1087,7 @@ def invert_on_mixing_line(
     netd_K,
     composition: Optional[Dict[str, float]] = None,
     detection_sigma: float = 3.0,
+    signed_below_detection: bool = False,
     num_threads: int = 0,
     progress=None,
 ) -> InversionResult:
@@ -1112,6 +1121,10 @@ def invert_on_mixing_line(
     detection_sigma : float, default 3
         Below detection when |L - L_bg| < detection_sigma x noise in every
         channel (fractions and columns 0, sigma the thin-limit 1-sigma).
+    signed_below_detection : bool, default False
+        Below detection, the thin-limit least-squares X from the contrasts
+        (signed, noisy; at ambient temperature) instead of 0, as
+        :class:`Inversion`'s option of the same name.
 
     Returns
     -------
@@ -1133,6 +1146,7 @@ def invert_on_mixing_line(
         list(w),
         netd,
         float(detection_sigma),
+        bool(signed_below_detection),
         num_threads=int(num_threads),
         progress=progress,
     )
@@ -1142,7 +1156,7 @@ def invert_on_mixing_line(
     below = status == BELOW_DETECTION
     failed = status == FAILED
     tp = np.where(below | failed, t_amb, tp)
-    big_x = np.where(below | failed, 0.0, big_x)
+    big_x = np.where(failed | (below & (not signed_below_detection)), 0.0, big_x)
     # Column per unit X and sigma on a 0.25 K grid of T_peak (eq. 6 is
     # linear in x and sigma; its profile integral depends on T_peak alone).
     slope = float(slope_K_per_fraction)

@@ -59,7 +59,8 @@ class MixingLineSolver:
     composition : dict of str -> float, optional
         Known mole-fraction ratios; with one species it is implied.
     inversion_options : dict
-        ``netd_K``, ``fractions`` and ``num_threads`` of the inversion.
+        ``netd_K``, ``fractions`` and ``num_threads`` of the inversion (and
+        optionally ``signed_below_detection``, :class:`qogi.inversion.Inversion`'s).
     """
 
     def __init__(
@@ -142,6 +143,7 @@ class MixingLineSolver:
                 self.s2[idx],
                 netd_K=self.netd_K,
                 composition=self.composition,
+                signed_below_detection=bool(self.kw.get("signed_below_detection", False)),
                 num_threads=self.num_threads,
                 progress=progress,
             )
