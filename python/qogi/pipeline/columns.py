@@ -446,14 +446,25 @@ class InvertedColumns:
         (there it would only add noise, and the background's error summed
         along the surface). A temporal percentile background stands the
         noise's own percentile towards the gas's side
-        (:meth:`Background.noise_pedestal`); that pedestal, hidden where the
-        test zeroes, is taken out of the kept columns (its column: the
-        pedestal in noise units x the noise-equivalent column, the sample's
-        sigma; exact with one channel): on `wall-absorption` it added 4-8
-        points. ``res_cols`` {species: (T, N)} in place, ``status`` and
-        ``res_sig`` {species: (T, N)} the inversion's."""
+        (:meth:`Background.noise_pedestal`, measured); that pedestal, hidden
+        where the test zeroes, is taken out of the kept columns (its column:
+        the pedestal in the proxy channel's noise units x the sample's
+        noise-equivalent column; exact with one channel): on
+        `wall-absorption` it added 4-8 points. ``res_cols`` {species:
+        (T, N)} in place, ``status`` and ``res_sig`` {species: (T, N)} the
+        inversion's."""
         below = status == self.inv_module.BELOW_DETECTION
-        pedestal = self.background.noise_pedestal()
+        # The percentile's pedestal in the proxy channel's noise units (its
+        # column: that many noise-equivalent columns, the samples' sigma).
+        ped = self.background.noise_pedestal()
+        pedestal = 0.0
+        if ped is not None:
+            c = self.proxy_channel
+            netd = np.broadcast_to(
+                np.asarray(self._inv_kw["netd_K"], float), (len(self.rec.channels),)
+            )[c]
+            noise = netd * float(self.rec.channels[c].band_radiance_derivative(self._bg_t))
+            pedestal = float(ped[c]) / noise if noise > 0 else 0.0
         for j in range(len(edges) - 1):
             a, b = edges[j], edges[j + 1]
             band = self.plume_band(j)
