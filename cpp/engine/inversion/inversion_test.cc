@@ -522,20 +522,36 @@ TEST(Inverter, StatusesBelowDetectionAtBoundAndFailed) {
   for (double v : r.column_density_sigma) EXPECT_TRUE(std::isfinite(v));
 }
 
-TEST(Inverter, SingleChannelNewtonMatchesTheGeneralSolvers) {
-  // One channel, CH4 only, T_peak and sigma fixed: the Newton path.
-  const Fixture& f = F();
+// One channel, CH4 only, T_peak (320 K) and sigma (0.04 m) fixed: the
+// scene of the single-channel tests (its model, table and options).
+struct SingleChannelScene {
+  std::shared_ptr<BinnedModel> m;
+  std::shared_ptr<SceneTable> t;
+  InversionOptions o;
+};
+
+SingleChannelScene MakeSingleChannelScene(const Fixture& f) {
   std::vector<SpectralResponse> ch{f.model->channels()[2]};
   std::vector<AbsorberTable> tabs{LorentzTable("CH4", 2930, 3120, 2955, 3095, 1, true)};
-  auto m = std::make_shared<BinnedModel>(ch, tabs, CoarseOptions());
+  SingleChannelScene sc;
+  sc.m = std::make_shared<BinnedModel>(ch, tabs, CoarseOptions());
   SceneTableOptions so;
   so.ambient_temperature_K = f.t_amb;
   so.max_sigma_m = 2.0;
-  auto t = std::make_shared<SceneTable>(m, so);
-  InversionOptions o;
-  o.fractions = {ParameterSpec{ParameterMode::kFree, 1e-3, 0, 0, 1}};
-  o.temperature = ParameterSpec{ParameterMode::kFixed, 320.0, 0, 0, 0};
-  o.sigma = ParameterSpec{ParameterMode::kFixed, 0.04, 0, 0, 0};
+  sc.t = std::make_shared<SceneTable>(sc.m, so);
+  sc.o.fractions = {ParameterSpec{ParameterMode::kFree, 1e-3, 0, 0, 1}};
+  sc.o.temperature = ParameterSpec{ParameterMode::kFixed, 320.0, 0, 0, 0};
+  sc.o.sigma = ParameterSpec{ParameterMode::kFixed, 0.04, 0, 0, 0};
+  return sc;
+}
+
+TEST(Inverter, SingleChannelNewtonMatchesTheGeneralSolvers) {
+  // One channel, CH4 only, T_peak and sigma fixed: the Newton path.
+  const Fixture& f = F();
+  SingleChannelScene sc = MakeSingleChannelScene(f);
+  const auto& m = sc.m;
+  const auto& t = sc.t;
+  InversionOptions& o = sc.o;
   const Inverter newton(m, t, f.t_amb, o);
   ASSERT_TRUE(newton.uses_newton());
   std::vector<double> xs = {3e-3, 1e-2, 5e-2, 0.3, 0.9};
@@ -584,17 +600,10 @@ TEST(Inverter, SignedBelowDetectionIsTheThinLimitColumnWithItsSign) {
   // a thin plume is the column a full solve finds (detection_sigma 0), and
   // the negative of it for the opposite contrast (noise either way).
   const Fixture& f = F();
-  std::vector<SpectralResponse> ch{f.model->channels()[2]};
-  std::vector<AbsorberTable> tabs{LorentzTable("CH4", 2930, 3120, 2955, 3095, 1, true)};
-  auto m = std::make_shared<BinnedModel>(ch, tabs, CoarseOptions());
-  SceneTableOptions so;
-  so.ambient_temperature_K = f.t_amb;
-  so.max_sigma_m = 2.0;
-  auto t = std::make_shared<SceneTable>(m, so);
-  InversionOptions o;
-  o.fractions = {ParameterSpec{ParameterMode::kFree, 1e-3, 0, 0, 1}};
-  o.temperature = ParameterSpec{ParameterMode::kFixed, 320.0, 0, 0, 0};
-  o.sigma = ParameterSpec{ParameterMode::kFixed, 0.04, 0, 0, 0};
+  SingleChannelScene sc = MakeSingleChannelScene(f);
+  const auto& m = sc.m;
+  const auto& t = sc.t;
+  InversionOptions& o = sc.o;
   const std::vector<double> xs = {2e-6, 5e-6, 1e-5, 2e-5};
   const std::size_t n = 2 * xs.size();
   std::vector<double> rad(n), tbg(n, 300.0);
