@@ -231,8 +231,14 @@ class InvertedColumns:
             fractions = {ref: "free"}
             for sp in cfg.species[1:]:
                 fractions[sp] = inv.tied(ref, cfg.composition[sp] / cfg.composition[ref])
+        # Below the per-pixel test a pixel keeps its signed thin-limit column
+        # (kept on the surfaces only within the plume's band: _keep_wings).
         self._inv_kw = dict(
-            netd_K=netd, fractions=fractions, temperature=temperature, num_threads=cfg.num_threads
+            netd_K=netd,
+            fractions=fractions,
+            temperature=temperature,
+            num_threads=cfg.num_threads,
+            signed_below_detection=True,
         )
         self.inv_module = inv
         # The velocity proxy: a monotone lookup from the contrast of the
@@ -459,12 +465,8 @@ class InvertedColumns:
         ped = self.background.noise_pedestal()
         pedestal = 0.0
         if ped is not None:
-            c = self.proxy_channel
-            netd = np.broadcast_to(
-                np.asarray(self._inv_kw["netd_K"], float), (len(self.rec.channels),)
-            )[c]
-            noise = netd * float(self.rec.channels[c].band_radiance_derivative(self._bg_t))
-            pedestal = float(ped[c]) / noise if noise > 0 else 0.0
+            noise = self.proxy_noise()
+            pedestal = float(ped[self.proxy_channel]) / noise if noise > 0 else 0.0
         for j in range(len(edges) - 1):
             a, b = edges[j], edges[j + 1]
             band = self.plume_band(j)
@@ -479,6 +481,13 @@ class InvertedColumns:
                     part[on] -= pedestal * res_sig[sp][:, a:b][on]
                 res_cols[sp][:, a:b] = part
 
+    def proxy_noise(self) -> float:
+        """The proxy channel's per-frame NETD noise [radiance] over the
+        typical background."""
+        c = self.proxy_channel
+        netd = np.broadcast_to(np.asarray(self._inv_kw["netd_K"], float), (len(self.rec.channels),))
+        return float(netd[c]) * float(self.rec.channels[c].band_radiance_derivative(self._bg_t))
+
     def mean_contrast_snr(self, j: int) -> Optional[np.ndarray]:
         """The time-averaged proxy-channel contrast along surface ``j`` in
         units of its noise (per-frame NETD noise / sqrt(frames)); None
@@ -486,11 +495,7 @@ class InvertedColumns:
         prof = getattr(self, "_prof", None)
         if not prof:
             return None
-        ch = self.rec.channels[self.proxy_channel]
-        netd = np.broadcast_to(
-            np.asarray(self._inv_kw["netd_K"], float), (len(self.rec.channels),)
-        )[self.proxy_channel]
-        noise = netd * float(ch.band_radiance_derivative(self._bg_t)) / math.sqrt(len(prof))
+        noise = self.proxy_noise() / math.sqrt(len(prof))
         return np.mean([p[j] for p in prof], axis=0) / noise
 
     def _lookup(self, contrast, nodes=None) -> np.ndarray:
@@ -636,11 +641,7 @@ class InvertedColumns:
         ids = range(first, first + len(frames))
         field, bg_field = self._signed_contrast(frames, out, frame_ids=ids)
         if self.upwind_mask is not None:
-            c = self.proxy_channel
-            noise = float(
-                np.broadcast_to(np.asarray(self._inv_kw["netd_K"], float), (frames.shape[-3],))[c]
-            ) * float(self.rec.channels[c].band_radiance_derivative(self._bg_t))
-            up = field[..., self.upwind_mask].astype(float) / noise
+            up = field[..., self.upwind_mask].astype(float) / self.proxy_noise()
             self.upwind_sums[0] += float(np.sum(up * up))
             self.upwind_sums[1] += int(up.size)
         # The contrast as over the typical background (a pipe hotter than the
@@ -780,7 +781,6 @@ class InvertedColumns:
         nt, nc, n = rad.shape
         kw = dict(self._inv_kw)
         kw.pop("temperature")
-        kw["signed_below_detection"] = True
         solver = MixingLineSolver(
             self.model,
             self.table,
@@ -870,8 +870,7 @@ class InvertedColumns:
         sign-aware contrast (T, C, N radiance and background) in units of
         its NETD noise, and the inversion's status (T, N)."""
         c = self.proxy_channel
-        netd = float(np.broadcast_to(np.asarray(self._inv_kw["netd_K"], float), (rad.shape[1],))[c])
-        noise = netd * float(self.rec.channels[c].band_radiance_derivative(self._bg_t))
+        noise = self.proxy_noise()
         # The gas's sign per sample from its background (a hot pipe: absorbed).
         sign = pixel_sign(
             bg[None, :, c, :],
@@ -906,7 +905,6 @@ class InvertedColumns:
                     self.scene.ambient_K,
                     sigma_m=inv.prior(float(val), 0.5 * float(val), 1e-3, 0.5),
                     table=self.table,
-                    signed_below_detection=True,
                     **self._inv_kw,
                 )
                 res_all[float(val)] = (
@@ -924,7 +922,6 @@ class InvertedColumns:
             self.scene.ambient_K,
             sigma_m=sigma_param,
             table=self.table,
-            signed_below_detection=True,
             **self._inv_kw,
         )
         if noise_scale != 1.0:
