@@ -75,7 +75,12 @@ def build_results_panel(app, parent) -> None:
                 [
                     (f"{sp} mean [kg/h]", lambda r: _fmt(r.mean_kg_h)),
                     ("90% low [kg/h]", lambda r: _fmt(r.ci90_kg_h[0])),
-                    ("90% high [kg/h]", lambda r: _fmt(r.ci90_kg_h[1])),
+                    (
+                        "90% high [kg/h]",
+                        lambda r: (
+                            "unbounded" if math.isinf(r.ci90_kg_h[1]) else _fmt(r.ci90_kg_h[1])
+                        ),
+                    ),
                     ("[g/h]", lambda r: _fmt(r.mean_g_h)),
                     ("[SLPM]", lambda r: _fmt(r.mean_slpm)),
                     (

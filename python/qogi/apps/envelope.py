@@ -629,7 +629,9 @@ def cell_rows(
         det = r.get("detection") or {}
         speed, width = truth_axis[k] if k < len(truth_axis) else (math.nan, math.nan)
         truth, mean = r.get("truth_kg_h"), r.get("mean_kg_h")
+        # A null end is an unbounded one (a NaN interval is a failed result).
         lo, hi = r["ci90_kg_h"]
+        lo, hi = (-math.inf if lo is None else lo), (math.inf if hi is None else hi)
         ok = truth is not None and mean is not None
         codes = sorted({w["code"] for w in warnings if w.get("surface") in (None, s.get("name"))})
         rows.append(
@@ -643,7 +645,7 @@ def cell_rows(
                 "ci90_low_kg_h": lo,
                 "ci90_high_kg_h": hi,
                 "error_pct": 100.0 * (mean / truth - 1.0) if ok and truth else None,
-                "covers": bool(lo <= truth <= hi) if ok and lo is not None else None,
+                "covers": bool(lo <= truth <= hi) if ok else None,
                 "detected": r.get("detected"),
                 "detection_limit_kg_h": r.get("detection_limit_kg_h"),
                 "upper_limit_kg_h": r.get("upper_limit_kg_h"),

@@ -326,21 +326,24 @@ def _species_rate(
         terms["background"] = abs(mean) * relative["background"] * 3600
     # The self-diagnostics (qogi.pipeline.selfchecks): each measure beyond its
     # threshold warns and adds a relative term sized by the failure.
-    measures = _self_checks(st, j, surface.name, sp, summary, relative, warnings)
+    measures, failed = _self_checks(st, j, surface.name, sp, summary, relative, warnings)
     if "assumptions" in relative:
         terms["assumptions"] = abs(mean) * relative["assumptions"] * 3600
     mean_h = mean * 3600
     rel = math.sqrt(sum(r * r for r in relative.values()))
     ci = interval90(mean_h, math.hypot(temporal, col_rand) * 3600, rel)
-    ci = _check_direction(summary, mean, ci, warnings, surface.name, sp, rel)
     dominant = max(terms, key=lambda k: terms[k])
-    limit, det = None, None
+    limit, det, v_n = None, None, math.nan
     if isinstance(columns, InvertedColumns):  # not truth columns
         v_n = velocity_from_sums(
             sum(p.cv_sum for p in parts),
             sum(p.c_sum for p in parts),
             np.concatenate([np.zeros(0)] + [p.vabs_median for p in parts]),
         )
+    ci = _check_direction(summary, mean, ci, warnings, surface.name, sp, rel)
+    if v_n == 0.0 and finite.size:
+        ci = _speed_not_measured(st, ci, warnings, surface.name, sp)
+    if isinstance(columns, InvertedColumns):
         limit, det = detection_limit_from_sums(
             columns.model,
             sp,
@@ -353,6 +356,8 @@ def _species_rate(
             dl,
             mean_snr=columns.mean_contrast_snr(j),
         )
+        if limit is not None and mean_h < limit and failed & selfchecks.SPEED_NOT_MEASURED:
+            ci = _no_bound_without_speed(ci, limit, v_n, warnings, surface.name, sp)
     truth = None
     if rec.truth is not None and sp in rec.truth.emission_rate_kg_s:
         truth = rec.truth.emission_rate_kg_s[sp] * 3600
@@ -383,7 +388,7 @@ def _self_checks(st: RunState, j: int, surface: str, sp: str, summary, relative,
 
     columns = st.columns
     if not isinstance(columns, InvertedColumns) or j not in columns.evidence:
-        return None
+        return None, frozenset()
     fluct = [
         float(f)
         for b in st.blocks
@@ -498,7 +503,7 @@ def _self_checks(st: RunState, j: int, surface: str, sp: str, summary, relative,
         )
     if failed:
         relative["assumptions"] = selfchecks.combined_term(failed)
-    return measures
+    return measures, frozenset(key for key, _ in failed)
 
 
 #: The two-sided 90 % quantile of the standard normal.
@@ -547,6 +552,64 @@ def _line_shape_term(columns, j: int, species: str, summary, warnings, surface: 
         )
         return 0.0
     return max([abs(f - 1.0) for f in summary.flux_ratios(grid, ratios)], default=0.0)
+
+
+def _no_bound_without_speed(ci, limit: float, v_n: float, warnings, surface, species):
+    """The interval of a rate below its detection limit on a surface whose
+    speed the self-checks found not measured (``transport-unresolved``:
+    the gas changes beyond recognition between frames, or the time of
+    flight does not carry it): the limit assumes the speed the flow read,
+    and a plume moving faster would pass unseen, so nothing bounds the
+    rate. Its upper end becomes unbounded, with the warning
+    ``no-bound-without-speed``. Before this, such a surface said "not
+    detected, < X" of truths 2-20x above X (a 1 g/h plume in a 2 m/s wind
+    at 1.5 m, 68 px per frame at 15 Hz)."""
+    lo = min(float(ci[0]), 0.0)
+    warnings.add(
+        "no-bound-without-speed",
+        f"not detected, and the speed is not measured (transport-unresolved): the "
+        f"detection limit {limit:.3g} kg/h assumes the {v_n:.3g} m/s the flow read, and "
+        f"gas moving faster would pass unseen, so nothing bounds the rate: interval "
+        f"[{lo:.4g}, unbounded] kg/h; give the wind speed (velocity 'wind' with "
+        f"wind_speed_m_s, --wind-speed), or film so the gas stays in view for more "
+        f"frames",
+        surface=surface,
+        species=species,
+        detection_limit_kg_h=float(limit),
+        speed_m_s=float(v_n),
+    )
+    return (lo, math.inf)
+
+
+def _speed_not_measured(st: RunState, ci, warnings, surface: str, species: str) -> tuple:
+    """The interval of a rate whose surface saw no gas speed at all (the
+    measured normal speed is zero where gas is and in the frames' medians:
+    the flow found no motion, e.g. wind faster than it tracks at the frame
+    rate, or gas too faint to follow): the columns may be measured but
+    nothing bounds their speed, so nothing bounds the rate. The interval's
+    upper end is unbounded (``inf``; ``null`` in the JSON), its lower end at
+    most 0 (or where the direction check put it: the magnitude mirrored,
+    when the gas may cross the other way), with the warning
+    ``speed-not-measured`` saying what would measure it. Before this, such
+    a rate read 0 with an interval [0, 0] (or the flux its columns carry at
+    a floored speed, ten times below a 1 g/h truth in a 2 m/s wind) and,
+    its speed being 0, no detection limit: "0 kg/h" of a plume nobody
+    measured."""
+    lo = min(float(ci[0]), 0.0)
+    scene = st.scene
+    warnings.add(
+        "speed-not-measured",
+        f"no gas speed was measured on the surface (the velocity there is zero in every "
+        f"frame: e.g. wind faster than the flow tracks at {scene.frame_rate:g} Hz, where "
+        f"1 px per frame is {scene.m_s_per_px_frame:.3g} m/s, or gas too faint to "
+        f"follow): the rate is not bounded, interval [{lo:.4g}, unbounded] kg/h; give "
+        f"the wind speed (velocity 'wind' with wind_speed_m_s, --wind-speed), record at "
+        f"a higher frame rate or from farther away",
+        surface=surface,
+        species=species,
+        metres_per_second_per_px_frame=scene.m_s_per_px_frame,
+    )
+    return (lo, math.inf)
 
 
 def _check_direction(

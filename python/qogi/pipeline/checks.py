@@ -199,13 +199,15 @@ def report_timebase(tb, first_frame: int, diags: Diagnostics) -> None:
 def check_result(surfaces, diags: Diagnostics) -> bool:
     """``nan-in-result`` for every surface and species whose mean or interval
     is not finite, ``frames-unquantified`` where some frames' rates are NaN
-    (no valid pixel or no velocity there). Returns False when the result is
-    not complete (a NaN in a mean or interval)."""
+    (no valid pixel or no velocity there). An interval's end may be
+    infinite (a rate nothing bounds: ``speed-not-measured``), never NaN.
+    Returns False when the result is not complete (a NaN in a mean or
+    interval)."""
     ok = True
     for s in surfaces:
         for sp, r in s.species.items():
-            values = [r.mean_kg_h, *r.ci90_kg_h, *r.uncertainty_terms_kg_h.values()]
-            if not all(math.isfinite(v) for v in values):
+            values = [r.mean_kg_h, *r.uncertainty_terms_kg_h.values()]
+            if not all(math.isfinite(v) for v in values) or any(math.isnan(v) for v in r.ci90_kg_h):
                 ok = False
                 diags.add(
                     "nan-in-result",

@@ -78,8 +78,12 @@ class SpeciesRate:
     def detected(self) -> Optional[bool]:
         """False when the mean rate is below the detection limit (the result
         is then "not detected, < :attr:`upper_limit_kg_h`"); None when no
-        limit is known."""
+        limit is known or nothing bounds the rate (an unbounded interval:
+        the speed was not measured, and gas below the limit at the speed
+        read may be gas above it at the true one)."""
         if self.detection_limit_kg_h is None or not math.isfinite(self.detection_limit_kg_h):
+            return None
+        if math.isinf(self.ci90_kg_h[1]):
             return None
         return bool(math.isfinite(self.mean_kg_h) and self.mean_kg_h >= self.detection_limit_kg_h)
 
@@ -113,6 +117,8 @@ class SpeciesRate:
         if upper is not None:
             return f"not detected, < {self.in_units(upper, u):.3g} {u}"
         lo, hi = (self.in_units(v, u) for v in self.ci90_kg_h)
+        if math.isinf(hi):  # nothing bounds it: speed-not-measured, no-bound-without-speed
+            return f"speed not measured, [90% {lo:.4g} .. unbounded] {u}"
         return f"{self.in_units(self.mean_kg_h, u):.4g} {u} [90% {lo:.4g} .. {hi:.4g}]"
 
     @property
@@ -472,7 +478,7 @@ class Result:
         for s in self.surfaces:
             for sp, r in s.species.items():
                 lo, hi = r.ci90_kg_h
-                if self.units != "kg/h" or r.detected is False:
+                if self.units != "kg/h" or r.detected is False or math.isinf(hi):
                     line = f"  {s.surface.name:>12s} {sp:4s} {r.text(self.units)}"
                 else:
                     line = (
@@ -541,7 +547,8 @@ class Result:
                     )
                     if r.time_s.size:
                         ax.axhline(r.mean_kg_h, color=color, lw=1.5)
-                        ax.axhspan(r.ci90_kg_h[0], r.ci90_kg_h[1], color=color, alpha=0.12)
+                        if all(math.isfinite(v) for v in r.ci90_kg_h):
+                            ax.axhspan(*r.ci90_kg_h, color=color, alpha=0.12)
                 truth = next(
                     (
                         s.species[sp].truth_kg_h

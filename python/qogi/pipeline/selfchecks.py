@@ -208,6 +208,12 @@ THRESHOLDS: Dict[str, float] = {
     "implied_speed_ratio": 25.0,
 }
 #: The measures that fail *below* their threshold (the others above it).
+#: The measures whose failure says the speed is not measured (the rate's
+#: upper end is then unbounded when nothing was detected:
+#: qogi.pipeline.budget's ``no-bound-without-speed``).
+SPEED_NOT_MEASURED = frozenset(
+    {"transport_frames_in_view", "transport_unexplained", "surface_frames_in_view"}
+)
 BELOW = frozenset({"column_fluctuation", "transport_frames_in_view", "surface_frames_in_view"})
 #: The slowest pattern, as a fraction of the gas's speed, that a steady
 #: column's interval covers: instability waves of laminar jets and plumes
