@@ -94,3 +94,39 @@ def test_blocks_read_the_rate_of_one_pass(lab):
     assert res.info["blocks"] == 3
     assert r.n_frames == lab.n_frames and np.isfinite(r.rate_kg_s).all()
     assert one.ci90_kg_h[0] <= r.mean_kg_h <= one.ci90_kg_h[1]
+
+
+def test_a_block_holds_ten_seconds_or_450_frames_whichever_is_fewer():
+    # The memory bound (benchmarks/bench_memory.py, issue 30): 150 frames of
+    # 15 Hz 320 x 240 video (was 450), a 100 Hz block 4.5 s as before; every
+    # validation release (10 s at 15 Hz, 2 s at 100 Hz) stays one block.
+    from types import SimpleNamespace
+
+    from qogi.pipeline import run
+
+    def rec(hz, h=240, w=320):
+        return SimpleNamespace(height=h, width=w, camera=SimpleNamespace(frame_rate_hz=hz))
+
+    auto = QuantifyConfig()
+    assert run._block_frames(auto, rec(15.0)) == 150
+    assert run._block_frames(auto, rec(100.0)) == 450
+    assert run._block_frames(auto, rec(15.0, 24, 32)) == run.BLOCK_BYTES // (8 * 4 * 24 * 32)
+    assert run._block_frames(QuantifyConfig(block_frames=64), rec(15.0)) == 64
+
+
+def test_the_temporal_percentiles_and_noise_a_few_rows_at_a_time_are_numpys_own(monkeypatch):
+    from qogi.pipeline import background_choice as bc
+
+    rng = np.random.default_rng(3)
+    for shape in [(41, 2, 90, 70), (5, 1, 3, 4)]:
+        st = rng.standard_normal(shape).astype(np.float32)
+        ref = np.percentile(st, (5, 50, 95), axis=0)
+        got = bc.temporal_percentiles(st, (5, 50, 95))
+        assert got.dtype == ref.dtype and np.array_equal(got, ref)
+        d = np.diff(st, axis=0)
+        mad = np.median(np.abs(d - np.median(d, axis=0)), axis=0) * 1.4826 / np.sqrt(2.0)
+        assert np.array_equal(bc._noise(st), np.median(mad.reshape(shape[1], -1), axis=1))
+    # chunks of a few rows: the same again
+    monkeypatch.setattr(bc, "ROW_CHUNK_BYTES", 1000)
+    st = rng.standard_normal((17, 1, 33, 20)).astype(np.float32)
+    assert np.array_equal(bc.temporal_percentiles(st, (10,)), np.percentile(st, (10,), axis=0))

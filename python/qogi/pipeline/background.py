@@ -140,14 +140,18 @@ class Background:
             # Sign-aware: a plume warmer than the background raises radiance,
             # so its background is a low percentile; a colder one a high one.
             sl = roi.slices()
-            stack = []
-            # At most 200 frames spread over the run bound the memory.
+            # 200-399 frames spread over the run bound the memory, read into
+            # one array (a list of frames and its copy held both).
             use = list(frames)[:: max(1, len(frames) // 200)]
+            stacked = None
             for k, f in enumerate(use):
-                stack.append(rec.frame(f, quantity="radiance")[:, sl[0], sl[1]])
+                img = rec.frame(f, quantity="radiance")[:, sl[0], sl[1]]
+                if stacked is None:
+                    stacked = np.empty((len(use),) + img.shape, img.dtype)
+                stacked[k] = img
                 if k % 50 == 0:
                     say(0.02 * k / len(use), "background (temporal percentile)")
-            stacked = np.asarray(stack)
+            assert stacked is not None  # a run has frames
             noise = _noise(stacked)  # once, for the inpainting and its check
             self.percentile_img, self.held, self.held_clip = percentile_background(
                 stacked,

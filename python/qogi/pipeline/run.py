@@ -12,6 +12,7 @@ cut where ``time_s`` has a gap). Every stage takes the
 from __future__ import annotations
 
 import ctypes
+import math
 import sys
 import time
 from typing import Callable, List, Optional, Sequence, Union
@@ -30,14 +31,18 @@ from .state import BlockOut, RunState
 from .surfaces import Surface
 from .timebase import stream_blocks
 
-__all__ = ["quantify", "BLOCK_BYTES", "MIN_BLOCK_FRAMES"]
+__all__ = ["quantify", "BLOCK_BYTES", "MIN_BLOCK_FRAMES", "MIN_BLOCK_SECONDS"]
 
 #: Frames per block (the pipeline's memory bound) when not configured: the
 #: block's float32 fields (column field, flow, frame velocities, their
 #: normalised copy, ~8 per frame) within this many bytes.
-BLOCK_BYTES = 1 << 30
-#: Frames per block at least (the transport's flux level is a time average
-#: over the block: at 15 Hz, 30 s).
+BLOCK_BYTES = 1 << 28
+#: A block holds at least this much record [s] (the transport's flux level is
+#: a time average over the block; every validation release at 15 Hz, 10 s,
+#: is one block), ...
+MIN_BLOCK_SECONDS = 10.0
+#: ... or this many frames when fewer (100 Hz: 4.5 s; a 2 s release is one
+#: block).
 MIN_BLOCK_FRAMES = 450
 
 
@@ -126,6 +131,30 @@ def _c_malloc_trim() -> Optional[Callable[[int], int]]:
 _MALLOC_TRIM = _c_malloc_trim()
 
 
+def _fix_mmap_threshold() -> None:
+    """Serve every allocation of 1 MiB or more by its own mapping, returned to
+    the system when freed (glibc's ``mallopt(M_MMAP_THRESHOLD, 1 MiB)``;
+    nothing on other C libraries). By default glibc raises that threshold to
+    the largest block freed so far (up to 32 MB), after which a stage's
+    temporaries (a block's normalised field, the flow's buffers) come from
+    the heap and stay resident until the next trim: 22 MB of the 15 Hz
+    320 x 240 benchmark's peak (319 -> 297 MB with 150-frame blocks).
+    Process-wide, set when the pipeline is imported (before the run's first
+    large arrays); values are untouched."""
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        mallopt = ctypes.CDLL(None).mallopt
+    except (OSError, AttributeError):
+        return
+    mallopt.argtypes = [ctypes.c_int, ctypes.c_int]
+    mallopt.restype = ctypes.c_int
+    mallopt(-3, 1 << 20)  # M_MMAP_THRESHOLD
+
+
+_fix_mmap_threshold()
+
+
 def _release_free_memory() -> None:
     """Hands the C heap's free pages back to the system (glibc's
     ``malloc_trim(0)``, every arena; nothing elsewhere), between the run's
@@ -210,7 +239,16 @@ def _block(run: RunState, blk, say) -> BlockOut:
 
 
 def _block_frames(cfg: QuantifyConfig, rec: Recording) -> int:
+    """Frames per block: ``cfg.block_frames``, else as many as fit
+    :data:`BLOCK_BYTES` and at least :data:`MIN_BLOCK_SECONDS` of record
+    (at most :data:`MIN_BLOCK_FRAMES` for that floor). At 15 Hz 320 x 240:
+    150 frames, a peak of ~300 MB however long the record (it was 450
+    frames and 592 MB; benchmarks/bench_memory.py)."""
     if cfg.block_frames is not None:
         return cfg.block_frames
     per_frame = 8 * 4 * rec.height * rec.width
-    return int(max(MIN_BLOCK_FRAMES, BLOCK_BYTES // per_frame))
+    fps = float(rec.camera.frame_rate_hz or 0.0)
+    floor = (
+        min(MIN_BLOCK_FRAMES, math.ceil(MIN_BLOCK_SECONDS * fps)) if fps > 0 else MIN_BLOCK_FRAMES
+    )
+    return int(max(floor, BLOCK_BYTES // per_frame))
