@@ -455,8 +455,9 @@ SETTINGS: Dict[str, Setting] = {
             flag="--block-frames",
             metavar="N",
             doc=(
-                "frames streamed per block (the memory bound, below); None: as many as fit ~1 GiB"
-                " of the block's float32 fields (8 per frame), at least 450 (30 s at 15 Hz)"
+                "frames streamed per block (the memory bound, below); None: as many as fit 256"
+                " MiB of the block's float32 fields (8 per frame), and at least 10 s of record or"
+                " 450 frames, whichever is fewer (150 at 15 Hz, 450 at 100 Hz)"
             ),
         ),
         Setting(
