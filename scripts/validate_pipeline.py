@@ -269,6 +269,8 @@ def run_case(cache: Path, case: str, seed: int, no_source: bool = False) -> dict
                 covered=bool(r.ci90_kg_h[0] <= r.truth_kg_h <= r.ci90_kg_h[1]),
                 dominant=r.dominant_uncertainty,
                 terms=r.uncertainty_terms_kg_h,
+                detection_limit_kg_h=r.detection_limit_kg_h,
+                error_model=r.error_model,
             )
         )
     info = {k: v for k, v in res.info.items() if isinstance(v, (int, float))}

@@ -25,6 +25,7 @@ ORDER = [
     "budget_terms",
     "hotgas",
     "background_choice",
+    "error_model",
     "result",
     "config",
     "sampling",

@@ -599,6 +599,8 @@ CELL_COLUMNS = [
     "ci90_high_kg_h",
     "error_pct",
     "covers",
+    "covers_budget",
+    "expected_error_pct",
     "detected",
     "detection_limit_kg_h",
     "upper_limit_kg_h",
@@ -633,6 +635,11 @@ def cell_rows(
         lo, hi = r["ci90_kg_h"]
         lo, hi = (-math.inf if lo is None else lo), (math.inf if hi is None else hi)
         ok = truth is not None and mean is not None
+        # The budget's interval before the error model's calibration, and
+        # the error the model expects (qogi.pipeline.error_model).
+        model = r.get("error_model") or {}
+        blo, bhi = model.get("ci90_budget_kg_h") or (lo, hi)
+        expected = model.get("expected_error")
         codes = sorted({w["code"] for w in warnings if w.get("surface") in (None, s.get("name"))})
         rows.append(
             {
@@ -646,6 +653,8 @@ def cell_rows(
                 "ci90_high_kg_h": hi,
                 "error_pct": 100.0 * (mean / truth - 1.0) if ok and truth else None,
                 "covers": bool(lo <= truth <= hi) if ok else None,
+                "covers_budget": bool(blo <= truth <= bhi) if ok else None,
+                "expected_error_pct": None if expected is None else 100.0 * expected,
                 "detected": r.get("detected"),
                 "detection_limit_kg_h": r.get("detection_limit_kg_h"),
                 "upper_limit_kg_h": r.get("upper_limit_kg_h"),
@@ -707,6 +716,7 @@ def aggregate(rows: Sequence[dict]) -> List[dict]:
                 "mean_error_pct": float(err.mean()) if err.size else math.nan,
                 "spread_pct": float(err.std(ddof=1)) if err.size > 1 else math.nan,
                 "coverage": _frac(r["covers"] for r in ok),
+                "coverage_budget": _frac(r.get("covers_budget") for r in ok),
                 "detection_fraction": _frac(r["detected"] for r in ok),
                 "bound_exceeded": sum(_bound_exceeded(r) for r in ok),
                 "warning_fraction": _frac(bool(r["warnings"]) for r in ok) if ok else math.nan,

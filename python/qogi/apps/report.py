@@ -244,6 +244,23 @@ def _rate_rows(result):
     return rows
 
 
+def _error_model_note(result) -> str:
+    """A line on the intervals the error model calibrated (qogi.pipeline.error_model)
+    and the error it expects on each, or nothing when it calibrated none."""
+    parts = [
+        f"{s.surface.name} {sp} {100 * r.error_model['expected_error']:+.0f} %"
+        for s in result.surfaces
+        for sp, r in s.species.items()
+        if r.error_model
+    ]
+    if not parts:
+        return ""
+    return (
+        "\nIntervals of detected rates calibrated by the error model fitted on the "
+        "operating envelope; the error it expects (rate / truth - 1): " + ", ".join(parts)
+    )
+
+
 def _header(fig, result, sha, title_suffix=""):
 
     audit = result.audit
@@ -484,7 +501,8 @@ def write_report(result, path: PathLike, recording=None) -> str:
             "limit: the smallest rate seen in "
             f"{'95' if conf is None else f'{100 * conf:.0f}'} % of frames "
             "(qogi.pipeline.detection); "
-            "below it the rate reads 'not detected'; '-': not computed.",
+            "below it the rate reads 'not detected'; '-': not computed."
+            + _error_model_note(result),
             fontsize=6.5,
             color=_MUTED,
             va="bottom",

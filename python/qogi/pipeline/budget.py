@@ -21,7 +21,7 @@ from typing import Dict, List, Optional, cast
 import numpy as np
 
 from .. import _engine
-from . import checks, selfchecks
+from . import checks, error_model, selfchecks
 from .budget_terms import record_length_advice
 from .columns import InvertedColumns
 from .detection import (
@@ -189,6 +189,8 @@ def finish(st: RunState, complete: bool) -> Result:
             warnings,
             info,
         )
+    if columns is not None and not cfg.methods.truth_columns:
+        _calibrate_intervals(st, results, bg_choice, done, info)
     if not checks.check_result(results, warnings):
         complete = False
     mdc = _min_detectable_columns(st, results) if isinstance(columns, InvertedColumns) else {}
@@ -203,6 +205,47 @@ def finish(st: RunState, complete: bool) -> Result:
         warnings=warnings,
         min_detectable_column=mdc,
     )
+
+
+def _calibrate_intervals(
+    st: RunState, results: List[SurfaceResult], bg_choice: Optional[dict], done: int, info: dict
+) -> None:
+    """Each detected rate's interval calibrated by the error model
+    (:mod:`qogi.pipeline.error_model`, fitted on the operating envelope):
+    centred where the model expects the truth, its spread beyond the
+    budget's in quadrature with the budget's half-widths, never narrower
+    than the budget's interval; the model's
+    spread becomes the term ``error model``, and the features, expected
+    error and the budget's own interval go into ``SpeciesRate.error_model``.
+    Rates not detected, not positive or unbounded keep the budget's."""
+    model = error_model.load()
+    scene, warnings = st.scene, st.warnings
+    method = str((bg_choice or {}).get("method") or st.cfg.background)
+    self_codes = set(selfchecks.CODES.values())
+    for s in results:
+        failed = any(w.code in self_codes and w.surface == s.surface.name for w in warnings)
+        for r in s.species.values():
+            if not all(math.isfinite(v) for v in r.ci90_kg_h):
+                continue
+            feats = error_model.features(
+                r.mean_kg_h,
+                r.detection_limit_kg_h,
+                (r.detection or {}).get("velocity_m_s"),
+                scene.pixel_m,
+                scene.frame_rate,
+                done / scene.frame_rate,
+                method,
+                failed,
+                int(info.get("pair_stride") or 1),
+            )
+            if feats is None:
+                continue
+            bias, spread = model.expected(feats)
+            r.error_model = model.describe(feats, r.ci90_kg_h)
+            r.ci90_kg_h = error_model.calibrated_interval(r.mean_kg_h, r.ci90_kg_h, bias, spread)
+            r.uncertainty_terms_kg_h["error model"] = abs(r.mean_kg_h) * spread
+            terms = r.uncertainty_terms_kg_h
+            r.dominant_uncertainty = max(terms, key=lambda k: terms[k])
 
 
 def _min_detectable_columns(st: RunState, results: List[SurfaceResult]) -> Dict[str, np.ndarray]:

@@ -69,6 +69,10 @@ class SpeciesRate:
     #: equivalent column, velocity, pixels, confidence).
     detection_limit_kg_h: Optional[float] = None
     detection: Optional[dict] = None
+    #: The error model's record (qogi.pipeline.error_model; None where it does
+    #: not apply): its features, the expected error (rate / truth - 1), its
+    #: spread and the budget's interval before the calibration.
+    error_model: Optional[dict] = None
 
     @property
     def rate_kg_h(self) -> np.ndarray:
@@ -156,6 +160,7 @@ class SpeciesRate:
             "detected": self.detected,
             "upper_limit_kg_h": _f(self.upper_limit_kg_h),
             "detection": self.detection,
+            "error_model": self.error_model,
         }
         if self.truth_kg_h is not None:
             d["truth_kg_h"] = _f(self.truth_kg_h)

@@ -1,0 +1,213 @@
+"""The error model: how far a detected rate is from the truth, as measured on
+the operating envelope, and the interval calibrated with it (issue 28, item 3).
+
+The budget's interval (:func:`qogi.pipeline.budget.interval90`) is built from
+the terms the pipeline can size (temporal scatter, the velocimetry's and the
+column model's systematics, the self-checks' failures). On the envelope's
+default grid it covered 85 % of the detected rates, and its misses sat where
+the scene is hard: a low signal-to-noise, a plume moving too slowly or too
+fast for the flow, a short record. The error model carries what the budget
+misses, as functions of what the run measures itself (never the truth):
+
+========================= ====================================================
+feature                   what
+========================= ====================================================
+``ln_snr``                ln(mean / detection limit): the measured signal
+                          over the noise-equivalent rate at the stated
+                          confidence (>= 0 for a detected rate)
+``flow_range``            how far the measured gas displacement between the
+                          flow's frame pairs lies outside its range, 1-64
+                          px: ln(1 / d) below, ln(d / 64) above, 0 inside
+                          (d = speed / (pixel x frame rate) x pair stride)
+``self_check_failed``     1 when a self-check of the surface failed (its
+                          warning was raised)
+``percentile_background`` 1 for a temporal-percentile background (the
+                          background choice's method or the given one)
+``short_record``          ln(3 s / record) when the record is shorter than
+                          3 s, else 0
+========================= ====================================================
+
+Two linear functions of ``[1, features]`` give the natural log of the ratio
+rate / truth expected there (``bias``, fitted as a median) and the spread
+beyond the budget's (``ln spread``, fitted as the 90 % quantile of what each
+fit row needs to be covered). The model's interval is centred on
+``ln(mean) - bias`` with the budget's own half-widths in quadrature with
+the spread, each side its own (a near side that reaches zero stays there);
+the calibrated interval is the hull of it, the budget's interval and the
+mean. The calibration only ever widens: a scene the envelope does not
+resemble keeps what its own budget says (a shift alone moved the FAST M150
+lab release's covering intervals off its truth), and the rate itself is
+never corrected by the model (it is the simulator's).
+
+The coefficients are fitted by ``scripts/fit_error_model.py`` on the
+envelope's default grid and stored with their provenance and their
+held-out coverage in ``qogi/data/error_model.json``; the model applies only
+to detected rates with a positive mean, never to a rate nothing bounds.
+It is a simulator's model: its figures hold where the simulator's scenes
+resemble the user's (docs/validation/envelope.md, "The error model").
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import json
+import math
+from importlib import resources
+from typing import Dict, Optional, Sequence, Tuple
+
+import numpy as np
+
+__all__ = ["ErrorModel", "FEATURES", "features", "load", "Z90"]
+
+#: The two-sided 90 % quantile of the standard normal.
+Z90 = 1.6448536269514722
+
+#: The features, in the order of the coefficients after the constant.
+FEATURES = (
+    "ln_snr",
+    "flow_range",
+    "self_check_failed",
+    "percentile_background",
+    "short_record",
+)
+
+#: The flow's range [px between the frames of a pair] (docs/velocimetry.md):
+#: below it the gas's displacement is lost in the noise and the held
+#: background, above it the structures change beyond recognition.
+FLOW_RANGE_PX = (1.0, 64.0)
+
+#: The largest ln spread predicted (a factor e^(1.645 x 3) ~ 140 beyond the
+#: budget: no finite interval is much wider than that).
+LOG_SPREAD_MAX = 3.0
+
+#: The record length below which ``short_record`` grows [s].
+SHORT_RECORD_S = 3.0
+
+FORMAT = "qogi-error-model-1"
+
+
+def features(
+    mean_kg_h: float,
+    detection_limit_kg_h: Optional[float],
+    speed_m_s: Optional[float],
+    pixel_m: float,
+    frame_rate_hz: float,
+    duration_s: float,
+    background: str,
+    self_check_failed: bool,
+    pair_stride: int = 1,
+) -> Optional[Dict[str, float]]:
+    """The model's features of one rate (the table in the module's
+    docstring), or None where the model does not apply: not detected (or
+    no limit), a mean that is not positive, no measured speed."""
+    if not (
+        detection_limit_kg_h is not None
+        and math.isfinite(detection_limit_kg_h)
+        and detection_limit_kg_h > 0
+        and math.isfinite(mean_kg_h)
+        and mean_kg_h >= detection_limit_kg_h
+    ):
+        return None
+    if speed_m_s is None or not (math.isfinite(speed_m_s) and speed_m_s > 0):
+        return None
+    d = float(speed_m_s) / (float(pixel_m) * float(frame_rate_hz)) * max(1, int(pair_stride))
+    lo, hi = FLOW_RANGE_PX
+    return {
+        "ln_snr": math.log(mean_kg_h / detection_limit_kg_h),
+        "flow_range": max(0.0, math.log(lo / d)) + max(0.0, math.log(d / hi)),
+        "self_check_failed": float(bool(self_check_failed)),
+        "percentile_background": float(background == "percentile"),
+        "short_record": max(0.0, math.log(SHORT_RECORD_S / float(duration_s))),
+    }
+
+
+def calibrated_interval(
+    mean_kg_h: float, ci_budget: Tuple[float, float], bias: float, spread: float
+) -> Tuple[float, float]:
+    """The hull of the budget's interval ``ci_budget``, the mean, and the
+    90 % interval about ``mean / exp(bias)`` with the budget's own
+    half-widths (in log space, each side its own) in quadrature with
+    ``spread`` (1 sigma of ln(rate / truth)); a budget side that reaches
+    zero or beyond is kept as it is."""
+    m = float(mean_kg_h)
+    lo_b, hi_b = (float(v) for v in ci_budget)
+    centre = math.log(m) - bias
+    s_up = math.log(hi_b / m) / Z90 if hi_b > m else 0.0
+    hi = math.exp(centre + Z90 * math.hypot(s_up, spread)) if math.isfinite(hi_b) else hi_b
+    if lo_b <= 0:
+        lo = lo_b
+    else:
+        s_lo = math.log(m / lo_b) / Z90 if lo_b < m else 0.0
+        lo = math.exp(centre - Z90 * math.hypot(s_lo, spread))
+    return (min(lo, m, lo_b), max(hi, m, hi_b))
+
+
+@dataclasses.dataclass(frozen=True)
+class ErrorModel:
+    """Fitted coefficients (``bias`` and ``log_spread``: the constant, then
+    one per :data:`FEATURES`) and where they came from (``provenance``:
+    grid, seeds, rows, coverage fitted and held out)."""
+
+    bias: Tuple[float, ...]
+    log_spread: Tuple[float, ...]
+    provenance: dict
+
+    def __post_init__(self):
+        n = len(FEATURES) + 1
+        if len(self.bias) != n or len(self.log_spread) != n:
+            raise ValueError(
+                f"an error model needs {n} coefficients each for the bias and the spread "
+                f"(a constant and {', '.join(FEATURES)}); got {len(self.bias)} and "
+                f"{len(self.log_spread)}"
+            )
+
+    def _x(self, feats: Dict[str, float]) -> np.ndarray:
+        return np.array([1.0] + [float(feats[k]) for k in FEATURES])
+
+    def expected(self, feats: Dict[str, float]) -> Tuple[float, float]:
+        """``(bias, spread)`` at ``feats``: the expected ln(rate / truth) and
+        the spread [1 sigma of it] beyond the budget's."""
+        x = self._x(feats)
+        return float(x @ np.asarray(self.bias)), float(
+            np.exp(np.clip(x @ np.asarray(self.log_spread), -30.0, LOG_SPREAD_MAX))
+        )
+
+    def describe(self, feats: Dict[str, float], ci_budget: Sequence[float]) -> dict:
+        """What the result records (``SpeciesRate.error_model``): the
+        features, the expected error (rate / truth - 1, the median), the
+        spread, and the budget's interval before the model."""
+        bias, spread = self.expected(feats)
+        return {
+            "features": {k: float(v) for k, v in feats.items()},
+            "expected_error": math.expm1(bias),
+            "bias_ln": bias,
+            "spread_ln": spread,
+            "ci90_budget_kg_h": [float(ci_budget[0]), float(ci_budget[1])],
+            "fitted_on": self.provenance.get("fitted_on", ""),
+        }
+
+    def to_dict(self) -> dict:
+        return {
+            "format": FORMAT,
+            "features": list(FEATURES),
+            "bias": list(self.bias),
+            "log_spread": list(self.log_spread),
+            "provenance": self.provenance,
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict) -> ErrorModel:
+        if d.get("format") != FORMAT or tuple(d.get("features", ())) != FEATURES:
+            raise ValueError(
+                f"not a {FORMAT} file with the features {', '.join(FEATURES)} (refit it: "
+                f"scripts/fit_error_model.py)"
+            )
+        return cls(tuple(d["bias"]), tuple(d["log_spread"]), dict(d.get("provenance", {})))
+
+
+@functools.lru_cache(maxsize=1)
+def load() -> ErrorModel:
+    """The packaged model (``qogi/data/error_model.json``)."""
+    text = resources.files("qogi").joinpath("data/error_model.json").read_text()
+    return ErrorModel.from_dict(json.loads(text))
