@@ -40,9 +40,7 @@ from typing import Dict, List, Sequence
 
 import numpy as np
 
-Z90 = 1.6448536269514722
-#: The largest ln spread the model may predict (qogi.pipeline.error_model).
-LOG_SPREAD_MAX = 3.0
+from qogi.pipeline.error_model import LOG_SPREAD_MAX, Z90
 
 
 def load_rows(folders: Sequence[Path]) -> List[dict]:

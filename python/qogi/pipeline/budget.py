@@ -30,6 +30,7 @@ from .detection import (
     min_detectable_column,
     velocity_from_sums,
 )
+from .error_model import Z90
 from .flux_summary import FluxSummary
 from .hotgas import check_gas_temperature
 from .result import Result, SpeciesRate, SurfaceResult
@@ -547,10 +548,6 @@ def _self_checks(st: RunState, j: int, surface: str, sp: str, summary, relative,
     if failed:
         relative["assumptions"] = selfchecks.combined_term(failed)
     return measures, frozenset(key for key, _ in failed)
-
-
-#: The two-sided 90 % quantile of the standard normal.
-Z90 = 1.6448536269514722
 
 
 def interval90(mean: float, additive: float, relative: float) -> tuple:
