@@ -77,6 +77,7 @@ def load_rows(folders: Sequence[Path]) -> List[dict]:
             feats = error_model.features(
                 mean,
                 r.get("detection_limit_kg_h"),
+                r.get("detected"),
                 (r.get("detection") or {}).get("velocity_m_s"),
                 info["pixel_m"],
                 info["frame_rate_hz"],

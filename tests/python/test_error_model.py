@@ -23,6 +23,7 @@ def _feats(**kw):
     base = dict(
         mean_kg_h=1.0,
         detection_limit_kg_h=0.1,
+        detected=True,
         speed_m_s=1.0,
         pixel_m=0.01,
         frame_rate_hz=10.0,
@@ -53,10 +54,11 @@ def test_the_features_are_what_the_run_measures_and_none_where_the_model_does_no
     assert _feats(duration_s=1.5)["short_record"] == pytest.approx(math.log(2.0))
     assert _feats(background="percentile")["percentile_background"] == 1.0
     assert _feats(self_check_failed=True)["self_check_failed"] == 1.0
-    assert _feats(mean_kg_h=0.05) is None  # not detected
-    assert _feats(detection_limit_kg_h=None) is None
+    assert _feats(detected=False) is None
+    assert _feats(detected=None) is None  # no decision (no limit, or unbounded)
+    assert _feats(mean_kg_h=-0.5) is None
     assert _feats(speed_m_s=0.0) is None
-    assert _feats(mean_kg_h=math.nan) is None
+    assert _feats(speed_m_s=math.nan) is None
 
 
 def test_the_calibrated_interval_is_the_budgets_widened_in_quadrature_about_the_shifted_centre():

@@ -231,6 +231,7 @@ def _calibrate_intervals(
             feats = error_model.features(
                 r.mean_kg_h,
                 r.detection_limit_kg_h,
+                r.detected,
                 (r.detection or {}).get("velocity_m_s"),
                 scene.pixel_m,
                 scene.frame_rate,

@@ -90,6 +90,7 @@ FORMAT = "qogi-error-model-1"
 def features(
     mean_kg_h: float,
     detection_limit_kg_h: Optional[float],
+    detected: Optional[bool],
     speed_m_s: Optional[float],
     pixel_m: float,
     frame_rate_hz: float,
@@ -99,15 +100,10 @@ def features(
     pair_stride: int = 1,
 ) -> Optional[Dict[str, float]]:
     """The model's features of one rate (the table in the module's
-    docstring), or None where the model does not apply: not detected (or
-    no limit), a mean that is not positive, no measured speed."""
-    if not (
-        detection_limit_kg_h is not None
-        and math.isfinite(detection_limit_kg_h)
-        and detection_limit_kg_h > 0
-        and math.isfinite(mean_kg_h)
-        and mean_kg_h >= detection_limit_kg_h
-    ):
+    docstring), or None where the model does not apply: not ``detected``
+    (the result's own decision, :attr:`qogi.SpeciesRate.detected`), a mean
+    that is not positive, no measured speed."""
+    if not (detected and detection_limit_kg_h and mean_kg_h > 0):
         return None
     if speed_m_s is None or not (math.isfinite(speed_m_s) and speed_m_s > 0):
         return None
