@@ -545,6 +545,16 @@ SingleChannelScene MakeSingleChannelScene(const Fixture& f) {
   return sc;
 }
 
+// The contrast [W/(m2 sr)] a column x of the scene's gas (320 K, sigma 4 cm)
+// makes against a 300 K background.
+double SceneContrast(const SingleChannelScene& sc, const Fixture& f, double x) {
+  const Path p = sc.m->GaussianPath<double>(&x, 320.0, f.t_amb, 0.04);
+  double tbg = 300.0;
+  double dl;
+  sc.m->Contrast<double>(p, &tbg, &dl);
+  return dl;
+}
+
 TEST(Inverter, SingleChannelNewtonMatchesTheGeneralSolvers) {
   // One channel, CH4 only, T_peak and sigma fixed: the Newton path.
   const Fixture& f = F();
@@ -558,10 +568,7 @@ TEST(Inverter, SingleChannelNewtonMatchesTheGeneralSolvers) {
   const std::size_t n = xs.size() + 2;
   std::vector<double> rad(n), tbg(n, 300.0);
   for (std::size_t i = 0; i < xs.size(); ++i) {
-    const Path p = m->GaussianPath<double>(&xs[i], 320.0, f.t_amb, 0.04);
-    double dl;
-    m->Contrast<double>(p, &tbg[i], &dl);
-    rad[i] = m->channels()[0].BandRadiance(300.0) + dl;
+    rad[i] = m->channels()[0].BandRadiance(300.0) + SceneContrast(sc, f, xs[i]);
   }
   // A pixel colder than its background although the gas is assumed warmer
   // needs a negative column: held at x = 0. One brighter than any column can make: x = 1.
@@ -609,9 +616,7 @@ TEST(Inverter, SignedBelowDetectionIsTheThinLimitColumnWithItsSign) {
   std::vector<double> rad(n), tbg(n, 300.0);
   const double l_bg = m->channels()[0].BandRadiance(300.0);
   for (std::size_t i = 0; i < xs.size(); ++i) {
-    const Path p = m->GaussianPath<double>(&xs[i], 320.0, f.t_amb, 0.04);
-    double dl;
-    m->Contrast<double>(p, &tbg[i], &dl);
+    const double dl = SceneContrast(sc, f, xs[i]);
     rad[i] = l_bg + dl;
     rad[xs.size() + i] = l_bg - dl;  // the same contrast, the other sign
   }
