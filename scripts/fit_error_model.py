@@ -10,7 +10,12 @@ positive mean, and fits on the rows of ``--fit-seeds``:
   least squares);
 * the spread: the 90 % quantile (pinball loss) of what each row needs
   beyond the budget's own half-width to be covered, about the bias, as
-  exp(linear function of ``[1, features]``).
+  exp(linear function of ``[1, features]``);
+* the probability of detection at the scene: a logistic in
+  ln(truth / stated limit) shifted by the scene's features, by maximum
+  likelihood on every rate with a stated limit and a measured speed,
+  detected or not (checked per scene of the grid: the observed detection
+  fraction against the stated probability).
 
 Then reports the coverage of the budget's interval and of the calibrated
 one on the fit rows and on the rows of ``--held-seeds`` (per block of the
@@ -44,8 +49,11 @@ from qogi.pipeline.error_model import LOG_SPREAD_MAX, Z90
 
 
 def load_rows(folders: Sequence[Path]) -> List[dict]:
-    """One dict per detected rate with a positive mean: block, seed,
-    surface, truth, mean, the budget's interval, the features."""
+    """One dict per rate of a release (truth > 0) the envelope quantified:
+    block, scene, seed, surface, truth, mean, the budget's interval, the
+    detection decision and limit, the scene's features (None without a
+    measured speed) and the model's features (None where the model does not
+    apply: not detected, not positive, no speed)."""
     from qogi.pipeline import error_model, selfchecks
 
     self_codes = set(selfchecks.CODES.values())
@@ -55,7 +63,7 @@ def load_rows(folders: Sequence[Path]) -> List[dict]:
         with open(folder / "cells.csv", newline="") as f:
             cells = list(csv.DictReader(f))
         for c in cells:
-            if c["status"] != "ok":
+            if c["status"] != "ok" or not float(c["truth_kg_h"]) > 0:
                 continue
             name = f"{c['scene']}-seed{c['seed']}"
             if name not in cache:
@@ -74,11 +82,8 @@ def load_rows(folders: Sequence[Path]) -> List[dict]:
             )
             codes = {w["code"] for w in d["warnings"] if w.get("surface") == c["surface"]}
             mean, truth = r["mean_kg_h"], float(c["truth_kg_h"])
-            feats = error_model.features(
-                mean,
-                r.get("detection_limit_kg_h"),
-                r.get("detected"),
-                (r.get("detection") or {}).get("velocity_m_s"),
+            speed = (r.get("detection") or {}).get("velocity_m_s")
+            facts = (
                 info["pixel_m"],
                 info["frame_rate_hz"],
                 info["frames"] / info["frame_rate_hz"],
@@ -86,8 +91,9 @@ def load_rows(folders: Sequence[Path]) -> List[dict]:
                 bool(codes & self_codes),
                 int(info.get("pair_stride") or 1),
             )
-            if feats is None or not (math.isfinite(hi) and truth > 0):
-                continue
+            feats = error_model.features(
+                mean, r.get("detection_limit_kg_h"), r.get("detected"), speed, *facts
+            )
             out.append(
                 {
                     "folder": str(folder),
@@ -99,10 +105,77 @@ def load_rows(folders: Sequence[Path]) -> List[dict]:
                     "mean": mean,
                     "lo": lo,
                     "hi": hi,
-                    "features": feats,
+                    "detected": r.get("detected") is True,
+                    "limit": r.get("detection_limit_kg_h"),
+                    "where": error_model.scene_features(speed, *facts),
+                    "features": feats if feats is not None and math.isfinite(hi) else None,
                 }
             )
     return out
+
+
+def pod_rows(rows: Sequence[dict]) -> List[dict]:
+    """The rows the probability of detection is fitted and checked on: a
+    stated detection limit and a measured speed, detected or not."""
+    return [r for r in rows if r["where"] is not None and r["limit"] and r["limit"] > 0]
+
+
+def fit_pod(rows: Sequence[dict], ridge: float = 0.5, iterations: int = 200) -> dict:
+    """The probability of detection's coefficients (maximum likelihood of
+    the logistic ``logit PoD = a ln(truth / limit) - (c_0 + c . x)``, by
+    Newton's method; the features' shifts ``c`` held back by ``ridge`` x
+    their squares, a prior of a few logit units: a feature whose rows are
+    all detected or all missed would otherwise run off to infinity)."""
+    from qogi.pipeline.error_model import SCENE_FEATURES
+
+    t = np.array([math.log(r["truth"] / r["limit"]) for r in rows])
+    y = np.array([float(r["detected"]) for r in rows])
+    X = np.array([[1.0] + [r["where"][k] for k in SCENE_FEATURES] for r in rows])
+    A = np.column_stack([t, -X])
+    penalty = np.zeros(A.shape[1])
+    penalty[2:] = 2.0 * ridge
+    th = np.zeros(A.shape[1])
+    th[0] = 1.0
+    for _ in range(iterations):
+        p = 0.5 * (1.0 + np.tanh(0.5 * (A @ th)))
+        w = p * (1.0 - p) + 1e-12
+        g = A.T @ (y - p) - penalty * th
+        H = A.T @ (A * w[:, None]) + np.diag(penalty + 1e-9)
+        step = np.linalg.solve(H, g)
+        th = th + step
+        if np.max(np.abs(step)) < 1e-10:
+            break
+    if not th[0] > 0:
+        raise ValueError(f"the probability of detection did not rise with the rate (slope {th[0]})")
+    return {"slope": float(th[0]), "offset": [float(v) for v in th[1:]]}
+
+
+def pod_check(model, rows: Sequence[dict]) -> dict:
+    """Per scene of the grid (its surfaces and seeds pooled): the observed
+    detection fraction against the mean probability the model states for
+    its rows; how many scenes within 10 points, the largest gap and where."""
+    cells: Dict[str, list] = {}
+    for r in rows:
+        p = model.probability(r["truth"], r["limit"], r["where"])
+        cells.setdefault(r["scene"], []).append((float(r["detected"]), p, r["block"]))
+    gaps = []
+    for scene, v in sorted(cells.items()):
+        a = np.array([x[:2] for x in v], float)
+        gaps.append((abs(a[:, 0].mean() - a[:, 1].mean()), scene, a[:, 0].mean(), a[:, 1].mean()))
+    g = np.array([x[0] for x in gaps]) if gaps else np.zeros(0)
+    worst = max(gaps) if gaps else None
+    return {
+        "rows": len(rows),
+        "scenes": len(gaps),
+        "within_10_points": int((g <= 0.10).sum()),
+        "largest_gap": float(g.max()) if len(g) else None,
+        "largest_gap_at": None if worst is None else worst[1],
+        "gaps": [
+            {"scene": x[1], "observed": float(x[2]), "stated": float(x[3])}
+            for x in sorted(gaps, reverse=True)
+            if x[0] > 0.10
+        ],
+    }
 
 
 def design(rows: Sequence[dict]) -> np.ndarray:
@@ -149,21 +222,31 @@ def fit_bias(X: np.ndarray, e: np.ndarray, iterations: int = 200) -> np.ndarray:
 
 
 def fit_spread(
-    X: np.ndarray, need: np.ndarray, tau: float = 0.9, ridge: float = 0.01
+    X: np.ndarray,
+    need: np.ndarray,
+    tau: float = 0.9,
+    ridge: float = 0.01,
+    free: Sequence[str] = (),
 ) -> np.ndarray:
     """The coefficients a of exp(X a), the ``tau`` quantile of ``need``
     (pinball loss, Nelder-Mead from a few starts), the features' own
-    coefficients (not the constant's) held back by ``ridge`` x rows x their
-    squares: most rows need nothing (the budget covers them), and the rest
-    are too few to pin six free coefficients."""
+    coefficients (not the constant's, nor those of the features in ``free``)
+    held back by ``ridge`` x rows x their squares: most rows need nothing
+    (the budget covers them), and the rest are too few to pin six free
+    coefficients. A feature that marks a kind of scene (a percentile
+    background) is left free: held back, its spread goes to the constant
+    and widens every other scene's interval."""
     from scipy.optimize import minimize
 
+    from qogi.pipeline.error_model import FEATURES
+
     n = len(need)
+    held = np.array([0.0] + [0.0 if k in free else 1.0 for k in FEATURES])
 
     def loss(a):
         d = need - np.exp(np.clip(X @ a, -30.0, LOG_SPREAD_MAX))
         pinball = float(np.sum(np.maximum(tau * d, (tau - 1.0) * d)))
-        return pinball + ridge * n * float(np.sum(a[1:] ** 2))
+        return pinball + ridge * n * float(np.sum(held * a**2))
 
     best = None
     for start in (-0.5, -1.5, -3.0):
@@ -242,7 +325,7 @@ def plot(rows: Sequence[dict], model, path: Path) -> None:
 
 def main(argv=None) -> int:
     from qogi._version import __version__
-    from qogi.pipeline.error_model import FEATURES, ErrorModel
+    from qogi.pipeline.error_model import FEATURES, SCENE_FEATURES, ErrorModel
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("folders", nargs="+", type=Path, help="qogi envelope output folders")
@@ -251,6 +334,18 @@ def main(argv=None) -> int:
     ap.add_argument("--tau", type=float, default=0.9, help="the spread's quantile")
     ap.add_argument(
         "--ridge", type=float, default=0.01, help="the spread's features held back (0: free)"
+    )
+    ap.add_argument(
+        "--free",
+        nargs="*",
+        default=["percentile_background"],
+        help="features whose spread coefficient the ridge does not hold back",
+    )
+    ap.add_argument(
+        "--pod-ridge",
+        type=float,
+        default=0.5,
+        help="the probability of detection's feature shifts held back (logit units^-2)",
     )
     ap.add_argument(
         "--cross-seeds",
@@ -266,15 +361,18 @@ def main(argv=None) -> int:
     ap.add_argument("--plot", type=Path, help="residuals of the held-out rows (PNG)")
     ap.add_argument("--dry-run", action="store_true", help="report, write nothing")
     a = ap.parse_args(argv)
-    rows = load_rows(a.folders)
+    every = load_rows(a.folders)
+    rows = [r for r in every if r["features"] is not None]
     fit = [r for r in rows if r["seed"] in a.fit_seeds]
     held = [r for r in rows if r["seed"] in a.held_seeds]
+    pod_fit = [r for r in pod_rows(every) if r["seed"] in a.fit_seeds]
+    pod_held = [r for r in pod_rows(every) if r["seed"] in a.held_seeds]
     if len(fit) < 4 * (len(FEATURES) + 1):
         print(f"fit_error_model: {len(fit)} fit rows are too few", file=sys.stderr)
         return 2
     X, e = design(fit), log_errors(fit)
     b = fit_bias(X, e)
-    a_s = fit_spread(X, needed_spread(fit, X @ b), a.tau, a.ridge)
+    a_s = fit_spread(X, needed_spread(fit, X @ b), a.tau, a.ridge, a.free)
     if a.cross_seeds:
         for s in a.fit_seeds:
             one = [r for r in fit if r["seed"] == s]
@@ -282,30 +380,44 @@ def main(argv=None) -> int:
             X1 = design(one)
             b1 = fit_bias(X1, log_errors(one))
             m1 = ErrorModel(
-                tuple(b1), tuple(fit_spread(X1, needed_spread(one, X1 @ b1), a.tau, a.ridge)), {}
+                tuple(b1),
+                tuple(fit_spread(X1, needed_spread(one, X1 @ b1), a.tau, a.ridge, a.free)),
+                {},
             )
             c = coverage(m1, rest)["all"]
             print(
                 f"fit on seed {s} alone: the other fit seeds covered {100 * c['calibrated']:.0f} % "
                 f"(budget {100 * c['budget']:.0f} %, {c['rows']} rows)"
             )
-    draft = ErrorModel(tuple(map(float, b)), tuple(map(float, a_s)), {})
+    draft = ErrorModel(
+        tuple(map(float, b)), tuple(map(float, a_s)), {}, fit_pod(pod_fit, a.pod_ridge)
+    )
     cov_fit = coverage(draft, fit)
     cov_held = coverage(draft, held) if held else None
+    pod_cov_fit = pod_check(draft, pod_fit)
+    pod_cov_held = pod_check(draft, pod_held) if pod_held else None
     grids = sorted({r["folder"] for r in rows})
     provenance = {
         "fitted_on": f"qogi envelope default grid, seeds {a.fit_seeds} ({len(fit)} detected rates)",
         "held_out": f"seeds {a.held_seeds} ({len(held)} detected rates)",
         "tau": a.tau,
         "ridge": a.ridge,
+        "ridge_free": list(a.free),
         "qogi_version": __version__,
         "date": datetime.date.today().isoformat(),
         "coverage_fit": cov_fit,
         "coverage_held_out": cov_held,
+        "pod_rows": (
+            f"{len(pod_fit)} fitted, {len(pod_held)} held out "
+            f"(a stated limit and a measured speed, detected or not)"
+        ),
+        "pod_ridge": a.pod_ridge,
+        "pod_fit": pod_cov_fit,
+        "pod_held_out": pod_cov_held,
         "script": "scripts/fit_error_model.py",
         "folders": len(grids),
     }
-    model = ErrorModel(draft.bias, draft.log_spread, provenance)
+    model = ErrorModel(draft.bias, draft.log_spread, provenance, draft.pod)
     names = ["const", *FEATURES]
     print("| coefficient | bias (ln) | ln spread |\n|---|---|---|")
     for n, x, y in zip(names, model.bias, model.log_spread):
@@ -319,6 +431,27 @@ def main(argv=None) -> int:
             print(
                 f"| {blk} | {c['rows']} | {100 * c['budget']:.0f} % | "
                 f"{100 * c['calibrated']:.0f} % | {c['upper_factor_median']:.2f} |"
+            )
+    assert model.pod is not None
+    print(
+        f"\nprobability of detection: logit = {model.pod['slope']:.3f} ln(Q / L) - ("
+        + " + ".join(
+            f"{c:+.3f}{'' if n == 'const' else ' ' + n}"
+            for n, c in zip(["const", *SCENE_FEATURES], model.pod["offset"])
+        )
+        + ")"
+    )
+    for label, pc in (("fit", pod_cov_fit), ("held out", pod_cov_held)):
+        if pc is None:
+            continue
+        print(
+            f"{label}: {pc['within_10_points']} of {pc['scenes']} scenes within 10 points "
+            f"({pc['rows']} rows), largest gap {100 * (pc['largest_gap'] or 0):.0f} points"
+        )
+        for gp in pc["gaps"]:
+            print(
+                f"   {gp['scene']}: observed {100 * gp['observed']:.0f} %, "
+                f"stated {100 * gp['stated']:.0f} %"
             )
     if a.plot and held:
         plot(held, model, a.plot)

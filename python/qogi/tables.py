@@ -61,10 +61,31 @@ def summary_rows(result) -> List[dict]:
                     "n_frames": int(r.n_frames),
                     "dominant_uncertainty": r.dominant_uncertainty,
                     "truth_kg_h": None if r.truth_kg_h is None else _num(r.truth_kg_h),
+                    **_operating_columns(r.operating_point),
                     **audit,
                 }
             )
     return rows
+
+
+#: The operating point's fields (``SpeciesRate.operating_point``) as summary
+#: columns, in their order.
+OPERATING_COLUMNS = (
+    "delta_T_K",
+    "distance_m",
+    "speed_m_s",
+    "snr",
+    "expected_error",
+    "pod_50_kg_h",
+    "pod_90_kg_h",
+    "pod_at_mean",
+)
+
+
+def _operating_columns(op) -> dict:
+    """The operating point as summary columns (None where not stated)."""
+    op = op or {}
+    return {k: None if op.get(k) is None else _num(op[k]) for k in OPERATING_COLUMNS}
 
 
 def _attrs(result) -> dict:

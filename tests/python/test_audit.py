@@ -104,6 +104,16 @@ def test_the_json_summary_csv_and_tables_carry_the_record(run, tmp_path):
         [row] = list(csv.DictReader(fh))
     for k, v in res.audit.items():
         assert row[k] == v, k
+    # the operating point beside it: where in the envelope, and the PoD there
+    op = res.surfaces[0].species["CH4"].operating_point
+    assert float(row["distance_m"]) == pytest.approx(3.0) == op["distance_m"]
+    assert (
+        float(row["speed_m_s"]) == pytest.approx(op["speed_m_s"], rel=1e-4) and op["speed_m_s"] > 0
+    )
+    assert (
+        float(row["pod_90_kg_h"]) == pytest.approx(op["pod_90_kg_h"], rel=1e-4)
+        and op["pod_90_kg_h"] > 0
+    )
     pytest.importorskip("pandas")
     df = res.to_dataframe(summary=True)
     assert df.loc[0, "site"] == "Compressor station 7"
@@ -136,6 +146,9 @@ def test_the_batch_summary_has_the_record_columns(run):
     row = batch.summary_row(d)
     for k in batch._AUDIT_COLUMNS:
         assert row[k] == res.audit[k], k
+    key = f"{res.surfaces[0].surface.name}/CH4"
+    op = res.surfaces[0].species["CH4"].operating_point
+    assert row[f"{key} pod_90_kg_h"] == pytest.approx(op["pod_90_kg_h"])
     pytest.importorskip("pandas")
     df = batch.summary_frame([row, batch.failed_row({"name": "x", "path": "x.h5"})])
     assert df.loc[0, "operator"] == "J. Doe" and df.loc[1, "operator"] == ""

@@ -178,3 +178,98 @@ def test_a_detected_rate_carries_the_models_record_and_its_calibrated_interval(t
     assert seen
     d = json.loads(res.to_json())
     assert all("error_model" in s["species"]["CH4"] for s in d["surfaces"])
+    # issue 28 item 5: every rate says where in the envelope it was measured,
+    # with the probability of detection there
+    for s in res.surfaces:
+        r = s.species["CH4"]
+        op = r.operating_point
+        det = r.detection
+        assert op["distance_m"] == pytest.approx(rec.scene.distance_m)
+        assert op["delta_T_K"] == pytest.approx(
+            det["gas_temperature_K"] - det["background_temperature_K"]
+        )
+        assert op["speed_m_s"] == pytest.approx(det["velocity_m_s"]) and op["speed_m_s"] > 0
+        assert op["snr"] == pytest.approx(r.mean_kg_h / r.detection_limit_kg_h)
+        assert op["expected_error"] == (r.error_model or {}).get("expected_error")
+        assert 0 < op["pod_50_kg_h"] < op["pod_90_kg_h"]
+        assert 0.0 <= op["pod_at_mean"] <= 1.0
+        where = error_model.scene_features(
+            det["velocity_m_s"],
+            res.info["pixel_m"],
+            res.info["frame_rate_hz"],
+            r.n_frames / res.info["frame_rate_hz"],
+            "percentile"
+            if "percentile" in str((res.info.get("background_choice") or {}).get("method"))
+            else "",
+            any(w.surface == s.surface.name and w.code in _self_codes() for w in res.warnings),
+            int(res.info.get("pair_stride") or 1),
+        )
+        assert model.probability(op["pod_90_kg_h"], r.detection_limit_kg_h, where) == (
+            pytest.approx(0.9)
+        )
+    assert all("operating_point" in s["species"]["CH4"] for s in d["surfaces"])
+
+
+def _self_codes():
+    from qogi.pipeline import selfchecks
+
+    return set(selfchecks.CODES.values())
+
+
+def _pod_rows(n, seed, slope, offset):
+    """Rows detected with probability logistic(slope ln(truth / limit) -
+    offset . [1, x]) over a spread of truths about the limit."""
+    from qogi.pipeline.error_model import SCENE_FEATURES
+
+    rng = np.random.default_rng(seed)
+    rows = []
+    for i in range(n):
+        where = {
+            "flow_range": rng.choice([0.0, 0.0, rng.uniform(0, 2)]),
+            "self_check_failed": float(rng.random() < 0.4),
+            "percentile_background": float(rng.random() < 0.5),
+            "short_record": rng.choice([0.0, math.log(2.0)]),
+        }
+        t = rng.uniform(-4.0, 4.0)
+        z = slope * t - np.array([1.0] + [where[k] for k in SCENE_FEATURES]) @ offset
+        rows.append(
+            dict(
+                scene=f"s{i % 40}",
+                block="b",
+                truth=math.exp(t) * 0.01,
+                limit=0.01,
+                where=where,
+                detected=bool(rng.random() < 1.0 / (1.0 + math.exp(-z))),
+            )
+        )
+    return rows
+
+
+def test_the_probability_of_detection_fit_recovers_a_known_logistic_and_inverts():
+    slope, offset = 2.0, np.array([-1.0, 0.8, 0.3, 0.5, 1.2])
+    rows = _pod_rows(20000, 0, slope, offset)
+    pod = fit.fit_pod(rows, ridge=0.0)
+    assert pod["slope"] == pytest.approx(slope, rel=0.1)
+    assert np.array(pod["offset"]) == pytest.approx(offset, abs=0.25)
+    model = ErrorModel((0.0,) * 6, (0.0,) * 6, {}, pod)
+    where = rows[0]["where"]
+    q90 = model.rate_at(0.9, 0.01, where)
+    assert model.probability(q90, 0.01, where) == pytest.approx(0.9)
+    assert model.probability(q90 * 2, 0.01, where) > 0.9 > model.probability(q90 / 2, 0.01, where)
+    assert (
+        model.probability(0.0, 0.01, where) == 0.0 and model.probability(1.0, None, where) is None
+    )
+    check = fit.pod_check(model, _pod_rows(6000, 1, slope, offset))
+    # 150 rows per scene: the observed fraction within a few points of the truth
+    assert check["within_10_points"] == check["scenes"] == 40
+    with pytest.raises(ValueError, match="slope"):
+        ErrorModel((0.0,) * 6, (0.0,) * 6, {}, {"slope": -1.0, "offset": list(offset)})
+
+
+def test_the_packaged_probability_of_detection_states_its_held_out_check():
+    model = error_model.load()
+    assert model.pod is not None and model.pod["slope"] > 0
+    held = model.provenance["pod_held_out"]
+    assert held["scenes"] >= 40 and held["rows"] >= 200
+    # every scene where the stated probability is more than 10 points off is listed
+    assert len(held["gaps"]) == held["scenes"] - held["within_10_points"]

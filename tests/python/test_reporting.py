@@ -302,8 +302,15 @@ def test_pdf_report_pages_render_and_say_what_matters(lab, tmp_path):
         # Page 3 (issue 28 item 4): where in the frame the camera sees the gas.
         "qogi emission-rate report (detectability)",
         "Minimum-detectable column: CH4",
+        # ... and where the scene sits in the operating envelope (issue 28 item 5)
+        "Operating point and probability of detection",
+        "expected",
+        "PoD at",
     ):
         assert needle in text, needle
+    # the operating point's figures are the result's, as printed
+    op = res.surfaces[0].species["CH4"].operating_point
+    assert f"{op['delta_T_K']:+.1f}" in text and f"{op['snr']:.3g}" in text
     subprocess.run(["pdftoppm", "-r", "40", "-png", str(pdf), str(tmp_path / "page")], check=True)
     pages = sorted(tmp_path.glob("page-*.png"))
     assert len(pages) == 3

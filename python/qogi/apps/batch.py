@@ -634,7 +634,9 @@ def _failed(
 def summary_row(result: dict) -> dict:
     """One summary row from a result JSON (as written by :func:`run_row`):
     per surface and species the mean and 90 % interval [kg/h] (and the truth
-    when the recording has it), the warnings, the batch metadata."""
+    when the recording has it), the signal-to-noise, the error model's
+    expected error and the rate detected with 90 % probability there (the
+    operating point), the warnings, the batch metadata."""
     b = result.get("batch", {})
     row = {
         "name": b.get("name"),
@@ -653,6 +655,11 @@ def summary_row(result: dict) -> dict:
             row[f"{key} ci90_high_kg_h"] = _num(hi)
             if "truth_kg_h" in r:
                 row[f"{key} truth_kg_h"] = _num(r.get("truth_kg_h"))
+            # where in the operating envelope, and the rate detected 90 % of the time there
+            op = r.get("operating_point") or {}
+            row[f"{key} snr"] = _num(op.get("snr"))
+            row[f"{key} expected_error"] = _num(op.get("expected_error"))
+            row[f"{key} pod_90_kg_h"] = _num(op.get("pod_90_kg_h"))
     warnings = result.get("warnings", [])
     row["n_warnings"] = len(warnings)
     row["warnings"] = " | ".join(_warning_text(w) for w in warnings)

@@ -60,6 +60,7 @@ from ..pipeline.detection import (
     min_detectable_column,
     noise_equivalent_column,
 )
+from ..pipeline.error_model import POD_LEVEL
 from ..pipeline.surfaces import Surface
 
 __all__ = [
@@ -75,9 +76,6 @@ __all__ = [
     "recording_min_detectable_column",
 ]
 
-#: The probability of detection the headline rate is stated at (OOOOb's
-#: screening tiers are stated at 90 %).
-POD_LEVEL = 0.90
 #: Rows of the rendered scene (the surface crosses the middle one).
 _ROWS = 16
 #: Pixels beyond 5 plume sigmas on each side: gas-free strips for the

@@ -68,13 +68,81 @@ def _scene_frame(result, recording):
     return img, f, label if img is not None else "", overlay, origin
 
 
+def _operating_rows(result):
+    """Per surface and species, where in the operating envelope the rate was
+    measured and the probability of detection there
+    (``SpeciesRate.operating_point``)."""
+    u = result.units
+    rows = []
+    for s in result.surfaces:
+        for sp, r in s.species.items():
+            op = r.operating_point
+            if not op:
+                continue
+
+            def rate(v, r=r):
+                return "-" if v is None else _fmt(r.in_units(v, u), 3)
+
+            def num(v, fmt):
+                return "-" if v is None else format(v, fmt)
+
+            rows.append(
+                [
+                    s.surface.name,
+                    sp,
+                    num(op.get("delta_T_K"), "+.1f"),
+                    num(op.get("distance_m"), ".3g"),
+                    num(op.get("speed_m_s"), ".2g"),
+                    num(op.get("snr"), ".3g"),
+                    "-"
+                    if op.get("expected_error") is None
+                    else f"{100 * op['expected_error']:+.0f} %",
+                    f"{rate(op.get('pod_50_kg_h'))} / {rate(op.get('pod_90_kg_h'))}",
+                    "-" if op.get("pod_at_mean") is None else f"{100 * op['pod_at_mean']:.0f} %",
+                ]
+            )
+    return rows
+
+
 def _page_detectability(fig, result, sha):
-    """Page 3: where in the frame the camera can see the gas: the
-    minimum-detectable column map of each species with the surfaces."""
+    """Page 3: where the scene sits in the operating envelope (per rate: the
+    temperature difference, distance, speed, signal-to-noise, the error
+    model's expected error and the probability of detection there), and
+    where in the frame the camera can see the gas: the minimum-detectable
+    column map of each species with the surfaces."""
     _header(fig, result, sha, " (detectability)")
-    species = result.min_detectable_column_species
-    h = min(0.36, 0.78 / max(1, len(species)) - 0.05)
     y = 0.875
+    ops = _operating_rows(result)
+    if ops:
+        fig.text(
+            0.06,
+            y + 0.01,
+            f"Operating point and probability of detection [{result.units}]",
+            fontsize=9,
+            fontweight="bold",
+            color=_INK,
+        )
+        h = 0.024 * (len(ops) + 1.6)
+        ax = fig.add_axes((0.06, y - h, 0.88, h))
+        _table(
+            ax,
+            [
+                "surface",
+                "species",
+                "gas - bg\n[K]",
+                "distance\n[m]",
+                "speed\n[m/s]",
+                "signal /\nlimit",
+                "expected\nerror",
+                "detected 50 / 90 %\nof the time at",
+                "PoD at\nthe mean",
+            ],
+            ops,
+            col_widths=[0.17, 0.08, 0.08, 0.09, 0.08, 0.08, 0.09, 0.21, 0.12],
+        )
+        y -= h + 0.05
+    species = result.min_detectable_column_species
+    h = min(0.36, (y - 0.12) / max(1, len(species)) - 0.05)
     for sp in species:
         fig.text(
             0.06, y, f"Minimum-detectable column: {sp}", fontsize=9, fontweight="bold", color=_INK
@@ -85,7 +153,13 @@ def _page_detectability(fig, result, sha):
     fig.text(
         0.06,
         0.04,
-        "Per pixel, (k + z) times the noise-equivalent column at the pixel's own background "
+        "Operating point: the gas-background temperature difference, distance and gas speed the "
+        "run measured, the mean over its detection limit, the error the\nerror model fitted on "
+        "the operating envelope expects, and the probability of detection (PoD) there: the rates "
+        "a release is reported detected\n50 and 90 % of the time at, and the PoD of a release "
+        "equal to the mean read ('-': not stated, e.g. the speed was not measured).\n"
+        "Minimum-detectable column: per pixel, (k + z) times the noise-equivalent column at the "
+        "pixel's own background "
         "temperature (the gas-free side of the frames' spread),\ngas at the run's temperature: "
         "a plume thinner than this there is seen in fewer than 95 % of frames "
         "(qogi.pipeline.detection).\nWhere gas sits in every frame the map is the gas-filled "
@@ -510,7 +584,7 @@ def write_report(result, path: PathLike, recording=None) -> str:
         page2 = plt.figure(figsize=_A4)
         _page_two(page2, result, sha)
         pages = [page1, page2]
-        if result.min_detectable_column_species:
+        if result.min_detectable_column_species or _operating_rows(result):
             pages.append(_page_detectability(plt.figure(figsize=_A4), result, sha))
         with atomic_path(path, suffix=".pdf") as tmp:
             with PdfPages(tmp) as pdf:

@@ -30,7 +30,7 @@ from .detection import (
     min_detectable_column,
     velocity_from_sums,
 )
-from .error_model import Z90
+from .error_model import POD_LEVEL, Z90
 from .flux_summary import FluxSummary
 from .hotgas import check_gas_temperature
 from .result import Result, SpeciesRate, SurfaceResult
@@ -218,36 +218,94 @@ def _calibrate_intervals(
     than the budget's interval; the model's
     spread becomes the term ``error model``, and the features, expected
     error and the budget's own interval go into ``SpeciesRate.error_model``.
-    Rates not detected, not positive or unbounded keep the budget's."""
+    Rates not detected, not positive or unbounded keep the budget's.
+    Every rate also gets its operating point (``SpeciesRate.operating_point``:
+    where in the envelope it was measured, the expected error and the
+    probability of detection there)."""
     model = error_model.load()
     scene, warnings = st.scene, st.warnings
     method = str((bg_choice or {}).get("method") or st.cfg.background)
     self_codes = set(selfchecks.CODES.values())
+    stride = int(info.get("pair_stride") or 1)
     for s in results:
         failed = any(w.code in self_codes and w.surface == s.surface.name for w in warnings)
         for r in s.species.values():
-            if not all(math.isfinite(v) for v in r.ci90_kg_h):
-                continue
-            feats = error_model.features(
-                r.mean_kg_h,
-                r.detection_limit_kg_h,
-                r.detected,
-                (r.detection or {}).get("velocity_m_s"),
+            speed = (r.detection or {}).get("velocity_m_s")
+            where = error_model.scene_features(
+                speed,
                 scene.pixel_m,
                 scene.frame_rate,
                 done / scene.frame_rate,
                 method,
                 failed,
-                int(info.get("pair_stride") or 1),
+                stride,
             )
-            if feats is None:
-                continue
-            bias, spread = model.expected(feats)
-            r.error_model = model.describe(feats, r.ci90_kg_h)
-            r.ci90_kg_h = error_model.calibrated_interval(r.mean_kg_h, r.ci90_kg_h, bias, spread)
-            r.uncertainty_terms_kg_h["error model"] = abs(r.mean_kg_h) * spread
-            terms = r.uncertainty_terms_kg_h
-            r.dominant_uncertainty = max(terms, key=lambda k: terms[k])
+            if all(math.isfinite(v) for v in r.ci90_kg_h):
+                feats = error_model.features(
+                    r.mean_kg_h,
+                    r.detection_limit_kg_h,
+                    r.detected,
+                    speed,
+                    scene.pixel_m,
+                    scene.frame_rate,
+                    done / scene.frame_rate,
+                    method,
+                    failed,
+                    stride,
+                )
+                if feats is not None:
+                    bias, spread = model.expected(feats)
+                    r.error_model = model.describe(feats, r.ci90_kg_h)
+                    r.ci90_kg_h = error_model.calibrated_interval(
+                        r.mean_kg_h, r.ci90_kg_h, bias, spread
+                    )
+                    r.uncertainty_terms_kg_h["error model"] = abs(r.mean_kg_h) * spread
+                    terms = r.uncertainty_terms_kg_h
+                    r.dominant_uncertainty = max(terms, key=lambda k: terms[k])
+            r.operating_point = _operating_point(model, r, where, scene.distance_m)
+
+
+def _operating_point(
+    model: error_model.ErrorModel, r: SpeciesRate, where: Optional[dict], distance_m: float
+) -> dict:
+    """Where in the operating envelope ``r`` was measured: the gas-background
+    temperature difference, the distance, the gas speed across the surface,
+    the signal-to-noise (mean / detection limit), the error the model
+    expects there, and the probability of detection at the scene (the rates
+    detected with 50 and 90 % probability, and that of a release equal to
+    the mean read); None where not stated, with ``pod_note`` saying why."""
+    det = r.detection or {}
+    gas, bg = det.get("gas_temperature_K"), det.get("background_temperature_K")
+    limit = r.detection_limit_kg_h
+    speed = det.get("velocity_m_s")
+    op: dict = {
+        "delta_T_K": None if gas is None or bg is None else float(gas) - float(bg),
+        "distance_m": float(distance_m),
+        "speed_m_s": None if speed is None else float(speed),
+        "snr": (
+            float(r.mean_kg_h / limit)
+            if limit and limit > 0 and math.isfinite(r.mean_kg_h)
+            else None
+        ),
+        "expected_error": (r.error_model or {}).get("expected_error"),
+        "pod_50_kg_h": None,
+        "pod_90_kg_h": None,
+        "pod_at_mean": None,
+        "pod_note": "",
+    }
+    if where is None:
+        op["pod_note"] = "not stated: the gas speed across the surface was not measured"
+    elif not (limit and limit > 0 and math.isfinite(limit)):
+        op["pod_note"] = "not stated: no detection limit"
+    elif model.pod is None:
+        op["pod_note"] = "not stated: the packaged error model has no probability of detection"
+    else:
+        op["pod_50_kg_h"] = model.rate_at(0.5, limit, where)
+        op["pod_90_kg_h"] = model.rate_at(POD_LEVEL, limit, where)
+        if math.isfinite(r.mean_kg_h) and r.mean_kg_h > 0:
+            op["pod_at_mean"] = model.probability(r.mean_kg_h, limit, where)
+        op["pod_note"] = f"fitted on the {model.provenance.get('fitted_on', 'envelope')}"
+    return op
 
 
 def _min_detectable_columns(st: RunState, results: List[SurfaceResult]) -> Dict[str, np.ndarray]:

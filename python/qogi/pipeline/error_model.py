@@ -45,6 +45,23 @@ held-out coverage in ``qogi/data/error_model.json``; the model applies only
 to detected rates with a positive mean, never to a rate nothing bounds.
 It is a simulator's model: its figures hold where the simulator's scenes
 resemble the user's (docs/validation/envelope.md, "The error model").
+
+The same fit gives the **probability of detection at the scene** (the
+operating point of a result, ``SpeciesRate.operating_point``): how likely a
+release of rate ``Q`` is to be reported detected where the run stated the
+detection limit ``L``, as a logistic in ``ln(Q / L)`` shifted by the
+scene's features (:data:`SCENE_FEATURES`, all but the signal-to-noise),
+
+    ``logit PoD = a ln(Q / L) - (c_0 + c . x)``,
+
+fitted by maximum likelihood on every rate of the envelope with a stated
+limit and a measured speed, detected or not. It answers "what would this
+scene have detected" from what the run measured: the stated limit carries
+the noise, the contrast, the distance and the speed; the shift carries what
+the limit's own model leaves out (a plume the flow cannot follow, a
+percentile background, a short record). Where the speed was not measured,
+nothing is stated. :func:`qogi.pod` is the planning tool (a rendered scene
+before one films); this is the record of the scene filmed.
 """
 
 from __future__ import annotations
@@ -58,7 +75,16 @@ from typing import Dict, Optional, Sequence, Tuple
 
 import numpy as np
 
-__all__ = ["ErrorModel", "FEATURES", "features", "load", "Z90"]
+__all__ = [
+    "ErrorModel",
+    "FEATURES",
+    "POD_LEVEL",
+    "SCENE_FEATURES",
+    "features",
+    "scene_features",
+    "load",
+    "Z90",
+]
 
 #: The two-sided 90 % quantile of the standard normal.
 Z90 = 1.6448536269514722
@@ -71,11 +97,18 @@ FEATURES = (
     "percentile_background",
     "short_record",
 )
+#: The features that describe the scene rather than the rate read in it
+#: (the probability of detection's, :meth:`ErrorModel.probability`).
+SCENE_FEATURES = FEATURES[1:]
 
 #: The flow's range [px between the frames of a pair] (docs/velocimetry.md):
 #: below it the gas's displacement is lost in the noise and the held
 #: background, above it the structures change beyond recognition.
 FLOW_RANGE_PX = (1.0, 64.0)
+
+#: The probability of detection the scene's headline rate is stated at
+#: (OOOOb's periodic screening tiers are stated at 90 %).
+POD_LEVEL = 0.90
 
 #: The largest ln spread predicted (a factor e^(1.645 x 3) ~ 140 beyond the
 #: budget: no finite interval is much wider than that).
@@ -85,6 +118,30 @@ LOG_SPREAD_MAX = 3.0
 SHORT_RECORD_S = 3.0
 
 FORMAT = "qogi-error-model-1"
+
+
+def scene_features(
+    speed_m_s: Optional[float],
+    pixel_m: float,
+    frame_rate_hz: float,
+    duration_s: float,
+    background: str,
+    self_check_failed: bool,
+    pair_stride: int = 1,
+) -> Optional[Dict[str, float]]:
+    """The features of the scene (:data:`SCENE_FEATURES`: every feature but
+    the signal-to-noise), whatever the rate read there, or None without a
+    measured speed (the flow's range and the detection limit need it)."""
+    if speed_m_s is None or not (math.isfinite(speed_m_s) and speed_m_s > 0):
+        return None
+    d = float(speed_m_s) / (float(pixel_m) * float(frame_rate_hz)) * max(1, int(pair_stride))
+    lo, hi = FLOW_RANGE_PX
+    return {
+        "flow_range": max(0.0, math.log(lo / d)) + max(0.0, math.log(d / hi)),
+        "self_check_failed": float(bool(self_check_failed)),
+        "percentile_background": float(background == "percentile"),
+        "short_record": max(0.0, math.log(SHORT_RECORD_S / float(duration_s))),
+    }
 
 
 def features(
@@ -105,17 +162,12 @@ def features(
     that is not positive, no measured speed."""
     if not (detected and detection_limit_kg_h and mean_kg_h > 0):
         return None
-    if speed_m_s is None or not (math.isfinite(speed_m_s) and speed_m_s > 0):
+    scene = scene_features(
+        speed_m_s, pixel_m, frame_rate_hz, duration_s, background, self_check_failed, pair_stride
+    )
+    if scene is None:
         return None
-    d = float(speed_m_s) / (float(pixel_m) * float(frame_rate_hz)) * max(1, int(pair_stride))
-    lo, hi = FLOW_RANGE_PX
-    return {
-        "ln_snr": math.log(mean_kg_h / detection_limit_kg_h),
-        "flow_range": max(0.0, math.log(lo / d)) + max(0.0, math.log(d / hi)),
-        "self_check_failed": float(bool(self_check_failed)),
-        "percentile_background": float(background == "percentile"),
-        "short_record": max(0.0, math.log(SHORT_RECORD_S / float(duration_s))),
-    }
+    return {"ln_snr": math.log(mean_kg_h / detection_limit_kg_h), **scene}
 
 
 def calibrated_interval(
@@ -148,6 +200,10 @@ class ErrorModel:
     bias: Tuple[float, ...]
     log_spread: Tuple[float, ...]
     provenance: dict
+    #: The probability of detection's coefficients (module docstring):
+    #: ``{"slope": a, "offset": [constant, one per SCENE_FEATURES]}``; None
+    #: in a model fitted without it (no probability is then stated).
+    pod: Optional[dict] = None
 
     def __post_init__(self):
         n = len(FEATURES) + 1
@@ -156,6 +212,15 @@ class ErrorModel:
                 f"an error model needs {n} coefficients each for the bias and the spread "
                 f"(a constant and {', '.join(FEATURES)}); got {len(self.bias)} and "
                 f"{len(self.log_spread)}"
+            )
+        if self.pod is not None and (
+            len(self.pod.get("offset", ())) != len(SCENE_FEATURES) + 1
+            or not float(self.pod.get("slope", 0.0)) > 0
+        ):
+            raise ValueError(
+                f"an error model's probability of detection needs a positive slope and "
+                f"{len(SCENE_FEATURES) + 1} offsets (a constant and "
+                f"{', '.join(SCENE_FEATURES)}); got {self.pod}"
             )
 
     def _x(self, feats: Dict[str, float]) -> np.ndarray:
@@ -183,14 +248,49 @@ class ErrorModel:
             "fitted_on": self.provenance.get("fitted_on", ""),
         }
 
+    def _pod_shift(self, scene: Dict[str, float]) -> float:
+        assert self.pod is not None
+        x = np.array([1.0] + [float(scene[k]) for k in SCENE_FEATURES])
+        return float(x @ np.asarray(self.pod["offset"], float))
+
+    def probability(
+        self, rate_kg_h: float, limit_kg_h: float, scene: Dict[str, float]
+    ) -> Optional[float]:
+        """The probability that a release of ``rate_kg_h`` is reported
+        detected where the stated detection limit is ``limit_kg_h`` and the
+        scene's features are ``scene`` (:func:`scene_features`); None
+        without a fitted probability or a positive limit."""
+        if self.pod is None or not (limit_kg_h and limit_kg_h > 0):
+            return None
+        if rate_kg_h <= 0:
+            return 0.0
+        z = float(self.pod["slope"]) * math.log(rate_kg_h / limit_kg_h) - self._pod_shift(scene)
+        return float(0.5 * (1.0 + math.tanh(0.5 * z)))  # the logistic, without overflow
+
+    def rate_at(
+        self, probability: float, limit_kg_h: float, scene: Dict[str, float]
+    ) -> Optional[float]:
+        """The release rate [kg/h] reported detected with ``probability``
+        (the inverse of :meth:`probability`)."""
+        if self.pod is None or not (limit_kg_h and limit_kg_h > 0):
+            return None
+        if not 0.0 < probability < 1.0:
+            raise ValueError(f"a probability of detection lies in (0, 1); got {probability}")
+        logit = math.log(probability / (1.0 - probability))
+        ln_ratio = (logit + self._pod_shift(scene)) / float(self.pod["slope"])
+        return float(limit_kg_h * math.exp(min(ln_ratio, 700.0)))
+
     def to_dict(self) -> dict:
-        return {
+        d = {
             "format": FORMAT,
             "features": list(FEATURES),
             "bias": list(self.bias),
             "log_spread": list(self.log_spread),
             "provenance": self.provenance,
         }
+        if self.pod is not None:
+            d["pod"] = {"slope": float(self.pod["slope"]), "offset": list(self.pod["offset"])}
+        return d
 
     @classmethod
     def from_dict(cls, d: dict) -> ErrorModel:
@@ -199,7 +299,13 @@ class ErrorModel:
                 f"not a {FORMAT} file with the features {', '.join(FEATURES)} (refit it: "
                 f"scripts/fit_error_model.py)"
             )
-        return cls(tuple(d["bias"]), tuple(d["log_spread"]), dict(d.get("provenance", {})))
+        pod = d.get("pod")
+        return cls(
+            tuple(d["bias"]),
+            tuple(d["log_spread"]),
+            dict(d.get("provenance", {})),
+            None if pod is None else {"slope": pod["slope"], "offset": tuple(pod["offset"])},
+        )
 
 
 @functools.lru_cache(maxsize=1)

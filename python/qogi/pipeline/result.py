@@ -73,6 +73,12 @@ class SpeciesRate:
     #: not apply): its features, the expected error (rate / truth - 1), its
     #: spread and the budget's interval before the calibration.
     error_model: Optional[dict] = None
+    #: Where in the operating envelope the rate was measured (the audit
+    #: record's per-rate part, qogi.pipeline.budget._operating_point): the
+    #: gas-background temperature difference, distance, gas speed, signal-
+    #: to-noise, the error model's expected error and the probability of
+    #: detection at the scene; None where not computed.
+    operating_point: Optional[dict] = None
 
     @property
     def rate_kg_h(self) -> np.ndarray:
@@ -161,6 +167,7 @@ class SpeciesRate:
             "upper_limit_kg_h": _f(self.upper_limit_kg_h),
             "detection": self.detection,
             "error_model": self.error_model,
+            "operating_point": self.operating_point,
         }
         if self.truth_kg_h is not None:
             d["truth_kg_h"] = _f(self.truth_kg_h)
