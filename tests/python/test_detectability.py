@@ -157,3 +157,23 @@ def test_a_step_between_two_rates_is_refined_between_them():
     assert _refining_rates(step) == pytest.approx([2 ** (1 / 3), 2 ** (2 / 3)])
     # A rate already between 0 and 1: the fit sees the slope, no refining.
     assert _refining_rates([*step, t(1.5, True), t(1.5, False)]) == []
+
+
+def test_a_pod_whose_speed_the_flow_cannot_measure_says_it_is_an_upper_bound():
+    # The envelope's 1 g/h at 1.5 m in a 2 m/s wind: 68 px per 15 Hz frame,
+    # beyond the flow's 64 px; the pipeline found no speed and decided
+    # nothing, where the PoD (given the speed) said 74 %.
+    fast = PodScene(camera="gf320", distance_m=1.5, wind_speed_m_s=2.0)
+    assert fast.flow_displacement_px == pytest.approx(
+        2.0 / (1.5 * qogi.camera_preset("gf320").ifov_rad * 15.0), rel=1e-9
+    )
+    assert fast.flow_displacement_px > 64 and not fast.speed_measurable
+    # 10 m: 10 px per frame, in range
+    assert PodScene(camera="gf320", distance_m=10.0, wind_speed_m_s=2.0).speed_measurable
+    # still air far away: below 1 px even between every 4th frame
+    slow = PodScene(camera="gf320", distance_m=30.0, wind_speed_m_s=0.01)
+    assert slow.flow_displacement_px < 1 and not slow.speed_measurable
+    curve = PodCurve(fast, 0.01, 0.2, [], [], None, 0.005)
+    d = curve.to_dict()
+    assert d["upper_bound"] is True and d["speed_measurable"] is False
+    assert PodCurve(slow, 0.01, 0.2, [], [], None, 0.005).to_dict()["upper_bound"] is True

@@ -150,6 +150,13 @@ def cmd_pod(args: argparse.Namespace) -> int:
                 if curve.false_alarm is not None
                 else ""
             )
+            + (
+                ""
+                if scene.speed_measurable
+                else f"  an upper bound: the gas moves {scene.flow_displacement_px:.3g} px "
+                f"between the flow's frames (its range is 1-64 px), so qogi is not expected "
+                f"to measure its speed here; this PoD gave it the speed\n"
+            )
             + f"fitted on seeds 0..{args.seeds - 1}:\n"
             + _table(curve, "fit")
             + (

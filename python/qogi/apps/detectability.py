@@ -60,8 +60,9 @@ from ..pipeline.detection import (
     min_detectable_column,
     noise_equivalent_column,
 )
-from ..pipeline.error_model import POD_LEVEL
+from ..pipeline.error_model import POD_LEVEL, flow_range_excess
 from ..pipeline.surfaces import Surface
+from ..pipeline.velocity import auto_pair_stride
 
 __all__ = [
     "POD_LEVEL",
@@ -152,6 +153,28 @@ class PodScene:
     def background_K(self) -> float:
         """The background's radiometric temperature [K]."""
         return self.ambient_temperature_K - self.delta_T_K
+
+    @property
+    def flow_displacement_px(self) -> float:
+        """The gas's displacement between the two frames of a flow pair
+        [px]: its speed over the pixel and frame rate, times the pair stride
+        the pipeline would choose (:func:`qogi.pipeline.velocity.auto_pair_stride`)."""
+        fps = camera_preset(self.camera).frame_rate_hz
+        if fps is None:  # a camera without a frame rate: unknown
+            return math.nan
+        d = self.wind_speed_m_s / (_pixel_m(self) * fps)
+        return d * auto_pair_stride(d)
+
+    @property
+    def speed_measurable(self) -> bool:
+        """Whether that displacement lies in the flow's range (1-64 px,
+        :data:`qogi.pipeline.error_model.FLOW_RANGE_PX`). Outside it the
+        pipeline's flow is not expected to measure the speed (the envelope's
+        1 g/h at 1.5 m in a 2 m/s wind, 68 px per frame: no speed, no
+        decision), and the PoD, measured with the speed given, is an upper
+        bound."""
+        d = self.flow_displacement_px
+        return not math.isfinite(d) or flow_range_excess(d) == 0.0
 
     def to_dict(self) -> dict:
         return dataclasses.asdict(self)
@@ -421,9 +444,16 @@ class PodCurve:
             f"rate_pod{int(round(100 * POD_LEVEL))}_kg_h": self.rate_at(POD_LEVEL),
             "false_alarm": self.false_alarm,
             "stated_limit_kg_h": self.stated_limit_kg_h,
+            "flow_displacement_px": _finite(self.scene.flow_displacement_px),
+            "speed_measurable": self.scene.speed_measurable,
+            "upper_bound": not self.scene.speed_measurable,
             "fit": self.table("fit"),
             "holdout": self.table("holdout"),
         }
+
+
+def _finite(x: float) -> Optional[float]:
+    return float(x) if math.isfinite(x) else None
 
 
 def default_rates(scene: PodScene) -> List[float]:

@@ -81,6 +81,7 @@ __all__ = [
     "POD_LEVEL",
     "SCENE_FEATURES",
     "features",
+    "flow_range_excess",
     "scene_features",
     "load",
     "Z90",
@@ -120,6 +121,15 @@ SHORT_RECORD_S = 3.0
 FORMAT = "qogi-error-model-1"
 
 
+def flow_range_excess(displacement_px: float) -> float:
+    """How far a displacement between the flow's frame pairs [px] lies
+    outside :data:`FLOW_RANGE_PX`: ln(1 / d) below, ln(d / 64) above, 0
+    inside (the feature ``flow_range``)."""
+    lo, hi = FLOW_RANGE_PX
+    d = float(displacement_px)
+    return max(0.0, math.log(lo / d)) + max(0.0, math.log(d / hi))
+
+
 def scene_features(
     speed_m_s: Optional[float],
     pixel_m: float,
@@ -135,9 +145,8 @@ def scene_features(
     if speed_m_s is None or not (math.isfinite(speed_m_s) and speed_m_s > 0):
         return None
     d = float(speed_m_s) / (float(pixel_m) * float(frame_rate_hz)) * max(1, int(pair_stride))
-    lo, hi = FLOW_RANGE_PX
     return {
-        "flow_range": max(0.0, math.log(lo / d)) + max(0.0, math.log(d / hi)),
+        "flow_range": flow_range_excess(d),
         "self_check_failed": float(bool(self_check_failed)),
         "percentile_background": float(background == "percentile"),
         "short_record": max(0.0, math.log(SHORT_RECORD_S / float(duration_s))),

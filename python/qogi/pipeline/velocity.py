@@ -29,6 +29,15 @@ from .surfaces import Region, _plume_image, detect_source
 __all__ = ["prepare", "flux_level_plan", "block_velocity", "normal_velocity"]
 
 
+def auto_pair_stride(displacement_px: float) -> int:
+    """The frames between a flow pair's two frames where none is given:
+    ~3 px of displacement per pair, at most every 4th frame (1 where the
+    displacement per frame [px] is unknown)."""
+    if not (np.isfinite(displacement_px) and displacement_px > 0):
+        return 1
+    return int(np.clip(round(3.0 / displacement_px), 1, 4))
+
+
 def prepare(run: RunState) -> None:
     """The run's source (given, or detected on the sampled frames for the
     flux level of the default velocimetry; the sampled frames are released
@@ -208,11 +217,7 @@ def _block_velocity(
     # the lab releases at strides 1-4, docs/velocimetry.md).
     stride = cfg.pair_stride
     if stride is None:
-        stride = 1
-        if plan.on:
-            d = vel.typical_displacement(field, axis)
-            if np.isfinite(d) and d > 0:
-                stride = int(np.clip(round(3.0 / d), 1, 4))
+        stride = auto_pair_stride(vel.typical_displacement(field, axis)) if plan.on else 1
     stride = max(1, min(int(stride), (norm.shape[0] - 1) // 2))
     reduced = cfg.pair_stride is not None and stride != cfg.pair_stride
     if reduced and not st.warnings.has("pair-stride-reduced"):
