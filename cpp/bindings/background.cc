@@ -3,12 +3,16 @@
 // names as in C++). Glue only.
 #include "common.h"
 
+#include <cstdint>
 #include <cstring>
+#include <stdexcept>
+#include <string>
 #include <vector>
 
 #include <opencv2/core.hpp>
 
 #include "engine/background/drifting.h"
+#include "engine/background/held_pixels.h"
 
 namespace qogi {
 namespace {
@@ -26,9 +30,100 @@ std::vector<cv::Mat> StackViews(const FloatArray& frames) {
   return out;
 }
 
+using MaskArray = py::array_t<std::uint8_t, py::array::c_style | py::array::forcecast>;
+using ImageArray = py::array_t<float, py::array::c_style | py::array::forcecast>;
+
+// A (H, W) view of a mask or an image (no copy).
+cv::Mat MaskView(const MaskArray& a, const char* name) {
+  CheckNdim(a, 2, name);
+  Require(a.shape(0) > 0 && a.shape(1) > 0, std::string(name) + " is empty");
+  return cv::Mat(static_cast<int>(a.shape(0)), static_cast<int>(a.shape(1)), CV_8UC1,
+                 const_cast<std::uint8_t*>(a.data()));
+}
+
+cv::Mat ImageView(const ImageArray& a, const char* name) {
+  CheckNdim(a, 2, name);
+  Require(a.shape(0) > 0 && a.shape(1) > 0, std::string(name) + " is empty");
+  return cv::Mat(static_cast<int>(a.shape(0)), static_cast<int>(a.shape(1)), CV_32FC1,
+                 const_cast<float*>(a.data()));
+}
+
+template <typename T>
+py::array_t<T> Copy(const cv::Mat& m) {
+  py::array_t<T> out({m.rows, m.cols});
+  for (int y = 0; y < m.rows; ++y)
+    std::memcpy(out.mutable_data(y, 0), m.ptr<T>(y), sizeof(T) * std::size_t(m.cols));
+  return out;
+}
+
+void BindHeldPixels(py::module_& m) {
+  m.def(
+      "connected_components8",
+      [](const MaskArray& mask) {
+        const cv::Mat view = MaskView(mask, "mask");
+        cv::Mat labels;
+        ConnectedComponents8(view, &labels);
+        return Copy<std::int32_t>(labels);
+      },
+      py::arg("mask"),
+      "8-connected components of the nonzero pixels of mask ((H, W) uint8): labels (H, W) "
+      "int32, 0 outside (engine/background/held_pixels.h).");
+  m.def(
+      "dilate_disk",
+      [](const MaskArray& mask, int radius) {
+        const cv::Mat view = MaskView(mask, "mask");
+        cv::Mat out;
+        DilateDisk(view, radius, &out);
+        return Copy<std::uint8_t>(out);
+      },
+      py::arg("mask"), py::arg("radius"),
+      "mask ((H, W) uint8, nonzero inside) dilated by a disk of radius px: (H, W) uint8, 1 "
+      "inside.");
+  m.def(
+      "open_disk",
+      [](const MaskArray& mask, int radius) {
+        const cv::Mat view = MaskView(mask, "mask");
+        cv::Mat out;
+        OpenDisk(view, radius, &out);
+        return Copy<std::uint8_t>(out);
+      },
+      py::arg("mask"), py::arg("radius"),
+      "mask ((H, W) uint8) opened by a disk of radius px (parts narrower than it removed): "
+      "(H, W) uint8, 1 inside.");
+  m.def(
+      "resize_image",
+      [](const ImageArray& image, int width, int height, const std::string& mode) {
+        Require(mode == "area" || mode == "linear",
+                "mode must be 'area' or 'linear'; got '" + mode + "'");
+        const cv::Mat view = ImageView(image, "image");
+        cv::Mat out;
+        ResizeImage(view, width, height, mode == "area" ? ResizeMode::kArea : ResizeMode::kLinear,
+                    &out);
+        return Copy<float>(out);
+      },
+      py::arg("image"), py::arg("width"), py::arg("height"), py::arg("mode"),
+      "image ((H, W) float32) resized to (height, width): 'area' averages (shrinking), "
+      "'linear' interpolates bilinearly.");
+  m.def(
+      "inpaint_ns",
+      [](const ImageArray& image, const MaskArray& mask, double radius_px) {
+        const cv::Mat img = ImageView(image, "image"), msk = MaskView(mask, "mask");
+        cv::Mat out;
+        {
+          py::gil_scoped_release release;
+          InpaintNavierStokes(img, msk, radius_px, &out);
+        }
+        return Copy<float>(out);
+      },
+      py::arg("image"), py::arg("mask"), py::arg("radius_px"),
+      "image ((H, W) float32) with the nonzero pixels of mask ((H, W) uint8) filled by "
+      "Navier-Stokes inpainting from radius_px around; values of order one and more.");
+}
+
 }  // namespace
 
 void BindBackground(py::module_& m) {
+  BindHeldPixels(m);
   BindOptions<DriftOptions>(
       m, "DriftOptions", "Options of the drift measurement (engine/background/drifting.h).",
       Args::kKeywordOnly,

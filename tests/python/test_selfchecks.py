@@ -949,3 +949,55 @@ def test_a_wall_in_absorption_at_4_m_s_reads_within_its_interval(tmp_path):
         r = s.species["CH4"]
         assert abs(r.error_vs_truth) < 0.15, (s.surface.name, r.error_vs_truth)
         assert r.ci90_kg_h[0] <= r.truth_kg_h <= r.ci90_kg_h[1], (r.mean_kg_h, r.ci90_kg_h)
+
+
+def test_the_held_pixels_image_operations_are_opencvs_run_in_the_engine():
+    # The percentile background's morphology, resizing and inpainting run in
+    # the engine's OpenCV (engine/background/held_pixels.h): the same values
+    # as opencv-python's, which the pipeline no longer loads (issue 30).
+    cv2 = pytest.importorskip("cv2")
+    from qogi import _engine
+
+    rng = np.random.default_rng(4)
+    m = (rng.random((60, 80)) > 0.7).astype(np.uint8)
+    assert np.array_equal(_engine.connected_components8(m), cv2.connectedComponents(m, 8)[1])
+    disk = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (7, 7))
+    assert np.array_equal(_engine.dilate_disk(m, 3), cv2.dilate(m, disk))
+    assert np.array_equal(_engine.open_disk(m, 3), cv2.morphologyEx(m, cv2.MORPH_OPEN, disk))
+    img = rng.normal(0.0, 3.0, (61, 81)).astype(np.float32)
+    area = cv2.resize(img, (41, 31), interpolation=cv2.INTER_AREA)
+    np.testing.assert_allclose(_engine.resize_image(img, 41, 31, "area"), area, atol=1e-5)
+    lin = cv2.resize(area, (81, 61), interpolation=cv2.INTER_LINEAR)
+    np.testing.assert_allclose(_engine.resize_image(area, 81, 61, "linear"), lin, atol=1e-5)
+    hole = np.zeros((61, 81), np.uint8)
+    hole[20:35, 30:50] = 1
+    np.testing.assert_allclose(
+        _engine.inpaint_ns(img, hole, 3.0), cv2.inpaint(img, hole, 3.0, cv2.INPAINT_NS), atol=1e-4
+    )
+    with pytest.raises(ValueError, match="linear"):
+        _engine.resize_image(img, 4, 4, "cubic")
+    with pytest.raises(ValueError, match="differ in size"):
+        _engine.inpaint_ns(img, hole[:10], 3.0)
+
+
+def test_quantifying_with_a_percentile_background_does_not_load_opencv_python(tmp_path):
+    # opencv-python is a second OpenCV in the process (~15-20 MB resident):
+    # the pipeline's own numerics use the engine's.
+    import subprocess
+    import sys
+
+    code = f"""
+import sys
+import qogi
+from qogi.pipeline import QuantifyConfig, quantify
+from qogi.pipeline.surfaces import truth_surfaces
+from qogi.synth import render
+render.synthesize("lab-ch4-5slpm-gf320", {str(tmp_path / "lab.h5")!r}, duration_s=1.0, seed=1)
+rec = qogi.open_recording({str(tmp_path / "lab.h5")!r})
+surf, src = truth_surfaces(rec, heights_m=[0.06], half_width_px=40)
+res = quantify(rec, surf, QuantifyConfig(source=src, background="percentile"))
+assert res.surfaces[0].species["CH4"].mean_kg_h > 0
+print("cv2" in sys.modules)
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip().splitlines()[-1] == "False", out.stdout + out.stderr

@@ -42,6 +42,8 @@ from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
+from .. import _engine
+
 __all__ = [
     "choose",
     "drift_evidence",
@@ -291,8 +293,8 @@ def inpaint_held(
     ``stacked`` (T, C, h, w), with the pixels the gas never leaves filled
     from their gas-free neighbours: their *residual* about a smooth
     quadratic surface fitted to the other pixels (the background's
-    structure: texture, seams, edges) inpainted (``cv2.inpaint``, Bertalmio's
-    method, Navier-Stokes based: ``cv2.INPAINT_NS``) and added back to the
+    structure: texture, seams, edges) inpainted (Bertalmio's Navier-Stokes
+    method, OpenCV's, in the engine: ``_engine.inpaint_ns``) and added back to the
     surface there.
 
     A pixel is held when, in any channel, the sign-aware spread between its
@@ -363,10 +365,8 @@ def held_from_source(held: np.ndarray, source_xy, radius_px: float = 6.0) -> np.
     may be a background that changes for another reason (a drifting cloud's
     edge the drifting layer did not follow), whose static structure the
     inpainting would smooth away."""
-    import cv2
-
     held = np.asarray(held, bool)
-    _, labels = cv2.connectedComponents(held.astype(np.uint8), connectivity=8)
+    labels = _engine.connected_components8(held.astype(np.uint8))
     h, w = held.shape
     y, x = np.mgrid[0:h, 0:w]
     near = (x - source_xy[0]) ** 2 + (y - source_xy[1]) ** 2 <= radius_px**2
@@ -400,34 +400,28 @@ def standing_from_source(
     (x, y) [px] (:func:`held_from_source`), widened by
     :data:`STANDING_MARGIN_PX`. ``noise`` (C,) is unused beyond keeping the
     scale away from zero on a noiseless image."""
-    import cv2
-
     im = np.asarray(img, float)
     nc, h, w = im.shape
-    out = np.zeros((h, w), bool)
+    out: np.ndarray = np.zeros((h, w), bool)
     if h < 8 or w < 8:
         return out
     size = max(3, STANDING_SCALE_PX // 2)
     for c in range(nc):
-        half = cv2.resize(
-            im[c].astype(np.float32), ((w + 1) // 2, (h + 1) // 2), interpolation=cv2.INTER_AREA
-        )
-        local = cv2.resize(_median_filter(half, size), (w, h), interpolation=cv2.INTER_LINEAR)
+        half = _engine.resize_image(im[c].astype(np.float32), (w + 1) // 2, (h + 1) // 2, "area")
+        local = _engine.resize_image(_median_filter(half, size), w, h, "linear")
         r = np.asarray(sign[c], float) * (im[c] - local)
         scale = max(1.4826 * float(np.median(np.abs(r - np.median(r)))), 1e-3 * float(noise[c]))
         seeds = r > STANDING_SEED_SIGMA * scale
         if not seeds.any():
             continue
-        grown = cv2.morphologyEx(
-            (r > STANDING_GROW_SIGMA * scale).astype(np.uint8),
-            cv2.MORPH_OPEN,
-            _disk(STANDING_OPEN_PX),
+        grown = _engine.open_disk(
+            (r > STANDING_GROW_SIGMA * scale).astype(np.uint8), STANDING_OPEN_PX
         )
-        _, labels = cv2.connectedComponents(grown, connectivity=8)
+        labels = _engine.connected_components8(grown)
         keep = np.unique(labels[seeds & (grown > 0)])
         out |= held_from_source(np.isin(labels, keep[keep > 0]), source_xy)
     if out.any() and STANDING_MARGIN_PX:
-        out = cv2.dilate(out.astype(np.uint8), _disk(STANDING_MARGIN_PX)).astype(bool)
+        out = _engine.dilate_disk(out.astype(np.uint8), STANDING_MARGIN_PX).astype(bool)
     return out
 
 
@@ -443,9 +437,8 @@ def _median_filter(image: np.ndarray, size: int) -> np.ndarray:
 def _inpaint_structure(image: np.ndarray, mask: np.ndarray, noise: float) -> np.ndarray:
     """``image`` (h, w) with its ``mask`` pixels filled from the others: a
     smooth quadratic surface fitted to the unmasked pixels, plus their
-    residual about it inpainted into the mask (``cv2.INPAINT_NS``)."""
-    import cv2
-
+    residual about it inpainted into the mask (Navier-Stokes,
+    ``_engine.inpaint_ns``)."""
     h, w = mask.shape
     y, x = np.mgrid[0:h, 0:w]
     xs, ys = (x.ravel() - 0.5 * w) / w, (y.ravel() - 0.5 * h) / h
@@ -458,15 +451,8 @@ def _inpaint_structure(image: np.ndarray, mask: np.ndarray, noise: float) -> np.
     # values of order one and more (Telea's method fails on radiances
     # of 1e-3; Navier-Stokes holds at any scale once so scaled).
     resid = ((im - smooth) / noise).astype(np.float32)
-    filled = cv2.inpaint(resid, mask.astype(np.uint8), 3.0, cv2.INPAINT_NS).astype(float) * noise
+    filled = _engine.inpaint_ns(resid, mask.astype(np.uint8), 3.0).astype(float) * noise
     return np.where(mask, smooth + filled, im)
-
-
-def _disk(radius: int) -> np.ndarray:
-    """A disk structuring element of ``radius`` px (uint8)."""
-    import cv2
-
-    return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
 
 
 def held_background_error(
@@ -500,13 +486,11 @@ def held_background_error(
     ``background`` (C, h, w) the background with the held pixels
     inpainted (:func:`inpaint_held`), ``held`` (h, w) bool; ``noise`` (C,)
     the channels' noise (:func:`_noise` of ``stacked`` when not given)."""
-    import cv2
-
     held = np.asarray(held, bool)
     if not held.any():
         return float("nan")
-    inner = cv2.dilate(held.astype(np.uint8), _disk(gap_px)).astype(bool) if gap_px else held
-    outer = cv2.dilate(held.astype(np.uint8), _disk(gap_px + ring_px)).astype(bool)
+    inner = _engine.dilate_disk(held.astype(np.uint8), gap_px).astype(bool) if gap_px else held
+    outer = _engine.dilate_disk(held.astype(np.uint8), gap_px + ring_px).astype(bool)
     ring = outer & ~inner
     if not ring.any() or (~outer).sum() < 0.25 * outer.size:
         return float("nan")
