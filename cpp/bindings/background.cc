@@ -13,6 +13,7 @@
 
 #include "engine/background/drifting.h"
 #include "engine/background/held_pixels.h"
+#include "engine/background/temporal_stats.h"
 
 namespace qogi {
 namespace {
@@ -54,6 +55,94 @@ py::array_t<T> Copy(const cv::Mat& m) {
   for (int y = 0; y < m.rows; ++y)
     std::memcpy(out.mutable_data(y, 0), m.ptr<T>(y), sizeof(T) * std::size_t(m.cols));
   return out;
+}
+
+// A (T, ...) stack as T frames of `values` contiguous values, frame t at
+// data + t * stride: a C-contiguous array or a slice of one along its first
+// axis (f[:, c] of a (T, C, h, w) stack); other layouts are copied.
+template <typename T>
+struct Stack {
+  py::array_t<T> keep;  // the array read (a copy only for other layouts)
+  const T* data = nullptr;
+  std::size_t frames = 0, stride = 0, values = 1;
+  std::vector<py::ssize_t> trailing;
+};
+
+template <typename T>
+Stack<T> AsStack(const py::array& a) {
+  Require(a.ndim() >= 1, "frames must have a first (time) axis; got a scalar");
+  auto arr = py::array_t<T>::ensure(a);
+  Require(static_cast<bool>(arr), "frames must be numbers");
+  bool trailing_c = true;
+  py::ssize_t expect = static_cast<py::ssize_t>(sizeof(T));
+  for (py::ssize_t i = arr.ndim() - 1; i >= 1; --i) {
+    if (arr.shape(i) > 1 && arr.strides(i) != expect) trailing_c = false;
+    expect *= arr.shape(i);
+  }
+  const bool frame_ok =
+      arr.shape(0) <= 1 ||
+      (arr.strides(0) > 0 && arr.strides(0) % sizeof(T) == 0 && arr.strides(0) >= expect);
+  if (!trailing_c || !frame_ok)
+    arr = py::array_t<T, py::array::c_style | py::array::forcecast>(arr);
+  Stack<T> s;
+  s.keep = arr;
+  s.data = arr.data();
+  s.frames = static_cast<std::size_t>(arr.shape(0));
+  for (py::ssize_t i = 1; i < arr.ndim(); ++i) {
+    s.values *= static_cast<std::size_t>(arr.shape(i));
+    s.trailing.push_back(arr.shape(i));
+  }
+  s.stride = s.frames > 1 ? static_cast<std::size_t>(arr.strides(0)) / sizeof(T) : s.values;
+  return s;
+}
+
+template <typename T>
+py::array Percentiles(const py::array& frames, const std::vector<double>& q, int num_threads) {
+  const Stack<T> s = AsStack<T>(frames);
+  std::vector<py::ssize_t> shape{static_cast<py::ssize_t>(q.size())};
+  shape.insert(shape.end(), s.trailing.begin(), s.trailing.end());
+  py::array_t<double> out(shape);
+  double* o = out.mutable_data();
+  {
+    py::gil_scoped_release release;
+    TemporalPercentiles<T>(s.data, s.frames, s.stride, s.values, q, o, num_threads);
+  }
+  return out;
+}
+
+template <typename T>
+py::array Spread(const py::array& frames, int num_threads) {
+  const Stack<T> s = AsStack<T>(frames);
+  py::array_t<T> out(s.trailing);
+  T* o = out.mutable_data();
+  {
+    py::gil_scoped_release release;
+    DifferenceSpread<T>(s.data, s.frames, s.stride, s.values, o, num_threads);
+  }
+  return out;
+}
+
+void BindTemporalStats(py::module_& m) {
+  m.def(
+      "temporal_percentiles",
+      [](const py::array& frames, const std::vector<double>& q, int num_threads) {
+        if (py::isinstance<py::array_t<float>>(frames))
+          return Percentiles<float>(frames, q, num_threads);
+        return Percentiles<double>(frames, q, num_threads);
+      },
+      py::arg("frames"), py::arg("q"), py::arg("num_threads") = 1,
+      "np.percentile(frames, q, axis=0) of a (T, ...) float32 or float64 stack, the same values "
+      "(numpy's linear method): (len(q), ...) float64 (engine/background/temporal_stats.h). "
+      "num_threads 0: all cores.");
+  m.def(
+      "difference_spread",
+      [](const py::array& frames, int num_threads) {
+        if (py::isinstance<py::array_t<float>>(frames)) return Spread<float>(frames, num_threads);
+        return Spread<double>(frames, num_threads);
+      },
+      py::arg("frames"), py::arg("num_threads") = 1,
+      "np.median(|d - np.median(d, 0)|, 0) of d = np.diff(frames, axis=0), a (T >= 2, ...) "
+      "float32 or float64 stack, the same values: (...) in the frames' type.");
 }
 
 void BindHeldPixels(py::module_& m) {
@@ -124,6 +213,7 @@ void BindHeldPixels(py::module_& m) {
 
 void BindBackground(py::module_& m) {
   BindHeldPixels(m);
+  BindTemporalStats(m);
   BindOptions<DriftOptions>(
       m, "DriftOptions", "Options of the drift measurement (engine/background/drifting.h).",
       Args::kKeywordOnly,

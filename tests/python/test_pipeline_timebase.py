@@ -114,19 +114,26 @@ def test_a_block_holds_ten_seconds_or_450_frames_whichever_is_fewer():
     assert run._block_frames(QuantifyConfig(block_frames=64), rec(15.0)) == 64
 
 
-def test_the_temporal_percentiles_and_noise_a_few_rows_at_a_time_are_numpys_own(monkeypatch):
+def test_the_temporal_percentiles_and_noise_by_the_engine_are_numpys_own():
     from qogi.pipeline import background_choice as bc
 
     rng = np.random.default_rng(3)
-    for shape in [(41, 2, 90, 70), (5, 1, 3, 4)]:
-        st = rng.standard_normal(shape).astype(np.float32)
-        ref = np.percentile(st, (5, 50, 95), axis=0)
-        got = bc.temporal_percentiles(st, (5, 50, 95))
-        assert got.dtype == ref.dtype and np.array_equal(got, ref)
-        d = np.diff(st, axis=0)
-        mad = np.median(np.abs(d - np.median(d, axis=0)), axis=0) * 1.4826 / np.sqrt(2.0)
-        assert np.array_equal(bc._noise(st), np.median(mad.reshape(shape[1], -1), axis=1))
-    # chunks of a few rows: the same again
-    monkeypatch.setattr(bc, "ROW_CHUNK_BYTES", 1000)
-    st = rng.standard_normal((17, 1, 33, 20)).astype(np.float32)
-    assert np.array_equal(bc.temporal_percentiles(st, (10,)), np.percentile(st, (10,), axis=0))
+    for shape in [(41, 2, 90, 70), (5, 1, 3, 4), (2, 1, 4, 4), (200, 1, 7, 9)]:
+        for dtype in (np.float32, np.float64):
+            st = (rng.standard_normal(shape) * 1e-3).astype(dtype)
+            ref = np.percentile(st, (5, 50, 95), axis=0)
+            got = bc.temporal_percentiles(st, (5, 50, 95))
+            assert got.dtype == ref.dtype and np.array_equal(got, ref)
+            d = np.diff(st, axis=0)
+            mad = np.median(np.abs(d - np.median(d, axis=0)), axis=0) * 1.4826 / np.sqrt(2.0)
+            assert np.array_equal(bc._noise(st), np.median(mad.reshape(shape[1], -1), axis=1))
+            # a channel's slice of the stack (strided frames, not copied): the same
+            one = st[:, -1]
+            assert np.array_equal(
+                bc.temporal_percentiles(one, (10, 90)), np.percentile(one, (10, 90), axis=0)
+            )
+    # a series holding NaN: NaN, as numpy says
+    st = rng.standard_normal((9, 1, 2, 2)).astype(np.float32)
+    st[3, 0, 1, 1] = np.nan
+    got = bc.temporal_percentiles(st, (50,))
+    assert np.isnan(got[0, 0, 1, 1]) and np.isfinite(got[0, 0, 0, 0])

@@ -530,52 +530,21 @@ def _sample(img: np.ndarray, xy: np.ndarray) -> np.ndarray:
     return img[..., y, x]
 
 
-#: Bytes of frames a per-pixel statistic over time takes at once
-#: (:func:`temporal_percentiles`, :func:`_noise`): rows of the image at a
-#: time, so that its temporaries (a partitioned copy, differences) stay a
-#: few times this, not a few times the frames (200 frames of 320 x 240
-#: float32 are 63 MB; the noise's four temporaries of them were 250 MB).
-ROW_CHUNK_BYTES = 8 << 20
-
-
-def _row_chunks(shape: tuple, itemsize: int):
-    """Slices of the second-to-last axis (the image's rows) of a (T, ..., h,
-    w) array, each about :data:`ROW_CHUNK_BYTES` of it."""
-    h = shape[-2]
-    per_row = max(1, int(np.prod(shape)) // max(1, h) * itemsize)
-    step = max(1, ROW_CHUNK_BYTES // per_row)
-    return [slice(r, min(h, r + step)) for r in range(0, h, step)]
-
-
 def temporal_percentiles(frames: np.ndarray, q) -> np.ndarray:
-    """``np.percentile(frames, q, axis=0)`` computed a few rows at a time
-    (the same values; :data:`ROW_CHUNK_BYTES`): (len(q), ...) of a (T, ...,
-    h, w) stack."""
-    f = np.asarray(frames)
-    out = None
-    for rows in _row_chunks(f.shape, f.itemsize):
-        part = np.percentile(f[..., rows, :], q, axis=0)
-        if out is None:
-            out = np.empty(part.shape[:-2] + f.shape[-2:], part.dtype)
-        out[..., rows, :] = part
-    assert out is not None
-    return out
+    """``np.percentile(frames, q, axis=0)`` computed by the engine
+    (``_engine.temporal_percentiles``: the same values, a few hundred pixels'
+    series at a time, so that no copy of the frames is made): (len(q), ...)
+    of a (T, ..., h, w) float32 or float64 stack."""
+    return _engine.temporal_percentiles(np.asarray(frames), [float(v) for v in q])
 
 
 def _noise(frames: np.ndarray) -> np.ndarray:
     """Per-channel pixel noise [radiance] (C,): the median over the image of
     the robust spread of frame-to-frame differences / sqrt(2) (motion of the
-    gas raises it only where the gas is); a few rows at a time
-    (:data:`ROW_CHUNK_BYTES`)."""
-    f = np.asarray(frames)
-    raw = None
-    for rows in _row_chunks(f.shape, f.itemsize):
-        d = np.diff(f[..., rows, :], axis=0)
-        part = np.median(np.abs(d - np.median(d, axis=0)), axis=0)
-        if raw is None:
-            raw = np.empty(part.shape[:-2] + f.shape[-2:], part.dtype)
-        raw[..., rows, :] = part
-    assert raw is not None
+    gas raises it only where the gas is); the spread per pixel by the engine
+    (``_engine.difference_spread``: numpy's median absolute deviation of the
+    differences, the same values, no copy of the frames)."""
+    raw = _engine.difference_spread(np.asarray(frames))
     mad = raw * 1.4826 / np.sqrt(2.0)
     return np.median(mad.reshape(mad.shape[0], -1), axis=1)
 
