@@ -116,8 +116,16 @@ def load_rows(folders: Sequence[Path]) -> List[dict]:
 
 def pod_rows(rows: Sequence[dict]) -> List[dict]:
     """The rows the probability of detection is fitted and checked on: a
-    stated detection limit and a measured speed, detected or not."""
-    return [r for r in rows if r["where"] is not None and r["limit"] and r["limit"] > 0]
+    stated detection limit and a measured speed within the flow's range
+    (where a result states the probability), detected or not."""
+    return [
+        r
+        for r in rows
+        if r["where"] is not None
+        and r["where"]["flow_range"] == 0
+        and r["limit"]
+        and r["limit"] > 0
+    ]
 
 
 def fit_pod(rows: Sequence[dict], ridge: float = 0.5, iterations: int = 200) -> dict:
@@ -409,7 +417,7 @@ def main(argv=None) -> int:
         "coverage_held_out": cov_held,
         "pod_rows": (
             f"{len(pod_fit)} fitted, {len(pod_held)} held out "
-            f"(a stated limit and a measured speed, detected or not)"
+            f"(a stated limit and a measured speed in the flow's range, detected or not)"
         ),
         "pod_ridge": a.pod_ridge,
         "pod_fit": pod_cov_fit,

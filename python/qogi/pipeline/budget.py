@@ -293,9 +293,10 @@ def _operating_point(
         "pod_at_mean": None,
         "pod_note": "",
     }
-    if where is None or math.isinf(r.ci90_kg_h[1]):
+    if where is None or math.isinf(r.ci90_kg_h[1]) or where["flow_range"] > 0:
         # no speed, or one that is not a measurement (speed-not-measured,
-        # no-bound-without-speed): nothing bounds the rate, nor what is seen
+        # no-bound-without-speed, a displacement outside the flow's range):
+        # what the scene lets one see is not known either
         op["pod_note"] = "not stated: the gas speed across the surface was not measured"
     elif not (limit and limit > 0 and math.isfinite(limit)):
         op["pod_note"] = "not stated: no detection limit"
