@@ -208,6 +208,8 @@ def test_a_detected_rate_carries_the_models_record_and_its_calibrated_interval(t
             pytest.approx(0.9)
         )
     assert all("operating_point" in s["species"]["CH4"] for s in d["surfaces"])
+    op = res.surfaces[0].species["CH4"].operating_point
+    assert f"detected 90 % of the time from {op['pod_90_kg_h']:.3g} kg/h here" in res.summary()
 
 
 def _self_codes():

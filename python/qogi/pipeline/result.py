@@ -504,6 +504,12 @@ class Result:
                         f", detection limit "
                         f"{r.in_units(r.detection_limit_kg_h, self.units):.3g} {self.units}"
                     )
+                pod90 = (r.operating_point or {}).get("pod_90_kg_h")
+                if pod90 is not None:  # the probability of detection at this scene
+                    line += (
+                        f", detected 90 % of the time from "
+                        f"{r.in_units(pod90, self.units):.3g} {self.units} here"
+                    )
                 if r.truth_kg_h is not None:
                     inside = lo <= r.truth_kg_h <= hi
                     err = r.error_vs_truth  # None for a zero truth (no relative error)
