@@ -91,8 +91,9 @@ def load_rows(folders: Sequence[Path]) -> List[dict]:
                 bool(codes & self_codes),
                 int(info.get("pair_stride") or 1),
             )
+            where = error_model.scene_features(speed, *facts)
             feats = error_model.features(
-                mean, r.get("detection_limit_kg_h"), r.get("detected"), speed, *facts
+                mean, r.get("detection_limit_kg_h"), r.get("detected"), where
             )
             out.append(
                 {
@@ -107,7 +108,7 @@ def load_rows(folders: Sequence[Path]) -> List[dict]:
                     "hi": hi,
                     "detected": r.get("detected") is True,
                     "limit": r.get("detection_limit_kg_h"),
-                    "where": error_model.scene_features(speed, *facts),
+                    "where": where,
                     "features": feats if feats is not None and math.isfinite(hi) else None,
                 }
             )

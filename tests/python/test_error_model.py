@@ -19,11 +19,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "scripts"))
 import fit_error_model as fit
 
 
-def _feats(**kw):
+def _feats(mean_kg_h=1.0, detection_limit_kg_h=0.1, detected=True, **kw):
     base = dict(
-        mean_kg_h=1.0,
-        detection_limit_kg_h=0.1,
-        detected=True,
         speed_m_s=1.0,
         pixel_m=0.01,
         frame_rate_hz=10.0,
@@ -32,7 +29,8 @@ def _feats(**kw):
         self_check_failed=False,
     )
     base.update(kw)
-    return error_model.features(**base)
+    scene = error_model.scene_features(**base)
+    return error_model.features(mean_kg_h, detection_limit_kg_h, detected, scene)
 
 
 def test_the_features_are_what_the_run_measures_and_none_where_the_model_does_not_apply():

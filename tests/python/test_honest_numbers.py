@@ -402,6 +402,26 @@ def test_a_surface_whose_speed_is_zero_everywhere_has_an_unbounded_interval_not_
     res.plot(tmp_path / "r.png")  # an unbounded band is not drawn, not an error
 
 
+def _crosswind_gram_per_hour(tmp_path, duration_s, seed, surfaces_px, width, height):
+    """The envelope's 1 g/h at 1.5 m in a 2 m/s wind over the sky (68 px per
+    15 Hz frame), rendered and quantified with the defaults and the source."""
+    from qogi.apps import envelope
+
+    grid = tmp_path / "grid.toml"
+    grid.write_text(
+        "[base]\nrate_kg_h = 0.001\ndistance_m = 1.5\ncontrast_K = 9.3\nwind_m_s = 2.0\n"
+        f'background = "sky"\ncamera = "gf320"\nduration_s = {duration_s}\nseed = [{seed}]\n'
+        f"surfaces_px = [{surfaces_px}]\nwidth_px = {width}\nheight_px = {height}\n"
+    )
+    (cell,) = envelope.load_grid(grid).cells
+    envelope.render_cell(cell, tmp_path / "c.h5")
+    lines, source = envelope.surfaces(cell)
+    rec = qogi.open_recording(tmp_path / "c.h5")
+    res = quantify(rec, [[(a, b), (c, d)] for a, b, c, d in lines], QuantifyConfig(source=source))
+    print(res.summary())
+    return res
+
+
 @pytest.mark.slow
 def test_a_plume_faster_than_the_flow_tracks_is_not_given_a_bound_below_its_truth(tmp_path):
     # 1 g/h in a 2 m/s wind at 1.5 m (68 px per 15 Hz frame): the flow reads a
@@ -410,20 +430,7 @@ def test_a_plume_faster_than_the_flow_tracks_is_not_given_a_bound_below_its_trut
     # speed not measured (transport-unresolved): no bound then.
     import math
 
-    from qogi.apps import envelope
-
-    grid = tmp_path / "grid.toml"
-    grid.write_text(
-        "[base]\nrate_kg_h = 0.001\ndistance_m = 1.5\ncontrast_K = 9.3\nwind_m_s = 2.0\n"
-        'background = "sky"\ncamera = "gf320"\nduration_s = 2.0\nseed = [0]\n'
-        "surfaces_px = [20, 30]\nwidth_px = 96\nheight_px = 72\n"
-    )
-    (cell,) = envelope.load_grid(grid).cells
-    envelope.render_cell(cell, tmp_path / "c.h5")
-    lines, source = envelope.surfaces(cell)
-    rec = qogi.open_recording(tmp_path / "c.h5")
-    res = quantify(rec, [[(a, b), (c, d)] for a, b, c, d in lines], QuantifyConfig(source=source))
-    print(res.summary())
+    res = _crosswind_gram_per_hour(tmp_path, 2.0, 0, "20, 30", 96, 72)
     assert res.warnings.has("transport-unresolved")
     for s in res.surfaces:
         r = s.species["CH4"]
@@ -445,20 +452,7 @@ def test_a_plume_too_faint_for_the_flow_is_not_given_a_bound_from_the_speed_it_r
     # range; no speed self-check failed, the flow reversed) and the result
     # said "not detected, < 0.12 g/h" of the 1 g/h truth. A speed below the
     # flow's range is not a measurement: no bound then.
-    from qogi.apps import envelope
-
-    grid = tmp_path / "grid.toml"
-    grid.write_text(
-        "[base]\nrate_kg_h = 0.001\ndistance_m = 1.5\ncontrast_K = 9.3\nwind_m_s = 2.0\n"
-        'background = "sky"\ncamera = "gf320"\nduration_s = 3.0\nseed = [4]\n'
-        "surfaces_px = [30, 45, 60]\nwidth_px = 160\nheight_px = 120\n"
-    )
-    (cell,) = envelope.load_grid(grid).cells
-    envelope.render_cell(cell, tmp_path / "c.h5")
-    lines, source = envelope.surfaces(cell)
-    rec = qogi.open_recording(tmp_path / "c.h5")
-    res = quantify(rec, [[(a, b), (c, d)] for a, b, c, d in lines], QuantifyConfig(source=source))
-    print(res.summary())
+    res = _crosswind_gram_per_hour(tmp_path, 3.0, 4, "30, 45, 60", 160, 120)
     slow = [
         w for w in res.warnings if w.code == "no-bound-without-speed" and "1 px range" in w.message
     ]

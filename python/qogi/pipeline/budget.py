@@ -241,18 +241,7 @@ def _calibrate_intervals(
                 stride,
             )
             if all(math.isfinite(v) for v in r.ci90_kg_h):
-                feats = error_model.features(
-                    r.mean_kg_h,
-                    r.detection_limit_kg_h,
-                    r.detected,
-                    speed,
-                    scene.pixel_m,
-                    scene.frame_rate,
-                    done / scene.frame_rate,
-                    method,
-                    failed,
-                    stride,
-                )
+                feats = error_model.features(r.mean_kg_h, r.detection_limit_kg_h, r.detected, where)
                 if feats is not None:
                     bias, spread = model.expected(feats)
                     r.error_model = model.describe(feats, r.ci90_kg_h)

@@ -157,24 +157,14 @@ def features(
     mean_kg_h: float,
     detection_limit_kg_h: Optional[float],
     detected: Optional[bool],
-    speed_m_s: Optional[float],
-    pixel_m: float,
-    frame_rate_hz: float,
-    duration_s: float,
-    background: str,
-    self_check_failed: bool,
-    pair_stride: int = 1,
+    scene: Optional[Dict[str, float]],
 ) -> Optional[Dict[str, float]]:
     """The model's features of one rate (the table in the module's
-    docstring), or None where the model does not apply: not ``detected``
-    (the result's own decision, :attr:`qogi.SpeciesRate.detected`), a mean
-    that is not positive, no measured speed."""
-    if not (detected and detection_limit_kg_h and mean_kg_h > 0):
-        return None
-    scene = scene_features(
-        speed_m_s, pixel_m, frame_rate_hz, duration_s, background, self_check_failed, pair_stride
-    )
-    if scene is None:
+    docstring): its signal-to-noise and the ``scene``'s features
+    (:func:`scene_features`); None where the model does not apply: not
+    ``detected`` (the result's own decision, :attr:`qogi.SpeciesRate.detected`),
+    a mean that is not positive, no measured speed (``scene`` None)."""
+    if not (detected and detection_limit_kg_h and mean_kg_h > 0) or scene is None:
         return None
     return {"ln_snr": math.log(mean_kg_h / detection_limit_kg_h), **scene}
 
